@@ -1,0 +1,260 @@
+//! The contract between JIT kernels and the runtime: the variant key, the per-tile context
+//! a kernel reads and writes, and the layout of a primitive instance's argument block.
+//!
+//! A kernel is `extern "C" fn(ctx: *mut TileCtx, args: *const u32)`. It touches only the
+//! memory these two point at: the argument block (read-only, `ArgLayout::words` long for the
+//! instance's sequence-point count) and the tile buffers the context names (each
+//! `stride * rows` long). Pixel groups are `GROUP` pixels of one row, and `stride` is a
+//! multiple of `GROUP`, so a group never straddles a row or the end of a buffer.
+
+use crate::ir::{Elem, FuncId, ParamRole, Program, Type};
+
+/// Pixels per group: one f32x4 per varying value.
+pub const GROUP: u32 = 4;
+
+/// Kernel mode: only record bounds (run setup, skip pixel passes).
+pub const MODE_BOUND: u32 = 0;
+/// Kernel mode: render the pixels of the tile.
+pub const MODE_RENDER: u32 = 1;
+
+/// Run-time error codes a kernel can record (the first one wins).
+pub const ERR_NONE: u32 = 0;
+pub const ERR_INDEX: u32 = 1;
+pub const ERR_FUEL: u32 = 2;
+pub const ERR_CALL_DEPTH: u32 = 3;
+
+/// One tile's state, handed to every kernel invocation for that tile.
+#[repr(C)]
+#[derive(Debug)]
+pub struct TileCtx {
+    /// Tile rectangle in screen pixels: x0, y0 inclusive, x1, y1 exclusive.
+    pub x0: i32,
+    pub y0: i32,
+    pub x1: i32,
+    pub y1: i32,
+    /// `MODE_BOUND` or `MODE_RENDER`.
+    pub mode: u32,
+    /// Row stride of every tile buffer, in pixels (a multiple of `GROUP`).
+    pub stride: u32,
+    /// Depth buffer, `fixed<32,32>` raw (unsigned fraction, larger is nearer), row-major.
+    pub depth: *mut u32,
+    /// Shading-parameter planes, `num_planes` of `stride * rows` floats each.
+    pub gbuf: *mut f32,
+    pub plane_stride: u32,
+    pub num_planes: u32,
+    /// Per-pixel count of depth writes (only written by kernels whose key counts writes).
+    pub write_count: *mut u32,
+    /// In bound mode: union of the bounds recorded so far (xmin, ymin, xmax, ymax).
+    pub bound: [f32; 4],
+    /// Non-zero once `bound` holds something.
+    pub bound_set: u32,
+    /// First run-time error (`ERR_*`) and the `SiteId` it happened at.
+    pub error: u32,
+    pub error_site: u32,
+    /// Loop iterations left for this invocation.
+    pub fuel: u64,
+    /// Depth of nested primitive calls (a call deeper than `MAX_CALL_DEPTH` is an error).
+    pub call_depth: u32,
+    /// Viewport size in pixels (bounds are clamped to it).
+    pub width: u32,
+    pub height: u32,
+}
+
+pub const MAX_CALL_DEPTH: u32 = 16;
+pub const DEFAULT_FUEL: u64 = 1 << 28;
+
+/// The signature of every compiled kernel.
+pub type KernelFn = unsafe extern "C" fn(ctx: *mut TileCtx, args: *const u32);
+
+/// How one shading parameter of a primitive instance gets its value.
+#[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum BindingKind {
+    /// A per-sequence-point kind handled by the primitive's `interpolation` arms:
+    /// `linear`, `perspective_linear`, or any other kind name a primitive defines.
+    Kind(String),
+    /// A shared interpolator (by name), evaluated by `default: interpolator_return;`.
+    Shared(String),
+    /// One value for the whole primitive, written by `default: interpolator_return;`.
+    Constant,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Binding {
+    pub kind: BindingKind,
+    /// Float components of the parameter (1 for float, 3 for color, ...).
+    pub components: u32,
+}
+
+/// Everything about a scene that changes a primitive's code. A kernel is compiled once per
+/// (primitive, key) and reused for every instance with that key.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct VariantKey {
+    /// The instance's shading parameters in order. The interpolation-data components are
+    /// the `Kind` bindings' components, concatenated in this order.
+    pub bindings: Vec<Binding>,
+    /// Count depth writes per pixel in `TileCtx::write_count` (tests and tools).
+    pub count_writes: bool,
+}
+
+impl VariantKey {
+    /// Total per-sequence-point (interpolation data) components.
+    pub fn interp_components(&self) -> u32 {
+        self.bindings
+            .iter()
+            .filter(|b| matches!(b.kind, BindingKind::Kind(_)))
+            .map(|b| b.components)
+            .sum()
+    }
+    /// Indices (into the interpolation data) of the components of kind `kind`.
+    pub fn components_of_kind(&self, kind: &str) -> Vec<u32> {
+        let mut out = vec![];
+        let mut at = 0;
+        for b in &self.bindings {
+            if let BindingKind::Kind(k) = &b.kind {
+                if k == kind {
+                    out.extend(at..at + b.components);
+                }
+                at += b.components;
+            }
+        }
+        out
+    }
+    /// Total components of all bindings (= entries of the plane table).
+    pub fn total_components(&self) -> u32 {
+        self.bindings.iter().map(|b| b.components).sum()
+    }
+}
+
+/// Where each part of a primitive instance's argument block lives, in 32-bit words.
+///
+/// ```text
+/// word 0                  n_seq (number of sequence points; the runtime passes at least 1
+///                         element for every per-sequence-point parameter, zero-filled)
+/// plane_table             one G-buffer plane index per binding component, binding order
+/// binding_data[b]         Constant: its components; Shared: the interpolator's
+///                         per-primitive parameters (flattened, declaration order)
+/// spaces                  if the primitive uses transform(): 6 matrices of 16 floats,
+///                         row-major: device_from_object, device_from_world,
+///                         device_from_lighting, object_from_device, world_from_device,
+///                         lighting_from_device
+/// params[i]               each PerPrimitive / InterpData (sized) parameter, flattened
+/// --- then, at run-time offsets ---
+/// seq params              each PerSequencePoint parameter (and a per-seq InterpData):
+///                         max(n_seq,1) * element words, in declaration order
+/// ```
+/// Floats are f32 bits, ints i32, bools 0/1, fixed values their raw bits; an
+/// interpolation_data element is `interp_components` floats.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ArgLayout {
+    pub plane_table: u32,
+    /// Offset of each binding's data (`None` for `Kind` bindings, which have none).
+    pub binding_data: Vec<Option<u32>>,
+    pub spaces: Option<u32>,
+    /// For each parameter of the function (by index): where it lives.
+    pub params: Vec<ParamSlot>,
+    /// Words before the per-sequence-point part.
+    pub fixed_words: u32,
+    /// Words per sequence point over all per-sequence-point parameters.
+    pub seq_words: u32,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum ParamSlot {
+    /// X, Y or Z: bound from the pixel, not stored.
+    Pixel,
+    /// At a fixed word offset, `words` long.
+    Fixed { offset: u32, words: u32 },
+    /// Per sequence point: starts at `fixed_words + max(n_seq,1) * seq_offset`,
+    /// `words` per element.
+    Seq { seq_offset: u32, words: u32 },
+}
+
+/// Words one value of type `ty` takes (per-sequence-point dimension excluded).
+pub fn type_words(ty: &Type, interp_components: u32) -> u32 {
+    let per = match ty.elem {
+        Elem::Scalar(_) => 1,
+        Elem::Interp => interp_components,
+    };
+    per * ty.fixed_len()
+}
+
+impl ArgLayout {
+    /// The layout of `func`'s arguments under `key`. Shared interpolators named by the key
+    /// are looked up in `program`; an unknown one takes no words (the runtime rejects such
+    /// a key before it gets here).
+    pub fn new(program: &Program, func: FuncId, key: &VariantKey) -> ArgLayout {
+        let f = program.func(func);
+        let n_interp = key.interp_components();
+        let mut at = 1u32;
+        let plane_table = at;
+        at += key.total_components();
+        let mut binding_data = vec![];
+        for b in &key.bindings {
+            match &b.kind {
+                BindingKind::Kind(_) => binding_data.push(None),
+                BindingKind::Constant => {
+                    binding_data.push(Some(at));
+                    at += b.components;
+                }
+                BindingKind::Shared(name) => {
+                    binding_data.push(Some(at));
+                    if let Some(id) = program.find(name) {
+                        at += interpolator_arg_words(program, id);
+                    }
+                }
+            }
+        }
+        let spaces = if f.uses_spaces {
+            let s = at;
+            at += 6 * 16;
+            Some(s)
+        } else {
+            None
+        };
+        let mut params = vec![];
+        let mut seq_words = 0;
+        for p in &f.params {
+            let ty = &f.local(p.local).ty;
+            let words = type_words(ty, n_interp);
+            params.push(match p.role {
+                ParamRole::X | ParamRole::Y | ParamRole::Z => ParamSlot::Pixel,
+                _ if ty.per_seq => {
+                    let s = ParamSlot::Seq {
+                        seq_offset: seq_words,
+                        words,
+                    };
+                    seq_words += words;
+                    s
+                }
+                _ => {
+                    let s = ParamSlot::Fixed { offset: at, words };
+                    at += words;
+                    s
+                }
+            });
+        }
+        ArgLayout {
+            plane_table,
+            binding_data,
+            spaces,
+            params,
+            fixed_words: at,
+            seq_words,
+        }
+    }
+
+    /// Total words for an instance with `n_seq` sequence points.
+    pub fn words(&self, n_seq: u32) -> usize {
+        self.fixed_words as usize + n_seq.max(1) as usize * self.seq_words as usize
+    }
+}
+
+/// Words of a shared interpolator's per-primitive parameters (X, Y, Z excluded).
+pub fn interpolator_arg_words(program: &Program, id: FuncId) -> u32 {
+    let f = program.func(id);
+    f.params
+        .iter()
+        .filter(|p| !matches!(p.role, ParamRole::X | ParamRole::Y | ParamRole::Z))
+        .map(|p| type_words(&f.local(p.local).ty, 0))
+        .sum()
+}

@@ -1,0 +1,1 @@
+//! The `primflow` command line.

@@ -1,0 +1,44 @@
+//! primflow: a compiler and JIT runtime for a RenderMan-like procedural primitive language
+//! (Olano, Lastra & Leech, "Procedural Primitives in a High Performance, Hardware Accelerated,
+//! Z-Buffer Renderer").
+//!
+//! The stages, in the order [`compile`] runs them:
+//! 1. [`syntax`] — logos lexer and lalrpop grammar: source text to an AST with spans.
+//! 2. [`check`] — name resolution, types, fixed-point formats, uniform/varying inference;
+//!    lowers the AST to the typed [`ir`], inlining helper functions.
+//! 3. [`ir::split`] — splits each function into its uniform setup and its pixel part.
+//! 4. [`jit`] — specialises a function for a [`abi::VariantKey`] and compiles it with
+//!    Cranelift into a kernel over groups of pixels.
+//! 5. [`runtime`] — tiles, depth buffer, G-buffer, shading, the primitive API; [`scene`]
+//!    reads the text scene format into API calls.
+
+pub mod abi;
+pub mod check;
+pub mod cli;
+pub mod diag;
+pub mod ir;
+pub mod jit;
+pub mod runtime;
+pub mod scene;
+pub mod syntax;
+
+use diag::{Diagnostics, FileId, SourceMap};
+
+/// Parse and check the given files of `sources` as one program (all primitives, shared
+/// interpolators and helpers share one namespace). Diagnostics go to `diags`; the program
+/// is returned only if there were no errors.
+pub fn compile(sources: &SourceMap, files: &[FileId], diags: &mut Diagnostics) -> Option<ir::Program> {
+    let modules: Vec<_> = files
+        .iter()
+        .map(|&f| syntax::parse(f, sources.text(f), diags))
+        .collect();
+    if diags.has_errors() {
+        return None;
+    }
+    let program = check::check(&modules, sources, diags);
+    if diags.has_errors() {
+        None
+    } else {
+        Some(program)
+    }
+}

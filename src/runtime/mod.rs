@@ -1,0 +1,1 @@
+//! The runtime: primitive registry, instances, tiles, depth and G-buffers, shading, output.

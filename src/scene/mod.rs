@@ -1,0 +1,1 @@
+//! The text scene format: one API call per line.

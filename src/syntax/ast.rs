@@ -1,0 +1,277 @@
+//! The abstract syntax tree: the program as written, with a [`Span`] on every node.
+//!
+//! Names are kept as written (resolution happens in `check`), types as written
+//! (`point`, `fixed<32,16>`, `interpolator_data`), RenderMan parameter groups are flattened
+//! into one [`Param`] per name (each keeps the group's qualifiers and type). `i++` and
+//! `i += 1` are both [`StmtKind::Assign`]. Nodes that failed to parse are `Error` variants,
+//! so later passes can skip them without inventing more errors.
+
+use crate::diag::Span;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Ident {
+    pub name: String,
+    pub span: Span,
+}
+
+/// One source file: a list of top-level items.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Module {
+    pub items: Vec<Item>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ItemKind {
+    /// `primitive NAME(PARAMS) { BODY }`
+    Primitive,
+    /// `interpolator NAME(PARAMS) { BODY }` — a shared interpolator (seed 004, 3.4).
+    Interpolator,
+    /// `TYPE NAME(PARAMS) { BODY }` or `void NAME(...)` — a helper function.
+    Function,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Item {
+    pub kind: ItemKind,
+    /// Return type of a helper function (`None` for `void`, primitives and interpolators).
+    pub ret: Option<TypeExpr>,
+    pub name: Ident,
+    pub params: Vec<Param>,
+    pub body: Block,
+    pub span: Span,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Variability {
+    Uniform,
+    Varying,
+}
+
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Qualifiers {
+    /// `uniform` or `varying` if written.
+    pub variability: Option<(Variability, Span)>,
+    /// `inout` if written.
+    pub inout: Option<Span>,
+}
+
+/// One parameter name with its group's qualifiers and type:
+/// `varying fixed<32,16> X, Y;` gives two `Param`s.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Param {
+    pub quals: Qualifiers,
+    pub ty: TypeExpr,
+    pub name: Ident,
+    /// Array dimensions after the name, outermost first: `float m[4][4]`, `point vertex[]`.
+    pub dims: Vec<ArrayDim>,
+    pub default: Option<Expr>,
+    pub span: Span,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum ArrayDim {
+    /// `[expr]` — must be a constant integer expression.
+    Sized(Expr),
+    /// `[]` — one element per sequence point (parameters only).
+    Unsized(Span),
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct TypeExpr {
+    pub kind: TypeKind,
+    pub span: Span,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum TypeKind {
+    Float,
+    Int,
+    Bool,
+    /// `fixed<B,F>` as written; the checker validates the numbers.
+    Fixed {
+        bits: i64,
+        frac: i64,
+    },
+    /// `point` (also `Point`, as in figure 6): homogeneous, 4 components.
+    Point,
+    Vector,
+    Normal,
+    Color,
+    Matrix,
+    /// `interpolation_data` or its alias `interpolator_data`.
+    InterpolationData,
+    /// `string` (only for parameters naming spaces; rarely used).
+    String,
+    /// `void` (helper functions only).
+    Void,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Block {
+    pub stmts: Vec<Stmt>,
+    pub span: Span,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stmt {
+    pub kind: StmtKind,
+    pub span: Span,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct DeclVar {
+    pub name: Ident,
+    pub dims: Vec<ArrayDim>,
+    pub init: Option<Expr>,
+    pub span: Span,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AssignOp {
+    /// `=`
+    Set,
+    /// `+=` (and `++`)
+    Add,
+    /// `-=` (and `--`)
+    Sub,
+    /// `*=`
+    Mul,
+    /// `/=`
+    Div,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum InterpArmKind {
+    /// `linear:`, `perspective_linear:` or any other kind name.
+    Named(Ident),
+    /// `default:`
+    Default(Span),
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct InterpArm {
+    pub kind: InterpArmKind,
+    pub body: Vec<Stmt>,
+    pub span: Span,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum StmtKind {
+    /// `[uniform|varying] TYPE a = 1, b[3] = {..};`
+    Decl {
+        quals: Qualifiers,
+        ty: TypeExpr,
+        vars: Vec<DeclVar>,
+    },
+    /// `place op value;` — `place` is a name, possibly indexed.
+    Assign {
+        target: Expr,
+        op: AssignOp,
+        value: Expr,
+    },
+    /// An expression statement (a call).
+    Expr(Expr),
+    If {
+        cond: Expr,
+        then: Block,
+        otherwise: Option<Block>,
+    },
+    /// `for (init; cond; step) body` — each header part optional.
+    For {
+        init: Option<Box<Stmt>>,
+        cond: Option<Expr>,
+        step: Option<Box<Stmt>>,
+        body: Block,
+    },
+    While {
+        cond: Expr,
+        body: Block,
+    },
+    Break,
+    Continue,
+    /// `return;` or, in a helper function, `return e;`.
+    Return(Option<Expr>),
+    /// `interpolation { KIND: ... default: ... }`
+    Interpolation {
+        arms: Vec<InterpArm>,
+    },
+    /// `interpolator_return(e);` or `interpolator_return;`
+    InterpolatorReturn(Option<Expr>),
+    /// `bound(xmin, ymin, xmax, ymax);` — arity checked by the checker.
+    Bound(Vec<Expr>),
+    Block(Block),
+    /// A statement that did not parse; its error was already reported.
+    Error,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Expr {
+    pub kind: ExprKind,
+    pub span: Span,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UnaryOp {
+    Neg,
+    Not,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BinOp {
+    Add,
+    Sub,
+    Mul,
+    Div,
+    Rem,
+    Lt,
+    Le,
+    Gt,
+    Ge,
+    Eq,
+    Ne,
+    And,
+    Or,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum ExprKind {
+    Int(i64),
+    Float(f64),
+    Bool(bool),
+    Str(String),
+    Name(Ident),
+    Unary {
+        op: UnaryOp,
+        expr: Box<Expr>,
+    },
+    Binary {
+        op: BinOp,
+        lhs: Box<Expr>,
+        rhs: Box<Expr>,
+    },
+    /// `c ? a : b`
+    Ternary {
+        cond: Box<Expr>,
+        then: Box<Expr>,
+        otherwise: Box<Expr>,
+    },
+    /// `name(args)`: helper, built-in, or primitive call.
+    Call {
+        callee: Ident,
+        args: Vec<Expr>,
+    },
+    /// `point(x, y, z, w)`, `color(r, g, b)`, `float(i)`, `fixed<32,16>(x)`: a type used as a
+    /// constructor or conversion.
+    Construct {
+        ty: TypeExpr,
+        args: Vec<Expr>,
+    },
+    Index {
+        base: Box<Expr>,
+        index: Box<Expr>,
+    },
+    /// `{a, b, c}` — array, matrix or aggregate literal.
+    List(Vec<Expr>),
+    /// An expression that did not parse; its error was already reported.
+    Error,
+}
