@@ -92,7 +92,9 @@ pub fn encode(value: &[f32], ty: &Type, space: ParamSpace, device_from_object: &
             expected: accepted,
         });
     };
-    if is_point {
+    // The identity leaves points exactly as given (a NaN in x must not leak into y, z, w
+    // through 0 * NaN).
+    if is_point && *device_from_object != Mat4::IDENTITY {
         for p in comps.chunks_mut(4) {
             let device = *device_from_object * Vec4::new(p[0], p[1], p[2], p[3]);
             p.copy_from_slice(&device.to_array());
