@@ -150,6 +150,8 @@ struct Block {
     per_prim: HashMap<usize, Vec<u32>>,
     per_seq_current: HashMap<usize, Vec<u32>>,
     seq_points: Vec<SeqPoint>,
+    /// W0703 (no `vertex` parameter) was reported for this block.
+    warned_no_vertex: bool,
 }
 
 /// A primitive ready to render: which function, its key, its argument block.
@@ -426,6 +428,7 @@ impl Renderer {
             per_prim: HashMap::new(),
             per_seq_current: HashMap::new(),
             seq_points: vec![],
+            warned_no_vertex: false,
         });
         match func {
             None => Err(ApiIssue::error(
@@ -451,6 +454,7 @@ impl Renderer {
                 per_prim: HashMap::new(),
                 per_seq_current: HashMap::new(),
                 seq_points: vec![],
+                warned_no_vertex: false,
             });
         }
     }
@@ -522,20 +526,32 @@ impl Renderer {
         Ok(())
     }
 
-    /// `vertex(x, y, z, w)`: set the `vertex` parameter and make a sequence point.
+    /// `vertex(x, y, z, w)`: set the `vertex` parameter and make a sequence point. For a
+    /// primitive without a `vertex` parameter (screen_triangle takes its corners as one
+    /// per-primitive array) the position is dropped with a warning, once per primitive, and
+    /// the call is just a sequence point.
     pub fn vertex(&mut self, x: f32, y: f32, z: f32, w: f32) -> Result<(), ApiIssue> {
-        let Some(id) = self.open_block("vertex")?.func else {
+        let block = self.open_block("vertex")?;
+        let Some(id) = block.func else {
             return Ok(());
         };
+        let warn = !block.warned_no_vertex;
         let has_vertex = self.program.func(id).params.iter().any(|p| p.name == "vertex");
-        if !has_vertex {
-            return Err(ApiIssue::error(
-                "E0702",
+        if has_vertex {
+            self.rast_param("vertex", &Value(vec![x, y, z, w]))?;
+        } else if warn {
+            if let Some(b) = self.block.as_mut() {
+                b.warned_no_vertex = true;
+            }
+            self.warnings.push(ApiIssue::warning(
+                "W0703",
                 Target::Call,
-                format!("primitive `{}` has no `vertex` parameter", self.program.func(id).name),
+                format!(
+                    "primitive `{}` has no `vertex` parameter: `vertex` only makes a sequence point here",
+                    self.program.func(id).name
+                ),
             ));
         }
-        self.rast_param("vertex", &Value(vec![x, y, z, w]))?;
         self.sequence_point()
     }
 
