@@ -264,7 +264,7 @@ impl Renderer {
     /// (see [`transform::ortho`]); uses the current image size.
     pub fn ortho(&mut self, left: f32, right: f32, bottom: f32, top: f32, near: f32, far: f32) {
         let (w, h) = (self.options.width, self.options.height);
-        self.set_transform(transform::ortho(left, right, bottom, top, near, far, w, h));
+        self.set_transform(transform::ortho(left, right, bottom, top, near, far, [w, h]));
     }
 
     /// `device_from_object` = a perspective camera at the origin looking down -z
@@ -625,11 +625,7 @@ impl Renderer {
             match (slot, p.role) {
                 (ParamSlot::Pixel, _) => {}
                 (ParamSlot::Fixed { offset, words }, ParamRole::InterpData) => {
-                    let count = if interp_len == 0 {
-                        0
-                    } else {
-                        *words as usize / interp_len
-                    };
+                    let count = (*words as usize).checked_div(interp_len).unwrap_or(0);
                     for i in 0..count {
                         let data = self.interp_data_at(block, i, &p.name);
                         write_words(&mut args, *offset as usize + i * interp_len, &data);
