@@ -205,3 +205,16 @@ fn depth_and_parameter_images() {
     assert_eq!(rough.get_pixel(7, 1).0, [0; 3]);
     assert!(f.param_image("nosuch").is_err());
 }
+
+#[test]
+fn out_of_range_options_set_directly_are_clamped_not_panics() {
+    let (_s, mut r) = setup(8, 8, 4);
+    rect(&mut r, [0.0, 0.0, 8.0, 8.0], 0.5, [1.0, 0.0, 0.0]);
+    r.options.tile_size = 0;
+    r.options.width = 0;
+    let out = render(&r);
+    assert_eq!((out.frame.width, out.frame.depth.len()), (0, 0));
+    r.options.width = 8;
+    let out = render(&r);
+    assert_eq!(out.frame.color_at(3, 3), [1.0, 0.0, 0.0], "tile side 0 is taken as 1");
+}

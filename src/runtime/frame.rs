@@ -30,7 +30,7 @@ use crate::diag::{Diagnostic, Diagnostics};
 use crate::ir::{FuncId, Program};
 use crate::jit::Kernel;
 
-use super::api::{Instance, RenderOptions, Renderer};
+use super::api::{Instance, RenderOptions, Renderer, MAX_IMAGE_SIDE, MAX_TILE_SIDE};
 use super::kernels::KernelSource;
 
 /// Tile buffer row stride for a tile `width` pixels wide: whole pixel groups.
@@ -98,7 +98,14 @@ impl Renderer {
     /// call in `ThreadPool::install` to choose the thread count).
     pub fn render(&self, source: &mut dyn KernelSource) -> RenderOutput {
         let started = Instant::now();
-        let opts = &self.options;
+        // The options are public fields: clamp them here so that no setting can panic or
+        // overflow the frame size (the setters already reject these values).
+        let opts = &RenderOptions {
+            width: self.options.width.min(MAX_IMAGE_SIDE),
+            height: self.options.height.min(MAX_IMAGE_SIDE),
+            tile_size: self.options.tile_size.clamp(1, MAX_TILE_SIDE),
+            ..self.options.clone()
+        };
         let program = self.program().clone();
         let mut diags = Diagnostics::new();
         let mut stats = RenderStats {
