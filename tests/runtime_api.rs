@@ -129,9 +129,14 @@ fn missing_parameters_take_defaults_or_zero_with_a_warning() {
     r.begin("tri").unwrap();
     r.end().unwrap();
     let warnings = r.take_warnings();
-    // scale has no default; vertex and interp_data have no sequence points.
-    assert_eq!(codes(&warnings), vec!["W0701", "W0701", "W0701"]);
-    assert!(warnings.iter().any(|w| w.message.contains("`scale`")));
+    // scale has no default; vertex and interp_data have no sequence points (one warning).
+    assert_eq!(codes(&warnings), vec!["W0701", "W0701"]);
+    assert!(warnings[0].message.contains("`scale`"), "{}", warnings[0].message);
+    assert!(
+        warnings[1].message.contains("`vertex`, `interp_data`"),
+        "{}",
+        warnings[1].message
+    );
     let inst = &r.instances()[0];
     assert_eq!(inst.args[0], 0, "n_seq");
     let layout = ArgLayout::new(r.program(), inst.func, &inst.key);

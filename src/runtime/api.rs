@@ -620,15 +620,30 @@ impl Renderer {
         let interp_len = key.interp_components() as usize;
         let seq_base = layout.fixed_words as usize;
         let seq_count = n_seq.max(1) as usize;
+        let mut no_seq_points = vec![];
         for (index, (p, slot)) in f.params.iter().zip(&layout.params).enumerate() {
             let ty = &f.local(p.local).ty;
             match (slot, p.role) {
                 (ParamSlot::Pixel, _) => {}
                 (ParamSlot::Fixed { offset, words }, ParamRole::InterpData) => {
                     let count = (*words as usize).checked_div(interp_len).unwrap_or(0);
+                    let mut missing = false;
                     for i in 0..count {
-                        let data = self.interp_data_at(block, i, &p.name);
+                        let (data, complete) = self.interp_data_at(block, i);
+                        missing |= !complete;
                         write_words(&mut args, *offset as usize + i * interp_len, &data);
+                    }
+                    if missing {
+                        self.warnings.push(ApiIssue::warning(
+                            "W0701",
+                            Target::Call,
+                            format!(
+                                "`{}` of `{}` takes {count} sequence points' values, {} given (or a shading parameter was defined after one): zero there",
+                                p.name,
+                                f.name,
+                                block.seq_points.len()
+                            ),
+                        ));
                     }
                 }
                 (ParamSlot::Fixed { offset, words }, _) => {
@@ -655,17 +670,15 @@ impl Renderer {
                     let base = seq_base + seq_count * *seq_offset as usize;
                     let words = *words as usize;
                     if n_seq == 0 {
-                        self.warnings.push(ApiIssue::warning(
-                            "W0701",
-                            Target::Call,
-                            format!("`{}` has no sequence points: `{}` is one zero element", f.name, p.name),
-                        ));
+                        no_seq_points.push(format!("`{}`", p.name));
                         continue;
                     }
                     let mut missing = false;
                     for i in 0..n_seq as usize {
                         let data = if role == ParamRole::InterpData {
-                            self.interp_data_at(block, i, &p.name)
+                            let (data, complete) = self.interp_data_at(block, i);
+                            missing |= !complete;
+                            data
                         } else {
                             match block.seq_points[i].per_seq.get(index).cloned().flatten() {
                                 Some(v) => v,
@@ -690,14 +703,26 @@ impl Renderer {
                 }
             }
         }
+        if !no_seq_points.is_empty() {
+            self.warnings.push(ApiIssue::warning(
+                "W0701",
+                Target::Call,
+                format!(
+                    "`{}` has no sequence points: {} get one zero element",
+                    f.name,
+                    no_seq_points.join(", ")
+                ),
+            ));
+        }
         Instance { func, key, n_seq, args }
     }
 
     /// Interpolation data of sequence point `i`: every `Kind`-bound shading parameter's value
-    /// there, binding order. Missing sequence points or values are zero, with a warning.
-    fn interp_data_at(&mut self, block: &Block, i: usize, param: &str) -> Vec<u32> {
+    /// there, binding order; missing sequence points or values are zero. The flag says
+    /// whether everything was there (the caller warns once per parameter).
+    fn interp_data_at(&self, block: &Block, i: usize) -> (Vec<u32>, bool) {
         let mut out = vec![];
-        let mut missing = false;
+        let mut complete = true;
         for (s, p) in self.shading.iter().enumerate() {
             if !matches!(p.interp, Interp::Kind(_)) {
                 continue;
@@ -705,21 +730,12 @@ impl Renderer {
             match block.seq_points.get(i).and_then(|sp| sp.shading.get(s)) {
                 Some(v) => out.extend(v.iter().map(|x| x.to_bits())),
                 None => {
-                    missing = true;
+                    complete = false;
                     out.extend(std::iter::repeat_n(0, p.components as usize));
                 }
             }
         }
-        if missing {
-            self.warnings.push(ApiIssue::warning(
-                "W0701",
-                Target::Call,
-                format!(
-                    "`{param}` element {i} has no values (a sequence point is missing, or a shading parameter was defined after it): zero"
-                ),
-            ));
-        }
-        out
+        (out, complete)
     }
 
     /// The six space matrices of the argument block. Until the geometry pipeline lands, the
