@@ -14,7 +14,8 @@
 //!
 //! Shading is minimal for now: a pixel whose depth was written (depth != 0; a write of exactly
 //! the far value 0 is indistinguishable from none, and a `Z > depth` test never passes there
-//! anyway) shows the `Cs` shading parameter clamped to [0, 1], other pixels the background.
+//! anyway) shows the `Cs` shading parameter clamped to [0, 1] (white without one, as
+//! OpenGL's default colour), other pixels the background.
 
 use std::collections::{BTreeSet, HashMap};
 use std::sync::Arc;
@@ -478,15 +479,21 @@ impl Frame {
         self.write_counts.as_ref().map(|c| c[i])
     }
 
-    /// The shaded colour: `Cs` clamped to [0, 1] where depth was written, else background.
+    /// The shaded colour: where depth was written, `Cs` clamped to [0, 1] (a 1-component
+    /// `Cs` is gray; with no usable `Cs` the pixel is white, OpenGL's default current colour);
+    /// elsewhere the background.
     pub fn color_at(&self, x: u32, y: u32) -> [f32; 3] {
-        let cs = self.param("Cs").filter(|p| p.components == 3);
-        match cs {
-            Some(p) if self.written(x, y) => {
-                let c = |k: u32| clamp01(self.plane_at(p.first_plane + k, x, y).unwrap_or(0.0));
-                [c(0), c(1), c(2)]
-            }
-            _ => self.background.map(clamp01),
+        if !self.written(x, y) {
+            return self.background.map(clamp01);
+        }
+        let Some(cs) = self.param("Cs") else {
+            return [1.0; 3];
+        };
+        let c = |k: u32| clamp01(self.plane_at(cs.first_plane + k, x, y).unwrap_or(0.0));
+        match cs.components {
+            1 => [c(0); 3],
+            n if n >= 3 => [c(0), c(1), c(2)],
+            _ => [1.0; 3],
         }
     }
 

@@ -318,8 +318,9 @@ fn parse_material_interp(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), D
             spans.push(token.span);
         } else if let Some(last) = args.last_mut() {
             last.1 .0.push(number(token)?);
-            let s = spans.last_mut().expect("one span per argument");
-            *s = s.to(token.span);
+            if let Some(s) = spans.last_mut() {
+                *s = s.to(token.span);
+            }
         } else {
             return Err(
                 Diagnostic::error("E0604", format!("`{}` is not a `name=value` argument", token.text))
