@@ -1605,7 +1605,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             let last_v = self.b.ins().splat(I32X4, last);
             let c = self.b.ins().smax(idx_comp, zero_v);
             let c = self.b.ins().smin(c, last_v);
-            let c = self.b.ins().imul_imm_s(c, stride as i64);
+            let stride_s = self.b.ins().iconst(types::I32, stride as i64);
+            let stride_v = self.b.ins().splat(I32X4, stride_s);
+            let c = self.b.ins().imul(c, stride_v);
             match acc.dyn_off {
                 Dyn::None => Dyn::Varying(c),
                 Dyn::Uniform(u) => {
