@@ -1,6 +1,8 @@
 //! Built-in functions on uniform and varying operands, and transforms between named spaces
 //! with matrices from the argument block, against Rust f32 / hand-computed references.
 
+#![allow(clippy::needless_range_loop, clippy::type_complexity)]
+
 mod jit_util;
 
 use std::sync::Arc;

@@ -2,6 +2,8 @@
 //! references: results come out through G-buffer planes (as floats) or the depth buffer
 //! (as raw `fixed<32,32>` bits).
 
+#![allow(clippy::needless_range_loop, clippy::type_complexity)]
+
 mod jit_util;
 
 use std::sync::Arc;
@@ -38,7 +40,7 @@ fn run_outputs(params: &[f64], outputs: impl Fn(&[Expr], &Expr) -> Vec<Expr>) ->
     let k = jit.kernel(FuncId(0), &kind_key(&[("linear", n as u32)])).unwrap();
     assert!(k.warnings.is_empty(), "{:?}", k.warnings);
     let mut args = vec![1];
-    args.extend((0..n as u32).map(|p| p));
+    args.extend(0..n as u32);
     args.extend(params.iter().map(|&p| raw16(p)));
     let mut tile = Tile::new(n);
     let ctx = tile.render(&k, &args);
