@@ -429,6 +429,10 @@ impl<T: Real> ClipPolygon<T> {
     }
 }
 
+/// Magnitude (2^900) above which the clipper rescales positions so that plane distances
+/// such as `w - x` cannot overflow f64.
+const RESCALE_ABOVE: f64 = 8.452712498170644e270;
+
 /// Options of the clipper.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClipOptions {
@@ -579,7 +583,8 @@ fn clip_single<T: Real>(poly: &ClipPolygon<T>, crossed: u32, model_planes: &[[T;
 /// Clips a homogeneous polygon (clip space, or any space for model planes only).
 ///
 /// `crossed` is the OR of the vertices' clip codes (only those planes are clipped against;
-/// pass `CLIP_ALL` to clip against all); `model_planes` are extra planes
+/// pass `CLIP_ALL` to clip against all; in the double pyramid each half works out its own
+/// planes from single-pyramid codes and `crossed` is not used); `model_planes` are extra planes
 /// `a x + b y + c z + d w >= 0` in the polygon's space. Returns the pieces with at least
 /// three vertices each: at most one for [`PyramidMode::Single`], at most two (the `w > 0`
 /// piece, then the back-pyramid piece, negated so its `w > 0` too) for
@@ -600,35 +605,74 @@ pub fn clip_polygon<T: Real>(
     if poly.len() < 3 {
         return Ok(vec![]);
     }
+    // Work in f64 whatever T is: widening is exact, and an f32 polygon with coordinates of
+    // 30000 w would otherwise lose about 3e4 * 6e-8 of screen position in the intersection
+    // parameter. Each result is rounded to T once; snapped equalities (x = w) survive the
+    // rounding, and so does bit-identity of shared edges (rounding is deterministic).
+    let wide = ClipPolygon {
+        n_attrs: poly.n_attrs,
+        data: poly.data.iter().map(|c| c.to_f64()).collect(),
+    };
+    let wide_planes: Vec<[f64; 4]> = model_planes.iter().map(|p| p.map(|c| c.to_f64())).collect();
+    let pieces = clip_polygon_f64(&wide, crossed, &wide_planes, mode, opts);
+    Ok(pieces
+        .into_iter()
+        .map(|piece| ClipPolygon {
+            n_attrs: piece.n_attrs,
+            data: piece.data.into_iter().map(T::from_f64).collect(),
+        })
+        .collect())
+}
+
+fn clip_polygon_f64(
+    poly: &ClipPolygon<f64>,
+    crossed: u32,
+    model_planes: &[[f64; 4]],
+    mode: PyramidMode,
+    opts: ClipOptions,
+) -> Vec<ClipPolygon<f64>> {
     let poly = rescaled(poly);
-    let eps = T::from_f64(opts.w_epsilon);
+    let eps = opts.w_epsilon;
     let mut pieces = vec![];
-    let front = clip_single(&poly, crossed, model_planes, eps);
-    if !front.is_empty() {
-        pieces.push(front);
-    }
-    if mode == PyramidMode::Double {
-        let back = clip_single(&poly.negated(), crossed | CLIP_W, model_planes, eps);
-        if !back.is_empty() {
-            pieces.push(back);
+    match mode {
+        PyramidMode::Single => {
+            let front = clip_single(&poly, crossed, model_planes, eps);
+            if !front.is_empty() {
+                pieces.push(front);
+            }
+        }
+        PyramidMode::Double => {
+            // The double-pyramid bits compare with |w| and are not half-spaces of either
+            // half, so each half is clipped against the single-pyramid planes its own
+            // vertices cross (a new vertex on w = eps is near infinity and usually outside).
+            let back = poly.negated();
+            for half in [&*poly, &back] {
+                let crossed_half = half
+                    .positions()
+                    .fold(0, |acc, p| acc | clip_code_f64(p, PyramidMode::Single));
+                let piece = clip_single(half, crossed_half, model_planes, eps);
+                if !piece.is_empty() {
+                    pieces.push(piece);
+                }
+            }
         }
     }
-    Ok(pieces)
+    pieces
 }
 
 /// `poly`, with its positions scaled by a power of two if their largest magnitude is so
 /// large that plane distances (`w - x`) could overflow.
-fn rescaled<T: Real>(poly: &ClipPolygon<T>) -> std::borrow::Cow<'_, ClipPolygon<T>> {
+fn rescaled(poly: &ClipPolygon<f64>) -> std::borrow::Cow<'_, ClipPolygon<f64>> {
     let largest = poly
         .positions()
         .flat_map(|p| p.into_iter())
         .map(|c| c.to_f64().abs())
         .fold(0.0f64, f64::max);
-    if largest <= T::RESCALE_ABOVE {
+    if largest <= RESCALE_ABOVE {
         return std::borrow::Cow::Borrowed(poly);
     }
     // A power of two is exact: the projective points only change by a common factor.
-    let scale = T::from_f64(2f64.powi(-(largest.log2().ceil() as i32)));
+    let scale = 2f64.powi(-(largest.log2().ceil() as i32));
     let mut out = poly.clone();
     let stride = poly.stride();
     for v in out.data.chunks_mut(stride) {
@@ -663,4 +707,21 @@ pub fn clip_polygon_to_view<T: Real>(
         ClipVerdict::Accept => clip_polygon(poly, 0, model_planes, mode, opts),
         ClipVerdict::Clip(crossed) => clip_polygon(poly, crossed, model_planes, mode, opts),
     }
+}
+
+/// The model clip plane through `point` with `normal` pointing into the kept half-space
+/// (seed 000 3.0 step 7): coefficients `(n, -n.p)`, so `m . (x, y, z, 1) >= 0` is kept.
+pub fn plane_from_point_normal(point: glam::DVec3, normal: glam::DVec3) -> glam::DVec4 {
+    normal.extend(-normal.dot(point))
+}
+
+/// A plane moved to another space (seed 000 4.2.11): if `q' = dest_from_src * q`, the plane
+/// becomes `m * dest_from_src^-1`. `None` when the matrix is singular (9.1: the caller skips
+/// model clipping with [`crate::pipeline::Warning::SingularView`]). The kept side is preserved
+/// for points whose w keeps its sign, which holds in the single pyramid after the W plane.
+pub fn transform_plane(plane: glam::DVec4, dest_from_src: &glam::DMat4) -> Option<glam::DVec4> {
+    let inv = dest_from_src.try_inverse()?;
+    // Row vector times matrix = transpose(matrix) times column vector.
+    let out = inv.transpose().mul_vec4(plane);
+    out.is_finite().then_some(out)
 }

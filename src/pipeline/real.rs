@@ -39,20 +39,16 @@ pub trait Real:
     /// Total order on the bit patterns (`f64::total_cmp`), used to order edge endpoints
     /// canonically so shared edges clip identically from both sides.
     fn total_cmp(&self, other: &Self) -> std::cmp::Ordering;
-    /// Magnitude above which the clipper rescales homogeneous positions (by a power of
-    /// two) so that plane distances such as `w - x` cannot overflow.
-    const RESCALE_ABOVE: f64;
     /// The branch-free clip code of a clip-space vertex in this precision
     /// (see [`crate::pipeline::clip`]).
     fn clip_code(v: [Self; 4], mode: crate::pipeline::clip::PyramidMode) -> u32;
 }
 
 macro_rules! impl_real {
-    ($t:ty, $rescale:expr, $code:path) => {
+    ($t:ty, $code:path) => {
         impl Real for $t {
             const ZERO: Self = 0.0;
             const ONE: Self = 1.0;
-            const RESCALE_ABOVE: f64 = $rescale;
             #[inline]
             fn clip_code(v: [Self; 4], mode: crate::pipeline::clip::PyramidMode) -> u32 {
                 $code(v, mode)
@@ -97,9 +93,8 @@ macro_rules! impl_real {
     };
 }
 
-// 2^100 and 2^900 leave ample headroom below f32::MAX (~2^128) and f64::MAX (~2^1024).
-impl_real!(f32, 1.2676506002282294e30, crate::pipeline::clip::clip_code_f32);
-impl_real!(f64, 8.452712498170644e270, crate::pipeline::clip::clip_code_f64);
+impl_real!(f32, crate::pipeline::clip::clip_code_f32);
+impl_real!(f64, crate::pipeline::clip::clip_code_f64);
 
 /// A 3-vector of either precision.
 pub type V3<T> = [T; 3];
