@@ -37,7 +37,7 @@ fn special_f32(rng: &mut Rng, w: f32) -> f32 {
         6 => f32::from_bits(0x7fc0_0000 | (rng.next() as u32 & 0xff)),
         7 => f32::from_bits(0xff80_0001 | (rng.next() as u32 & 0xffff)),
         8 => {
-            if rng.next() % 2 == 0 {
+            if rng.next().is_multiple_of(2) {
                 f32::MAX
             } else {
                 -f32::MAX
@@ -60,7 +60,7 @@ fn special_f64(rng: &mut Rng, w: f64) -> f64 {
         5 => f64::NEG_INFINITY,
         6 => f64::from_bits(0x7ff8_0000_0000_0000 | (rng.next() & 0xff)),
         7 => f64::from_bits(0xfff0_0000_0000_0001 | (rng.next() & 0xffff)),
-        8 => f64::MAX * if rng.next() % 2 == 0 { 1.0 } else { -1.0 },
+        8 => f64::MAX * if rng.next().is_multiple_of(2) { 1.0 } else { -1.0 },
         9 => f64::from_bits(w.to_bits().wrapping_add(rng.next() % 5).wrapping_sub(2)),
         10 => -f64::from_bits(w.to_bits().wrapping_add(rng.next() % 5).wrapping_sub(2)),
         11 => f64::from_bits(rng.next()),
@@ -320,12 +320,12 @@ fn huge_coordinates_clip_without_nan_and_match_an_f64_reference() {
     let mut partial = 0;
     let mut worst32 = 0.0f64;
     for _ in 0..2000 {
-        let tri: Vec<[f64; 4]> = if rng.next() % 2 == 0 {
+        let tri: Vec<[f64; 4]> = if rng.next().is_multiple_of(2) {
             (0..3)
                 .map(|_| {
                     let w = rng.range(0.2, 16.0);
                     // x, y up to 30000 w (projected +-30000) and sometimes +-1e5 outright.
-                    let big = if rng.next() % 4 == 0 { 1e5 } else { 30000.0 * w };
+                    let big = if rng.next().is_multiple_of(4) { 1e5 } else { 30000.0 * w };
                     [rng.range(-big, big), rng.range(-big, big), rng.range(0.0, w), w]
                 })
                 .collect()
@@ -404,8 +404,12 @@ fn shared_edge_clips_to_bit_identical_vertices_from_both_sides() {
             [
                 rng.range(-3.0 * w, 3.0 * w) as f32,
                 rng.range(-3.0 * w, 3.0 * w) as f32,
-                rng.range(-1.0 * w, 2.0 * w) as f32,
-                if rng.next() % 8 == 0 { -w as f32 } else { w as f32 },
+                rng.range(-w, 2.0 * w) as f32,
+                if rng.next().is_multiple_of(8) {
+                    -w as f32
+                } else {
+                    w as f32
+                },
             ]
         };
         let (p, q, r, s) = (vert(), vert(), vert(), vert());

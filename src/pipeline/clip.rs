@@ -555,7 +555,7 @@ fn clip_single<T: Real>(poly: &ClipPolygon<T>, crossed: u32, model_planes: &[[T;
     let stride = poly.stride();
     let mut cur = poly.data.clone();
     let mut next = Vec::with_capacity(cur.len() * 2);
-    let needs_w = crossed & CLIP_W != 0 || poly.positions().any(|p| !(p[3] >= eps));
+    let needs_w = crossed & CLIP_W != 0 || poly.positions().any(|p| p[3] < eps);
     let mut planes: Vec<Plane<T>> = vec![];
     if needs_w {
         planes.push(Plane::W(eps));
@@ -677,7 +677,7 @@ fn rescaled(poly: &ClipPolygon<f64>) -> std::borrow::Cow<'_, ClipPolygon<f64>> {
     let stride = poly.stride();
     for v in out.data.chunks_mut(stride) {
         for c in &mut v[..4] {
-            *c = *c * scale;
+            *c *= scale;
         }
     }
     std::borrow::Cow::Owned(out)

@@ -135,6 +135,8 @@ impl NormalMatrix {
         let cof = DMat3::from_cols(c1.cross(c2), c2.cross(c0), c0.cross(c1));
         let det = a.determinant();
         let hadamard = c0.length() * c1.length() * c2.length();
+        // Written so that a NaN determinant also counts as singular.
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
         let singular = !(det.abs() > 1e-12 * hadamard);
         let matrix = if singular || det > 0.0 { cof } else { -cof };
         NormalMatrix { matrix, singular }
@@ -214,7 +216,7 @@ pub fn classify_model(m: &DMat4) -> ModelClass {
     let a = DMat3::from_mat4(*m) * (1.0 / row3.w);
     let (c0, c1, c2) = (a.x_axis, a.y_axis, a.z_axis);
     let hadamard = c0.length() * c1.length() * c2.length();
-    if !(a.determinant().abs() > 1e-12 * hadamard) {
+    if a.determinant().abs() <= 1e-12 * hadamard {
         return ModelClass::Singular;
     }
     let ata = a.transpose() * a;
@@ -669,7 +671,7 @@ pub fn perspective_matrix(fov_y: f64, aspect: f64, near: f64, far: f64) -> Resul
             "perspective field of view must be in (0, pi) radians, got {fov_y}"
         )));
     }
-    if !(aspect > 0.0) {
+    if aspect <= 0.0 {
         return Err(TransformError::BadParameter(format!(
             "perspective aspect must be positive, got {aspect}"
         )));
@@ -717,7 +719,7 @@ pub fn oblique_matrix(bounds: [f64; 4], near: f64, far: f64, direction: DVec3) -
     if !direction.is_finite() {
         return Err(TransformError::NonFinite("oblique direction"));
     }
-    if !(direction.z < 0.0) {
+    if direction.z >= 0.0 {
         return Err(TransformError::BadParameter(format!(
             "oblique projection direction must point away from the viewer (z < 0), got {direction}"
         )));
