@@ -491,12 +491,9 @@ fn attributes_are_interpolated_linearly_in_clip_space() {
         let b = m_inv * DVec3::new(p[0], p[1], p[3]);
         let z = b.x * pos[0][2] + b.y * pos[1][2] + b.z * pos[2][2];
         assert!((z - p[2]).abs() < 1e-12, "vertex {i} is not in the triangle's 4D plane");
-        for k in 0..2 {
+        for (k, got) in out.attrs(i).iter().enumerate() {
             let expected = b.x * attrs[0][k] + b.y * attrs[1][k] + b.z * attrs[2][k];
-            assert!(
-                (out.attrs(i)[k] - expected).abs() < 1e-12,
-                "attribute {k} of vertex {i}"
-            );
+            assert!((got - expected).abs() < 1e-12, "attribute {k} of vertex {i}");
         }
     }
 }
