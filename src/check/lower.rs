@@ -1010,22 +1010,12 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
         let mut out = vec![];
         let mut ok = true;
+        let mut missing = vec![];
         for (i, p) in sig.params.iter().enumerate() {
             let Some(a) = args.get(i) else {
                 match &p.default {
                     Some(vals) => out.push(consts::const_to_expr(vals, &p.ty, span)),
-                    None => {
-                        self.sink.push(
-                            err(
-                                "E0215",
-                                format!("missing argument for parameter `{}` of `{}`", p.name, callee.name),
-                                span,
-                                "argument missing",
-                            )
-                            .secondary(p.span, "parameter declared here without a default"),
-                        );
-                        ok = false;
-                    }
+                    None => missing.push(p.name.as_str()),
                 }
                 continue;
             };
@@ -1069,6 +1059,22 @@ impl<'g, 'a> FnLower<'g, 'a> {
                     None => ok = false,
                 },
             }
+        }
+        if !missing.is_empty() {
+            let list = missing.iter().map(|m| format!("`{m}`")).collect::<Vec<_>>().join(", ");
+            self.sink.push(
+                err(
+                    "E0215",
+                    format!("missing arguments for {list} of `{}`", callee.name),
+                    span,
+                    "arguments missing",
+                )
+                .secondary(
+                    sig.item.name.span,
+                    "declared here; only trailing parameters with defaults may be left out",
+                ),
+            );
+            ok = false;
         }
         if !ok {
             return None;

@@ -400,8 +400,7 @@ fn find_recursion<'a>(mut g: Globals<'a>, sink: &mut Sink) -> Globals<'a> {
             if state[w] == 1 {
                 // The cycle is w -> ... -> v -> w.
                 let start = stack.iter().position(|&(x, _)| x == w).unwrap_or(stack.len());
-                let mut cycle: Vec<(usize, Span)> = stack[start..].to_vec();
-                cycle.push((v, span));
+                let cycle: Vec<(usize, Span)> = stack[start..].to_vec();
                 let mut key: Vec<usize> = cycle.iter().map(|c| c.0).collect();
                 key.sort_unstable();
                 rec.extend(key.iter().copied());
@@ -662,13 +661,18 @@ fn lower_function(
         loops: n_loops,
         uses_spaces,
     };
+    let errors_before = sink.items.iter().filter(|d| d.is_error()).count();
     variability::analyze(&mut f, &infos, roles, sink);
+    let variability_errors = sink.items.iter().filter(|d| d.is_error()).count() > errors_before;
     match kind {
         FuncKind::Primitive => {
             let mut d = Diagnostics::new();
             ir::split::split_checked(&mut f, &mut d);
-            for x in d.items {
-                sink.push(x);
+            // A call or bound the variability pass already rejected would be reported twice.
+            if !variability_errors {
+                for x in d.items {
+                    sink.push(x);
+                }
             }
         }
         FuncKind::Interpolator => f.pixel = std::mem::take(&mut f.setup),
