@@ -1255,7 +1255,10 @@ impl<'g, 'a> FnLower<'g, 'a> {
         let saved_interp = std::mem::replace(&mut self.in_interpolation, false);
         let mut body = vec![];
         self.stmts_in_scope(&sig.item.body.stmts, &mut body);
-        body.push(stmt(StmtKind::Break(exit), sig.item.body.span));
+        // Falling off the end leaves the helper too (unless it just returned).
+        if !matches!(body.last(), Some(Stmt { kind: StmtKind::Break(l), .. }) if *l == exit) {
+            body.push(stmt(StmtKind::Break(exit), sig.item.body.span));
+        }
         self.arm = saved_arm;
         self.in_interpolation = saved_interp;
         self.inline.pop();
