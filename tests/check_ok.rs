@@ -56,3 +56,40 @@ fn seed004_figures_ir_snapshot() {
     let (program, _, _) = compile(&[ok_dir().join("seed004_figures.prim")]);
     insta::assert_snapshot!("seed004_figures_ir", program.to_string());
 }
+
+/// The ```prim blocks of docs/language.md: each must check without errors (```prim,error
+/// blocks are counter-examples and must not).
+#[test]
+fn language_reference_examples_check() {
+    let doc = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/language.md"))
+        .expect("docs/language.md");
+    let mut blocks = vec![];
+    let mut current: Option<(bool, String)> = None;
+    for line in doc.lines() {
+        match (&mut current, line.trim_start()) {
+            (None, l) if l.starts_with("```prim") => current = Some((l.contains("error"), String::new())),
+            (Some(_), "```") => blocks.push(current.take().expect("open block")),
+            (Some((_, text)), _) => {
+                text.push_str(line);
+                text.push('\n');
+            }
+            (None, _) => {}
+        }
+    }
+    assert!(
+        blocks.len() >= 8,
+        "expected the reference's examples, found {}",
+        blocks.len()
+    );
+    for (i, (is_error, text)) in blocks.iter().enumerate() {
+        let mut sources = SourceMap::new();
+        let id = sources.add(format!("language.md block {i}"), text.clone());
+        let mut diags = Diagnostics::new();
+        let program = primflow::compile(&sources, &[id], &mut diags);
+        if *is_error {
+            assert!(program.is_none(), "block {i} should not check:\n{text}");
+        } else {
+            assert!(program.is_some(), "block {i} fails:\n{}", diags.render(&sources));
+        }
+    }
+}

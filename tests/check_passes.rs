@@ -270,3 +270,17 @@ fn primitive_call_passes_pixel_parameters_and_fills_defaults() {
     assert_eq!(args.len(), 5);
     assert!(f.pixel.is_empty());
 }
+
+#[test]
+fn varying_argument_for_a_uniform_helper_parameter_is_reported_at_the_call() {
+    let (_, d, s) = compile(&format!(
+        "float scale(uniform float factor; float v) {{ return factor * v; }}
+{HEAD}{{ float a = scale(X, 2); }}"
+    ));
+    assert_eq!(d.codes_at(&s), ["E0301@3:13"]);
+    assert!(
+        d.items[0].message.contains("parameter `factor` of helper `scale`"),
+        "{}",
+        d.items[0].message
+    );
+}

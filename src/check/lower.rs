@@ -961,7 +961,9 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
         let vals: Option<Vec<Expr>> = vals.into_iter().collect();
         let Some(vals) = vals else { return };
-        let arr: [Expr; 4] = vals.try_into().ok().expect("four arguments checked above");
+        let Ok(arr): Result<[Expr; 4], _> = vals.try_into() else {
+            return;
+        };
         out.extend(pre);
         out.push(stmt(StmtKind::Bound(Box::new(arr)), span));
     }
