@@ -18,6 +18,7 @@ pub mod cli;
 pub mod diag;
 pub mod ir;
 pub mod jit;
+pub mod pipeline;
 pub mod runtime;
 pub mod scene;
 pub mod syntax;

@@ -1,9 +1,41 @@
 //! The back end: specialises IR functions for a variant key and compiles them with Cranelift.
+//!
+//! A [`Jit`] owns one Cranelift JIT module (host ISA from `cranelift-native`, `opt_level =
+//! speed`, non-PIC) and a cache of kernels keyed by (function, variant key). Asking for a
+//! kernel compiles it and every primitive it calls, for the same key, in one batch: callees
+//! are declared as module functions and called directly, so a call costs no lookup at run
+//! time and recursion between primitives is bounded by `TileCtx::call_depth`.
+//!
+//! Files: [`lower`] turns one IR function into CLIF (the execution model is described
+//! there), [`value`] holds the uniform/varying value representation and masks, [`fixed`]
+//! the integer/fixed-point arithmetic and conversions, [`builtin`] the built-in functions,
+//! [`libm`] the `extern "C"` math helpers kernels link against.
+//!
+//! Run-time errors a kernel records carry a `SiteId` in `TileCtx::error_site`, except
+//! `ERR_CALL_DEPTH`, which has no site and records `u32::MAX`.
 
+mod builtin;
+mod fixed;
+pub mod libm;
+mod lower;
+mod value;
+
+use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
+use std::time::Instant;
+
+use cranelift_codegen::ir::{self, types, AbiParam, UserFuncName};
+use cranelift_codegen::isa::OwnedTargetIsa;
+use cranelift_codegen::settings::{self, Configurable};
+use cranelift_codegen::Context;
+use cranelift_frontend::FunctionBuilderContext;
+use cranelift_jit::{JITBuilder, JITModule};
+use cranelift_module::{default_libcall_names, Linkage, Module};
 
 use crate::abi::{ArgLayout, KernelFn, VariantKey};
 use crate::ir::{FuncId, Program};
+use libm::LibmFn;
+use lower::{Linker, Res};
 
 /// A compiled kernel for one (primitive, variant key).
 #[derive(Debug)]
@@ -32,35 +64,345 @@ impl std::fmt::Display for JitError {
 
 impl std::error::Error for JitError {}
 
+fn jit_err(what: &str, e: impl std::fmt::Display) -> JitError {
+    JitError {
+        message: format!("{what}: {e}"),
+    }
+}
+
+type CacheKey = (FuncId, VariantKey);
+
 /// Owns the JIT module (the code memory) and the kernel cache for one program.
 pub struct Jit {
     program: Arc<Program>,
+    isa: OwnedTargetIsa,
+    module: JITModule,
+    cache: HashMap<CacheKey, Arc<Kernel>>,
+    /// Every kernel declared in the module (defined ones are in `cache`).
+    declared: HashMap<CacheKey, cranelift_module::FuncId>,
+    libm: HashMap<LibmFn, cranelift_module::FuncId>,
+    /// Kernels that failed to compile, with their error (asking again gives it again).
+    failed: HashMap<CacheKey, JitError>,
+    fctx: FunctionBuilderContext,
+    next_name: u32,
+}
+
+/// The host ISA with the flags kernels are compiled with.
+fn host_isa() -> Result<OwnedTargetIsa, JitError> {
+    let mut flags = settings::builder();
+    flags.set("opt_level", "speed").map_err(|e| jit_err("opt_level", e))?;
+    // cranelift-jit needs non-PIC code (JITBuilder::with_isa does not set it).
+    flags.set("is_pic", "false").map_err(|e| jit_err("is_pic", e))?;
+    // The verifier costs ~30% compile time; keep it for debug builds, where tests run.
+    let verify = if cfg!(debug_assertions) { "true" } else { "false" };
+    flags
+        .set("enable_verifier", verify)
+        .map_err(|e| jit_err("enable_verifier", e))?;
+    let builder = cranelift_native::builder().map_err(|e| jit_err("host ISA", e))?;
+    builder
+        .finish(settings::Flags::new(flags))
+        .map_err(|e| jit_err("host ISA", e))
+}
+
+fn kernel_signature(isa: &OwnedTargetIsa) -> ir::Signature {
+    let mut sig = ir::Signature::new(isa.default_call_conv());
+    sig.params.push(AbiParam::new(types::I64));
+    sig.params.push(AbiParam::new(types::I64));
+    sig
+}
+
+fn libm_signature(isa: &OwnedTargetIsa, f: LibmFn) -> ir::Signature {
+    let mut sig = ir::Signature::new(isa.default_call_conv());
+    for _ in 0..f.arity() {
+        sig.params.push(AbiParam::new(types::F32));
+    }
+    sig.returns.push(AbiParam::new(types::F32));
+    sig
+}
+
+/// Links against the JIT module while compiling a batch of kernels.
+struct ModuleLinker<'j> {
+    module: &'j mut JITModule,
+    isa: &'j OwnedTargetIsa,
+    declared: &'j mut HashMap<CacheKey, cranelift_module::FuncId>,
+    libm: &'j HashMap<LibmFn, cranelift_module::FuncId>,
+    key: &'j VariantKey,
+    /// Callees declared by this batch that still need a body.
+    pending: &'j mut Vec<FuncId>,
+    next_name: &'j mut u32,
+    program: &'j Program,
+}
+
+impl Linker for ModuleLinker<'_> {
+    fn kernel_ref(&mut self, func: &mut ir::Function, callee: FuncId) -> Res<ir::FuncRef> {
+        let ck = (callee, self.key.clone());
+        let id = match self.declared.get(&ck) {
+            Some(&id) => id,
+            None => {
+                let name = format!(
+                    "pf_{}_{}",
+                    self.program
+                        .func(callee)
+                        .name
+                        .replace(|c: char| !c.is_ascii_alphanumeric(), "_"),
+                    *self.next_name
+                );
+                *self.next_name += 1;
+                let id = self
+                    .module
+                    .declare_function(&name, Linkage::Local, &kernel_signature(self.isa))
+                    .map_err(|e| jit_err("declare kernel", e))?;
+                self.declared.insert(ck, id);
+                self.pending.push(callee);
+                id
+            }
+        };
+        Ok(self.module.declare_func_in_func(id, func))
+    }
+
+    fn libm_ref(&mut self, func: &mut ir::Function, f: LibmFn) -> Res<ir::FuncRef> {
+        let id = self.libm.get(&f).ok_or_else(|| JitError {
+            message: format!("libm function {f:?} not declared"),
+        })?;
+        Ok(self.module.declare_func_in_func(*id, func))
+    }
+}
+
+/// Links nothing: imports by placeholder names, for printing CLIF without compiling.
+struct PrintLinker<'j> {
+    isa: &'j OwnedTargetIsa,
+}
+
+impl PrintLinker<'_> {
+    fn import(&self, func: &mut ir::Function, index: u32, sig: ir::Signature) -> ir::FuncRef {
+        let sig = func.import_signature(sig);
+        let name = func.declare_imported_user_function(ir::UserExternalName { namespace: 0, index });
+        func.import_function(ir::ExtFuncData {
+            name: ir::ExternalName::user(name),
+            signature: sig,
+            colocated: false,
+            patchable: false,
+        })
+    }
+}
+
+impl Linker for PrintLinker<'_> {
+    fn kernel_ref(&mut self, func: &mut ir::Function, callee: FuncId) -> Res<ir::FuncRef> {
+        Ok(self.import(func, callee.0, kernel_signature(self.isa)))
+    }
+    fn libm_ref(&mut self, func: &mut ir::Function, f: LibmFn) -> Res<ir::FuncRef> {
+        let index = 1_000_000 + LibmFn::ALL.iter().position(|&g| g == f).unwrap_or(0) as u32;
+        Ok(self.import(func, index, libm_signature(self.isa, f)))
+    }
 }
 
 impl Jit {
     pub fn new(program: Arc<Program>) -> Result<Jit, JitError> {
-        Ok(Jit { program })
+        let isa = host_isa()?;
+        let mut builder = JITBuilder::with_isa(isa.clone(), default_libcall_names());
+        for f in LibmFn::ALL {
+            builder.symbol(f.symbol(), f.address());
+        }
+        let mut module = JITModule::new(builder);
+        let mut libm = HashMap::new();
+        for f in LibmFn::ALL {
+            let id = module
+                .declare_function(f.symbol(), Linkage::Import, &libm_signature(&isa, f))
+                .map_err(|e| jit_err("declare libm", e))?;
+            libm.insert(f, id);
+        }
+        Ok(Jit {
+            program,
+            isa,
+            module,
+            cache: HashMap::new(),
+            declared: HashMap::new(),
+            libm,
+            failed: HashMap::new(),
+            fctx: FunctionBuilderContext::new(),
+            next_name: 0,
+        })
     }
+
     pub fn program(&self) -> &Arc<Program> {
         &self.program
     }
+
+    fn check_func(&self, func: FuncId) -> Result<(), JitError> {
+        if (func.0 as usize) < self.program.functions.len() {
+            Ok(())
+        } else {
+            Err(JitError {
+                message: format!("no function with id {}", func.0),
+            })
+        }
+    }
+
     /// The kernel for `func` under `key`, compiled on first use and cached. Primitives it
     /// calls are compiled for the same key.
     pub fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, JitError> {
-        let _ = (func, key);
-        Err(JitError {
-            message: "JIT not implemented yet".into(),
-        })
+        self.check_func(func)?;
+        let ck = (func, key.clone());
+        if let Some(k) = self.cache.get(&ck) {
+            return Ok(k.clone());
+        }
+        if let Some(e) = self.failed.get(&ck) {
+            return Err(e.clone());
+        }
+        match self.compile_batch(func, key) {
+            Ok(()) => self.cache.get(&ck).cloned().ok_or_else(|| JitError {
+                message: "kernel missing after compilation".into(),
+            }),
+            Err(e) => {
+                self.failed.insert(ck, e.clone());
+                Err(e)
+            }
+        }
     }
+
+    /// Compile `root` and every not-yet-compiled primitive it reaches under `key`.
+    fn compile_batch(&mut self, root: FuncId, key: &VariantKey) -> Result<(), JitError> {
+        let program = self.program.clone();
+        let mut pending = vec![];
+        if !self.declared.contains_key(&(root, key.clone())) {
+            let name = format!("pf_root_{}", self.next_name);
+            self.next_name += 1;
+            let id = self
+                .module
+                .declare_function(&name, Linkage::Local, &kernel_signature(&self.isa))
+                .map_err(|e| jit_err("declare kernel", e))?;
+            self.declared.insert((root, key.clone()), id);
+        }
+        pending.push(root);
+        // Lower everything first: a lowering error must not leave a half-defined batch.
+        let mut built: Vec<(FuncId, Context, ArgLayout, Vec<String>, u64)> = vec![];
+        let mut seen = HashSet::new();
+        while let Some(f) = pending.pop() {
+            if !seen.insert(f) || self.cache.contains_key(&(f, key.clone())) {
+                continue;
+            }
+            let started = Instant::now();
+            let layout = ArgLayout::new(&program, f, key);
+            let mut ctx = self.module.make_context();
+            ctx.func.signature = kernel_signature(&self.isa);
+            ctx.func.name = UserFuncName::user(0, f.0);
+            let warnings = {
+                let mut linker = ModuleLinker {
+                    module: &mut self.module,
+                    isa: &self.isa,
+                    declared: &mut self.declared,
+                    libm: &self.libm,
+                    key,
+                    pending: &mut pending,
+                    next_name: &mut self.next_name,
+                    program: &program,
+                };
+                lower::lower_kernel(
+                    &program,
+                    f,
+                    key,
+                    &layout,
+                    &mut ctx.func,
+                    &mut self.fctx,
+                    &mut linker,
+                    self.isa.frontend_config(),
+                )?
+            };
+            let micros = started.elapsed().as_micros() as u64;
+            built.push((f, ctx, layout, warnings, micros));
+        }
+        let mut defined = vec![];
+        for (f, mut ctx, layout, warnings, micros) in built {
+            let started = Instant::now();
+            let id = self.declared[&(f, key.clone())];
+            self.module.define_function(id, &mut ctx).map_err(|e| {
+                let detail = match &e {
+                    cranelift_module::ModuleError::Compilation(c) => format!("{c:?}"),
+                    other => other.to_string(),
+                };
+                JitError {
+                    message: format!("compiling `{}`: {detail}", program.func(f).name),
+                }
+            })?;
+            self.module.clear_context(&mut ctx);
+            defined.push((f, id, layout, warnings, micros + started.elapsed().as_micros() as u64));
+        }
+        self.module
+            .finalize_definitions()
+            .map_err(|e| jit_err("finalize kernels", e))?;
+        for (f, id, layout, warnings, micros) in defined {
+            let ptr = self.module.get_finalized_function(id);
+            // SAFETY: the function was defined with the kernel signature
+            // (ctx: i64, args: i64) -> () in the host's default C calling convention, which is
+            // `KernelFn`'s ABI; the code lives as long as `self.module`.
+            let entry = unsafe { std::mem::transmute::<*const u8, KernelFn>(ptr) };
+            self.cache.insert(
+                (f, key.clone()),
+                Arc::new(Kernel {
+                    func: f,
+                    key: key.clone(),
+                    entry,
+                    layout,
+                    compile_micros: micros,
+                    warnings,
+                }),
+            );
+        }
+        Ok(())
+    }
+
     /// The Cranelift IR text of `func` specialised for `key` (for `check --emit clif`).
     pub fn clif(&self, func: FuncId, key: &VariantKey) -> Result<String, JitError> {
-        let _ = (func, key);
-        Err(JitError {
-            message: "JIT not implemented yet".into(),
-        })
+        self.check_func(func)?;
+        let layout = ArgLayout::new(&self.program, func, key);
+        let mut f = ir::Function::with_name_signature(UserFuncName::user(0, func.0), kernel_signature(&self.isa));
+        let mut fctx = FunctionBuilderContext::new();
+        let mut linker = PrintLinker { isa: &self.isa };
+        lower::lower_kernel(
+            &self.program,
+            func,
+            key,
+            &layout,
+            &mut f,
+            &mut fctx,
+            &mut linker,
+            self.isa.frontend_config(),
+        )?;
+        Ok(f.display().to_string())
     }
+
     /// The target ISA, the flags it was built with and the vector width kernels use.
     pub fn isa_summary(&self) -> String {
-        String::new()
+        let flags = self.isa.isa_flags();
+        let flag = |name: &str| {
+            flags
+                .iter()
+                .find(|v| v.name == name)
+                .and_then(|v| v.as_bool())
+                .unwrap_or(false)
+        };
+        format!(
+            "{} opt_level=speed has_sse41={} has_avx={} has_avx2={} has_fma={} has_avx512f={}; \
+             4 pixels per group (f32x4)",
+            self.isa.triple(),
+            flag("has_sse41"),
+            flag("has_avx"),
+            flag("has_avx2"),
+            flag("has_fma"),
+            flag("has_avx512f"),
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Kernels are shared across render threads; the JIT itself moves between threads.
+    #[test]
+    fn kernels_are_send_and_sync() {
+        fn send_sync<T: Send + Sync>() {}
+        send_sync::<Kernel>();
+        send_sync::<Arc<Kernel>>();
     }
 }

@@ -1,0 +1,317 @@
+//! Integer and fixed-point arithmetic and every scalar conversion, for one component in
+//! either form (scalar `i32`/`f32`/`i8`, or a 4-lane vector).
+//!
+//! Semantics (the language's documented rules; none of these can trap):
+//! - int: wrapping i32; `/` and `%` by zero give 0; `i32::MIN / -1` gives `i32::MIN`.
+//! - `fixed<B,F>`: raw i32 holding a B-bit two's complement value (an unsigned fraction when
+//!   F == B). add/sub/neg/mul wrap to B bits; mul = (a*b as i64) >> F; div = (a << F) / b in
+//!   i64, saturated to the raw range, and b == 0 gives the format's max (min if a < 0, 0 if
+//!   a == 0); rem is the i64 remainder of the raws (0 for b == 0).
+//! - conversions saturate: float -> int truncates (NaN -> 0), float -> fixed rounds to nearest
+//!   (NaN -> 0), fixed -> fixed shifts by the fraction difference, fixed -> int floors.
+//!
+//! Work that needs 64-bit intermediates (fixed mul/div, some conversions) runs lane by lane
+//! on vectors; everything else stays in vector instructions.
+
+use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, InstBuilder};
+use cranelift_frontend::FunctionBuilder;
+
+use super::value::{map_lanes, F32X4, I32X4};
+use crate::ir::{FixedFormat, Scalar};
+
+fn is_vec(b: &FunctionBuilder, v: ir::Value) -> bool {
+    b.func.dfg.value_type(v).is_vector()
+}
+
+/// An i32 constant in the form of `like` (scalar or splatted).
+fn i32_like(b: &mut FunctionBuilder, like: ir::Value, n: i64) -> ir::Value {
+    let c = b.ins().iconst(types::I32, n as i32 as i64);
+    if is_vec(b, like) {
+        b.ins().splat(I32X4, c)
+    } else {
+        c
+    }
+}
+
+fn f32_like(b: &mut FunctionBuilder, like: ir::Value, x: f32) -> ir::Value {
+    let c = b.ins().f32const(x);
+    if is_vec(b, like) {
+        b.ins().splat(F32X4, c)
+    } else {
+        c
+    }
+}
+
+/// Run a scalar i32 -> i32 computation on a scalar or on each lane of a vector.
+fn per_lane(
+    b: &mut FunctionBuilder,
+    operands: &[ir::Value],
+    out_vec_ty: ir::Type,
+    f: &mut dyn FnMut(&mut FunctionBuilder, &[ir::Value]) -> ir::Value,
+) -> ir::Value {
+    if is_vec(b, operands[0]) {
+        map_lanes(b, out_vec_ty, operands, f)
+    } else {
+        f(b, operands)
+    }
+}
+
+/// Wrap a raw i32 (scalar or vector) to the format's B bits.
+pub fn wrap(b: &mut FunctionBuilder, fmt: FixedFormat, v: ir::Value) -> ir::Value {
+    if fmt.bits >= 32 {
+        return v;
+    }
+    let shift = 32 - fmt.bits as i64;
+    if fmt.is_unsigned() {
+        let mask = i32_like(b, v, (1i64 << fmt.bits) - 1);
+        b.ins().band(v, mask)
+    } else {
+        let up = b.ins().ishl_imm_u(v, shift);
+        b.ins().sshr_imm_u(up, shift)
+    }
+}
+
+/// Widen a scalar raw i32 to i64 as the format reads it.
+fn widen(b: &mut FunctionBuilder, fmt: FixedFormat, v: ir::Value) -> ir::Value {
+    if fmt.is_unsigned() {
+        b.ins().uextend(types::I64, v)
+    } else {
+        b.ins().sextend(types::I64, v)
+    }
+}
+
+/// Clamp a scalar i64 into the format's raw range and narrow it.
+fn saturate64(b: &mut FunctionBuilder, fmt: FixedFormat, v: ir::Value) -> ir::Value {
+    let (lo, hi) = fmt.raw_range();
+    let lo = b.ins().iconst(types::I64, lo);
+    let hi = b.ins().iconst(types::I64, hi);
+    let v = b.ins().smax(v, lo);
+    let v = b.ins().smin(v, hi);
+    b.ins().ireduce(types::I32, v)
+}
+
+pub fn add(b: &mut FunctionBuilder, fmt: FixedFormat, x: ir::Value, y: ir::Value) -> ir::Value {
+    let s = b.ins().iadd(x, y);
+    wrap(b, fmt, s)
+}
+
+pub fn sub(b: &mut FunctionBuilder, fmt: FixedFormat, x: ir::Value, y: ir::Value) -> ir::Value {
+    let s = b.ins().isub(x, y);
+    wrap(b, fmt, s)
+}
+
+pub fn neg(b: &mut FunctionBuilder, fmt: FixedFormat, x: ir::Value) -> ir::Value {
+    let s = b.ins().ineg(x);
+    wrap(b, fmt, s)
+}
+
+pub fn mul(b: &mut FunctionBuilder, fmt: FixedFormat, x: ir::Value, y: ir::Value) -> ir::Value {
+    per_lane(b, &[x, y], I32X4, &mut |b, v| {
+        let a = widen(b, fmt, v[0]);
+        let c = widen(b, fmt, v[1]);
+        // For unsigned formats the u64 product fits; imul gives its low 64 bits exactly.
+        let p = b.ins().imul(a, c);
+        let f = fmt.frac as i64;
+        let s = if fmt.is_unsigned() {
+            b.ins().ushr_imm_u(p, f)
+        } else {
+            b.ins().sshr_imm_u(p, f)
+        };
+        let r = b.ins().ireduce(types::I32, s);
+        wrap(b, fmt, r)
+    })
+}
+
+pub fn div(b: &mut FunctionBuilder, fmt: FixedFormat, x: ir::Value, y: ir::Value) -> ir::Value {
+    per_lane(b, &[x, y], I32X4, &mut |b, v| {
+        let a = widen(b, fmt, v[0]);
+        let c = widen(b, fmt, v[1]);
+        // |a| < 2^32 and F <= 32: the shifted numerator fits i64 (signed formats have F <= 31)
+        // or u64 (unsigned formats, divided unsigned).
+        let num = b.ins().ishl_imm_u(a, fmt.frac as i64);
+        let is_zero = b.ins().icmp_imm_s(IntCC::Equal, c, 0);
+        let one = b.ins().iconst(types::I64, 1);
+        let den = b.ins().select(is_zero, one, c);
+        let q = if fmt.is_unsigned() {
+            b.ins().udiv(num, den)
+        } else {
+            b.ins().sdiv(num, den)
+        };
+        let sat = saturate64(b, fmt, q);
+        let (lo, hi) = fmt.raw_range();
+        let min = b.ins().iconst(types::I32, lo as i32 as i64);
+        let max = b.ins().iconst(types::I32, hi as i32 as i64);
+        let zero = b.ins().iconst(types::I32, 0);
+        let a_zero = b.ins().icmp_imm_s(IntCC::Equal, a, 0);
+        let a_neg = b.ins().icmp_imm_s(IntCC::SignedLessThan, a, 0);
+        let by_zero = b.ins().select(a_neg, min, max);
+        let by_zero = b.ins().select(a_zero, zero, by_zero);
+        b.ins().select(is_zero, by_zero, sat)
+    })
+}
+
+pub fn rem(b: &mut FunctionBuilder, fmt: FixedFormat, x: ir::Value, y: ir::Value) -> ir::Value {
+    per_lane(b, &[x, y], I32X4, &mut |b, v| {
+        let a = widen(b, fmt, v[0]);
+        let c = widen(b, fmt, v[1]);
+        let is_zero = b.ins().icmp_imm_s(IntCC::Equal, c, 0);
+        let one = b.ins().iconst(types::I64, 1);
+        let den = b.ins().select(is_zero, one, c);
+        let r = if fmt.is_unsigned() {
+            b.ins().urem(a, den)
+        } else {
+            b.ins().srem(a, den)
+        };
+        let r = b.ins().ireduce(types::I32, r);
+        let zero = b.ins().iconst(types::I32, 0);
+        b.ins().select(is_zero, zero, r)
+    })
+}
+
+/// Integer `/` (`rem == false`) or `%`: never traps (see the module doc).
+pub fn int_div_rem(b: &mut FunctionBuilder, x: ir::Value, y: ir::Value, rem: bool) -> ir::Value {
+    per_lane(b, &[x, y], I32X4, &mut |b, v| {
+        // In i64, i32::MIN / -1 cannot overflow; narrowing wraps it back to i32::MIN.
+        let a = b.ins().sextend(types::I64, v[0]);
+        let c = b.ins().sextend(types::I64, v[1]);
+        let is_zero = b.ins().icmp_imm_s(IntCC::Equal, c, 0);
+        let one = b.ins().iconst(types::I64, 1);
+        let den = b.ins().select(is_zero, one, c);
+        let r = if rem {
+            b.ins().srem(a, den)
+        } else {
+            b.ins().sdiv(a, den)
+        };
+        let r = b.ins().ireduce(types::I32, r);
+        let zero = b.ins().iconst(types::I32, 0);
+        b.ins().select(is_zero, zero, r)
+    })
+}
+
+/// The condition code for an integer comparison in this scalar type's order.
+pub fn int_cc(scalar: Scalar, signed_cc: IntCC) -> IntCC {
+    match scalar {
+        Scalar::Fixed(f) if f.is_unsigned() => signed_cc.unsigned(),
+        _ => signed_cc,
+    }
+}
+
+/// Rounded, saturated `f32x4` (already scaled, integral or not) to raw u32 lanes; NaN -> 0.
+/// Used for `fixed<32,32>` and for storing depth.
+pub fn f32x4_to_u32_sat(b: &mut FunctionBuilder, scaled: ir::Value) -> ir::Value {
+    let r = b.ins().nearest(scaled);
+    let two31 = f32_like(b, r, 2147483648.0);
+    let big = b.ins().fcmp(FloatCC::GreaterThanOrEqual, r, two31);
+    let lo = b.ins().fcvt_to_sint_sat(I32X4, r);
+    let zero = i32_like(b, lo, 0);
+    let lo = b.ins().smax(lo, zero);
+    // r >= 2^31: r - 2^31 is exact; flipping the sign bit adds 2^31 back in u32.
+    let shifted = b.ins().fsub(r, two31);
+    let hi = b.ins().fcvt_to_sint_sat(I32X4, shifted);
+    let sign = i32_like(b, hi, i32::MIN as i64);
+    let hi = b.ins().bxor(hi, sign);
+    b.ins().bitselect(big, hi, lo)
+}
+
+/// Convert one component from `from` to `to` (scalar or vector form preserved).
+pub fn convert(b: &mut FunctionBuilder, from: Scalar, to: Scalar, v: ir::Value) -> ir::Value {
+    let vec = is_vec(b, v);
+    let int_ty = if vec { I32X4 } else { types::I32 };
+    let float_ty = if vec { F32X4 } else { types::F32 };
+    match (from, to) {
+        (a, c) if a == c => v,
+        (Scalar::Float, Scalar::Int) => b.ins().fcvt_to_sint_sat(int_ty, v),
+        (Scalar::Float, Scalar::Bool) => {
+            let z = f32_like(b, v, 0.0);
+            b.ins().fcmp(FloatCC::NotEqual, v, z)
+        }
+        (Scalar::Float, Scalar::Fixed(fmt)) => float_to_fixed(b, fmt, v),
+        (Scalar::Int, Scalar::Float) => b.ins().fcvt_from_sint(float_ty, v),
+        (Scalar::Int | Scalar::Fixed(_), Scalar::Bool) => {
+            let z = i32_like(b, v, 0);
+            b.ins().icmp(IntCC::NotEqual, v, z)
+        }
+        (Scalar::Int, Scalar::Fixed(fmt)) => fixed_to_fixed(b, FixedFormat { bits: 32, frac: 0 }, fmt, v),
+        (Scalar::Bool, _) => {
+            // 0/1 as int first.
+            let as_int = if vec {
+                let one = i32_like(b, v, 1);
+                b.ins().band(v, one)
+            } else {
+                b.ins().uextend(types::I32, v)
+            };
+            convert(b, Scalar::Int, to, as_int)
+        }
+        (Scalar::Fixed(fmt), Scalar::Float) => {
+            let f = if fmt.is_unsigned() {
+                b.ins().fcvt_from_uint(float_ty, v)
+            } else {
+                b.ins().fcvt_from_sint(float_ty, v)
+            };
+            let scale = f32_like(b, v, (1.0f64 / fmt.scale()) as f32);
+            // f32_like looked at `v`'s form, which matches `f`'s.
+            b.ins().fmul(f, scale)
+        }
+        (Scalar::Fixed(fmt), Scalar::Int) => {
+            if fmt.is_unsigned() {
+                // No integer bits: every in-range value floors to 0.
+                i32_like(b, v, 0)
+            } else {
+                b.ins().sshr_imm_u(v, fmt.frac as i64)
+            }
+        }
+        (Scalar::Fixed(a), Scalar::Fixed(c)) => fixed_to_fixed(b, a, c, v),
+        // Unreachable combinations (same type handled above) keep the value.
+        _ => v,
+    }
+}
+
+fn float_to_fixed(b: &mut FunctionBuilder, fmt: FixedFormat, v: ir::Value) -> ir::Value {
+    let scale = f32_like(b, v, fmt.scale() as f32);
+    // Scaling by a power of two is exact (or overflows to inf, which saturates below).
+    let scaled = b.ins().fmul(v, scale);
+    if is_vec(b, v) {
+        if fmt.is_unsigned() && fmt.bits == 32 {
+            return f32x4_to_u32_sat(b, scaled);
+        }
+        let r = b.ins().nearest(scaled);
+        let i = b.ins().fcvt_to_sint_sat(I32X4, r);
+        if fmt.bits == 32 {
+            return i;
+        }
+        let (lo, hi) = fmt.raw_range();
+        let lo = i32_like(b, i, lo);
+        let hi = i32_like(b, i, hi);
+        let i = b.ins().smax(i, lo);
+        b.ins().smin(i, hi)
+    } else {
+        let r = b.ins().nearest(scaled);
+        let i = b.ins().fcvt_to_sint_sat(types::I64, r);
+        saturate64(b, fmt, i)
+    }
+}
+
+fn fixed_to_fixed(b: &mut FunctionBuilder, from: FixedFormat, to: FixedFormat, v: ir::Value) -> ir::Value {
+    per_lane(b, &[v], I32X4, &mut |b, l| {
+        let w = widen(b, from, l[0]);
+        let diff = to.frac as i64 - from.frac as i64;
+        let w = if diff > 0 {
+            // |w| < 2^32 and diff <= 32: fits i64 except for the extreme 2^32 << 32 corner,
+            // which saturates correctly via the sign check below.
+            let shifted = b.ins().ishl_imm_u(w, diff);
+            // Detect overflow: shifting back must give w.
+            let back = b.ins().sshr_imm_u(shifted, diff);
+            let ok = b.ins().icmp(IntCC::Equal, back, w);
+            let neg = b.ins().icmp_imm_s(IntCC::SignedLessThan, w, 0);
+            let min = b.ins().iconst(types::I64, i64::MIN);
+            let max = b.ins().iconst(types::I64, i64::MAX);
+            let sat = b.ins().select(neg, min, max);
+            b.ins().select(ok, shifted, sat)
+        } else if diff < 0 {
+            b.ins().sshr_imm_u(w, -diff)
+        } else {
+            w
+        };
+        saturate64(b, to, w)
+    })
+}

@@ -1,0 +1,2433 @@
+//! IR -> CLIF: builds the Cranelift function of one primitive specialised for one variant key.
+//!
+//! Shape of every kernel (`fn(ctx, args)`):
+//! 1. `setup` as scalar code: uniform values are `f32`/`i32`/`i8` SSA variables; `bound`
+//!    unions into `ctx.bound` in bound mode and sets the pass rectangle; primitive calls build
+//!    the callee's argument block in a stack slot and call it directly.
+//! 2. If there is a pixel part: in bound mode record the viewport unless a bound ran, and
+//!    return; in render mode loop rows, then 4-pixel groups of the pass rectangle clipped to
+//!    the tile (groups start at tile-aligned x; lanes outside start dead). Loop headers branch
+//!    exit-first so Cranelift keeps hoisting uniform work out of them.
+//! 3. Per group the pixel statements run on vectors under masks: `alive` (lanes not yet
+//!    retired) and `exec` (the lanes the current statement runs for, always a subset of
+//!    `alive`). Varying `if` runs both sides under their masks, skipping a side with no lane;
+//!    varying loops keep a loop mask and run until it is empty; break/continue/return remove
+//!    lanes. Z is written back at the end of the group for the lanes that assigned it.
+//!
+//! Interpolation data is specialised away: an interpolation_data value is just the float
+//! components of the current *view* (all Kind-bound components outside an `interpolation`
+//! arm, the arm's kind's inside). Shared interpolators are inlined at a bare
+//! `interpolator_return;` as a one-trip masked loop whose `return` is a break.
+//!
+//! Safety invariants the code keeps: every index is clamped into its array (and the error
+//! recorded), every G-buffer store goes to a plane below `ctx.num_planes` (others go to a
+//! scratch slot), and every loop spends `ctx.fuel`. Nothing here panics on a checked
+//! program; an IR shape the checker should have excluded gives a [`JitError`].
+
+use cranelift_codegen::ir::{
+    self, condcodes::FloatCC, condcodes::IntCC, types, Block, InstBuilder, StackSlot, StackSlotData, StackSlotKind,
+};
+use cranelift_frontend::{FunctionBuilder, Variable};
+
+use super::fixed;
+use super::libm::LibmFn;
+use super::value::{
+    args_flags, blend, cl_type, comp_bytes, ctx_off, mask_const, mem_flags, splat, to_varying, zero, Val, F32X4, I32X4,
+};
+use super::JitError;
+use crate::abi::{
+    interpolator_arg_words, type_words, ArgLayout, BindingKind, ParamSlot, VariantKey, ERR_CALL_DEPTH, ERR_FUEL,
+    ERR_INDEX, MAX_CALL_DEPTH, MODE_BOUND,
+};
+use crate::ir::{
+    ArmKind, BinOp, ConstValue, Elem, Expr, ExprKind, FixedFormat, FuncId, FuncKind, Function, LocalId, LoopId,
+    ParamRole, Place, Program, Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp,
+};
+
+pub(crate) type Res<T> = Result<T, JitError>;
+
+pub(crate) fn err<T>(msg: impl Into<String>) -> Res<T> {
+    Err(JitError { message: msg.into() })
+}
+
+/// Resolves the functions a kernel calls: other kernels (same key) and libm helpers.
+pub(crate) trait Linker {
+    fn kernel_ref(&mut self, func: &mut ir::Function, callee: FuncId) -> Res<ir::FuncRef>;
+    fn libm_ref(&mut self, func: &mut ir::Function, f: LibmFn) -> Res<ir::FuncRef>;
+}
+
+/// The format depth values have in the depth buffer.
+const DEPTH_FORMAT: FixedFormat = FixedFormat { bits: 32, frac: 32 };
+
+/// Where a local lives.
+#[derive(Clone)]
+enum Storage {
+    /// One SSA variable per flattened component.
+    Vars(Vec<Variable>),
+    /// A stack slot (dynamically indexed locals): 4 bytes per uniform component, 16 per
+    /// varying one.
+    Stack(StackSlot),
+    /// The primitive's own Z: assignments also mark `z_written`.
+    Z(Variable),
+    /// A parameter read from the argument block.
+    Args,
+}
+
+/// A loop of the IR being lowered.
+struct LoopCtx {
+    id: Option<LoopId>,
+    varying: bool,
+    step: Block,
+    exit: Block,
+    /// Varying loops: lanes still in the loop, and lanes that continued this iteration.
+    mask: Option<Variable>,
+    cont: Option<Variable>,
+}
+
+/// One function being lowered: the primitive itself, or a shared interpolator inlined into it.
+struct Frame<'a> {
+    func: &'a Function,
+    slots: Vec<ParamSlot>,
+    fixed_words: u32,
+    storage: Vec<Storage>,
+    loops: Vec<LoopCtx>,
+    /// For an inlined interpolator: the binding its result goes to.
+    interp_binding: Option<usize>,
+}
+
+/// Per-group state of the pixel loop.
+struct PixelState {
+    alive: Variable,
+    exec: Variable,
+    z_written: Variable,
+    group_end: Block,
+    /// Element index of the group's first pixel in the tile buffers.
+    tile_idx: ir::Value,
+    /// Pixel centres of the group's lanes.
+    x_f: ir::Value,
+    y_f: ir::Value,
+    /// The depth buffer's raw values for the group (if loaded).
+    z_raw: Option<ir::Value>,
+    /// Nesting of varying control flow (varying ifs, varying loops, inlined interpolators).
+    varying_depth: u32,
+}
+
+/// The dynamic part of a component offset.
+#[derive(Clone, Copy)]
+enum Dyn {
+    None,
+    Uniform(ir::Value),
+    Varying(ir::Value),
+}
+
+#[derive(Clone)]
+enum Root {
+    Local { frame: usize, local: LocalId },
+    Stack { slot: StackSlot, varying: bool },
+    Temp(Val),
+}
+
+/// A (possibly indexed) value not yet loaded.
+struct Access {
+    root: Root,
+    ty: Type,
+    scalar: Scalar,
+    base: u32,
+    dyn_off: Dyn,
+    /// Interp elements hold only the view's components (temporaries), not all of them.
+    compact: bool,
+}
+
+/// What an `interpolation` arm serves.
+#[derive(Clone)]
+struct ArmInfo {
+    /// Kind bindings (indices into `key.bindings`) this arm writes.
+    bindings: Vec<usize>,
+}
+
+pub(crate) struct Lower<'a, 'b> {
+    pub(crate) b: FunctionBuilder<'b>,
+    program: &'a Program,
+    key: &'a VariantKey,
+    layout: &'a ArgLayout,
+    n_interp: u32,
+    linker: &'b mut dyn Linker,
+    ctx: ir::Value,
+    args: ir::Value,
+    exit: Block,
+    frames: Vec<Frame<'a>>,
+    pix: Option<PixelState>,
+    /// Varying loop masks from outermost to innermost (all frames), for restoring `exec`.
+    vloops: Vec<(Variable, Variable)>,
+    view: Vec<u32>,
+    arm: Option<ArmInfo>,
+    bound_vars: [Variable; 4],
+    has_bound: Variable,
+    scratch: StackSlot,
+    written: Vec<bool>,
+    pub(crate) warnings: Vec<String>,
+}
+
+/// Lower `func_id` for `key` into `func` (whose signature is already the kernel's).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn lower_kernel(
+    program: &Program,
+    func_id: FuncId,
+    key: &VariantKey,
+    layout: &ArgLayout,
+    func: &mut ir::Function,
+    fctx: &mut cranelift_frontend::FunctionBuilderContext,
+    linker: &mut dyn Linker,
+    frontend: cranelift_codegen::isa::TargetFrontendConfig,
+) -> Res<Vec<String>> {
+    let f = program.functions.get(func_id.0 as usize).ok_or_else(|| JitError {
+        message: format!("no function {}", func_id.0),
+    })?;
+    if f.kind != FuncKind::Primitive {
+        return err(format!(
+            "`{}` is an interpolator, not a primitive: it has no kernel",
+            f.name
+        ));
+    }
+    let mut b = FunctionBuilder::new(func, fctx);
+    let entry = b.create_block();
+    b.append_block_params_for_function_params(entry);
+    b.switch_to_block(entry);
+    let ctx = b.block_params(entry)[0];
+    let args = b.block_params(entry)[1];
+    let exit = b.create_block();
+    let scratch = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 4));
+    let bound_vars = [
+        b.declare_var(types::F32),
+        b.declare_var(types::F32),
+        b.declare_var(types::F32),
+        b.declare_var(types::F32),
+    ];
+    let has_bound = b.declare_var(types::I8);
+    let mut l = Lower {
+        b,
+        program,
+        key,
+        layout,
+        n_interp: key.interp_components(),
+        linker,
+        ctx,
+        args,
+        exit,
+        frames: vec![],
+        pix: None,
+        vloops: vec![],
+        view: (0..key.interp_components()).collect(),
+        arm: None,
+        bound_vars,
+        has_bound,
+        scratch,
+        written: vec![false; key.bindings.len()],
+        warnings: vec![],
+    };
+    l.body(f)?;
+    for (i, b) in key.bindings.iter().enumerate() {
+        if let BindingKind::Kind(k) = &b.kind {
+            if !l.written[i] {
+                l.warnings.push(format!(
+                    "`{}`: shading parameter {} is bound to kind `{}` but no interpolation arm writes it",
+                    f.name, i, k
+                ));
+            }
+        }
+    }
+    l.b.seal_all_blocks();
+    let warnings = std::mem::take(&mut l.warnings);
+    l.b.finalize(frontend);
+    Ok(warnings)
+}
+
+impl<'a, 'b> Lower<'a, 'b> {
+    // ---------------------------------------------------------------- kernel shape
+
+    fn body(&mut self, f: &'a Function) -> Res<()> {
+        // The pass rectangle defaults to everything; `bound` narrows it.
+        let ninf = self.b.ins().f32const(f32::NEG_INFINITY);
+        let pinf = self.b.ins().f32const(f32::INFINITY);
+        self.b.def_var(self.bound_vars[0], ninf);
+        self.b.def_var(self.bound_vars[1], ninf);
+        self.b.def_var(self.bound_vars[2], pinf);
+        self.b.def_var(self.bound_vars[3], pinf);
+        let no = self.b.ins().iconst(types::I8, 0);
+        self.b.def_var(self.has_bound, no);
+
+        let frame = self.make_frame(f, self.layout.params.clone(), self.layout.fixed_words, None)?;
+        self.frames.push(frame);
+        self.stmts(&f.setup)?;
+        if !f.pixel.is_empty() {
+            self.pixel_passes(f)?;
+        }
+        self.b.ins().jump(self.exit, &[]);
+        self.b.switch_to_block(self.exit);
+        self.b.ins().return_(&[]);
+        Ok(())
+    }
+
+    fn load_ctx(&mut self, ty: ir::Type, off: i32) -> ir::Value {
+        self.b.ins().load(ty, mem_flags(), self.ctx, off)
+    }
+
+    fn store_ctx(&mut self, v: ir::Value, off: i32) {
+        self.b.ins().store(mem_flags(), v, self.ctx, off);
+    }
+
+    /// After a terminator in the middle of a statement list: keep emitting into a fresh
+    /// block no edge reaches (Cranelift drops it).
+    fn continue_unreachable(&mut self) {
+        let dead = self.b.create_block();
+        self.b.switch_to_block(dead);
+    }
+
+    /// Record `code` at `site` if no error was recorded yet and `cond` (i8) holds.
+    fn record_error(&mut self, code: u32, site: u32, cond: Option<ir::Value>) {
+        let old = self.load_ctx(types::I32, ctx_off::ERROR);
+        let mut first = self.b.ins().icmp_imm_s(IntCC::Equal, old, 0);
+        if let Some(c) = cond {
+            first = self.b.ins().band(first, c);
+        }
+        let code_v = self.b.ins().iconst(types::I32, code as i64);
+        let new = self.b.ins().select(first, code_v, old);
+        self.store_ctx(new, ctx_off::ERROR);
+        let old_site = self.load_ctx(types::I32, ctx_off::ERROR_SITE);
+        let site_v = self.b.ins().iconst(types::I32, site as i32 as i64);
+        let new_site = self.b.ins().select(first, site_v, old_site);
+        self.store_ctx(new_site, ctx_off::ERROR_SITE);
+    }
+
+    /// Union a rectangle into `ctx.bound` (bound mode only; the caller checks for NaN).
+    fn union_bound(&mut self, r: [ir::Value; 4]) {
+        let set = self.load_ctx(types::I32, ctx_off::BOUND_SET);
+        let has = self.b.ins().icmp_imm_s(IntCC::NotEqual, set, 0);
+        for (i, &v) in r.iter().enumerate() {
+            let off = ctx_off::BOUND + 4 * i as i32;
+            let cur = self.load_ctx(types::F32, off);
+            let merged = if i < 2 {
+                self.b.ins().fmin(cur, v)
+            } else {
+                self.b.ins().fmax(cur, v)
+            };
+            let new = self.b.ins().select(has, merged, v);
+            self.store_ctx(new, off);
+        }
+        let one = self.b.ins().iconst(types::I32, 1);
+        self.store_ctx(one, ctx_off::BOUND_SET);
+    }
+
+    fn lower_bound(&mut self, es: &'a [Expr; 4]) -> Res<()> {
+        let mut r = [self.b.ins().f32const(0.0); 4];
+        for (i, e) in es.iter().enumerate() {
+            let v = self.eval_uniform(e)?;
+            r[i] = fixed::convert(&mut self.b, v.scalar, Scalar::Float, v.comps[0]);
+        }
+        let mut nan = self.b.ins().fcmp(FloatCC::Unordered, r[0], r[1]);
+        let n2 = self.b.ins().fcmp(FloatCC::Unordered, r[2], r[3]);
+        nan = self.b.ins().bor(nan, n2);
+        let mode = self.load_ctx(types::I32, ctx_off::MODE);
+        let is_bound = self.b.ins().icmp_imm_s(IntCC::Equal, mode, MODE_BOUND as i64);
+        let skip = self.b.ins().bnot(nan);
+        let go = self.b.ins().band(is_bound, skip);
+        let union_blk = self.b.create_block();
+        let after = self.b.create_block();
+        self.b.ins().brif(go, union_blk, &[], after, &[]);
+        self.b.switch_to_block(union_blk);
+        self.union_bound(r);
+        self.b.ins().jump(after, &[]);
+        self.b.switch_to_block(after);
+        for (i, &v) in r.iter().enumerate() {
+            self.b.def_var(self.bound_vars[i], v);
+        }
+        let yes = self.b.ins().iconst(types::I8, 1);
+        self.b.def_var(self.has_bound, yes);
+        Ok(())
+    }
+
+    /// The pixel loops (render mode) or the viewport bound (bound mode).
+    fn pixel_passes(&mut self, f: &'a Function) -> Res<()> {
+        let mode = self.load_ctx(types::I32, ctx_off::MODE);
+        let is_bound = self.b.ins().icmp_imm_s(IntCC::Equal, mode, MODE_BOUND as i64);
+        let bound_blk = self.b.create_block();
+        let render_blk = self.b.create_block();
+        self.b.ins().brif(is_bound, bound_blk, &[], render_blk, &[]);
+
+        // Bound mode: no `bound` ran, so the primitive may cover the whole viewport.
+        self.b.switch_to_block(bound_blk);
+        let has = self.b.use_var(self.has_bound);
+        let vp_blk = self.b.create_block();
+        self.b.ins().brif(has, self.exit, &[], vp_blk, &[]);
+        self.b.switch_to_block(vp_blk);
+        let w = self.load_ctx(types::I32, ctx_off::WIDTH);
+        let h = self.load_ctx(types::I32, ctx_off::HEIGHT);
+        let wf = self.b.ins().fcvt_from_uint(types::F32, w);
+        let hf = self.b.ins().fcvt_from_uint(types::F32, h);
+        let z = self.b.ins().f32const(0.0);
+        self.union_bound([z, z, wf, hf]);
+        self.b.ins().jump(self.exit, &[]);
+
+        self.b.switch_to_block(render_blk);
+        let x0 = self.load_ctx(types::I32, ctx_off::X0);
+        let y0 = self.load_ctx(types::I32, ctx_off::Y0);
+        let x1 = self.load_ctx(types::I32, ctx_off::X1);
+        let y1 = self.load_ctx(types::I32, ctx_off::Y1);
+        let bx = [
+            self.b.use_var(self.bound_vars[0]),
+            self.b.use_var(self.bound_vars[1]),
+            self.b.use_var(self.bound_vars[2]),
+            self.b.use_var(self.bound_vars[3]),
+        ];
+        let (lo_x, hi_x) = self.pass_range(bx[0], bx[2], x0, x1);
+        let (lo_y, hi_y) = self.pass_range(bx[1], bx[3], y0, y1);
+        // Any NaN component: the pass rectangle is empty.
+        let n1 = self.b.ins().fcmp(FloatCC::Unordered, bx[0], bx[1]);
+        let n2 = self.b.ins().fcmp(FloatCC::Unordered, bx[2], bx[3]);
+        let nan = self.b.ins().bor(n1, n2);
+        let hi_y = self.b.ins().select(nan, lo_y, hi_y);
+
+        let stride = self.load_ctx(types::I32, ctx_off::STRIDE);
+        let stride64 = self.b.ins().uextend(types::I64, stride);
+        // Groups start at tile-aligned x.
+        let off = self.b.ins().isub(lo_x, x0);
+        let off = self.b.ins().band_imm_s(off, !3i64);
+        let gx_start = self.b.ins().iadd(x0, off);
+
+        let py = self.b.declare_var(types::I32);
+        let gx = self.b.declare_var(types::I32);
+        self.b.def_var(py, lo_y);
+        let row_hdr = self.b.create_block();
+        let row_body = self.b.create_block();
+        let row_next = self.b.create_block();
+        let grp_hdr = self.b.create_block();
+        let grp_body = self.b.create_block();
+        let grp_run = self.b.create_block();
+        let grp_next = self.b.create_block();
+        let group_end = self.b.create_block();
+        let loops_done = self.b.create_block();
+        self.b.ins().jump(row_hdr, &[]);
+
+        self.b.switch_to_block(row_hdr);
+        let y = self.b.use_var(py);
+        let done = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, y, hi_y);
+        self.b.ins().brif(done, loops_done, &[], row_body, &[]);
+
+        self.b.switch_to_block(row_body);
+        let y = self.b.use_var(py);
+        let row = self.b.ins().isub(y, y0);
+        let row64 = self.b.ins().sextend(types::I64, row);
+        let row_base = self.b.ins().imul(row64, stride64);
+        let yf = self.b.ins().fcvt_from_sint(types::F32, y);
+        let half = self.b.ins().f32const(0.5);
+        let yf = self.b.ins().fadd(yf, half);
+        let y_f = self.b.ins().splat(F32X4, yf);
+        self.b.def_var(gx, gx_start);
+        self.b.ins().jump(grp_hdr, &[]);
+
+        self.b.switch_to_block(grp_hdr);
+        let g = self.b.use_var(gx);
+        let done = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, g, hi_x);
+        self.b.ins().brif(done, row_next, &[], grp_body, &[]);
+
+        self.b.switch_to_block(grp_body);
+        let g = self.b.use_var(gx);
+        let gs = self.b.ins().splat(I32X4, g);
+        let iota = self.iota();
+        let px = self.b.ins().iadd(gs, iota);
+        let lo_s = self.b.ins().splat(I32X4, lo_x);
+        let hi_s = self.b.ins().splat(I32X4, hi_x);
+        let ge = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, px, lo_s);
+        let lt = self.b.ins().icmp(IntCC::SignedLessThan, px, hi_s);
+        let mask = self.b.ins().band(ge, lt);
+        let col = self.b.ins().isub(g, x0);
+        let col64 = self.b.ins().sextend(types::I64, col);
+        let tile_idx = self.b.ins().iadd(row_base, col64);
+        let any = self.b.ins().vany_true(mask);
+        let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
+        self.b.ins().brif(none, grp_next, &[], grp_run, &[]);
+
+        self.b.switch_to_block(grp_run);
+        let alive = self.b.declare_var(I32X4);
+        let exec = self.b.declare_var(I32X4);
+        let z_written = self.b.declare_var(I32X4);
+        self.b.def_var(alive, mask);
+        self.b.def_var(exec, mask);
+        let none_mask = mask_const(&mut self.b, false);
+        self.b.def_var(z_written, none_mask);
+        let pxf = self.b.ins().fcvt_from_sint(F32X4, px);
+        let halfv = self.b.ins().splat(F32X4, half);
+        let x_f = self.b.ins().fadd(pxf, halfv);
+        let needs_depth = f.param_by_role(ParamRole::Z).is_some()
+            || self
+                .key
+                .bindings
+                .iter()
+                .any(|b| matches!(b.kind, BindingKind::Shared(_)));
+        let z_raw = if needs_depth {
+            let addr = self.tile_addr(ctx_off::DEPTH, tile_idx);
+            Some(self.b.ins().load(I32X4, mem_flags(), addr, 0))
+        } else {
+            None
+        };
+        self.pix = Some(PixelState {
+            alive,
+            exec,
+            z_written,
+            group_end,
+            tile_idx,
+            x_f,
+            y_f,
+            z_raw,
+            varying_depth: 0,
+        });
+        // Bind the primitive's X, Y, Z in its declared types.
+        for (i, p) in f.params.iter().enumerate() {
+            let local = f.local(p.local);
+            let Elem::Scalar(sc) = local.ty.elem else { continue };
+            let (src, from) = match p.role {
+                ParamRole::X => (x_f, Scalar::Float),
+                ParamRole::Y => (y_f, Scalar::Float),
+                ParamRole::Z => match z_raw {
+                    Some(z) => (z, Scalar::Fixed(DEPTH_FORMAT)),
+                    None => continue,
+                },
+                _ => continue,
+            };
+            let v = fixed::convert(&mut self.b, from, sc, src);
+            match &self.frames[0].storage[i] {
+                Storage::Vars(vs) => {
+                    let var = vs[0];
+                    self.b.def_var(var, v)
+                }
+                Storage::Z(var) => {
+                    let var = *var;
+                    self.b.def_var(var, v)
+                }
+                _ => {}
+            }
+        }
+        self.stmts(&f.pixel)?;
+        self.b.ins().jump(group_end, &[]);
+
+        // End of group: write Z back for the lanes that assigned it.
+        self.b.switch_to_block(group_end);
+        if let (Some(zp), Some(_)) = (f.param_by_role(ParamRole::Z), z_raw) {
+            let zi = f.params.iter().position(|p| p.role == ParamRole::Z).unwrap_or(0);
+            let zsc = match f.local(zp.local).ty.elem {
+                Elem::Scalar(s) => s,
+                Elem::Interp => Scalar::Float,
+            };
+            let written = self.b.use_var(z_written);
+            let any = self.b.ins().vany_true(written);
+            let store_blk = self.b.create_block();
+            let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
+            self.b.ins().brif(none, grp_next, &[], store_blk, &[]);
+            self.b.switch_to_block(store_blk);
+            let zvar = match &self.frames[0].storage[zi] {
+                Storage::Z(v) => *v,
+                _ => return err("Z parameter without storage"),
+            };
+            let zval = self.b.use_var(zvar);
+            let raw = fixed::convert(&mut self.b, zsc, Scalar::Fixed(DEPTH_FORMAT), zval);
+            let addr = self.tile_addr(ctx_off::DEPTH, tile_idx);
+            let old = self.b.ins().load(I32X4, mem_flags(), addr, 0);
+            let new = self.b.ins().blendv(written, raw, old);
+            self.b.ins().store(mem_flags(), new, addr, 0);
+            if self.key.count_writes {
+                let caddr = self.tile_addr(ctx_off::WRITE_COUNT, tile_idx);
+                let old = self.b.ins().load(I32X4, mem_flags(), caddr, 0);
+                // Written lanes are -1: subtracting adds one.
+                let new = self.b.ins().isub(old, written);
+                self.b.ins().store(mem_flags(), new, caddr, 0);
+            }
+        }
+        self.b.ins().jump(grp_next, &[]);
+        self.pix = None;
+
+        self.b.switch_to_block(grp_next);
+        let g = self.b.use_var(gx);
+        let g = self.b.ins().iadd_imm_s(g, 4);
+        self.b.def_var(gx, g);
+        self.b.ins().jump(grp_hdr, &[]);
+
+        self.b.switch_to_block(row_next);
+        let y = self.b.use_var(py);
+        let y = self.b.ins().iadd_imm_s(y, 1);
+        self.b.def_var(py, y);
+        self.b.ins().jump(row_hdr, &[]);
+
+        self.b.switch_to_block(loops_done);
+        Ok(())
+    }
+
+    /// Pixels [lo, hi) of the tile range [t0, t1) whose centres lie in [bmin, bmax].
+    /// Clamped in float first so huge or infinite bounds cannot overflow the conversion.
+    fn pass_range(&mut self, bmin: ir::Value, bmax: ir::Value, t0: ir::Value, t1: ir::Value) -> (ir::Value, ir::Value) {
+        let t0f = self.b.ins().fcvt_from_sint(types::F32, t0);
+        let t1f = self.b.ins().fcvt_from_sint(types::F32, t1);
+        let half = self.b.ins().f32const(0.5);
+        let one = self.b.ins().f32const(1.0);
+        let lo = self.b.ins().fsub(bmin, half);
+        let lo = self.b.ins().ceil(lo);
+        let lo = self.b.ins().fmax(lo, t0f);
+        let lo = self.b.ins().fmin(lo, t1f);
+        let hi = self.b.ins().fsub(bmax, half);
+        let hi = self.b.ins().floor(hi);
+        let hi = self.b.ins().fadd(hi, one);
+        let hi = self.b.ins().fmax(hi, t0f);
+        let hi = self.b.ins().fmin(hi, t1f);
+        // NaN converts to 0 here; the caller empties the rectangle for NaN bounds.
+        let lo_i = self.b.ins().fcvt_to_sint_sat(types::I32, lo);
+        let hi_i = self.b.ins().fcvt_to_sint_sat(types::I32, hi);
+        let hi_i = self.b.ins().smax(hi_i, lo_i);
+        (lo_i, hi_i)
+    }
+
+    fn iota(&mut self) -> ir::Value {
+        let mut bytes = vec![];
+        for i in 0..4u32 {
+            bytes.extend_from_slice(&i.to_le_bytes());
+        }
+        let c = self.b.func.dfg.constants.insert(bytes.into());
+        self.b.ins().vconst(I32X4, c)
+    }
+
+    /// Address of element `idx` (i64) of the tile buffer whose pointer is at `ptr_off` in ctx.
+    fn tile_addr(&mut self, ptr_off: i32, idx: ir::Value) -> ir::Value {
+        let base = self.load_ctx(types::I64, ptr_off);
+        let bytes = self.b.ins().ishl_imm_u(idx, 2);
+        self.b.ins().iadd(base, bytes)
+    }
+
+    // ---------------------------------------------------------------- frames and storage
+
+    fn make_frame(
+        &mut self,
+        f: &'a Function,
+        slots: Vec<ParamSlot>,
+        fixed_words: u32,
+        interp_binding: Option<usize>,
+    ) -> Res<Frame<'a>> {
+        let mut dynamic = vec![false; f.locals.len()];
+        for s in f.setup.iter().chain(f.pixel.iter()) {
+            mark_dynamic_stmt(s, &mut dynamic);
+        }
+        let mut storage = Vec::with_capacity(f.locals.len());
+        for (i, local) in f.locals.iter().enumerate() {
+            let param_role = f.params.iter().find(|p| p.local.0 as usize == i).map(|p| p.role);
+            let varying = local.var.is_varying();
+            let sc = elem_scalar(&local.ty);
+            let st = match param_role {
+                Some(ParamRole::Z) if interp_binding.is_none() => Storage::Z(self.b.declare_var(I32X4_or(sc))),
+                Some(ParamRole::X | ParamRole::Y | ParamRole::Z) => {
+                    Storage::Vars(vec![self.b.declare_var(I32X4_or(sc))])
+                }
+                Some(_) => Storage::Args,
+                None => {
+                    if local.ty.per_seq {
+                        return err(format!("local `{}` has a per-sequence-point type", local.name));
+                    }
+                    let n = type_words(&local.ty, self.n_interp);
+                    if dynamic[i] {
+                        let bytes = n.max(1) * comp_bytes(varying);
+                        let slot =
+                            self.b
+                                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, bytes, 4));
+                        // Zero it so no run reads stale stack memory.
+                        let z = zero(&mut self.b, sc, varying);
+                        let z = if varying || sc != Scalar::Bool {
+                            z
+                        } else {
+                            self.b.ins().iconst(types::I8, 0)
+                        };
+                        for c in 0..n {
+                            let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                            self.b
+                                .ins()
+                                .store(mem_flags(), z, addr, (c * comp_bytes(varying)) as i32);
+                        }
+                        Storage::Stack(slot)
+                    } else {
+                        let ty = cl_type(sc, varying);
+                        let z = zero(&mut self.b, sc, varying);
+                        let vars = (0..n)
+                            .map(|_| {
+                                let v = self.b.declare_var(ty);
+                                self.b.def_var(v, z);
+                                v
+                            })
+                            .collect();
+                        Storage::Vars(vars)
+                    }
+                }
+            };
+            storage.push(st);
+        }
+        Ok(Frame {
+            func: f,
+            slots,
+            fixed_words,
+            storage,
+            loops: vec![],
+            interp_binding,
+        })
+    }
+
+    fn frame(&self) -> &Frame<'a> {
+        self.frames.last().expect("a frame is always pushed while lowering")
+    }
+
+    fn frame_mut(&mut self) -> &mut Frame<'a> {
+        self.frames.last_mut().expect("a frame is always pushed while lowering")
+    }
+
+    fn exec(&mut self) -> Option<ir::Value> {
+        let e = self.pix.as_ref()?.exec;
+        Some(self.b.use_var(e))
+    }
+
+    fn set_exec(&mut self, v: ir::Value) {
+        if let Some(p) = &self.pix {
+            let e = p.exec;
+            self.b.def_var(e, v);
+        }
+    }
+
+    /// Assignments must blend with the old value (some live lane is not executing).
+    fn masked(&self) -> bool {
+        self.pix.as_ref().is_some_and(|p| p.varying_depth > 0)
+    }
+
+    fn in_pixel(&self) -> bool {
+        self.pix.is_some()
+    }
+
+    fn depth_add(&mut self, d: i32) {
+        if let Some(p) = &mut self.pix {
+            p.varying_depth = (p.varying_depth as i32 + d) as u32;
+        }
+    }
+
+    /// `exec` after leaving a construct entered with `entry`: the entry lanes that are still
+    /// alive and have not left an enclosing varying loop.
+    fn restore_exec(&mut self, entry: ir::Value) {
+        let Some(p) = &self.pix else { return };
+        let alive = p.alive;
+        let a = self.b.use_var(alive);
+        let mut m = self.b.ins().band(entry, a);
+        for (mask, cont) in self.vloops.clone() {
+            let lm = self.b.use_var(mask);
+            let c = self.b.use_var(cont);
+            let stay = self.b.ins().band_not(lm, c);
+            m = self.b.ins().band(m, stay);
+        }
+        self.set_exec(m);
+    }
+
+    // ---------------------------------------------------------------- statements
+
+    fn stmts(&mut self, stmts: &'a [Stmt]) -> Res<()> {
+        for s in stmts {
+            self.stmt(s)?;
+        }
+        Ok(())
+    }
+
+    fn stmt(&mut self, s: &'a Stmt) -> Res<()> {
+        match &s.kind {
+            StmtKind::Assign { place, value } => self.assign(place, value),
+            StmtKind::If { cond, then, otherwise } => self.lower_if(cond, then, otherwise),
+            StmtKind::Loop {
+                id,
+                cond,
+                body,
+                step,
+                varying,
+                site,
+            } => {
+                if *varying && self.in_pixel() {
+                    self.varying_loop(*id, cond.as_ref(), body, step, *site)
+                } else {
+                    self.uniform_loop(*id, cond.as_ref(), body, step, *site)
+                }
+            }
+            StmtKind::Break(id) => self.break_continue(*id, true),
+            StmtKind::Continue(id) => self.break_continue(*id, false),
+            StmtKind::Return => self.lower_return(),
+            StmtKind::Interpolation { arms } => self.interpolation(arms),
+            StmtKind::InterpolatorReturn(e) => self.interpolator_return(e.as_ref()),
+            StmtKind::Bound(es) => {
+                if self.in_pixel() || self.frames.len() > 1 {
+                    return err("`bound` in per-pixel code");
+                }
+                self.lower_bound(es)
+            }
+            StmtKind::CallPrimitive { callee, args } => {
+                if self.in_pixel() || self.frames.len() > 1 {
+                    return err("primitive call in per-pixel code");
+                }
+                self.call_primitive(*callee, args)
+            }
+        }
+    }
+
+    fn lower_if(&mut self, cond: &'a Expr, then: &'a [Stmt], otherwise: &'a [Stmt]) -> Res<()> {
+        let c = self.eval(cond)?;
+        if !c.varying {
+            let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
+            let then_blk = self.b.create_block();
+            let else_blk = self.b.create_block();
+            let join = self.b.create_block();
+            self.b.ins().brif(c, then_blk, &[], else_blk, &[]);
+            self.b.switch_to_block(then_blk);
+            self.stmts(then)?;
+            self.b.ins().jump(join, &[]);
+            self.b.switch_to_block(else_blk);
+            self.stmts(otherwise)?;
+            self.b.ins().jump(join, &[]);
+            self.b.switch_to_block(join);
+            return Ok(());
+        }
+        let Some(entry) = self.exec() else {
+            return err("varying condition outside per-pixel code");
+        };
+        let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
+        let then_mask = self.b.ins().band(entry, c);
+        let else_mask = self.b.ins().band_not(entry, c);
+        let then_out = self.b.declare_var(I32X4);
+        self.b.def_var(then_out, then_mask);
+        self.depth_add(1);
+        let then_blk = self.b.create_block();
+        let join1 = self.b.create_block();
+        let any = self.b.ins().vany_true(then_mask);
+        let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
+        self.b.ins().brif(none, join1, &[], then_blk, &[]);
+        self.b.switch_to_block(then_blk);
+        self.set_exec(then_mask);
+        self.stmts(then)?;
+        let out = self.exec().expect("pixel context");
+        self.b.def_var(then_out, out);
+        self.b.ins().jump(join1, &[]);
+        self.b.switch_to_block(join1);
+        let else_out = self.b.declare_var(I32X4);
+        self.b.def_var(else_out, else_mask);
+        if !otherwise.is_empty() {
+            let else_blk = self.b.create_block();
+            let join2 = self.b.create_block();
+            let any = self.b.ins().vany_true(else_mask);
+            let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
+            self.b.ins().brif(none, join2, &[], else_blk, &[]);
+            self.b.switch_to_block(else_blk);
+            self.set_exec(else_mask);
+            self.stmts(otherwise)?;
+            let out = self.exec().expect("pixel context");
+            self.b.def_var(else_out, out);
+            self.b.ins().jump(join2, &[]);
+            self.b.switch_to_block(join2);
+        }
+        self.depth_add(-1);
+        let t = self.b.use_var(then_out);
+        let e = self.b.use_var(else_out);
+        let m = self.b.ins().bor(t, e);
+        self.set_exec(m);
+        Ok(())
+    }
+
+    /// Spend one unit of fuel; out of fuel records ERR_FUEL and jumps to `exit`.
+    fn spend_fuel(&mut self, site: SiteId, exit: Block) {
+        let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
+        let empty = self.b.ins().icmp_imm_s(IntCC::Equal, fuel, 0);
+        let out_blk = self.b.create_block();
+        let ok_blk = self.b.create_block();
+        self.b.ins().brif(empty, out_blk, &[], ok_blk, &[]);
+        self.b.set_cold_block(out_blk);
+        self.b.switch_to_block(out_blk);
+        self.record_error(ERR_FUEL, site.0, None);
+        self.b.ins().jump(exit, &[]);
+        self.b.switch_to_block(ok_blk);
+        let less = self.b.ins().iadd_imm_s(fuel, -1);
+        self.store_ctx(less, ctx_off::FUEL);
+    }
+
+    fn uniform_loop(
+        &mut self,
+        id: LoopId,
+        cond: Option<&'a Expr>,
+        body: &'a [Stmt],
+        step: &'a [Stmt],
+        site: SiteId,
+    ) -> Res<()> {
+        let header = self.b.create_block();
+        let body_blk = self.b.create_block();
+        let step_blk = self.b.create_block();
+        let exit = self.b.create_block();
+        self.b.ins().jump(header, &[]);
+        self.b.switch_to_block(header);
+        self.spend_fuel(site, exit);
+        if let Some(c) = cond {
+            let v = self.eval_uniform(c)?;
+            let v = fixed::convert(&mut self.b, v.scalar, Scalar::Bool, v.comps[0]);
+            let done = self.b.ins().icmp_imm_s(IntCC::Equal, v, 0);
+            self.b.ins().brif(done, exit, &[], body_blk, &[]);
+        } else {
+            self.b.ins().jump(body_blk, &[]);
+        }
+        self.b.switch_to_block(body_blk);
+        self.frame_mut().loops.push(LoopCtx {
+            id: Some(id),
+            varying: false,
+            step: step_blk,
+            exit,
+            mask: None,
+            cont: None,
+        });
+        let r = self.stmts(body);
+        self.frame_mut().loops.pop();
+        r?;
+        self.b.ins().jump(step_blk, &[]);
+        self.b.switch_to_block(step_blk);
+        self.stmts(step)?;
+        self.b.ins().jump(header, &[]);
+        self.b.switch_to_block(exit);
+        Ok(())
+    }
+
+    fn varying_loop(
+        &mut self,
+        id: LoopId,
+        cond: Option<&'a Expr>,
+        body: &'a [Stmt],
+        step: &'a [Stmt],
+        site: SiteId,
+    ) -> Res<()> {
+        let entry = self.exec().expect("pixel context");
+        let alive_var = self.pix.as_ref().expect("pixel context").alive;
+        let mask = self.b.declare_var(I32X4);
+        let cont = self.b.declare_var(I32X4);
+        self.b.def_var(mask, entry);
+        let none_mask = mask_const(&mut self.b, false);
+        self.b.def_var(cont, none_mask);
+        let header = self.b.create_block();
+        let fuel_blk = self.b.create_block();
+        let body_blk = self.b.create_block();
+        let step_blk = self.b.create_block();
+        let exit = self.b.create_block();
+        self.b.ins().jump(header, &[]);
+
+        self.b.switch_to_block(header);
+        let lm = self.b.use_var(mask);
+        let alive = self.b.use_var(alive_var);
+        let lm = self.b.ins().band(lm, alive);
+        self.b.def_var(mask, lm);
+        let any = self.b.ins().vany_true(lm);
+        let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
+        self.b.ins().brif(none, exit, &[], fuel_blk, &[]);
+
+        self.b.switch_to_block(fuel_blk);
+        self.spend_fuel(site, exit);
+        let none_mask = mask_const(&mut self.b, false);
+        self.b.def_var(cont, none_mask);
+        self.set_exec(lm);
+        self.depth_add(1);
+        if let Some(c) = cond {
+            let v = self.eval(c)?;
+            let v = fixed::convert(&mut self.b, v.scalar, Scalar::Bool, v.comps[0]);
+            let cm = splat(&mut self.b, Scalar::Bool, v);
+            let lm2 = self.b.ins().band(lm, cm);
+            self.b.def_var(mask, lm2);
+            self.set_exec(lm2);
+            let any = self.b.ins().vany_true(lm2);
+            let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
+            self.b.ins().brif(none, exit, &[], body_blk, &[]);
+        } else {
+            self.b.ins().jump(body_blk, &[]);
+        }
+        self.b.switch_to_block(body_blk);
+        self.frame_mut().loops.push(LoopCtx {
+            id: Some(id),
+            varying: true,
+            step: step_blk,
+            exit,
+            mask: Some(mask),
+            cont: Some(cont),
+        });
+        self.vloops.push((mask, cont));
+        let r = self.stmts(body);
+        self.b.ins().jump(step_blk, &[]);
+        self.b.switch_to_block(step_blk);
+        // Continued lanes come back for the step; broken and retired ones do not.
+        let lm = self.b.use_var(mask);
+        let alive = self.b.use_var(alive_var);
+        let ex = self.b.ins().band(lm, alive);
+        self.set_exec(ex);
+        let none_mask = mask_const(&mut self.b, false);
+        self.b.def_var(cont, none_mask);
+        let r2 = r.and_then(|_| self.stmts(step));
+        self.vloops.pop();
+        self.frame_mut().loops.pop();
+        self.depth_add(-1);
+        r2?;
+        self.b.ins().jump(header, &[]);
+        self.b.switch_to_block(exit);
+        self.restore_exec(entry);
+        Ok(())
+    }
+
+    fn break_continue(&mut self, id: LoopId, is_break: bool) -> Res<()> {
+        let frame = self.frame();
+        let Some(pos) = frame.loops.iter().rposition(|l| l.id == Some(id)) else {
+            return err(format!("break/continue of loop {} outside it", id.0));
+        };
+        let target = &frame.loops[pos];
+        let inner: Vec<(Option<Variable>, Option<Variable>)> =
+            frame.loops[pos..].iter().map(|l| (l.mask, l.cont)).collect();
+        if !target.varying {
+            let dest = if is_break { target.exit } else { target.step };
+            self.b.ins().jump(dest, &[]);
+            self.continue_unreachable();
+            return Ok(());
+        }
+        let exec = self.exec().expect("varying loop in pixel context");
+        for (k, (mask, cont)) in inner.into_iter().enumerate() {
+            let outermost = k == 0;
+            if outermost && !is_break {
+                if let Some(c) = cont {
+                    let old = self.b.use_var(c);
+                    let new = self.b.ins().bor(old, exec);
+                    self.b.def_var(c, new);
+                }
+            } else if let Some(m) = mask {
+                let old = self.b.use_var(m);
+                let new = self.b.ins().band_not(old, exec);
+                self.b.def_var(m, new);
+            }
+        }
+        let none = mask_const(&mut self.b, false);
+        self.set_exec(none);
+        Ok(())
+    }
+
+    /// Ends the inlined interpolator for the executing lanes (its `return`).
+    fn leave_interpolator(&mut self) -> Res<()> {
+        let exec = self.exec().expect("interpolators run in pixel context");
+        let masks: Vec<Option<Variable>> = self.frame().loops.iter().map(|l| l.mask).collect();
+        for m in masks.into_iter().flatten() {
+            let old = self.b.use_var(m);
+            let new = self.b.ins().band_not(old, exec);
+            self.b.def_var(m, new);
+        }
+        let none = mask_const(&mut self.b, false);
+        self.set_exec(none);
+        Ok(())
+    }
+
+    fn lower_return(&mut self) -> Res<()> {
+        if self.frame().interp_binding.is_some() {
+            return self.leave_interpolator();
+        }
+        let Some(p) = &self.pix else {
+            // Setup: the primitive ends.
+            self.b.ins().jump(self.exit, &[]);
+            self.continue_unreachable();
+            return Ok(());
+        };
+        let (alive_var, group_end, depth) = (p.alive, p.group_end, p.varying_depth);
+        if depth == 0 {
+            // Uniform control flow: every lane of the group retires.
+            self.b.ins().jump(group_end, &[]);
+            self.continue_unreachable();
+            return Ok(());
+        }
+        let exec = self.exec().expect("pixel context");
+        let alive = self.b.use_var(alive_var);
+        let alive = self.b.ins().band_not(alive, exec);
+        self.b.def_var(alive_var, alive);
+        let none = mask_const(&mut self.b, false);
+        self.set_exec(none);
+        let any = self.b.ins().vany_true(alive);
+        let all_gone = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
+        let cont = self.b.create_block();
+        self.b.ins().brif(all_gone, group_end, &[], cont, &[]);
+        self.b.switch_to_block(cont);
+        Ok(())
+    }
+
+    // ---------------------------------------------------------------- interpolation
+
+    fn kind_offsets(&self) -> Vec<(usize, u32, u32)> {
+        // (binding index, first interp component, first global component)
+        let mut out = vec![];
+        let (mut ic, mut gc) = (0, 0);
+        for (i, b) in self.key.bindings.iter().enumerate() {
+            if matches!(b.kind, BindingKind::Kind(_)) {
+                out.push((i, ic, gc));
+                ic += b.components;
+            }
+            gc += b.components;
+        }
+        out
+    }
+
+    fn global_offset(&self, binding: usize) -> u32 {
+        self.key.bindings[..binding].iter().map(|b| b.components).sum()
+    }
+
+    fn interpolation(&mut self, arms: &'a [crate::ir::InterpArm]) -> Res<()> {
+        if !self.in_pixel() {
+            return err("`interpolation` outside per-pixel code");
+        }
+        let named: Vec<&str> = arms
+            .iter()
+            .filter_map(|a| match &a.kind {
+                ArmKind::Named(k) => Some(k.as_str()),
+                ArmKind::Default => None,
+            })
+            .collect();
+        let has_other = self
+            .key
+            .bindings
+            .iter()
+            .any(|b| matches!(b.kind, BindingKind::Shared(_) | BindingKind::Constant));
+        for arm in arms {
+            let mut view = vec![];
+            let mut bindings = vec![];
+            let mut ic = 0;
+            for (i, b) in self.key.bindings.iter().enumerate() {
+                if let BindingKind::Kind(k) = &b.kind {
+                    let serves = match &arm.kind {
+                        ArmKind::Named(n) => n == k,
+                        ArmKind::Default => !named.contains(&k.as_str()),
+                    };
+                    if serves {
+                        view.extend(ic..ic + b.components);
+                        bindings.push(i);
+                    }
+                    ic += b.components;
+                }
+            }
+            let needed = !view.is_empty() || (arm.kind == ArmKind::Default && has_other);
+            if !needed {
+                continue;
+            }
+            let saved_view = std::mem::replace(&mut self.view, view);
+            let saved_arm = self.arm.replace(ArmInfo { bindings });
+            let r = self.stmts(&arm.body);
+            self.view = saved_view;
+            self.arm = saved_arm;
+            r?;
+        }
+        Ok(())
+    }
+
+    /// Store a varying f32x4 into G-buffer component `g` (global binding component index)
+    /// for the executing lanes; planes at or past `ctx.num_planes` are not written.
+    fn store_plane(&mut self, g: u32, v: ir::Value) {
+        let p = self.pix.as_ref().expect("plane stores run in pixel context");
+        let tile_idx = p.tile_idx;
+        let exec = self.exec().expect("pixel context");
+        let plane = self.b.ins().load(
+            types::I32,
+            args_flags(),
+            self.args,
+            ((self.layout.plane_table + g) * 4) as i32,
+        );
+        let num = self.load_ctx(types::I32, ctx_off::NUM_PLANES);
+        let valid = self.b.ins().icmp(IntCC::UnsignedLessThan, plane, num);
+        let pstride = self.load_ctx(types::I32, ctx_off::PLANE_STRIDE);
+        let plane64 = self.b.ins().uextend(types::I64, plane);
+        let ps64 = self.b.ins().uextend(types::I64, pstride);
+        let start = self.b.ins().imul(plane64, ps64);
+        let idx = self.b.ins().iadd(start, tile_idx);
+        let real = self.tile_addr(ctx_off::GBUF, idx);
+        let dummy = self.b.ins().stack_addr(types::I64, self.scratch, 0);
+        let addr = self.b.ins().select(valid, real, dummy);
+        let old = self.b.ins().load(F32X4, mem_flags(), addr, 0);
+        let new = blend(&mut self.b, exec, v, old);
+        self.b.ins().store(mem_flags(), new, addr, 0);
+    }
+
+    fn interpolator_return(&mut self, e: Option<&'a Expr>) -> Res<()> {
+        if !self.in_pixel() {
+            return err("`interpolator_return` outside per-pixel code");
+        }
+        if let Some(bi) = self.frame().interp_binding {
+            // Inside an inlined shared interpolator: its result, then it ends for these lanes.
+            if let Some(e) = e {
+                let v = self.eval(e)?;
+                let v = self.float_varying(v);
+                let comps = self.key.bindings[bi].components;
+                let g0 = self.global_offset(bi);
+                if v.comps.len() == 1 || v.comps.len() == comps as usize {
+                    for c in 0..comps {
+                        let x = if v.comps.len() == 1 {
+                            v.comps[0]
+                        } else {
+                            v.comps[c as usize]
+                        };
+                        self.store_plane(g0 + c, x);
+                    }
+                } else {
+                    self.warnings.push(format!(
+                        "interpolator `{}` returns {} components for a parameter of {}; not stored",
+                        self.frame().func.name,
+                        v.comps.len(),
+                        comps
+                    ));
+                }
+            }
+            return self.leave_interpolator();
+        }
+        match e {
+            Some(e) => self.store_kind_bindings(e),
+            None => self.run_shared_and_constants(),
+        }
+    }
+
+    fn float_varying(&mut self, v: Val) -> Val {
+        let comps = v
+            .comps
+            .iter()
+            .map(|&c| fixed::convert(&mut self.b, v.scalar, Scalar::Float, c))
+            .collect();
+        to_varying(
+            &mut self.b,
+            Val {
+                comps,
+                scalar: Scalar::Float,
+                varying: v.varying,
+            },
+        )
+    }
+
+    fn store_kind_bindings(&mut self, e: &'a Expr) -> Res<()> {
+        let is_interp = e.ty.elem == Elem::Interp && e.ty.dims.is_empty();
+        let v = self.eval(e)?;
+        let v = self.float_varying(v);
+        let bindings: Vec<usize> = match &self.arm {
+            Some(a) => a.bindings.clone(),
+            None => self.kind_offsets().iter().map(|k| k.0).collect(),
+        };
+        let offsets = self.kind_offsets();
+        let fname = self.frame().func.name.clone();
+        for bi in bindings {
+            let Some(&(_, ic, gc)) = offsets.iter().find(|o| o.0 == bi) else {
+                continue;
+            };
+            let comps = self.key.bindings[bi].components;
+            let mut vals = vec![];
+            for c in 0..comps {
+                let x = if is_interp {
+                    self.view
+                        .iter()
+                        .position(|&k| k == ic + c)
+                        .and_then(|p| v.comps.get(p).copied())
+                } else if v.comps.len() == 1 && e.ty.dims.is_empty() {
+                    Some(v.comps[0])
+                } else if v.comps.len() == comps as usize && e.ty.elem != Elem::Interp {
+                    Some(v.comps[c as usize])
+                } else {
+                    None
+                };
+                vals.push(x);
+            }
+            if vals.iter().any(|x| x.is_none()) {
+                self.warnings.push(format!(
+                    "`{fname}`: interpolator_return value has {} components, shading parameter {bi} has {comps}; not stored",
+                    v.comps.len()
+                ));
+                continue;
+            }
+            for (c, x) in vals.into_iter().enumerate() {
+                self.store_plane(gc + c as u32, x.expect("checked above"));
+            }
+            self.written[bi] = true;
+        }
+        Ok(())
+    }
+
+    fn run_shared_and_constants(&mut self) -> Res<()> {
+        for (bi, b) in self.key.bindings.iter().enumerate() {
+            match &b.kind {
+                BindingKind::Kind(_) => {}
+                BindingKind::Constant => {
+                    let Some(Some(data)) = self.layout.binding_data.get(bi) else {
+                        continue;
+                    };
+                    let g0 = self.global_offset(bi);
+                    for c in 0..b.components {
+                        let w = self
+                            .b
+                            .ins()
+                            .load(types::F32, args_flags(), self.args, ((data + c) * 4) as i32);
+                        let v = self.b.ins().splat(F32X4, w);
+                        self.store_plane(g0 + c, v);
+                    }
+                }
+                BindingKind::Shared(name) => self.inline_interpolator(bi, name)?,
+            }
+        }
+        Ok(())
+    }
+
+    fn inline_interpolator(&mut self, bi: usize, name: &str) -> Res<()> {
+        let Some(id) = self.program.find(name) else {
+            self.warnings.push(format!(
+                "shared interpolator `{name}` (shading parameter {bi}) does not exist; not written"
+            ));
+            return Ok(());
+        };
+        let f = self.program.func(id);
+        if f.kind != FuncKind::Interpolator {
+            self.warnings.push(format!(
+                "`{name}` (shading parameter {bi}) is a primitive, not a shared interpolator"
+            ));
+            return Ok(());
+        }
+        if self.frames.iter().any(|fr| std::ptr::eq(fr.func, f)) {
+            return err(format!("shared interpolator `{name}` is inlined into itself"));
+        }
+        let Some(Some(data)) = self.layout.binding_data.get(bi).copied() else {
+            return err(format!("no argument words for shared interpolator `{name}`"));
+        };
+        let _ = interpolator_arg_words(self.program, id);
+        let mut at = data;
+        let mut slots = vec![];
+        for p in &f.params {
+            match p.role {
+                ParamRole::X | ParamRole::Y | ParamRole::Z => slots.push(ParamSlot::Pixel),
+                _ => {
+                    let words = type_words(&f.local(p.local).ty, 0);
+                    slots.push(ParamSlot::Fixed { offset: at, words });
+                    at += words;
+                }
+            }
+        }
+        let frame = self.make_frame(f, slots, at, Some(bi))?;
+        // X, Y, Z of the interpolator: this pixel's, in the interpolator's declared types.
+        let (x_f, y_f, z_raw) = {
+            let p = self.pix.as_ref().expect("pixel context");
+            (p.x_f, p.y_f, p.z_raw)
+        };
+        let prim = self.frames[0].func;
+        let prim_z =
+            prim.params
+                .iter()
+                .position(|p| p.role == ParamRole::Z)
+                .and_then(|i| match &self.frames[0].storage[i] {
+                    Storage::Z(v) => Some((*v, elem_scalar(&prim.local(prim.params[i].local).ty))),
+                    _ => None,
+                });
+        for (i, p) in f.params.iter().enumerate() {
+            let sc = elem_scalar(&f.local(p.local).ty);
+            let (src, from) = match p.role {
+                ParamRole::X => (x_f, Scalar::Float),
+                ParamRole::Y => (y_f, Scalar::Float),
+                ParamRole::Z => match (prim_z, z_raw) {
+                    (Some((var, zsc)), _) => (self.b.use_var(var), zsc),
+                    (None, Some(z)) => (z, Scalar::Fixed(DEPTH_FORMAT)),
+                    (None, None) => (zero(&mut self.b, Scalar::Float, true), Scalar::Float),
+                },
+                _ => continue,
+            };
+            let v = fixed::convert(&mut self.b, from, sc, src);
+            if let Storage::Vars(vs) = &frame.storage[i] {
+                self.b.def_var(vs[0], v);
+            }
+        }
+        // The body is a one-trip masked loop: `return` and `interpolator_return(e)` leave it.
+        let entry = self.exec().expect("pixel context");
+        let mask = self.b.declare_var(I32X4);
+        let cont = self.b.declare_var(I32X4);
+        self.b.def_var(mask, entry);
+        let none = mask_const(&mut self.b, false);
+        self.b.def_var(cont, none);
+        let end = self.b.create_block();
+        let mut frame = frame;
+        frame.loops.push(LoopCtx {
+            id: None,
+            varying: true,
+            step: end,
+            exit: end,
+            mask: Some(mask),
+            cont: Some(cont),
+        });
+        self.frames.push(frame);
+        self.vloops.push((mask, cont));
+        self.depth_add(1);
+        let saved_view = std::mem::replace(&mut self.view, (0..self.n_interp).collect());
+        let r = self.stmts(&f.setup).and_then(|_| self.stmts(&f.pixel));
+        self.view = saved_view;
+        self.depth_add(-1);
+        self.vloops.pop();
+        self.frames.pop();
+        r?;
+        self.b.ins().jump(end, &[]);
+        self.b.switch_to_block(end);
+        self.restore_exec(entry);
+        Ok(())
+    }
+
+    // ---------------------------------------------------------------- primitive calls
+
+    fn call_primitive(&mut self, callee: FuncId, args: &'a [Expr]) -> Res<()> {
+        let Some(cf) = self.program.functions.get(callee.0 as usize) else {
+            return err(format!("call of unknown function {}", callee.0));
+        };
+        if cf.kind != FuncKind::Primitive {
+            return err(format!("`{}` is not a primitive", cf.name));
+        }
+        if args.len() != cf.params.len() {
+            return err(format!(
+                "call of `{}` with {} arguments for {} parameters",
+                cf.name,
+                args.len(),
+                cf.params.len()
+            ));
+        }
+        let layout = ArgLayout::new(self.program, callee, self.key);
+        // Sequence points: the length of the first per-sequence-point argument.
+        let mut n_seq = 1u32;
+        for (i, slot) in layout.params.iter().enumerate() {
+            if let ParamSlot::Seq { .. } = slot {
+                let a = &args[i];
+                if a.ty.per_seq || a.ty.dims.is_empty() {
+                    return err(format!(
+                        "argument {} of the call to `{}`: a per-sequence-point parameter needs a fixed-size array argument",
+                        i, cf.name
+                    ));
+                }
+                n_seq = a.ty.dims[0];
+                break;
+            }
+        }
+        let words = layout.words(n_seq);
+        let bytes = u32::try_from(words * 4).map_err(|_| JitError {
+            message: "primitive call argument block too large".into(),
+        })?;
+        let slot = self
+            .b
+            .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, bytes.max(4), 4));
+        let base = self.b.ins().stack_addr(types::I64, slot, 0);
+        let store_word = |l: &mut Self, v: ir::Value, word: u32| {
+            l.b.ins().store(mem_flags(), v, base, (word * 4) as i32);
+        };
+        let nv = self.b.ins().iconst(types::I32, n_seq as i64);
+        store_word(self, nv, 0);
+        // Plane table and binding data: same key, so the same prefix as ours.
+        let prefix_end = 1
+            + self.key.total_components()
+            + self
+                .key
+                .bindings
+                .iter()
+                .map(|b| match &b.kind {
+                    BindingKind::Kind(_) => 0,
+                    BindingKind::Constant => b.components,
+                    BindingKind::Shared(n) => self
+                        .program
+                        .find(n)
+                        .map(|id| interpolator_arg_words(self.program, id))
+                        .unwrap_or(0),
+                })
+                .sum::<u32>();
+        for w in 1..prefix_end {
+            let v = self.b.ins().load(types::I32, args_flags(), self.args, (w * 4) as i32);
+            store_word(self, v, w);
+        }
+        if let Some(dst) = layout.spaces {
+            match self.layout.spaces {
+                Some(src) => {
+                    for w in 0..96 {
+                        let v = self
+                            .b
+                            .ins()
+                            .load(types::I32, args_flags(), self.args, ((src + w) * 4) as i32);
+                        store_word(self, v, dst + w);
+                    }
+                }
+                None => {
+                    for m in 0..6 {
+                        for k in 0..16 {
+                            let one = if k % 5 == 0 { 1.0 } else { 0.0 };
+                            let v = self.b.ins().f32const(one);
+                            store_word(self, v, dst + m * 16 + k);
+                        }
+                    }
+                }
+            }
+        }
+        for (i, pslot) in layout.params.iter().enumerate() {
+            let (start, words, elems) = match pslot {
+                ParamSlot::Pixel => continue,
+                ParamSlot::Fixed { offset, words } => (*offset, *words, 1),
+                ParamSlot::Seq { seq_offset, words } => (layout.fixed_words + n_seq * seq_offset, *words, n_seq),
+            };
+            let total = words * elems;
+            let v = self.eval_uniform(&args[i])?;
+            for w in 0..total {
+                let comp = match v.comps.get(w as usize) {
+                    Some(&c) => word_of(&mut self.b, v.scalar, c),
+                    None => self.b.ins().iconst(types::I32, 0),
+                };
+                store_word(self, comp, start + w);
+            }
+        }
+        // Call depth guard.
+        let depth = self.load_ctx(types::I32, ctx_off::CALL_DEPTH);
+        let deeper = self.b.ins().iadd_imm_s(depth, 1);
+        self.store_ctx(deeper, ctx_off::CALL_DEPTH);
+        let too_deep = self
+            .b
+            .ins()
+            .icmp_imm_s(IntCC::UnsignedGreaterThan, deeper, MAX_CALL_DEPTH as i64);
+        let deep_blk = self.b.create_block();
+        let call_blk = self.b.create_block();
+        let after = self.b.create_block();
+        self.b.ins().brif(too_deep, deep_blk, &[], call_blk, &[]);
+        self.b.switch_to_block(deep_blk);
+        self.record_error(ERR_CALL_DEPTH, u32::MAX, None);
+        self.b.ins().jump(after, &[]);
+        self.b.switch_to_block(call_blk);
+        let fref = self.linker.kernel_ref(self.b.func, callee)?;
+        self.b.ins().call(fref, &[self.ctx, base]);
+        self.b.ins().jump(after, &[]);
+        self.b.switch_to_block(after);
+        let d = self.load_ctx(types::I32, ctx_off::CALL_DEPTH);
+        let d = self.b.ins().iadd_imm_s(d, -1);
+        self.store_ctx(d, ctx_off::CALL_DEPTH);
+        Ok(())
+    }
+
+    // ---------------------------------------------------------------- places and accesses
+
+    fn local_access(&self, local: LocalId) -> Res<Access> {
+        let f = self.frame().func;
+        let Some(l) = f.locals.get(local.0 as usize) else {
+            return err(format!("unknown local {}", local.0));
+        };
+        Ok(Access {
+            root: Root::Local {
+                frame: self.frames.len() - 1,
+                local,
+            },
+            ty: l.ty.clone(),
+            scalar: elem_scalar(&l.ty),
+            base: 0,
+            dyn_off: Dyn::None,
+            compact: false,
+        })
+    }
+
+    /// Components of one value of `ty` in storage (`compact`: Interp holds only the view).
+    fn value_comps(&self, ty: &Type, compact: bool) -> u32 {
+        match ty.elem {
+            Elem::Scalar(_) => ty.fixed_len(),
+            Elem::Interp => ty.fixed_len() * if compact { self.view.len() as u32 } else { self.n_interp },
+        }
+    }
+
+    /// Offsets of the components a value of `ty` shows (Interp: only the view's).
+    fn comp_offsets(&self, ty: &Type, compact: bool) -> Vec<u32> {
+        match ty.elem {
+            Elem::Scalar(_) => (0..ty.fixed_len()).collect(),
+            Elem::Interp => {
+                let per = if compact { self.view.len() as u32 } else { self.n_interp };
+                let mut out = vec![];
+                for e in 0..ty.fixed_len() {
+                    for (j, &v) in self.view.iter().enumerate() {
+                        out.push(e * per + if compact { j as u32 } else { v });
+                    }
+                }
+                out
+            }
+        }
+    }
+
+    fn seq_len(&mut self) -> ir::Value {
+        let n = self.b.ins().load(types::I32, args_flags(), self.args, 0);
+        let one = self.b.ins().iconst(types::I32, 1);
+        self.b.ins().umax(n, one)
+    }
+
+    /// Apply one index to an access (clamping it, recording ERR_INDEX when out of range).
+    fn index_access(&mut self, mut acc: Access, index: &'a Expr, site: SiteId) -> Res<Access> {
+        let base_ty = acc.ty.clone();
+        if base_ty.dims.is_empty() && !base_ty.per_seq {
+            return err("indexing a scalar");
+        }
+        let elem_ty = base_ty.element();
+        let stride = self.value_comps(&elem_ty, acc.compact);
+        let idx = self.eval(index)?;
+        let idx_comp = fixed::convert(&mut self.b, idx.scalar, Scalar::Int, idx.comps[0]);
+        let static_len = if base_ty.per_seq { None } else { Some(base_ty.dims[0]) };
+        if let (Some(len), Some(k)) = (static_len, const_int(index)) {
+            let clamped = k.clamp(0, len as i64 - 1) as u32;
+            if k < 0 || k >= len as i64 {
+                self.record_error(ERR_INDEX, site.0, None);
+            }
+            acc.base += clamped * stride;
+            acc.ty = elem_ty;
+            return Ok(acc);
+        }
+        // A dynamic index into a temporary: spill it so it can be addressed.
+        if let Root::Temp(v) = &acc.root {
+            let v = v.clone();
+            let bytes = comp_bytes(v.varying);
+            let slot = self.b.create_sized_stack_slot(StackSlotData::new(
+                StackSlotKind::ExplicitSlot,
+                (v.comps.len() as u32).max(1) * bytes,
+                4,
+            ));
+            for (i, &c) in v.comps.iter().enumerate() {
+                let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                self.b.ins().store(mem_flags(), c, addr, (i as u32 * bytes) as i32);
+            }
+            acc.root = Root::Stack {
+                slot,
+                varying: v.varying,
+            };
+        }
+        let len = match static_len {
+            Some(n) => self.b.ins().iconst(types::I32, n as i64),
+            None => self.seq_len(),
+        };
+        let last = self.b.ins().iadd_imm_s(len, -1);
+        let off = if idx.varying {
+            let len_v = self.b.ins().splat(I32X4, len);
+            let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx_comp, len_v);
+            let bad = match self.exec() {
+                Some(e) => self.b.ins().band(bad, e),
+                None => bad,
+            };
+            let any = self.b.ins().vany_true(bad);
+            self.record_error(ERR_INDEX, site.0, Some(any));
+            let zero_v = mask_const(&mut self.b, false);
+            let last_v = self.b.ins().splat(I32X4, last);
+            let c = self.b.ins().smax(idx_comp, zero_v);
+            let c = self.b.ins().smin(c, last_v);
+            let stride_s = self.b.ins().iconst(types::I32, stride as i64);
+            let stride_v = self.b.ins().splat(I32X4, stride_s);
+            let c = self.b.ins().imul(c, stride_v);
+            match acc.dyn_off {
+                Dyn::None => Dyn::Varying(c),
+                Dyn::Uniform(u) => {
+                    let us = self.b.ins().splat(I32X4, u);
+                    Dyn::Varying(self.b.ins().iadd(us, c))
+                }
+                Dyn::Varying(v) => Dyn::Varying(self.b.ins().iadd(v, c)),
+            }
+        } else {
+            let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx_comp, len);
+            self.record_error(ERR_INDEX, site.0, Some(bad));
+            let zero_s = self.b.ins().iconst(types::I32, 0);
+            let c = self.b.ins().smax(idx_comp, zero_s);
+            let c = self.b.ins().smin(c, last);
+            let c = self.b.ins().imul_imm_s(c, stride as i64);
+            match acc.dyn_off {
+                Dyn::None => Dyn::Uniform(c),
+                Dyn::Uniform(u) => Dyn::Uniform(self.b.ins().iadd(u, c)),
+                Dyn::Varying(v) => {
+                    let cs = self.b.ins().splat(I32X4, c);
+                    Dyn::Varying(self.b.ins().iadd(v, cs))
+                }
+            }
+        };
+        acc.dyn_off = off;
+        acc.ty = elem_ty;
+        Ok(acc)
+    }
+
+    fn resolve(&mut self, e: &'a Expr) -> Res<Access> {
+        match &e.kind {
+            ExprKind::Local(l) => self.local_access(*l),
+            ExprKind::Index { base, index, site } => {
+                let acc = self.resolve(base)?;
+                self.index_access(acc, index, *site)
+            }
+            _ => {
+                let v = self.eval(e)?;
+                Ok(Access {
+                    root: Root::Temp(v.clone()),
+                    ty: e.ty.clone(),
+                    scalar: v.scalar,
+                    base: 0,
+                    dyn_off: Dyn::None,
+                    compact: true,
+                })
+            }
+        }
+    }
+
+    /// Load a scalar of `sc` from `addr + off` bytes in uniform form (bools stored as bytes
+    /// or words: any non-zero is true).
+    fn load_uniform(&mut self, sc: Scalar, addr: ir::Value, off: i32, word_bools: bool, ro: bool) -> ir::Value {
+        let flags = if ro { args_flags() } else { mem_flags() };
+        match sc {
+            Scalar::Float => self.b.ins().load(types::F32, flags, addr, off),
+            Scalar::Bool => {
+                let ty = if word_bools { types::I32 } else { types::I8 };
+                let raw = self.b.ins().load(ty, flags, addr, off);
+                self.b.ins().icmp_imm_s(IntCC::NotEqual, raw, 0)
+            }
+            _ => self.b.ins().load(types::I32, flags, addr, off),
+        }
+    }
+
+    /// Read `count` uniform components laid out `bytes` apart from `base_addr` starting at
+    /// component `first` (+ dynamic offset). A varying offset gathers lane by lane.
+    #[allow(clippy::too_many_arguments)]
+    fn read_memory(
+        &mut self,
+        base_addr: ir::Value,
+        sc: Scalar,
+        varying_storage: bool,
+        offs: &[u32],
+        first: u32,
+        dyn_off: Dyn,
+        word_bools: bool,
+        ro: bool,
+    ) -> Val {
+        let bytes = comp_bytes(varying_storage) as i64;
+        let mut comps = vec![];
+        let out_varying = varying_storage || matches!(dyn_off, Dyn::Varying(_));
+        for &o in offs {
+            let off = ((first + o) as i64 * bytes) as i32;
+            let c = match dyn_off {
+                Dyn::None | Dyn::Uniform(_) => {
+                    let addr = match dyn_off {
+                        Dyn::Uniform(d) => {
+                            let d64 = self.b.ins().sextend(types::I64, d);
+                            let db = self.b.ins().imul_imm_s(d64, bytes);
+                            self.b.ins().iadd(base_addr, db)
+                        }
+                        _ => base_addr,
+                    };
+                    if varying_storage {
+                        let ty = cl_type(sc, true);
+                        self.b.ins().load(ty, mem_flags(), addr, off)
+                    } else {
+                        self.load_uniform(sc, addr, off, word_bools, ro)
+                    }
+                }
+                Dyn::Varying(dv) => {
+                    let mut acc: Option<ir::Value> = None;
+                    for lane in 0..4u8 {
+                        let d = self.b.ins().extractlane(dv, lane);
+                        let d64 = self.b.ins().sextend(types::I64, d);
+                        let db = self.b.ins().imul_imm_s(d64, bytes);
+                        let addr = self.b.ins().iadd(base_addr, db);
+                        let lane_off = off + if varying_storage { 4 * lane as i32 } else { 0 };
+                        let x = if varying_storage {
+                            let lt = if sc == Scalar::Float { types::F32 } else { types::I32 };
+                            self.b.ins().load(lt, mem_flags(), addr, lane_off)
+                        } else {
+                            let u = self.load_uniform(sc, addr, lane_off, word_bools, ro);
+                            if sc == Scalar::Bool {
+                                let w = self.b.ins().uextend(types::I32, u);
+                                self.b.ins().ineg(w)
+                            } else {
+                                u
+                            }
+                        };
+                        let vt = cl_type(sc, true);
+                        acc = Some(match acc {
+                            None => self.b.ins().scalar_to_vector(vt, x),
+                            Some(a) => self.b.ins().insertlane(a, x, lane),
+                        });
+                    }
+                    acc.expect("four lanes")
+                }
+            };
+            comps.push(c);
+        }
+        Val {
+            comps,
+            scalar: sc,
+            varying: out_varying,
+        }
+    }
+
+    fn read(&mut self, acc: Access) -> Res<Val> {
+        if acc.ty.per_seq {
+            return err("a whole per-sequence-point array used as a value");
+        }
+        let offs = self.comp_offsets(&acc.ty, acc.compact);
+        let sc = acc.scalar;
+        match acc.root {
+            Root::Temp(v) => {
+                let comps = offs
+                    .iter()
+                    .map(|&o| v.comps.get((acc.base + o) as usize).copied())
+                    .collect::<Option<Vec<_>>>()
+                    .ok_or_else(|| JitError {
+                        message: "component out of range in a temporary".into(),
+                    })?;
+                Ok(Val {
+                    comps,
+                    scalar: v.scalar,
+                    varying: v.varying,
+                })
+            }
+            Root::Stack { slot, varying } => {
+                let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                Ok(self.read_memory(addr, sc, varying, &offs, acc.base, acc.dyn_off, false, false))
+            }
+            Root::Local { frame, local } => {
+                let fr = &self.frames[frame];
+                let varying = fr.func.local(local).var.is_varying();
+                match fr.storage[local.0 as usize].clone() {
+                    Storage::Vars(vars) => {
+                        if !matches!(acc.dyn_off, Dyn::None) {
+                            return err("dynamic index into a register local");
+                        }
+                        let mut comps = vec![];
+                        for o in offs {
+                            let Some(&v) = vars.get((acc.base + o) as usize) else {
+                                return err("component out of range");
+                            };
+                            comps.push(self.b.use_var(v));
+                        }
+                        Ok(Val {
+                            comps,
+                            scalar: sc,
+                            varying,
+                        })
+                    }
+                    Storage::Z(v) => Ok(Val::one(self.b.use_var(v), sc, true)),
+                    Storage::Stack(slot) => {
+                        let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                        Ok(self.read_memory(addr, sc, varying, &offs, acc.base, acc.dyn_off, false, false))
+                    }
+                    Storage::Args => {
+                        let pi = fr
+                            .func
+                            .params
+                            .iter()
+                            .position(|p| p.local == local)
+                            .ok_or_else(|| JitError {
+                                message: "parameter storage for a non-parameter".into(),
+                            })?;
+                        let slot = fr.slots.get(pi).cloned().unwrap_or(ParamSlot::Pixel);
+                        let fixed_words = fr.fixed_words;
+                        let (addr, first) = match slot {
+                            ParamSlot::Fixed { offset, .. } => (self.args, offset + acc.base),
+                            ParamSlot::Seq { seq_offset, .. } => {
+                                // fixed_words + max(n_seq,1) * seq_offset, in words.
+                                let n = self.seq_len();
+                                let n64 = self.b.ins().uextend(types::I64, n);
+                                let w = self.b.ins().imul_imm_s(n64, seq_offset as i64);
+                                let w = self.b.ins().iadd_imm_s(w, fixed_words as i64);
+                                let bytes = self.b.ins().ishl_imm_u(w, 2);
+                                (self.b.ins().iadd(self.args, bytes), acc.base)
+                            }
+                            ParamSlot::Pixel => return err("pixel parameter read from the argument block"),
+                        };
+                        Ok(self.read_memory(addr, sc, false, &offs, first, acc.dyn_off, true, true))
+                    }
+                }
+            }
+        }
+    }
+
+    fn assign(&mut self, place: &'a Place, value: &'a Expr) -> Res<()> {
+        let mut acc = self.local_access(place.local)?;
+        for (idx, site) in &place.indices {
+            acc = self.index_access(acc, idx, *site)?;
+        }
+        let v = self.eval(value)?;
+        let target = acc.scalar;
+        let comps: Vec<ir::Value> = v
+            .comps
+            .iter()
+            .map(|&c| fixed::convert(&mut self.b, v.scalar, target, c))
+            .collect();
+        let offs = self.comp_offsets(&acc.ty, false);
+        let comps = if comps.len() == 1 && offs.len() != 1 {
+            vec![comps[0]; offs.len()]
+        } else {
+            comps
+        };
+        if comps.len() != offs.len() {
+            return err(format!(
+                "assignment of {} components to a place of {}",
+                comps.len(),
+                offs.len()
+            ));
+        }
+        let frame_i = self.frames.len() - 1;
+        let fr = &self.frames[frame_i];
+        let local = fr.func.local(place.local);
+        let varying = local.var.is_varying();
+        let storage = fr.storage[place.local.0 as usize].clone();
+        let masked = self.masked();
+        match storage {
+            Storage::Args => err(format!("assignment to parameter `{}`", local.name)),
+            Storage::Vars(vars) => {
+                for (o, c) in offs.iter().zip(comps) {
+                    let Some(&var) = vars.get((acc.base + o) as usize) else {
+                        return err("component out of range");
+                    };
+                    let new = if varying {
+                        let c = splat(&mut self.b, target, c);
+                        if masked {
+                            let old = self.b.use_var(var);
+                            let exec = self.exec().expect("pixel context");
+                            blend(&mut self.b, exec, c, old)
+                        } else {
+                            c
+                        }
+                    } else {
+                        if self.b.func.dfg.value_type(c).is_vector() {
+                            return err(format!("varying value assigned to uniform `{}`", local.name));
+                        }
+                        c
+                    };
+                    self.b.def_var(var, new);
+                }
+                Ok(())
+            }
+            Storage::Z(var) => {
+                let c = splat(&mut self.b, target, comps[0]);
+                let exec = self.exec().ok_or_else(|| JitError {
+                    message: "Z assigned outside per-pixel code".into(),
+                })?;
+                let old = self.b.use_var(var);
+                let new = blend(&mut self.b, exec, c, old);
+                self.b.def_var(var, new);
+                let zw = self.pix.as_ref().expect("pixel context").z_written;
+                let w = self.b.use_var(zw);
+                let w = self.b.ins().bor(w, exec);
+                self.b.def_var(zw, w);
+                Ok(())
+            }
+            Storage::Stack(slot) => {
+                let base_addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                let bytes = comp_bytes(varying) as i64;
+                for (o, c) in offs.iter().zip(comps) {
+                    let off = ((acc.base + o) as i64 * bytes) as i32;
+                    if !varying {
+                        if self.b.func.dfg.value_type(c).is_vector() {
+                            return err(format!("varying value assigned to uniform `{}`", local.name));
+                        }
+                        let addr = self.dyn_addr(base_addr, acc.dyn_off, bytes)?;
+                        self.b.ins().store(mem_flags(), c, addr, off);
+                        continue;
+                    }
+                    let c = splat(&mut self.b, target, c);
+                    match acc.dyn_off {
+                        Dyn::Varying(dv) => {
+                            // Scatter lane by lane; lanes not executing keep their old value.
+                            let exec = self.exec();
+                            for lane in 0..4u8 {
+                                let d = self.b.ins().extractlane(dv, lane);
+                                let d64 = self.b.ins().sextend(types::I64, d);
+                                let db = self.b.ins().imul_imm_s(d64, bytes);
+                                let addr = self.b.ins().iadd(base_addr, db);
+                                let lt = if target == Scalar::Float {
+                                    types::F32
+                                } else {
+                                    types::I32
+                                };
+                                let lane_off = off + 4 * lane as i32;
+                                let x = self.b.ins().extractlane(c, lane);
+                                let x = match exec {
+                                    Some(e) => {
+                                        let m = self.b.ins().extractlane(e, lane);
+                                        let on = self.b.ins().icmp_imm_s(IntCC::NotEqual, m, 0);
+                                        let old = self.b.ins().load(lt, mem_flags(), addr, lane_off);
+                                        self.b.ins().select(on, x, old)
+                                    }
+                                    None => x,
+                                };
+                                self.b.ins().store(mem_flags(), x, addr, lane_off);
+                            }
+                        }
+                        d => {
+                            let addr = self.dyn_addr(base_addr, d, bytes)?;
+                            let ty = cl_type(target, true);
+                            let new = if masked {
+                                let old = self.b.ins().load(ty, mem_flags(), addr, off);
+                                let exec = self.exec().expect("pixel context");
+                                blend(&mut self.b, exec, c, old)
+                            } else {
+                                c
+                            };
+                            self.b.ins().store(mem_flags(), new, addr, off);
+                        }
+                    }
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn dyn_addr(&mut self, base: ir::Value, d: Dyn, bytes: i64) -> Res<ir::Value> {
+        match d {
+            Dyn::None => Ok(base),
+            Dyn::Uniform(u) => {
+                let d64 = self.b.ins().sextend(types::I64, u);
+                let db = self.b.ins().imul_imm_s(d64, bytes);
+                Ok(self.b.ins().iadd(base, db))
+            }
+            Dyn::Varying(_) => err("varying index into a uniform local"),
+        }
+    }
+
+    // ---------------------------------------------------------------- expressions
+
+    pub(crate) fn eval_uniform(&mut self, e: &'a Expr) -> Res<Val> {
+        let v = self.eval(e)?;
+        if v.varying {
+            return err("varying value where a uniform one is required");
+        }
+        Ok(v)
+    }
+
+    pub(crate) fn eval(&mut self, e: &'a Expr) -> Res<Val> {
+        let sc = elem_scalar(&e.ty);
+        match &e.kind {
+            ExprKind::Const(c) => {
+                let v = match *c {
+                    ConstValue::Float(x) => self.b.ins().f32const(x),
+                    ConstValue::Int(i) | ConstValue::Fixed(i) => self.b.ins().iconst(types::I32, i as i64),
+                    ConstValue::Bool(x) => self.b.ins().iconst(types::I8, x as i64),
+                };
+                // A constant of one scalar type used as another (defensive): convert.
+                let from = match c {
+                    ConstValue::Float(_) => Scalar::Float,
+                    ConstValue::Int(_) => Scalar::Int,
+                    ConstValue::Bool(_) => Scalar::Bool,
+                    ConstValue::Fixed(_) => sc,
+                };
+                let v = fixed::convert(&mut self.b, from, sc, v);
+                Ok(Val::one(v, sc, false))
+            }
+            ExprKind::Local(_) | ExprKind::Index { .. } => {
+                let acc = self.resolve(e)?;
+                self.read(acc)
+            }
+            ExprKind::Unary { op, expr } => {
+                let v = self.eval(expr)?;
+                let comps = v
+                    .comps
+                    .iter()
+                    .map(|&c| match (op, v.scalar) {
+                        (UnaryOp::Neg, Scalar::Float) => self.b.ins().fneg(c),
+                        (UnaryOp::Neg, Scalar::Fixed(f)) => fixed::neg(&mut self.b, f, c),
+                        (UnaryOp::Neg, _) => self.b.ins().ineg(c),
+                        (UnaryOp::Not, _) => {
+                            let c = fixed::convert(&mut self.b, v.scalar, Scalar::Bool, c);
+                            if v.varying {
+                                self.b.ins().bnot(c)
+                            } else {
+                                self.b.ins().bxor_imm_s(c, 1)
+                            }
+                        }
+                    })
+                    .collect();
+                let scalar = if *op == UnaryOp::Not { Scalar::Bool } else { v.scalar };
+                Ok(Val {
+                    comps,
+                    scalar,
+                    varying: v.varying,
+                })
+            }
+            ExprKind::Binary { op, lhs, rhs } => {
+                let a = self.eval(lhs)?;
+                let c = self.eval(rhs)?;
+                self.binary(*op, a, c)
+            }
+            ExprKind::Convert(inner) => {
+                let v = self.eval(inner)?;
+                let comps = v
+                    .comps
+                    .iter()
+                    .map(|&c| fixed::convert(&mut self.b, v.scalar, sc, c))
+                    .collect();
+                Ok(Val {
+                    comps,
+                    scalar: sc,
+                    varying: v.varying,
+                })
+            }
+            ExprKind::Select { cond, then, otherwise } => {
+                let c = self.eval(cond)?;
+                let t = self.eval(then)?;
+                let o = self.eval(otherwise)?;
+                let cb = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
+                let (t, o) = self.unify(t, o)?;
+                if !c.varying && !t.varying {
+                    let comps = t
+                        .comps
+                        .iter()
+                        .zip(&o.comps)
+                        .map(|(&x, &y)| self.b.ins().select(cb, x, y))
+                        .collect();
+                    return Ok(Val {
+                        comps,
+                        scalar: t.scalar,
+                        varying: false,
+                    });
+                }
+                let m = splat(&mut self.b, Scalar::Bool, cb);
+                let t = to_varying(&mut self.b, t);
+                let o = to_varying(&mut self.b, o);
+                let comps = t
+                    .comps
+                    .iter()
+                    .zip(&o.comps)
+                    .map(|(&x, &y)| blend(&mut self.b, m, x, y))
+                    .collect();
+                Ok(Val {
+                    comps,
+                    scalar: t.scalar,
+                    varying: true,
+                })
+            }
+            ExprKind::Builtin { func, args } => self.builtin(*func, args, e),
+            ExprKind::List(items) => {
+                let mut vals = vec![];
+                for it in items {
+                    vals.push(self.eval(it)?);
+                }
+                let varying = vals.iter().any(|v| v.varying);
+                let mut comps = vec![];
+                for v in vals {
+                    let v = Val {
+                        comps: v
+                            .comps
+                            .iter()
+                            .map(|&c| fixed::convert(&mut self.b, v.scalar, sc, c))
+                            .collect(),
+                        scalar: sc,
+                        varying: v.varying,
+                    };
+                    let v = if varying { to_varying(&mut self.b, v) } else { v };
+                    comps.extend(v.comps);
+                }
+                Ok(Val {
+                    comps,
+                    scalar: sc,
+                    varying,
+                })
+            }
+            ExprKind::MatMul { lhs, rhs } => {
+                let a = self.eval(lhs)?;
+                let c = self.eval(rhs)?;
+                let (n, m) = match lhs.ty.dims.as_slice() {
+                    [n, m] => (*n as usize, *m as usize),
+                    _ => return err("matrix product with a non-2-D left side"),
+                };
+                let k = match rhs.ty.dims.as_slice() {
+                    [r] if *r as usize == m => None,
+                    [r, k] if *r as usize == m => Some(*k as usize),
+                    _ => return err("matrix product with mismatched shapes"),
+                };
+                let (a, c) = self.unify(a, c)?;
+                let a = self.float_val(a);
+                let c = self.float_val(c);
+                let kk = k.unwrap_or(1);
+                let mut comps = vec![];
+                for i in 0..n {
+                    for j in 0..kk {
+                        let mut acc = None;
+                        for t in 0..m {
+                            let x = a.comps[i * m + t];
+                            let y = c.comps[t * kk + j];
+                            let p = self.b.ins().fmul(x, y);
+                            acc = Some(match acc {
+                                None => p,
+                                Some(s) => self.b.ins().fadd(s, p),
+                            });
+                        }
+                        comps.push(acc.unwrap_or_else(|| zero(&mut self.b, Scalar::Float, a.varying)));
+                    }
+                }
+                Ok(Val {
+                    comps,
+                    scalar: Scalar::Float,
+                    varying: a.varying,
+                })
+            }
+            ExprKind::SeqCount => {
+                let n = self.b.ins().load(types::I32, args_flags(), self.args, 0);
+                Ok(Val::one(n, Scalar::Int, false))
+            }
+        }
+    }
+
+    pub(crate) fn float_val(&mut self, v: Val) -> Val {
+        if v.scalar == Scalar::Float {
+            return v;
+        }
+        let comps = v
+            .comps
+            .iter()
+            .map(|&c| fixed::convert(&mut self.b, v.scalar, Scalar::Float, c))
+            .collect();
+        Val {
+            comps,
+            scalar: Scalar::Float,
+            varying: v.varying,
+        }
+    }
+
+    /// Bring two operands to the same form and length (a single component broadcasts).
+    pub(crate) fn unify(&mut self, a: Val, c: Val) -> Res<(Val, Val)> {
+        let (mut a, mut c) = (a, c);
+        if a.varying != c.varying {
+            a = to_varying(&mut self.b, a);
+            c = to_varying(&mut self.b, c);
+        }
+        if a.comps.len() != c.comps.len() {
+            if a.comps.len() == 1 {
+                a.comps = vec![a.comps[0]; c.comps.len()];
+            } else if c.comps.len() == 1 {
+                c.comps = vec![c.comps[0]; a.comps.len()];
+            } else {
+                return err(format!(
+                    "operands of {} and {} components",
+                    a.comps.len(),
+                    c.comps.len()
+                ));
+            }
+        }
+        Ok((a, c))
+    }
+
+    fn binary(&mut self, op: BinOp, a: Val, c: Val) -> Res<Val> {
+        // Operands share a scalar type (checker); convert defensively if they do not.
+        let c = if c.scalar != a.scalar {
+            Val {
+                comps: c
+                    .comps
+                    .iter()
+                    .map(|&x| fixed::convert(&mut self.b, c.scalar, a.scalar, x))
+                    .collect(),
+                scalar: a.scalar,
+                varying: c.varying,
+            }
+        } else {
+            c
+        };
+        let (a, c) = self.unify(a, c)?;
+        let sc = a.scalar;
+        let is_cmp = matches!(
+            op,
+            BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne
+        );
+        let mut comps = vec![];
+        for (&x, &y) in a.comps.iter().zip(&c.comps) {
+            comps.push(self.binop(op, sc, x, y)?);
+        }
+        let scalar = if is_cmp || matches!(op, BinOp::And | BinOp::Or) {
+            Scalar::Bool
+        } else {
+            sc
+        };
+        Ok(Val {
+            comps,
+            scalar,
+            varying: a.varying,
+        })
+    }
+
+    fn binop(&mut self, op: BinOp, sc: Scalar, x: ir::Value, y: ir::Value) -> Res<ir::Value> {
+        let b = &mut self.b;
+        Ok(match sc {
+            Scalar::Float => match op {
+                BinOp::Add => b.ins().fadd(x, y),
+                BinOp::Sub => b.ins().fsub(x, y),
+                BinOp::Mul => b.ins().fmul(x, y),
+                BinOp::Div => b.ins().fdiv(x, y),
+                BinOp::Rem => {
+                    // C fmodf: x - trunc(x / y) * y.
+                    let q = b.ins().fdiv(x, y);
+                    let t = b.ins().trunc(q);
+                    let p = b.ins().fmul(t, y);
+                    b.ins().fsub(x, p)
+                }
+                BinOp::Lt => b.ins().fcmp(FloatCC::LessThan, x, y),
+                BinOp::Le => b.ins().fcmp(FloatCC::LessThanOrEqual, x, y),
+                BinOp::Gt => b.ins().fcmp(FloatCC::GreaterThan, x, y),
+                BinOp::Ge => b.ins().fcmp(FloatCC::GreaterThanOrEqual, x, y),
+                BinOp::Eq => b.ins().fcmp(FloatCC::Equal, x, y),
+                BinOp::Ne => b.ins().fcmp(FloatCC::NotEqual, x, y),
+                BinOp::And | BinOp::Or => return err("logical operator on floats"),
+            },
+            Scalar::Int | Scalar::Fixed(_) => {
+                let fmt = match sc {
+                    Scalar::Fixed(f) => Some(f),
+                    _ => None,
+                };
+                match op {
+                    BinOp::Add => match fmt {
+                        Some(f) => fixed::add(b, f, x, y),
+                        None => b.ins().iadd(x, y),
+                    },
+                    BinOp::Sub => match fmt {
+                        Some(f) => fixed::sub(b, f, x, y),
+                        None => b.ins().isub(x, y),
+                    },
+                    BinOp::Mul => match fmt {
+                        Some(f) => fixed::mul(b, f, x, y),
+                        None => b.ins().imul(x, y),
+                    },
+                    BinOp::Div => match fmt {
+                        Some(f) => fixed::div(b, f, x, y),
+                        None => fixed::int_div_rem(b, x, y, false),
+                    },
+                    BinOp::Rem => match fmt {
+                        Some(f) => fixed::rem(b, f, x, y),
+                        None => fixed::int_div_rem(b, x, y, true),
+                    },
+                    BinOp::Lt => b.ins().icmp(fixed::int_cc(sc, IntCC::SignedLessThan), x, y),
+                    BinOp::Le => b.ins().icmp(fixed::int_cc(sc, IntCC::SignedLessThanOrEqual), x, y),
+                    BinOp::Gt => b.ins().icmp(fixed::int_cc(sc, IntCC::SignedGreaterThan), x, y),
+                    BinOp::Ge => b.ins().icmp(fixed::int_cc(sc, IntCC::SignedGreaterThanOrEqual), x, y),
+                    BinOp::Eq => b.ins().icmp(IntCC::Equal, x, y),
+                    BinOp::Ne => b.ins().icmp(IntCC::NotEqual, x, y),
+                    BinOp::And | BinOp::Or => return err("logical operator on numbers"),
+                }
+            }
+            Scalar::Bool => match op {
+                BinOp::And => b.ins().band(x, y),
+                BinOp::Or => b.ins().bor(x, y),
+                BinOp::Eq => b.ins().icmp(IntCC::Equal, x, y),
+                BinOp::Ne => b.ins().icmp(IntCC::NotEqual, x, y),
+                _ => return err("arithmetic on bools"),
+            },
+        })
+    }
+
+    /// Call a libm helper on a scalar or each lane of a vector.
+    pub(crate) fn call_libm(&mut self, f: LibmFn, operands: &[ir::Value]) -> Res<ir::Value> {
+        let fref = self.linker.libm_ref(self.b.func, f)?;
+        let vec = self.b.func.dfg.value_type(operands[0]).is_vector();
+        if !vec {
+            let call = self.b.ins().call(fref, operands);
+            return Ok(self.b.inst_results(call)[0]);
+        }
+        Ok(super::value::map_lanes(
+            &mut self.b,
+            F32X4,
+            operands,
+            &mut |b, lanes| {
+                let call = b.ins().call(fref, lanes);
+                b.inst_results(call)[0]
+            },
+        ))
+    }
+
+    pub(crate) fn spaces_base(&self) -> Option<u32> {
+        self.layout.spaces
+    }
+
+    pub(crate) fn args_ptr(&self) -> ir::Value {
+        self.args
+    }
+}
+
+/// The value type of one component of `ty` (Interp components are floats).
+pub(crate) fn elem_scalar(ty: &Type) -> Scalar {
+    match ty.elem {
+        Elem::Scalar(s) => s,
+        Elem::Interp => Scalar::Float,
+    }
+}
+
+#[allow(non_snake_case)]
+fn I32X4_or(sc: Scalar) -> ir::Type {
+    cl_type(sc, true)
+}
+
+/// One component as a 32-bit argument word (bools 0/1).
+fn word_of(b: &mut FunctionBuilder, sc: Scalar, c: ir::Value) -> ir::Value {
+    match sc {
+        Scalar::Bool => b.ins().uextend(types::I32, c),
+        _ => c,
+    }
+}
+
+fn const_int(e: &Expr) -> Option<i64> {
+    match &e.kind {
+        ExprKind::Const(ConstValue::Int(i)) => Some(*i as i64),
+        ExprKind::Unary { op: UnaryOp::Neg, expr } => const_int(expr).map(|v| -v),
+        _ => None,
+    }
+}
+
+/// Marks locals indexed with a non-constant index: they live in stack slots.
+fn mark_dynamic_stmt(s: &Stmt, dynamic: &mut [bool]) {
+    match &s.kind {
+        StmtKind::Assign { place, value } => {
+            for (i, _) in &place.indices {
+                if const_int(i).is_none() {
+                    if let Some(d) = dynamic.get_mut(place.local.0 as usize) {
+                        *d = true;
+                    }
+                }
+                mark_dynamic_expr(i, dynamic);
+            }
+            mark_dynamic_expr(value, dynamic);
+        }
+        StmtKind::If { cond, then, otherwise } => {
+            mark_dynamic_expr(cond, dynamic);
+            then.iter().chain(otherwise).for_each(|s| mark_dynamic_stmt(s, dynamic));
+        }
+        StmtKind::Loop { cond, body, step, .. } => {
+            if let Some(c) = cond {
+                mark_dynamic_expr(c, dynamic);
+            }
+            body.iter().chain(step).for_each(|s| mark_dynamic_stmt(s, dynamic));
+        }
+        StmtKind::Interpolation { arms } => {
+            arms.iter()
+                .flat_map(|a| a.body.iter())
+                .for_each(|s| mark_dynamic_stmt(s, dynamic));
+        }
+        StmtKind::InterpolatorReturn(Some(e)) => mark_dynamic_expr(e, dynamic),
+        StmtKind::Bound(es) => es.iter().for_each(|e| mark_dynamic_expr(e, dynamic)),
+        StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| mark_dynamic_expr(e, dynamic)),
+        StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::InterpolatorReturn(None) => {}
+    }
+}
+
+fn mark_dynamic_expr(e: &Expr, dynamic: &mut [bool]) {
+    match &e.kind {
+        ExprKind::Index { base, index, .. } => {
+            if const_int(index).is_none() {
+                if let Some(l) = root_local(base) {
+                    if let Some(d) = dynamic.get_mut(l.0 as usize) {
+                        *d = true;
+                    }
+                }
+            }
+            mark_dynamic_expr(base, dynamic);
+            mark_dynamic_expr(index, dynamic);
+        }
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => mark_dynamic_expr(expr, dynamic),
+        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
+            mark_dynamic_expr(lhs, dynamic);
+            mark_dynamic_expr(rhs, dynamic);
+        }
+        ExprKind::Select { cond, then, otherwise } => {
+            mark_dynamic_expr(cond, dynamic);
+            mark_dynamic_expr(then, dynamic);
+            mark_dynamic_expr(otherwise, dynamic);
+        }
+        ExprKind::Builtin { args, .. } | ExprKind::List(args) => {
+            args.iter().for_each(|a| mark_dynamic_expr(a, dynamic))
+        }
+        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount => {}
+    }
+}
+
+fn root_local(e: &Expr) -> Option<LocalId> {
+    match &e.kind {
+        ExprKind::Local(l) => Some(*l),
+        ExprKind::Index { base, .. } => root_local(base),
+        _ => None,
+    }
+}

@@ -1,0 +1,206 @@
+//! How IR values are represented in Cranelift, and the small helpers that move between the
+//! uniform (scalar) and varying (4-lane vector) forms.
+//!
+//! Representation (one Cranelift value per flattened component):
+//! - uniform float `f32`, uniform int and fixed `i32` (fixed: raw bits), uniform bool `i8` 0/1;
+//! - varying float `f32x4`, varying int/fixed `i32x4`, varying bool `i32x4` lane masks
+//!   (all ones = true, zero = false) so they feed `bitselect`/`blendv` directly.
+//!
+//! An aggregate value is a [`Val`] with its components in row-major order; an
+//! interpolation_data value holds only the components of the current view. Invariant: every
+//! component of a `Val` has the form its `varying` flag and `scalar` say.
+
+use cranelift_codegen::ir::{self, types, InstBuilder, MemFlagsData, Type};
+use cranelift_frontend::FunctionBuilder;
+
+use crate::abi::TileCtx;
+use crate::ir::Scalar;
+
+/// 32-bit lane vectors: 4 pixels per group.
+pub const F32X4: Type = types::F32X4;
+pub const I32X4: Type = types::I32X4;
+
+/// A value of an IR expression: its flattened components.
+#[derive(Clone, Debug)]
+pub struct Val {
+    pub comps: Vec<ir::Value>,
+    pub scalar: Scalar,
+    pub varying: bool,
+}
+
+impl Val {
+    pub fn one(v: ir::Value, scalar: Scalar, varying: bool) -> Val {
+        Val {
+            comps: vec![v],
+            scalar,
+            varying,
+        }
+    }
+}
+
+/// The Cranelift type of one component.
+pub fn cl_type(scalar: Scalar, varying: bool) -> Type {
+    match (scalar, varying) {
+        (Scalar::Float, false) => types::F32,
+        (Scalar::Int | Scalar::Fixed(_), false) => types::I32,
+        (Scalar::Bool, false) => types::I8,
+        (Scalar::Float, true) => F32X4,
+        (_, true) => I32X4,
+    }
+}
+
+/// Bytes one component takes in a stack slot or args word.
+pub fn comp_bytes(varying: bool) -> u32 {
+    if varying {
+        16
+    } else {
+        4
+    }
+}
+
+/// Flags for loads and stores of memory we own and know to be valid (stack slots, the
+/// context). Not `aligned`: tile buffers come from the runtime without an alignment promise.
+pub fn mem_flags() -> MemFlagsData {
+    MemFlagsData::new().with_notrap()
+}
+
+/// Flags for argument-block loads: the block never changes while the kernel runs, so these
+/// may be hoisted out of the pixel loops.
+pub fn args_flags() -> MemFlagsData {
+    MemFlagsData::new().with_notrap().with_readonly().with_can_move()
+}
+
+fn bitcast_flags() -> MemFlagsData {
+    MemFlagsData::new().with_endianness(ir::Endianness::Little)
+}
+
+/// Byte offsets of the [`TileCtx`] fields kernels touch.
+pub mod ctx_off {
+    use super::TileCtx;
+    use std::mem::offset_of;
+    pub const X0: i32 = offset_of!(TileCtx, x0) as i32;
+    pub const Y0: i32 = offset_of!(TileCtx, y0) as i32;
+    pub const X1: i32 = offset_of!(TileCtx, x1) as i32;
+    pub const Y1: i32 = offset_of!(TileCtx, y1) as i32;
+    pub const MODE: i32 = offset_of!(TileCtx, mode) as i32;
+    pub const STRIDE: i32 = offset_of!(TileCtx, stride) as i32;
+    pub const DEPTH: i32 = offset_of!(TileCtx, depth) as i32;
+    pub const GBUF: i32 = offset_of!(TileCtx, gbuf) as i32;
+    pub const PLANE_STRIDE: i32 = offset_of!(TileCtx, plane_stride) as i32;
+    pub const NUM_PLANES: i32 = offset_of!(TileCtx, num_planes) as i32;
+    pub const WRITE_COUNT: i32 = offset_of!(TileCtx, write_count) as i32;
+    pub const BOUND: i32 = offset_of!(TileCtx, bound) as i32;
+    pub const BOUND_SET: i32 = offset_of!(TileCtx, bound_set) as i32;
+    pub const ERROR: i32 = offset_of!(TileCtx, error) as i32;
+    pub const ERROR_SITE: i32 = offset_of!(TileCtx, error_site) as i32;
+    pub const FUEL: i32 = offset_of!(TileCtx, fuel) as i32;
+    pub const CALL_DEPTH: i32 = offset_of!(TileCtx, call_depth) as i32;
+    pub const WIDTH: i32 = offset_of!(TileCtx, width) as i32;
+    pub const HEIGHT: i32 = offset_of!(TileCtx, height) as i32;
+}
+
+/// `f32x4` <-> `i32x4` reinterpretation.
+pub fn to_i32x4(b: &mut FunctionBuilder, v: ir::Value) -> ir::Value {
+    if b.func.dfg.value_type(v) == I32X4 {
+        v
+    } else {
+        b.ins().bitcast(I32X4, bitcast_flags(), v)
+    }
+}
+
+pub fn to_f32x4(b: &mut FunctionBuilder, v: ir::Value) -> ir::Value {
+    if b.func.dfg.value_type(v) == F32X4 {
+        v
+    } else {
+        b.ins().bitcast(F32X4, bitcast_flags(), v)
+    }
+}
+
+/// Broadcast a uniform component to the varying form of `scalar` (bools become masks).
+pub fn splat(b: &mut FunctionBuilder, scalar: Scalar, v: ir::Value) -> ir::Value {
+    let ty = b.func.dfg.value_type(v);
+    if ty.is_vector() {
+        return v;
+    }
+    match scalar {
+        Scalar::Bool => {
+            let wide = b.ins().uextend(types::I32, v);
+            let mask = b.ins().ineg(wide);
+            b.ins().splat(I32X4, mask)
+        }
+        Scalar::Float => b.ins().splat(F32X4, v),
+        _ => b.ins().splat(I32X4, v),
+    }
+}
+
+/// Make `v` varying if it is not already.
+pub fn to_varying(b: &mut FunctionBuilder, v: Val) -> Val {
+    if v.varying {
+        return v;
+    }
+    let comps = v.comps.iter().map(|&c| splat(b, v.scalar, c)).collect();
+    Val {
+        comps,
+        scalar: v.scalar,
+        varying: true,
+    }
+}
+
+/// Lanes of `mask` take `new`, the others keep `old` (both f32x4 or both i32x4).
+pub fn blend(b: &mut FunctionBuilder, mask: ir::Value, new: ir::Value, old: ir::Value) -> ir::Value {
+    let ty = b.func.dfg.value_type(new);
+    if ty == F32X4 {
+        // blendv is only lowered for integer lanes; a bitcast is free.
+        let n = to_i32x4(b, new);
+        let o = to_i32x4(b, old);
+        let r = b.ins().blendv(mask, n, o);
+        to_f32x4(b, r)
+    } else {
+        b.ins().blendv(mask, new, old)
+    }
+}
+
+/// A zero of the given component form.
+pub fn zero(b: &mut FunctionBuilder, scalar: Scalar, varying: bool) -> ir::Value {
+    let ty = cl_type(scalar, varying);
+    if varying {
+        let s = zero(b, scalar, false);
+        match scalar {
+            Scalar::Float => b.ins().splat(ty, s),
+            Scalar::Bool => {
+                let z = b.ins().iconst(types::I32, 0);
+                b.ins().splat(I32X4, z)
+            }
+            _ => b.ins().splat(ty, s),
+        }
+    } else if scalar == Scalar::Float {
+        b.ins().f32const(0.0)
+    } else {
+        b.ins().iconst(ty, 0)
+    }
+}
+
+/// An i32x4 mask with every lane set to `on`.
+pub fn mask_const(b: &mut FunctionBuilder, on: bool) -> ir::Value {
+    let v = b.ins().iconst(types::I32, if on { -1 } else { 0 });
+    b.ins().splat(I32X4, v)
+}
+
+/// Apply a scalar operation lane by lane to vectors (`f` gets the lanes of each operand).
+pub fn map_lanes(
+    b: &mut FunctionBuilder,
+    out_ty: Type,
+    operands: &[ir::Value],
+    f: &mut dyn FnMut(&mut FunctionBuilder, &[ir::Value]) -> ir::Value,
+) -> ir::Value {
+    let mut out = None;
+    for lane in 0..4u8 {
+        let lanes: Vec<ir::Value> = operands.iter().map(|&v| b.ins().extractlane(v, lane)).collect();
+        let r = f(b, &lanes);
+        out = Some(match out {
+            None => b.ins().scalar_to_vector(out_ty, r),
+            Some(acc) => b.ins().insertlane(acc, r, lane),
+        });
+    }
+    out.expect("four lanes")
+}
