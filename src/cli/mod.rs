@@ -146,7 +146,7 @@ fn check(args: &CheckArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     let program = registry.program;
     match args.emit {
         Some(Emit::Ir) => {
-            let _ = writeln!(out, "{program:#?}");
+            let _ = write!(out, "{program}");
         }
         Some(Emit::Clif) => return emit_clif(&program, &given, &args.key, out, err),
         _ => {}
