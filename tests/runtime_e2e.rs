@@ -97,3 +97,81 @@ fn the_example_scene_renders_identically_on_one_and_two_threads() {
     let corner = one.param_at("Cs", 300, 232).unwrap();
     assert_eq!(corner, vec![0.8, 0.3, 0.9]);
 }
+
+mod fuzz {
+    use super::*;
+    use proptest::prelude::*;
+
+    const BASE: &str = "\
+image 24 16
+tile 8
+material_interp Cs linear
+begin screen_triangle
+rast_param screen_vertex 1 1 0.5 1   23 2 0.5 1   4 15 0.5 1
+material Cs 1 0 0
+sequence_point
+material Cs 0 1 0
+sequence_point
+material Cs 0 0 1
+sequence_point
+end
+material_interp Cs constant
+begin screen_triangle
+rast_param screen_vertex 20 1 0.7 1   23 15 0.2 1   2 12 0.9 1
+end
+";
+
+    fn token() -> impl Strategy<Value = String> {
+        prop_oneof![
+            Just("begin".to_string()),
+            Just("end".to_string()),
+            Just("screen_triangle".to_string()),
+            Just("sequence_point".to_string()),
+            Just("material".to_string()),
+            Just("material_interp".to_string()),
+            Just("perspective_linear".to_string()),
+            Just("constant".to_string()),
+            Just("Cs".to_string()),
+            Just("\n".to_string()),
+            Just("nan".to_string()),
+            Just("inf".to_string()),
+            Just("-1e30".to_string()),
+            "-?[0-9]{1,2}(\\.[0-9]{1,2})?",
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+        /// Token deletions, insertions and replacements in a scene of the real library: the
+        /// reader and the compiled kernels report or cope, never panic, and the frame keeps
+        /// its size.
+        #[test]
+        fn mutated_scenes_render_through_the_jit_without_panics(
+            edits in proptest::collection::vec((0usize..64, proptest::option::of(token())), 1..6)
+        ) {
+            let mut words: Vec<String> = BASE.split_inclusive([' ', '\n']).map(String::from).collect();
+            for (at, replacement) in edits {
+                let at = at % words.len();
+                match replacement {
+                    Some(t) => words.insert(at, format!("{t} ")),
+                    None => {
+                        words.remove(at);
+                    }
+                }
+            }
+            let text = words.concat();
+            let mut sources = SourceMap::new();
+            let mut diags = Diagnostics::new();
+            let registry = Registry::load(&mut sources, &[], &[], &mut diags).unwrap();
+            let file = sources.add("fuzz.scene", text);
+            let mut renderer = Renderer::new(registry.program.clone());
+            primflow::scene::load_into(&sources, file, &mut renderer, &mut diags);
+            renderer.options.width = renderer.options.width.min(32);
+            renderer.options.height = renderer.options.height.min(32);
+            let mut jit = Jit::new(registry.program.clone()).unwrap();
+            let out = renderer.render(&mut jit);
+            prop_assert_eq!(out.frame.depth.len(), (out.frame.width * out.frame.height) as usize);
+            let _ = out.diags.render(&sources);
+        }
+    }
+}
