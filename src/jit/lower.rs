@@ -767,6 +767,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                 if self.in_pixel() || self.frames.len() > 1 {
                     return err("primitive call in per-pixel code");
                 }
+                // The callee (compiled for the same key) answers for the bindings itself.
+                self.written.iter_mut().for_each(|w| *w = true);
                 self.call_primitive(*callee, args)
             }
         }
@@ -2040,11 +2042,18 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             ExprKind::Convert(inner) => {
                 let v = self.eval(inner)?;
-                let comps = v
+                let mut comps: Vec<ir::Value> = v
                     .comps
                     .iter()
                     .map(|&c| fixed::convert(&mut self.b, v.scalar, sc, c))
                     .collect();
+                // A number converted to interpolation data stands for that number in every
+                // component of the current view (the checker's zero-initialisation and
+                // broadcasts).
+                if e.ty.elem == Elem::Interp && inner.ty.elem != Elem::Interp && comps.len() == 1 {
+                    let n = self.comp_offsets(&e.ty, true).len();
+                    comps = vec![comps[0]; n];
+                }
                 Ok(Val {
                     comps,
                     scalar: sc,
