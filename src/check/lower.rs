@@ -1069,6 +1069,40 @@ impl<'g, 'a> FnLower<'g, 'a> {
                         }
                     }
                 }
+                // A per-sequence-point parameter takes a fixed-size array of its elements: the
+                // callee's sequence points are that array's elements (the kernel builds the
+                // callee's argument block with a size known at compile time).
+                _ if p.ty.per_seq => match self.expr(a, pre) {
+                    Some(v)
+                        if !v.ty.per_seq && v.ty.elem == p.ty.elem && v.ty.dims.get(1..) == Some(&p.ty.dims[..]) =>
+                    {
+                        out.push(v)
+                    }
+                    Some(v) => {
+                        let help = if v.ty.per_seq {
+                            "copy the sequence points into a fixed-size array first, e.g. `float v[3][4] = {vertex[0], vertex[1], vertex[2]};`"
+                        } else {
+                            "pass an array whose elements have the parameter's element type"
+                        };
+                        self.sink.push(
+                            err(
+                                "E0413",
+                                format!(
+                                    "argument for per-sequence-point parameter `{}` of `{}` must be a fixed-size array of {}, found {}",
+                                    p.name,
+                                    callee.name,
+                                    types::type_name(&p.ty.element()),
+                                    types::type_name(&v.ty)
+                                ),
+                                a.span,
+                                format!("this is {}", types::type_name(&v.ty)),
+                            )
+                            .help(help),
+                        );
+                        ok = false;
+                    }
+                    None => ok = false,
+                },
                 _ => match self.expr_to(a, &p.ty, pre) {
                     Some(v) => out.push(v),
                     None => ok = false,
