@@ -35,6 +35,8 @@ pub enum Command {
     Check(CheckArgs),
     /// Render a scene file to a PNG image.
     Render(RenderArgs),
+    /// Benchmark JIT kernels against hand-written Rust kernels of the same primitives.
+    Bench(BenchArgs),
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -90,6 +92,22 @@ pub struct RenderArgs {
     pub count_writes: bool,
 }
 
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// Only workloads whose name contains this text.
+    #[arg(long, value_name = "NAME")]
+    pub filter: Option<String>,
+    /// Fewer primitives and runs (well under two minutes).
+    #[arg(long)]
+    pub quick: bool,
+    /// Timed runs per kernel; the median is reported.
+    #[arg(long, default_value_t = 7, value_name = "N")]
+    pub runs: usize,
+    /// Also write the results as JSON.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}
+
 /// Run the command line `args` (the first is the program name), printing to `out` and
 /// `err`; returns the exit code.
 pub fn run<I, T>(args: I, out: &mut dyn Write, err: &mut dyn Write) -> i32
@@ -113,6 +131,7 @@ where
     match cli.command {
         Command::Check(args) => check(&args, out, err),
         Command::Render(args) => render(&args, out, err),
+        Command::Bench(args) => bench(&args, out, err),
     }
 }
 
@@ -331,4 +350,31 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     } else {
         1
     }
+}
+
+fn bench(args: &BenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+    let opts = crate::bench::BenchOptions {
+        filter: args.filter.clone(),
+        quick: args.quick,
+        runs: args.runs.max(1),
+        progress: true,
+    };
+    let report = match crate::bench::run(&opts) {
+        Ok(r) => r,
+        Err(e) => {
+            let _ = writeln!(err, "error: {e}");
+            return 1;
+        }
+    };
+    let _ = out.write_all(crate::bench::format_table(&report).as_bytes());
+    if let Some(path) = &args.json {
+        let written = serde_json::to_string_pretty(&report)
+            .map_err(|e| e.to_string())
+            .and_then(|text| std::fs::write(path, text).map_err(|e| e.to_string()));
+        if let Err(e) = written {
+            let _ = writeln!(err, "error: cannot write {}: {e}", path.display());
+            return 1;
+        }
+    }
+    0
 }
