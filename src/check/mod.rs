@@ -1,13 +1,677 @@
 //! The checker: name resolution, types and conversions, fixed-point formats and
 //! uniform/varying inference, lowering the AST to the typed IR.
+//!
+//! [`check`] runs the passes in this order:
+//! 1. **items** — every primitive, interpolator and helper of every module goes into one
+//!    namespace (duplicates and redefined built-ins are errors);
+//! 2. **signatures** — parameter types, roles (X/Y/Z, interpolation data, per sequence
+//!    point, per primitive), spaces and constant defaults, so calls can be checked before
+//!    the callee's body;
+//! 3. **recursion** — the helper call graph; a cycle is reported once and never inlined;
+//! 4. **bodies** — each helper is lowered once on its own (so an uncalled helper is still
+//!    type-checked), then each primitive and interpolator is lowered ([`lower`]), with
+//!    helpers inlined; after this point every expression has its final type;
+//! 5. **variability** — [`variability::analyze`] infers uniform/varying to a fixpoint and
+//!    reports the variability errors; after this point every expression, loop and local
+//!    has its final variability;
+//! 6. **split** — [`ir::split::split_checked`] moves per-pixel statements of primitives
+//!    into `pixel`; an interpolator's whole body is its pixel part.
+//!
+//! Diagnostics are collected in a [`Sink`] that drops exact duplicates (a helper's type
+//! error is found once standalone and again at every call site it is inlined at) and
+//! sorted by position at the end.
 
-use crate::diag::{Diagnostics, SourceMap};
-use crate::{ir, syntax::ast};
+mod builtins;
+mod consts;
+mod lower;
+pub mod types;
+mod variability;
+
+use std::collections::{HashMap, HashSet};
+
+use crate::diag::{Diagnostic, Diagnostics, SourceMap, Span};
+use crate::ir::{self, ConstValue, FuncId, FuncKind, LocalKind, ParamRole, ParamSpace, Type, Variability};
+use crate::syntax::ast;
+
+use lower::{resolve_dims, resolve_type, var_of, FnLower, BUILTIN_NAMES};
 
 /// Check every module as one program and lower it to IR (helpers inlined, functions split
 /// into setup and pixel parts). Errors go to `diags`; the returned program is only
 /// meaningful when there are none.
 pub fn check(modules: &[ast::Module], sources: &SourceMap, diags: &mut Diagnostics) -> ir::Program {
-    let _ = (modules, sources, diags);
-    todo!("checker")
+    let _ = sources;
+    let mut sink = Sink::default();
+    let items = collect_items(modules, &mut sink);
+    let g = signatures(&items, &mut sink);
+    let g = find_recursion(g, &mut sink);
+    let roles: Vec<Vec<ParamRole>> = g
+        .sigs
+        .iter()
+        .filter(|s| s.func.is_some())
+        .map(|s| s.params.iter().map(|p| p.role).collect())
+        .collect();
+
+    let mut program = ir::Program::default();
+    for (idx, sig) in g.sigs.iter().enumerate() {
+        match sig.item.kind {
+            ast::ItemKind::Function => check_helper(&g, idx, &mut sink, &mut program.sites),
+            ast::ItemKind::Primitive | ast::ItemKind::Interpolator => {
+                let f = lower_function(&g, idx, &roles, &mut sink, &mut program.sites);
+                program.functions.push(f);
+            }
+        }
+    }
+    let mut items = sink.items;
+    items.sort_by_key(|d| d.primary_span().map(|s| (s.file, s.start)));
+    diags.items.extend(items);
+    program
+}
+
+/// A diagnostics collector that keeps the first of identical diagnostics.
+#[derive(Default)]
+pub struct Sink {
+    pub items: Vec<Diagnostic>,
+}
+
+impl Sink {
+    pub fn push(&mut self, d: Diagnostic) {
+        if !self.items.contains(&d) {
+            self.items.push(d);
+        }
+    }
+}
+
+/// What the variability pass needs to know about a local beyond its IR form.
+#[derive(Clone, Debug)]
+pub struct LocalInfo {
+    /// Declared (or fixed, for parameters) variability and where; `None`: inferred.
+    pub declared: Option<(Variability, Span)>,
+    /// How to name it in a message: "variable `a`", "parameter `t` of helper `lerp`".
+    pub what: String,
+    /// Parameters other than Z may not be assigned.
+    pub read_only: bool,
+}
+
+/// A parameter of an item, resolved.
+pub struct SigParam {
+    pub name: String,
+    pub ty: Type,
+    pub role: ParamRole,
+    pub space: ParamSpace,
+    pub default: Option<Vec<ConstValue>>,
+    pub declared: Option<(Variability, Span)>,
+    pub inout: bool,
+    pub span: Span,
+}
+
+pub struct Signature<'a> {
+    pub item: &'a ast::Item,
+    /// The IR function of a primitive or interpolator.
+    pub func: Option<FuncId>,
+    pub params: Vec<SigParam>,
+    /// A helper's return type (`None`: void).
+    pub ret: Option<Type>,
+}
+
+pub struct Globals<'a> {
+    pub sigs: Vec<Signature<'a>>,
+    pub by_name: HashMap<String, usize>,
+    /// Helpers that are part of a call cycle.
+    pub recursive: HashSet<usize>,
+}
+
+fn collect_items<'a>(modules: &'a [ast::Module], sink: &mut Sink) -> Vec<&'a ast::Item> {
+    let mut seen: HashMap<&str, Span> = HashMap::new();
+    let mut out = vec![];
+    for m in modules {
+        for item in &m.items {
+            let name = item.name.name.as_str();
+            if BUILTIN_NAMES.contains(&name) {
+                sink.push(
+                    Diagnostic::error("E0103", format!("`{name}` is a built-in name and cannot be redefined"))
+                        .primary(item.name.span, "redefined here"),
+                );
+                continue;
+            }
+            if let Some(prev) = seen.get(name) {
+                sink.push(
+                    Diagnostic::error("E0104", format!("`{name}` is defined twice"))
+                        .primary(item.name.span, "defined again here")
+                        .secondary(*prev, "first defined here")
+                        .help("primitives, interpolators and helpers of all files share one namespace"),
+                );
+                continue;
+            }
+            seen.insert(name, item.name.span);
+            out.push(item);
+        }
+    }
+    out
+}
+
+fn signatures<'a>(items: &[&'a ast::Item], sink: &mut Sink) -> Globals<'a> {
+    let mut sigs = vec![];
+    let mut by_name = HashMap::new();
+    let mut next_func = 0u32;
+    for &item in items {
+        let func = match item.kind {
+            ast::ItemKind::Function => None,
+            _ => {
+                next_func += 1;
+                Some(FuncId(next_func - 1))
+            }
+        };
+        let mut params: Vec<SigParam> = vec![];
+        let mut names: HashMap<&str, Span> = HashMap::new();
+        for p in &item.params {
+            if let Some(prev) = names.get(p.name.name.as_str()) {
+                sink.push(
+                    Diagnostic::error("E0106", format!("parameter `{}` is declared twice", p.name.name))
+                        .primary(p.name.span, "declared again here")
+                        .secondary(*prev, "first declared here"),
+                );
+            }
+            names.insert(&p.name.name, p.name.span);
+            params.push(sig_param(item, p, sink));
+        }
+        let ret = item.ret.as_ref().and_then(|t| resolve_type(t, sink));
+        by_name.insert(item.name.name.clone(), sigs.len());
+        sigs.push(Signature {
+            item,
+            func,
+            params,
+            ret,
+        });
+    }
+    Globals {
+        sigs,
+        by_name,
+        recursive: HashSet::new(),
+    }
+}
+
+fn sig_param(item: &ast::Item, p: &ast::Param, sink: &mut Sink) -> SigParam {
+    let helper = item.kind == ast::ItemKind::Function;
+    let name = p.name.name.as_str();
+    let base = resolve_type(&p.ty, sink).unwrap_or_else(Type::float);
+    // An unsized first dimension makes a per-sequence-point parameter (primitives only).
+    let (per_seq, sized) = match p.dims.first() {
+        Some(ast::ArrayDim::Unsized(sp)) => {
+            if item.kind != ast::ItemKind::Primitive {
+                let what = if helper { "a helper" } else { "an interpolator" };
+                sink.push(
+                    Diagnostic::error("E0505", format!("unsized array parameter `{name}` in {what}"))
+                        .primary(*sp, "unsized")
+                        .help("only primitives have per-sequence-point parameters"),
+                );
+            }
+            (true, &p.dims[1..])
+        }
+        _ => (false, &p.dims[..]),
+    };
+    let dims = resolve_dims(sized, &base, sink).unwrap_or_else(|| base.dims.clone());
+    let ty = Type {
+        elem: base.elem,
+        dims,
+        per_seq,
+    };
+    let pixel = !helper && matches!(name, "X" | "Y" | "Z");
+    let role = if pixel {
+        match name {
+            "X" => ParamRole::X,
+            "Y" => ParamRole::Y,
+            _ => ParamRole::Z,
+        }
+    } else if ty.elem == ir::Elem::Interp && !helper {
+        ParamRole::InterpData
+    } else if per_seq {
+        ParamRole::PerSequencePoint
+    } else {
+        ParamRole::PerPrimitive
+    };
+    let space = match p.ty.kind {
+        ast::TypeKind::Point => ParamSpace::Point,
+        ast::TypeKind::Vector => ParamSpace::Vector,
+        ast::TypeKind::Normal => ParamSpace::Normal,
+        _ => ParamSpace::None,
+    };
+    let quals = &p.quals;
+    let declared = if helper {
+        quals.variability.map(|(v, sp)| (var_of(v), sp))
+    } else if pixel {
+        Some((Variability::Varying, p.name.span))
+    } else {
+        Some((Variability::Uniform, p.span))
+    };
+    if !helper {
+        check_param_quals(item, p, role, &ty, sink);
+    }
+    let mut default = None;
+    if let Some(d) = &p.default {
+        if matches!(role, ParamRole::X | ParamRole::Y | ParamRole::Z | ParamRole::InterpData) || p.quals.inout.is_some()
+        {
+            sink.push(
+                Diagnostic::error("E0507", format!("parameter `{name}` cannot have a default"))
+                    .primary(d.span, "default given here")
+                    .help("X, Y, Z, interpolation data and inout parameters are bound by the runtime or the caller"),
+            );
+        } else {
+            let elem_ty = Type {
+                per_seq: false,
+                ..ty.clone()
+            };
+            match consts::eval(d) {
+                Ok(c) => match consts::flatten_to(&c, &elem_ty) {
+                    Ok(v) => default = Some(v),
+                    Err(msg) => sink.push(
+                        Diagnostic::error("E0209", format!("default of `{name}` does not fit its type: {msg}"))
+                            .primary(d.span, format!("for {}", types::type_name(&elem_ty))),
+                    ),
+                },
+                Err((sp, why)) => sink.push(
+                    Diagnostic::error("E0209", format!("default of `{name}` must be a constant"))
+                        .primary(sp, why)
+                        .help("defaults are literals, PI, `{...}` lists and arithmetic on them"),
+                ),
+            }
+        }
+    }
+    SigParam {
+        name: name.to_string(),
+        ty,
+        role,
+        space,
+        default,
+        declared,
+        inout: quals.inout.is_some(),
+        span: p.name.span,
+    }
+}
+
+fn check_param_quals(item: &ast::Item, p: &ast::Param, role: ParamRole, ty: &Type, sink: &mut Sink) {
+    let name = p.name.name.as_str();
+    let q = &p.quals;
+    let scalar = if ty.dims.is_empty() && !ty.per_seq {
+        types::scalar_of(ty)
+    } else {
+        None
+    };
+    match role {
+        ParamRole::X | ParamRole::Y | ParamRole::Z => {
+            if let Some((ast::Variability::Uniform, sp)) = q.variability {
+                sink.push(
+                    Diagnostic::error("E0501", format!("`{name}` must be varying"))
+                        .primary(sp, "declared uniform here")
+                        .help("X, Y and Z are the pixel's position and depth: they vary per pixel"),
+                );
+            }
+            let ok_type = match (role, scalar) {
+                (ParamRole::Z, Some(s)) => matches!(s, ir::Scalar::Float | ir::Scalar::Fixed(_)),
+                (_, Some(s)) => matches!(s, ir::Scalar::Float | ir::Scalar::Int | ir::Scalar::Fixed(_)),
+                _ => false,
+            };
+            if !ok_type {
+                let want = if role == ParamRole::Z {
+                    "float or fixed"
+                } else {
+                    "float, int or fixed"
+                };
+                sink.push(
+                    Diagnostic::error("E0502", format!("`{name}` must be a {want} scalar"))
+                        .primary(p.ty.span, format!("this is {}", types::type_name(ty))),
+                );
+            }
+            if role == ParamRole::Z {
+                if q.inout.is_none() {
+                    sink.push(
+                        Diagnostic::warning("W0001", "`Z` should be declared `inout varying`")
+                            .primary(p.name.span, "taken as inout")
+                            .help("the primitive reads and writes the depth buffer through Z"),
+                    );
+                }
+            } else if let Some(sp) = q.inout {
+                sink.push(
+                    Diagnostic::error("E0504", format!("`inout` on parameter `{name}`"))
+                        .primary(sp, "only Z may be inout"),
+                );
+            }
+        }
+        _ => {
+            if let Some((ast::Variability::Varying, sp)) = q.variability {
+                sink.push(
+                    Diagnostic::error("E0503", format!("parameter `{name}` cannot be varying"))
+                        .primary(sp, "declared varying here")
+                        .help("per-primitive data has one value for the whole primitive; only X, Y and Z vary"),
+                );
+            }
+            if let Some(sp) = q.inout {
+                sink.push(
+                    Diagnostic::error("E0504", format!("`inout` on parameter `{name}`"))
+                        .primary(sp, "only Z may be inout"),
+                );
+            }
+            if role == ParamRole::InterpData && item.kind == ast::ItemKind::Interpolator {
+                sink.push(
+                    Diagnostic::error("E0506", "interpolation data parameter in a shared interpolator")
+                        .primary(p.span, "not available to interpolators")
+                        .help("a shared interpolator sees only per-primitive parameters and X, Y, Z"),
+                );
+            }
+        }
+    }
+}
+
+/// Report each cycle of helper calls once and mark its helpers as not inlinable.
+fn find_recursion<'a>(mut g: Globals<'a>, sink: &mut Sink) -> Globals<'a> {
+    let n = g.sigs.len();
+    let mut edges: Vec<Vec<(usize, Span)>> = vec![vec![]; n];
+    for (i, sig) in g.sigs.iter().enumerate() {
+        if sig.item.kind != ast::ItemKind::Function {
+            continue;
+        }
+        let mut calls = vec![];
+        for s in &sig.item.body.stmts {
+            stmt_calls(s, &mut calls);
+        }
+        for (name, span) in calls {
+            if let Some(&j) = g.by_name.get(&name) {
+                if g.sigs[j].item.kind == ast::ItemKind::Function {
+                    edges[i].push((j, span));
+                }
+            }
+        }
+    }
+    // Depth-first search; a back edge closes a cycle.
+    let mut state = vec![0u8; n]; // 0 new, 1 on stack, 2 done
+    let mut stack: Vec<(usize, Span)> = vec![];
+    let mut reported: HashSet<Vec<usize>> = HashSet::new();
+    fn dfs(
+        v: usize,
+        g: &Globals,
+        edges: &[Vec<(usize, Span)>],
+        state: &mut [u8],
+        stack: &mut Vec<(usize, Span)>,
+        rec: &mut HashSet<usize>,
+        reported: &mut HashSet<Vec<usize>>,
+        sink: &mut Sink,
+    ) {
+        state[v] = 1;
+        for &(w, span) in &edges[v] {
+            if state[w] == 1 {
+                // The cycle is w -> ... -> v -> w.
+                let start = stack.iter().position(|&(x, _)| x == w).unwrap_or(stack.len());
+                let mut cycle: Vec<(usize, Span)> = stack[start..].to_vec();
+                cycle.push((v, span));
+                let mut key: Vec<usize> = cycle.iter().map(|c| c.0).collect();
+                key.sort_unstable();
+                rec.extend(key.iter().copied());
+                if reported.insert(key) {
+                    let names: Vec<&str> = cycle.iter().map(|c| g.sigs[c.0].item.name.name.as_str()).collect();
+                    let mut chain = names.join(" -> ");
+                    chain.push_str(&format!(" -> {}", names[0]));
+                    let mut d = Diagnostic::error("E0107", format!("recursive helper calls: {chain}"))
+                        .primary(span, format!("`{}` calls `{}` here", names[names.len() - 1], names[0]))
+                        .help("helpers are inlined at each call, so they cannot be recursive");
+                    // The other calls of the cycle: stack entry k+1 was called from entry k.
+                    for k in start + 1..stack.len() {
+                        let (callee, sp) = stack[k];
+                        let caller = stack[k - 1].0;
+                        d = d.secondary(
+                            sp,
+                            format!(
+                                "`{}` calls `{}` here",
+                                g.sigs[caller].item.name.name, g.sigs[callee].item.name.name
+                            ),
+                        );
+                    }
+                    sink.push(d);
+                }
+            } else if state[w] == 0 {
+                stack.push((w, span));
+                dfs(w, g, edges, state, stack, rec, reported, sink);
+                stack.pop();
+            }
+        }
+        state[v] = 2;
+    }
+    let mut rec = HashSet::new();
+    for v in 0..n {
+        if state[v] == 0 && g.sigs[v].item.kind == ast::ItemKind::Function {
+            stack.push((v, g.sigs[v].item.name.span));
+            dfs(v, &g, &edges, &mut state, &mut stack, &mut rec, &mut reported, sink);
+            stack.pop();
+        }
+    }
+    g.recursive = rec;
+    g
+}
+
+fn stmt_calls(s: &ast::Stmt, out: &mut Vec<(String, Span)>) {
+    use ast::StmtKind as K;
+    let block = |b: &ast::Block, out: &mut Vec<(String, Span)>| b.stmts.iter().for_each(|s| stmt_calls(s, out));
+    match &s.kind {
+        K::Decl { vars, .. } => vars
+            .iter()
+            .filter_map(|v| v.init.as_ref())
+            .for_each(|e| expr_calls(e, out)),
+        K::Assign { target, value, .. } => {
+            expr_calls(target, out);
+            expr_calls(value, out);
+        }
+        K::Expr(e) => expr_calls(e, out),
+        K::If { cond, then, otherwise } => {
+            expr_calls(cond, out);
+            block(then, out);
+            if let Some(o) = otherwise {
+                block(o, out);
+            }
+        }
+        K::For { init, cond, step, body } => {
+            if let Some(i) = init {
+                stmt_calls(i, out);
+            }
+            if let Some(c) = cond {
+                expr_calls(c, out);
+            }
+            if let Some(st) = step {
+                stmt_calls(st, out);
+            }
+            block(body, out);
+        }
+        K::While { cond, body } => {
+            expr_calls(cond, out);
+            block(body, out);
+        }
+        K::Return(Some(e)) | K::InterpolatorReturn(Some(e)) => expr_calls(e, out),
+        K::Interpolation { arms } => arms.iter().flat_map(|a| &a.body).for_each(|s| stmt_calls(s, out)),
+        K::Bound(args) => args.iter().for_each(|e| expr_calls(e, out)),
+        K::Block(b) => block(b, out),
+        K::Break | K::Continue | K::Return(None) | K::InterpolatorReturn(None) | K::Error => {}
+    }
+}
+
+fn expr_calls(e: &ast::Expr, out: &mut Vec<(String, Span)>) {
+    use ast::ExprKind as K;
+    match &e.kind {
+        K::Call { callee, args } => {
+            out.push((callee.name.clone(), e.span));
+            args.iter().for_each(|a| expr_calls(a, out));
+        }
+        K::Unary { expr, .. } => expr_calls(expr, out),
+        K::Binary { lhs, rhs, .. } => {
+            expr_calls(lhs, out);
+            expr_calls(rhs, out);
+        }
+        K::Ternary { cond, then, otherwise } => {
+            expr_calls(cond, out);
+            expr_calls(then, out);
+            expr_calls(otherwise, out);
+        }
+        K::Construct { args, .. } | K::List(args) => args.iter().for_each(|a| expr_calls(a, out)),
+        K::Index { base, index } => {
+            expr_calls(base, out);
+            expr_calls(index, out);
+        }
+        K::Int(_) | K::Float(_) | K::Bool(_) | K::Str(_) | K::Name(_) | K::Error => {}
+    }
+}
+
+/// Type-check a helper on its own (its parameters as temporaries) and check that a helper
+/// with a value cannot fall off its end. The IR made here is thrown away: helpers only
+/// exist inlined.
+fn check_helper(g: &Globals, idx: usize, sink: &mut Sink, sites: &mut Vec<Span>) {
+    let sig = &g.sigs[idx];
+    if sig.ret.is_some() && !block_returns(&sig.item.body.stmts) {
+        sink.push(
+            Diagnostic::error(
+                "E0405",
+                format!(
+                    "helper `{}` can reach its end without returning a value",
+                    sig.item.name.name
+                ),
+            )
+            .primary(sig.item.name.span, "declared with a return type")
+            .secondary(
+                Span {
+                    start: sig.item.body.span.end.saturating_sub(1),
+                    ..sig.item.body.span
+                },
+                "the end is reachable here",
+            ),
+        );
+    }
+    if g.recursive.contains(&idx) {
+        return;
+    }
+    let mut scratch_sites = std::mem::take(sites);
+    let n_sites = scratch_sites.len();
+    {
+        let mut fl = FnLower::new(g, sink, &mut scratch_sites, FuncKind::Primitive);
+        let mut params = vec![];
+        for p in &sig.params {
+            params.push(fl.new_local(
+                &p.name,
+                p.ty.clone(),
+                LocalKind::Temp,
+                p.span,
+                LocalInfo {
+                    declared: p.declared,
+                    what: format!("parameter `{}`", p.name),
+                    read_only: false,
+                },
+            ));
+        }
+        let mut pre = vec![];
+        fl.inline_body(idx, &params, sig.item.span, &mut pre);
+    }
+    // The standalone IR is discarded, so are its sites.
+    scratch_sites.truncate(n_sites);
+    *sites = scratch_sites;
+}
+
+fn block_returns(stmts: &[ast::Stmt]) -> bool {
+    stmts.iter().any(stmt_returns)
+}
+
+fn stmt_returns(s: &ast::Stmt) -> bool {
+    match &s.kind {
+        ast::StmtKind::Return(_) => true,
+        ast::StmtKind::If {
+            then,
+            otherwise: Some(o),
+            ..
+        } => block_returns(&then.stmts) && block_returns(&o.stmts),
+        ast::StmtKind::Block(b) => block_returns(&b.stmts),
+        // A statement that did not parse: assume it returned rather than pile on errors.
+        ast::StmtKind::Error => true,
+        _ => false,
+    }
+}
+
+fn lower_function(
+    g: &Globals,
+    idx: usize,
+    roles: &[Vec<ParamRole>],
+    sink: &mut Sink,
+    sites: &mut Vec<Span>,
+) -> ir::Function {
+    let sig = &g.sigs[idx];
+    let kind = match sig.item.kind {
+        ast::ItemKind::Interpolator => FuncKind::Interpolator,
+        _ => FuncKind::Primitive,
+    };
+    let mut fl = FnLower::new(g, sink, sites, kind);
+    let mut params = vec![];
+    for (i, p) in sig.params.iter().enumerate() {
+        let id = fl.new_local(
+            &p.name,
+            p.ty.clone(),
+            LocalKind::Param(i as u32),
+            p.span,
+            LocalInfo {
+                declared: p.declared,
+                what: format!("parameter `{}`", p.name),
+                read_only: p.role != ParamRole::Z,
+            },
+        );
+        fl.declare_param(&p.name, id);
+        fl.set_xyz(p.role, id);
+        params.push(ir::Param {
+            local: id,
+            name: p.name.clone(),
+            role: p.role,
+            space: p.space,
+            default: p.default.clone(),
+            span: p.span,
+        });
+    }
+    let mut body = vec![];
+    fl.stmts_in_scope(&sig.item.body.stmts, &mut body);
+    if kind == FuncKind::Interpolator {
+        match fl.interp_returns.first() {
+            None => fl.sink.push(
+                Diagnostic::error(
+                    "E0413",
+                    format!("interpolator `{}` never gives a value", sig.item.name.name),
+                )
+                .primary(sig.item.name.span, "no `interpolator_return(e)` in its body")
+                .help("end it with `interpolator_return(value);`"),
+            ),
+            Some((first, first_span)) => {
+                let (first, first_span) = (first.clone(), *first_span);
+                let other = fl.interp_returns.iter().find(|(t, _)| *t != first).cloned();
+                if let Some((t, sp)) = other {
+                    fl.sink.push(
+                        Diagnostic::error("E0413", "an interpolator's results must all have one type")
+                            .primary(sp, format!("this is {}", types::type_name(&t)))
+                            .secondary(first_span, format!("this is {}", types::type_name(&first))),
+                    );
+                }
+            }
+        }
+    }
+    let (locals, infos, n_loops, uses_spaces) = (fl.locals, fl.infos, fl.n_loops, fl.uses_spaces);
+    let mut f = ir::Function {
+        name: sig.item.name.name.clone(),
+        kind,
+        span: sig.item.span,
+        params,
+        locals,
+        setup: body,
+        pixel: vec![],
+        loops: n_loops,
+        uses_spaces,
+    };
+    variability::analyze(&mut f, &infos, roles, sink);
+    match kind {
+        FuncKind::Primitive => {
+            let mut d = Diagnostics::new();
+            ir::split::split_checked(&mut f, &mut d);
+            for x in d.items {
+                sink.push(x);
+            }
+        }
+        FuncKind::Interpolator => f.pixel = std::mem::take(&mut f.setup),
+    }
+    f
 }

@@ -1,9 +1,240 @@
 //! Splitting a function into its uniform setup and its pixel part.
+//!
+//! Input: a checked function whose whole body is in `f.setup` (variabilities filled in),
+//! `f.pixel` empty. A top-level statement is a *pixel statement* if it contains a varying
+//! expression (the X/Y/Z arguments a primitive call passes through do not count: they are
+//! bound per pixel by the callee itself), assigns a varying local, contains an
+//! `interpolator_return`, or contains a `return` under varying control (a varying `if` or
+//! a varying loop). An `interpolation` construct whose arms are uniform and store nothing
+//! (figure 8 of the paper: the polygon computing clipped interpolation data) is uniform
+//! setup code like any other.
+//!
+//! With k the index of the first pixel statement, `setup = body[..k]` and the rest goes to
+//! `pixel`, except that a later top-level statement that is purely uniform — no pixel
+//! content, no `return`, no primitive call, no `break`/`continue` leaving it — is hoisted
+//! to the end of setup when that preserves meaning: no statement staying in pixel before it
+//! reads or writes a local it writes, or writes a local it reads. A statement containing a
+//! `return` stops hoisting past it (what follows might not run at all). After the split:
+//! - `setup` holds only uniform statements; `pixel` everything from the first pixel
+//!   statement on that could not be hoisted;
+//! - every primitive call and every `bound` is in `setup`; one left in `pixel` is an error
+//!   (E0411, E0412) reported by [`split_checked`].
 
-use super::Function;
+use std::collections::HashSet;
+
+use super::{Expr, ExprKind, Function, LocalId, LoopId, ParamRole, Stmt, StmtKind};
+use crate::diag::{Diagnostic, Diagnostics};
 
 /// Move the statements that must run per pixel group from `f.setup` into `f.pixel`.
+/// Errors (a primitive call or `bound` that cannot be in setup) are dropped; the checker
+/// calls [`split_checked`] to report them.
 pub fn split(f: &mut Function) {
-    let _ = f;
-    todo!("split")
+    let mut ignored = Diagnostics::new();
+    split_checked(f, &mut ignored);
+}
+
+/// [`split`], reporting primitive calls and `bound`s that end up in the pixel part.
+pub fn split_checked(f: &mut Function, diags: &mut Diagnostics) {
+    let pixel_params: HashSet<LocalId> = f
+        .params
+        .iter()
+        .filter(|p| matches!(p.role, ParamRole::X | ParamRole::Y | ParamRole::Z))
+        .map(|p| p.local)
+        .collect();
+    let body = std::mem::take(&mut f.setup);
+    let is_pixel = |s: &Stmt| pixel_content(s, f, &pixel_params, false);
+    let Some(k) = body.iter().position(is_pixel) else {
+        f.setup = body;
+        return;
+    };
+    let first_pixel_span = body[k].span;
+    let mut setup = vec![];
+    let mut pixel: Vec<Stmt> = vec![];
+    let mut barrier = false;
+    for (i, s) in body.into_iter().enumerate() {
+        if i < k {
+            setup.push(s);
+            continue;
+        }
+        let hoistable = i > k
+            && !barrier
+            && !pixel_content(&s, f, &pixel_params, false)
+            && !contains(&s, &|k| matches!(k, StmtKind::Return | StmtKind::CallPrimitive { .. }))
+            && no_escaping_jumps(&s);
+        if hoistable && safe_to_hoist(&s, &pixel) {
+            setup.push(s);
+            continue;
+        }
+        if contains(&s, &|k| matches!(k, StmtKind::CallPrimitive { .. })) {
+            diags.push(
+                Diagnostic::error(
+                    "E0411",
+                    "a primitive call must come before the primitive's per-pixel code",
+                )
+                .primary(s.span, "this call is after per-pixel code")
+                .secondary(first_pixel_span, "per-pixel code starts here")
+                .help("sub-primitives are rendered from the uniform setup part"),
+            );
+        }
+        if contains(&s, &|k| matches!(k, StmtKind::Bound(_))) {
+            diags.push(
+                Diagnostic::error("E0412", "`bound` cannot be moved before the per-pixel code")
+                    .primary(
+                        s.span,
+                        "this bound depends on per-pixel code or is in a statement that does",
+                    )
+                    .secondary(first_pixel_span, "per-pixel code starts here")
+                    .help("compute the bound from uniform values before the first per-pixel statement"),
+            );
+        }
+        if contains(&s, &|k| matches!(k, StmtKind::Return)) {
+            barrier = true;
+        }
+        pixel.push(s);
+    }
+    f.setup = setup;
+    f.pixel = pixel;
+}
+
+/// Whether `s` needs to run per pixel. `ctl`: `s` sits under varying control flow.
+fn pixel_content(s: &Stmt, f: &Function, pixel_params: &HashSet<LocalId>, ctl: bool) -> bool {
+    let any = |b: &[Stmt], ctl: bool| b.iter().any(|s| pixel_content(s, f, pixel_params, ctl));
+    match &s.kind {
+        StmtKind::Assign { place, value } => {
+            value.var.is_varying()
+                || place.indices.iter().any(|(i, _)| i.var.is_varying())
+                || f.local(place.local).var.is_varying()
+        }
+        StmtKind::If { cond, then, otherwise } => {
+            let c = ctl || cond.var.is_varying();
+            cond.var.is_varying() || any(then, c) || any(otherwise, c)
+        }
+        StmtKind::Loop {
+            cond,
+            body,
+            step,
+            varying,
+            ..
+        } => {
+            let c = ctl || *varying;
+            *varying || cond.as_ref().is_some_and(|e| e.var.is_varying()) || any(body, c) || any(step, c)
+        }
+        StmtKind::Break(_) | StmtKind::Continue(_) => false,
+        StmtKind::Return => ctl,
+        StmtKind::Interpolation { arms } => arms.iter().any(|a| any(&a.body, ctl)),
+        StmtKind::InterpolatorReturn(_) => true,
+        StmtKind::Bound(args) => args.iter().any(|a| a.var.is_varying()),
+        StmtKind::CallPrimitive { args, .. } => args.iter().any(|a| {
+            let passthrough = matches!(a.kind, ExprKind::Local(l) if pixel_params.contains(&l));
+            a.var.is_varying() && !passthrough
+        }),
+    }
+}
+
+/// Whether `s` or a statement nested in it has a kind matching `pred`.
+fn contains(s: &Stmt, pred: &dyn Fn(&StmtKind) -> bool) -> bool {
+    if pred(&s.kind) {
+        return true;
+    }
+    let any = |b: &[Stmt]| b.iter().any(|s| contains(s, pred));
+    match &s.kind {
+        StmtKind::If { then, otherwise, .. } => any(then) || any(otherwise),
+        StmtKind::Loop { body, step, .. } => any(body) || any(step),
+        StmtKind::Interpolation { arms } => arms.iter().any(|a| any(&a.body)),
+        _ => false,
+    }
+}
+
+/// True when every `break`/`continue` in `s` targets a loop inside `s`.
+fn no_escaping_jumps(s: &Stmt) -> bool {
+    fn walk(s: &Stmt, inside: &mut Vec<LoopId>) -> bool {
+        let all = |b: &[Stmt], inside: &mut Vec<LoopId>| b.iter().all(|s| walk(s, inside));
+        match &s.kind {
+            StmtKind::Break(l) | StmtKind::Continue(l) => inside.contains(l),
+            StmtKind::If { then, otherwise, .. } => all(then, inside) && all(otherwise, inside),
+            StmtKind::Loop { id, body, step, .. } => {
+                inside.push(*id);
+                let ok = all(body, inside) && all(step, inside);
+                inside.pop();
+                ok
+            }
+            StmtKind::Interpolation { arms } => arms.iter().all(|a| all(&a.body, inside)),
+            _ => true,
+        }
+    }
+    walk(s, &mut vec![])
+}
+
+/// Moving `s` before the statements of `pixel` keeps the program's meaning.
+fn safe_to_hoist(s: &Stmt, pixel: &[Stmt]) -> bool {
+    let (mut r, mut w) = (HashSet::new(), HashSet::new());
+    reads_writes(s, &mut r, &mut w);
+    pixel.iter().all(|t| {
+        let (mut tr, mut tw) = (HashSet::new(), HashSet::new());
+        reads_writes(t, &mut tr, &mut tw);
+        tr.is_disjoint(&w) && tw.is_disjoint(&w) && tw.is_disjoint(&r)
+    })
+}
+
+/// The locals a statement reads and writes (anywhere inside it).
+pub(crate) fn reads_writes(s: &Stmt, r: &mut HashSet<LocalId>, w: &mut HashSet<LocalId>) {
+    let block = |b: &[Stmt], r: &mut HashSet<LocalId>, w: &mut HashSet<LocalId>| {
+        for s in b {
+            reads_writes(s, r, w);
+        }
+    };
+    match &s.kind {
+        StmtKind::Assign { place, value } => {
+            w.insert(place.local);
+            for (i, _) in &place.indices {
+                expr_reads(i, r);
+            }
+            expr_reads(value, r);
+        }
+        StmtKind::If { cond, then, otherwise } => {
+            expr_reads(cond, r);
+            block(then, r, w);
+            block(otherwise, r, w);
+        }
+        StmtKind::Loop { cond, body, step, .. } => {
+            if let Some(c) = cond {
+                expr_reads(c, r);
+            }
+            block(body, r, w);
+            block(step, r, w);
+        }
+        StmtKind::Interpolation { arms } => {
+            for a in arms {
+                block(&a.body, r, w);
+            }
+        }
+        StmtKind::InterpolatorReturn(Some(e)) => expr_reads(e, r),
+        StmtKind::Bound(args) => args.iter().for_each(|a| expr_reads(a, r)),
+        StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr_reads(a, r)),
+        StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
+    }
+}
+
+fn expr_reads(e: &Expr, r: &mut HashSet<LocalId>) {
+    match &e.kind {
+        ExprKind::Local(l) => {
+            r.insert(*l);
+        }
+        ExprKind::Const(_) | ExprKind::SeqCount => {}
+        ExprKind::Index { base, index, .. } => {
+            expr_reads(base, r);
+            expr_reads(index, r);
+        }
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => expr_reads(expr, r),
+        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
+            expr_reads(lhs, r);
+            expr_reads(rhs, r);
+        }
+        ExprKind::Select { cond, then, otherwise } => {
+            expr_reads(cond, r);
+            expr_reads(then, r);
+            expr_reads(otherwise, r);
+        }
+        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| expr_reads(a, r)),
+    }
 }

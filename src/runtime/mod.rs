@@ -1,1 +1,27 @@
-//! The runtime: primitive registry, instances, tiles, depth and G-buffers, shading, output.
+//! The runtime: the primitive registry, the primitive API that builds instances, and the
+//! tiled renderer with its depth buffer and G-buffer.
+//!
+//! Where it sits: the [`scene`](crate::scene) reader turns a scene file into calls on the
+//! [`Renderer`]; the renderer asks a [`KernelSource`] (normally the [`Jit`](crate::jit::Jit))
+//! for one kernel per (primitive, variant key) and runs the kernels over screen tiles through
+//! the ABI of [`abi`](crate::abi). The parts:
+//! - [`registry`]: loads and compiles the `.prim` library into an `ir::Program`.
+//! - [`value`]: API values and their encoding into argument words.
+//! - [`api`]: `begin` / `rast_param` / `material` / `material_interp` / `sequence_point` /
+//!   `vertex` / `end`, the current transform, instances and their argument blocks.
+//! - [`frame`]: binning, parallel tile rendering, the [`Frame`] and its images.
+//! - [`transform`]: `ortho` / `perspective` device_from_object matrices.
+//! - [`kernels`]: the [`KernelSource`] seam between renderer and JIT.
+
+pub mod api;
+pub mod frame;
+pub mod kernels;
+pub mod registry;
+pub mod transform;
+pub mod value;
+
+pub use api::{ApiIssue, Instance, RenderOptions, Renderer, ShadingParam, Target};
+pub use frame::{describe_key, Frame, ParamPlanes, RenderOutput, RenderStats};
+pub use kernels::KernelSource;
+pub use registry::Registry;
+pub use value::Value;

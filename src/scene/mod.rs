@@ -1,1 +1,485 @@
-//! The text scene format: one API call per line.
+//! The text scene format: one API call per line (docs/scene.md).
+//!
+//! Reading a scene has two steps, because a scene may name extra primitive directories
+//! (`prims DIR`) that must be compiled before its primitive names mean anything:
+//! 1. [`parse`] splits the text into [`Command`]s: tokens are whitespace-separated, `#` starts
+//!    a comment, numbers are f32 (`inf` and `nan` included: they pass through to the kernels).
+//!    Unknown commands, wrong arity and bad numbers are reported here; a bad line is kept as
+//!    [`CommandKind::Invalid`] so the next step can keep block structure.
+//! 2. [`apply`] makes the calls on a [`Renderer`] and turns its errors and warnings into
+//!    diagnostics at the offending token (unknown primitive or parameter, wrong component
+//!    count, `vertex` outside `begin`/`end`, ...).
+//!
+//! Both steps go on after an error and report every problem they find; neither panics on any
+//! input. Every diagnostic names `file:line:col` of the scene file (added to the caller's
+//! [`SourceMap`]).
+
+use std::path::{Path, PathBuf};
+
+use crate::diag::{Diagnostic, Diagnostics, FileId, SourceMap, Span};
+use crate::runtime::{ApiIssue, Renderer, Target, Value};
+
+/// One whitespace-separated token and where it is.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Token {
+    pub text: String,
+    pub span: Span,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum CommandKind {
+    Image {
+        width: u32,
+        height: u32,
+    },
+    Background([f32; 3]),
+    Tile(u32),
+    Prims(String),
+    Transform([f32; 16]),
+    Ortho([f32; 6]),
+    Perspective([f32; 3]),
+    /// `material_interp NAME KIND [arg=v[,v...] [v ...]]...`
+    MaterialInterp {
+        name: String,
+        kind: String,
+        args: Vec<(String, Value)>,
+    },
+    Material {
+        name: String,
+        value: Value,
+    },
+    Begin(String),
+    RastParam {
+        name: String,
+        value: Value,
+    },
+    SequencePoint,
+    Vertex([f32; 4]),
+    End,
+    /// A line that failed to parse; the command word if it was a known one (so a broken
+    /// `begin` still opens a block and a broken `end` still closes it).
+    Invalid(Option<String>),
+}
+
+/// One scene line: its tokens (the first is the command word) and what it says.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Command {
+    pub kind: CommandKind,
+    pub tokens: Vec<Token>,
+    /// The token span of each `material_interp` argument (`name=...` and its values).
+    pub arg_spans: Vec<Span>,
+}
+
+/// A parsed scene.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Scene {
+    pub file: FileId,
+    pub commands: Vec<Command>,
+}
+
+impl Scene {
+    /// The `prims DIR` directories, resolved against `base` (the scene file's directory).
+    pub fn prim_dirs(&self, base: &Path) -> Vec<PathBuf> {
+        self.commands
+            .iter()
+            .filter_map(|c| match &c.kind {
+                CommandKind::Prims(dir) => Some(base.join(dir)),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
+const COMMANDS: &[&str] = &[
+    "image",
+    "background",
+    "tile",
+    "prims",
+    "transform",
+    "ortho",
+    "perspective",
+    "material_interp",
+    "material",
+    "begin",
+    "rast_param",
+    "sequence_point",
+    "vertex",
+    "end",
+];
+
+/// Split a line into tokens, stopping at `#`.
+fn tokenize(file: FileId, line: &str, line_start: usize) -> Vec<Token> {
+    let code = match line.find('#') {
+        Some(i) => &line[..i],
+        None => line,
+    };
+    let mut tokens = vec![];
+    let mut start = None;
+    for (i, c) in code.char_indices().chain(std::iter::once((code.len(), ' '))) {
+        match (c.is_whitespace(), start) {
+            (true, Some(s)) => {
+                tokens.push(Token {
+                    text: code[s..i].to_string(),
+                    span: Span::new(file, line_start + s, line_start + i),
+                });
+                start = None;
+            }
+            (false, None) => start = Some(i),
+            _ => {}
+        }
+    }
+    tokens
+}
+
+/// Parse the scene text of `file`. Syntax errors go to `diags`.
+pub fn parse(sources: &SourceMap, file: FileId, diags: &mut Diagnostics) -> Scene {
+    let text = sources.text(file);
+    let mut commands = vec![];
+    let mut line_start = 0;
+    for line in text.split_inclusive('\n') {
+        let tokens = tokenize(file, line.trim_end_matches(['\n', '\r']), line_start);
+        line_start += line.len();
+        if tokens.is_empty() {
+            continue;
+        }
+        let (kind, arg_spans) = match parse_command(&tokens) {
+            Ok(parsed) => parsed,
+            Err(d) => {
+                diags.push(d);
+                let word = &tokens[0].text;
+                (
+                    CommandKind::Invalid(COMMANDS.contains(&word.as_str()).then(|| word.clone())),
+                    vec![],
+                )
+            }
+        };
+        commands.push(Command {
+            kind,
+            tokens,
+            arg_spans,
+        });
+    }
+    Scene { file, commands }
+}
+
+fn span_of(tokens: &[Token]) -> Span {
+    match (tokens.first(), tokens.last()) {
+        (Some(a), Some(b)) => a.span.to(b.span),
+        _ => Span::default(),
+    }
+}
+
+fn arity_error(tokens: &[Token], expected: &str) -> Diagnostic {
+    let cmd = &tokens[0];
+    let given = tokens.len() - 1;
+    let d = Diagnostic::error(
+        "E0602",
+        format!(
+            "`{}` takes {expected}, got {given} argument{}",
+            cmd.text,
+            if given == 1 { "" } else { "s" }
+        ),
+    );
+    if given > 0 {
+        d.primary(span_of(&tokens[1..]), "wrong number of arguments")
+            .secondary(cmd.span, "this command")
+    } else {
+        d.primary(cmd.span, "arguments missing")
+    }
+}
+
+fn number(token: &Token) -> Result<f32, Diagnostic> {
+    token.text.parse::<f32>().map_err(|_| {
+        Diagnostic::error("E0603", format!("`{}` is not a number", token.text)).primary(token.span, "expected a number")
+    })
+}
+
+fn numbers(tokens: &[Token]) -> Result<Vec<f32>, Diagnostic> {
+    tokens.iter().map(number).collect()
+}
+
+fn fixed_numbers<const N: usize>(tokens: &[Token]) -> Result<[f32; N], Diagnostic> {
+    if tokens.len() != N + 1 {
+        return Err(arity_error(tokens, &format!("{N} numbers")));
+    }
+    let v = numbers(&tokens[1..])?;
+    Ok(std::array::from_fn(|i| v[i]))
+}
+
+/// A whole positive number (image size, tile size).
+fn count(token: &Token, what: &str) -> Result<u32, Diagnostic> {
+    let v = number(token)?;
+    if v.fract() != 0.0 || !(1.0..=1_000_000.0).contains(&v) {
+        return Err(Diagnostic::error(
+            "E0604",
+            format!("{what} must be a positive whole number, got `{}`", token.text),
+        )
+        .primary(token.span, "not a positive whole number"));
+    }
+    Ok(v as u32)
+}
+
+fn name_and_values(tokens: &[Token]) -> Result<(String, Value), Diagnostic> {
+    if tokens.len() < 3 {
+        return Err(arity_error(tokens, "a name and at least one number"));
+    }
+    Ok((tokens[1].text.clone(), Value(numbers(&tokens[2..])?)))
+}
+
+fn parse_command(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), Diagnostic> {
+    let cmd = &tokens[0];
+    let n_args = tokens.len() - 1;
+    let kind = match cmd.text.as_str() {
+        "image" => {
+            if n_args != 2 {
+                return Err(arity_error(tokens, "2 numbers (width height)"));
+            }
+            CommandKind::Image {
+                width: count(&tokens[1], "image width")?,
+                height: count(&tokens[2], "image height")?,
+            }
+        }
+        "background" => CommandKind::Background(fixed_numbers::<3>(tokens)?),
+        "tile" => {
+            if n_args != 1 {
+                return Err(arity_error(tokens, "1 number (the tile side)"));
+            }
+            CommandKind::Tile(count(&tokens[1], "tile size")?)
+        }
+        "prims" => {
+            if n_args != 1 {
+                return Err(arity_error(tokens, "1 directory"));
+            }
+            CommandKind::Prims(tokens[1].text.clone())
+        }
+        "transform" => CommandKind::Transform(fixed_numbers::<16>(tokens)?),
+        "ortho" => CommandKind::Ortho(fixed_numbers::<6>(tokens)?),
+        "perspective" => CommandKind::Perspective(fixed_numbers::<3>(tokens)?),
+        "material_interp" => return parse_material_interp(tokens),
+        "material" => {
+            let (name, value) = name_and_values(tokens)?;
+            CommandKind::Material { name, value }
+        }
+        "rast_param" => {
+            let (name, value) = name_and_values(tokens)?;
+            CommandKind::RastParam { name, value }
+        }
+        "begin" => {
+            if n_args != 1 {
+                return Err(arity_error(tokens, "1 primitive name"));
+            }
+            CommandKind::Begin(tokens[1].text.clone())
+        }
+        "sequence_point" | "end" if n_args != 0 => return Err(arity_error(tokens, "no arguments")),
+        "sequence_point" => CommandKind::SequencePoint,
+        "end" => CommandKind::End,
+        "vertex" => {
+            if !(3..=4).contains(&n_args) {
+                return Err(arity_error(tokens, "3 or 4 numbers (x y z [w])"));
+            }
+            let v = numbers(&tokens[1..])?;
+            CommandKind::Vertex([v[0], v[1], v[2], v.get(3).copied().unwrap_or(1.0)])
+        }
+        other => {
+            let mut d =
+                Diagnostic::error("E0601", format!("unknown command `{other}`")).primary(cmd.span, "unknown command");
+            if let Some(close) = COMMANDS.iter().find(|c| edit_distance(c, other) <= 2) {
+                d = d.help(format!("did you mean `{close}`?"));
+            }
+            return Err(d);
+        }
+    };
+    Ok((kind, vec![]))
+}
+
+/// `material_interp NAME KIND arg=v[,v...] [v ...]`: bare numbers after an argument add
+/// components to it (`axis=0 0 1`).
+fn parse_material_interp(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), Diagnostic> {
+    if tokens.len() < 3 {
+        return Err(arity_error(tokens, "a parameter name and an interpolation kind"));
+    }
+    let mut args: Vec<(String, Value)> = vec![];
+    let mut spans: Vec<Span> = vec![];
+    for token in &tokens[3..] {
+        if let Some((name, values)) = token.text.split_once('=') {
+            if name.is_empty() {
+                return Err(
+                    Diagnostic::error("E0604", "argument without a name").primary(token.span, "expected `name=value`")
+                );
+            }
+            let mut value = vec![];
+            for part in values.split(',').filter(|p| !p.is_empty()) {
+                value.push(number(&Token {
+                    text: part.to_string(),
+                    span: token.span,
+                })?);
+            }
+            args.push((name.to_string(), Value(value)));
+            spans.push(token.span);
+        } else if let Some(last) = args.last_mut() {
+            last.1 .0.push(number(token)?);
+            let s = spans.last_mut().expect("one span per argument");
+            *s = s.to(token.span);
+        } else {
+            return Err(
+                Diagnostic::error("E0604", format!("`{}` is not a `name=value` argument", token.text))
+                    .primary(token.span, "expected `name=value`"),
+            );
+        }
+    }
+    if let Some((i, _)) = args.iter().enumerate().find(|(_, (_, v))| v.is_empty()) {
+        return Err(
+            Diagnostic::error("E0604", format!("argument `{}` has no value", args[i].0))
+                .primary(spans[i], "expected `name=number`"),
+        );
+    }
+    Ok((
+        CommandKind::MaterialInterp {
+            name: tokens[1].text.clone(),
+            kind: tokens[2].text.clone(),
+            args,
+        },
+        spans,
+    ))
+}
+
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for j in 0..b.len() {
+            let cur = row[j + 1];
+            row[j + 1] = (prev + usize::from(ca != b[j])).min(row[j] + 1).min(cur + 1);
+            prev = cur;
+        }
+    }
+    row[b.len()]
+}
+
+/// Make the scene's calls on `renderer`. API errors and warnings go to `diags` at the
+/// offending token.
+pub fn apply(scene: &Scene, renderer: &mut Renderer, diags: &mut Diagnostics) {
+    let mut open_begin: Option<Span> = None;
+    for c in &scene.commands {
+        let result = match &c.kind {
+            CommandKind::Image { width, height } => renderer.set_image_size(*width, *height),
+            CommandKind::Background(rgb) => {
+                renderer.set_background(*rgb);
+                Ok(())
+            }
+            CommandKind::Tile(side) => renderer.set_tile_size(*side),
+            CommandKind::Prims(_) => Ok(()),
+            CommandKind::Transform(rows) => {
+                renderer.set_transform(crate::runtime::transform::from_rows(rows));
+                Ok(())
+            }
+            CommandKind::Ortho([l, r, b, t, n, f]) => {
+                renderer.ortho(*l, *r, *b, *t, *n, *f);
+                Ok(())
+            }
+            CommandKind::Perspective([fov, n, f]) => {
+                renderer.perspective(*fov, *n, *f);
+                Ok(())
+            }
+            CommandKind::MaterialInterp { name, kind, args } => renderer.material_interp(name, kind, args),
+            CommandKind::Material { name, value } => renderer.material(name, value),
+            CommandKind::Begin(prim) => {
+                let r = renderer.begin(prim);
+                if renderer.in_primitive() && open_begin.is_none() {
+                    open_begin = Some(c.tokens[0].span);
+                }
+                r
+            }
+            CommandKind::RastParam { name, value } => renderer.rast_param(name, value),
+            CommandKind::SequencePoint => renderer.sequence_point(),
+            CommandKind::Vertex([x, y, z, w]) => renderer.vertex(*x, *y, *z, *w),
+            CommandKind::End => {
+                open_begin = None;
+                renderer.end()
+            }
+            CommandKind::Invalid(Some(word)) if word == "begin" => {
+                renderer.begin_discarded();
+                open_begin.get_or_insert(c.tokens[0].span);
+                Ok(())
+            }
+            CommandKind::Invalid(Some(word)) if word == "end" => {
+                // Already reported; close the block without building it twice.
+                if renderer.in_primitive() {
+                    let _ = renderer.end();
+                }
+                open_begin = None;
+                Ok(())
+            }
+            CommandKind::Invalid(_) => Ok(()),
+        };
+        if let Err(issue) = result {
+            diags.push(issue_diagnostic(&issue, c));
+        }
+        for w in renderer.take_warnings() {
+            diags.push(issue_diagnostic(&w, c));
+        }
+    }
+    if let Some(begin) = open_begin.filter(|_| renderer.in_primitive()) {
+        diags.push(
+            Diagnostic::error("E0605", "`begin` without `end`: the primitive is not rendered")
+                .primary(begin, "this primitive is never closed"),
+        );
+    }
+}
+
+fn issue_diagnostic(issue: &ApiIssue, c: &Command) -> Diagnostic {
+    let tokens = &c.tokens;
+    let span = match issue.target {
+        Target::Call => tokens[0].span,
+        Target::Name => tokens.get(1).map_or(tokens[0].span, |t| t.span),
+        Target::Values => {
+            // The numbers: after the name for name+value commands, else all arguments.
+            let first_value = match c.kind {
+                CommandKind::Material { .. } | CommandKind::RastParam { .. } | CommandKind::MaterialInterp { .. } => 2,
+                _ => 1,
+            };
+            if tokens.len() > first_value {
+                span_of(&tokens[first_value..])
+            } else {
+                tokens[0].span
+            }
+        }
+        Target::Arg(i) => c.arg_spans.get(i).copied().unwrap_or(tokens[0].span),
+    };
+    let base = match issue.severity {
+        crate::diag::Severity::Error => Diagnostic::error(issue.code, issue.message.clone()),
+        crate::diag::Severity::Warning => Diagnostic::warning(issue.code, issue.message.clone()),
+    };
+    base.primary(span, "")
+}
+
+/// Parse and apply a scene in one go (for tests and tools that have no `prims` lines to
+/// honour): returns the parsed scene.
+pub fn load_into(sources: &SourceMap, file: FileId, renderer: &mut Renderer, diags: &mut Diagnostics) -> Scene {
+    let scene = parse(sources, file, diags);
+    apply(&scene, renderer, diags);
+    scene
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tokens_carry_byte_spans_and_comments_end_lines() {
+        let toks = tokenize(0, "  begin\tscreen_triangle # a comment", 10);
+        let got: Vec<_> = toks
+            .iter()
+            .map(|t| (t.text.as_str(), t.span.start, t.span.end))
+            .collect();
+        assert_eq!(got, vec![("begin", 12, 17), ("screen_triangle", 18, 33)]);
+    }
+
+    #[test]
+    fn edit_distance_suggests_close_commands() {
+        assert_eq!(edit_distance("vertex", "vertx"), 1);
+        assert_eq!(edit_distance("material", "materail"), 2);
+    }
+}

@@ -1,0 +1,265 @@
+//! Type rules of the checker: resolving written types, the arithmetic result type of two
+//! scalars (including the fixed-point JOIN format), conversions and shapes.
+//!
+//! Everything here is pure: functions take IR types and expressions and return new ones or
+//! a description of what is wrong; the caller turns that into a diagnostic with spans.
+//! Invariant kept by [`convert`]: the returned expression has exactly the requested scalar
+//! element and the input's shape; constant scalars are folded instead of wrapped.
+
+use crate::ir::{ConstValue, Elem, Expr, ExprKind, FixedFormat, Scalar, Type, Variability};
+
+/// The result format of an arithmetic operation on two fixed-point operands.
+///
+/// The fraction keeps the finer operand's bits and the integer part the wider operand's, so
+/// neither operand loses range; when that would need more than 32 bits the fraction gives
+/// way (integer bits are kept, capped at 32). The result is unsigned exactly when it has no
+/// integer bits.
+pub fn join_fixed(a: FixedFormat, b: FixedFormat) -> FixedFormat {
+    let mut frac = a.frac.max(b.frac) as u32;
+    let int = (a.int_bits().max(b.int_bits()) as u32).min(32);
+    if int + frac > 32 {
+        frac = 32 - int;
+    }
+    FixedFormat {
+        bits: (int + frac) as u8,
+        frac: frac as u8,
+    }
+}
+
+/// `fixed<32,0>`: how an int operand is seen when mixed with a fixed operand.
+pub const INT_AS_FIXED: FixedFormat = FixedFormat { bits: 32, frac: 0 };
+
+/// The common scalar type of an arithmetic or comparison between numbers, or `None` when
+/// either side is not a number (bool).
+pub fn arith_scalar(a: Scalar, b: Scalar) -> Option<Scalar> {
+    use Scalar::*;
+    Some(match (a, b) {
+        (Bool, _) | (_, Bool) => return None,
+        (Int, Int) => Int,
+        (Float, _) | (_, Float) => Float,
+        (Int, Fixed(f)) | (Fixed(f), Int) => Fixed(join_fixed(INT_AS_FIXED, f)),
+        (Fixed(f), Fixed(g)) => Fixed(join_fixed(f, g)),
+    })
+}
+
+pub fn is_number(s: Scalar) -> bool {
+    !matches!(s, Scalar::Bool)
+}
+
+/// The scalar element of a type, if it is not interpolation data.
+pub fn scalar_of(ty: &Type) -> Option<Scalar> {
+    match ty.elem {
+        Elem::Scalar(s) => Some(s),
+        Elem::Interp => None,
+    }
+}
+
+/// A readable name of a type, as the user would write it (`float[3][3]`, `fixed<32,16>`).
+pub fn type_name(ty: &Type) -> String {
+    let mut s = elem_name(ty.elem);
+    if ty.per_seq {
+        s.push_str("[]");
+    }
+    for d in &ty.dims {
+        s.push_str(&format!("[{d}]"));
+    }
+    s
+}
+
+pub fn elem_name(e: Elem) -> String {
+    match e {
+        Elem::Interp => "interpolation_data".into(),
+        Elem::Scalar(s) => scalar_name(s),
+    }
+}
+
+pub fn scalar_name(s: Scalar) -> String {
+    match s {
+        Scalar::Float => "float".into(),
+        Scalar::Int => "int".into(),
+        Scalar::Bool => "bool".into(),
+        Scalar::Fixed(f) => format!("fixed<{},{}>", f.bits, f.frac),
+    }
+}
+
+/// Zero of a scalar type as a constant.
+pub fn zero_const(s: Scalar) -> ConstValue {
+    match s {
+        Scalar::Float => ConstValue::Float(0.0),
+        Scalar::Int => ConstValue::Int(0),
+        Scalar::Bool => ConstValue::Bool(false),
+        Scalar::Fixed(_) => ConstValue::Fixed(0),
+    }
+}
+
+/// A constant expression of a scalar type.
+pub fn const_expr(c: ConstValue, s: Scalar, span: crate::diag::Span) -> Expr {
+    Expr {
+        kind: ExprKind::Const(c),
+        ty: Type::scalar(s),
+        var: Variability::Uniform,
+        span,
+    }
+}
+
+/// Raw bits of `v` in format `f`: rounded to nearest, saturated to the format's range.
+pub fn fixed_raw(v: f64, f: FixedFormat) -> i32 {
+    let (lo, hi) = f.raw_range();
+    let raw = (v * f.scale()).round();
+    let raw = if raw.is_nan() {
+        0.0
+    } else {
+        raw.clamp(lo as f64, hi as f64)
+    };
+    raw as i64 as i32
+}
+
+/// The numeric value of a constant (bool as 0/1), given its scalar type.
+pub fn const_value_f64(c: ConstValue, s: Scalar) -> f64 {
+    match (c, s) {
+        (ConstValue::Float(v), _) => v as f64,
+        (ConstValue::Int(v), _) => v as f64,
+        (ConstValue::Bool(b), _) => b as i32 as f64,
+        (ConstValue::Fixed(raw), Scalar::Fixed(f)) => {
+            let raw = if f.is_unsigned() { raw as u32 as f64 } else { raw as f64 };
+            raw / f.scale()
+        }
+        (ConstValue::Fixed(raw), _) => raw as f64,
+    }
+}
+
+/// A constant converted to another scalar type with the IR's `Convert` semantics
+/// (float to int truncates and saturates, to fixed rounds and saturates). `None` for
+/// conversions between bool and numbers, which `Convert` does not do.
+pub fn convert_const(c: ConstValue, from: Scalar, to: Scalar) -> Option<ConstValue> {
+    if from == to {
+        return Some(c);
+    }
+    if matches!(from, Scalar::Bool) || matches!(to, Scalar::Bool) {
+        return None;
+    }
+    let v = const_value_f64(c, from);
+    Some(match to {
+        Scalar::Float => ConstValue::Float(v as f32),
+        Scalar::Int => {
+            let t = v.trunc();
+            let t = if t.is_nan() {
+                0.0
+            } else {
+                t.clamp(i32::MIN as f64, i32::MAX as f64)
+            };
+            ConstValue::Int(t as i32)
+        }
+        Scalar::Fixed(f) => ConstValue::Fixed(fixed_raw(v, f)),
+        Scalar::Bool => unreachable_bool(),
+    })
+}
+
+// Kept out of line so `convert_const` reads as the table it is; the bool case is excluded
+// by the early return above.
+fn unreachable_bool() -> ConstValue {
+    ConstValue::Bool(false)
+}
+
+/// Convert the elements of `e` to scalar `to`, keeping its shape. Constants are folded.
+/// The caller has checked that the conversion is allowed (numbers to numbers, or to the
+/// same scalar; a float scalar to interpolation data).
+pub fn convert(e: Expr, to: Scalar) -> Expr {
+    match e.ty.elem {
+        Elem::Scalar(s) if s == to => e,
+        Elem::Scalar(s) => {
+            if let ExprKind::Const(c) = e.kind {
+                if let Some(c2) = convert_const(c, s, to) {
+                    return Expr {
+                        kind: ExprKind::Const(c2),
+                        ty: Type::scalar(to),
+                        var: e.var,
+                        span: e.span,
+                    };
+                }
+            }
+            let ty = Type {
+                elem: Elem::Scalar(to),
+                dims: e.ty.dims.clone(),
+                per_seq: e.ty.per_seq,
+            };
+            Expr {
+                var: e.var,
+                span: e.span,
+                ty,
+                kind: ExprKind::Convert(Box::new(e)),
+            }
+        }
+        Elem::Interp => e,
+    }
+}
+
+/// Whether a value of scalar `from` may be implicitly converted to `to` (assignment,
+/// initialisation, arguments): numbers convert among themselves, bool only from bool.
+pub fn implicitly_converts(from: Scalar, to: Scalar) -> bool {
+    from == to || (is_number(from) && is_number(to))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fx(bits: u8, frac: u8) -> FixedFormat {
+        FixedFormat { bits, frac }
+    }
+
+    #[test]
+    fn join_keeps_finer_fraction_and_wider_integer() {
+        // 16 integer bits from the first, 8 fraction bits from the second: fits in 24.
+        assert_eq!(join_fixed(fx(20, 4), fx(12, 8)), fx(24, 8));
+        // Same format joins to itself.
+        assert_eq!(join_fixed(fx(32, 16), fx(32, 16)), fx(32, 16));
+    }
+
+    #[test]
+    fn join_gives_up_fraction_beyond_32_bits() {
+        // X (fixed<32,16>) with Z (fixed<32,32>): I = 16, F = 32 -> F = 16.
+        assert_eq!(join_fixed(fx(32, 16), fx(32, 32)), fx(32, 16));
+        // An int seen as fixed<32,0> takes all 32 bits for the integer part.
+        assert_eq!(join_fixed(INT_AS_FIXED, fx(32, 16)), fx(32, 0));
+    }
+
+    #[test]
+    fn join_of_unsigned_fractions_stays_unsigned() {
+        let j = join_fixed(fx(32, 32), fx(16, 16));
+        assert_eq!(j, fx(32, 32));
+        assert!(j.is_unsigned());
+        // A signed operand brings integer bits: the result is signed.
+        let j = join_fixed(fx(32, 32), fx(8, 4));
+        assert_eq!(j, fx(32, 28));
+        assert!(!j.is_unsigned());
+    }
+
+    #[test]
+    fn arithmetic_result_scalars() {
+        use Scalar::*;
+        assert_eq!(arith_scalar(Int, Int), Some(Int));
+        assert_eq!(arith_scalar(Int, Float), Some(Float));
+        assert_eq!(arith_scalar(Fixed(fx(32, 16)), Float), Some(Float));
+        assert_eq!(arith_scalar(Int, Fixed(fx(16, 8))), Some(Fixed(fx(32, 0))));
+        assert_eq!(arith_scalar(Bool, Int), None);
+    }
+
+    #[test]
+    fn constant_conversions_round_and_saturate() {
+        let f = Scalar::Fixed(fx(8, 4));
+        assert_eq!(
+            convert_const(ConstValue::Float(1.53), Scalar::Float, f),
+            Some(ConstValue::Fixed(24))
+        );
+        assert_eq!(
+            convert_const(ConstValue::Float(100.0), Scalar::Float, f),
+            Some(ConstValue::Fixed(127))
+        );
+        assert_eq!(
+            convert_const(ConstValue::Float(-2.7), Scalar::Float, Scalar::Int),
+            Some(ConstValue::Int(-2))
+        );
+        assert_eq!(convert_const(ConstValue::Bool(true), Scalar::Bool, Scalar::Int), None);
+    }
+}

@@ -1,0 +1,316 @@
+//! Uniform/varying inference over a lowered function, and the variability errors.
+//!
+//! X, Y and Z are varying; every other parameter is uniform; a local declared `uniform` or
+//! `varying` keeps that. A local without a qualifier becomes varying when a varying value
+//! (or a value at a varying index) is assigned to it, or when it is assigned under varying
+//! control flow: inside an `if` with a varying condition or a loop that is varying. A loop
+//! is varying when its condition is, or when a `break`/`continue`/`return` leaving it sits
+//! under a varying condition introduced inside it. Code after a varying `return` is not
+//! varying control flow: the lanes that returned simply retired.
+//!
+//! Because a loop's back edge can carry a varying value to an earlier use, the analysis
+//! walks the function until no local and no loop changes (both only ever go from uniform
+//! to varying, so this terminates), then walks once more to write every expression's
+//! variability, every loop's `varying` flag and every local's final variability, and to
+//! report errors. For each inferred-varying local it remembers why (the span of the first
+//! varying operand or condition), so diagnostics can point at the cause.
+
+use crate::diag::{Diagnostic, Span};
+use crate::ir::{Expr, ExprKind, Function, LocalId, LoopId, ParamRole, Stmt, StmtKind, Variability};
+
+use super::{LocalInfo, Sink};
+
+/// Why an expression is varying: the varying operand's span, and the local it reads (if
+/// the operand is a local whose variability was inferred).
+type Cause = Option<(Span, Option<LocalId>)>;
+
+struct State<'i> {
+    infos: &'i [LocalInfo],
+    var: Vec<Variability>,
+    cause: Vec<Option<Span>>,
+    loop_var: Vec<bool>,
+    loop_cause: Vec<Option<Span>>,
+    changed: bool,
+    /// Varying conditions in effect, each with the loop depth it was introduced at.
+    conds: Vec<(Span, usize)>,
+    loops: Vec<LoopId>,
+    /// Report errors (only in the final walk).
+    report: bool,
+}
+
+/// Infer variabilities in `f.setup` (the whole checked body), set them in the IR and report
+/// the variability errors. `callee_roles[f]` gives each primitive's parameter roles.
+pub fn analyze(f: &mut Function, infos: &[LocalInfo], callee_roles: &[Vec<ParamRole>], sink: &mut Sink) {
+    let mut st = State {
+        infos,
+        var: infos
+            .iter()
+            .map(|i| i.declared.map_or(Variability::Uniform, |d| d.0))
+            .collect(),
+        cause: infos.iter().map(|i| i.declared.map(|d| d.1)).collect(),
+        loop_var: vec![false; f.loops as usize],
+        loop_cause: vec![None; f.loops as usize],
+        changed: false,
+        conds: vec![],
+        loops: vec![],
+        report: false,
+    };
+    let mut body = std::mem::take(&mut f.setup);
+    loop {
+        st.changed = false;
+        st.block(&mut body, callee_roles, sink);
+        if !st.changed {
+            break;
+        }
+    }
+    st.report = true;
+    st.block(&mut body, callee_roles, sink);
+    f.setup = body;
+    for (l, v) in f.locals.iter_mut().zip(&st.var) {
+        l.var = *v;
+    }
+}
+
+impl State<'_> {
+    fn ctl(&self) -> Option<Span> {
+        self.conds.last().map(|c| c.0)
+    }
+
+    fn set_varying(&mut self, l: LocalId, why: Option<Span>) {
+        let i = l.0 as usize;
+        if self.var[i] == Variability::Uniform && self.infos[i].declared.is_none() {
+            self.var[i] = Variability::Varying;
+            self.cause[i] = why;
+            self.changed = true;
+        }
+    }
+
+    /// Mark loops left by a jump as varying when a varying condition introduced inside them
+    /// controls the jump. `target` is the outermost loop left (its index in `self.loops`).
+    fn jump(&mut self, target: usize) {
+        let Some(&(span, depth)) = self.conds.iter().max_by_key(|c| c.1) else {
+            return;
+        };
+        for q in target..depth.min(self.loops.len()) {
+            let id = self.loops[q].0 as usize;
+            if !self.loop_var[id] {
+                self.loop_var[id] = true;
+                self.loop_cause[id] = Some(span);
+                self.changed = true;
+            }
+        }
+    }
+
+    fn block(&mut self, stmts: &mut [Stmt], roles: &[Vec<ParamRole>], sink: &mut Sink) {
+        for s in stmts {
+            self.stmt(s, roles, sink);
+        }
+    }
+
+    fn stmt(&mut self, s: &mut Stmt, roles: &[Vec<ParamRole>], sink: &mut Sink) {
+        let span = s.span;
+        match &mut s.kind {
+            StmtKind::Assign { place, value } => {
+                let (mut v, mut cause) = self.expr(value);
+                for (idx, _) in &mut place.indices {
+                    let (iv, ic) = self.expr(idx);
+                    if iv.is_varying() && !v.is_varying() {
+                        v = iv;
+                        cause = ic;
+                    }
+                }
+                let l = place.local;
+                let info = &self.infos[l.0 as usize];
+                match info.declared {
+                    Some((Variability::Uniform, decl)) => {
+                        if !self.report {
+                            return;
+                        }
+                        if v.is_varying() {
+                            let mut d =
+                                Diagnostic::error("E0301", format!("varying value assigned to uniform {}", info.what))
+                                    .primary(span, "assigned here")
+                                    .secondary(decl, "declared uniform here");
+                            d = self.explain(d, cause);
+                            sink.push(d.help("remove `uniform` or compute the value from uniform values only"));
+                        } else if let Some(c) = self.ctl() {
+                            sink.push(
+                                Diagnostic::error(
+                                    "E0302",
+                                    format!("uniform {} assigned under varying control flow", info.what),
+                                )
+                                .primary(span, "assigned here")
+                                .secondary(c, "this condition is varying")
+                                .secondary(decl, "declared uniform here")
+                                .help("a uniform has one value for all pixels; declare it varying or move the assignment out"),
+                            );
+                        }
+                    }
+                    Some(_) => {}
+                    None => {
+                        if v.is_varying() {
+                            self.set_varying(l, cause.map(|c| c.0));
+                        } else if let Some(c) = self.ctl() {
+                            self.set_varying(l, Some(c));
+                        }
+                    }
+                }
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                let (cv, _) = self.expr(cond);
+                let pushed = cv.is_varying();
+                if pushed {
+                    self.conds.push((cond.span, self.loops.len()));
+                }
+                self.block(then, roles, sink);
+                self.block(otherwise, roles, sink);
+                if pushed {
+                    self.conds.pop();
+                }
+            }
+            StmtKind::Loop {
+                id,
+                cond,
+                body,
+                step,
+                varying,
+                ..
+            } => {
+                let i = id.0 as usize;
+                self.loops.push(*id);
+                if let Some(c) = cond {
+                    let (cv, _) = self.expr(c);
+                    if cv.is_varying() && !self.loop_var[i] {
+                        self.loop_var[i] = true;
+                        self.loop_cause[i] = Some(c.span);
+                        self.changed = true;
+                    }
+                }
+                let pushed = self.loop_var[i];
+                if pushed {
+                    self.conds.push((self.loop_cause[i].unwrap_or(span), self.loops.len()));
+                }
+                self.block(body, roles, sink);
+                self.block(step, roles, sink);
+                if pushed {
+                    self.conds.pop();
+                }
+                self.loops.pop();
+                *varying = self.loop_var[i];
+            }
+            StmtKind::Break(id) | StmtKind::Continue(id) => {
+                if let Some(p) = self.loops.iter().position(|l| l == id) {
+                    self.jump(p);
+                }
+            }
+            StmtKind::Return => self.jump(0),
+            StmtKind::Interpolation { arms } => {
+                for a in arms {
+                    self.block(&mut a.body, roles, sink);
+                }
+            }
+            StmtKind::InterpolatorReturn(v) => {
+                if let Some(e) = v {
+                    self.expr(e);
+                }
+            }
+            StmtKind::Bound(args) => {
+                for a in args.iter_mut() {
+                    let (v, cause) = self.expr(a);
+                    if self.report && v.is_varying() {
+                        let d = Diagnostic::error("E0303", "varying argument to `bound`")
+                            .primary(a.span, "varies per pixel")
+                            .help("a bound is one rectangle per primitive: compute it from uniform values");
+                        sink.push(self.explain(d, cause));
+                    }
+                }
+                if let (true, Some(c)) = (self.report, self.ctl()) {
+                    sink.push(
+                        Diagnostic::error("E0305", "`bound` under varying control flow")
+                            .primary(span, "bound here")
+                            .secondary(c, "this condition is varying"),
+                    );
+                }
+            }
+            StmtKind::CallPrimitive { callee, args } => {
+                let callee_roles = roles.get(callee.0 as usize);
+                for (k, a) in args.iter_mut().enumerate() {
+                    let (v, cause) = self.expr(a);
+                    let pixel = callee_roles
+                        .and_then(|r| r.get(k))
+                        .is_some_and(|r| matches!(r, ParamRole::X | ParamRole::Y | ParamRole::Z));
+                    if self.report && v.is_varying() && !pixel {
+                        let d = Diagnostic::error("E0304", "varying argument to a primitive call")
+                            .primary(a.span, "varies per pixel")
+                            .help("parameters of a primitive are per-primitive (uniform) values");
+                        sink.push(self.explain(d, cause));
+                    }
+                }
+                if let (true, Some(c)) = (self.report, self.ctl()) {
+                    sink.push(
+                        Diagnostic::error("E0306", "primitive call under varying control flow")
+                            .primary(span, "called here")
+                            .secondary(c, "this condition is varying")
+                            .help("a sub-primitive is rendered for all pixels or none"),
+                    );
+                }
+            }
+        }
+    }
+
+    /// Add "varying because of this" labels: the varying operand, and where an inferred
+    /// local it reads became varying.
+    fn explain(&self, mut d: Diagnostic, cause: Cause) -> Diagnostic {
+        if let Some((span, local)) = cause {
+            d = d.secondary(span, "varying because of this");
+            if let Some(l) = local {
+                if let (None, Some(why)) = (self.infos[l.0 as usize].declared, self.cause[l.0 as usize]) {
+                    if why != span {
+                        d = d.secondary(why, "which is varying because of this");
+                    }
+                }
+            }
+        }
+        d
+    }
+
+    /// Compute (and store) the variability of an expression and of all its parts.
+    fn expr(&mut self, e: &mut Expr) -> (Variability, Cause) {
+        let mut acc = (Variability::Uniform, None);
+        let join = |acc: &mut (Variability, Cause), (v, c): (Variability, Cause)| {
+            if v.is_varying() && !acc.0.is_varying() {
+                *acc = (v, c);
+            }
+        };
+        match &mut e.kind {
+            ExprKind::Const(_) | ExprKind::SeqCount => {}
+            ExprKind::Local(l) => {
+                let v = self.var[l.0 as usize];
+                if v.is_varying() {
+                    acc = (v, Some((e.span, Some(*l))));
+                }
+            }
+            ExprKind::Index { base, index, .. } => {
+                join(&mut acc, self.expr(base));
+                join(&mut acc, self.expr(index));
+            }
+            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => join(&mut acc, self.expr(expr)),
+            ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
+                join(&mut acc, self.expr(lhs));
+                join(&mut acc, self.expr(rhs));
+            }
+            ExprKind::Select { cond, then, otherwise } => {
+                join(&mut acc, self.expr(cond));
+                join(&mut acc, self.expr(then));
+                join(&mut acc, self.expr(otherwise));
+            }
+            ExprKind::Builtin { args, .. } | ExprKind::List(args) => {
+                for a in args {
+                    join(&mut acc, self.expr(a));
+                }
+            }
+        }
+        e.var = acc.0;
+        acc
+    }
+}

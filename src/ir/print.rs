@@ -1,0 +1,300 @@
+//! A readable text dump of the IR (`primflow check --emit ir`, snapshot tests).
+//!
+//! Each function prints its kind and name, its parameters with role and space, its locals
+//! with type and final variability, then the `setup:` and `pixel:` statement lists.
+//! Locals are written `name%id`; statements and loops that run per pixel are marked
+//! `varying`; constants print with their type when it is not plain float/int/bool
+//! (`0.5:fixed<32,16>`). The output is deterministic, so it can be kept as a golden file.
+
+use std::fmt::{self, Write};
+
+use super::{
+    ArmKind, BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, FuncKind, Function, LocalKind, Program, Scalar, Space,
+    Stmt, StmtKind, Type, UnaryOp, Variability,
+};
+
+impl fmt::Display for Program {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, func) in self.functions.iter().enumerate() {
+            if i > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "{func}")?;
+        }
+        Ok(())
+    }
+}
+
+impl fmt::Display for Function {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let kind = match self.kind {
+            FuncKind::Primitive => "primitive",
+            FuncKind::Interpolator => "interpolator",
+        };
+        write!(f, "{kind} {}", self.name)?;
+        if self.uses_spaces {
+            write!(f, " (uses spaces)")?;
+        }
+        writeln!(f)?;
+        for p in &self.params {
+            let l = self.local(p.local);
+            write!(
+                f,
+                "  param {}%{}: {} {} role={:?} space={:?}",
+                p.name,
+                p.local.0,
+                var_name(l.var),
+                type_str(&l.ty),
+                p.role,
+                p.space
+            )?;
+            if let Some(d) = &p.default {
+                let vals: Vec<String> = d.iter().map(|c| const_str(*c, scalar(&l.ty))).collect();
+                write!(f, " default={{{}}}", vals.join(", "))?;
+            }
+            writeln!(f)?;
+        }
+        for (i, l) in self.locals.iter().enumerate() {
+            if matches!(l.kind, LocalKind::Param(_)) {
+                continue;
+            }
+            let kind = if l.kind == LocalKind::Temp { " (temp)" } else { "" };
+            writeln!(
+                f,
+                "  local {}%{i}: {} {}{kind}",
+                l.name,
+                var_name(l.var),
+                type_str(&l.ty)
+            )?;
+        }
+        let p = Printer { func: self };
+        writeln!(f, "  setup:")?;
+        let mut s = String::new();
+        p.block(&mut s, &self.setup, 2)?;
+        f.write_str(&s)?;
+        writeln!(f, "  pixel:")?;
+        let mut s = String::new();
+        p.block(&mut s, &self.pixel, 2)?;
+        f.write_str(&s)
+    }
+}
+
+fn var_name(v: Variability) -> &'static str {
+    match v {
+        Variability::Uniform => "uniform",
+        Variability::Varying => "varying",
+    }
+}
+
+fn scalar(ty: &Type) -> Option<Scalar> {
+    match ty.elem {
+        Elem::Scalar(s) => Some(s),
+        Elem::Interp => None,
+    }
+}
+
+fn scalar_str(s: Scalar) -> String {
+    match s {
+        Scalar::Float => "float".into(),
+        Scalar::Int => "int".into(),
+        Scalar::Bool => "bool".into(),
+        Scalar::Fixed(fx) => format!("fixed<{},{}>", fx.bits, fx.frac),
+    }
+}
+
+fn type_str(ty: &Type) -> String {
+    let mut s = match ty.elem {
+        Elem::Scalar(sc) => scalar_str(sc),
+        Elem::Interp => "interpolation_data".into(),
+    };
+    if ty.per_seq {
+        s.push_str("[]");
+    }
+    for d in &ty.dims {
+        write!(s, "[{d}]").expect("writing to a String");
+    }
+    s
+}
+
+fn const_str(c: ConstValue, s: Option<Scalar>) -> String {
+    match c {
+        ConstValue::Float(v) => format!("{v:?}"),
+        ConstValue::Int(v) => v.to_string(),
+        ConstValue::Bool(b) => b.to_string(),
+        ConstValue::Fixed(raw) => match s {
+            Some(Scalar::Fixed(fx)) => {
+                let raw = if fx.is_unsigned() {
+                    raw as u32 as f64
+                } else {
+                    raw as f64
+                };
+                format!("{:?}:fixed<{},{}>", raw / fx.scale(), fx.bits, fx.frac)
+            }
+            _ => format!("{raw}:fixed"),
+        },
+    }
+}
+
+fn space_str(s: Space) -> &'static str {
+    match s {
+        Space::Object => "object",
+        Space::World => "world",
+        Space::Lighting => "lighting",
+        Space::Device => "device",
+    }
+}
+
+struct Printer<'f> {
+    func: &'f Function,
+}
+
+impl Printer<'_> {
+    fn block(&self, out: &mut String, stmts: &[Stmt], depth: usize) -> fmt::Result {
+        for s in stmts {
+            self.stmt(out, s, depth)?;
+        }
+        Ok(())
+    }
+
+    fn stmt(&self, out: &mut String, s: &Stmt, depth: usize) -> fmt::Result {
+        let pad = "  ".repeat(depth);
+        match &s.kind {
+            StmtKind::Assign { place, value } => {
+                write!(out, "{pad}{}", self.local_name(place.local))?;
+                for (i, _) in &place.indices {
+                    write!(out, "[{}]", self.expr(i))?;
+                }
+                writeln!(out, " = {}", self.expr(value))
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                let v = if cond.var.is_varying() { "varying " } else { "" };
+                writeln!(out, "{pad}if {v}{} {{", self.expr(cond))?;
+                self.block(out, then, depth + 1)?;
+                if !otherwise.is_empty() {
+                    writeln!(out, "{pad}}} else {{")?;
+                    self.block(out, otherwise, depth + 1)?;
+                }
+                writeln!(out, "{pad}}}")
+            }
+            StmtKind::Loop {
+                id,
+                cond,
+                body,
+                step,
+                varying,
+                ..
+            } => {
+                let v = if *varying { " varying" } else { "" };
+                match cond {
+                    Some(c) => writeln!(out, "{pad}loop#{}{v} while {} {{", id.0, self.expr(c))?,
+                    None => writeln!(out, "{pad}loop#{}{v} {{", id.0)?,
+                }
+                self.block(out, body, depth + 1)?;
+                if !step.is_empty() {
+                    writeln!(out, "{pad}}} step {{")?;
+                    self.block(out, step, depth + 1)?;
+                }
+                writeln!(out, "{pad}}}")
+            }
+            StmtKind::Break(l) => writeln!(out, "{pad}break #{}", l.0),
+            StmtKind::Continue(l) => writeln!(out, "{pad}continue #{}", l.0),
+            StmtKind::Return => writeln!(out, "{pad}return"),
+            StmtKind::Interpolation { arms } => {
+                writeln!(out, "{pad}interpolation {{")?;
+                for a in arms {
+                    match &a.kind {
+                        ArmKind::Named(k) => writeln!(out, "{pad}  {k}:")?,
+                        ArmKind::Default => writeln!(out, "{pad}  default:")?,
+                    }
+                    self.block(out, &a.body, depth + 2)?;
+                }
+                writeln!(out, "{pad}}}")
+            }
+            StmtKind::InterpolatorReturn(Some(e)) => writeln!(out, "{pad}interpolator_return({})", self.expr(e)),
+            StmtKind::InterpolatorReturn(None) => writeln!(out, "{pad}interpolator_return"),
+            StmtKind::Bound(args) => {
+                let a: Vec<String> = args.iter().map(|e| self.expr(e)).collect();
+                writeln!(out, "{pad}bound({})", a.join(", "))
+            }
+            StmtKind::CallPrimitive { callee, args } => {
+                let a: Vec<String> = args.iter().map(|e| self.expr(e)).collect();
+                writeln!(out, "{pad}call primitive#{}({})", callee.0, a.join(", "))
+            }
+        }
+    }
+
+    fn local_name(&self, l: super::LocalId) -> String {
+        match self.func.locals.get(l.0 as usize) {
+            Some(loc) => format!("{}%{}", loc.name, l.0),
+            None => format!("?%{}", l.0),
+        }
+    }
+
+    fn expr(&self, e: &Expr) -> String {
+        match &e.kind {
+            ExprKind::Const(c) => const_str(*c, scalar(&e.ty)),
+            ExprKind::Local(l) => self.local_name(*l),
+            ExprKind::Index { base, index, .. } => format!("{}[{}]", self.expr(base), self.expr(index)),
+            ExprKind::Unary { op, expr } => {
+                let o = match op {
+                    UnaryOp::Neg => "-",
+                    UnaryOp::Not => "!",
+                };
+                format!("{o}{}", self.expr(expr))
+            }
+            ExprKind::Binary { op, lhs, rhs } => {
+                format!("({} {} {})", self.expr(lhs), bin_str(*op), self.expr(rhs))
+            }
+            ExprKind::Convert(x) => {
+                let to = match e.ty.elem {
+                    Elem::Scalar(s) => scalar_str(s),
+                    Elem::Interp => "interp".into(),
+                };
+                format!("{to}({})", self.expr(x))
+            }
+            ExprKind::Select { cond, then, otherwise } => {
+                format!("({} ? {} : {})", self.expr(cond), self.expr(then), self.expr(otherwise))
+            }
+            ExprKind::Builtin { func, args } => {
+                let a: Vec<String> = args.iter().map(|x| self.expr(x)).collect();
+                let name = match func {
+                    Builtin::TransformPoint { from, to } => {
+                        format!("transform[{}->{}]", space_str(*from), space_str(*to))
+                    }
+                    Builtin::TransformVector { from, to } => {
+                        format!("vtransform[{}->{}]", space_str(*from), space_str(*to))
+                    }
+                    Builtin::TransformNormal { from, to } => {
+                        format!("ntransform[{}->{}]", space_str(*from), space_str(*to))
+                    }
+                    other => format!("{other:?}").to_lowercase(),
+                };
+                format!("{name}({})", a.join(", "))
+            }
+            ExprKind::List(items) => {
+                let a: Vec<String> = items.iter().map(|x| self.expr(x)).collect();
+                format!("{{{}}}", a.join(", "))
+            }
+            ExprKind::MatMul { lhs, rhs } => format!("matmul({}, {})", self.expr(lhs), self.expr(rhs)),
+            ExprKind::SeqCount => "seq_count".into(),
+        }
+    }
+}
+
+fn bin_str(op: BinOp) -> &'static str {
+    match op {
+        BinOp::Add => "+",
+        BinOp::Sub => "-",
+        BinOp::Mul => "*",
+        BinOp::Div => "/",
+        BinOp::Rem => "%",
+        BinOp::Lt => "<",
+        BinOp::Le => "<=",
+        BinOp::Gt => ">",
+        BinOp::Ge => ">=",
+        BinOp::Eq => "==",
+        BinOp::Ne => "!=",
+        BinOp::And => "&&",
+        BinOp::Or => "||",
+    }
+}

@@ -1,0 +1,595 @@
+//! Rendering a frame: compile, bound, bin, render tiles in parallel, shade, write images.
+//!
+//! 1. Every (primitive, key) the instances need is compiled once through the [`KernelSource`].
+//! 2. Each instance's kernel runs once in `MODE_BOUND` on an empty tile with no buffers; its
+//!    recorded screen bound (conservative) bins it into the tiles it overlaps. A NaN bound,
+//!    or no bound at all, puts it in no tile.
+//! 3. Tiles render in parallel with rayon. A tile owns its depth buffer (u32, 0 = farthest),
+//!    G-buffer planes (f32, 0) and write counts, runs its instances in submission order in
+//!    `MODE_RENDER` with fresh fuel each, and hands its buffers back. Tiles are gathered in
+//!    tile order and copied into the frame sequentially, so the result is bit-identical
+//!    whatever the number of threads.
+//! 4. Kernel run-time errors become warnings at the failing site of the primitive source,
+//!    once per (site, error).
+//!
+//! Shading is minimal for now: a pixel whose depth was written (depth != 0; a write of exactly
+//! the far value 0 is indistinguishable from none, and a `Z > depth` test never passes there
+//! anyway) shows the `Cs` shading parameter clamped to [0, 1], other pixels the background.
+
+use std::collections::{BTreeSet, HashMap};
+use std::sync::Arc;
+use std::time::Instant;
+
+use image::{ImageBuffer, Luma, Rgb, RgbImage};
+use rayon::prelude::*;
+
+use crate::abi::{
+    TileCtx, VariantKey, DEFAULT_FUEL, ERR_CALL_DEPTH, ERR_FUEL, ERR_INDEX, GROUP, MODE_BOUND, MODE_RENDER,
+};
+use crate::diag::{Diagnostic, Diagnostics};
+use crate::ir::{FuncId, Program};
+use crate::jit::Kernel;
+
+use super::api::{Instance, RenderOptions, Renderer};
+use super::kernels::KernelSource;
+
+/// Tile buffer row stride for a tile `width` pixels wide: whole pixel groups.
+pub fn tile_stride(width: u32) -> u32 {
+    width.div_ceil(GROUP) * GROUP
+}
+
+/// A shading parameter's place in the frame's planes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParamPlanes {
+    pub name: String,
+    pub first_plane: u32,
+    pub components: u32,
+}
+
+/// The rendered frame: depth, G-buffer planes and (when counted) depth-write counts, each
+/// `width * height`, row-major from the top-left pixel.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    pub width: u32,
+    pub height: u32,
+    pub background: [f32; 3],
+    pub depth: Vec<u32>,
+    pub planes: Vec<Vec<f32>>,
+    pub write_counts: Option<Vec<u32>>,
+    pub params: Vec<ParamPlanes>,
+}
+
+/// What a render measured.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RenderStats {
+    pub instances: usize,
+    pub kernels_compiled: usize,
+    pub compile_micros: u64,
+    pub render_micros: u64,
+    /// Instance-tile pairs rendered (an instance counts once per tile it was binned into).
+    pub tile_invocations: usize,
+}
+
+/// A render's frame, statistics and diagnostics (compile failures are errors, kernel warnings
+/// and run-time errors warnings).
+pub struct RenderOutput {
+    pub frame: Frame,
+    pub stats: RenderStats,
+    pub diags: Diagnostics,
+}
+
+struct Tile {
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+}
+
+struct TileResult {
+    depth: Vec<u32>,
+    gbuf: Vec<f32>,
+    counts: Vec<u32>,
+    /// (instance, error code, site) of each failing invocation, in order.
+    errors: Vec<(usize, u32, u32)>,
+}
+
+impl Renderer {
+    /// Render every instance submitted so far. Uses the current rayon thread pool (wrap the
+    /// call in `ThreadPool::install` to choose the thread count).
+    pub fn render(&self, source: &mut dyn KernelSource) -> RenderOutput {
+        let started = Instant::now();
+        let opts = &self.options;
+        let program = self.program().clone();
+        let mut diags = Diagnostics::new();
+        let mut stats = RenderStats {
+            instances: self.instances().len(),
+            ..RenderStats::default()
+        };
+
+        // 1. Compile each (func, key) once, in first-use order.
+        let mut kernels: HashMap<(FuncId, VariantKey), Option<Arc<Kernel>>> = HashMap::new();
+        let mut ready: Vec<Option<Arc<Kernel>>> = Vec::with_capacity(self.instances().len());
+        for inst in self.instances() {
+            let key = VariantKey {
+                count_writes: opts.count_writes,
+                ..inst.key.clone()
+            };
+            let entry = kernels.entry((inst.func, key.clone())).or_insert_with(|| {
+                let kernel = compile_one(&program, source, inst.func, &key, &mut diags);
+                if let Some(k) = &kernel {
+                    stats.kernels_compiled += 1;
+                    stats.compile_micros += k.compile_micros;
+                }
+                kernel
+            });
+            // Never hand a kernel an argument block shorter than its layout reads.
+            let usable = entry.clone().filter(|k| k.layout.words(inst.n_seq) <= inst.args.len());
+            ready.push(usable);
+        }
+
+        // 2. Bound pass and binning.
+        let tiles = tile_grid(opts);
+        let tiles_x = opts.width.div_ceil(opts.tile_size) as usize;
+        let mut bins: Vec<Vec<usize>> = vec![vec![]; tiles.len()];
+        let mut errors: Vec<(usize, u32, u32)> = vec![];
+        for (i, (inst, kernel)) in self.instances().iter().zip(&ready).enumerate() {
+            let Some(kernel) = kernel else { continue };
+            let (bound, error) = run_bound(kernel, inst, opts);
+            if let Some((code, site)) = error {
+                errors.push((i, code, site));
+            }
+            if let Some((tx0, ty0, tx1, ty1)) = bound.and_then(|b| tiles_overlapped(b, opts)) {
+                for ty in ty0..=ty1 {
+                    for tx in tx0..=tx1 {
+                        bins[ty * tiles_x + tx].push(i);
+                    }
+                }
+            }
+        }
+        stats.tile_invocations = bins.iter().map(Vec::len).sum();
+
+        // 3. Tiles in parallel; results gathered in tile order.
+        let num_planes = self.num_planes();
+        let instances = self.instances();
+        let results: Vec<TileResult> = tiles
+            .par_iter()
+            .zip(bins.par_iter())
+            .map(|(tile, bin)| render_tile(tile, bin, instances, &ready, num_planes, opts))
+            .collect();
+
+        let mut frame = Frame {
+            width: opts.width,
+            height: opts.height,
+            background: opts.background,
+            depth: vec![0; (opts.width * opts.height) as usize],
+            planes: vec![vec![0.0; (opts.width * opts.height) as usize]; num_planes as usize],
+            write_counts: opts.count_writes.then(|| vec![0; (opts.width * opts.height) as usize]),
+            params: self
+                .shading_params()
+                .iter()
+                .map(|p| ParamPlanes {
+                    name: p.name.clone(),
+                    first_plane: p.first_plane,
+                    components: p.components,
+                })
+                .collect(),
+        };
+        for (tile, result) in tiles.iter().zip(results) {
+            frame.copy_tile(tile, &result);
+            errors.extend(result.errors);
+        }
+
+        // 4. Run-time errors, once per (site, code), in a thread-independent order.
+        report_runtime_errors(&program, &errors, instances, &mut diags);
+        stats.render_micros = started.elapsed().as_micros() as u64;
+        RenderOutput { frame, stats, diags }
+    }
+}
+
+fn compile_one(
+    program: &Program,
+    source: &mut dyn KernelSource,
+    func: FuncId,
+    key: &VariantKey,
+    diags: &mut Diagnostics,
+) -> Option<Arc<Kernel>> {
+    let name = &program.func(func).name;
+    match source.kernel(func, key) {
+        Ok(kernel) => {
+            let expected = crate::abi::ArgLayout::new(program, func, key);
+            if kernel.layout != expected {
+                diags.push(Diagnostic::error(
+                    "E0802",
+                    format!("the kernel for `{name}` disagrees with the argument layout; its instances are skipped"),
+                ));
+                return None;
+            }
+            for w in &kernel.warnings {
+                diags.push(Diagnostic::warning("W0802", format!("`{name}`: {w}")));
+            }
+            Some(kernel)
+        }
+        Err(e) => {
+            diags.push(Diagnostic::error(
+                "E0801",
+                format!("cannot compile `{name}` for {}: {e}", describe_key(key)),
+            ));
+            None
+        }
+    }
+}
+
+/// `linear:3,constant:1` style description of a key (the CLI's `--key` syntax).
+pub fn describe_key(key: &VariantKey) -> String {
+    let parts: Vec<String> = key
+        .bindings
+        .iter()
+        .map(|b| match &b.kind {
+            crate::abi::BindingKind::Kind(k) => format!("{k}:{}", b.components),
+            crate::abi::BindingKind::Shared(s) => format!("{s}:{}", b.components),
+            crate::abi::BindingKind::Constant => format!("constant:{}", b.components),
+        })
+        .collect();
+    let mut s = if parts.is_empty() {
+        "no bindings".to_string()
+    } else {
+        parts.join(",")
+    };
+    if key.count_writes {
+        s.push_str(" (counting writes)");
+    }
+    s
+}
+
+fn tile_grid(opts: &RenderOptions) -> Vec<Tile> {
+    let ts = opts.tile_size;
+    let mut tiles = vec![];
+    for y0 in (0..opts.height).step_by(ts as usize) {
+        for x0 in (0..opts.width).step_by(ts as usize) {
+            tiles.push(Tile {
+                x0,
+                y0,
+                x1: (x0 + ts).min(opts.width),
+                y1: (y0 + ts).min(opts.height),
+            });
+        }
+    }
+    tiles
+}
+
+fn fresh_ctx(opts: &RenderOptions, mode: u32) -> TileCtx {
+    TileCtx {
+        x0: 0,
+        y0: 0,
+        x1: 0,
+        y1: 0,
+        mode,
+        stride: GROUP,
+        depth: std::ptr::null_mut(),
+        gbuf: std::ptr::null_mut(),
+        plane_stride: 0,
+        num_planes: 0,
+        write_count: std::ptr::null_mut(),
+        bound: [0.0; 4],
+        bound_set: 0,
+        error: 0,
+        error_site: 0,
+        fuel: DEFAULT_FUEL,
+        call_depth: 0,
+        width: opts.width,
+        height: opts.height,
+    }
+}
+
+/// Run an instance's kernel in bound mode: its screen bound (if it recorded one) and its
+/// run-time error.
+fn run_bound(kernel: &Kernel, inst: &Instance, opts: &RenderOptions) -> (Option<[f32; 4]>, Option<(u32, u32)>) {
+    let mut ctx = fresh_ctx(opts, MODE_BOUND);
+    // Zero-size buffers: bound mode never touches them, and the empty tile rectangle
+    // (x0 = x1 = 0) means even a pixel pass would cover no pixel.
+    let mut no_depth: Vec<u32> = Vec::new();
+    let mut no_planes: Vec<f32> = Vec::new();
+    let mut no_counts: Vec<u32> = Vec::new();
+    ctx.depth = no_depth.as_mut_ptr();
+    ctx.gbuf = no_planes.as_mut_ptr();
+    ctx.write_count = no_counts.as_mut_ptr();
+    // SAFETY: `ctx` is a valid TileCtx naming (empty) buffers that outlive the call, and
+    // `inst.args` holds at least `kernel.layout.words(n_seq)` words (checked when the kernel
+    // was made ready), which is all the ABI lets a kernel read.
+    unsafe { (kernel.entry)(&mut ctx, inst.args.as_ptr()) };
+    let bound = (ctx.bound_set != 0).then_some(ctx.bound);
+    let error = (ctx.error != 0).then_some((ctx.error, ctx.error_site));
+    (bound, error)
+}
+
+/// The tiles (inclusive tile-index rectangle) a screen bound overlaps, or `None`. Pixels
+/// whose centre lies in the bound are covered; the range is widened by one pixel each way so
+/// float rounding can never drop a tile.
+fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<(usize, usize, usize, usize)> {
+    if bound.iter().any(|v| v.is_nan()) {
+        return None;
+    }
+    let (w, h) = (f64::from(opts.width), f64::from(opts.height));
+    // Clamp in float first: infinities and huge values must not overflow the conversion.
+    let xmin = f64::from(bound[0]).clamp(-2.0, w + 2.0);
+    let ymin = f64::from(bound[1]).clamp(-2.0, h + 2.0);
+    let xmax = f64::from(bound[2]).clamp(-2.0, w + 2.0);
+    let ymax = f64::from(bound[3]).clamp(-2.0, h + 2.0);
+    let px0 = ((xmin - 0.5).floor() as i64 - 1).max(0);
+    let py0 = ((ymin - 0.5).floor() as i64 - 1).max(0);
+    let px1 = ((xmax - 0.5).ceil() as i64 + 1).min(i64::from(opts.width) - 1);
+    let py1 = ((ymax - 0.5).ceil() as i64 + 1).min(i64::from(opts.height) - 1);
+    if px0 > px1 || py0 > py1 {
+        return None;
+    }
+    let ts = i64::from(opts.tile_size);
+    Some((
+        (px0 / ts) as usize,
+        (py0 / ts) as usize,
+        (px1 / ts) as usize,
+        (py1 / ts) as usize,
+    ))
+}
+
+fn render_tile(
+    tile: &Tile,
+    bin: &[usize],
+    instances: &[Instance],
+    ready: &[Option<Arc<Kernel>>],
+    num_planes: u32,
+    opts: &RenderOptions,
+) -> TileResult {
+    let stride = tile_stride(tile.x1 - tile.x0);
+    let rows = tile.y1 - tile.y0;
+    let plane_len = (stride * rows) as usize;
+    let mut depth = vec![0u32; plane_len];
+    let mut gbuf = vec![0f32; plane_len * num_planes as usize];
+    let mut counts = if opts.count_writes {
+        vec![0u32; plane_len]
+    } else {
+        vec![]
+    };
+    let mut errors = vec![];
+    for &i in bin {
+        let (Some(kernel), inst) = (&ready[i], &instances[i]) else {
+            continue;
+        };
+        let mut ctx = fresh_ctx(opts, MODE_RENDER);
+        ctx.x0 = tile.x0 as i32;
+        ctx.y0 = tile.y0 as i32;
+        ctx.x1 = tile.x1 as i32;
+        ctx.y1 = tile.y1 as i32;
+        ctx.stride = stride;
+        ctx.depth = depth.as_mut_ptr();
+        ctx.gbuf = gbuf.as_mut_ptr();
+        ctx.plane_stride = plane_len as u32;
+        ctx.num_planes = num_planes;
+        ctx.write_count = counts.as_mut_ptr();
+        // SAFETY: the context names this tile's own buffers: depth and (when counting)
+        // write_count are `stride * rows` long, gbuf `num_planes * plane_stride`; the kernel
+        // was compiled with count_writes == opts.count_writes, so it touches write_count
+        // only when that buffer is full size. The argument block is long enough for the
+        // kernel's layout (checked in `render`). Nothing else aliases these buffers while
+        // the kernel runs: the tile is owned by this rayon task.
+        unsafe { (kernel.entry)(&mut ctx, inst.args.as_ptr()) };
+        if ctx.error != 0 {
+            errors.push((i, ctx.error, ctx.error_site));
+        }
+    }
+    TileResult {
+        depth,
+        gbuf,
+        counts,
+        errors,
+    }
+}
+
+fn report_runtime_errors(
+    program: &Program,
+    errors: &[(usize, u32, u32)],
+    instances: &[Instance],
+    diags: &mut Diagnostics,
+) {
+    let mut seen = BTreeSet::new();
+    for &(i, code, site) in errors {
+        if !seen.insert((site, code)) {
+            continue;
+        }
+        let what = match code {
+            ERR_INDEX => "an index was out of range (clamped)",
+            ERR_FUEL => "a loop ran out of fuel (left early)",
+            ERR_CALL_DEPTH => "primitive calls nested too deep (call skipped)",
+            _ => "an unknown run-time error",
+        };
+        let name = &program.func(instances[i].func).name;
+        let mut d = Diagnostic::warning("W0801", format!("in `{name}` at run time: {what}"));
+        if let Some(&span) = program.sites.get(site as usize) {
+            d = d.primary(span, what);
+        }
+        diags.push(d);
+    }
+}
+
+impl Frame {
+    fn copy_tile(&mut self, tile: &Tile, result: &TileResult) {
+        let stride = tile_stride(tile.x1 - tile.x0) as usize;
+        let plane_len = stride * (tile.y1 - tile.y0) as usize;
+        let w = (tile.x1 - tile.x0) as usize;
+        for row in 0..(tile.y1 - tile.y0) as usize {
+            let src = row * stride;
+            let dst = (tile.y0 as usize + row) * self.width as usize + tile.x0 as usize;
+            self.depth[dst..dst + w].copy_from_slice(&result.depth[src..src + w]);
+            for (p, plane) in self.planes.iter_mut().enumerate() {
+                let s = p * plane_len + src;
+                plane[dst..dst + w].copy_from_slice(&result.gbuf[s..s + w]);
+            }
+            if let Some(counts) = &mut self.write_counts {
+                counts[dst..dst + w].copy_from_slice(&result.counts[src..src + w]);
+            }
+        }
+    }
+
+    fn index(&self, x: u32, y: u32) -> Option<usize> {
+        (x < self.width && y < self.height).then(|| (y * self.width + x) as usize)
+    }
+
+    /// Raw depth (`fixed<32,32>`, larger is nearer, 0 = nothing written).
+    pub fn depth_at(&self, x: u32, y: u32) -> Option<u32> {
+        self.index(x, y).map(|i| self.depth[i])
+    }
+
+    /// Depth as a float in [0, 1).
+    pub fn depth_f32_at(&self, x: u32, y: u32) -> Option<f32> {
+        self.depth_at(x, y).map(|d| (f64::from(d) / 4294967296.0) as f32)
+    }
+
+    /// Whether a primitive wrote the pixel's depth.
+    pub fn written(&self, x: u32, y: u32) -> bool {
+        self.depth_at(x, y).is_some_and(|d| d != 0)
+    }
+
+    pub fn plane_at(&self, plane: u32, x: u32, y: u32) -> Option<f32> {
+        let i = self.index(x, y)?;
+        self.planes.get(plane as usize).map(|p| p[i])
+    }
+
+    pub fn param(&self, name: &str) -> Option<&ParamPlanes> {
+        self.params.iter().find(|p| p.name == name)
+    }
+
+    /// A shading parameter's components at a pixel.
+    pub fn param_at(&self, name: &str, x: u32, y: u32) -> Option<Vec<f32>> {
+        let p = self.param(name)?;
+        (p.first_plane..p.first_plane + p.components)
+            .map(|plane| self.plane_at(plane, x, y))
+            .collect()
+    }
+
+    /// Depth writes at a pixel (only when the frame was rendered with `count_writes`).
+    pub fn write_count_at(&self, x: u32, y: u32) -> Option<u32> {
+        let i = self.index(x, y)?;
+        self.write_counts.as_ref().map(|c| c[i])
+    }
+
+    /// The shaded colour: `Cs` clamped to [0, 1] where depth was written, else background.
+    pub fn color_at(&self, x: u32, y: u32) -> [f32; 3] {
+        let cs = self.param("Cs").filter(|p| p.components == 3);
+        match cs {
+            Some(p) if self.written(x, y) => {
+                let c = |k: u32| clamp01(self.plane_at(p.first_plane + k, x, y).unwrap_or(0.0));
+                [c(0), c(1), c(2)]
+            }
+            _ => self.background.map(clamp01),
+        }
+    }
+
+    pub fn to_rgb8(&self) -> RgbImage {
+        ImageBuffer::from_fn(self.width, self.height, |x, y| Rgb(self.color_at(x, y).map(to_u8)))
+    }
+
+    /// Depth as 16-bit gray, nearer brighter (the top 16 bits of the raw depth).
+    pub fn depth_image(&self) -> ImageBuffer<Luma<u16>, Vec<u16>> {
+        ImageBuffer::from_fn(self.width, self.height, |x, y| {
+            Luma([(self.depth_at(x, y).unwrap_or(0) >> 16) as u16])
+        })
+    }
+
+    /// A shading parameter as an image: 1 component as gray normalised to its range over the
+    /// written pixels (unwritten pixels black), 3 components as RGB clamped to [0, 1].
+    pub fn param_image(&self, name: &str) -> Result<RgbImage, String> {
+        let p = self
+            .param(name)
+            .ok_or_else(|| format!("the scene has no shading parameter `{name}`"))?;
+        match p.components {
+            1 => {
+                let plane = &self.planes[p.first_plane as usize];
+                let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+                for (i, &v) in plane.iter().enumerate() {
+                    if self.depth[i] != 0 && v.is_finite() {
+                        lo = lo.min(v);
+                        hi = hi.max(v);
+                    }
+                }
+                Ok(ImageBuffer::from_fn(self.width, self.height, |x, y| {
+                    let i = (y * self.width + x) as usize;
+                    let v = plane[i];
+                    let g = if self.depth[i] == 0 || !v.is_finite() {
+                        0.0
+                    } else if hi > lo {
+                        (v - lo) / (hi - lo)
+                    } else {
+                        0.5
+                    };
+                    Rgb([to_u8(g); 3])
+                }))
+            }
+            3 => Ok(ImageBuffer::from_fn(self.width, self.height, |x, y| {
+                let c = |k: u32| clamp01(self.plane_at(p.first_plane + k, x, y).unwrap_or(0.0));
+                Rgb([c(0), c(1), c(2)].map(to_u8))
+            })),
+            n => Err(format!(
+                "shading parameter `{name}` has {n} components; only 1 (gray) or 3 (RGB) can be written as an image"
+            )),
+        }
+    }
+}
+
+fn clamp01(v: f32) -> f32 {
+    if v.is_nan() {
+        0.0
+    } else {
+        v.clamp(0.0, 1.0)
+    }
+}
+
+fn to_u8(v: f32) -> u8 {
+    (clamp01(v) * 255.0).round() as u8
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn opts(w: u32, h: u32, ts: u32) -> RenderOptions {
+        RenderOptions {
+            width: w,
+            height: h,
+            tile_size: ts,
+            ..RenderOptions::default()
+        }
+    }
+
+    #[test]
+    fn stride_is_whole_groups() {
+        assert_eq!(tile_stride(64), 64);
+        assert_eq!(tile_stride(13), 16);
+        assert_eq!(tile_stride(1), 4);
+    }
+
+    #[test]
+    fn grid_cuts_edge_tiles() {
+        let tiles = tile_grid(&opts(100, 70, 64));
+        let rects: Vec<_> = tiles.iter().map(|t| (t.x0, t.y0, t.x1, t.y1)).collect();
+        assert_eq!(
+            rects,
+            vec![(0, 0, 64, 64), (64, 0, 100, 64), (0, 64, 64, 70), (64, 64, 100, 70)]
+        );
+    }
+
+    #[test]
+    fn binning_is_conservative_and_clamped() {
+        let o = opts(256, 128, 64);
+        assert_eq!(tiles_overlapped([10.0, 10.0, 20.0, 20.0], &o), Some((0, 0, 0, 0)));
+        // A bound ending exactly on a tile edge also takes the next tile (one pixel margin).
+        assert_eq!(tiles_overlapped([10.0, 10.0, 64.0, 20.0], &o), Some((0, 0, 1, 0)));
+        assert_eq!(
+            tiles_overlapped([f32::NEG_INFINITY, -1e30, f32::INFINITY, 1e30], &o),
+            Some((0, 0, 3, 1))
+        );
+        assert_eq!(tiles_overlapped([f32::NAN, 0.0, 10.0, 10.0], &o), None);
+        assert_eq!(tiles_overlapped([300.0, 0.0, 400.0, 10.0], &o), None);
+        assert_eq!(tiles_overlapped([-50.0, -50.0, -10.0, -10.0], &o), None);
+        // Inverted (empty) bound.
+        assert_eq!(tiles_overlapped([50.0, 50.0, 10.0, 10.0], &o), None);
+    }
+}

@@ -1,0 +1,26 @@
+//! Where the renderer gets its kernels: the seam between the runtime and the JIT.
+//!
+//! The renderer asks a [`KernelSource`] for one kernel per (primitive, variant key) before it
+//! renders. The [`Jit`] is the real source. Tests (and later the benchmark's hand-written
+//! kernels) implement the trait themselves to hand in `extern "C"` Rust functions that follow
+//! the same ABI (`abi::KernelFn`). The contract a source must keep: the returned kernel's
+//! `layout` is `ArgLayout::new(program, func, key)` and its `entry` stays callable for as long
+//! as the source is alive; the renderer checks the layout and borrows the source for the whole
+//! render.
+
+use std::sync::Arc;
+
+use crate::abi::VariantKey;
+use crate::ir::FuncId;
+use crate::jit::{Jit, JitError, Kernel};
+
+/// Something that turns (primitive, key) into a callable kernel.
+pub trait KernelSource {
+    fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, JitError>;
+}
+
+impl KernelSource for Jit {
+    fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, JitError> {
+        Jit::kernel(self, func, key)
+    }
+}

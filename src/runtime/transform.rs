@@ -1,0 +1,102 @@
+//! The small camera helpers the runtime has until the geometry pipeline lands: each returns
+//! a `device_from_object` matrix (glam, column vectors, `p_device = M * p_object`).
+//!
+//! Device space: x and y in pixels (x right, y down: row 0 is the top image row), z in depth
+//! units in [0, 1] where LARGER IS NEARER, all after dividing by w. Both helpers treat the
+//! object space as the eye space of a camera at the origin looking down -z with y up, so a
+//! scene written for them appears upright.
+
+use glam::{Mat4, Vec4};
+
+/// Orthographic: the eye-space box x in [left, right], y in [bottom, top], z in [-far, -near]
+/// maps to the viewport (0..width, height..0) and depth (near -> 1, far -> 0).
+pub fn ortho(left: f32, right: f32, bottom: f32, top: f32, near: f32, far: f32, width: u32, height: u32) -> Mat4 {
+    let (w, h) = (width as f32, height as f32);
+    let sx = w / (right - left);
+    let sy = h / (top - bottom);
+    let sz = 1.0 / (far - near);
+    // Rows: x_dev = (x - left) * sx; y_dev = (top - y) * sy; z_dev = (z + far) * sz.
+    Mat4::from_cols(
+        Vec4::new(sx, 0.0, 0.0, 0.0),
+        Vec4::new(0.0, -sy, 0.0, 0.0),
+        Vec4::new(0.0, 0.0, sz, 0.0),
+        Vec4::new(-left * sx, top * sy, far * sz, 1.0),
+    )
+}
+
+/// Perspective with vertical field of view `fov_y_degrees`, aspect `width/height`, and
+/// near/far distances: eye-space points map to homogeneous device coordinates whose divide
+/// by w (= -z, the distance) gives pixels and a reversed depth, 1 at the near plane and 0 at
+/// the far plane (nearer is larger, so precision is spread like a reversed-Z buffer).
+pub fn perspective(fov_y_degrees: f32, near: f32, far: f32, width: u32, height: u32) -> Mat4 {
+    let (w, h) = (width as f32, height as f32);
+    let focal = 1.0 / (fov_y_degrees.to_radians() * 0.5).tan();
+    let aspect = w / h;
+    // Clip: x_c = focal/aspect * x, y_c = focal * y, w_c = -z.
+    // Device (homogeneous): x_h = w/2 (x_c + w_c), y_h = h/2 (w_c - y_c),
+    // z_h = n/(f-n) z + n f/(f-n), so z_h / w_c is 1 at z = -n and 0 at z = -f.
+    let (hw, hh) = (w * 0.5, h * 0.5);
+    let depth_scale = near / (far - near);
+    let depth_offset = near * far / (far - near);
+    Mat4::from_cols(
+        Vec4::new(hw * focal / aspect, 0.0, 0.0, 0.0),
+        Vec4::new(0.0, -hh * focal, 0.0, 0.0),
+        Vec4::new(-hw, -hh, depth_scale, -1.0),
+        Vec4::new(0.0, 0.0, depth_offset, 0.0),
+    )
+}
+
+/// A matrix given row-major (as in the scene format and the argument block).
+pub fn from_rows(rows: &[f32; 16]) -> Mat4 {
+    Mat4::from_cols_array(rows).transpose()
+}
+
+/// Row-major components (the argument block's matrix layout).
+pub fn to_rows(m: &Mat4) -> [f32; 16] {
+    m.transpose().to_cols_array()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn device(m: &Mat4, x: f32, y: f32, z: f32) -> [f64; 3] {
+        let p = *m * Vec4::new(x, y, z, 1.0);
+        let w = f64::from(p.w);
+        [f64::from(p.x) / w, f64::from(p.y) / w, f64::from(p.z) / w]
+    }
+
+    fn close(a: [f64; 3], b: [f64; 3]) {
+        for i in 0..3 {
+            assert!((a[i] - b[i]).abs() < 1e-4, "{a:?} vs {b:?}");
+        }
+    }
+
+    #[test]
+    fn ortho_maps_box_corners() {
+        let m = ortho(-1.0, 1.0, -1.0, 1.0, 1.0, 3.0, 200, 100);
+        close(device(&m, -1.0, 1.0, -1.0), [0.0, 0.0, 1.0]);
+        close(device(&m, 1.0, -1.0, -3.0), [200.0, 100.0, 0.0]);
+        close(device(&m, 0.0, 0.0, -2.0), [100.0, 50.0, 0.5]);
+    }
+
+    #[test]
+    fn perspective_near_is_one_far_is_zero() {
+        let m = perspective(90.0, 1.0, 10.0, 200, 100);
+        // Centre of view at the near plane and at the far plane.
+        close(device(&m, 0.0, 0.0, -1.0), [100.0, 50.0, 1.0]);
+        close(device(&m, 0.0, 0.0, -10.0), [100.0, 50.0, 0.0]);
+        // fov 90: y = +distance is the top edge; x = aspect * distance the right edge.
+        close(device(&m, 0.0, 5.0, -5.0), [100.0, 0.0, 1.0 / 9.0 * (10.0 / 5.0 - 1.0)]);
+        close(device(&m, 2.0 * 5.0, 0.0, -5.0), [200.0, 50.0, 1.0 / 9.0]);
+    }
+
+    #[test]
+    fn row_major_round_trip() {
+        let rows: [f32; 16] = std::array::from_fn(|i| i as f32);
+        let m = from_rows(&rows);
+        // Row 0 is (0 1 2 3): x_dev = 0*x + 1*y + 2*z + 3*w.
+        assert_eq!((m * Vec4::new(0.0, 1.0, 0.0, 0.0)).x, 1.0);
+        assert_eq!(to_rows(&m), rows);
+    }
+}
