@@ -13,9 +13,11 @@
 //!    reads the text scene format into API calls.
 
 pub mod abi;
+pub mod bench;
 pub mod check;
 pub mod cli;
 pub mod diag;
+pub mod handwritten;
 pub mod ir;
 pub mod jit;
 pub mod runtime;

@@ -1,0 +1,411 @@
+//! screen_triangle written by hand in Rust, in two forms: portable scalar code and AVX2
+//! (8 pixels per step, per-row hoisting, empty-group skipping, masked stores).
+//!
+//! Both mirror `prims/screen_triangle.prim` operation for operation (same snapping, same
+//! integer edge functions and top-left rule, same float expression order), so on the same
+//! scene they produce the same buffers as the JIT kernel; the benchmark checks that before
+//! it reports a time.
+//!
+//! Argument block (see `abi::ArgLayout`): word 0 n_seq; `T = P + L` plane indices (the P
+//! perspective_linear components first, then the L linear ones); `screen_vertex` (12
+//! floats); `interp_data[3]` (3 * T floats). `P` and `L` are const generics so the
+//! component loops unroll.
+
+use crate::abi::{TileCtx, MODE_BOUND};
+
+/// Everything the per-pixel code needs, computed once per triangle exactly as the prim does.
+pub(crate) struct Setup<const T: usize> {
+    pub bound: [f32; 4],
+    pub exact: bool,
+    pub ox16: i32,
+    pub oy16: i32,
+    pub ea: [i32; 3],
+    pub eb: [i32; 3],
+    pub ec: [i32; 3],
+    pub fa: [f32; 3],
+    pub fb: [f32; 3],
+    pub fc: [f32; 3],
+    pub z: [f32; 3],
+    /// Planes of the linear parameters (a, b, c per component).
+    pub la: [f32; T],
+    pub lb: [f32; T],
+    pub lc: [f32; T],
+    /// Planes of f/w per component and of 1/w.
+    pub ga: [f32; T],
+    pub gb: [f32; T],
+    pub gc: [f32; T],
+    pub q: [f32; 3],
+}
+
+/// Read word `i` of the argument block.
+///
+/// # Safety
+/// `args` must point to at least `i + 1` words.
+#[inline(always)]
+unsafe fn word(args: *const u32, i: usize) -> u32 {
+    unsafe { *args.add(i) }
+}
+
+#[inline(always)]
+fn min3(a: f32, b: f32, c: f32) -> f32 {
+    a.min(b).min(c)
+}
+
+#[inline(always)]
+fn max3(a: f32, b: f32, c: f32) -> f32 {
+    a.max(b).max(c)
+}
+
+/// The uniform part of the prim. `None` when the triangle draws nothing.
+///
+/// # Safety
+/// `args` must hold the screen_triangle argument block for `T` components.
+pub(crate) unsafe fn setup<const T: usize>(args: *const u32) -> Option<Setup<T>> {
+    let sv_at = 1 + T;
+    let data_at = sv_at + 12;
+    let sv = |v: usize, c: usize| f32::from_bits(unsafe { word(args, sv_at + v * 4 + c) });
+    let data = |v: usize, c: usize| f32::from_bits(unsafe { word(args, data_at + v * T + c) });
+    for i in 0..3 {
+        if !(sv(i, 0).abs() < 1e30 && sv(i, 1).abs() < 1e30) {
+            return None;
+        }
+    }
+    let ox = min3(sv(0, 0), sv(1, 0), sv(2, 0)).floor();
+    let oy = min3(sv(0, 1), sv(1, 1), sv(2, 1)).floor();
+    let max_x = max3(sv(0, 0), sv(1, 0), sv(2, 0));
+    let max_y = max3(sv(0, 1), sv(1, 1), sv(2, 1));
+    let bound = [ox, oy, max_x, max_y];
+    let exact = max_x - ox < 1024.0 && max_y - oy < 1024.0;
+    let mut vx = [0i32; 3];
+    let mut vy = [0i32; 3];
+    let mut px = [0f32; 3];
+    let mut py = [0f32; 3];
+    for i in 0..3 {
+        vx[i] = ((sv(i, 0) - ox) * 16.0).round_ties_even() as i32;
+        vy[i] = ((sv(i, 1) - oy) * 16.0).round_ties_even() as i32;
+        px[i] = ox + vx[i] as f32 / 16.0;
+        py[i] = oy + vy[i] as f32 / 16.0;
+    }
+    if !exact {
+        for i in 0..3 {
+            px[i] = sv(i, 0);
+            py[i] = sv(i, 1);
+        }
+    }
+    let (dx1, dy1) = (px[1] - px[0], py[1] - py[0]);
+    let (dx2, dy2) = (px[2] - px[0], py[2] - py[0]);
+    let det = dx1 * dy2 - dx2 * dy1;
+    if det == 0.0 || !(det.abs() < 1e30) {
+        return None;
+    }
+    let orient: i32 = if det > 0.0 { 1 } else { -1 };
+    let (mut ea, mut eb, mut ec) = ([0i32; 3], [0i32; 3], [0i32; 3]);
+    let (mut fa, mut fb, mut fc) = ([0f32; 3], [0f32; 3], [0f32; 3]);
+    for i in 0..3 {
+        let j = (i + 1) % 3;
+        ea[i] = (-orient).wrapping_mul(vy[j].wrapping_sub(vy[i]));
+        eb[i] = orient.wrapping_mul(vx[j].wrapping_sub(vx[i]));
+        let top_left = if ea[i] > 0 || (ea[i] == 0 && eb[i] < 0) { 1 } else { 0 };
+        ec[i] = top_left - (ea[i].wrapping_mul(vx[i]).wrapping_add(eb[i].wrapping_mul(vy[i])));
+        fa[i] = (-orient) as f32 * (py[j] - py[i]);
+        fb[i] = orient as f32 * (px[j] - px[i]);
+        fc[i] = -(fa[i] * px[i] + fb[i] * py[i]);
+        if top_left == 0 {
+            fc[i] = fc[i] - fc[i].abs() * 1e-7 - 1e-30;
+        }
+    }
+    let inv_det = 1.0 / det;
+    let z1 = sv(1, 2) - sv(0, 2);
+    let z2 = sv(2, 2) - sv(0, 2);
+    let za = (z1 * dy2 - z2 * dy1) * inv_det;
+    let zb = (z2 * dx1 - z1 * dx2) * inv_det;
+    let zc = sv(0, 2) - za * px[0] - zb * py[0];
+
+    let q0 = 1.0 / sv(0, 3);
+    let q1 = 1.0 / sv(1, 3);
+    let q2 = 1.0 / sv(2, 3);
+    let mut s = Setup::<T> {
+        bound,
+        exact,
+        ox16: (ox * 16.0) as i32,
+        oy16: (oy * 16.0) as i32,
+        ea,
+        eb,
+        ec,
+        fa,
+        fb,
+        fc,
+        z: [za, zb, zc],
+        la: [0.0; T],
+        lb: [0.0; T],
+        lc: [0.0; T],
+        ga: [0.0; T],
+        gb: [0.0; T],
+        gc: [0.0; T],
+        q: [0.0; 3],
+    };
+    for c in 0..T {
+        let (d0, d1, d2) = (data(0, c), data(1, c), data(2, c));
+        let (l1, l2) = (d1 - d0, d2 - d0);
+        s.la[c] = (l1 * dy2 - l2 * dy1) * inv_det;
+        s.lb[c] = (l2 * dx1 - l1 * dx2) * inv_det;
+        s.lc[c] = d0 - s.la[c] * px[0] - s.lb[c] * py[0];
+        let g1 = d1 * q1 - d0 * q0;
+        let g2 = d2 * q2 - d0 * q0;
+        s.ga[c] = (g1 * dy2 - g2 * dy1) * inv_det;
+        s.gb[c] = (g2 * dx1 - g1 * dx2) * inv_det;
+        s.gc[c] = d0 * q0 - s.ga[c] * px[0] - s.gb[c] * py[0];
+    }
+    let qa = ((q1 - q0) * dy2 - (q2 - q0) * dy1) * inv_det;
+    let qb = ((q2 - q0) * dx1 - (q1 - q0) * dx2) * inv_det;
+    let qc = q0 - qa * px[0] - qb * py[0];
+    s.q = [qa, qb, qc];
+    Some(s)
+}
+
+/// Record the bound (bound mode) or return the pixel rectangle [x0, x1) x [y0, y1) of the
+/// tile whose centres lie in it (render mode), as the JIT does.
+pub(crate) fn bound_or_rect(ctx: &mut TileCtx, b: [f32; 4]) -> Option<[i32; 4]> {
+    if ctx.mode == MODE_BOUND {
+        if b.iter().any(|v| v.is_nan()) {
+            return None;
+        }
+        if ctx.bound_set == 0 {
+            ctx.bound = b;
+            ctx.bound_set = 1;
+        } else {
+            ctx.bound = [
+                ctx.bound[0].min(b[0]),
+                ctx.bound[1].min(b[1]),
+                ctx.bound[2].max(b[2]),
+                ctx.bound[3].max(b[3]),
+            ];
+        }
+        return None;
+    }
+    if b.iter().any(|v| v.is_nan()) {
+        return None;
+    }
+    let clampf = |v: f32, lo: i32, hi: i32| v.clamp(lo as f32, hi as f32) as i32;
+    let x0 = clampf((b[0] - 0.5).ceil(), ctx.x0, ctx.x1);
+    let x1 = clampf((b[2] - 0.5).floor() + 1.0, ctx.x0, ctx.x1);
+    let y0 = clampf((b[1] - 0.5).ceil(), ctx.y0, ctx.y1);
+    let y1 = clampf((b[3] - 0.5).floor() + 1.0, ctx.y0, ctx.y1);
+    (x0 < x1 && y0 < y1).then_some([x0, y0, x1, y1])
+}
+
+/// float -> fixed<32,32> raw, as the JIT converts (nearest, saturating, NaN -> 0).
+#[inline(always)]
+pub(crate) fn depth_raw(z: f32) -> u32 {
+    (z * 4294967296.0).round_ties_even() as u32
+}
+
+/// Portable scalar kernel.
+///
+/// # Safety
+/// Called by the runtime with a valid `ctx` and the argument block of a screen_triangle
+/// instance whose key has `P` perspective_linear then `L` linear components.
+pub unsafe extern "C" fn scalar<const P: usize, const L: usize, const T: usize, const COUNT: bool>(
+    ctx: *mut TileCtx,
+    args: *const u32,
+) {
+    // SAFETY: the runtime hands a valid, exclusive context for the duration of the call.
+    let ctx = unsafe { &mut *ctx };
+    let Some(s) = (unsafe { setup::<T>(args) }) else { return };
+    let Some([rx0, ry0, rx1, ry1]) = bound_or_rect(ctx, s.bound) else {
+        return;
+    };
+    let mut planes = [0u32; T];
+    for (c, p) in planes.iter_mut().enumerate() {
+        // SAFETY: the plane table has T words after word 0.
+        *p = unsafe { word(args, 1 + c) };
+    }
+    for py in ry0..ry1 {
+        let y = py as f32 + 0.5;
+        for px in rx0..rx1 {
+            let x = px as f32 + 0.5;
+            let inside = if s.exact {
+                let sx = ((x * 16.0) as i32).wrapping_sub(s.ox16);
+                let sy = ((y * 16.0) as i32).wrapping_sub(s.oy16);
+                (0..3).all(|i| {
+                    s.ea[i]
+                        .wrapping_mul(sx)
+                        .wrapping_add(s.eb[i].wrapping_mul(sy))
+                        .wrapping_add(s.ec[i])
+                        > 0
+                })
+            } else {
+                (0..3).all(|i| s.fa[i] * x + s.fb[i] * y + s.fc[i] > 0.0)
+            };
+            if !inside {
+                continue;
+            }
+            let z = s.z[0] * x + s.z[1] * y + s.z[2];
+            if !(z >= 0.0 && z <= 1.0) {
+                continue;
+            }
+            let tz = depth_raw(z);
+            let idx = (py - ctx.y0) as usize * ctx.stride as usize + (px - ctx.x0) as usize;
+            // SAFETY: (px, py) lies in the tile, so idx < stride * rows, the length of the
+            // depth, G-buffer planes and write-count buffers; planes are checked below.
+            unsafe {
+                let zbuf = ctx.depth.add(idx);
+                if tz < *zbuf {
+                    continue;
+                }
+                *zbuf = tz;
+                if COUNT {
+                    *ctx.write_count.add(idx) += 1;
+                }
+                let qw = s.q[0] * x + s.q[1] * y + s.q[2];
+                for c in 0..T {
+                    let v = if c < P {
+                        (s.ga[c] * x + s.gb[c] * y + s.gc[c]) / qw
+                    } else {
+                        s.la[c] * x + s.lb[c] * y + s.lc[c]
+                    };
+                    if planes[c] < ctx.num_planes {
+                        *ctx.gbuf.add(planes[c] as usize * ctx.plane_stride as usize + idx) = v;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// AVX2 kernel: 8 pixels per step, row-hoisted edge and plane terms, groups with no live lane
+/// skipped, masked stores (never touching memory outside the row's pixels).
+///
+/// # Safety
+/// As [`scalar`], and the CPU must support AVX2 (the caller checks).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, const COUNT: bool>(
+    ctx: *mut TileCtx,
+    args: *const u32,
+) {
+    use std::arch::x86_64::*;
+    // SAFETY: as in `scalar`.
+    let ctx = unsafe { &mut *ctx };
+    let Some(s) = (unsafe { setup::<T>(args) }) else { return };
+    let Some([rx0, ry0, rx1, ry1]) = bound_or_rect(ctx, s.bound) else {
+        return;
+    };
+    let mut planes = [0u32; T];
+    for (c, p) in planes.iter_mut().enumerate() {
+        // SAFETY: the plane table has T words after word 0.
+        *p = unsafe { word(args, 1 + c) };
+    }
+    let lane_offsets = _mm256_setr_ps(0.5, 1.5, 2.5, 3.5, 4.5, 5.5, 6.5, 7.5);
+    let lane_index = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    let sign = _mm256_set1_epi32(i32::MIN);
+    let zero_i = _mm256_setzero_si256();
+    let (one, zero) = (_mm256_set1_ps(1.0), _mm256_setzero_ps());
+    let scale = _mm256_set1_ps(4294967296.0);
+    let two32 = _mm256_set1_ps(4294967296.0);
+    let sixteen = _mm256_set1_ps(16.0);
+    for py in ry0..ry1 {
+        let y = py as f32 + 0.5;
+        let row = (py - ctx.y0) as usize * ctx.stride as usize;
+        // Per-row terms: b*y + c of every plane and edge.
+        let sy = ((y * 16.0) as i32).wrapping_sub(s.oy16);
+        let erow: [__m256i; 3] =
+            std::array::from_fn(|i| _mm256_set1_epi32(s.eb[i].wrapping_mul(sy).wrapping_add(s.ec[i])));
+        let fby: [__m256; 3] = std::array::from_fn(|i| _mm256_set1_ps(s.fb[i] * y));
+        let mut px = rx0;
+        while px < rx1 {
+            let n = (rx1 - px).min(8);
+            let live_lanes = _mm256_cmpgt_epi32(_mm256_set1_epi32(n), lane_index);
+            let x = _mm256_add_ps(_mm256_set1_ps(px as f32), lane_offsets);
+            let mut mask = live_lanes;
+            if s.exact {
+                let sx = _mm256_sub_epi32(
+                    _mm256_cvttps_epi32(_mm256_mul_ps(x, sixteen)),
+                    _mm256_set1_epi32(s.ox16),
+                );
+                for i in 0..3 {
+                    let e = _mm256_add_epi32(_mm256_mullo_epi32(_mm256_set1_epi32(s.ea[i]), sx), erow[i]);
+                    mask = _mm256_and_si256(mask, _mm256_cmpgt_epi32(e, zero_i));
+                }
+            } else {
+                for i in 0..3 {
+                    // (a*x + b*y) + c, in the prim's order (not re-associated: bit-equal).
+                    let e = _mm256_add_ps(
+                        _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(s.fa[i]), x), fby[i]),
+                        _mm256_set1_ps(s.fc[i]),
+                    );
+                    mask = _mm256_and_si256(mask, _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GT_OQ>(e, zero)));
+                }
+            }
+            if _mm256_testz_si256(mask, mask) != 0 {
+                px += 8;
+                continue;
+            }
+            // z = (za*x + zb*y) + zc, in the prim's order.
+            let z = _mm256_add_ps(
+                _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(s.z[0]), x), _mm256_set1_ps(s.z[1] * y)),
+                _mm256_set1_ps(s.z[2]),
+            );
+            let in_range = _mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_GE_OQ>(z, zero),
+                _mm256_cmp_ps::<_CMP_LE_OQ>(z, one),
+            );
+            mask = _mm256_and_si256(mask, _mm256_castps_si256(in_range));
+            // fixed<32,32>: nearest(z * 2^32) saturated to u32. z is in [0, 1] on live lanes;
+            // subtracting 2^31 maps [0, 2^32) onto the signed conversion's range, and 2^32
+            // itself (z == 1) saturates to u32::MAX.
+            let scaled = _mm256_round_ps::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(_mm256_mul_ps(z, scale));
+            let tz = _mm256_xor_si256(
+                _mm256_cvtps_epi32(_mm256_sub_ps(scaled, _mm256_set1_ps(2147483648.0))),
+                sign,
+            );
+            let saturated = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(scaled, two32));
+            let tz = _mm256_or_si256(tz, saturated);
+            let base = row + (px - ctx.x0) as usize;
+            // SAFETY: lanes beyond `n` are masked off, and maskload/maskstore never touch
+            // memory of masked-off lanes; the first `n` pixels of the row lie in the tile.
+            unsafe {
+                let zptr = ctx.depth.add(base) as *mut i32;
+                let old = _mm256_maskload_epi32(zptr, live_lanes);
+                // Unsigned tz >= old, by flipping the sign bits.
+                let nearer = _mm256_cmpgt_epi32(_mm256_xor_si256(old, sign), _mm256_xor_si256(tz, sign));
+                mask = _mm256_andnot_si256(nearer, mask);
+                if _mm256_testz_si256(mask, mask) != 0 {
+                    px += 8;
+                    continue;
+                }
+                // Pixel values larger than 2^31 came out of the signed conversion offset.
+                _mm256_maskstore_epi32(zptr, mask, tz);
+                if COUNT {
+                    let cptr = ctx.write_count.add(base) as *mut i32;
+                    let counts = _mm256_maskload_epi32(cptr, mask);
+                    _mm256_maskstore_epi32(cptr, mask, _mm256_sub_epi32(counts, mask));
+                }
+                let qw = _mm256_add_ps(
+                    _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(s.q[0]), x), _mm256_set1_ps(s.q[1] * y)),
+                    _mm256_set1_ps(s.q[2]),
+                );
+                for c in 0..T {
+                    if planes[c] >= ctx.num_planes {
+                        continue;
+                    }
+                    let v = if c < P {
+                        let g = _mm256_add_ps(
+                            _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(s.ga[c]), x), _mm256_set1_ps(s.gb[c] * y)),
+                            _mm256_set1_ps(s.gc[c]),
+                        );
+                        _mm256_div_ps(g, qw)
+                    } else {
+                        _mm256_add_ps(
+                            _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(s.la[c]), x), _mm256_set1_ps(s.lb[c] * y)),
+                            _mm256_set1_ps(s.lc[c]),
+                        )
+                    };
+                    let dst = ctx.gbuf.add(planes[c] as usize * ctx.plane_stride as usize + base);
+                    _mm256_maskstore_ps(dst, mask, v);
+                }
+            }
+            px += 8;
+        }
+    }
+}

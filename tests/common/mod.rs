@@ -1,0 +1,114 @@
+//! Helpers shared by the rendering tests: the library, a renderer, screen triangles, and an
+//! exact 64-bit integer reference rasterizer.
+#![allow(dead_code)]
+
+use std::sync::Arc;
+
+use primflow::diag::{Diagnostics, SourceMap};
+use primflow::ir::Program;
+use primflow::jit::Jit;
+use primflow::runtime::{Frame, Registry, Renderer, Value};
+
+/// The built-in primitive library, compiled (panics with the rendered diagnostics if not).
+pub fn library() -> Arc<Program> {
+    let mut sources = SourceMap::new();
+    let mut diags = Diagnostics::new();
+    match Registry::load(&mut sources, &[], &[], &mut diags) {
+        Some(reg) => reg.program,
+        None => panic!("library does not compile:\n{}", diags.render(&sources)),
+    }
+}
+
+pub fn renderer(program: &Arc<Program>, width: u32, height: u32, count_writes: bool) -> Renderer {
+    let mut r = Renderer::new(program.clone());
+    r.set_image_size(width, height).unwrap();
+    r.options.count_writes = count_writes;
+    r
+}
+
+/// Render with `threads` worker threads and a JIT of its own; asserts no errors or warnings.
+pub fn render(r: &Renderer, threads: usize) -> Frame {
+    let mut jit = Jit::new(r.program().clone()).unwrap();
+    render_with(r, &mut jit, threads)
+}
+
+pub fn render_with(r: &Renderer, jit: &mut Jit, threads: usize) -> Frame {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    let out = pool.install(|| r.render(jit));
+    assert!(out.diags.items.is_empty(), "render diagnostics: {:?}", out.diags.items);
+    out.frame
+}
+
+/// Submit one `screen_triangle`: vertices (x, y, z, w) and, per shading parameter, its value
+/// at each vertex.
+pub fn screen_triangle(r: &mut Renderer, v: [[f32; 4]; 3], params: &[(&str, [Vec<f32>; 3])]) {
+    r.begin("screen_triangle").unwrap();
+    r.rast_param("screen_vertex", &Value(v.iter().flatten().copied().collect()))
+        .unwrap();
+    for i in 0..3 {
+        for (name, values) in params {
+            r.material(name, &Value(values[i].clone())).unwrap();
+        }
+        r.sequence_point().unwrap();
+    }
+    r.end().unwrap();
+    assert!(r.take_warnings().is_empty());
+}
+
+/// Exact coverage of a triangle by pixel centres, with the top-left rule, in 64-bit integers
+/// on the 1/16 pixel grid (vertices are rounded to it). Independent of the float code paths:
+/// the reference for "zero differing pixels".
+pub fn reference_coverage(v: [[f64; 2]; 3], width: u32, height: u32) -> Vec<bool> {
+    let p: Vec<(i64, i64)> = v
+        .iter()
+        .map(|q| ((q[0] * 16.0).round() as i64, (q[1] * 16.0).round() as i64))
+        .collect();
+    let det = (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[2].0 - p[0].0) * (p[1].1 - p[0].1);
+    let mut out = vec![false; (width * height) as usize];
+    if det == 0 {
+        return out;
+    }
+    let orient = det.signum();
+    for py in 0..height as i64 {
+        for px in 0..width as i64 {
+            let (x, y) = (16 * px + 8, 16 * py + 8);
+            let inside = (0..3).all(|i| {
+                let j = (i + 1) % 3;
+                let a = -orient * (p[j].1 - p[i].1);
+                let b = orient * (p[j].0 - p[i].0);
+                let top_left = a > 0 || (a == 0 && b < 0);
+                let e = a * (x - p[i].0) + b * (y - p[i].1);
+                e > 0 || (e == 0 && top_left)
+            });
+            out[(py * width as i64 + px) as usize] = inside;
+        }
+    }
+    out
+}
+
+/// Screen-space barycentric coordinates of (x, y) in f64.
+pub fn barycentric(v: [[f64; 2]; 3], x: f64, y: f64) -> [f64; 3] {
+    let det = (v[1][0] - v[0][0]) * (v[2][1] - v[0][1]) - (v[2][0] - v[0][0]) * (v[1][1] - v[0][1]);
+    let l1 = ((x - v[0][0]) * (v[2][1] - v[0][1]) - (v[2][0] - v[0][0]) * (y - v[0][1])) / det;
+    let l2 = ((v[1][0] - v[0][0]) * (y - v[0][1]) - (x - v[0][0]) * (v[1][1] - v[0][1])) / det;
+    [1.0 - l1 - l2, l1, l2]
+}
+
+/// A small deterministic generator (tests must not depend on a seed-less RNG).
+pub struct Lcg(pub u64);
+impl Lcg {
+    pub fn next_f64(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.next_f64()
+    }
+    /// A value on the 1/16 grid in [lo, hi).
+    pub fn grid(&mut self, lo: f64, hi: f64) -> f64 {
+        (self.range(lo, hi) * 16.0).floor() / 16.0
+    }
+}
