@@ -20,6 +20,7 @@ pub mod diag;
 pub mod handwritten;
 pub mod ir;
 pub mod jit;
+pub mod pipeline;
 pub mod runtime;
 pub mod scene;
 pub mod syntax;

@@ -205,3 +205,36 @@ fn depth_and_parameter_images() {
     assert_eq!(rough.get_pixel(7, 1).0, [0; 3]);
     assert!(f.param_image("nosuch").is_err());
 }
+
+#[test]
+fn out_of_range_options_set_directly_are_clamped_not_panics() {
+    let (_s, mut r) = setup(8, 8, 4);
+    rect(&mut r, [0.0, 0.0, 8.0, 8.0], 0.5, [1.0, 0.0, 0.0]);
+    r.options.tile_size = 0;
+    r.options.width = 0;
+    let out = render(&r);
+    assert_eq!((out.frame.width, out.frame.depth.len()), (0, 0));
+    r.options.width = 8;
+    let out = render(&r);
+    assert_eq!(out.frame.color_at(3, 3), [1.0, 0.0, 0.0], "tile side 0 is taken as 1");
+}
+
+#[test]
+fn without_cs_covered_pixels_are_white_and_a_gray_cs_is_broadcast() {
+    let mut sources = SourceMap::new();
+    let mut r = Renderer::new(program(&mut sources));
+    r.set_image_size(8, 4).unwrap();
+    rect(&mut r, [0.0, 0.0, 4.0, 4.0], 0.5, [0.2, 0.4, 0.6]);
+    let f = render(&r).frame;
+    assert_eq!(f.color_at(1, 1), [1.0; 3]);
+    assert_eq!(f.color_at(6, 1), [0.0; 3], "default background is black");
+
+    let mut r = Renderer::new(program(&mut sources));
+    r.set_image_size(8, 4).unwrap();
+    r.material("Cs", &0.0.into()).unwrap();
+    // The test kernel writes all three colour components through the first three words
+    // after the plane table's start; with a 1-component Cs the later two words are other
+    // data that happen to name plane 0 as well, so give all three the same value.
+    rect(&mut r, [0.0, 0.0, 4.0, 4.0], 0.5, [0.25; 3]);
+    assert_eq!(render(&r).frame.color_at(1, 1), [0.25; 3]);
+}

@@ -230,3 +230,37 @@ proptest! {
         let _ = diags.render(&sources);
     }
 }
+
+#[test]
+fn camera_lines_transform_the_points_that_follow() {
+    let text = "\
+image 200 100
+ortho -1 1 -1 1 1 3
+begin tri
+rast_param scale 1
+vertex -1 1 -1
+vertex 1 -1 -3
+vertex 0 0 -2
+end
+perspective 90 1 10
+begin tri
+rast_param scale 1
+vertex 0 0 -10
+end
+";
+    let (r, codes, _s, _d) = load(text);
+    assert!(codes.is_empty(), "{codes:?}");
+    let device = |inst: &primflow::runtime::Instance, i: usize| {
+        let layout = primflow::abi::ArgLayout::new(r.program(), inst.func, &inst.key);
+        let base = layout.fixed_words as usize + 4 * i;
+        let p = floats(&inst.args[base..base + 4]);
+        [p[0] / p[3], p[1] / p[3], p[2] / p[3]]
+    };
+    let ortho = &r.instances()[0];
+    assert_eq!(device(ortho, 0), [0.0, 0.0, 1.0], "top-left corner, near plane");
+    assert_eq!(device(ortho, 1), [200.0, 100.0, 0.0], "bottom-right corner, far plane");
+    assert_eq!(device(ortho, 2), [100.0, 50.0, 0.5]);
+    let far_centre = device(&r.instances()[1], 0);
+    assert!((far_centre[0] - 100.0).abs() < 1e-4 && (far_centre[1] - 50.0).abs() < 1e-4);
+    assert!(far_centre[2].abs() < 1e-6, "the far plane is depth 0: {far_centre:?}");
+}

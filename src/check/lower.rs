@@ -961,7 +961,9 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
         let vals: Option<Vec<Expr>> = vals.into_iter().collect();
         let Some(vals) = vals else { return };
-        let arr: [Expr; 4] = vals.try_into().ok().expect("four arguments checked above");
+        let Ok(arr): Result<[Expr; 4], _> = vals.try_into() else {
+            return;
+        };
         out.extend(pre);
         out.push(stmt(StmtKind::Bound(Box::new(arr)), span));
     }
@@ -1010,22 +1012,12 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
         let mut out = vec![];
         let mut ok = true;
+        let mut missing = vec![];
         for (i, p) in sig.params.iter().enumerate() {
             let Some(a) = args.get(i) else {
                 match &p.default {
                     Some(vals) => out.push(consts::const_to_expr(vals, &p.ty, span)),
-                    None => {
-                        self.sink.push(
-                            err(
-                                "E0215",
-                                format!("missing argument for parameter `{}` of `{}`", p.name, callee.name),
-                                span,
-                                "argument missing",
-                            )
-                            .secondary(p.span, "parameter declared here without a default"),
-                        );
-                        ok = false;
-                    }
+                    None => missing.push(p.name.as_str()),
                 }
                 continue;
             };
@@ -1069,6 +1061,22 @@ impl<'g, 'a> FnLower<'g, 'a> {
                     None => ok = false,
                 },
             }
+        }
+        if !missing.is_empty() {
+            let list = missing.iter().map(|m| format!("`{m}`")).collect::<Vec<_>>().join(", ");
+            self.sink.push(
+                err(
+                    "E0215",
+                    format!("missing arguments for {list} of `{}`", callee.name),
+                    span,
+                    "arguments missing",
+                )
+                .secondary(
+                    sig.item.name.span,
+                    "declared here; only trailing parameters with defaults may be left out",
+                ),
+            );
+            ok = false;
         }
         if !ok {
             return None;
@@ -1249,7 +1257,10 @@ impl<'g, 'a> FnLower<'g, 'a> {
         let saved_interp = std::mem::replace(&mut self.in_interpolation, false);
         let mut body = vec![];
         self.stmts_in_scope(&sig.item.body.stmts, &mut body);
-        body.push(stmt(StmtKind::Break(exit), sig.item.body.span));
+        // Falling off the end leaves the helper too (unless it just returned).
+        if !matches!(body.last(), Some(Stmt { kind: StmtKind::Break(l), .. }) if *l == exit) {
+            body.push(stmt(StmtKind::Break(exit), sig.item.body.span));
+        }
         self.arm = saved_arm;
         self.in_interpolation = saved_interp;
         self.inline.pop();

@@ -382,68 +382,89 @@ fn find_recursion<'a>(mut g: Globals<'a>, sink: &mut Sink) -> Globals<'a> {
         }
     }
     // Depth-first search; a back edge closes a cycle.
-    let mut state = vec![0u8; n]; // 0 new, 1 on stack, 2 done
-    let mut stack: Vec<(usize, Span)> = vec![];
-    let mut reported: HashSet<Vec<usize>> = HashSet::new();
-    fn dfs(
-        v: usize,
-        g: &Globals,
-        edges: &[Vec<(usize, Span)>],
-        state: &mut [u8],
-        stack: &mut Vec<(usize, Span)>,
-        rec: &mut HashSet<usize>,
-        reported: &mut HashSet<Vec<usize>>,
-        sink: &mut Sink,
-    ) {
-        state[v] = 1;
-        for &(w, span) in &edges[v] {
-            if state[w] == 1 {
-                // The cycle is w -> ... -> v -> w.
-                let start = stack.iter().position(|&(x, _)| x == w).unwrap_or(stack.len());
-                let mut cycle: Vec<(usize, Span)> = stack[start..].to_vec();
-                cycle.push((v, span));
-                let mut key: Vec<usize> = cycle.iter().map(|c| c.0).collect();
-                key.sort_unstable();
-                rec.extend(key.iter().copied());
-                if reported.insert(key) {
-                    let names: Vec<&str> = cycle.iter().map(|c| g.sigs[c.0].item.name.name.as_str()).collect();
-                    let mut chain = names.join(" -> ");
-                    chain.push_str(&format!(" -> {}", names[0]));
-                    let mut d = Diagnostic::error("E0107", format!("recursive helper calls: {chain}"))
-                        .primary(span, format!("`{}` calls `{}` here", names[names.len() - 1], names[0]))
-                        .help("helpers are inlined at each call, so they cannot be recursive");
-                    // The other calls of the cycle: stack entry k+1 was called from entry k.
-                    for k in start + 1..stack.len() {
-                        let (callee, sp) = stack[k];
-                        let caller = stack[k - 1].0;
-                        d = d.secondary(
-                            sp,
-                            format!(
-                                "`{}` calls `{}` here",
-                                g.sigs[caller].item.name.name, g.sigs[callee].item.name.name
-                            ),
-                        );
-                    }
-                    sink.push(d);
-                }
-            } else if state[w] == 0 {
-                stack.push((w, span));
-                dfs(w, g, edges, state, stack, rec, reported, sink);
-                stack.pop();
-            }
-        }
-        state[v] = 2;
-    }
-    let mut rec = HashSet::new();
+    let mut dfs = CycleSearch {
+        g: &g,
+        edges: &edges,
+        state: vec![0u8; n],
+        stack: vec![],
+        recursive: HashSet::new(),
+        reported: HashSet::new(),
+    };
     for v in 0..n {
-        if state[v] == 0 && g.sigs[v].item.kind == ast::ItemKind::Function {
-            stack.push((v, g.sigs[v].item.name.span));
-            dfs(v, &g, &edges, &mut state, &mut stack, &mut rec, &mut reported, sink);
-            stack.pop();
+        if dfs.state[v] == 0 && g.sigs[v].item.kind == ast::ItemKind::Function {
+            dfs.stack.push((v, g.sigs[v].item.name.span));
+            dfs.visit(v, sink);
+            dfs.stack.pop();
         }
     }
+    let rec = dfs.recursive;
     g.recursive = rec;
     g
+}
+
+/// State of the depth-first search for helper call cycles.
+struct CycleSearch<'g, 'a> {
+    g: &'g Globals<'a>,
+    /// Helper calls: callee and call span, per caller.
+    edges: &'g [Vec<(usize, Span)>],
+    /// 0 not visited, 1 on the stack, 2 done.
+    state: Vec<u8>,
+    /// The current call chain: each helper with the span of the call that reached it.
+    stack: Vec<(usize, Span)>,
+    recursive: HashSet<usize>,
+    /// Cycles already reported, as sorted helper sets.
+    reported: HashSet<Vec<usize>>,
+}
+
+impl CycleSearch<'_, '_> {
+    fn visit(&mut self, v: usize, sink: &mut Sink) {
+        self.state[v] = 1;
+        for &(w, span) in &self.edges[v] {
+            if self.state[w] == 1 {
+                self.report(w, v, span, sink);
+            } else if self.state[w] == 0 {
+                self.stack.push((w, span));
+                self.visit(w, sink);
+                self.stack.pop();
+            }
+        }
+        self.state[v] = 2;
+    }
+
+    /// The call at `span` from `v` back to `w` (on the stack) closes the cycle w -> ... -> v -> w.
+    fn report(&mut self, w: usize, v: usize, span: Span, sink: &mut Sink) {
+        let g = self.g;
+        let start = self.stack.iter().position(|&(x, _)| x == w).unwrap_or(self.stack.len());
+        let cycle: Vec<(usize, Span)> = self.stack[start..].to_vec();
+        let mut key: Vec<usize> = cycle.iter().map(|c| c.0).chain([v]).collect();
+        key.sort_unstable();
+        key.dedup();
+        self.recursive.extend(key.iter().copied());
+        if !self.reported.insert(key) {
+            return;
+        }
+        let names: Vec<&str> = cycle.iter().map(|c| g.sigs[c.0].item.name.name.as_str()).collect();
+        let chain = format!("{} -> {}", names.join(" -> "), names[0]);
+        let mut d = Diagnostic::error("E0107", format!("recursive helper calls: {chain}"))
+            .primary(
+                span,
+                format!("`{}` calls `{}` here", g.sigs[v].item.name.name, names[0]),
+            )
+            .help("helpers are inlined at each call, so they cannot be recursive");
+        // The other calls of the cycle: stack entry k was called from entry k-1.
+        for k in start + 1..self.stack.len() {
+            let (callee, sp) = self.stack[k];
+            let caller = self.stack[k - 1].0;
+            d = d.secondary(
+                sp,
+                format!(
+                    "`{}` calls `{}` here",
+                    g.sigs[caller].item.name.name, g.sigs[callee].item.name.name
+                ),
+            );
+        }
+        sink.push(d);
+    }
 }
 
 fn stmt_calls(s: &ast::Stmt, out: &mut Vec<(String, Span)>) {
@@ -662,13 +683,18 @@ fn lower_function(
         loops: n_loops,
         uses_spaces,
     };
+    let errors_before = sink.items.iter().filter(|d| d.is_error()).count();
     variability::analyze(&mut f, &infos, roles, sink);
+    let variability_errors = sink.items.iter().filter(|d| d.is_error()).count() > errors_before;
     match kind {
         FuncKind::Primitive => {
             let mut d = Diagnostics::new();
             ir::split::split_checked(&mut f, &mut d);
-            for x in d.items {
-                sink.push(x);
+            // A call or bound the variability pass already rejected would be reported twice.
+            if !variability_errors {
+                for x in d.items {
+                    sink.push(x);
+                }
             }
         }
         FuncKind::Interpolator => f.pixel = std::mem::take(&mut f.setup),

@@ -5,8 +5,9 @@
 //! (or a value at a varying index) is assigned to it, or when it is assigned under varying
 //! control flow: inside an `if` with a varying condition or a loop that is varying. A loop
 //! is varying when its condition is, or when a `break`/`continue`/`return` leaving it sits
-//! under a varying condition introduced inside it. Code after a varying `return` is not
-//! varying control flow: the lanes that returned simply retired.
+//! under a varying condition introduced inside it; its body is varying control flow in the
+//! first two cases only. Code after a varying `return` is not varying control flow: the
+//! lanes that returned simply retired, and the others still agree on uniform values.
 //!
 //! Because a loop's back edge can carry a varying value to an earlier use, the analysis
 //! walks the function until no local and no loop changes (both only ever go from uniform
@@ -28,7 +29,11 @@ struct State<'i> {
     infos: &'i [LocalInfo],
     var: Vec<Variability>,
     cause: Vec<Option<Span>>,
+    /// The loop's IR `varying` flag: it must run until no lane is active.
     loop_var: Vec<bool>,
+    /// Its body is varying control flow (varying condition, or a varying break/continue;
+    /// a varying `return` only retires lanes, the others still agree).
+    loop_ctl: Vec<bool>,
     loop_cause: Vec<Option<Span>>,
     changed: bool,
     /// Varying conditions in effect, each with the loop depth it was introduced at.
@@ -49,6 +54,7 @@ pub fn analyze(f: &mut Function, infos: &[LocalInfo], callee_roles: &[Vec<ParamR
             .collect(),
         cause: infos.iter().map(|i| i.declared.map(|d| d.1)).collect(),
         loop_var: vec![false; f.loops as usize],
+        loop_ctl: vec![false; f.loops as usize],
         loop_cause: vec![None; f.loops as usize],
         changed: false,
         conds: vec![],
@@ -87,15 +93,18 @@ impl State<'_> {
 
     /// Mark loops left by a jump as varying when a varying condition introduced inside them
     /// controls the jump. `target` is the outermost loop left (its index in `self.loops`).
-    fn jump(&mut self, target: usize) {
+    /// A `break`/`continue` also makes the loop body varying control flow; a `return` does
+    /// not (the lanes still running agree on the iterations).
+    fn jump(&mut self, target: usize, is_return: bool) {
         let Some(&(span, depth)) = self.conds.iter().max_by_key(|c| c.1) else {
             return;
         };
         for q in target..depth.min(self.loops.len()) {
             let id = self.loops[q].0 as usize;
-            if !self.loop_var[id] {
+            if !self.loop_var[id] || (!is_return && !self.loop_ctl[id]) {
                 self.loop_var[id] = true;
-                self.loop_cause[id] = Some(span);
+                self.loop_ctl[id] |= !is_return;
+                self.loop_cause[id].get_or_insert(span);
                 self.changed = true;
             }
         }
@@ -180,13 +189,14 @@ impl State<'_> {
                 self.loops.push(*id);
                 if let Some(c) = cond {
                     let (cv, _) = self.expr(c);
-                    if cv.is_varying() && !self.loop_var[i] {
+                    if cv.is_varying() && !self.loop_ctl[i] {
                         self.loop_var[i] = true;
+                        self.loop_ctl[i] = true;
                         self.loop_cause[i] = Some(c.span);
                         self.changed = true;
                     }
                 }
-                let pushed = self.loop_var[i];
+                let pushed = self.loop_ctl[i];
                 if pushed {
                     self.conds.push((self.loop_cause[i].unwrap_or(span), self.loops.len()));
                 }
@@ -200,10 +210,10 @@ impl State<'_> {
             }
             StmtKind::Break(id) | StmtKind::Continue(id) => {
                 if let Some(p) = self.loops.iter().position(|l| l == id) {
-                    self.jump(p);
+                    self.jump(p, false);
                 }
             }
-            StmtKind::Return => self.jump(0),
+            StmtKind::Return => self.jump(0, true),
             StmtKind::Interpolation { arms } => {
                 for a in arms {
                     self.block(&mut a.body, roles, sink);

@@ -1,1 +1,334 @@
-//! The `primflow` command line.
+//! The `primflow` command line: `check` (diagnostics and compiler dumps for `.prim` files)
+//! and `render` (a scene file to PNG images).
+//!
+//! Everything a command prints goes through the `out` / `err` writers handed to [`run`], so
+//! the binary and the tests drive the same code. Exit codes: 0 success, 1 the input had
+//! errors (diagnostics were printed) or an output could not be written, 2 bad usage (clap).
+//! No input makes it panic: every failure is a message.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use clap::{Parser, Subcommand, ValueEnum};
+
+use crate::abi::{Binding, BindingKind, VariantKey};
+use crate::diag::{Diagnostics, SourceMap};
+use crate::ir::{FuncKind, Program};
+use crate::jit::Jit;
+use crate::runtime::{describe_key, Registry, Renderer};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "primflow",
+    version,
+    about = "Compiler and JIT renderer for procedural primitives (one pixel at a time, run over tiles)"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Parse and check primitive files together with the primitive library.
+    Check(CheckArgs),
+    /// Render a scene file to a PNG image.
+    Render(RenderArgs),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Emit {
+    /// The syntax tree of each given file.
+    Ast,
+    /// The checked IR of the whole program.
+    Ir,
+    /// Cranelift IR of each primitive in the given files, for one variant key.
+    Clif,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct CheckArgs {
+    /// The .prim files to check.
+    #[arg(required = true, value_name = "FILE.prim")]
+    pub files: Vec<PathBuf>,
+    /// Extra directory of .prim files (repeatable).
+    #[arg(long = "prims", value_name = "DIR")]
+    pub prims: Vec<PathBuf>,
+    /// Also print a compiler stage's output.
+    #[arg(long, value_enum)]
+    pub emit: Option<Emit>,
+    /// Variant key for `--emit clif`: comma-separated KIND:COMPONENTS, KIND being `linear`,
+    /// `perspective_linear`, any other per-sequence-point kind, `constant`, or a shared
+    /// interpolator's name.
+    #[arg(long, value_name = "SPEC", default_value = "linear:1,perspective_linear:1")]
+    pub key: String,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct RenderArgs {
+    /// The scene file.
+    pub scene: PathBuf,
+    /// Output image (PNG, RGB8).
+    #[arg(short, long, value_name = "FILE.png")]
+    pub output: PathBuf,
+    /// Also write the depth buffer (16-bit gray PNG, nearer is brighter).
+    #[arg(long, value_name = "FILE.png")]
+    pub depth: Option<PathBuf>,
+    /// Also write a shading parameter as an image (1 component: gray over its range,
+    /// 3: RGB clamped). Repeatable.
+    #[arg(long, num_args = 2, value_names = ["NAME", "FILE.png"], action = clap::ArgAction::Append)]
+    pub param: Vec<String>,
+    /// Worker threads for the tiles (default: one per core).
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+    /// Extra directory of .prim files (repeatable).
+    #[arg(long = "prims", value_name = "DIR")]
+    pub prims: Vec<PathBuf>,
+    /// Count depth writes per pixel (kernels compiled with write counting).
+    #[arg(long)]
+    pub count_writes: bool,
+}
+
+/// Run the command line `args` (the first is the program name), printing to `out` and
+/// `err`; returns the exit code.
+pub fn run<I, T>(args: I, out: &mut dyn Write, err: &mut dyn Write) -> i32
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            let code = if e.use_stderr() { 2 } else { 0 };
+            let text = e.render().to_string();
+            let _ = if e.use_stderr() {
+                err.write_all(text.as_bytes())
+            } else {
+                out.write_all(text.as_bytes())
+            };
+            return code;
+        }
+    };
+    match cli.command {
+        Command::Check(args) => check(&args, out, err),
+        Command::Render(args) => render(&args, out, err),
+    }
+}
+
+fn print_diags(diags: &Diagnostics, sources: &SourceMap, err: &mut dyn Write) {
+    if !diags.items.is_empty() {
+        let _ = writeln!(err, "{}", diags.render(sources));
+    }
+}
+
+fn check(args: &CheckArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+    let mut sources = SourceMap::new();
+    let mut diags = Diagnostics::new();
+    let (loaded, given) = Registry::load_sources(&mut sources, &args.prims, &args.files, &mut diags);
+    if diags.has_errors() {
+        print_diags(&diags, &sources, err);
+        return 1;
+    }
+    if args.emit == Some(Emit::Ast) {
+        for &file in &given {
+            let mut file_diags = Diagnostics::new();
+            let module = crate::syntax::parse(file, sources.text(file), &mut file_diags);
+            let _ = writeln!(out, "// {}\n{module:#?}", sources.file(file).name);
+        }
+    }
+    let registry = Registry::compile(&sources, loaded, &mut diags);
+    print_diags(&diags, &sources, err);
+    let Some(registry) = registry else {
+        let _ = writeln!(err, "error: {} error(s); nothing compiled", diags.error_count());
+        return 1;
+    };
+    let program = registry.program;
+    match args.emit {
+        Some(Emit::Ir) => {
+            let _ = writeln!(out, "{program:#?}");
+        }
+        Some(Emit::Clif) => return emit_clif(&program, &given, &args.key, out, err),
+        _ => {}
+    }
+    0
+}
+
+fn emit_clif(program: &Arc<Program>, given: &[u32], spec: &str, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+    let key = match parse_key(spec, program) {
+        Ok(key) => key,
+        Err(message) => {
+            let _ = writeln!(err, "error: --key `{spec}`: {message}");
+            return 1;
+        }
+    };
+    let jit = match Jit::new(program.clone()) {
+        Ok(jit) => jit,
+        Err(e) => {
+            let _ = writeln!(err, "error: cannot start the JIT: {e}");
+            return 1;
+        }
+    };
+    let _ = writeln!(out, "; {}", jit.isa_summary());
+    let mut code = 0;
+    for (i, f) in program.functions.iter().enumerate() {
+        if f.kind != FuncKind::Primitive || !given.contains(&f.span.file) {
+            continue;
+        }
+        let _ = writeln!(out, "; primitive {} key {}", f.name, describe_key(&key));
+        match jit.clif(crate::ir::FuncId(i as u32), &key) {
+            Ok(text) => {
+                let _ = writeln!(out, "{text}");
+            }
+            Err(e) => {
+                let _ = writeln!(err, "error: cannot compile `{}`: {e}", f.name);
+                code = 1;
+            }
+        }
+    }
+    code
+}
+
+/// Parse a `--key` spec: `linear:3,perspective_linear:1,constant:3,my_interp:2`.
+pub fn parse_key(spec: &str, program: &Program) -> Result<VariantKey, String> {
+    let mut bindings = vec![];
+    for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        let (kind, count) = item
+            .rsplit_once(':')
+            .ok_or_else(|| format!("`{item}` is not KIND:COMPONENTS"))?;
+        let components: u32 = count
+            .parse()
+            .ok()
+            .filter(|n| (1..=64).contains(n))
+            .ok_or_else(|| format!("`{count}` is not a component count (1..=64)"))?;
+        let is_ident = kind.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+            && kind.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+        if !is_ident {
+            return Err(format!("`{kind}` is not an interpolation kind"));
+        }
+        let shared = program
+            .find(kind)
+            .is_some_and(|id| program.func(id).kind == FuncKind::Interpolator);
+        let kind = if kind == "constant" {
+            BindingKind::Constant
+        } else if shared {
+            BindingKind::Shared(kind.to_string())
+        } else {
+            BindingKind::Kind(kind.to_string())
+        };
+        bindings.push(Binding { kind, components });
+    }
+    Ok(VariantKey {
+        bindings,
+        count_writes: false,
+    })
+}
+
+fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+    let mut sources = SourceMap::new();
+    let scene_file = match sources.load(&args.scene) {
+        Ok(id) => id,
+        Err(e) => {
+            let _ = writeln!(err, "error: cannot read scene `{}`: {e}", args.scene.display());
+            return 1;
+        }
+    };
+    let mut diags = Diagnostics::new();
+    let scene = crate::scene::parse(&sources, scene_file, &mut diags);
+    let base = args.scene.parent().unwrap_or(Path::new("."));
+    let mut dirs = args.prims.clone();
+    dirs.extend(scene.prim_dirs(base));
+    let registry = if diags.has_errors() {
+        None
+    } else {
+        Registry::load(&mut sources, &dirs, &[], &mut diags)
+    };
+    let Some(registry) = registry else {
+        print_diags(&diags, &sources, err);
+        return 1;
+    };
+    let mut renderer = Renderer::new(registry.program.clone());
+    renderer.options.count_writes = args.count_writes;
+    crate::scene::apply(&scene, &mut renderer, &mut diags);
+    if diags.has_errors() {
+        print_diags(&diags, &sources, err);
+        let _ = writeln!(
+            err,
+            "error: {} error(s) in the scene; nothing rendered",
+            diags.error_count()
+        );
+        return 1;
+    }
+    let mut jit = match Jit::new(registry.program.clone()) {
+        Ok(jit) => jit,
+        Err(e) => {
+            print_diags(&diags, &sources, err);
+            let _ = writeln!(err, "error: cannot start the JIT: {e}");
+            return 1;
+        }
+    };
+    let pool = match rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build()
+    {
+        Ok(pool) => pool,
+        Err(e) => {
+            let _ = writeln!(err, "error: cannot start {} threads: {e}", args.threads.unwrap_or(0));
+            return 1;
+        }
+    };
+    let threads = pool.current_num_threads();
+    let result = pool.install(|| renderer.render(&mut jit));
+    diags.extend(result.diags);
+    print_diags(&diags, &sources, err);
+    if diags.has_errors() {
+        let _ = writeln!(
+            err,
+            "error: {} error(s) while rendering; no image written",
+            diags.error_count()
+        );
+        return 1;
+    }
+    let frame = &result.frame;
+    let mut written = vec![];
+    let mut failures = vec![];
+    let mut save = |path: &Path, what: &str, r: image::ImageResult<()>| match r {
+        Ok(()) => written.push(path.display().to_string()),
+        Err(e) => failures.push(format!("cannot write the {what} to `{}`: {e}", path.display())),
+    };
+    save(&args.output, "image", frame.to_rgb8().save(&args.output));
+    if let Some(path) = &args.depth {
+        save(path, "depth image", frame.depth_image().save(path));
+    }
+    let mut param_errors = vec![];
+    for pair in args.param.chunks(2) {
+        let [name, path] = pair else { continue };
+        let path = Path::new(path);
+        match frame.param_image(name) {
+            Ok(img) => save(path, "parameter image", img.save(path)),
+            Err(message) => param_errors.push(format!("--param {name}: {message}")),
+        }
+    }
+    failures.extend(param_errors);
+    for f in &failures {
+        let _ = writeln!(err, "error: {f}");
+    }
+    let ok = failures.is_empty();
+    let s = &result.stats;
+    let _ = writeln!(
+        out,
+        "rendered {}x{}: {} primitive(s), {} kernel(s) compiled in {:.2} ms, rendered in {:.2} ms on {threads} thread(s) -> {}",
+        frame.width,
+        frame.height,
+        s.instances,
+        s.kernels_compiled,
+        s.compile_micros as f64 / 1000.0,
+        s.render_micros as f64 / 1000.0,
+        written.join(", ")
+    );
+    if ok {
+        0
+    } else {
+        1
+    }
+}

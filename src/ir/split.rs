@@ -14,7 +14,8 @@
 //! content, no `return`, no primitive call, no `break`/`continue` leaving it — is hoisted
 //! to the end of setup when that preserves meaning: no statement staying in pixel before it
 //! reads or writes a local it writes, or writes a local it reads. A statement containing a
-//! `return` stops hoisting past it (what follows might not run at all). After the split:
+//! uniform `return` stops hoisting past it (what follows might not run at all); varying
+//! returns do not (they retire lanes, uniform code is unaffected). After the split:
 //! - `setup` holds only uniform statements; `pixel` everything from the first pixel
 //!   statement on that could not be hoisted;
 //! - every primitive call and every `bound` is in `setup`; one left in `pixel` is an error
@@ -87,7 +88,7 @@ pub fn split_checked(f: &mut Function, diags: &mut Diagnostics) {
                     .help("compute the bound from uniform values before the first per-pixel statement"),
             );
         }
-        if contains(&s, &|k| matches!(k, StmtKind::Return)) {
+        if uniform_return(&s, false) {
             barrier = true;
         }
         pixel.push(s);
@@ -128,6 +129,24 @@ fn pixel_content(s: &Stmt, f: &Function, pixel_params: &HashSet<LocalId>, ctl: b
             let passthrough = matches!(a.kind, ExprKind::Local(l) if pixel_params.contains(&l));
             a.var.is_varying() && !passthrough
         }),
+    }
+}
+
+/// Whether `s` holds a `return` that is not under varying control (it may end the whole
+/// primitive, so nothing after it may move before it). `ctl`: under varying control.
+fn uniform_return(s: &Stmt, ctl: bool) -> bool {
+    let any = |b: &[Stmt], ctl: bool| b.iter().any(|s| uniform_return(s, ctl));
+    match &s.kind {
+        StmtKind::Return => !ctl,
+        StmtKind::If { cond, then, otherwise } => {
+            let c = ctl || cond.var.is_varying();
+            any(then, c) || any(otherwise, c)
+        }
+        StmtKind::Loop {
+            body, step, varying, ..
+        } => any(body, ctl || *varying) || any(step, ctl || *varying),
+        StmtKind::Interpolation { arms } => arms.iter().any(|a| any(&a.body, ctl)),
+        _ => false,
     }
 }
 

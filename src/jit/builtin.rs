@@ -107,7 +107,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         {
             return self.int_builtin(func, vals, sc);
         }
-        let vals: Vec<Val> = vals.into_iter().map(|v| self.to_float(v)).collect();
+        let vals: Vec<Val> = vals.into_iter().map(|v| self.float_val(v)).collect();
         match func {
             Builtin::Sqrt
             | Builtin::Abs
@@ -324,7 +324,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         })
     }
 
-    fn device_from(&mut self, s: Space) -> Mat {
+    fn device_from_space(&mut self, s: Space) -> Mat {
         let base = self.spaces_base()?;
         match s {
             Space::Device => None,
@@ -334,7 +334,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
-    fn from_device(&mut self, s: Space) -> Mat {
+    fn space_from_device(&mut self, s: Space) -> Mat {
         let base = self.spaces_base()?;
         match s {
             Space::Device => None,
@@ -349,8 +349,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         if to == from {
             return None;
         }
-        let a = self.from_device(to);
-        let c = self.device_from(from);
+        let a = self.space_from_device(to);
+        let c = self.device_from_space(from);
         match (a, c) {
             (None, m) | (m, None) => m,
             (Some(a), Some(c)) => {

@@ -169,6 +169,7 @@ pub(crate) struct Lower<'a, 'b> {
 }
 
 /// Lower `func_id` for `key` into `func` (whose signature is already the kernel's).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn lower_kernel(
     program: &Program,
     func_id: FuncId,
@@ -1154,7 +1155,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             // Inside an inlined shared interpolator: its result, then it ends for these lanes.
             if let Some(e) = e {
                 let v = self.eval(e)?;
-                let v = self.to_float_varying(v);
+                let v = self.float_varying(v);
                 let comps = self.key.bindings[bi].components;
                 let g0 = self.global_offset(bi);
                 if v.comps.len() == 1 || v.comps.len() == comps as usize {
@@ -1183,7 +1184,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
-    fn to_float_varying(&mut self, v: Val) -> Val {
+    fn float_varying(&mut self, v: Val) -> Val {
         let comps = v
             .comps
             .iter()
@@ -1202,7 +1203,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     fn store_kind_bindings(&mut self, e: &'a Expr) -> Res<()> {
         let is_interp = e.ty.elem == Elem::Interp && e.ty.dims.is_empty();
         let v = self.eval(e)?;
-        let v = self.to_float_varying(v);
+        let v = self.float_varying(v);
         let bindings: Vec<usize> = match &self.arm {
             Some(a) => a.bindings.clone(),
             None => self.kind_offsets().iter().map(|k| k.0).collect(),
@@ -1605,7 +1606,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             let last_v = self.b.ins().splat(I32X4, last);
             let c = self.b.ins().smax(idx_comp, zero_v);
             let c = self.b.ins().smin(c, last_v);
-            let c = self.b.ins().imul_imm_s(c, stride as i64);
+            let stride_s = self.b.ins().iconst(types::I32, stride as i64);
+            let stride_v = self.b.ins().splat(I32X4, stride_s);
+            let c = self.b.ins().imul(c, stride_v);
             match acc.dyn_off {
                 Dyn::None => Dyn::Varying(c),
                 Dyn::Uniform(u) => {
@@ -2122,8 +2125,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                     _ => return err("matrix product with mismatched shapes"),
                 };
                 let (a, c) = self.unify(a, c)?;
-                let a = self.to_float(a);
-                let c = self.to_float(c);
+                let a = self.float_val(a);
+                let c = self.float_val(c);
                 let kk = k.unwrap_or(1);
                 let mut comps = vec![];
                 for i in 0..n {
@@ -2154,7 +2157,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
-    pub(crate) fn to_float(&mut self, v: Val) -> Val {
+    pub(crate) fn float_val(&mut self, v: Val) -> Val {
         if v.scalar == Scalar::Float {
             return v;
         }

@@ -393,3 +393,16 @@ impl Jit {
         )
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Kernels are shared across render threads; the JIT itself moves between threads.
+    #[test]
+    fn kernels_are_send_and_sync() {
+        fn send_sync<T: Send + Sync>() {}
+        send_sync::<Kernel>();
+        send_sync::<Arc<Kernel>>();
+    }
+}

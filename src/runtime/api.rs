@@ -150,6 +150,8 @@ struct Block {
     per_prim: HashMap<usize, Vec<u32>>,
     per_seq_current: HashMap<usize, Vec<u32>>,
     seq_points: Vec<SeqPoint>,
+    /// W0703 (no `vertex` parameter) was reported for this block.
+    warned_no_vertex: bool,
 }
 
 /// A primitive ready to render: which function, its key, its argument block.
@@ -262,7 +264,7 @@ impl Renderer {
     /// (see [`transform::ortho`]); uses the current image size.
     pub fn ortho(&mut self, left: f32, right: f32, bottom: f32, top: f32, near: f32, far: f32) {
         let (w, h) = (self.options.width, self.options.height);
-        self.set_transform(transform::ortho(left, right, bottom, top, near, far, w, h));
+        self.set_transform(transform::ortho(left, right, bottom, top, near, far, [w, h]));
     }
 
     /// `device_from_object` = a perspective camera at the origin looking down -z
@@ -426,6 +428,7 @@ impl Renderer {
             per_prim: HashMap::new(),
             per_seq_current: HashMap::new(),
             seq_points: vec![],
+            warned_no_vertex: false,
         });
         match func {
             None => Err(ApiIssue::error(
@@ -451,6 +454,7 @@ impl Renderer {
                 per_prim: HashMap::new(),
                 per_seq_current: HashMap::new(),
                 seq_points: vec![],
+                warned_no_vertex: false,
             });
         }
     }
@@ -522,20 +526,32 @@ impl Renderer {
         Ok(())
     }
 
-    /// `vertex(x, y, z, w)`: set the `vertex` parameter and make a sequence point.
+    /// `vertex(x, y, z, w)`: set the `vertex` parameter and make a sequence point. For a
+    /// primitive without a `vertex` parameter (screen_triangle takes its corners as one
+    /// per-primitive array) the position is dropped with a warning, once per primitive, and
+    /// the call is just a sequence point.
     pub fn vertex(&mut self, x: f32, y: f32, z: f32, w: f32) -> Result<(), ApiIssue> {
-        let Some(id) = self.open_block("vertex")?.func else {
+        let block = self.open_block("vertex")?;
+        let Some(id) = block.func else {
             return Ok(());
         };
+        let warn = !block.warned_no_vertex;
         let has_vertex = self.program.func(id).params.iter().any(|p| p.name == "vertex");
-        if !has_vertex {
-            return Err(ApiIssue::error(
-                "E0702",
+        if has_vertex {
+            self.rast_param("vertex", &Value(vec![x, y, z, w]))?;
+        } else if warn {
+            if let Some(b) = self.block.as_mut() {
+                b.warned_no_vertex = true;
+            }
+            self.warnings.push(ApiIssue::warning(
+                "W0703",
                 Target::Call,
-                format!("primitive `{}` has no `vertex` parameter", self.program.func(id).name),
+                format!(
+                    "primitive `{}` has no `vertex` parameter: `vertex` only makes a sequence point here",
+                    self.program.func(id).name
+                ),
             ));
         }
-        self.rast_param("vertex", &Value(vec![x, y, z, w]))?;
         self.sequence_point()
     }
 
@@ -604,19 +620,30 @@ impl Renderer {
         let interp_len = key.interp_components() as usize;
         let seq_base = layout.fixed_words as usize;
         let seq_count = n_seq.max(1) as usize;
+        let mut no_seq_points = vec![];
         for (index, (p, slot)) in f.params.iter().zip(&layout.params).enumerate() {
             let ty = &f.local(p.local).ty;
             match (slot, p.role) {
                 (ParamSlot::Pixel, _) => {}
                 (ParamSlot::Fixed { offset, words }, ParamRole::InterpData) => {
-                    let count = if interp_len == 0 {
-                        0
-                    } else {
-                        *words as usize / interp_len
-                    };
+                    let count = (*words as usize).checked_div(interp_len).unwrap_or(0);
+                    let mut missing = false;
                     for i in 0..count {
-                        let data = self.interp_data_at(block, i, &p.name);
+                        let (data, complete) = self.interp_data_at(block, i);
+                        missing |= !complete;
                         write_words(&mut args, *offset as usize + i * interp_len, &data);
+                    }
+                    if missing {
+                        self.warnings.push(ApiIssue::warning(
+                            "W0701",
+                            Target::Call,
+                            format!(
+                                "`{}` of `{}` takes {count} sequence points' values, {} given (or a shading parameter was defined after one): zero there",
+                                p.name,
+                                f.name,
+                                block.seq_points.len()
+                            ),
+                        ));
                     }
                 }
                 (ParamSlot::Fixed { offset, words }, _) => {
@@ -643,17 +670,15 @@ impl Renderer {
                     let base = seq_base + seq_count * *seq_offset as usize;
                     let words = *words as usize;
                     if n_seq == 0 {
-                        self.warnings.push(ApiIssue::warning(
-                            "W0701",
-                            Target::Call,
-                            format!("`{}` has no sequence points: `{}` is one zero element", f.name, p.name),
-                        ));
+                        no_seq_points.push(format!("`{}`", p.name));
                         continue;
                     }
                     let mut missing = false;
                     for i in 0..n_seq as usize {
                         let data = if role == ParamRole::InterpData {
-                            self.interp_data_at(block, i, &p.name)
+                            let (data, complete) = self.interp_data_at(block, i);
+                            missing |= !complete;
+                            data
                         } else {
                             match block.seq_points[i].per_seq.get(index).cloned().flatten() {
                                 Some(v) => v,
@@ -678,14 +703,26 @@ impl Renderer {
                 }
             }
         }
+        if !no_seq_points.is_empty() {
+            self.warnings.push(ApiIssue::warning(
+                "W0701",
+                Target::Call,
+                format!(
+                    "`{}` has no sequence points: {} get one zero element",
+                    f.name,
+                    no_seq_points.join(", ")
+                ),
+            ));
+        }
         Instance { func, key, n_seq, args }
     }
 
     /// Interpolation data of sequence point `i`: every `Kind`-bound shading parameter's value
-    /// there, binding order. Missing sequence points or values are zero, with a warning.
-    fn interp_data_at(&mut self, block: &Block, i: usize, param: &str) -> Vec<u32> {
+    /// there, binding order; missing sequence points or values are zero. The flag says
+    /// whether everything was there (the caller warns once per parameter).
+    fn interp_data_at(&self, block: &Block, i: usize) -> (Vec<u32>, bool) {
         let mut out = vec![];
-        let mut missing = false;
+        let mut complete = true;
         for (s, p) in self.shading.iter().enumerate() {
             if !matches!(p.interp, Interp::Kind(_)) {
                 continue;
@@ -693,21 +730,12 @@ impl Renderer {
             match block.seq_points.get(i).and_then(|sp| sp.shading.get(s)) {
                 Some(v) => out.extend(v.iter().map(|x| x.to_bits())),
                 None => {
-                    missing = true;
+                    complete = false;
                     out.extend(std::iter::repeat_n(0, p.components as usize));
                 }
             }
         }
-        if missing {
-            self.warnings.push(ApiIssue::warning(
-                "W0701",
-                Target::Call,
-                format!(
-                    "`{param}` element {i} has no values (a sequence point is missing, or a shading parameter was defined after it): zero"
-                ),
-            ));
-        }
-        out
+        (out, complete)
     }
 
     /// The six space matrices of the argument block. Until the geometry pipeline lands, the

@@ -14,7 +14,8 @@
 //!
 //! Shading is minimal for now: a pixel whose depth was written (depth != 0; a write of exactly
 //! the far value 0 is indistinguishable from none, and a `Z > depth` test never passes there
-//! anyway) shows the `Cs` shading parameter clamped to [0, 1], other pixels the background.
+//! anyway) shows the `Cs` shading parameter clamped to [0, 1] (white without one, as
+//! OpenGL's default colour), other pixels the background.
 
 use std::collections::{BTreeSet, HashMap};
 use std::sync::Arc;
@@ -30,7 +31,7 @@ use crate::diag::{Diagnostic, Diagnostics};
 use crate::ir::{FuncId, Program};
 use crate::jit::Kernel;
 
-use super::api::{Instance, RenderOptions, Renderer};
+use super::api::{Instance, RenderOptions, Renderer, MAX_IMAGE_SIDE, MAX_TILE_SIDE};
 use super::kernels::KernelSource;
 
 /// Tile buffer row stride for a tile `width` pixels wide: whole pixel groups.
@@ -98,7 +99,14 @@ impl Renderer {
     /// call in `ThreadPool::install` to choose the thread count).
     pub fn render(&self, source: &mut dyn KernelSource) -> RenderOutput {
         let started = Instant::now();
-        let opts = &self.options;
+        // The options are public fields: clamp them here so that no setting can panic or
+        // overflow the frame size (the setters already reject these values).
+        let opts = &RenderOptions {
+            width: self.options.width.min(MAX_IMAGE_SIDE),
+            height: self.options.height.min(MAX_IMAGE_SIDE),
+            tile_size: self.options.tile_size.clamp(1, MAX_TILE_SIDE),
+            ..self.options.clone()
+        };
         let program = self.program().clone();
         let mut diags = Diagnostics::new();
         let mut stats = RenderStats {
@@ -471,15 +479,21 @@ impl Frame {
         self.write_counts.as_ref().map(|c| c[i])
     }
 
-    /// The shaded colour: `Cs` clamped to [0, 1] where depth was written, else background.
+    /// The shaded colour: where depth was written, `Cs` clamped to [0, 1] (a 1-component
+    /// `Cs` is gray; with no usable `Cs` the pixel is white, OpenGL's default current colour);
+    /// elsewhere the background.
     pub fn color_at(&self, x: u32, y: u32) -> [f32; 3] {
-        let cs = self.param("Cs").filter(|p| p.components == 3);
-        match cs {
-            Some(p) if self.written(x, y) => {
-                let c = |k: u32| clamp01(self.plane_at(p.first_plane + k, x, y).unwrap_or(0.0));
-                [c(0), c(1), c(2)]
-            }
-            _ => self.background.map(clamp01),
+        if !self.written(x, y) {
+            return self.background.map(clamp01);
+        }
+        let Some(cs) = self.param("Cs") else {
+            return [1.0; 3];
+        };
+        let c = |k: u32| clamp01(self.plane_at(cs.first_plane + k, x, y).unwrap_or(0.0));
+        match cs.components {
+            1 => [c(0); 3],
+            n if n >= 3 => [c(0), c(1), c(2)],
+            _ => [1.0; 3],
         }
     }
 

@@ -29,14 +29,29 @@ impl Registry {
     /// Load the built-in library, then every directory of `dirs`, plus the single `files`
     /// (for `primflow check a.prim b.prim`), and compile them as one program. Unreadable
     /// directories or files and compile errors go to `diags`; `None` if there were errors.
-    /// A missing built-in directory is not an error (a crate installed without it simply
-    /// has no library).
     pub fn load(
         sources: &mut SourceMap,
         dirs: &[PathBuf],
         files: &[PathBuf],
         diags: &mut Diagnostics,
     ) -> Option<Registry> {
+        let (loaded, _) = Registry::load_sources(sources, dirs, files, diags);
+        if diags.has_errors() {
+            return None;
+        }
+        Registry::compile(sources, loaded, diags)
+    }
+
+    /// Load the sources without compiling: all loaded files in order, and the ids of the
+    /// single `files` (a file that is also in a library directory is loaded once, so
+    /// checking `prims/polygon.prim` does not define `polygon` twice). A missing built-in
+    /// directory is not an error (a binary installed without it simply has no library).
+    pub fn load_sources(
+        sources: &mut SourceMap,
+        dirs: &[PathBuf],
+        files: &[PathBuf],
+        diags: &mut Diagnostics,
+    ) -> (Vec<FileId>, Vec<FileId>) {
         let mut loaded = vec![];
         let builtin = Registry::builtin_dir();
         if builtin.is_dir() {
@@ -45,13 +60,23 @@ impl Registry {
         for dir in dirs {
             load_dir(sources, dir, &mut loaded, diags);
         }
+        let mut given = vec![];
         for file in files {
-            load_file(sources, file, &mut loaded, diags);
+            let canonical = std::fs::canonicalize(file).ok();
+            let already = loaded.iter().copied().find(|&id| {
+                let path = sources.file(id).path.as_deref();
+                canonical.is_some() && path.and_then(|p| std::fs::canonicalize(p).ok()) == canonical
+            });
+            match already {
+                Some(id) => given.push(id),
+                None => {
+                    let before = loaded.len();
+                    load_file(sources, file, &mut loaded, diags);
+                    given.extend(loaded[before..].iter().copied());
+                }
+            }
         }
-        if diags.has_errors() {
-            return None;
-        }
-        Registry::compile(sources, loaded, diags)
+        (loaded, given)
     }
 
     /// Compile already loaded files as one program.

@@ -9,9 +9,9 @@
 use glam::{Mat4, Vec4};
 
 /// Orthographic: the eye-space box x in [left, right], y in [bottom, top], z in [-far, -near]
-/// maps to the viewport (0..width, height..0) and depth (near -> 1, far -> 0).
-pub fn ortho(left: f32, right: f32, bottom: f32, top: f32, near: f32, far: f32, width: u32, height: u32) -> Mat4 {
-    let (w, h) = (width as f32, height as f32);
+/// maps to the viewport (0..width, height..0) of `viewport` = [width, height] and depth (near -> 1, far -> 0).
+pub fn ortho(left: f32, right: f32, bottom: f32, top: f32, near: f32, far: f32, viewport: [u32; 2]) -> Mat4 {
+    let (w, h) = (viewport[0] as f32, viewport[1] as f32);
     let sx = w / (right - left);
     let sy = h / (top - bottom);
     let sz = 1.0 / (far - near);
@@ -74,7 +74,7 @@ mod tests {
 
     #[test]
     fn ortho_maps_box_corners() {
-        let m = ortho(-1.0, 1.0, -1.0, 1.0, 1.0, 3.0, 200, 100);
+        let m = ortho(-1.0, 1.0, -1.0, 1.0, 1.0, 3.0, [200, 100]);
         close(device(&m, -1.0, 1.0, -1.0), [0.0, 0.0, 1.0]);
         close(device(&m, 1.0, -1.0, -3.0), [200.0, 100.0, 0.0]);
         close(device(&m, 0.0, 0.0, -2.0), [100.0, 50.0, 0.5]);

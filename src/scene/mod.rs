@@ -318,8 +318,9 @@ fn parse_material_interp(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), D
             spans.push(token.span);
         } else if let Some(last) = args.last_mut() {
             last.1 .0.push(number(token)?);
-            let s = spans.last_mut().expect("one span per argument");
-            *s = s.to(token.span);
+            if let Some(s) = spans.last_mut() {
+                *s = s.to(token.span);
+            }
         } else {
             return Err(
                 Diagnostic::error("E0604", format!("`{}` is not a `name=value` argument", token.text))
@@ -431,6 +432,12 @@ pub fn apply(scene: &Scene, renderer: &mut Renderer, diags: &mut Diagnostics) {
 
 fn issue_diagnostic(issue: &ApiIssue, c: &Command) -> Diagnostic {
     let tokens = &c.tokens;
+    let label = match issue.target {
+        Target::Call => "this call",
+        Target::Name => "this name",
+        Target::Values => "these values",
+        Target::Arg(_) => "this argument",
+    };
     let span = match issue.target {
         Target::Call => tokens[0].span,
         Target::Name => tokens.get(1).map_or(tokens[0].span, |t| t.span),
@@ -452,7 +459,7 @@ fn issue_diagnostic(issue: &ApiIssue, c: &Command) -> Diagnostic {
         crate::diag::Severity::Error => Diagnostic::error(issue.code, issue.message.clone()),
         crate::diag::Severity::Warning => Diagnostic::warning(issue.code, issue.message.clone()),
     };
-    base.primary(span, "")
+    base.primary(span, label)
 }
 
 /// Parse and apply a scene in one go (for tests and tools that have no `prims` lines to

@@ -1,0 +1,126 @@
+//! The command line: exit codes and messages of `check` and `render` on bad input, and the
+//! `--key` syntax. (Rendering real scenes end to end needs the checker and the JIT.)
+
+use std::path::PathBuf;
+
+use primflow::abi::{Binding, BindingKind};
+use primflow::cli::{parse_key, run};
+use primflow::ir::Program;
+
+/// Run the CLI in-process: (exit code, stdout, stderr).
+fn cli(args: &[&str]) -> (i32, String, String) {
+    let mut out = vec![];
+    let mut err = vec![];
+    let mut argv = vec!["primflow"];
+    argv.extend_from_slice(args);
+    let code = run(argv, &mut out, &mut err);
+    (code, String::from_utf8(out).unwrap(), String::from_utf8(err).unwrap())
+}
+
+fn temp_file(name: &str, text: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("primflow-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn render_reports_every_scene_error_with_its_location_and_exits_1() {
+    let scene = temp_file("bad.scene", "image 32 x\nbegn screen_triangle\nvertex 1 2\n");
+    let out_png = scene.with_extension("png");
+    let (code, out, err) = cli(&["render", scene.to_str().unwrap(), "-o", out_png.to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(out.is_empty(), "{out}");
+    assert!(err.contains("bad.scene:1:10"), "{err}");
+    assert!(err.contains("E0601") && err.contains("bad.scene:2:1"), "{err}");
+    assert!(err.contains("did you mean `begin`?"), "{err}");
+    assert!(err.contains("E0602") && err.contains("bad.scene:3:8"), "{err}");
+    assert!(!out_png.exists(), "no image on errors");
+}
+
+#[test]
+fn render_of_a_missing_scene_is_a_clear_error() {
+    let (code, _, err) = cli(&["render", "/nonexistent/x.scene", "-o", "/tmp/never.png"]);
+    assert_eq!(code, 1);
+    assert!(
+        err.starts_with("error: cannot read scene `/nonexistent/x.scene`"),
+        "{err}"
+    );
+}
+
+#[test]
+fn check_reports_syntax_errors_at_file_line_col_and_exits_1() {
+    let prim = temp_file(
+        "broken.prim",
+        "primitive broken(varying float X, Y) {\n    float a = ;\n}\n",
+    );
+    let (code, _, err) = cli(&["check", prim.to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(err.contains("broken.prim:2:"), "{err}");
+}
+
+#[test]
+fn check_emit_ast_prints_each_given_file() {
+    let prim = temp_file("ast.prim", "primitive p(varying float X, Y) { return; \n");
+    let (code, out, _) = cli(&["check", prim.to_str().unwrap(), "--emit", "ast"]);
+    assert_eq!(code, 1, "the missing brace is an error");
+    assert!(out.starts_with(&format!("// {}", prim.display())), "{out}");
+    assert!(out.contains("Module"), "{out}");
+}
+
+#[test]
+fn check_of_a_missing_file_or_directory_is_e0709() {
+    let (code, _, err) = cli(&["check", "/nonexistent/a.prim"]);
+    assert_eq!(code, 1);
+    assert!(err.contains("E0709") && err.contains("/nonexistent/a.prim"), "{err}");
+    let (code, _, err) = cli(&["check", "/nonexistent/a.prim", "--prims", "/nonexistent/dir"]);
+    assert_eq!(code, 1);
+    assert!(err.contains("/nonexistent/dir"), "{err}");
+}
+
+#[test]
+fn usage_errors_exit_2_from_the_binary() {
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_primflow"))
+        .args(["render", "scene.scene"])
+        .output()
+        .unwrap();
+    assert_eq!(status.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&status.stderr).contains("--output"));
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_primflow"))
+        .args(["render", "/nonexistent.scene", "-o", "x.png", "--threads", "lots"])
+        .output()
+        .unwrap();
+    assert_eq!(status.status.code(), Some(2));
+}
+
+#[test]
+fn key_specs_parse_into_bindings() {
+    let program = Program::default();
+    let key = parse_key("linear:3, perspective_linear:1,constant:2,bumpy:4", &program).unwrap();
+    assert_eq!(
+        key.bindings,
+        vec![
+            Binding {
+                kind: BindingKind::Kind("linear".into()),
+                components: 3
+            },
+            Binding {
+                kind: BindingKind::Kind("perspective_linear".into()),
+                components: 1
+            },
+            Binding {
+                kind: BindingKind::Constant,
+                components: 2
+            },
+            Binding {
+                kind: BindingKind::Kind("bumpy".into()),
+                components: 4
+            },
+        ]
+    );
+    assert!(parse_key("linear", &program).unwrap_err().contains("KIND:COMPONENTS"));
+    assert!(parse_key("linear:0", &program).is_err());
+    assert!(parse_key("lin ear:1", &program).is_err());
+    assert_eq!(parse_key("", &program).unwrap().bindings, vec![]);
+}

@@ -1,0 +1,323 @@
+//! Shared helpers for the JIT tests: build small IR programs by hand and run kernels on a
+//! real `TileCtx` backed by `Vec` buffers.
+#![allow(dead_code)]
+
+use primflow::abi::{Binding, BindingKind, TileCtx, VariantKey, DEFAULT_FUEL, MODE_RENDER};
+use primflow::diag::Span;
+use primflow::ir::*;
+use primflow::jit::Kernel;
+
+pub const W: usize = 16;
+pub const H: usize = 8;
+
+pub fn float() -> Type {
+    Type::float()
+}
+pub fn fixed(bits: u8, frac: u8) -> Type {
+    Type::scalar(Scalar::Fixed(FixedFormat { bits, frac }))
+}
+
+/// A function under construction.
+pub struct Fb {
+    pub f: Function,
+}
+
+impl Fb {
+    pub fn new(name: &str, kind: FuncKind) -> Fb {
+        Fb {
+            f: Function {
+                name: name.into(),
+                kind,
+                span: Span::default(),
+                params: vec![],
+                locals: vec![],
+                setup: vec![],
+                pixel: vec![],
+                loops: 0,
+                uses_spaces: false,
+            },
+        }
+    }
+    fn add_local(&mut self, name: &str, ty: Type, var: Variability, kind: LocalKind) -> LocalId {
+        self.f.locals.push(Local {
+            name: name.into(),
+            ty,
+            var,
+            kind,
+            span: Span::default(),
+        });
+        LocalId(self.f.locals.len() as u32 - 1)
+    }
+    /// Parameters must be added before locals (parameter i is LocalId(i)).
+    pub fn param(&mut self, name: &str, ty: Type, role: ParamRole) -> Expr {
+        let var = match role {
+            ParamRole::X | ParamRole::Y | ParamRole::Z => Variability::Varying,
+            _ => Variability::Uniform,
+        };
+        let i = self.f.params.len() as u32;
+        let id = self.add_local(name, ty.clone(), var, LocalKind::Param(i));
+        self.f.params.push(Param {
+            local: id,
+            name: name.into(),
+            role,
+            space: ParamSpace::None,
+            default: None,
+            span: Span::default(),
+        });
+        local(id, ty, var)
+    }
+    /// The X, Y, Z parameters as floats.
+    pub fn xyz(&mut self) -> (Expr, Expr, Expr) {
+        (
+            self.param("X", float(), ParamRole::X),
+            self.param("Y", float(), ParamRole::Y),
+            self.param("Z", float(), ParamRole::Z),
+        )
+    }
+    pub fn local(&mut self, name: &str, ty: Type, var: Variability) -> Expr {
+        let id = self.add_local(name, ty.clone(), var, LocalKind::Var);
+        local(id, ty, var)
+    }
+    pub fn new_loop(&mut self) -> LoopId {
+        self.f.loops += 1;
+        LoopId(self.f.loops - 1)
+    }
+}
+
+pub fn e(kind: ExprKind, ty: Type, var: Variability) -> Expr {
+    Expr {
+        kind,
+        ty,
+        var,
+        span: Span::default(),
+    }
+}
+pub fn s(kind: StmtKind) -> Stmt {
+    Stmt {
+        kind,
+        span: Span::default(),
+    }
+}
+pub fn local(id: LocalId, ty: Type, var: Variability) -> Expr {
+    e(ExprKind::Local(id), ty, var)
+}
+pub fn fc(x: f32) -> Expr {
+    e(ExprKind::Const(ConstValue::Float(x)), float(), Variability::Uniform)
+}
+pub fn ic(i: i32) -> Expr {
+    e(ExprKind::Const(ConstValue::Int(i)), Type::int(), Variability::Uniform)
+}
+pub fn bc(b: bool) -> Expr {
+    e(ExprKind::Const(ConstValue::Bool(b)), Type::bool(), Variability::Uniform)
+}
+pub fn bin(op: BinOp, a: Expr, b: Expr) -> Expr {
+    let var = a.var.join(b.var);
+    let shape = if a.ty.dims.is_empty() && a.ty.elem != Elem::Interp {
+        b.ty.clone()
+    } else {
+        a.ty.clone()
+    };
+    let ty = match op {
+        BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne | BinOp::And | BinOp::Or => Type {
+            elem: Elem::Scalar(Scalar::Bool),
+            ..shape
+        },
+        _ => shape,
+    };
+    e(
+        ExprKind::Binary {
+            op,
+            lhs: Box::new(a),
+            rhs: Box::new(b),
+        },
+        ty,
+        var,
+    )
+}
+pub fn conv(x: Expr, to: Scalar) -> Expr {
+    let ty = Type {
+        elem: Elem::Scalar(to),
+        ..x.ty.clone()
+    };
+    let var = x.var;
+    e(ExprKind::Convert(Box::new(x)), ty, var)
+}
+pub fn index(base: Expr, i: Expr, site: u32) -> Expr {
+    let ty = base.ty.element();
+    let var = base.var.join(i.var);
+    e(
+        ExprKind::Index {
+            base: Box::new(base),
+            index: Box::new(i),
+            site: SiteId(site),
+        },
+        ty,
+        var,
+    )
+}
+pub fn list(items: Vec<Expr>) -> Expr {
+    let var = items.iter().fold(Variability::Uniform, |v, i| v.join(i.var));
+    let mut dims = vec![items.len() as u32];
+    dims.extend(items[0].ty.dims.clone());
+    let ty = Type::array(items[0].ty.elem, dims);
+    e(ExprKind::List(items), ty, var)
+}
+pub fn select(c: Expr, a: Expr, b: Expr) -> Expr {
+    let var = c.var.join(a.var).join(b.var);
+    let ty = a.ty.clone();
+    e(
+        ExprKind::Select {
+            cond: Box::new(c),
+            then: Box::new(a),
+            otherwise: Box::new(b),
+        },
+        ty,
+        var,
+    )
+}
+pub fn assign(target: &Expr, value: Expr) -> Stmt {
+    let ExprKind::Local(l) = target.kind else {
+        panic!("assign to a local")
+    };
+    s(StmtKind::Assign {
+        place: Place {
+            local: l,
+            indices: vec![],
+            span: Span::default(),
+        },
+        value,
+    })
+}
+pub fn assign_at(target: &Expr, i: Expr, site: u32, value: Expr) -> Stmt {
+    let ExprKind::Local(l) = target.kind else {
+        panic!("assign to a local")
+    };
+    s(StmtKind::Assign {
+        place: Place {
+            local: l,
+            indices: vec![(i, SiteId(site))],
+            span: Span::default(),
+        },
+        value,
+    })
+}
+pub fn if_(cond: Expr, then: Vec<Stmt>, otherwise: Vec<Stmt>) -> Stmt {
+    s(StmtKind::If { cond, then, otherwise })
+}
+pub fn while_(id: LoopId, cond: Expr, body: Vec<Stmt>, site: u32) -> Stmt {
+    let varying = cond.var.is_varying();
+    s(StmtKind::Loop {
+        id,
+        cond: Some(cond),
+        body,
+        step: vec![],
+        varying,
+        site: SiteId(site),
+    })
+}
+pub fn ret() -> Stmt {
+    s(StmtKind::Return)
+}
+pub fn interp_return(x: Expr) -> Stmt {
+    s(StmtKind::InterpolatorReturn(Some(x)))
+}
+pub fn bound(r: [Expr; 4]) -> Stmt {
+    s(StmtKind::Bound(Box::new(r)))
+}
+
+pub fn program(funcs: Vec<Function>, sites: usize) -> Program {
+    Program {
+        functions: funcs,
+        sites: vec![Span::default(); sites],
+    }
+}
+
+pub fn kind_key(kinds: &[(&str, u32)]) -> VariantKey {
+    VariantKey {
+        bindings: kinds
+            .iter()
+            .map(|(k, n)| Binding {
+                kind: BindingKind::Kind(k.to_string()),
+                components: *n,
+            })
+            .collect(),
+        count_writes: false,
+    }
+}
+
+pub fn fw(x: f32) -> u32 {
+    x.to_bits()
+}
+
+/// A 16x8 tile at screen origin with `planes` G-buffer planes.
+pub struct Tile {
+    pub depth: Vec<u32>,
+    pub gbuf: Vec<f32>,
+    pub counts: Vec<u32>,
+    pub planes: usize,
+    pub x0: i32,
+    pub y0: i32,
+}
+
+impl Tile {
+    pub fn new(planes: usize) -> Tile {
+        Tile {
+            depth: vec![0; W * H],
+            gbuf: vec![0.0; W * H * planes.max(1)],
+            counts: vec![0; W * H],
+            planes,
+            x0: 0,
+            y0: 0,
+        }
+    }
+    pub fn ctx(&mut self, mode: u32, fuel: u64) -> TileCtx {
+        TileCtx {
+            x0: self.x0,
+            y0: self.y0,
+            x1: self.x0 + W as i32,
+            y1: self.y0 + H as i32,
+            mode,
+            stride: W as u32,
+            depth: self.depth.as_mut_ptr(),
+            gbuf: self.gbuf.as_mut_ptr(),
+            plane_stride: (W * H) as u32,
+            num_planes: self.planes as u32,
+            write_count: self.counts.as_mut_ptr(),
+            bound: [0.0; 4],
+            bound_set: 0,
+            error: 0,
+            error_site: 0,
+            fuel,
+            call_depth: 0,
+            width: 64,
+            height: 32,
+        }
+    }
+    /// Run `k` in render mode with the given args; returns the context afterwards.
+    pub fn render(&mut self, k: &Kernel, args: &[u32]) -> TileCtx {
+        self.run(k, args, MODE_RENDER, DEFAULT_FUEL)
+    }
+    pub fn run(&mut self, k: &Kernel, args: &[u32], mode: u32, fuel: u64) -> TileCtx {
+        let n_seq = args.first().copied().unwrap_or(1);
+        assert!(
+            args.len() >= k.layout.words(n_seq),
+            "args block too short for the layout"
+        );
+        let mut ctx = self.ctx(mode, fuel);
+        // SAFETY: ctx points at this tile's live buffers, sized stride*rows (and planes);
+        // args is at least the layout's length.
+        unsafe { (k.entry)(&mut ctx, args.as_ptr()) };
+        ctx
+    }
+    pub fn depth_at(&self, x: usize, y: usize) -> u32 {
+        self.depth[y * W + x]
+    }
+    pub fn plane_at(&self, p: usize, x: usize, y: usize) -> f32 {
+        self.gbuf[p * W * H + y * W + x]
+    }
+}
+
+/// Raw depth for a float Z in [0,1].
+pub fn raw_depth(z: f64) -> u32 {
+    (z * 4294967296.0).round().clamp(0.0, 4294967295.0) as u32
+}
