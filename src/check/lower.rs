@@ -62,7 +62,17 @@ pub struct FnLower<'g, 'a> {
     pub interp_returns: Vec<(Type, Span)>,
     /// This function's X, Y and Z parameters.
     xyz: [Option<LocalId>; 3],
+    /// Helper calls inlined so far into this function.
+    inlined: u32,
+    /// The call written in the function itself that the current inlining started from.
+    outermost_call: Span,
+    /// Report running out of the inlining budget (off when a helper is checked on its own:
+    /// only a call from a primitive or interpolator really inlines it).
+    pub report_budget: bool,
 }
+
+/// Most helper calls inlined into one function.
+pub const INLINE_BUDGET: u32 = 20_000;
 
 fn err(code: &'static str, msg: impl Into<String>, span: Span, label: impl Into<String>) -> Diagnostic {
     Diagnostic::error(code, msg).primary(span, label)
@@ -244,6 +254,9 @@ impl<'g, 'a> FnLower<'g, 'a> {
             in_interpolation: false,
             interp_returns: vec![],
             xyz: [None; 3],
+            inlined: 0,
+            outermost_call: Span::default(),
+            report_budget: true,
         }
     }
 
@@ -1105,6 +1118,29 @@ impl<'g, 'a> FnLower<'g, 'a> {
         let sig = &g.sigs[idx];
         if g.recursive.contains(&idx) {
             // The cycle was reported once where it is; inlining would not terminate.
+            return None;
+        }
+        // Helpers calling helpers several times each can multiply the inlined code
+        // exponentially; past a budget, stop with an error instead of running out of memory.
+        if self.inline.is_empty() {
+            self.outermost_call = span;
+        }
+        self.inlined += 1;
+        if self.inlined > INLINE_BUDGET {
+            if self.inlined == INLINE_BUDGET + 1 && self.report_budget {
+                self.sink.push(
+                    err(
+                        "E0109",
+                        format!("too many helper calls to inline (more than {INLINE_BUDGET})"),
+                        self.outermost_call,
+                        "inlining this call needs too much code",
+                    )
+                    .secondary(span, "the budget ran out at this nested call")
+                    .help(
+                        "helpers are inlined at every call; nested helpers that call each other several times multiply",
+                    ),
+                );
+            }
             return None;
         }
         if sig.ret.is_none() && !as_statement {
