@@ -604,14 +604,36 @@ fn interpolation_knob<'a>(quick: bool) -> Knob<'a> {
         measure: Box::new(move |out| {
             let b = buffers(out);
             let mut errors = vec![];
+            let mut displacement = vec![];
             for i in 0..reference.count.len() {
                 if b.covered(i) && reference.covered(i) {
                     let du = (b.value("uv", 0, i) - reference.value("uv", 0, i)).abs();
                     let dv = (b.value("uv", 1, i) - reference.value("uv", 1, i)).abs();
                     errors.push(du.max(dv));
+                    // The same error as a displacement on screen: the pixel offset whose
+                    // change of (u, v) is the error, through the inverse of the reference's
+                    // Jacobian (forward differences where the neighbours are covered).
+                    let w = reference.width as usize;
+                    let right = i % w + 1 < w && reference.covered(i + 1);
+                    let below = i + w < reference.count.len() && reference.covered(i + w);
+                    if right && below {
+                        let d = |c: usize, j: usize| reference.value("uv", c, j) - reference.value("uv", c, i);
+                        let (ux, uy, vx, vy) = (d(0, i + 1), d(0, i + w), d(1, i + 1), d(1, i + w));
+                        let det = ux * vy - uy * vx;
+                        let eu = b.value("uv", 0, i) - reference.value("uv", 0, i);
+                        let ev = b.value("uv", 1, i) - reference.value("uv", 1, i);
+                        if det != 0.0 {
+                            let px = (vy * eu - uy * ev) / det;
+                            let py = (-vx * eu + ux * ev) / det;
+                            displacement.push(px.hypot(py));
+                        }
+                    }
                 }
             }
-            Ok(vec![Metric::of("uv", "uv units", &errors)])
+            Ok(vec![
+                Metric::of("uv", "uv units", &errors),
+                Metric::of("uv displacement", "px", &displacement),
+            ])
         }),
         missing: vec![],
     }
