@@ -351,14 +351,16 @@ pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, co
                 _mm256_cmp_ps::<_CMP_LE_OQ>(z, one),
             );
             mask = _mm256_and_si256(mask, _mm256_castps_si256(in_range));
-            // fixed<32,32>: nearest(z * 2^32) saturated to u32. z is in [0, 1] on live lanes;
-            // subtracting 2^31 maps [0, 2^32) onto the signed conversion's range, and 2^32
-            // itself (z == 1) saturates to u32::MAX.
+            // fixed<32,32>: nearest(z * 2^32) saturated to u32. z is in [0, 1] on live lanes.
+            // The signed conversion takes values below 2^31 directly; values in [2^31, 2^32)
+            // are shifted down by 2^31 first (exact there, not below it) and the top bit set
+            // back; 2^32 itself (z == 1) saturates to u32::MAX.
             let scaled = _mm256_round_ps::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(_mm256_mul_ps(z, scale));
-            let tz = _mm256_xor_si256(
-                _mm256_cvtps_epi32(_mm256_sub_ps(scaled, _mm256_set1_ps(2147483648.0))),
-                sign,
-            );
+            let two31 = _mm256_set1_ps(2147483648.0);
+            let high = _mm256_cmp_ps::<_CMP_GE_OQ>(scaled, two31);
+            let shifted = _mm256_blendv_ps(scaled, _mm256_sub_ps(scaled, two31), high);
+            let tz = _mm256_cvtps_epi32(shifted);
+            let tz = _mm256_or_si256(tz, _mm256_and_si256(_mm256_castps_si256(high), sign));
             let saturated = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(scaled, two32));
             let tz = _mm256_or_si256(tz, saturated);
             let base = row + (px - ctx.x0) as usize;
