@@ -225,7 +225,14 @@ pub(crate) fn lower_kernel(
         written: vec![false; key.bindings.len()],
         warnings: vec![],
     };
-    l.body(f)?;
+    if let Err(e) = l.body(f) {
+        // The builder was not finalised: its context still holds this function's blocks and
+        // variables, and `FunctionBuilder::new` asserts an empty one. Start the next kernel
+        // from a fresh context so one failed lowering does not panic every later compile.
+        drop(l);
+        *fctx = cranelift_frontend::FunctionBuilderContext::new();
+        return Err(e);
+    }
     for (i, b) in key.bindings.iter().enumerate() {
         if let BindingKind::Kind(k) = &b.kind {
             if !l.written[i] {
@@ -1385,6 +1392,9 @@ impl<'a, 'b> Lower<'a, 'b> {
                 cf.params.len()
             ));
         }
+        // The callee writes the shading parameters it handles (and warns about the ones it
+        // does not, in its own kernel): a caller that delegates is not missing an arm.
+        self.written.iter_mut().for_each(|w| *w = true);
         let layout = ArgLayout::new(self.program, callee, self.key);
         // Sequence points: the length of the first per-sequence-point argument.
         let mut n_seq = 1u32;
@@ -2089,7 +2099,16 @@ impl<'a, 'b> Lower<'a, 'b> {
             ExprKind::List(items) => {
                 let mut vals = vec![];
                 for it in items {
-                    vals.push(self.eval(it)?);
+                    let mut v = self.eval(it)?;
+                    // A number converted to interpolation data is one component that stands
+                    // for every component in view (the zero initialiser of an
+                    // `interpolation_data a[n]` is such a list): widen it here so the list
+                    // has the place's component count.
+                    if it.ty.elem == Elem::Interp && v.comps.len() == 1 {
+                        let wanted = self.comp_offsets(&it.ty, false).len();
+                        v.comps = vec![v.comps[0]; wanted];
+                    }
+                    vals.push(v);
                 }
                 let varying = vals.iter().any(|v| v.varying);
                 let mut comps = vec![];
