@@ -1323,6 +1323,16 @@ impl<'g, 'a> FnLower<'g, 'a> {
             ));
             None
         };
+        // A fixed-size array passed for a per-sequence-point parameter (a primitive call):
+        // its outer dimension is the callee's sequence-point count. It keeps its own type so
+        // the call knows that count at compile time.
+        if ty.per_seq && !v.ty.per_seq && v.ty.dims.len() == ty.dims.len() + 1 && v.ty.dims[1..] == ty.dims[..] {
+            return match (ty.elem, v.ty.elem) {
+                (Elem::Interp, Elem::Interp) => Some(v),
+                (Elem::Scalar(t), Elem::Scalar(s)) if types::implicitly_converts(s, t) => Some(convert(v, t)),
+                _ => mismatch(self, &v),
+            };
+        }
         if ty.per_seq || v.ty.per_seq {
             return mismatch(self, &v);
         }
