@@ -2143,7 +2143,13 @@ impl<'a, 'b> Lower<'a, 'b> {
                     [r, k] if *r as usize == m => Some(*k as usize),
                     _ => return err("matrix product with mismatched shapes"),
                 };
-                let (a, c) = self.unify(a, c)?;
+                // Only the variability is unified: the operands' lengths differ by design
+                // (n*m and m*k components), which `unify` would reject.
+                let (a, c) = if a.varying != c.varying {
+                    (to_varying(&mut self.b, a), to_varying(&mut self.b, c))
+                } else {
+                    (a, c)
+                };
                 let a = self.float_val(a);
                 let c = self.float_val(c);
                 let kk = k.unwrap_or(1);
