@@ -1081,9 +1081,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     fn interpolation(&mut self, arms: &'a [crate::ir::InterpArm]) -> Res<()> {
-        if !self.in_pixel() {
-            return err("`interpolation` outside per-pixel code");
-        }
+        // In setup code the construct only computes (figure 8: interpolation data of new
+        // vertices); `interpolator_return` there is refused by `interpolator_return` itself.
         let named: Vec<&str> = arms
             .iter()
             .filter_map(|a| match &a.kind {
