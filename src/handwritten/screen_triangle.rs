@@ -74,7 +74,8 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32) -> Option<Setup<T>>
     let oy = min3(sv(0, 1), sv(1, 1), sv(2, 1)).floor();
     let max_x = max3(sv(0, 0), sv(1, 0), sv(2, 0));
     let max_y = max3(sv(0, 1), sv(1, 1), sv(2, 1));
-    let bound = [ox, oy, max_x, max_y];
+    // Padded by a 1/16 grid step, as the prim does: snapping can move a corner past max.
+    let bound = [ox, oy, max_x + 0.0625, max_y + 0.0625];
     let exact = max_x - ox < 1024.0 && max_y - oy < 1024.0;
     let mut vx = [0i32; 3];
     let mut vy = [0i32; 3];
