@@ -179,18 +179,18 @@ fn two_patches() -> [Vec<[f64; 3]>; 2] {
     let shared_x = [32.0, 36.5, 27.25, 33.0];
     let mut left = vec![];
     let mut right = vec![];
-    for j in 0..4 {
+    for (j, &shared) in shared_x.iter().enumerate() {
         let y = 4.0 + 40.0 * j as f64 / 3.0;
         for i in 0..4 {
             let t = i as f64 / 3.0;
             let xl = 4.0
-                + (shared_x[j] - 4.0) * t
+                + (shared - 4.0) * t
                 + if i == 1 || i == 2 {
                     3.0 * ((j as f64) - 1.5)
                 } else {
                     0.0
                 };
-            let xr = shared_x[j] + (60.0 - shared_x[j]) * t + if i == 1 { -2.0 * (j as f64) } else { 0.0 };
+            let xr = shared + (60.0 - shared) * t + if i == 1 { -2.0 * (j as f64) } else { 0.0 };
             left.push([xl, y, 0.5]);
             right.push([xr, y, 0.5]);
         }
@@ -322,7 +322,8 @@ fn covered(frame: &Frame) -> usize {
 
 #[test]
 fn bad_weights_and_knots_are_rejected_with_the_reason() {
-    let cases: [(&str, f32, Box<dyn Fn(&mut Renderer)>); 6] = [
+    type Edit = Box<dyn Fn(&mut Renderer)>;
+    let cases: [(&str, f32, Edit); 6] = [
         ("weight near zero", 1e-9, Box::new(|_: &mut Renderer| {})),
         ("weight zero", 0.0, Box::new(|_: &mut Renderer| {})),
         ("weight negative", -0.5, Box::new(|_: &mut Renderer| {})),
