@@ -1,6 +1,6 @@
 //! The `primflow` command line: `check` (diagnostics and compiler dumps for `.prim` files),
-//! `render` (a scene file to PNG images) and `test` (scene files with expectations, see
-//! [`testing`](crate::testing)).
+//! `render` (a scene file to PNG images), `test` (scene files with expectations, see
+//! [`testing`](crate::testing)) and `bench` (JIT kernels against hand-written ones).
 //!
 //! Everything a command prints goes through the `out` / `err` writers handed to [`run`], so
 //! the binary and the tests drive the same code. Exit codes: 0 success, 1 the input had
@@ -38,6 +38,8 @@ pub enum Command {
     Render(RenderArgs),
     /// Run primitive test cases: scene files with `# expect:` lines (default: prims/tests).
     Test(TestArgs),
+    /// Benchmark JIT kernels against hand-written Rust kernels of the same primitives.
+    Bench(BenchArgs),
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -110,6 +112,22 @@ pub struct TestArgs {
     pub bless: bool,
 }
 
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// Only workloads whose name contains this text.
+    #[arg(long, value_name = "NAME")]
+    pub filter: Option<String>,
+    /// Fewer primitives and runs (well under two minutes).
+    #[arg(long)]
+    pub quick: bool,
+    /// Timed runs per kernel; the median is reported.
+    #[arg(long, default_value_t = 7, value_name = "N")]
+    pub runs: usize,
+    /// Also write the results as JSON.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}
+
 /// Run the command line `args` (the first is the program name), printing to `out` and
 /// `err`; returns the exit code.
 pub fn run<I, T>(args: I, out: &mut dyn Write, err: &mut dyn Write) -> i32
@@ -134,6 +152,7 @@ where
         Command::Check(args) => check(&args, out, err),
         Command::Render(args) => render(&args, out, err),
         Command::Test(args) => test(&args, out),
+        Command::Bench(args) => bench(&args, out, err),
     }
 }
 
@@ -186,7 +205,7 @@ fn check(args: &CheckArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     let program = registry.program;
     match args.emit {
         Some(Emit::Ir) => {
-            let _ = writeln!(out, "{program:#?}");
+            let _ = write!(out, "{program}");
         }
         Some(Emit::Clif) => return emit_clif(&program, &given, &args.key, out, err),
         _ => {}
@@ -371,4 +390,31 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     } else {
         1
     }
+}
+
+fn bench(args: &BenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+    let opts = crate::bench::BenchOptions {
+        filter: args.filter.clone(),
+        quick: args.quick,
+        runs: args.runs.max(1),
+        progress: true,
+    };
+    let report = match crate::bench::run(&opts) {
+        Ok(r) => r,
+        Err(e) => {
+            let _ = writeln!(err, "error: {e}");
+            return 1;
+        }
+    };
+    let _ = out.write_all(crate::bench::format_table(&report).as_bytes());
+    if let Some(path) = &args.json {
+        let written = serde_json::to_string_pretty(&report)
+            .map_err(|e| e.to_string())
+            .and_then(|text| std::fs::write(path, text).map_err(|e| e.to_string()));
+        if let Err(e) = written {
+            let _ = writeln!(err, "error: cannot write {}: {e}", path.display());
+            return 1;
+        }
+    }
+    0
 }

@@ -225,14 +225,7 @@ pub(crate) fn lower_kernel(
         written: vec![false; key.bindings.len()],
         warnings: vec![],
     };
-    if let Err(e) = l.body(f) {
-        // The builder was not finalised: its context still holds this function's blocks and
-        // variables, and `FunctionBuilder::new` asserts an empty one. Start the next kernel
-        // from a fresh context so one failed lowering does not panic every later compile.
-        drop(l);
-        *fctx = cranelift_frontend::FunctionBuilderContext::new();
-        return Err(e);
-    }
+    l.body(f)?;
     for (i, b) in key.bindings.iter().enumerate() {
         if let BindingKind::Kind(k) = &b.kind {
             if !l.written[i] {
@@ -774,6 +767,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                 if self.in_pixel() || self.frames.len() > 1 {
                     return err("primitive call in per-pixel code");
                 }
+                // The callee (compiled for the same key) answers for the bindings itself.
+                self.written.iter_mut().for_each(|w| *w = true);
                 self.call_primitive(*callee, args)
             }
         }
@@ -1391,9 +1386,6 @@ impl<'a, 'b> Lower<'a, 'b> {
                 cf.params.len()
             ));
         }
-        // The callee writes the shading parameters it handles (and warns about the ones it
-        // does not, in its own kernel): a caller that delegates is not missing an arm.
-        self.written.iter_mut().for_each(|w| *w = true);
         let layout = ArgLayout::new(self.program, callee, self.key);
         // Sequence points: the length of the first per-sequence-point argument.
         let mut n_seq = 1u32;
@@ -2049,11 +2041,18 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             ExprKind::Convert(inner) => {
                 let v = self.eval(inner)?;
-                let comps = v
+                let mut comps: Vec<ir::Value> = v
                     .comps
                     .iter()
                     .map(|&c| fixed::convert(&mut self.b, v.scalar, sc, c))
                     .collect();
+                // A number converted to interpolation data stands for that number in every
+                // component of the current view (the checker's zero-initialisation and
+                // broadcasts).
+                if e.ty.elem == Elem::Interp && inner.ty.elem != Elem::Interp && comps.len() == 1 {
+                    let n = self.comp_offsets(&e.ty, true).len();
+                    comps = vec![comps[0]; n];
+                }
                 Ok(Val {
                     comps,
                     scalar: sc,
@@ -2098,16 +2097,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             ExprKind::List(items) => {
                 let mut vals = vec![];
                 for it in items {
-                    let mut v = self.eval(it)?;
-                    // A number converted to interpolation data is one component that stands
-                    // for every component in view (the zero initialiser of an
-                    // `interpolation_data a[n]` is such a list): widen it here so the list
-                    // has the place's component count.
-                    if it.ty.elem == Elem::Interp && v.comps.len() == 1 {
-                        let wanted = self.comp_offsets(&it.ty, false).len();
-                        v.comps = vec![v.comps[0]; wanted];
-                    }
-                    vals.push(v);
+                    vals.push(self.eval(it)?);
                 }
                 let varying = vals.iter().any(|v| v.varying);
                 let mut comps = vec![];
