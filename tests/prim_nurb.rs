@@ -397,3 +397,29 @@ fn small_positive_weights_and_double_knots_are_handled() {
     assert_eq!(covered(&frame), 0);
     assert_eq!(diags.len(), 1, "{diags:?}");
 }
+
+/// The language extension nurb_surface relies on: a list of numbers converts to
+/// interpolation data only inside a named `interpolation` arm (where the data is narrowed to
+/// that kind's parameters), and an `interpolation` construct may compute in setup code.
+#[test]
+fn number_list_is_interpolation_data_only_inside_a_named_arm() {
+    let compile = |body: &str| {
+        let text = format!(
+            "primitive p(interpolator_data d[3]; varying float X, Y; inout varying fixed<32,32> Z) {{\n\
+             float n[3] = {{0, 0, 1}};\ninterpolation_data v = d[0];\n{body}\n}}\n"
+        );
+        let mut sources = SourceMap::new();
+        let file = sources.add("p.prim", text);
+        let mut diags = Diagnostics::new();
+        let program = primflow::compile(&sources, &[file], &mut diags);
+        (program.is_some(), diags.codes_at(&sources))
+    };
+    let (ok, codes) = compile("interpolation { implicit: v = n; }");
+    assert!(ok, "{codes:?}");
+    let (ok, codes) = compile("v = n;");
+    assert!(!ok);
+    assert_eq!(codes, vec!["E0205@4:5"]);
+    let (ok, codes) = compile("interpolation { default: v = n; }");
+    assert!(!ok);
+    assert_eq!(codes, vec!["E0205@4:30"]);
+}
