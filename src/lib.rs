@@ -28,6 +28,7 @@ pub mod pipeline;
 pub mod runtime;
 pub mod scene;
 pub mod syntax;
+pub mod testing;
 
 use diag::{Diagnostics, FileId, SourceMap};
 

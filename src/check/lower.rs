@@ -1401,6 +1401,15 @@ impl<'g, 'a> FnLower<'g, 'a> {
             (Elem::Interp, Elem::Scalar(s)) if types::is_number(s) && v.ty.dims.is_empty() => {
                 Some(broadcast(to_interp(convert(v, Scalar::Float)), &ty.dims))
             }
+            // Inside a named interpolation arm the data is narrowed to that kind's
+            // parameters, so a list of numbers can stand for them (a primitive that computes
+            // a value itself, like a surface normal, hands it on to a sub-primitive this way).
+            // The kernel compiler checks the length against the bound components.
+            (Elem::Interp, Elem::Scalar(s))
+                if types::is_number(s) && v.ty.dims.len() == 1 && ty.dims.is_empty() && self.arm == Some(false) =>
+            {
+                Some(to_interp(convert(v, Scalar::Float)))
+            }
             (Elem::Scalar(t), Elem::Scalar(s)) if types::implicitly_converts(s, t) => {
                 if v.ty.dims == ty.dims {
                     Some(convert(v, t))

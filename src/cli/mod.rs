@@ -1,5 +1,7 @@
 //! The `primflow` command line: `check` (diagnostics and compiler dumps for `.prim` files),
-//! `render` (a scene file to PNG images) and `accuracy` (error vs time per accuracy knob).
+//! `render` (a scene file to PNG images), `test` (scene files with expectations, see
+//! [`testing`](crate::testing)), `bench` (JIT kernels against hand-written ones) and
+//! `accuracy` (error vs time per accuracy knob).
 //!
 //! Everything a command prints goes through the `out` / `err` writers handed to [`run`], so
 //! the binary and the tests drive the same code. Exit codes: 0 success, 1 the input had
@@ -35,6 +37,8 @@ pub enum Command {
     Check(CheckArgs),
     /// Render a scene file to a PNG image.
     Render(RenderArgs),
+    /// Run primitive test cases: scene files with `# expect:` lines (default: prims/tests).
+    Test(TestArgs),
     /// Benchmark JIT kernels against hand-written Rust kernels of the same primitives.
     Bench(BenchArgs),
     /// Sweep the accuracy knobs: error against the f64 reference vs time, as a table, CSV,
@@ -96,6 +100,23 @@ pub struct RenderArgs {
 }
 
 #[derive(clap::Args, Debug)]
+pub struct TestArgs {
+    /// Case files or directories searched for `*.scene` files with `# expect:` lines
+    /// (default: the library's own prims/tests).
+    #[arg(value_name = "PATH")]
+    pub paths: Vec<PathBuf>,
+    /// Extra directory of .prim files (repeatable).
+    #[arg(long = "prims", value_name = "DIR")]
+    pub prims: Vec<PathBuf>,
+    /// Worker threads per render (default: one per core).
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+    /// Create missing golden images from this run instead of failing.
+    #[arg(long)]
+    pub bless: bool,
+}
+
+#[derive(clap::Args, Debug)]
 pub struct BenchArgs {
     /// Only workloads whose name contains this text.
     #[arg(long, value_name = "NAME")]
@@ -154,8 +175,28 @@ where
     match cli.command {
         Command::Check(args) => check(&args, out, err),
         Command::Render(args) => render(&args, out, err),
+        Command::Test(args) => test(&args, out),
         Command::Bench(args) => bench(&args, out, err),
         Command::Accuracy(args) => accuracy(&args, out, err),
+    }
+}
+
+fn test(args: &TestArgs, out: &mut dyn Write) -> i32 {
+    let paths = if args.paths.is_empty() {
+        vec![crate::testing::default_dir()]
+    } else {
+        args.paths.clone()
+    };
+    let options = crate::testing::TestOptions {
+        prim_dirs: args.prims.clone(),
+        threads: args.threads.unwrap_or(0),
+        bless: args.bless,
+    };
+    let results = crate::testing::run_all(&paths, &options, out);
+    if !results.is_empty() && results.iter().all(|r| r.passed()) {
+        0
+    } else {
+        1
     }
 }
 

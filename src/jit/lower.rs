@@ -1076,9 +1076,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     fn interpolation(&mut self, arms: &'a [crate::ir::InterpArm]) -> Res<()> {
-        if !self.in_pixel() {
-            return err("`interpolation` outside per-pixel code");
-        }
+        // In setup code the construct only computes (figure 8: interpolation data of new
+        // vertices); `interpolator_return` there is refused by `interpolator_return` itself.
         let named: Vec<&str> = arms
             .iter()
             .filter_map(|a| match &a.kind {
@@ -2133,7 +2132,13 @@ impl<'a, 'b> Lower<'a, 'b> {
                     [r, k] if *r as usize == m => Some(*k as usize),
                     _ => return err("matrix product with mismatched shapes"),
                 };
-                let (a, c) = self.unify(a, c)?;
+                // Only the variability is unified: the operands' lengths differ by design
+                // (n*m and m*k components), which `unify` would reject.
+                let (a, c) = if a.varying != c.varying {
+                    (to_varying(&mut self.b, a), to_varying(&mut self.b, c))
+                } else {
+                    (a, c)
+                };
                 let a = self.float_val(a);
                 let c = self.float_val(c);
                 let kk = k.unwrap_or(1);
