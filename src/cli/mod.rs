@@ -240,6 +240,7 @@ pub fn parse_key(spec: &str, program: &Program) -> Result<VariantKey, String> {
     Ok(VariantKey {
         bindings,
         count_writes: false,
+        trivial_accept: false,
     })
 }
 
