@@ -188,6 +188,15 @@ impl GeometryState {
             state.pyramid = self.clip_from_world().1;
         }
         let mut choice = choose_pipeline(&state);
+        // Shading is deferred: a pixel is lit once, in LC (WC when V is not factorizable),
+        // never in model coordinates, whatever the facet pipeline would do per vertex.
+        if choice.lighting == crate::pipeline::LightingSpace::Model {
+            choice.lighting = if state.view_factoring.is_ok() {
+                crate::pipeline::LightingSpace::Lighting
+            } else {
+                crate::pipeline::LightingSpace::World
+            };
+        }
         if self.direct.is_some() {
             choice
                 .warnings
