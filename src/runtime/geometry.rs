@@ -326,7 +326,6 @@ impl GeometryState {
         let guard_planes: Vec<[f64; 4]> = planes.iter().map(|m| [m.x * gx, m.y * gy, m.z, m.w]).collect();
         let opts = ClipOptions {
             w_epsilon: self.w_epsilon,
-            ..ClipOptions::default()
         };
         let pieces = match clip_polygon(&poly, runtime_planes, &guard_planes, mode, opts) {
             Ok(p) => p,

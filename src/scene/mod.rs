@@ -692,6 +692,11 @@ pub fn load_into(sources: &SourceMap, file: FileId, renderer: &mut Renderer, dia
     scene
 }
 
+/// A 4x4 matrix given row by row in the scene file.
+fn dmat_from_rows(rows: &[f32; 16]) -> glam::DMat4 {
+    glam::DMat4::from_cols_array(&rows.map(f64::from)).transpose()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -711,9 +716,4 @@ mod tests {
         assert_eq!(edit_distance("vertex", "vertx"), 1);
         assert_eq!(edit_distance("material", "materail"), 2);
     }
-}
-
-/// A 4x4 matrix given row by row in the scene file.
-fn dmat_from_rows(rows: &[f32; 16]) -> glam::DMat4 {
-    glam::DMat4::from_cols_array(&rows.map(f64::from)).transpose()
 }
