@@ -1,5 +1,5 @@
-//! The `primflow` command line: `check` (diagnostics and compiler dumps for `.prim` files)
-//! and `render` (a scene file to PNG images).
+//! The `primflow` command line: `check` (diagnostics and compiler dumps for `.prim` files),
+//! `render` (a scene file to PNG images) and `accuracy` (error vs time per accuracy knob).
 //!
 //! Everything a command prints goes through the `out` / `err` writers handed to [`run`], so
 //! the binary and the tests drive the same code. Exit codes: 0 success, 1 the input had
@@ -37,6 +37,9 @@ pub enum Command {
     Render(RenderArgs),
     /// Benchmark JIT kernels against hand-written Rust kernels of the same primitives.
     Bench(BenchArgs),
+    /// Sweep the accuracy knobs: error against the f64 reference vs time, as a table, CSV,
+    /// JSON and one plot per knob.
+    Accuracy(AccuracyArgs),
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -112,6 +115,26 @@ pub struct BenchArgs {
     pub json: Option<PathBuf>,
 }
 
+#[derive(clap::Args, Debug)]
+pub struct AccuracyArgs {
+    /// Only the knobs whose standard scene name contains this: sphere, nurb,
+    /// interpolation, arithmetic, lighting, depth.
+    #[arg(long, value_name = "S")]
+    pub scene: Option<String>,
+    /// Directory for accuracy.csv, accuracy.json and one <knob>.png per knob.
+    #[arg(long, value_name = "DIR", default_value = "accuracy-out")]
+    pub out: PathBuf,
+    /// Small scenes, fewer settings and 3 runs: under a minute on two cores (release build).
+    #[arg(long)]
+    pub quick: bool,
+    /// Timed runs per setting (the median is reported).
+    #[arg(long, value_name = "N", default_value_t = 7)]
+    pub runs: usize,
+    /// No progress bar.
+    #[arg(long)]
+    pub no_progress: bool,
+}
+
 /// Run the command line `args` (the first is the program name), printing to `out` and
 /// `err`; returns the exit code.
 pub fn run<I, T>(args: I, out: &mut dyn Write, err: &mut dyn Write) -> i32
@@ -136,6 +159,7 @@ where
         Command::Check(args) => check(&args, out, err),
         Command::Render(args) => render(&args, out, err),
         Command::Bench(args) => bench(&args, out, err),
+        Command::Accuracy(args) => accuracy(&args, out, err),
     }
 }
 
@@ -423,4 +447,31 @@ fn bench(args: &BenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
         }
     }
     0
+}
+
+fn accuracy(args: &AccuracyArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+    let opts = crate::accuracy::AccuracyOptions {
+        filter: args.scene.clone(),
+        quick: args.quick,
+        runs: args.runs,
+        progress: !args.no_progress,
+    };
+    let report = match crate::accuracy::run(&opts) {
+        Ok(report) => report,
+        Err(message) => {
+            let _ = writeln!(err, "error: {message}");
+            return 1;
+        }
+    };
+    let _ = write!(out, "{}", crate::accuracy::format_table(&report));
+    match crate::accuracy::write_outputs(&report, &args.out) {
+        Ok(written) => {
+            let _ = writeln!(out, "wrote {}", written.join(", "));
+            0
+        }
+        Err(message) => {
+            let _ = writeln!(err, "error: {message}");
+            1
+        }
+    }
 }
