@@ -14,6 +14,13 @@
 //! kind a primitive handles, `constant`, or a shared interpolator with its arguments); a
 //! parameter without one is `constant` (its value current at `end`).
 //!
+//! Geometry: points, normals and vectors are recorded in object coordinates; at `end` the
+//! instance goes through the geometry stage ([`super::geometry`]): clip codes, trivial
+//! reject / accept, runtime clipping and culling for facets, points to homogeneous device
+//! coordinates, normals and vectors to lighting coordinates. One `end` may thus yield no
+//! instance (rejected, culled) or several (a clipped polygon's fan). The transform state
+//! (model stack, camera, viewport = image) and the shading setup are public fields.
+//!
 //! Every call validates its input and returns an [`ApiIssue`] for an error (the call then has
 //! no effect, or — for a bad `begin` — opens a block that is discarded at `end`, so one
 //! mistake does not cascade). Warnings (zero-filled parameters, ...) are queued and taken
