@@ -94,6 +94,11 @@ pub struct VariantKey {
     pub bindings: Vec<Binding>,
     /// Count depth writes per pixel in `TileCtx::write_count` (tests and tools).
     pub count_writes: bool,
+    /// The instance was trivially accepted by the geometry pipeline (seed 002: the OR of its
+    /// clip codes, after the runtime's own clipping, has no near-plane bit): the language's
+    /// `clipping()` is constant `false` and the kernel is compiled without the clip path.
+    /// `false` (the default) keeps the clipping code, which is always correct.
+    pub trivial_accept: bool,
 }
 
 impl VariantKey {

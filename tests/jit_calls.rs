@@ -173,6 +173,7 @@ fn bare_interpolator_return_writes_constants_and_shared_interpolators() {
             },
         ],
         count_writes: false,
+        trivial_accept: false,
     };
     let mut jit = Jit::new(Arc::new(program(vec![fb.f, ix(), early()], 0))).unwrap();
     let k = jit.kernel(FuncId(0), &key).unwrap();

@@ -123,6 +123,7 @@ pub const BUILTIN_NAMES: &[&str] = &[
     "vtransform",
     "ntransform",
     "len",
+    "clipping",
     "bound",
     "PI",
 ];
@@ -1904,6 +1905,18 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
         match callee.name.as_str() {
             "transform" | "vtransform" | "ntransform" => return self.transform(callee, args, span, pre),
+            "clipping" => {
+                if !args.is_empty() {
+                    self.sink.push(err(
+                        "E0210",
+                        "`clipping` takes no arguments",
+                        span,
+                        "wrong number of arguments",
+                    ));
+                    return None;
+                }
+                return Some(mk(ExprKind::ClipFlag, Type::bool(), span));
+            }
             "len" => {
                 if args.len() != 1 {
                     self.sink.push(err(

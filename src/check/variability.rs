@@ -293,7 +293,7 @@ impl State<'_> {
             }
         };
         match &mut e.kind {
-            ExprKind::Const(_) | ExprKind::SeqCount => {}
+            ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
             ExprKind::Local(l) => {
                 let v = self.var[l.0 as usize];
                 if v.is_varying() {

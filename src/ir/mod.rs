@@ -426,6 +426,10 @@ pub enum ExprKind {
     },
     /// Run-time number of sequence points (`len(a)` of a per-sequence-point parameter).
     SeqCount,
+    /// `clipping()`: uniform bool, whether the primitive may cross the near plane. A
+    /// constant of the variant key (`!VariantKey::trivial_accept`), folded by the JIT, so an
+    /// `if (clipping())` compiles only the branch the key selects.
+    ClipFlag,
 }
 
 /// An assignable place: a local and zero or more indices into it.

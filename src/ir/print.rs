@@ -277,6 +277,7 @@ impl Printer<'_> {
             }
             ExprKind::MatMul { lhs, rhs } => format!("matmul({}, {})", self.expr(lhs), self.expr(rhs)),
             ExprKind::SeqCount => "seq_count".into(),
+            ExprKind::ClipFlag => "clipping()".into(),
         }
     }
 }

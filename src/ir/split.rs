@@ -239,7 +239,7 @@ fn expr_reads(e: &Expr, r: &mut HashSet<LocalId>) {
         ExprKind::Local(l) => {
             r.insert(*l);
         }
-        ExprKind::Const(_) | ExprKind::SeqCount => {}
+        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
         ExprKind::Index { base, index, .. } => {
             expr_reads(base, r);
             expr_reads(index, r);

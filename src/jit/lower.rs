@@ -775,6 +775,15 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     fn lower_if(&mut self, cond: &'a Expr, then: &'a [Stmt], otherwise: &'a [Stmt]) -> Res<()> {
+        // `clipping()` (possibly negated) is a constant of the key: lower only the branch it
+        // selects, so a trivially accepted variant contains no clipping code at all.
+        if let Some(on) = key_constant(cond, self.key) {
+            let taken = if on { then } else { otherwise };
+            for s in taken {
+                self.stmt(s)?;
+            }
+            return Ok(());
+        }
         let c = self.eval(cond)?;
         if !c.varying {
             let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
@@ -2168,6 +2177,10 @@ impl<'a, 'b> Lower<'a, 'b> {
                 let n = self.b.ins().load(types::I32, args_flags(), self.args, 0);
                 Ok(Val::one(n, Scalar::Int, false))
             }
+            ExprKind::ClipFlag => {
+                let on = self.b.ins().iconst(types::I8, i64::from(!self.key.trivial_accept));
+                Ok(Val::one(on, Scalar::Bool, false))
+            }
         }
     }
 
@@ -2434,7 +2447,7 @@ fn mark_dynamic_expr(e: &Expr, dynamic: &mut [bool]) {
         ExprKind::Builtin { args, .. } | ExprKind::List(args) => {
             args.iter().for_each(|a| mark_dynamic_expr(a, dynamic))
         }
-        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount => {}
+        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
     }
 }
 
@@ -2442,6 +2455,18 @@ fn root_local(e: &Expr) -> Option<LocalId> {
     match &e.kind {
         ExprKind::Local(l) => Some(*l),
         ExprKind::Index { base, .. } => root_local(base),
+        _ => None,
+    }
+}
+
+/// The value of a condition fixed by the variant key: `clipping()` or `!clipping()`.
+fn key_constant(cond: &Expr, key: &VariantKey) -> Option<bool> {
+    match &cond.kind {
+        ExprKind::ClipFlag => Some(!key.trivial_accept),
+        ExprKind::Unary {
+            op: crate::ir::UnaryOp::Not,
+            expr,
+        } => key_constant(expr, key).map(|v| !v),
         _ => None,
     }
 }

@@ -40,13 +40,31 @@
 //! line or a point, or the normal lies in the flattened plane) is replaced by +z with
 //! [`Warning::DegenerateNormal`] (seed 000 3.0: "we substitute an arbitrary vector").
 
-use std::cell::Cell;
+use std::sync::Mutex;
 
 use glam::{DMat3, DMat4, DVec3, DVec4};
 
 use super::clip::PyramidMode;
 use super::factor::{factor_view, NotFactorizable, ViewFactors};
 use super::Warning;
+
+/// A cache cell that can be shared between threads (the renderer reads the transform
+/// state from its render threads): `Cell`'s `get` / `set` over a mutex. A poisoned lock
+/// still holds a valid value (nothing can panic while it is held), so it is used as is.
+#[derive(Debug, Default)]
+struct Cell<T>(Mutex<T>);
+
+impl<T: Copy> Cell<T> {
+    fn new(v: T) -> Cell<T> {
+        Cell(Mutex::new(v))
+    }
+    fn get(&self) -> T {
+        *self.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
+    fn set(&self, v: T) {
+        *self.0.lock().unwrap_or_else(|e| e.into_inner()) = v;
+    }
+}
 
 /// Why a transform call was refused; the state is left unchanged.
 #[derive(Clone, Debug, PartialEq)]

@@ -14,6 +14,13 @@
 //! kind a primitive handles, `constant`, or a shared interpolator with its arguments); a
 //! parameter without one is `constant` (its value current at `end`).
 //!
+//! Geometry: points, normals and vectors are recorded in object coordinates; at `end` the
+//! instance goes through the geometry stage ([`super::geometry`]): clip codes, trivial
+//! reject / accept, runtime clipping and culling for facets, points to homogeneous device
+//! coordinates, normals and vectors to lighting coordinates. One `end` may thus yield no
+//! instance (rejected, culled) or several (a clipped polygon's fan). The transform state
+//! (model stack, camera, viewport = image) and the shading setup are public fields.
+//!
 //! Every call validates its input and returns an [`ApiIssue`] for an error (the call then has
 //! no effect, or — for a bad `begin` — opens a block that is discarded at `end`, so one
 //! mistake does not cascade). Warnings (zero-filled parameters, ...) are queued and taken
@@ -22,14 +29,25 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use glam::Mat4;
+use glam::{DMat4, DVec3, DVec4, Mat4};
 
 use crate::abi::{interpolator_arg_words, ArgLayout, Binding, BindingKind, ParamSlot, VariantKey};
 use crate::diag::Severity;
 use crate::ir::{FuncId, FuncKind, ParamRole, Program};
 
-use super::transform;
+use super::geometry::{self, ClipOutcome, GeometryState};
+use super::shading::ShadingSetup;
 use super::value::{encode, encode_default, EncodeError, Value};
+use crate::ir::ParamSpace;
+use crate::pipeline::face::{CullMode, Facing};
+use crate::pipeline::transform::TransformError;
+use crate::pipeline::{GeometryType, Warning};
+
+/// The reserved shading parameter that carries a facet's facing to shading (`distinguish`).
+pub const FACING_PARAM: &str = "facing";
+/// The shading parameter holding the surface normal (given in object coordinates, stored in
+/// lighting coordinates).
+pub const NORMAL_PARAM: &str = "N";
 
 /// Largest image side accepted, in pixels (keeps a typo from allocating gigabytes).
 pub const MAX_IMAGE_SIDE: u32 = 16384;
@@ -169,7 +187,14 @@ pub struct Instance {
 pub struct Renderer {
     program: Arc<Program>,
     pub options: RenderOptions,
-    device_from_object: Mat4,
+    /// Model stack, camera, viewport, clip planes, culling (the geometry pipeline's state).
+    pub geometry: GeometryState,
+    /// Lights, materials, fog, texture: what the deferred shading pass does.
+    pub shading_setup: ShadingSetup,
+    /// Pipeline warnings already reported (each kind once per renderer).
+    pipeline_warnings: Vec<Warning>,
+    /// `--explain`: per (primitive, pipeline description, clip outcome), how many instances.
+    explain: std::collections::BTreeMap<(String, String, ClipOutcome), usize>,
     shading: Vec<ShadingParam>,
     /// `material_interp` calls for names that have no `material` value yet.
     pending_interp: HashMap<String, Interp>,
@@ -183,7 +208,10 @@ impl Renderer {
         Renderer {
             program,
             options: RenderOptions::default(),
-            device_from_object: Mat4::IDENTITY,
+            geometry: GeometryState::new(RenderOptions::default().width, RenderOptions::default().height),
+            shading_setup: ShadingSetup::default(),
+            pipeline_warnings: vec![],
+            explain: std::collections::BTreeMap::new(),
             shading: vec![],
             pending_interp: HashMap::new(),
             block: None,
@@ -225,6 +253,11 @@ impl Renderer {
         }
         self.options.width = width;
         self.options.height = height;
+        // The viewport follows the image (both sides are positive here).
+        let _ = self
+            .geometry
+            .transforms
+            .set_viewport(0.0, 0.0, f64::from(width), f64::from(height));
         Ok(())
     }
 
@@ -244,7 +277,9 @@ impl Renderer {
         self.options.background = rgb;
     }
 
-    /// Replace the current `device_from_object` matrix.
+    /// Replace the current transform by a `device_from_object` matrix given directly: the
+    /// model stack's top becomes the identity and there is no camera (points, lights and
+    /// normals are then in one "world" whose device transform is this matrix).
     pub fn set_transform(&mut self, device_from_object: Mat4) {
         if device_from_object.determinant() == 0.0 || !device_from_object.is_finite() {
             self.warnings.push(ApiIssue::warning(
@@ -253,25 +288,186 @@ impl Renderer {
                 "transform is singular or not finite; points will be passed through it as given",
             ));
         }
-        self.device_from_object = device_from_object;
+        let m = device_from_object.as_dmat4();
+        // A non-finite matrix is kept as the identity for the model and used as given for
+        // the device: its points become NaN and are dropped by the clip codes.
+        let _ = self.geometry.transforms.set_model(DMat4::IDENTITY);
+        self.geometry.direct = Some(m);
     }
 
+    /// The current `device_from_object` (model, view and viewport composed).
     pub fn transform(&self) -> Mat4 {
-        self.device_from_object
+        self.geometry.device_from_object().as_mat4()
     }
 
-    /// `device_from_object` = the orthographic box to viewport mapping
-    /// (see [`transform::ortho`]); uses the current image size.
+    fn transform_result(&mut self, r: Result<(), TransformError>) -> Result<(), ApiIssue> {
+        r.map_err(|e| ApiIssue::error("E0710", Target::Values, e.to_string()))
+    }
+
+    /// Orthographic camera: the camera-space box x in [left, right], y in [bottom, top],
+    /// z in [-far, -near] fills the viewport, depth 1 at near and 0 at far.
     pub fn ortho(&mut self, left: f32, right: f32, bottom: f32, top: f32, near: f32, far: f32) {
-        let (w, h) = (self.options.width, self.options.height);
-        self.set_transform(transform::ortho(left, right, bottom, top, near, far, [w, h]));
+        let _ = self.ortho_checked(
+            [left, right, bottom, top].map(f64::from),
+            f64::from(near),
+            f64::from(far),
+        );
     }
 
-    /// `device_from_object` = a perspective camera at the origin looking down -z
-    /// (see [`transform::perspective`]); uses the current image size.
+    /// [`Renderer::ortho`] reporting bad parameters.
+    pub fn ortho_checked(&mut self, bounds: [f64; 4], near: f64, far: f64) -> Result<(), ApiIssue> {
+        let r = self.geometry.transforms.orthographic(bounds, near, far);
+        if r.is_ok() {
+            self.geometry.direct = None;
+        }
+        self.transform_result(r)
+    }
+
+    /// Perspective camera, vertical field of view in degrees, aspect from the image size.
     pub fn perspective(&mut self, fov_y_degrees: f32, near: f32, far: f32) {
-        let (w, h) = (self.options.width, self.options.height);
-        self.set_transform(transform::perspective(fov_y_degrees, near, far, w, h));
+        let _ = self.perspective_checked(f64::from(fov_y_degrees), f64::from(near), f64::from(far));
+    }
+
+    /// [`Renderer::perspective`] reporting bad parameters.
+    pub fn perspective_checked(&mut self, fov_y_degrees: f64, near: f64, far: f64) -> Result<(), ApiIssue> {
+        let aspect = f64::from(self.options.width) / f64::from(self.options.height);
+        let r = self
+            .geometry
+            .transforms
+            .perspective(fov_y_degrees.to_radians(), aspect, near, far);
+        if r.is_ok() {
+            self.geometry.direct = None;
+        }
+        self.transform_result(r)
+    }
+
+    /// Oblique parallel projection along `direction` (camera space, away from the viewer).
+    pub fn oblique(&mut self, bounds: [f64; 4], near: f64, far: f64, direction: [f64; 3]) -> Result<(), ApiIssue> {
+        let r = self
+            .geometry
+            .transforms
+            .oblique(bounds, near, far, DVec3::from_array(direction));
+        if r.is_ok() {
+            self.geometry.direct = None;
+        }
+        self.transform_result(r)
+    }
+
+    /// Camera at `eye` looking at `centre` with `up` towards the top of the image.
+    pub fn look_at(&mut self, eye: [f64; 3], centre: [f64; 3], up: [f64; 3]) -> Result<(), ApiIssue> {
+        let r =
+            self.geometry
+                .transforms
+                .look_at(DVec3::from_array(eye), DVec3::from_array(centre), DVec3::from_array(up));
+        if r.is_ok() {
+            self.geometry.direct = None;
+        }
+        self.transform_result(r)
+    }
+
+    /// An arbitrary view: `clip_from_world` given directly (row-major in the scene file).
+    pub fn view_matrix(&mut self, clip_from_world: DMat4) -> Result<(), ApiIssue> {
+        let r = self.geometry.transforms.set_view_matrix(clip_from_world);
+        if r.is_ok() {
+            self.geometry.direct = None;
+        }
+        self.transform_result(r)
+    }
+
+    /// Save the model matrix.
+    pub fn push_transform(&mut self) {
+        self.geometry.transforms.push();
+    }
+    /// Restore the model matrix saved by the matching push.
+    pub fn pop_transform(&mut self) -> Result<(), ApiIssue> {
+        let r = self.geometry.transforms.pop();
+        self.transform_result(r)
+    }
+    pub fn translate(&mut self, t: [f64; 3]) -> Result<(), ApiIssue> {
+        let r = self.geometry.transforms.translate(DVec3::from_array(t));
+        self.transform_result(r)
+    }
+    pub fn rotate(&mut self, degrees: f64, axis: [f64; 3]) -> Result<(), ApiIssue> {
+        let r = self
+            .geometry
+            .transforms
+            .rotate_degrees(degrees, DVec3::from_array(axis));
+        self.transform_result(r)
+    }
+    pub fn scale(&mut self, s: [f64; 3]) -> Result<(), ApiIssue> {
+        let r = self.geometry.transforms.scale(DVec3::from_array(s));
+        self.transform_result(r)
+    }
+    /// `M = M * m` (m applies to object coordinates first).
+    pub fn concat(&mut self, m: DMat4) -> Result<(), ApiIssue> {
+        let r = self.geometry.transforms.concat(m);
+        self.transform_result(r)
+    }
+    /// Replace the model matrix.
+    pub fn set_model(&mut self, world_from_object: DMat4) -> Result<(), ApiIssue> {
+        let r = self.geometry.transforms.set_model(world_from_object);
+        self.transform_result(r)
+    }
+
+    /// A model clip plane `a x + b y + c z + d >= 0` (kept side) in the current object
+    /// coordinates; it is stored in world coordinates (seed 000 4.2.11).
+    pub fn clip_plane(&mut self, plane: [f64; 4]) -> Result<(), ApiIssue> {
+        let p = DVec4::from_array(plane);
+        if !p.is_finite() || p.truncate().length() == 0.0 {
+            return Err(ApiIssue::error(
+                "E0710",
+                Target::Values,
+                "a clip plane needs finite coefficients and a non-zero normal (a b c)",
+            ));
+        }
+        let world_from_object = self.geometry.transforms.world_from_object();
+        match crate::pipeline::clip::transform_plane(p, &world_from_object) {
+            Some(w) => {
+                self.geometry.clip_planes.push(w);
+                Ok(())
+            }
+            None => Err(ApiIssue::error(
+                "E0710",
+                Target::Values,
+                "the model transform is singular: the clip plane cannot be placed in world coordinates",
+            )),
+        }
+    }
+    /// Remove every model clip plane.
+    pub fn clear_clip_planes(&mut self) {
+        self.geometry.clip_planes.clear();
+    }
+
+    /// Which faces facets drop.
+    pub fn set_cull(&mut self, cull: CullMode) {
+        self.geometry.cull = cull;
+    }
+
+    /// Hand each facet's device-space facing to shading in the reserved `facing` shading
+    /// parameter (1 front, -1 back), which selects the front or back material.
+    pub fn set_distinguish(&mut self, on: bool) {
+        self.geometry.distinguish = on;
+        if on && !self.shading.iter().any(|p| p.name == FACING_PARAM) {
+            let _ = self.material(FACING_PARAM, &Value(vec![1.0]));
+        }
+    }
+
+    /// The pipeline chosen for each kind of primitive so far, with counts (`--explain`).
+    pub fn explain_lines(&self) -> Vec<String> {
+        self.explain
+            .iter()
+            .map(|((prim, choice, outcome), n)| {
+                let outcome = match outcome {
+                    ClipOutcome::NotClipped => "transformed, not a facet: clipping left to its kernel",
+                    ClipOutcome::TriviallyRejected => "trivially rejected (no kernel run)",
+                    ClipOutcome::TriviallyAccepted => "trivially accepted",
+                    ClipOutcome::Clipped => "clipped by the runtime",
+                    ClipOutcome::Culled => "culled",
+                    ClipOutcome::NonFinite => "dropped (NaN or infinite vertex)",
+                };
+                format!("{prim} x{n}: {outcome}; {choice}")
+            })
+            .collect()
     }
 
     // ---- shading parameters ----
@@ -279,6 +475,33 @@ impl Renderer {
     /// Set the current value of shading parameter `name`. The first value fixes its
     /// component count and allocates its planes.
     pub fn material(&mut self, name: &str, value: &Value) -> Result<(), ApiIssue> {
+        // The shading normal goes to lighting coordinates now, under the current model
+        // matrix (as OpenGL's glNormal): shading reads it from the G-buffer in LC.
+        if name == NORMAL_PARAM && value.len() == 3 {
+            let mut warnings = vec![];
+            let normals = self.geometry.lighting_normal_matrix();
+            let n = geometry::normal_to_lighting(&normals, [value.0[0], value.0[1], value.0[2]], &mut warnings);
+            let lit = Value(n.to_vec());
+            self.record_warnings(&warnings);
+            return self.material_raw(name, &lit);
+        }
+        self.material_raw(name, value)
+    }
+
+    fn record_warnings(&mut self, warnings: &[Warning]) {
+        for &w in warnings {
+            if !self.pipeline_warnings.contains(&w) {
+                self.pipeline_warnings.push(w);
+                self.warnings.push(ApiIssue::warning(
+                    "W0704",
+                    Target::Values,
+                    format!("geometry pipeline: {w}"),
+                ));
+            }
+        }
+    }
+
+    fn material_raw(&mut self, name: &str, value: &Value) -> Result<(), ApiIssue> {
         if value.is_empty() || value.len() > MAX_COMPONENTS {
             return Err(ApiIssue::error(
                 "E0703",
@@ -373,11 +596,11 @@ impl Renderer {
             let encoded = match given {
                 Some(i) => {
                     used[i] = true;
-                    encode(&args[i].1 .0, ty, p.space, &self.device_from_object)
+                    encode(&args[i].1 .0, ty, p.space, &self.transform())
                         .map_err(|e| ApiIssue::error("E0703", Target::Arg(i), count_message(&p.name, &e)))?
                 }
                 None => match &p.default {
-                    Some(d) => encode_default(d, ty, p.space, &self.device_from_object),
+                    Some(d) => encode_default(d, ty, p.space, &self.transform()),
                     None => {
                         self.warnings.push(ApiIssue::warning(
                             "W0701",
@@ -468,7 +691,9 @@ impl Renderer {
     /// Set a rasterisation parameter of the open primitive: a per-primitive parameter, or the
     /// current value of a per-sequence-point one (recorded at the next sequence points).
     pub fn rast_param(&mut self, name: &str, value: &Value) -> Result<(), ApiIssue> {
-        let device_from_object = self.device_from_object;
+        // Points, normals and vectors are recorded in object coordinates; `end` transforms
+        // them (after clipping, for facets).
+        let device_from_object = Mat4::IDENTITY;
         let program = self.program.clone();
         let block = self.open_block("rast_param")?;
         let Some(id) = block.func else {
@@ -565,7 +790,8 @@ impl Renderer {
             return Ok(());
         };
         let instance = self.build_instance(func, &block);
-        self.instances.push(instance);
+        let ready = self.finish_geometry(instance);
+        self.instances.extend(ready);
         Ok(())
     }
 
@@ -585,6 +811,7 @@ impl Renderer {
                 })
                 .collect(),
             count_writes: false,
+            trivial_accept: false,
         }
     }
 
@@ -650,7 +877,7 @@ impl Renderer {
                     let data = match block.per_prim.get(&index) {
                         Some(v) => v.clone(),
                         None => match &p.default {
-                            Some(d) => encode_default(d, ty, p.space, &self.device_from_object),
+                            Some(d) => encode_default(d, ty, p.space, &Mat4::IDENTITY),
                             None => {
                                 self.warnings.push(ApiIssue::warning(
                                     "W0701",
@@ -738,36 +965,207 @@ impl Renderer {
         (out, complete)
     }
 
-    /// The six space matrices of the argument block. Until the geometry pipeline lands, the
-    /// object, world and lighting spaces coincide.
+    /// The six space matrices of the argument block, from the geometry pipeline.
     fn write_spaces(&mut self, args: &mut [u32], at: usize) {
-        let device_from_object = self.device_from_object;
-        // The inverse is taken in f64 and rounded once: a camera with a narrow field of view
-        // has entries from 1e-5 to 1e9, and an f32 inverse leaves garbage where the true
-        // inverse has zeros (a primitive measuring a small far object from the centre of
-        // its projection, like the sphere, reads those entries relative to tiny ones).
-        let inverse = device_from_object.as_dmat4().inverse();
-        let object_from_device = if device_from_object.determinant() != 0.0 && inverse.is_finite() {
-            inverse.as_mat4()
-        } else {
-            self.warnings.push(ApiIssue::warning(
-                "W0702",
-                Target::Call,
-                "the transform is singular: the *_from_device matrices are zero",
-            ));
-            Mat4::ZERO
-        };
-        let matrices = [
-            device_from_object,
-            device_from_object,
-            device_from_object,
-            object_from_device,
-            object_from_device,
-            object_from_device,
-        ];
-        for (i, m) in matrices.iter().enumerate() {
-            let words: Vec<u32> = transform::to_rows(m).iter().map(|x| x.to_bits()).collect();
+        for (i, m) in self.geometry.abi_spaces().iter().enumerate() {
+            let words: Vec<u32> = m.iter().map(|x| x.to_bits()).collect();
             write_words(args, at + 16 * i, &words);
+        }
+    }
+
+    /// The geometry stage for one instance built with object-space points (see
+    /// [`geometry`]): zero or more instances with device-space points and lighting-space
+    /// normals and vectors.
+    fn finish_geometry(&mut self, mut inst: Instance) -> Vec<Instance> {
+        let program = self.program.clone();
+        let f = program.func(inst.func);
+        let layout = ArgLayout::new(&program, inst.func, &inst.key);
+        let n_seq = inst.n_seq.max(1) as usize;
+        let mut warnings = vec![];
+        let clip_from_object = self.geometry.clip_from_object();
+        let device_from_object = self.geometry.device_from_object();
+        let normals = self.geometry.lighting_normal_matrix();
+        let lighting_from_object = self.geometry.lighting_from_object();
+        if normals.singular {
+            geometry::note(&mut warnings, Warning::SingularModel);
+        }
+
+        // Which words belong to which parameter (per sequence point for Seq slots).
+        let spans_of = |slot: &ParamSlot| -> Vec<(usize, usize)> {
+            match slot {
+                ParamSlot::Pixel => vec![],
+                ParamSlot::Fixed { offset, words } => vec![(*offset as usize, *words as usize)],
+                ParamSlot::Seq { seq_offset, words } => {
+                    let base = layout.fixed_words as usize + n_seq * *seq_offset as usize;
+                    (0..n_seq)
+                        .map(|i| (base + i * *words as usize, *words as usize))
+                        .collect()
+                }
+            }
+        };
+        let floats = |args: &[u32], at: usize, n: usize| -> Vec<f32> {
+            args.get(at..at + n)
+                .map(|w| w.iter().map(|&b| f32::from_bits(b)).collect())
+                .unwrap_or_default()
+        };
+
+        // Normals and vectors to lighting coordinates.
+        for (p, slot) in f.params.iter().zip(&layout.params) {
+            let chunk = match p.space {
+                ParamSpace::Normal | ParamSpace::Vector => 3,
+                _ => continue,
+            };
+            for (at, words) in spans_of(slot) {
+                for c in (0..words / chunk).map(|k| at + k * chunk) {
+                    let v = floats(&inst.args, c, 3);
+                    let Ok(v) = <[f32; 3]>::try_from(v) else { continue };
+                    let out = match p.space {
+                        ParamSpace::Normal => geometry::normal_to_lighting(&normals, v, &mut warnings),
+                        _ => geometry::vector_to_lighting(&lighting_from_object, v),
+                    };
+                    write_words(&mut inst.args, c, &out.map(f32::to_bits));
+                }
+            }
+        }
+
+        // A facet: the only per-sequence-point parameters are `point vertex[]` and
+        // interpolation data, and there is no other point.
+        let vertex_index = f.params.iter().position(|p| p.name == "vertex");
+        let is_facet = vertex_index.is_some_and(|vi| {
+            f.params
+                .iter()
+                .zip(&layout.params)
+                .enumerate()
+                .all(|(i, (p, slot))| match slot {
+                    ParamSlot::Seq { words, .. } if i == vi => p.space == ParamSpace::Point && *words == 4,
+                    ParamSlot::Seq { .. } => p.role == ParamRole::InterpData,
+                    _ => p.space != ParamSpace::Point,
+                })
+        }) && inst.n_seq >= 3;
+        let lit = self.shading_setup.lit();
+        let name = f.name.clone();
+
+        if !is_facet {
+            for (p, slot) in f.params.iter().zip(&layout.params) {
+                if p.space != ParamSpace::Point {
+                    continue;
+                }
+                for (at, words) in spans_of(slot) {
+                    for c in (0..words / 4).map(|k| at + k * 4) {
+                        let Ok(v) = <[f32; 4]>::try_from(floats(&inst.args, c, 4)) else {
+                            continue;
+                        };
+                        let object = self.geometry.object_point(v, &mut warnings);
+                        if !object.is_finite() {
+                            continue;
+                        }
+                        let device = (device_from_object * object).as_vec4().to_array();
+                        write_words(&mut inst.args, c, &device.map(f32::to_bits));
+                    }
+                }
+            }
+            let choice = self.geometry.choose(GeometryType::Surface, lit, true);
+            self.record(&name, &choice, ClipOutcome::NotClipped, warnings);
+            return vec![inst];
+        }
+
+        // Facet: positions and interpolation data per sequence point.
+        let vi = vertex_index.unwrap_or(0);
+        let vertex_spans = spans_of(&layout.params[vi]);
+        let interp_slot = f
+            .params
+            .iter()
+            .zip(&layout.params)
+            .position(|(p, slot)| p.role == ParamRole::InterpData && matches!(slot, ParamSlot::Seq { .. }));
+        let interp_spans = interp_slot.map(|i| spans_of(&layout.params[i])).unwrap_or_default();
+        let count = inst.n_seq as usize;
+        let objects: Vec<DVec4> = (0..count)
+            .map(|i| {
+                let (at, _) = vertex_spans[i];
+                let v = <[f32; 4]>::try_from(floats(&inst.args, at, 4)).unwrap_or([f32::NAN; 4]);
+                self.geometry.object_point(v, &mut warnings)
+            })
+            .collect();
+        let positions: Vec<DVec4> = objects.iter().map(|p| clip_from_object * *p).collect();
+        let device: Vec<DVec4> = objects.iter().map(|p| device_from_object * *p).collect();
+        let attrs: Vec<Vec<f32>> = (0..count)
+            .map(|i| {
+                interp_spans
+                    .get(i)
+                    .map(|&(at, n)| floats(&inst.args, at, n))
+                    .unwrap_or_default()
+            })
+            .collect();
+        let result = self.geometry.clip_facet(&positions, &device, &attrs, &mut warnings);
+        let choice = self
+            .geometry
+            .choose(GeometryType::Facet, lit, matches!(result.outcome, ClipOutcome::Clipped));
+        self.record(&name, &choice, result.outcome, warnings);
+        let facing_binding = self.shading.iter().position(|p| p.name == FACING_PARAM);
+        let mut out = vec![];
+        for (piece, facing) in result.pieces {
+            let n = piece.len() as u32;
+            let mut key = inst.key.clone();
+            key.trivial_accept = !result.near_crossed;
+            // Same key bindings: the fixed part of the layout is unchanged.
+            let mut args = vec![0u32; layout.words(n)];
+            let fixed = layout.fixed_words as usize;
+            args[..fixed].copy_from_slice(&inst.args[..fixed]);
+            args[0] = n;
+            let n_out = n.max(1) as usize;
+            for (i, (position, data)) in piece.iter().enumerate() {
+                if let ParamSlot::Seq { seq_offset, words } = &layout.params[vi] {
+                    let at = fixed + n_out * *seq_offset as usize + i * *words as usize;
+                    write_words(&mut args, at, &position.as_vec4().to_array().map(f32::to_bits));
+                }
+                if let Some(ParamSlot::Seq { seq_offset, words }) = interp_slot.map(|k| &layout.params[k]) {
+                    let at = fixed + n_out * *seq_offset as usize + i * *words as usize;
+                    let words: Vec<u32> = data.iter().map(|x| x.to_bits()).collect();
+                    write_words(&mut args, at, &words);
+                }
+            }
+            if let (Some(b), true) = (facing_binding, self.geometry.distinguish) {
+                if let Some(Some(at)) = layout.binding_data.get(b) {
+                    let v: f32 = if facing == Facing::Front { 1.0 } else { -1.0 };
+                    write_words(&mut args, *at as usize, &[v.to_bits()]);
+                }
+            }
+            out.push(Instance {
+                func: inst.func,
+                key,
+                n_seq: n,
+                args,
+            });
+        }
+        out
+    }
+
+    /// Count the instance for `--explain` and report new pipeline warnings (each kind once).
+    fn record(
+        &mut self,
+        prim: &str,
+        choice: &crate::pipeline::PipelineChoice,
+        outcome: ClipOutcome,
+        mut warnings: Vec<Warning>,
+    ) {
+        for w in &choice.warnings {
+            geometry::note(&mut warnings, *w);
+        }
+        let mut description = choice.clone();
+        description.warnings.clear();
+        *self
+            .explain
+            .entry((prim.to_string(), description.to_string(), outcome))
+            .or_insert(0) += 1;
+        for w in warnings {
+            if !self.pipeline_warnings.contains(&w) {
+                self.pipeline_warnings.push(w);
+                self.warnings.push(ApiIssue::warning(
+                    "W0704",
+                    Target::Call,
+                    format!("geometry pipeline, primitive `{prim}`: {w}"),
+                ));
+            }
         }
     }
 }

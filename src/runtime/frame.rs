@@ -33,6 +33,7 @@ use crate::jit::Kernel;
 
 use super::api::{Instance, RenderOptions, Renderer, MAX_IMAGE_SIDE, MAX_TILE_SIDE};
 use super::kernels::KernelSource;
+use super::shading::{Effects, PixelInputs, Shader, ShadingSpaces};
 
 /// Tile buffer row stride for a tile `width` pixels wide: whole pixel groups.
 pub fn tile_stride(width: u32) -> u32 {
@@ -58,6 +59,9 @@ pub struct Frame {
     pub planes: Vec<Vec<f32>>,
     pub write_counts: Option<Vec<u32>>,
     pub params: Vec<ParamPlanes>,
+    /// The deferred shading pass's colours (`None` when the scene turns no effect on and
+    /// covered pixels show `Cs`).
+    pub colors: Option<Vec<[f32; 3]>>,
 }
 
 /// What a render measured.
@@ -77,6 +81,19 @@ pub struct RenderOutput {
     pub frame: Frame,
     pub stats: RenderStats,
     pub diags: Diagnostics,
+    /// Every kernel variant compiled for the frame, in first-use order.
+    pub kernels: Vec<KernelReport>,
+    /// The effects the shading pass was compiled for.
+    pub effects: Effects,
+}
+
+/// One compiled kernel variant (`render --explain`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct KernelReport {
+    pub primitive: String,
+    pub key: String,
+    pub trivial_accept: bool,
+    pub compile_micros: u64,
 }
 
 struct Tile {
@@ -117,6 +134,7 @@ impl Renderer {
         // 1. Compile each (func, key) once, in first-use order.
         let mut kernels: HashMap<(FuncId, VariantKey), Option<Arc<Kernel>>> = HashMap::new();
         let mut ready: Vec<Option<Arc<Kernel>>> = Vec::with_capacity(self.instances().len());
+        let mut reports: Vec<KernelReport> = vec![];
         for inst in self.instances() {
             let key = VariantKey {
                 count_writes: opts.count_writes,
@@ -127,6 +145,12 @@ impl Renderer {
                 if let Some(k) = &kernel {
                     stats.kernels_compiled += 1;
                     stats.compile_micros += k.compile_micros;
+                    reports.push(KernelReport {
+                        primitive: program.func(inst.func).name.clone(),
+                        key: describe_key(&key),
+                        trivial_accept: key.trivial_accept,
+                        compile_micros: k.compile_micros,
+                    });
                 }
                 kernel
             });
@@ -181,16 +205,34 @@ impl Renderer {
                     components: p.components,
                 })
                 .collect(),
+            colors: None,
         };
         for (tile, result) in tiles.iter().zip(results) {
             frame.copy_tile(tile, &result);
             errors.extend(result.errors);
         }
 
+        // Deferred shading over the visible pixels, compiled for the scene's effects.
+        let effects = self.shading_setup.effects();
+        let spaces = ShadingSpaces {
+            device_from_lighting: self.geometry.device_from_lighting(),
+            lighting_from_world: self.geometry.lighting_from_world(),
+            device_from_clip: self.geometry.device_from_clip(),
+        };
+        if let Some(shader) = Shader::new(&self.shading_setup, &spaces) {
+            frame.colors = Some(frame.shade(&shader, self.shading_setup.texture.as_ref().map(|t| t.param.as_str())));
+        }
+
         // 4. Run-time errors, once per (site, code), in a thread-independent order.
         report_runtime_errors(&program, &errors, instances, &mut diags);
         stats.render_micros = started.elapsed().as_micros() as u64;
-        RenderOutput { frame, stats, diags }
+        RenderOutput {
+            frame,
+            stats,
+            diags,
+            kernels: reports,
+            effects,
+        }
     }
 }
 
@@ -487,6 +529,9 @@ impl Frame {
         if !self.written(x, y) {
             return self.background.map(clamp01);
         }
+        if let (Some(colors), Some(i)) = (&self.colors, self.index(x, y)) {
+            return colors[i].map(clamp01);
+        }
         let Some(cs) = self.param("Cs") else {
             return [1.0; 3];
         };
@@ -496,6 +541,65 @@ impl Frame {
             n if n >= 3 => [c(0), c(1), c(2)],
             _ => [1.0; 3],
         }
+    }
+
+    /// The shaded colour before clamping (tests compare lighting spaces with it).
+    pub fn shaded_at(&self, x: u32, y: u32) -> Option<[f32; 3]> {
+        let i = self.index(x, y)?;
+        self.colors.as_ref().map(|c| c[i])
+    }
+
+    /// Run `shader` over every written pixel; unwritten pixels get zero.
+    fn shade(&self, shader: &Shader, texture_param: Option<&str>) -> Vec<[f32; 3]> {
+        let get = |name: &str| self.param(name).cloned();
+        let (cs, normal, facing) = (get("Cs"), get(super::api::NORMAL_PARAM), get(super::api::FACING_PARAM));
+        let st = texture_param.and_then(get);
+        let mut colors = vec![[0f32; 3]; self.depth.len()];
+        // Row by row: bounded memory for the inputs, same order on every run.
+        for y in 0..self.height {
+            let mut inputs = vec![];
+            let mut slots = vec![];
+            for x in 0..self.width {
+                let i = (y * self.width + x) as usize;
+                if self.depth[i] == 0 {
+                    continue;
+                }
+                let plane = |p: &ParamPlanes, k: u32| f64::from(self.planes[(p.first_plane + k) as usize][i]);
+                let cs = match &cs {
+                    Some(p) if p.components >= 3 => [plane(p, 0), plane(p, 1), plane(p, 2)],
+                    Some(p) if p.components == 1 => [plane(p, 0); 3],
+                    _ => [1.0; 3],
+                };
+                inputs.push(PixelInputs {
+                    x,
+                    y,
+                    depth: f64::from(self.depth[i]) / 4294967296.0,
+                    cs,
+                    normal: normal
+                        .as_ref()
+                        .filter(|p| p.components == 3)
+                        .map(|p| [plane(p, 0), plane(p, 1), plane(p, 2)]),
+                    facing: facing.as_ref().map(|p| {
+                        if plane(p, 0) < 0.0 {
+                            crate::pipeline::face::Facing::Back
+                        } else {
+                            crate::pipeline::face::Facing::Front
+                        }
+                    }),
+                    st: st
+                        .as_ref()
+                        .filter(|p| p.components >= 2)
+                        .map(|p| [plane(p, 0), plane(p, 1)]),
+                });
+                slots.push(i);
+            }
+            let mut out = vec![[0f32; 3]; inputs.len()];
+            shader.shade(&inputs, &mut out);
+            for (i, c) in slots.into_iter().zip(out) {
+                colors[i] = c;
+            }
+        }
+        colors
     }
 
     pub fn to_rgb8(&self) -> RgbImage {

@@ -10,18 +10,25 @@
 //! - [`api`]: `begin` / `rast_param` / `material` / `material_interp` / `sequence_point` /
 //!   `vertex` / `end`, the current transform, instances and their argument blocks.
 //! - [`frame`]: binning, parallel tile rendering, the [`Frame`] and its images.
-//! - [`transform`]: `ortho` / `perspective` device_from_object matrices.
+//! - [`geometry`]: the geometry pipeline at `end`: clip codes, trivial reject / accept,
+//!   clipping, culling, points to device and normals to lighting coordinates.
+//! - [`shading`]: the deferred shading pass (Phong, fog, texture), one monomorphised
+//!   instance per effect set.
+//! - [`transform`]: `ortho` / `perspective` device_from_object matrices (kept for callers
+//!   that build a device transform themselves).
 //! - [`kernels`]: the [`KernelSource`] seam between renderer and JIT.
 
 pub mod api;
 pub mod frame;
+pub mod geometry;
 pub mod kernels;
 pub mod registry;
+pub mod shading;
 pub mod transform;
 pub mod value;
 
 pub use api::{ApiIssue, Instance, RenderOptions, Renderer, ShadingParam, Target};
-pub use frame::{describe_key, Frame, ParamPlanes, RenderOutput, RenderStats};
+pub use frame::{describe_key, Frame, KernelReport, ParamPlanes, RenderOutput, RenderStats};
 pub use kernels::KernelSource;
 pub use registry::Registry;
 pub use value::Value;

@@ -1,5 +1,7 @@
-//! The small camera helpers the runtime has until the geometry pipeline lands: each returns
-//! a `device_from_object` matrix (glam, column vectors, `p_device = M * p_object`).
+//! Small camera helpers that return a whole `device_from_object` matrix (glam, column
+//! vectors, `p_device = M * p_object`), for callers that build the device transform
+//! themselves and hand it to `Renderer::set_transform`. The renderer's own cameras go through
+//! the geometry pipeline ([`crate::pipeline::transform`]) and agree with these.
 //!
 //! Device space: x and y in pixels (x right, y down: row 0 is the top image row), z in depth
 //! units in [0, 1] where LARGER IS NEARER, all after dividing by w. Both helpers treat the

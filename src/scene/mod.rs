@@ -17,7 +17,17 @@
 use std::path::{Path, PathBuf};
 
 use crate::diag::{Diagnostic, Diagnostics, FileId, SourceMap, Span};
+use crate::pipeline::face::CullMode;
+use crate::runtime::shading::{Fog, LightingSpaceChoice, SceneLight, SurfaceMaterial, Texture};
 use crate::runtime::{ApiIssue, Renderer, Target, Value};
+
+/// Which side(s) a `surface` line sets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SurfaceSides {
+    Front,
+    Back,
+    Both,
+}
 
 /// One whitespace-separated token and where it is.
 #[derive(Clone, Debug, PartialEq)]
@@ -56,6 +66,31 @@ pub enum CommandKind {
     SequencePoint,
     Vertex([f32; 4]),
     End,
+    /// Model stack and camera (docs/scene.md, "Transforms").
+    Push,
+    Pop,
+    Translate([f32; 3]),
+    Rotate([f32; 4]),
+    Scale([f32; 3]),
+    Concat([f32; 16]),
+    Model([f32; 16]),
+    LookAt([f32; 9]),
+    Oblique([f32; 9]),
+    View([f32; 16]),
+    ClipPlane([f32; 4]),
+    Cull(CullMode),
+    Distinguish(bool),
+    /// Lights, materials and the shading effects.
+    Light(SceneLight),
+    Ambient([f32; 3]),
+    /// `surface front|back|both ka kd ks shininess [sr sg sb]`
+    Surface {
+        sides: SurfaceSides,
+        material: SurfaceMaterial,
+    },
+    Fog(Fog),
+    Texture(Texture),
+    LightingSpace(LightingSpaceChoice),
     /// A line that failed to parse; the command word if it was a known one (so a broken
     /// `begin` still opens a block and a broken `end` still closes it).
     Invalid(Option<String>),
@@ -105,6 +140,25 @@ const COMMANDS: &[&str] = &[
     "sequence_point",
     "vertex",
     "end",
+    "push",
+    "pop",
+    "translate",
+    "rotate",
+    "scale",
+    "concat",
+    "model",
+    "look_at",
+    "oblique",
+    "view",
+    "clip_plane",
+    "cull",
+    "distinguish",
+    "light",
+    "ambient",
+    "surface",
+    "fog",
+    "texture",
+    "lighting_space",
 ];
 
 /// Split a line into tokens, stopping at `#`.
@@ -280,6 +334,52 @@ fn parse_command(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), Diagnosti
             let v = numbers(&tokens[1..])?;
             CommandKind::Vertex([v[0], v[1], v[2], v.get(3).copied().unwrap_or(1.0)])
         }
+        "push" | "pop" if n_args != 0 => return Err(arity_error(tokens, "no arguments")),
+        "push" => CommandKind::Push,
+        "pop" => CommandKind::Pop,
+        "translate" => CommandKind::Translate(fixed_numbers::<3>(tokens)?),
+        "rotate" => CommandKind::Rotate(fixed_numbers::<4>(tokens)?),
+        "scale" => CommandKind::Scale(fixed_numbers::<3>(tokens)?),
+        "concat" => CommandKind::Concat(fixed_numbers::<16>(tokens)?),
+        "model" => CommandKind::Model(fixed_numbers::<16>(tokens)?),
+        "look_at" => CommandKind::LookAt(fixed_numbers::<9>(tokens)?),
+        "oblique" => CommandKind::Oblique(fixed_numbers::<9>(tokens)?),
+        "view" => CommandKind::View(fixed_numbers::<16>(tokens)?),
+        "clip_plane" => CommandKind::ClipPlane(fixed_numbers::<4>(tokens)?),
+        "cull" => CommandKind::Cull(match word_arg(tokens, &["none", "back", "front"])? {
+            "back" => CullMode::Back,
+            "front" => CullMode::Front,
+            _ => CullMode::None,
+        }),
+        "distinguish" => CommandKind::Distinguish(word_arg(tokens, &["on", "off"])? == "on"),
+        "lighting_space" => CommandKind::LightingSpace(match word_arg(tokens, &["lc", "wc", "dc"])? {
+            "wc" => LightingSpaceChoice::World,
+            "dc" => LightingSpaceChoice::Device,
+            _ => LightingSpaceChoice::Lighting,
+        }),
+        "ambient" => CommandKind::Ambient(fixed_numbers::<3>(tokens)?),
+        "light" => CommandKind::Light(parse_light(tokens)?),
+        "surface" => parse_surface(tokens)?,
+        "fog" => {
+            let [r, g, b, start, end] = fixed_numbers::<5>(tokens)?;
+            CommandKind::Fog(Fog {
+                colour: [r, g, b].map(f64::from),
+                start: f64::from(start),
+                end: f64::from(end),
+            })
+        }
+        "texture" => {
+            // texture checker PARAM SCALE [DARK]
+            if !(3..=4).contains(&n_args) || tokens[1].text != "checker" {
+                return Err(arity_error(tokens, "`checker PARAM SCALE [DARK]`"));
+            }
+            let v = numbers(&tokens[3..])?;
+            CommandKind::Texture(Texture {
+                param: tokens[2].text.clone(),
+                scale: f64::from(v[0]),
+                dark: f64::from(v.get(1).copied().unwrap_or(0.5)),
+            })
+        }
         other => {
             let mut d =
                 Diagnostic::error("E0601", format!("unknown command `{other}`")).primary(cmd.span, "unknown command");
@@ -290,6 +390,73 @@ fn parse_command(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), Diagnosti
         }
     };
     Ok((kind, vec![]))
+}
+
+/// The one word argument of `cull`, `distinguish`, `lighting_space`.
+fn word_arg<'t>(tokens: &'t [Token], allowed: &[&str]) -> Result<&'t str, Diagnostic> {
+    if tokens.len() != 2 {
+        return Err(arity_error(tokens, &format!("one of {}", allowed.join(", "))));
+    }
+    let word = tokens[1].text.as_str();
+    if allowed.contains(&word) {
+        Ok(word)
+    } else {
+        Err(
+            Diagnostic::error("E0604", format!("`{word}` is not one of {}", allowed.join(", ")))
+                .primary(tokens[1].span, "unknown choice"),
+        )
+    }
+}
+
+/// `light directional DX DY DZ R G B` or `light point X Y Z R G B [C0 C1 C2]` (world space).
+fn parse_light(tokens: &[Token]) -> Result<SceneLight, Diagnostic> {
+    let kind = tokens.get(1).map(|t| t.text.as_str());
+    let n = tokens.len().saturating_sub(2);
+    match kind {
+        Some("directional") if n == 6 => {
+            let v: Vec<f64> = numbers(&tokens[2..])?.into_iter().map(f64::from).collect();
+            Ok(SceneLight::Directional {
+                towards_light: [v[0], v[1], v[2]],
+                colour: [v[3], v[4], v[5]],
+            })
+        }
+        Some("point") if n == 6 || n == 9 => {
+            let v: Vec<f64> = numbers(&tokens[2..])?.into_iter().map(f64::from).collect();
+            Ok(SceneLight::Positional {
+                position: [v[0], v[1], v[2]],
+                colour: [v[3], v[4], v[5]],
+                attenuation: if n == 9 { [v[6], v[7], v[8]] } else { [1.0, 0.0, 0.0] },
+            })
+        }
+        _ => Err(arity_error(
+            tokens,
+            "`directional DX DY DZ R G B` or `point X Y Z R G B [C0 C1 C2]`",
+        )),
+    }
+}
+
+/// `surface front|back|both KA KD KS SHININESS [SR SG SB]`.
+fn parse_surface(tokens: &[Token]) -> Result<CommandKind, Diagnostic> {
+    let n = tokens.len().saturating_sub(2);
+    if n != 4 && n != 7 {
+        return Err(arity_error(tokens, "`front|back|both KA KD KS SHININESS [SR SG SB]`"));
+    }
+    let sides = match word_arg(&tokens[..2], &["front", "back", "both"])? {
+        "front" => SurfaceSides::Front,
+        "back" => SurfaceSides::Back,
+        _ => SurfaceSides::Both,
+    };
+    let v: Vec<f64> = numbers(&tokens[2..])?.into_iter().map(f64::from).collect();
+    Ok(CommandKind::Surface {
+        sides,
+        material: SurfaceMaterial {
+            ka: v[0],
+            kd: v[1],
+            ks: v[2],
+            shininess: v[3],
+            specular_colour: if n == 7 { [v[4], v[5], v[6]] } else { [1.0; 3] },
+        },
+    })
 }
 
 /// `material_interp NAME KIND arg=v[,v...] [v ...]`: bare numbers after an argument add
@@ -377,14 +544,69 @@ pub fn apply(scene: &Scene, renderer: &mut Renderer, diags: &mut Diagnostics) {
                 Ok(())
             }
             CommandKind::Ortho([l, r, b, t, n, f]) => {
-                renderer.ortho(*l, *r, *b, *t, *n, *f);
-                Ok(())
+                renderer.ortho_checked([*l, *r, *b, *t].map(f64::from), f64::from(*n), f64::from(*f))
             }
             CommandKind::Perspective([fov, n, f]) => {
-                renderer.perspective(*fov, *n, *f);
-                Ok(())
+                renderer.perspective_checked(f64::from(*fov), f64::from(*n), f64::from(*f))
             }
             CommandKind::MaterialInterp { name, kind, args } => renderer.material_interp(name, kind, args),
+            CommandKind::Push => {
+                renderer.push_transform();
+                Ok(())
+            }
+            CommandKind::Pop => renderer.pop_transform(),
+            CommandKind::Translate(t) => renderer.translate(t.map(f64::from)),
+            CommandKind::Rotate([deg, x, y, z]) => renderer.rotate(f64::from(*deg), [*x, *y, *z].map(f64::from)),
+            CommandKind::Scale(v) => renderer.scale(v.map(f64::from)),
+            CommandKind::Concat(rows) => renderer.concat(dmat_from_rows(rows)),
+            CommandKind::Model(rows) => renderer.set_model(dmat_from_rows(rows)),
+            CommandKind::LookAt(v) => {
+                let v = v.map(f64::from);
+                renderer.look_at([v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]])
+            }
+            CommandKind::Oblique(v) => {
+                let v = v.map(f64::from);
+                renderer.oblique([v[0], v[1], v[2], v[3]], v[4], v[5], [v[6], v[7], v[8]])
+            }
+            CommandKind::View(rows) => renderer.view_matrix(dmat_from_rows(rows)),
+            CommandKind::ClipPlane(p) => renderer.clip_plane(p.map(f64::from)),
+            CommandKind::Cull(mode) => {
+                renderer.set_cull(*mode);
+                Ok(())
+            }
+            CommandKind::Distinguish(on) => {
+                renderer.set_distinguish(*on);
+                Ok(())
+            }
+            CommandKind::Light(light) => {
+                renderer.shading_setup.lights.push(*light);
+                Ok(())
+            }
+            CommandKind::Ambient(c) => {
+                renderer.shading_setup.ambient_light = c.map(f64::from);
+                Ok(())
+            }
+            CommandKind::Surface { sides, material } => {
+                if *sides != SurfaceSides::Back {
+                    renderer.shading_setup.front = *material;
+                }
+                if *sides != SurfaceSides::Front {
+                    renderer.shading_setup.back = Some(*material);
+                }
+                Ok(())
+            }
+            CommandKind::Fog(fog) => {
+                renderer.shading_setup.fog = Some(*fog);
+                Ok(())
+            }
+            CommandKind::Texture(t) => {
+                renderer.shading_setup.texture = Some(t.clone());
+                Ok(())
+            }
+            CommandKind::LightingSpace(space) => {
+                renderer.shading_setup.space = *space;
+                Ok(())
+            }
             CommandKind::Material { name, value } => renderer.material(name, value),
             CommandKind::Begin(prim) => {
                 let r = renderer.begin(prim);
@@ -468,6 +690,11 @@ pub fn load_into(sources: &SourceMap, file: FileId, renderer: &mut Renderer, dia
     let scene = parse(sources, file, diags);
     apply(&scene, renderer, diags);
     scene
+}
+
+/// A 4x4 matrix given row by row in the scene file.
+fn dmat_from_rows(rows: &[f32; 16]) -> glam::DMat4 {
+    glam::DMat4::from_cols_array(&rows.map(f64::from)).transpose()
 }
 
 #[cfg(test)]

@@ -242,6 +242,7 @@ pub fn kind_key(kinds: &[(&str, u32)]) -> VariantKey {
             })
             .collect(),
         count_writes: false,
+        trivial_accept: false,
     }
 }
 
