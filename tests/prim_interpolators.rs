@@ -134,7 +134,7 @@ fn solid_interpolator_on_a_sphere_gives_its_surface_point() {
     .unwrap();
     r.material("P", &Value(vec![0.0; 3])).unwrap();
     r.material_interp("N", "implicit", &[]).unwrap();
-    r.material("N", &Value(vec![0.0; 3])).unwrap();
+    r.material("N", &Value(vec![0.0, 0.0, 1.0])).unwrap();
     let (center, radius) = ([0.3f32, 0.2, -5.0], 1.5f32);
     sphere(&mut r, center, radius);
     let frame = render(&r, 2);

@@ -232,7 +232,7 @@ fn normals_come_from_the_surface_derivatives() {
     let program = library();
     let mut r = renderer(&program, 64, 48, false);
     r.material_interp("N", "implicit", &[]).unwrap();
-    r.material("N", &Value(vec![0.0; 3])).unwrap();
+    r.material("N", &Value(vec![0.0, 0.0, 1.0])).unwrap();
     let (cx, radius) = (32.0f32, 24.0f32);
     let s = std::f32::consts::FRAC_1_SQRT_2;
     r.begin("nurb_surface").unwrap();

@@ -71,7 +71,7 @@ fn check(device_from_object: Mat4, width: u32, height: u32, center: [f32; 3], ra
     let mut r = renderer(&program, width, height, true);
     r.set_transform(device_from_object);
     r.material_interp("N", "implicit", &[]).unwrap();
-    r.material("N", &Value(vec![0.0, 0.0, 0.0])).unwrap();
+    r.material("N", &Value(vec![0.0, 0.0, 1.0])).unwrap();
     r.begin("sphere").unwrap();
     r.rast_param("center", &Value(center.to_vec())).unwrap();
     r.rast_param("radius", &Value(vec![radius])).unwrap();
