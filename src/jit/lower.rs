@@ -91,6 +91,9 @@ enum Storage {
     /// A stack slot (dynamically indexed locals): 4 bytes per uniform component, 16 per
     /// varying one.
     Stack(StackSlot),
+    /// In the uniform frame at this word (uniform locals the pixel part never assigns; see
+    /// `spill_uniforms`). Read-only from then on.
+    Frame(u32),
     /// The primitive's own Z: assignments also mark `z_written`.
     Z(Variable),
     /// A parameter read from the argument block.
@@ -130,6 +133,8 @@ struct PixelState {
     /// Pixel centres of the group's lanes.
     x_f: ir::Value,
     y_f: ir::Value,
+    /// The uniform frame's address, loaded in this group (see `spill_uniforms`).
+    frame_base: Option<ir::Value>,
     /// The depth buffer's raw values for the group (if loaded).
     z_raw: Option<ir::Value>,
     /// Nesting of varying control flow (varying ifs, varying loops, inlined interpolators).
@@ -187,6 +192,10 @@ pub(crate) struct Lower<'a, 'b> {
     arm: Option<ArmInfo>,
     bound_vars: [Variable; 4],
     has_bound: Variable,
+    /// The uniform frame's slot and the slot holding its address (see `spill_uniforms`).
+    uniform_frame: Option<(StackSlot, StackSlot)>,
+    /// A 16-byte slot that stores to planes the frame does not have go to.
+    scratch: StackSlot,
     /// Per binding component: its G-buffer plane's base address (see `plane_table`).
     plane_ptrs: Option<StackSlot>,
     written: Vec<bool>,
@@ -228,6 +237,7 @@ pub(crate) fn lower_kernel(
         b.declare_var(types::F32),
     ];
     let has_bound = b.declare_var(types::I8);
+    let scratch = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 4));
     let mut l = Lower {
         b,
         program,
@@ -245,6 +255,8 @@ pub(crate) fn lower_kernel(
         arm: None,
         bound_vars,
         has_bound,
+        uniform_frame: None,
+        scratch,
         plane_ptrs: None,
         written: vec![false; key.bindings.len()],
         warnings: vec![],
@@ -517,15 +529,23 @@ impl<'a, 'b> Lower<'a, 'b> {
         Ok(())
     }
 
-    /// Move the primitive's uniform register locals into one stack frame before the pixel
+    /// Move the primitive's uniform register locals into stack memory before the pixel
     /// loops; the pixel code then loads each where it uses it.
     ///
     /// Why: kept in SSA registers, every setup result (edge and plane coefficients: ~50 for
     /// four perspective parameters) is live across every block of the pixel loops. That is
     /// more than the 16 xmm registers, so they spill anyway, and regalloc2's live-range
     /// splitting over ~150 blocks was 75% of the compile time (10 of 14 ms per variant).
-    /// A load folded into its use (`vbroadcastss mem`) costs about what the spill reload did.
+    ///
+    /// Locals the pixel part never assigns go to one *uniform frame*, read in pixel code
+    /// through a base pointer loaded once per group (`PixelState::frame_base`): those reads
+    /// are pure (readonly, can_move), so Cranelift places each load next to its use, folds it
+    /// into `vbroadcastss mem` and merges repeats, but cannot hoist them out of the group
+    /// loop (their address is defined in it). Locals the pixel part assigns get a stack
+    /// slot of their own with ordinary loads and stores.
     fn spill_uniforms(&mut self, f: &'a Function) {
+        let mut pixel_assigned = std::collections::HashSet::new();
+        block::assigned_locals(&f.pixel, &mut pixel_assigned);
         let frame = &self.frames[0];
         let mut moves = vec![];
         for (i, st) in frame.storage.iter().enumerate() {
@@ -538,20 +558,47 @@ impl<'a, 'b> Lower<'a, 'b> {
             if local.var.is_varying() || is_pixel_param || vars.is_empty() {
                 continue;
             }
-            moves.push((i, vars.clone()));
+            moves.push((i, vars.clone(), pixel_assigned.contains(&LocalId(i as u32))));
         }
-        for (i, vars) in moves {
-            let slot = self.b.create_sized_stack_slot(StackSlotData::new(
-                StackSlotKind::ExplicitSlot,
-                4 * vars.len() as u32,
-                2,
-            ));
-            let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+        let frozen_words: u32 = moves.iter().filter(|m| !m.2).map(|m| m.1.len() as u32).sum();
+        let frame_slot = (frozen_words > 0).then(|| {
+            self.b
+                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 4 * frozen_words, 4))
+        });
+        let mut next_word = 0;
+        for (i, vars, assigned) in moves {
+            let (addr, first, storage) = match (assigned, frame_slot) {
+                (false, Some(fs)) => {
+                    let at = next_word;
+                    next_word += vars.len() as u32;
+                    (self.b.ins().stack_addr(types::I64, fs, 0), at, Storage::Frame(at))
+                }
+                _ => {
+                    let slot = self.b.create_sized_stack_slot(StackSlotData::new(
+                        StackSlotKind::ExplicitSlot,
+                        4 * vars.len() as u32,
+                        2,
+                    ));
+                    (self.b.ins().stack_addr(types::I64, slot, 0), 0, Storage::Stack(slot))
+                }
+            };
             for (c, v) in vars.iter().enumerate() {
                 let x = self.b.use_var(*v);
-                self.b.ins().store(mem_flags(), x, addr, 4 * c as i32);
+                self.b
+                    .ins()
+                    .store(mem_flags(), x, addr, (4 * (first + c as u32)) as i32);
             }
-            self.frames[0].storage[i] = Storage::Stack(slot);
+            self.frames[0].storage[i] = storage;
+        }
+        if let Some(fs) = frame_slot {
+            // The frame's address, reloaded per group through this slot (see above).
+            let ptr_slot = self
+                .b
+                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8, 3));
+            let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+            let pa = self.b.ins().stack_addr(types::I64, ptr_slot, 0);
+            self.b.ins().store(mem_flags(), addr, pa, 0);
+            self.uniform_frame = Some((fs, ptr_slot));
         }
     }
 
@@ -601,8 +648,12 @@ impl<'a, 'b> Lower<'a, 'b> {
         let first = self.b.create_block();
         self.b.ins().brif(finished, row_next, &[], first, &[]);
         self.b.switch_to_block(first);
-        for k in 0..UNROLL {
-            let next = if k + 1 == UNROLL {
+        let unroll: u32 = std::env::var("PF_UNROLL")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(UNROLL);
+        for k in 0..unroll {
+            let next = if k + 1 == unroll {
                 grp_next
             } else {
                 self.b.create_block()
@@ -610,14 +661,14 @@ impl<'a, 'b> Lower<'a, 'b> {
             let g = self.b.use_var(gx);
             let g = self.b.ins().iadd_imm_s(g, 4 * k as i64);
             self.pixel_group(f, rect, g, row_base, y_f, pass, next)?;
-            if k + 1 != UNROLL {
+            if k + 1 != unroll {
                 self.b.switch_to_block(next);
             }
         }
 
         self.b.switch_to_block(grp_next);
         let g = self.b.use_var(gx);
-        let g = self.b.ins().iadd_imm_s(g, 4 * UNROLL as i64);
+        let g = self.b.ins().iadd_imm_s(g, 4 * unroll as i64);
         self.b.def_var(gx, g);
         self.b.ins().jump(grp_hdr, &[]);
 
@@ -682,6 +733,10 @@ impl<'a, 'b> Lower<'a, 'b> {
         } else {
             None
         };
+        let frame_base = self.uniform_frame.map(|(_, ptr_slot)| {
+            let pa = self.b.ins().stack_addr(types::I64, ptr_slot, 0);
+            self.b.ins().load(types::I64, mem_flags(), pa, 0)
+        });
         self.pix = Some(PixelState {
             alive,
             exec,
@@ -690,6 +745,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             tile_idx,
             x_f,
             y_f,
+            frame_base,
             z_raw,
             varying_depth: 0,
         });
@@ -1333,20 +1389,18 @@ impl<'a, 'b> Lower<'a, 'b> {
         let Some(table) = self.plane_ptrs else {
             return;
         };
-        // The plane's base address, or null for a plane the frame does not have.
+        // The plane's base address, or null for a plane the frame does not have: then the
+        // store goes to a scratch slot. Branch-free, so values shared by several stores
+        // (a perspective divisor) are computed once.
         let slot_addr = self.b.ins().stack_addr(types::I64, table, 0);
         let base = self.b.ins().load(types::I64, mem_flags(), slot_addr, (8 * g) as i32);
-        let store_blk = self.b.create_block();
-        let after = self.b.create_block();
-        self.b.ins().brif(base, store_blk, &[], after, &[]);
-        self.b.switch_to_block(store_blk);
         let bytes = self.b.ins().ishl_imm_u(tile_idx, 2);
-        let addr = self.b.ins().iadd(base, bytes);
+        let real = self.b.ins().iadd(base, bytes);
+        let dummy = self.b.ins().stack_addr(types::I64, self.scratch, 0);
+        let addr = self.b.ins().select(base, real, dummy);
         let old = self.b.ins().load(F32X4, mem_flags(), addr, 0);
         let new = blend(&mut self.b, exec, v, old);
         self.b.ins().store(mem_flags(), new, addr, 0);
-        self.b.ins().jump(after, &[]);
-        self.b.switch_to_block(after);
     }
 
     /// Once per kernel run, before the pixel loops: the base address of every binding
@@ -2036,6 +2090,15 @@ impl<'a, 'b> Lower<'a, 'b> {
                         let addr = self.b.ins().stack_addr(types::I64, slot, 0);
                         Ok(self.read_memory(addr, sc, varying, &offs, acc.base, acc.dyn_off, false, false))
                     }
+                    Storage::Frame(word) => {
+                        let in_group = self.pix.as_ref().and_then(|p| p.frame_base);
+                        let (addr, pure) = match (in_group, self.uniform_frame) {
+                            (Some(base), _) => (base, true),
+                            (None, Some((fs, _))) => (self.b.ins().stack_addr(types::I64, fs, 0), false),
+                            (None, None) => return err("uniform frame missing"),
+                        };
+                        Ok(self.read_memory(addr, sc, false, &offs, word + acc.base, acc.dyn_off, false, pure))
+                    }
                     Storage::Args => {
                         let pi = fr
                             .func
@@ -2100,6 +2163,10 @@ impl<'a, 'b> Lower<'a, 'b> {
         let masked = self.masked();
         match storage {
             Storage::Args => err(format!("assignment to parameter `{}`", local.name)),
+            Storage::Frame(_) => err(format!(
+                "assignment to `{}`, which the pixel part never assigns",
+                local.name
+            )),
             Storage::Vars(vars) => {
                 for (o, c) in offs.iter().zip(comps) {
                     let Some(&var) = vars.get((acc.base + o) as usize) else {
