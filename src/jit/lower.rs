@@ -55,8 +55,10 @@ mod block;
 pub(crate) type Res<T> = Result<T, JitError>;
 
 /// Pixel groups (of 4) per step of the inner loop: copies of the group code one after the
-/// other, so loop overhead is paid once per `4 * UNROLL` pixels.
-const UNROLL: u32 = 2;
+/// other, so loop overhead is paid once per `4 * UNROLL` pixels. Measured (docs/performance.md):
+/// 2 and 4 copies were no faster than 1 on the fill workloads (the group body, not the loop,
+/// is the cost) and cost compile time in proportion, so 1.
+const UNROLL: u32 = 1;
 /// Block size of block-level culling, in pixels (BLOCK_W a multiple of `4 * UNROLL`).
 const BLOCK_W: u32 = 16;
 const BLOCK_H: u32 = 8;
@@ -648,10 +650,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let first = self.b.create_block();
         self.b.ins().brif(finished, row_next, &[], first, &[]);
         self.b.switch_to_block(first);
-        let unroll: u32 = std::env::var("PF_UNROLL")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(UNROLL);
+        let unroll = UNROLL;
         for k in 0..unroll {
             let next = if k + 1 == unroll {
                 grp_next
