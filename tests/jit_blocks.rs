@@ -264,6 +264,19 @@ fn bound_starting_mid_group_and_huge_coordinates() {
         0,
     );
     assert!(written > 100, "{written}");
+    // A pass rectangle under 128 pixels takes the path without block facts.
+    let written = check(
+        Case {
+            cx: 10.0,
+            cy: 8.0,
+            r2: 16.0,
+            k: 1,
+            bound: [6.2, 3.7, 14.5, 12.0],
+        },
+        0,
+        0,
+    );
+    assert!(written > 20 && written < 81, "{written}");
     let written = check(
         Case {
             cx: 3_000_000.0,

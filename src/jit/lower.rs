@@ -62,6 +62,8 @@ const UNROLL: u32 = 1;
 /// Block size of block-level culling, in pixels (BLOCK_W a multiple of `4 * UNROLL`).
 const BLOCK_W: u32 = 16;
 const BLOCK_H: u32 = 8;
+/// Pass rectangles smaller than this many pixels skip the block evaluation.
+const SMALL_RECT: i64 = 128;
 
 /// The render pass's rectangle and tile geometry, shared by the loops that walk it.
 struct PassRect {
@@ -451,6 +453,14 @@ impl<'a, 'b> Lower<'a, 'b> {
 
         // Blocks of BLOCK_W x BLOCK_H pixels; per block, interval facts choose: skip, the
         // pass variant (decidable guards dropped) or the full pixel code.
+        // A pass rectangle under SMALL_RECT pixels (a small triangle's) runs the full code
+        // without block facts: evaluating them costs more than they can save there.
+        let w = self.b.ins().isub(hi_x, lo_x);
+        let h = self.b.ins().isub(hi_y, lo_y);
+        let w64 = self.b.ins().sextend(types::I64, w);
+        let h64 = self.b.ins().sextend(types::I64, h);
+        let area = self.b.ins().imul(w64, h64);
+        let small_rect = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, area, SMALL_RECT);
         let by = self.b.declare_var(types::I32);
         let bxv = self.b.declare_var(types::I32);
         self.b.def_var(by, lo_y);
@@ -486,6 +496,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         let y_end = self.b.ins().smin(y_end, hi_y);
         let x_end = self.b.ins().iadd_imm_s(x, BLOCK_W as i64);
         let x_end = self.b.ins().smin(x_end, hi_x);
+        let blk_eval = self.b.create_block();
+        self.b.ins().brif(small_rect, blk_full, &[], blk_eval, &[]);
+        self.b.switch_to_block(blk_eval);
         // Centres of the block's first and last live pixels, computed as the pixel code
         // computes X and Y (int -> float, + 0.5), so the endpoints are bit-identical.
         let x_first = self.b.ins().smax(x, lo_x);
