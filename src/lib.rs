@@ -11,8 +11,12 @@
 //!    Cranelift into a kernel over groups of pixels.
 //! 5. [`runtime`] — tiles, depth buffer, G-buffer, shading, the primitive API; [`scene`]
 //!    reads the text scene format into API calls.
+//!
+//! Beside the stages: [`accuracy`] measures error against an f64 reference renderer versus
+//! time for each accuracy knob (`primflow accuracy`).
 
 pub mod abi;
+pub mod accuracy;
 pub mod bench;
 pub mod check;
 pub mod cli;
@@ -24,6 +28,7 @@ pub mod pipeline;
 pub mod runtime;
 pub mod scene;
 pub mod syntax;
+pub mod testing;
 
 use diag::{Diagnostics, FileId, SourceMap};
 

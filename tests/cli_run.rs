@@ -124,3 +124,70 @@ fn key_specs_parse_into_bindings() {
     assert!(parse_key("lin ear:1", &program).is_err());
     assert_eq!(parse_key("", &program).unwrap().bindings, vec![]);
 }
+
+#[test]
+fn render_writes_the_image_depth_and_parameter_and_prints_a_summary() {
+    let dir = std::env::temp_dir().join(format!("primflow-cli-render-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (img, depth, cs) = (dir.join("t.png"), dir.join("d.png"), dir.join("cs.png"));
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/triangles.scene");
+    let (code, out, err) = cli(&[
+        "render",
+        scene,
+        "-o",
+        img.to_str().unwrap(),
+        "--depth",
+        depth.to_str().unwrap(),
+        "--param",
+        "Cs",
+        cs.to_str().unwrap(),
+        "--threads",
+        "2",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.starts_with("rendered 320x240: 4 primitive(s), 2 kernel(s) compiled"),
+        "{out}"
+    );
+    let rgb = image::open(&img).unwrap().to_rgb8();
+    assert_eq!(rgb.dimensions(), (320, 240));
+    assert_eq!(rgb.get_pixel(2, 2).0, [26, 26, 31], "background 0.1 0.1 0.12");
+    let depth = image::open(&depth).unwrap().to_luma16();
+    assert!(
+        depth.get_pixel(250, 110).0[0] > depth.get_pixel(100, 40).0[0],
+        "0.6 is nearer than 0.2"
+    );
+    assert_eq!(
+        image::open(&cs).unwrap().to_rgb8().get_pixel(300, 232).0,
+        [204, 77, 230]
+    );
+
+    let (code, _, err) = cli(&[
+        "render",
+        scene,
+        "-o",
+        img.to_str().unwrap(),
+        "--param",
+        "nosuch",
+        "x.png",
+    ]);
+    assert_eq!(code, 1);
+    assert!(err.contains("no shading parameter `nosuch`"), "{err}");
+}
+
+#[test]
+fn check_of_a_library_file_loads_it_once_and_emits_clif_per_primitive() {
+    let prim = concat!(env!("CARGO_MANIFEST_DIR"), "/prims/screen_triangle.prim");
+    let (code, out, err) = cli(&["check", prim, "--emit", "clif", "--key", "linear:3,constant:1"]);
+    assert_eq!(code, 0, "{err}");
+    let mut lines = out.lines();
+    assert!(lines.next().unwrap().contains("4 pixels per group"), "{out}");
+    assert_eq!(
+        lines.next(),
+        Some("; primitive screen_triangle key linear:3,constant:1")
+    );
+    assert!(out.contains("function "), "{out}");
+    let (code, out, _) = cli(&["check", prim, "--emit", "ir"]);
+    assert_eq!(code, 0);
+    assert!(out.contains("primitive screen_triangle"), "{out}");
+}

@@ -62,7 +62,17 @@ pub struct FnLower<'g, 'a> {
     pub interp_returns: Vec<(Type, Span)>,
     /// This function's X, Y and Z parameters.
     xyz: [Option<LocalId>; 3],
+    /// Helper calls inlined so far into this function.
+    inlined: u32,
+    /// The call written in the function itself that the current inlining started from.
+    outermost_call: Span,
+    /// Report running out of the inlining budget (off when a helper is checked on its own:
+    /// only a call from a primitive or interpolator really inlines it).
+    pub report_budget: bool,
 }
+
+/// Most helper calls inlined into one function.
+pub const INLINE_BUDGET: u32 = 20_000;
 
 fn err(code: &'static str, msg: impl Into<String>, span: Span, label: impl Into<String>) -> Diagnostic {
     Diagnostic::error(code, msg).primary(span, label)
@@ -244,6 +254,9 @@ impl<'g, 'a> FnLower<'g, 'a> {
             in_interpolation: false,
             interp_returns: vec![],
             xyz: [None; 3],
+            inlined: 0,
+            outermost_call: Span::default(),
+            report_budget: true,
         }
     }
 
@@ -1056,6 +1069,40 @@ impl<'g, 'a> FnLower<'g, 'a> {
                         }
                     }
                 }
+                // A per-sequence-point parameter takes a fixed-size array of its elements: the
+                // callee's sequence points are that array's elements (the kernel builds the
+                // callee's argument block with a size known at compile time).
+                _ if p.ty.per_seq => match self.expr(a, pre) {
+                    Some(v)
+                        if !v.ty.per_seq && v.ty.elem == p.ty.elem && v.ty.dims.get(1..) == Some(&p.ty.dims[..]) =>
+                    {
+                        out.push(v)
+                    }
+                    Some(v) => {
+                        let help = if v.ty.per_seq {
+                            "copy the sequence points into a fixed-size array first, e.g. `float v[3][4] = {vertex[0], vertex[1], vertex[2]};`"
+                        } else {
+                            "pass an array whose elements have the parameter's element type"
+                        };
+                        self.sink.push(
+                            err(
+                                "E0413",
+                                format!(
+                                    "argument for per-sequence-point parameter `{}` of `{}` must be a fixed-size array of {}, found {}",
+                                    p.name,
+                                    callee.name,
+                                    types::type_name(&p.ty.element()),
+                                    types::type_name(&v.ty)
+                                ),
+                                a.span,
+                                format!("this is {}", types::type_name(&v.ty)),
+                            )
+                            .help(help),
+                        );
+                        ok = false;
+                    }
+                    None => ok = false,
+                },
                 _ => match self.expr_to(a, &p.ty, pre) {
                     Some(v) => out.push(v),
                     None => ok = false,
@@ -1105,6 +1152,29 @@ impl<'g, 'a> FnLower<'g, 'a> {
         let sig = &g.sigs[idx];
         if g.recursive.contains(&idx) {
             // The cycle was reported once where it is; inlining would not terminate.
+            return None;
+        }
+        // Helpers calling helpers several times each can multiply the inlined code
+        // exponentially; past a budget, stop with an error instead of running out of memory.
+        if self.inline.is_empty() {
+            self.outermost_call = span;
+        }
+        self.inlined += 1;
+        if self.inlined > INLINE_BUDGET {
+            if self.inlined == INLINE_BUDGET + 1 && self.report_budget {
+                self.sink.push(
+                    err(
+                        "E0109",
+                        format!("too many helper calls to inline (more than {INLINE_BUDGET})"),
+                        self.outermost_call,
+                        "inlining this call needs too much code",
+                    )
+                    .secondary(span, "the budget ran out at this nested call")
+                    .help(
+                        "helpers are inlined at every call; nested helpers that call each other several times multiply",
+                    ),
+                );
+            }
             return None;
         }
         if sig.ret.is_none() && !as_statement {
@@ -1330,6 +1400,15 @@ impl<'g, 'a> FnLower<'g, 'a> {
             (Elem::Interp, Elem::Interp) if v.ty.dims.is_empty() => Some(broadcast(v, &ty.dims)),
             (Elem::Interp, Elem::Scalar(s)) if types::is_number(s) && v.ty.dims.is_empty() => {
                 Some(broadcast(to_interp(convert(v, Scalar::Float)), &ty.dims))
+            }
+            // Inside a named interpolation arm the data is narrowed to that kind's
+            // parameters, so a list of numbers can stand for them (a primitive that computes
+            // a value itself, like a surface normal, hands it on to a sub-primitive this way).
+            // The kernel compiler checks the length against the bound components.
+            (Elem::Interp, Elem::Scalar(s))
+                if types::is_number(s) && v.ty.dims.len() == 1 && ty.dims.is_empty() && self.arm == Some(false) =>
+            {
+                Some(to_interp(convert(v, Scalar::Float)))
             }
             (Elem::Scalar(t), Elem::Scalar(s)) if types::implicitly_converts(s, t) => {
                 if v.ty.dims == ty.dims {

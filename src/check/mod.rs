@@ -440,7 +440,7 @@ impl CycleSearch<'_, '_> {
         key.sort_unstable();
         key.dedup();
         self.recursive.extend(key.iter().copied());
-        if !self.reported.insert(key) {
+        if cycle.is_empty() || !self.reported.insert(key) {
             return;
         }
         let names: Vec<&str> = cycle.iter().map(|c| g.sigs[c.0].item.name.name.as_str()).collect();
@@ -568,6 +568,7 @@ fn check_helper(g: &Globals, idx: usize, sink: &mut Sink, sites: &mut Vec<Span>)
     let n_sites = scratch_sites.len();
     {
         let mut fl = FnLower::new(g, sink, &mut scratch_sites, FuncKind::Primitive);
+        fl.report_budget = false;
         let mut params = vec![];
         for p in &sig.params {
             params.push(fl.new_local(

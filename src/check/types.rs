@@ -26,9 +26,6 @@ pub fn join_fixed(a: FixedFormat, b: FixedFormat) -> FixedFormat {
     }
 }
 
-/// `fixed<32,0>`: how an int operand is seen when mixed with a fixed operand.
-pub const INT_AS_FIXED: FixedFormat = FixedFormat { bits: 32, frac: 0 };
-
 /// The common scalar type of an arithmetic or comparison between numbers, or `None` when
 /// either side is not a number (bool).
 pub fn arith_scalar(a: Scalar, b: Scalar) -> Option<Scalar> {
@@ -37,7 +34,9 @@ pub fn arith_scalar(a: Scalar, b: Scalar) -> Option<Scalar> {
         (Bool, _) | (_, Bool) => return None,
         (Int, Int) => Int,
         (Float, _) | (_, Float) => Float,
-        (Int, Fixed(f)) | (Fixed(f), Int) => Fixed(join_fixed(INT_AS_FIXED, f)),
+        // The int takes the fixed operand's format (saturating), so `X + 1` keeps X's
+        // fraction bits; taking it as fixed<32,0> would leave no room for any.
+        (Int, Fixed(f)) | (Fixed(f), Int) => Fixed(f),
         (Fixed(f), Fixed(g)) => Fixed(join_fixed(f, g)),
     })
 }
@@ -220,8 +219,8 @@ mod tests {
     fn join_gives_up_fraction_beyond_32_bits() {
         // X (fixed<32,16>) with Z (fixed<32,32>): I = 16, F = 32 -> F = 16.
         assert_eq!(join_fixed(fx(32, 16), fx(32, 32)), fx(32, 16));
-        // An int seen as fixed<32,0> takes all 32 bits for the integer part.
-        assert_eq!(join_fixed(INT_AS_FIXED, fx(32, 16)), fx(32, 0));
+        // An integer part of 32 bits leaves no fraction.
+        assert_eq!(join_fixed(fx(32, 0), fx(32, 16)), fx(32, 0));
     }
 
     #[test]
@@ -241,7 +240,7 @@ mod tests {
         assert_eq!(arith_scalar(Int, Int), Some(Int));
         assert_eq!(arith_scalar(Int, Float), Some(Float));
         assert_eq!(arith_scalar(Fixed(fx(32, 16)), Float), Some(Float));
-        assert_eq!(arith_scalar(Int, Fixed(fx(16, 8))), Some(Fixed(fx(32, 0))));
+        assert_eq!(arith_scalar(Int, Fixed(fx(16, 8))), Some(Fixed(fx(16, 8))));
         assert_eq!(arith_scalar(Bool, Int), None);
     }
 

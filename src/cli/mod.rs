@@ -1,5 +1,7 @@
-//! The `primflow` command line: `check` (diagnostics and compiler dumps for `.prim` files)
-//! and `render` (a scene file to PNG images).
+//! The `primflow` command line: `check` (diagnostics and compiler dumps for `.prim` files),
+//! `render` (a scene file to PNG images), `test` (scene files with expectations, see
+//! [`testing`](crate::testing)), `bench` (JIT kernels against hand-written ones) and
+//! `accuracy` (error vs time per accuracy knob).
 //!
 //! Everything a command prints goes through the `out` / `err` writers handed to [`run`], so
 //! the binary and the tests drive the same code. Exit codes: 0 success, 1 the input had
@@ -35,6 +37,13 @@ pub enum Command {
     Check(CheckArgs),
     /// Render a scene file to a PNG image.
     Render(RenderArgs),
+    /// Run primitive test cases: scene files with `# expect:` lines (default: prims/tests).
+    Test(TestArgs),
+    /// Benchmark JIT kernels against hand-written Rust kernels of the same primitives.
+    Bench(BenchArgs),
+    /// Sweep the accuracy knobs: error against the f64 reference vs time, as a table, CSV,
+    /// JSON and one plot per knob.
+    Accuracy(AccuracyArgs),
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -90,6 +99,59 @@ pub struct RenderArgs {
     pub count_writes: bool,
 }
 
+#[derive(clap::Args, Debug)]
+pub struct TestArgs {
+    /// Case files or directories searched for `*.scene` files with `# expect:` lines
+    /// (default: the library's own prims/tests).
+    #[arg(value_name = "PATH")]
+    pub paths: Vec<PathBuf>,
+    /// Extra directory of .prim files (repeatable).
+    #[arg(long = "prims", value_name = "DIR")]
+    pub prims: Vec<PathBuf>,
+    /// Worker threads per render (default: one per core).
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+    /// Create missing golden images from this run instead of failing.
+    #[arg(long)]
+    pub bless: bool,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// Only workloads whose name contains this text.
+    #[arg(long, value_name = "NAME")]
+    pub filter: Option<String>,
+    /// Fewer primitives and runs (well under two minutes).
+    #[arg(long)]
+    pub quick: bool,
+    /// Timed runs per kernel; the median is reported.
+    #[arg(long, default_value_t = 7, value_name = "N")]
+    pub runs: usize,
+    /// Also write the results as JSON.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct AccuracyArgs {
+    /// Only the knobs whose standard scene name contains this: sphere, nurb,
+    /// interpolation, arithmetic, lighting, depth.
+    #[arg(long, value_name = "S")]
+    pub scene: Option<String>,
+    /// Directory for accuracy.csv, accuracy.json and one <knob>.png per knob.
+    #[arg(long, value_name = "DIR", default_value = "accuracy-out")]
+    pub out: PathBuf,
+    /// Small scenes, fewer settings and 3 runs: under a minute on two cores (release build).
+    #[arg(long)]
+    pub quick: bool,
+    /// Timed runs per setting (the median is reported).
+    #[arg(long, value_name = "N", default_value_t = 7)]
+    pub runs: usize,
+    /// No progress bar.
+    #[arg(long)]
+    pub no_progress: bool,
+}
+
 /// Run the command line `args` (the first is the program name), printing to `out` and
 /// `err`; returns the exit code.
 pub fn run<I, T>(args: I, out: &mut dyn Write, err: &mut dyn Write) -> i32
@@ -113,6 +175,28 @@ where
     match cli.command {
         Command::Check(args) => check(&args, out, err),
         Command::Render(args) => render(&args, out, err),
+        Command::Test(args) => test(&args, out),
+        Command::Bench(args) => bench(&args, out, err),
+        Command::Accuracy(args) => accuracy(&args, out, err),
+    }
+}
+
+fn test(args: &TestArgs, out: &mut dyn Write) -> i32 {
+    let paths = if args.paths.is_empty() {
+        vec![crate::testing::default_dir()]
+    } else {
+        args.paths.clone()
+    };
+    let options = crate::testing::TestOptions {
+        prim_dirs: args.prims.clone(),
+        threads: args.threads.unwrap_or(0),
+        bless: args.bless,
+    };
+    let results = crate::testing::run_all(&paths, &options, out);
+    if !results.is_empty() && results.iter().all(|r| r.passed()) {
+        0
+    } else {
+        1
     }
 }
 
@@ -146,7 +230,7 @@ fn check(args: &CheckArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     let program = registry.program;
     match args.emit {
         Some(Emit::Ir) => {
-            let _ = writeln!(out, "{program:#?}");
+            let _ = write!(out, "{program}");
         }
         Some(Emit::Clif) => return emit_clif(&program, &given, &args.key, out, err),
         _ => {}
@@ -330,5 +414,59 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
         0
     } else {
         1
+    }
+}
+
+fn bench(args: &BenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+    let opts = crate::bench::BenchOptions {
+        filter: args.filter.clone(),
+        quick: args.quick,
+        runs: args.runs.max(1),
+        progress: true,
+    };
+    let report = match crate::bench::run(&opts) {
+        Ok(r) => r,
+        Err(e) => {
+            let _ = writeln!(err, "error: {e}");
+            return 1;
+        }
+    };
+    let _ = out.write_all(crate::bench::format_table(&report).as_bytes());
+    if let Some(path) = &args.json {
+        let written = serde_json::to_string_pretty(&report)
+            .map_err(|e| e.to_string())
+            .and_then(|text| std::fs::write(path, text).map_err(|e| e.to_string()));
+        if let Err(e) = written {
+            let _ = writeln!(err, "error: cannot write {}: {e}", path.display());
+            return 1;
+        }
+    }
+    0
+}
+
+fn accuracy(args: &AccuracyArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+    let opts = crate::accuracy::AccuracyOptions {
+        filter: args.scene.clone(),
+        quick: args.quick,
+        runs: args.runs,
+        progress: !args.no_progress,
+    };
+    let report = match crate::accuracy::run(&opts) {
+        Ok(report) => report,
+        Err(message) => {
+            let _ = writeln!(err, "error: {message}");
+            return 1;
+        }
+    };
+    let _ = write!(out, "{}", crate::accuracy::format_table(&report));
+    match crate::accuracy::write_outputs(&report, &args.out) {
+        Ok(written) => {
+            let _ = writeln!(out, "wrote {}", written.join(", "));
+            0
+        }
+        Err(message) => {
+            let _ = writeln!(err, "error: {message}");
+            1
+        }
     }
 }

@@ -74,7 +74,8 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32) -> Option<Setup<T>>
     let oy = min3(sv(0, 1), sv(1, 1), sv(2, 1)).floor();
     let max_x = max3(sv(0, 0), sv(1, 0), sv(2, 0));
     let max_y = max3(sv(0, 1), sv(1, 1), sv(2, 1));
-    let bound = [ox, oy, max_x, max_y];
+    // Padded by a 1/16 grid step, as the prim does: snapping can move a corner past max.
+    let bound = [ox, oy, max_x + 0.0625, max_y + 0.0625];
     let exact = max_x - ox < 1024.0 && max_y - oy < 1024.0;
     let mut vx = [0i32; 3];
     let mut vy = [0i32; 3];
@@ -114,12 +115,25 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32) -> Option<Setup<T>>
             fc[i] = fc[i] - fc[i].abs() * 1e-7 - 1e-30;
         }
     }
-    let inv_det = 1.0 / det;
+    // The planes go through the vertices as given, not as snapped (as in
+    // prims/screen_triangle.prim): the values belong to those positions. Degenerate as
+    // given but not as snapped: the snapped corners give the planes.
+    let (mut ux, mut uy) = ([sv(0, 0), sv(1, 0), sv(2, 0)], [sv(0, 1), sv(1, 1), sv(2, 1)]);
+    let (mut ux1, mut uy1) = (ux[1] - ux[0], uy[1] - uy[0]);
+    let (mut ux2, mut uy2) = (ux[2] - ux[0], uy[2] - uy[0]);
+    let mut plane_det = ux1 * uy2 - ux2 * uy1;
+    if plane_det == 0.0 || !(plane_det.abs() < 1e30) {
+        ux = px;
+        uy = py;
+        (ux1, uy1, ux2, uy2) = (dx1, dy1, dx2, dy2);
+        plane_det = det;
+    }
+    let inv_det = 1.0 / plane_det;
     let z1 = sv(1, 2) - sv(0, 2);
     let z2 = sv(2, 2) - sv(0, 2);
-    let za = (z1 * dy2 - z2 * dy1) * inv_det;
-    let zb = (z2 * dx1 - z1 * dx2) * inv_det;
-    let zc = sv(0, 2) - za * px[0] - zb * py[0];
+    let za = (z1 * uy2 - z2 * uy1) * inv_det;
+    let zb = (z2 * ux1 - z1 * ux2) * inv_det;
+    let zc = sv(0, 2) - za * ux[0] - zb * uy[0];
 
     let q0 = 1.0 / sv(0, 3);
     let q1 = 1.0 / sv(1, 3);
@@ -147,18 +161,18 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32) -> Option<Setup<T>>
     for c in 0..T {
         let (d0, d1, d2) = (data(0, c), data(1, c), data(2, c));
         let (l1, l2) = (d1 - d0, d2 - d0);
-        s.la[c] = (l1 * dy2 - l2 * dy1) * inv_det;
-        s.lb[c] = (l2 * dx1 - l1 * dx2) * inv_det;
-        s.lc[c] = d0 - s.la[c] * px[0] - s.lb[c] * py[0];
+        s.la[c] = (l1 * uy2 - l2 * uy1) * inv_det;
+        s.lb[c] = (l2 * ux1 - l1 * ux2) * inv_det;
+        s.lc[c] = d0 - s.la[c] * ux[0] - s.lb[c] * uy[0];
         let g1 = d1 * q1 - d0 * q0;
         let g2 = d2 * q2 - d0 * q0;
-        s.ga[c] = (g1 * dy2 - g2 * dy1) * inv_det;
-        s.gb[c] = (g2 * dx1 - g1 * dx2) * inv_det;
-        s.gc[c] = d0 * q0 - s.ga[c] * px[0] - s.gb[c] * py[0];
+        s.ga[c] = (g1 * uy2 - g2 * uy1) * inv_det;
+        s.gb[c] = (g2 * ux1 - g1 * ux2) * inv_det;
+        s.gc[c] = d0 * q0 - s.ga[c] * ux[0] - s.gb[c] * uy[0];
     }
-    let qa = ((q1 - q0) * dy2 - (q2 - q0) * dy1) * inv_det;
-    let qb = ((q2 - q0) * dx1 - (q1 - q0) * dx2) * inv_det;
-    let qc = q0 - qa * px[0] - qb * py[0];
+    let qa = ((q1 - q0) * uy2 - (q2 - q0) * uy1) * inv_det;
+    let qb = ((q2 - q0) * ux1 - (q1 - q0) * ux2) * inv_det;
+    let qc = q0 - qa * ux[0] - qb * uy[0];
     s.q = [qa, qb, qc];
     Some(s)
 }
@@ -351,14 +365,16 @@ pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, co
                 _mm256_cmp_ps::<_CMP_LE_OQ>(z, one),
             );
             mask = _mm256_and_si256(mask, _mm256_castps_si256(in_range));
-            // fixed<32,32>: nearest(z * 2^32) saturated to u32. z is in [0, 1] on live lanes;
-            // subtracting 2^31 maps [0, 2^32) onto the signed conversion's range, and 2^32
-            // itself (z == 1) saturates to u32::MAX.
+            // fixed<32,32>: nearest(z * 2^32) saturated to u32. z is in [0, 1] on live lanes.
+            // The signed conversion takes values below 2^31 directly; values in [2^31, 2^32)
+            // are shifted down by 2^31 first (exact there, not below it) and the top bit set
+            // back; 2^32 itself (z == 1) saturates to u32::MAX.
             let scaled = _mm256_round_ps::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(_mm256_mul_ps(z, scale));
-            let tz = _mm256_xor_si256(
-                _mm256_cvtps_epi32(_mm256_sub_ps(scaled, _mm256_set1_ps(2147483648.0))),
-                sign,
-            );
+            let two31 = _mm256_set1_ps(2147483648.0);
+            let high = _mm256_cmp_ps::<_CMP_GE_OQ>(scaled, two31);
+            let shifted = _mm256_blendv_ps(scaled, _mm256_sub_ps(scaled, two31), high);
+            let tz = _mm256_cvtps_epi32(shifted);
+            let tz = _mm256_or_si256(tz, _mm256_and_si256(_mm256_castps_si256(high), sign));
             let saturated = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(scaled, two32));
             let tz = _mm256_or_si256(tz, saturated);
             let base = row + (px - ctx.x0) as usize;

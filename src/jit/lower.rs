@@ -1039,6 +1039,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                 if self.in_pixel() || self.frames.len() > 1 {
                     return err("primitive call in per-pixel code");
                 }
+                // The callee (compiled for the same key) answers for the bindings itself.
+                self.written.iter_mut().for_each(|w| *w = true);
                 self.call_primitive(*callee, args)
             }
         }
@@ -1346,9 +1348,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     fn interpolation(&mut self, arms: &'a [crate::ir::InterpArm]) -> Res<()> {
-        if !self.in_pixel() {
-            return err("`interpolation` outside per-pixel code");
-        }
+        // In setup code the construct only computes (figure 8: interpolation data of new
+        // vertices); `interpolator_return` there is refused by `interpolator_return` itself.
         let named: Vec<&str> = arms
             .iter()
             .filter_map(|a| match &a.kind {
@@ -2356,11 +2357,18 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             ExprKind::Convert(inner) => {
                 let v = self.eval(inner)?;
-                let comps = v
+                let mut comps: Vec<ir::Value> = v
                     .comps
                     .iter()
                     .map(|&c| fixed::convert(&mut self.b, v.scalar, sc, c))
                     .collect();
+                // A number converted to interpolation data stands for that number in every
+                // component of the current view (the checker's zero-initialisation and
+                // broadcasts).
+                if e.ty.elem == Elem::Interp && inner.ty.elem != Elem::Interp && comps.len() == 1 {
+                    let n = self.comp_offsets(&e.ty, true).len();
+                    comps = vec![comps[0]; n];
+                }
                 Ok(Val {
                     comps,
                     scalar: sc,
@@ -2440,7 +2448,13 @@ impl<'a, 'b> Lower<'a, 'b> {
                     [r, k] if *r as usize == m => Some(*k as usize),
                     _ => return err("matrix product with mismatched shapes"),
                 };
-                let (a, c) = self.unify(a, c)?;
+                // Only the variability is unified: the operands' lengths differ by design
+                // (n*m and m*k components), which `unify` would reject.
+                let (a, c) = if a.varying != c.varying {
+                    (to_varying(&mut self.b, a), to_varying(&mut self.b, c))
+                } else {
+                    (a, c)
+                };
                 let a = self.float_val(a);
                 let c = self.float_val(c);
                 let kk = k.unwrap_or(1);

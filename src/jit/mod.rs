@@ -297,7 +297,7 @@ impl Jit {
                     next_name: &mut self.next_name,
                     program: &program,
                 };
-                lower::lower_kernel(
+                let lowered = lower::lower_kernel(
                     &program,
                     f,
                     key,
@@ -306,7 +306,13 @@ impl Jit {
                     &mut self.fctx,
                     &mut linker,
                     self.isa.frontend_config(),
-                )?
+                );
+                if lowered.is_err() {
+                    // A lowering error leaves the builder context mid-function; the next
+                    // kernel must not inherit it.
+                    self.fctx = FunctionBuilderContext::new();
+                }
+                lowered?
             };
             let micros = started.elapsed().as_micros() as u64;
             built.push((f, ctx, layout, warnings, micros));

@@ -742,8 +742,13 @@ impl Renderer {
     /// object, world and lighting spaces coincide.
     fn write_spaces(&mut self, args: &mut [u32], at: usize) {
         let device_from_object = self.device_from_object;
-        let object_from_device = if device_from_object.determinant() != 0.0 {
-            device_from_object.inverse()
+        // The inverse is taken in f64 and rounded once: a camera with a narrow field of view
+        // has entries from 1e-5 to 1e9, and an f32 inverse leaves garbage where the true
+        // inverse has zeros (a primitive measuring a small far object from the centre of
+        // its projection, like the sphere, reads those entries relative to tiny ones).
+        let inverse = device_from_object.as_dmat4().inverse();
+        let object_from_device = if device_from_object.determinant() != 0.0 && inverse.is_finite() {
+            inverse.as_mat4()
         } else {
             self.warnings.push(ApiIssue::warning(
                 "W0702",

@@ -213,7 +213,8 @@ fn compile_one(
                 return None;
             }
             for w in &kernel.warnings {
-                diags.push(Diagnostic::warning("W0802", format!("`{name}`: {w}")));
+                // Kernel warnings already name their primitive.
+                diags.push(Diagnostic::warning("W0802", w.clone()));
             }
             Some(kernel)
         }

@@ -1,0 +1,116 @@
+//! Malformed programs never make the checker panic: the ok corpus with random edits (token
+//! swaps, deletions, insertions) either checks or gives at least one error diagnostic.
+
+use std::path::Path;
+
+use primflow::diag::{Diagnostics, SourceMap};
+use proptest::prelude::*;
+
+const TOKENS: &[&str] = &[
+    "X",
+    "Y",
+    "Z",
+    "uniform ",
+    "varying ",
+    "inout ",
+    "return;",
+    "break;",
+    "continue;",
+    "{",
+    "}",
+    "(",
+    ")",
+    "[",
+    "]",
+    "[]",
+    "0",
+    "1.5",
+    "-",
+    "*",
+    "/",
+    "%",
+    "==",
+    "&&",
+    "!",
+    "?",
+    ":",
+    ";",
+    ",",
+    "=",
+    "+=",
+    "int ",
+    "float ",
+    "fixed<32,16> ",
+    "fixed<0,40> ",
+    "point ",
+    "matrix ",
+    "interpolation_data ",
+    "interpolator_return(X);",
+    "interpolator_return;",
+    "interpolation { linear: default: }",
+    "bound(X, Y, 1, 2);",
+    "len(",
+    "transform(",
+    "\"world\"",
+    "screen_triangle(",
+    "polygon(",
+    "sqrt(",
+    "atan(",
+    "PI",
+    "true",
+    "while (X > 0) ",
+    "if (Y) ",
+    "for (;;) ",
+    "float h(float v) { return h(v); }",
+];
+
+fn corpus() -> Vec<String> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/check/ok");
+    let mut files: Vec<_> = std::fs::read_dir(dir)
+        .expect("ok corpus")
+        .map(|e| e.expect("entry").path())
+        .filter(|p| p.extension().is_some_and(|x| x == "prim"))
+        .collect();
+    files.sort();
+    files
+        .iter()
+        .map(|p| std::fs::read_to_string(p).expect("readable"))
+        .collect()
+}
+
+fn edit(text: &str, edits: &[(usize, usize, usize)]) -> String {
+    let mut s: Vec<char> = text.chars().collect();
+    for &(at, del, tok) in edits {
+        let at = at % (s.len() + 1);
+        let end = (at + del % 12).min(s.len());
+        let insert: Vec<char> = TOKENS[tok % TOKENS.len()].chars().collect();
+        s.splice(at..end, insert);
+    }
+    s.into_iter().collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 160, ..ProptestConfig::default() })]
+    #[test]
+    fn edited_programs_check_or_report_errors(
+        file in 0usize..64,
+        edits in prop::collection::vec((0usize..20_000, 0usize..24, 0usize..1000), 1..5),
+    ) {
+        let corpus = corpus();
+        let text = edit(&corpus[file % corpus.len()], &edits);
+        let mut sources = SourceMap::new();
+        let id = sources.add("fuzz.prim", text);
+        let mut diags = Diagnostics::new();
+        let program = primflow::compile(&sources, &[id], &mut diags);
+        prop_assert_eq!(program.is_none(), diags.has_errors());
+        // Rendering every diagnostic must work too (spans inside the file).
+        let rendered = diags.render(&sources);
+        prop_assert_eq!(rendered.is_empty(), diags.items.is_empty());
+        // The checker also copes with what the parser recovered (`Error` nodes included).
+        let mut parse_diags = Diagnostics::new();
+        let module = primflow::syntax::parse(id, sources.text(id), &mut parse_diags);
+        let mut check_diags = Diagnostics::new();
+        let _ = primflow::check::check(&[module], &sources, &mut check_diags);
+        let _ = check_diags.render(&sources);
+    }
+}
