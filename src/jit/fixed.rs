@@ -202,6 +202,24 @@ pub fn f32x4_to_u32_sat(b: &mut FunctionBuilder, scaled: ir::Value) -> ir::Value
     let r = b.ins().nearest(scaled);
     let two31 = f32_like(b, r, 2147483648.0);
     let big = b.ins().fcmp(FloatCC::GreaterThanOrEqual, r, two31);
+    if cfg!(target_arch = "x86_64") {
+        // `cvttps2dq` gives i32::MIN for NaN and out-of-range lanes; the fix-ups below are
+        // cheaper than the generic saturating conversion's NaN and overflow handling.
+        // r < 2^31: exact, or negative / i32::MIN (NaN, r < 0), which smax makes 0.
+        let lo = b.ins().x86_cvtt2dq(I32X4, r);
+        let zero = i32_like(b, lo, 0);
+        let lo = b.ins().smax(lo, zero);
+        // 2^31 <= r < 2^32: r - 2^31 is exact and converts exactly; flipping the sign bit
+        // adds 2^31 back in u32. r >= 2^32 (or +inf): saturate to u32::MAX.
+        let shifted = b.ins().fsub(r, two31);
+        let hi = b.ins().x86_cvtt2dq(I32X4, shifted);
+        let sign = i32_like(b, hi, i32::MIN as i64);
+        let hi = b.ins().bxor(hi, sign);
+        let two32 = f32_like(b, r, 4294967296.0);
+        let huge = b.ins().fcmp(FloatCC::GreaterThanOrEqual, r, two32);
+        let v = b.ins().bitselect(big, hi, lo);
+        return b.ins().bor(v, huge);
+    }
     let lo = b.ins().fcvt_to_sint_sat(I32X4, r);
     let zero = i32_like(b, lo, 0);
     let lo = b.ins().smax(lo, zero);

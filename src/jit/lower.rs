@@ -6,8 +6,14 @@
 //!    the callee's argument block in a stack slot and call it directly.
 //! 2. If there is a pixel part: in bound mode record the viewport unless a bound ran, and
 //!    return; in render mode loop rows, then 4-pixel groups of the pass rectangle clipped to
-//!    the tile (groups start at tile-aligned x; lanes outside start dead). Loop headers branch
-//!    exit-first so Cranelift keeps hoisting uniform work out of them.
+//!    the tile (groups start at tile-aligned x; lanes outside start dead), `UNROLL` groups
+//!    per loop step. Loop headers branch exit-first so Cranelift keeps hoisting uniform work
+//!    out of them. Uniform locals move to a stack frame first (`spill_uniforms`) and the
+//!    G-buffer plane addresses are computed once (`plane_table`).
+//!    When the pixel part opens with coverage tests (`if (c) return;`), the rectangle is
+//!    walked in blocks of `BLOCK_W` x `BLOCK_H` pixels instead; [`block`] evaluates the
+//!    tests over each block with interval arithmetic and skips blocks no lane survives, and
+//!    runs blocks every lane passes with a variant of the pixel code without those tests.
 //! 3. Per group the pixel statements run on vectors under masks: `alive` (lanes not yet
 //!    retired) and `exec` (the lanes the current statement runs for, always a subset of
 //!    `alive`). Varying `if` runs both sides under their masks, skipping a side with no lane;
@@ -20,8 +26,8 @@
 //! `interpolator_return;` as a one-trip masked loop whose `return` is a break.
 //!
 //! Safety invariants the code keeps: every index is clamped into its array (and the error
-//! recorded), every G-buffer store goes to a plane below `ctx.num_planes` (others go to a
-//! scratch slot), and every loop spends `ctx.fuel`. Nothing here panics on a checked
+//! recorded), every G-buffer store goes to a plane below `ctx.num_planes` (stores to other
+//! planes are skipped), and every loop spends `ctx.fuel`. Nothing here panics on a checked
 //! program; an IR shape the checker should have excluded gives a [`JitError`].
 
 use cranelift_codegen::ir::{
@@ -44,7 +50,29 @@ use crate::ir::{
     ParamRole, Place, Program, Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp,
 };
 
+mod block;
+
 pub(crate) type Res<T> = Result<T, JitError>;
+
+/// Pixel groups (of 4) per step of the inner loop: copies of the group code one after the
+/// other, so loop overhead is paid once per `4 * UNROLL` pixels. Measured (docs/performance.md):
+/// 2 and 4 copies were no faster than 1 on the fill workloads (the group body, not the loop,
+/// is the cost) and cost compile time in proportion, so 1.
+const UNROLL: u32 = 1;
+/// Block size of block-level culling, in pixels (BLOCK_W a multiple of `4 * UNROLL`).
+const BLOCK_W: u32 = 16;
+const BLOCK_H: u32 = 8;
+/// Pass rectangles smaller than this many pixels skip the block evaluation.
+const SMALL_RECT: i64 = 128;
+
+/// The render pass's rectangle and tile geometry, shared by the loops that walk it.
+struct PassRect {
+    x0: ir::Value,
+    y0: ir::Value,
+    lo_x: ir::Value,
+    hi_x: ir::Value,
+    stride64: ir::Value,
+}
 
 pub(crate) fn err<T>(msg: impl Into<String>) -> Res<T> {
     Err(JitError { message: msg.into() })
@@ -67,6 +95,9 @@ enum Storage {
     /// A stack slot (dynamically indexed locals): 4 bytes per uniform component, 16 per
     /// varying one.
     Stack(StackSlot),
+    /// In the uniform frame at this word (uniform locals the pixel part never assigns; see
+    /// `spill_uniforms`). Read-only from then on.
+    Frame(u32),
     /// The primitive's own Z: assignments also mark `z_written`.
     Z(Variable),
     /// A parameter read from the argument block.
@@ -106,6 +137,8 @@ struct PixelState {
     /// Pixel centres of the group's lanes.
     x_f: ir::Value,
     y_f: ir::Value,
+    /// The uniform frame's address, loaded in this group (see `spill_uniforms`).
+    frame_base: Option<ir::Value>,
     /// The depth buffer's raw values for the group (if loaded).
     z_raw: Option<ir::Value>,
     /// Nesting of varying control flow (varying ifs, varying loops, inlined interpolators).
@@ -163,7 +196,12 @@ pub(crate) struct Lower<'a, 'b> {
     arm: Option<ArmInfo>,
     bound_vars: [Variable; 4],
     has_bound: Variable,
+    /// The uniform frame's slot and the slot holding its address (see `spill_uniforms`).
+    uniform_frame: Option<(StackSlot, StackSlot)>,
+    /// A 16-byte slot that stores to planes the frame does not have go to.
     scratch: StackSlot,
+    /// Per binding component: its G-buffer plane's base address (see `plane_table`).
+    plane_ptrs: Option<StackSlot>,
     written: Vec<bool>,
     pub(crate) warnings: Vec<String>,
 }
@@ -196,7 +234,6 @@ pub(crate) fn lower_kernel(
     let ctx = b.block_params(entry)[0];
     let args = b.block_params(entry)[1];
     let exit = b.create_block();
-    let scratch = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 4));
     let bound_vars = [
         b.declare_var(types::F32),
         b.declare_var(types::F32),
@@ -204,6 +241,7 @@ pub(crate) fn lower_kernel(
         b.declare_var(types::F32),
     ];
     let has_bound = b.declare_var(types::I8);
+    let scratch = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 4));
     let mut l = Lower {
         b,
         program,
@@ -221,7 +259,9 @@ pub(crate) fn lower_kernel(
         arm: None,
         bound_vars,
         has_bound,
+        uniform_frame: None,
         scratch,
+        plane_ptrs: None,
         written: vec![false; key.bindings.len()],
         warnings: vec![],
     };
@@ -369,6 +409,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().jump(self.exit, &[]);
 
         self.b.switch_to_block(render_blk);
+        self.spill_uniforms(f);
+        self.plane_table();
         let x0 = self.load_ctx(types::I32, ctx_off::X0);
         let y0 = self.load_ctx(types::I32, ctx_off::Y0);
         let x1 = self.load_ctx(types::I32, ctx_off::X1);
@@ -393,59 +435,291 @@ impl<'a, 'b> Lower<'a, 'b> {
         let off = self.b.ins().isub(lo_x, x0);
         let off = self.b.ins().band_imm_s(off, !3i64);
         let gx_start = self.b.ins().iadd(x0, off);
+        let rect = PassRect {
+            x0,
+            y0,
+            lo_x,
+            hi_x,
+            stride64,
+        };
+        let loops_done = self.b.create_block();
 
+        let prefix = block::prefix(f);
+        if prefix.guards == 0 {
+            self.pixel_rows(f, &rect, [lo_y, hi_y], [gx_start, hi_x], None, loops_done)?;
+            self.b.switch_to_block(loops_done);
+            return Ok(());
+        }
+
+        // Blocks of BLOCK_W x BLOCK_H pixels; per block, interval facts choose: skip, the
+        // pass variant (decidable guards dropped) or the full pixel code.
+        // A pass rectangle under SMALL_RECT pixels (a small triangle's) runs the full code
+        // without block facts: evaluating them costs more than they can save there.
+        let w = self.b.ins().isub(hi_x, lo_x);
+        let h = self.b.ins().isub(hi_y, lo_y);
+        let w64 = self.b.ins().sextend(types::I64, w);
+        let h64 = self.b.ins().sextend(types::I64, h);
+        let area = self.b.ins().imul(w64, h64);
+        let small_rect = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, area, SMALL_RECT);
+        let by = self.b.declare_var(types::I32);
+        let bxv = self.b.declare_var(types::I32);
+        self.b.def_var(by, lo_y);
+        let brow_hdr = self.b.create_block();
+        let brow_body = self.b.create_block();
+        let brow_next = self.b.create_block();
+        let blk_hdr = self.b.create_block();
+        let blk_body = self.b.create_block();
+        let blk_next = self.b.create_block();
+        let blk_choose = self.b.create_block();
+        let blk_full = self.b.create_block();
+        let blk_pass = self.b.create_block();
+        self.b.ins().jump(brow_hdr, &[]);
+
+        self.b.switch_to_block(brow_hdr);
+        let y = self.b.use_var(by);
+        let done = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, y, hi_y);
+        self.b.ins().brif(done, loops_done, &[], brow_body, &[]);
+
+        self.b.switch_to_block(brow_body);
+        self.b.def_var(bxv, gx_start);
+        self.b.ins().jump(blk_hdr, &[]);
+
+        self.b.switch_to_block(blk_hdr);
+        let x = self.b.use_var(bxv);
+        let done = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, x, hi_x);
+        self.b.ins().brif(done, brow_next, &[], blk_body, &[]);
+
+        self.b.switch_to_block(blk_body);
+        let y = self.b.use_var(by);
+        let x = self.b.use_var(bxv);
+        let y_end = self.b.ins().iadd_imm_s(y, BLOCK_H as i64);
+        let y_end = self.b.ins().smin(y_end, hi_y);
+        let x_end = self.b.ins().iadd_imm_s(x, BLOCK_W as i64);
+        let x_end = self.b.ins().smin(x_end, hi_x);
+        let blk_eval = self.b.create_block();
+        self.b.ins().brif(small_rect, blk_full, &[], blk_eval, &[]);
+        self.b.switch_to_block(blk_eval);
+        // Centres of the block's first and last live pixels, computed as the pixel code
+        // computes X and Y (int -> float, + 0.5), so the endpoints are bit-identical.
+        let x_first = self.b.ins().smax(x, lo_x);
+        let x_last = self.b.ins().iadd_imm_s(x_end, -1);
+        let y_last = self.b.ins().iadd_imm_s(y_end, -1);
+        let centre = |l: &mut Self, i: ir::Value| {
+            let f = l.b.ins().fcvt_from_sint(types::F32, i);
+            let half = l.b.ins().f32const(0.5);
+            l.b.ins().fadd(f, half)
+        };
+        let xs = [centre(self, x_first), centre(self, x_last)];
+        let ys = [centre(self, y), centre(self, y_last)];
+        let facts = self.block_facts(f, &prefix, xs, ys)?;
+        self.b.ins().brif(facts.dead, blk_next, &[], blk_choose, &[]);
+        self.b.switch_to_block(blk_choose);
+        self.b.ins().brif(facts.pass, blk_pass, &[], blk_full, &[]);
+
+        self.b.switch_to_block(blk_full);
+        self.pixel_rows(f, &rect, [y, y_end], [x, x_end], None, blk_next)?;
+        self.b.switch_to_block(blk_pass);
+        self.pixel_rows(
+            f,
+            &rect,
+            [y, y_end],
+            [x, x_end],
+            Some((&prefix, &facts.decidable)),
+            blk_next,
+        )?;
+
+        self.b.switch_to_block(blk_next);
+        let x = self.b.use_var(bxv);
+        let x = self.b.ins().iadd_imm_s(x, BLOCK_W as i64);
+        self.b.def_var(bxv, x);
+        self.b.ins().jump(blk_hdr, &[]);
+
+        self.b.switch_to_block(brow_next);
+        let y = self.b.use_var(by);
+        let y = self.b.ins().iadd_imm_s(y, BLOCK_H as i64);
+        self.b.def_var(by, y);
+        self.b.ins().jump(brow_hdr, &[]);
+
+        self.b.switch_to_block(loops_done);
+        Ok(())
+    }
+
+    /// Move the primitive's uniform register locals into stack memory before the pixel
+    /// loops; the pixel code then loads each where it uses it.
+    ///
+    /// Why: kept in SSA registers, every setup result (edge and plane coefficients: ~50 for
+    /// four perspective parameters) is live across every block of the pixel loops. That is
+    /// more than the 16 xmm registers, so they spill anyway, and regalloc2's live-range
+    /// splitting over ~150 blocks was 75% of the compile time (10 of 14 ms per variant).
+    ///
+    /// Locals the pixel part never assigns go to one *uniform frame*, read in pixel code
+    /// through a base pointer loaded once per group (`PixelState::frame_base`): those reads
+    /// are pure (readonly, can_move), so Cranelift places each load next to its use, folds it
+    /// into `vbroadcastss mem` and merges repeats, but cannot hoist them out of the group
+    /// loop (their address is defined in it). Locals the pixel part assigns get a stack
+    /// slot of their own with ordinary loads and stores.
+    fn spill_uniforms(&mut self, f: &'a Function) {
+        let mut pixel_assigned = std::collections::HashSet::new();
+        block::assigned_locals(&f.pixel, &mut pixel_assigned);
+        let frame = &self.frames[0];
+        let mut moves = vec![];
+        for (i, st) in frame.storage.iter().enumerate() {
+            let Storage::Vars(vars) = st else { continue };
+            let local = &f.locals[i];
+            let is_pixel_param = f
+                .params
+                .iter()
+                .any(|p| p.local.0 as usize == i && matches!(p.role, ParamRole::X | ParamRole::Y | ParamRole::Z));
+            if local.var.is_varying() || is_pixel_param || vars.is_empty() {
+                continue;
+            }
+            moves.push((i, vars.clone(), pixel_assigned.contains(&LocalId(i as u32))));
+        }
+        let frozen_words: u32 = moves.iter().filter(|m| !m.2).map(|m| m.1.len() as u32).sum();
+        let frame_slot = (frozen_words > 0).then(|| {
+            self.b
+                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 4 * frozen_words, 4))
+        });
+        let mut next_word = 0;
+        for (i, vars, assigned) in moves {
+            let (addr, first, storage) = match (assigned, frame_slot) {
+                (false, Some(fs)) => {
+                    let at = next_word;
+                    next_word += vars.len() as u32;
+                    (self.b.ins().stack_addr(types::I64, fs, 0), at, Storage::Frame(at))
+                }
+                _ => {
+                    let slot = self.b.create_sized_stack_slot(StackSlotData::new(
+                        StackSlotKind::ExplicitSlot,
+                        4 * vars.len() as u32,
+                        2,
+                    ));
+                    (self.b.ins().stack_addr(types::I64, slot, 0), 0, Storage::Stack(slot))
+                }
+            };
+            for (c, v) in vars.iter().enumerate() {
+                let x = self.b.use_var(*v);
+                self.b
+                    .ins()
+                    .store(mem_flags(), x, addr, (4 * (first + c as u32)) as i32);
+            }
+            self.frames[0].storage[i] = storage;
+        }
+        if let Some(fs) = frame_slot {
+            // The frame's address, reloaded per group through this slot (see above).
+            let ptr_slot = self
+                .b
+                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8, 3));
+            let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+            let pa = self.b.ins().stack_addr(types::I64, ptr_slot, 0);
+            self.b.ins().store(mem_flags(), addr, pa, 0);
+            self.uniform_frame = Some((fs, ptr_slot));
+        }
+    }
+
+    /// Rows [ys[0], ys[1]) x groups starting at gs[0] (tile-aligned) up to gs[1], `UNROLL`
+    /// groups per loop step; lanes outside the pass rectangle start dead. `pass` selects the
+    /// pass variant of the pixel code. Ends by jumping to `done`.
+    fn pixel_rows(
+        &mut self,
+        f: &'a Function,
+        rect: &PassRect,
+        ys: [ir::Value; 2],
+        gs: [ir::Value; 2],
+        pass: Option<(&block::Prefix<'a>, &[bool])>,
+        done: Block,
+    ) -> Res<()> {
         let py = self.b.declare_var(types::I32);
         let gx = self.b.declare_var(types::I32);
-        self.b.def_var(py, lo_y);
+        self.b.def_var(py, ys[0]);
         let row_hdr = self.b.create_block();
         let row_body = self.b.create_block();
         let row_next = self.b.create_block();
         let grp_hdr = self.b.create_block();
-        let grp_body = self.b.create_block();
-        let grp_run = self.b.create_block();
         let grp_next = self.b.create_block();
-        let group_end = self.b.create_block();
-        let loops_done = self.b.create_block();
         self.b.ins().jump(row_hdr, &[]);
 
+        // Loop headers branch exit-first so Cranelift keeps hoisting uniform work.
         self.b.switch_to_block(row_hdr);
         let y = self.b.use_var(py);
-        let done = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, y, hi_y);
-        self.b.ins().brif(done, loops_done, &[], row_body, &[]);
+        let finished = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, y, ys[1]);
+        self.b.ins().brif(finished, done, &[], row_body, &[]);
 
         self.b.switch_to_block(row_body);
         let y = self.b.use_var(py);
-        let row = self.b.ins().isub(y, y0);
+        let row = self.b.ins().isub(y, rect.y0);
         let row64 = self.b.ins().sextend(types::I64, row);
-        let row_base = self.b.ins().imul(row64, stride64);
+        let row_base = self.b.ins().imul(row64, rect.stride64);
         let yf = self.b.ins().fcvt_from_sint(types::F32, y);
         let half = self.b.ins().f32const(0.5);
         let yf = self.b.ins().fadd(yf, half);
         let y_f = self.b.ins().splat(F32X4, yf);
-        self.b.def_var(gx, gx_start);
+        self.b.def_var(gx, gs[0]);
         self.b.ins().jump(grp_hdr, &[]);
 
         self.b.switch_to_block(grp_hdr);
         let g = self.b.use_var(gx);
-        let done = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, g, hi_x);
-        self.b.ins().brif(done, row_next, &[], grp_body, &[]);
+        let finished = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, g, gs[1]);
+        let first = self.b.create_block();
+        self.b.ins().brif(finished, row_next, &[], first, &[]);
+        self.b.switch_to_block(first);
+        let unroll = UNROLL;
+        for k in 0..unroll {
+            let next = if k + 1 == unroll {
+                grp_next
+            } else {
+                self.b.create_block()
+            };
+            let g = self.b.use_var(gx);
+            let g = self.b.ins().iadd_imm_s(g, 4 * k as i64);
+            self.pixel_group(f, rect, g, row_base, y_f, pass, next)?;
+            if k + 1 != unroll {
+                self.b.switch_to_block(next);
+            }
+        }
 
-        self.b.switch_to_block(grp_body);
+        self.b.switch_to_block(grp_next);
         let g = self.b.use_var(gx);
+        let g = self.b.ins().iadd_imm_s(g, 4 * unroll as i64);
+        self.b.def_var(gx, g);
+        self.b.ins().jump(grp_hdr, &[]);
+
+        self.b.switch_to_block(row_next);
+        let y = self.b.use_var(py);
+        let y = self.b.ins().iadd_imm_s(y, 1);
+        self.b.def_var(py, y);
+        self.b.ins().jump(row_hdr, &[]);
+        Ok(())
+    }
+
+    /// The pixel code for the group of 4 pixels starting at `g`; ends by jumping to `next`.
+    #[allow(clippy::too_many_arguments)]
+    fn pixel_group(
+        &mut self,
+        f: &'a Function,
+        rect: &PassRect,
+        g: ir::Value,
+        row_base: ir::Value,
+        y_f: ir::Value,
+        pass: Option<(&block::Prefix<'a>, &[bool])>,
+        next: Block,
+    ) -> Res<()> {
+        let grp_run = self.b.create_block();
+        let group_end = self.b.create_block();
         let gs = self.b.ins().splat(I32X4, g);
         let iota = self.iota();
         let px = self.b.ins().iadd(gs, iota);
-        let lo_s = self.b.ins().splat(I32X4, lo_x);
-        let hi_s = self.b.ins().splat(I32X4, hi_x);
+        let lo_s = self.b.ins().splat(I32X4, rect.lo_x);
+        let hi_s = self.b.ins().splat(I32X4, rect.hi_x);
         let ge = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, px, lo_s);
         let lt = self.b.ins().icmp(IntCC::SignedLessThan, px, hi_s);
         let mask = self.b.ins().band(ge, lt);
-        let col = self.b.ins().isub(g, x0);
+        let col = self.b.ins().isub(g, rect.x0);
         let col64 = self.b.ins().sextend(types::I64, col);
         let tile_idx = self.b.ins().iadd(row_base, col64);
         let any = self.b.ins().vany_true(mask);
         let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
-        self.b.ins().brif(none, grp_next, &[], grp_run, &[]);
+        self.b.ins().brif(none, next, &[], grp_run, &[]);
 
         self.b.switch_to_block(grp_run);
         let alive = self.b.declare_var(I32X4);
@@ -456,6 +730,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let none_mask = mask_const(&mut self.b, false);
         self.b.def_var(z_written, none_mask);
         let pxf = self.b.ins().fcvt_from_sint(F32X4, px);
+        let half = self.b.ins().f32const(0.5);
         let halfv = self.b.ins().splat(F32X4, half);
         let x_f = self.b.ins().fadd(pxf, halfv);
         let needs_depth = f.param_by_role(ParamRole::Z).is_some()
@@ -470,6 +745,10 @@ impl<'a, 'b> Lower<'a, 'b> {
         } else {
             None
         };
+        let frame_base = self.uniform_frame.map(|(_, ptr_slot)| {
+            let pa = self.b.ins().stack_addr(types::I64, ptr_slot, 0);
+            self.b.ins().load(types::I64, mem_flags(), pa, 0)
+        });
         self.pix = Some(PixelState {
             alive,
             exec,
@@ -478,6 +757,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             tile_idx,
             x_f,
             y_f,
+            frame_base,
             z_raw,
             varying_depth: 0,
         });
@@ -507,7 +787,13 @@ impl<'a, 'b> Lower<'a, 'b> {
                 _ => {}
             }
         }
-        self.stmts(&f.pixel)?;
+        match pass {
+            None => self.stmts(&f.pixel)?,
+            Some((prefix, decidable)) => {
+                self.prefix_without_guards(&prefix.stmts, decidable)?;
+                self.stmts(&f.pixel[prefix.len..])?;
+            }
+        }
         self.b.ins().jump(group_end, &[]);
 
         // End of group: write Z back for the lanes that assigned it.
@@ -522,7 +808,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             let any = self.b.ins().vany_true(written);
             let store_blk = self.b.create_block();
             let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
-            self.b.ins().brif(none, grp_next, &[], store_blk, &[]);
+            self.b.ins().brif(none, next, &[], store_blk, &[]);
             self.b.switch_to_block(store_blk);
             let zvar = match &self.frames[0].storage[zi] {
                 Storage::Z(v) => *v,
@@ -542,22 +828,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                 self.b.ins().store(mem_flags(), new, caddr, 0);
             }
         }
-        self.b.ins().jump(grp_next, &[]);
+        self.b.ins().jump(next, &[]);
         self.pix = None;
-
-        self.b.switch_to_block(grp_next);
-        let g = self.b.use_var(gx);
-        let g = self.b.ins().iadd_imm_s(g, 4);
-        self.b.def_var(gx, g);
-        self.b.ins().jump(grp_hdr, &[]);
-
-        self.b.switch_to_block(row_next);
-        let y = self.b.use_var(py);
-        let y = self.b.ins().iadd_imm_s(y, 1);
-        self.b.def_var(py, y);
-        self.b.ins().jump(row_hdr, &[]);
-
-        self.b.switch_to_block(loops_done);
         Ok(())
     }
 
@@ -1136,25 +1408,56 @@ impl<'a, 'b> Lower<'a, 'b> {
         let p = self.pix.as_ref().expect("plane stores run in pixel context");
         let tile_idx = p.tile_idx;
         let exec = self.exec().expect("pixel context");
-        let plane = self.b.ins().load(
-            types::I32,
-            args_flags(),
-            self.args,
-            ((self.layout.plane_table + g) * 4) as i32,
-        );
-        let num = self.load_ctx(types::I32, ctx_off::NUM_PLANES);
-        let valid = self.b.ins().icmp(IntCC::UnsignedLessThan, plane, num);
-        let pstride = self.load_ctx(types::I32, ctx_off::PLANE_STRIDE);
-        let plane64 = self.b.ins().uextend(types::I64, plane);
-        let ps64 = self.b.ins().uextend(types::I64, pstride);
-        let start = self.b.ins().imul(plane64, ps64);
-        let idx = self.b.ins().iadd(start, tile_idx);
-        let real = self.tile_addr(ctx_off::GBUF, idx);
+        let Some(table) = self.plane_ptrs else {
+            return;
+        };
+        // The plane's base address, or null for a plane the frame does not have: then the
+        // store goes to a scratch slot. Branch-free, so values shared by several stores
+        // (a perspective divisor) are computed once.
+        let slot_addr = self.b.ins().stack_addr(types::I64, table, 0);
+        let base = self.b.ins().load(types::I64, mem_flags(), slot_addr, (8 * g) as i32);
+        let bytes = self.b.ins().ishl_imm_u(tile_idx, 2);
+        let real = self.b.ins().iadd(base, bytes);
         let dummy = self.b.ins().stack_addr(types::I64, self.scratch, 0);
-        let addr = self.b.ins().select(valid, real, dummy);
+        let addr = self.b.ins().select(base, real, dummy);
         let old = self.b.ins().load(F32X4, mem_flags(), addr, 0);
         let new = blend(&mut self.b, exec, v, old);
         self.b.ins().store(mem_flags(), new, addr, 0);
+    }
+
+    /// Once per kernel run, before the pixel loops: the base address of every binding
+    /// component's G-buffer plane (null when its plane index is not below
+    /// `ctx.num_planes`), so a store costs a load and an add instead of recomputing it.
+    fn plane_table(&mut self) {
+        let n = self.key.total_components();
+        if n == 0 {
+            return;
+        }
+        let slot = self
+            .b
+            .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8 * n, 3));
+        let num = self.load_ctx(types::I32, ctx_off::NUM_PLANES);
+        let pstride = self.load_ctx(types::I32, ctx_off::PLANE_STRIDE);
+        let ps64 = self.b.ins().uextend(types::I64, pstride);
+        let gbuf = self.load_ctx(types::I64, ctx_off::GBUF);
+        let null = self.b.ins().iconst(types::I64, 0);
+        let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+        for g in 0..n {
+            let plane = self.b.ins().load(
+                types::I32,
+                args_flags(),
+                self.args,
+                ((self.layout.plane_table + g) * 4) as i32,
+            );
+            let valid = self.b.ins().icmp(IntCC::UnsignedLessThan, plane, num);
+            let plane64 = self.b.ins().uextend(types::I64, plane);
+            let start = self.b.ins().imul(plane64, ps64);
+            let bytes = self.b.ins().ishl_imm_u(start, 2);
+            let base = self.b.ins().iadd(gbuf, bytes);
+            let base = self.b.ins().select(valid, base, null);
+            self.b.ins().store(mem_flags(), base, addr, (8 * g) as i32);
+        }
+        self.plane_ptrs = Some(slot);
     }
 
     fn interpolator_return(&mut self, e: Option<&'a Expr>) -> Res<()> {
@@ -1809,6 +2112,15 @@ impl<'a, 'b> Lower<'a, 'b> {
                         let addr = self.b.ins().stack_addr(types::I64, slot, 0);
                         Ok(self.read_memory(addr, sc, varying, &offs, acc.base, acc.dyn_off, false, false))
                     }
+                    Storage::Frame(word) => {
+                        let in_group = self.pix.as_ref().and_then(|p| p.frame_base);
+                        let (addr, pure) = match (in_group, self.uniform_frame) {
+                            (Some(base), _) => (base, true),
+                            (None, Some((fs, _))) => (self.b.ins().stack_addr(types::I64, fs, 0), false),
+                            (None, None) => return err("uniform frame missing"),
+                        };
+                        Ok(self.read_memory(addr, sc, false, &offs, word + acc.base, acc.dyn_off, false, pure))
+                    }
                     Storage::Args => {
                         let pi = fr
                             .func
@@ -1873,6 +2185,10 @@ impl<'a, 'b> Lower<'a, 'b> {
         let masked = self.masked();
         match storage {
             Storage::Args => err(format!("assignment to parameter `{}`", local.name)),
+            Storage::Frame(_) => err(format!(
+                "assignment to `{}`, which the pixel part never assigns",
+                local.name
+            )),
             Storage::Vars(vars) => {
                 for (o, c) in offs.iter().zip(comps) {
                     let Some(&var) = vars.get((acc.base + o) as usize) else {

@@ -1,0 +1,728 @@
+//! Block-level culling: decide for a whole block of pixels, from uniform data, that no lane
+//! can survive the primitive's leading coverage tests (skip the block), or that every lane
+//! passes them (run a variant of the pixel code without those tests), the way hierarchical
+//! rasterizers do it, but derived from the pixel-centric source.
+//!
+//! Two halves:
+//! - [`prefix`] (compile time) finds the *guard prefix* of a primitive's pixel part: the
+//!   leading statements that are assignments of pure expressions to varying scalar locals,
+//!   `if (c) return;` guards on varying conditions, and `if` on uniform conditions whose
+//!   branches are themselves such statements. It stops at the first statement with an effect
+//!   a skipped block would lose (a Z or G-buffer write, a loop that spends fuel, an index
+//!   that may record an error, ...). Nothing in the prefix has an effect, so a block where
+//!   every lane leaves at a guard does nothing at all.
+//! - [`Lower::block_facts`] (run time, once per block) re-evaluates the prefix over the
+//!   block's pixel rectangle with interval arithmetic emitted as scalar CLIF, and yields two
+//!   flags: `dead` (some guard fires for every lane that reaches it) and `pass` (no
+//!   decidable guard fires for any lane).
+//!
+//! Soundness: every float operation used (+, -, *, /, conversions, abs/min/max/floor/ceil)
+//! is monotone in each operand once rounded (round-to-nearest is monotone), so evaluating
+//! the endpoints with the *same* f32 operations bounds every pixel's value bit for bit; an
+//! interval with a non-finite endpoint, a divisor interval containing zero, or an integer
+//! interval leaving the i32 range (the pixel code would wrap) is marked not `ok` and decides
+//! nothing. Expressions the evaluator does not model (fixed point, Z, selects, ...) are
+//! [`Abs::Top`]; a guard on such a condition is *undecidable*: it never makes a block dead or
+//! passing and stays in both variants.
+
+use std::collections::{HashMap, HashSet};
+
+use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, InstBuilder};
+
+use super::{elem_scalar, Lower, Res};
+use crate::ir::{BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, Function, LocalId, Scalar, Stmt, StmtKind, UnaryOp};
+use crate::jit::fixed;
+
+/// One statement of the guard prefix.
+pub(super) enum PStmt<'a> {
+    /// `local = value` for a varying scalar local: kept in both variants.
+    Assign {
+        stmt: &'a Stmt,
+        local: LocalId,
+        value: &'a Expr,
+    },
+    /// `if (cond) return;` with a varying `cond`; `id` numbers guards in pre-order.
+    Guard { stmt: &'a Stmt, cond: &'a Expr, id: usize },
+    /// `if (cond) {..} else {..}` on a uniform `cond`, both sides prefix statements.
+    UniformIf {
+        cond: &'a Expr,
+        then: Vec<PStmt<'a>>,
+        otherwise: Vec<PStmt<'a>>,
+    },
+    /// `return` under uniform control: every lane that gets here retires.
+    Kill(&'a Stmt),
+}
+
+/// The guard prefix of a primitive's pixel part.
+pub(super) struct Prefix<'a> {
+    pub stmts: Vec<PStmt<'a>>,
+    /// How many top-level pixel statements the prefix covers.
+    pub len: usize,
+    /// Number of guards (ids 0..guards).
+    pub guards: usize,
+}
+
+/// Find the guard prefix of `f`'s pixel statements (see the module comment).
+pub(super) fn prefix(f: &Function) -> Prefix<'_> {
+    let mut stmts = vec![];
+    let mut guards = 0;
+    for s in &f.pixel {
+        let mut n = guards;
+        match classify(f, s, &mut n) {
+            Some(p) => {
+                guards = n;
+                stmts.push(p);
+            }
+            None => break,
+        }
+    }
+    Prefix {
+        len: stmts.len(),
+        stmts,
+        guards,
+    }
+}
+
+fn classify<'a>(f: &'a Function, s: &'a Stmt, guards: &mut usize) -> Option<PStmt<'a>> {
+    match &s.kind {
+        StmtKind::Assign { place, value } => {
+            let local = f.locals.get(place.local.0 as usize)?;
+            let is_param = f.params.iter().any(|p| p.local == place.local);
+            let scalar_ok = matches!(local.ty.elem, Elem::Scalar(_)) && local.ty.dims.is_empty() && !local.ty.per_seq;
+            (place.indices.is_empty() && !is_param && scalar_ok && local.var.is_varying() && pure(value)).then_some(
+                PStmt::Assign {
+                    stmt: s,
+                    local: place.local,
+                    value,
+                },
+            )
+        }
+        StmtKind::If { cond, then, otherwise } => {
+            if !pure(cond) {
+                return None;
+            }
+            if cond.var.is_varying() {
+                let is_guard = otherwise.is_empty() && then.len() == 1 && matches!(then[0].kind, StmtKind::Return);
+                if !is_guard {
+                    return None;
+                }
+                let id = *guards;
+                *guards += 1;
+                return Some(PStmt::Guard { stmt: s, cond, id });
+            }
+            let then = then
+                .iter()
+                .map(|t| classify(f, t, guards))
+                .collect::<Option<Vec<_>>>()?;
+            let otherwise = otherwise
+                .iter()
+                .map(|t| classify(f, t, guards))
+                .collect::<Option<Vec<_>>>()?;
+            Some(PStmt::UniformIf { cond, then, otherwise })
+        }
+        StmtKind::Return => Some(PStmt::Kill(s)),
+        _ => None,
+    }
+}
+
+/// No effect when evaluated: no index that may be out of range (which records an error).
+fn pure(e: &Expr) -> bool {
+    match &e.kind {
+        ExprKind::Index { base, index, .. } => {
+            let in_range = match (&index.kind, base.ty.per_seq, base.ty.dims.first()) {
+                (ExprKind::Const(ConstValue::Int(k)), false, Some(&len)) => *k >= 0 && (*k as i64) < len as i64,
+                _ => false,
+            };
+            in_range && pure(base)
+        }
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => pure(expr),
+        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => pure(lhs) && pure(rhs),
+        ExprKind::Select { cond, then, otherwise } => pure(cond) && pure(then) && pure(otherwise),
+        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().all(pure),
+        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount => true,
+    }
+}
+
+/// Locals assigned anywhere in `stmts` (their values change between pixel groups).
+pub(super) fn assigned_locals(stmts: &[Stmt], out: &mut HashSet<LocalId>) {
+    for s in stmts {
+        match &s.kind {
+            StmtKind::Assign { place, .. } => {
+                out.insert(place.local);
+            }
+            StmtKind::If { then, otherwise, .. } => {
+                assigned_locals(then, out);
+                assigned_locals(otherwise, out);
+            }
+            StmtKind::Loop { body, step, .. } => {
+                assigned_locals(body, out);
+                assigned_locals(step, out);
+            }
+            StmtKind::Interpolation { arms } => {
+                for a in arms {
+                    assigned_locals(&a.body, out);
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+fn reads_any(e: &Expr, set: &HashSet<LocalId>) -> bool {
+    match &e.kind {
+        ExprKind::Local(l) => set.contains(l),
+        ExprKind::Index { base, index, .. } => reads_any(base, set) || reads_any(index, set),
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => reads_any(expr, set),
+        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => reads_any(lhs, set) || reads_any(rhs, set),
+        ExprKind::Select { cond, then, otherwise } => {
+            reads_any(cond, set) || reads_any(then, set) || reads_any(otherwise, set)
+        }
+        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().any(|a| reads_any(a, set)),
+        ExprKind::Const(_) | ExprKind::SeqCount => false,
+    }
+}
+
+/// The abstract value of a scalar expression over a block (run-time values, all scalar).
+#[derive(Clone)]
+pub(super) enum Abs {
+    /// Nothing known.
+    Top,
+    /// Every pixel's f32 value lies in [lo, hi] when `ok` (i8) is set.
+    F {
+        lo: ir::Value,
+        hi: ir::Value,
+        ok: ir::Value,
+    },
+    /// Every pixel's i32 value lies in [lo, hi] (i64 endpoints) when `ok` is set.
+    I {
+        lo: ir::Value,
+        hi: ir::Value,
+        ok: ir::Value,
+    },
+    /// Some pixel may see true (`t` != 0) / false (`f` != 0); both i8.
+    B { t: ir::Value, f: ir::Value },
+}
+
+/// What the interval evaluation knows while it walks the prefix.
+pub(super) struct BlockEnv {
+    /// Values of the varying locals the prefix assigned so far.
+    locals: HashMap<LocalId, Abs>,
+    /// Locals assigned anywhere in the pixel part: their uniform value is not the block's.
+    pixel_assigned: HashSet<LocalId>,
+    /// The pixel-centre ranges of the block.
+    x: Abs,
+    y: Abs,
+    x_local: Option<LocalId>,
+    y_local: Option<LocalId>,
+}
+
+/// The block-level facts and which guards they cover.
+pub(super) struct BlockFacts {
+    /// i8: no lane of the block survives the prefix.
+    pub dead: ir::Value,
+    /// i8: no decidable guard fires for any lane of the block.
+    pub pass: ir::Value,
+    /// Per guard id: the evaluator can decide it (the fast variant drops it).
+    pub decidable: Vec<bool>,
+}
+
+impl<'a> Lower<'a, '_> {
+    /// Evaluate the prefix over pixel centres x in [x_lo, x_hi] and y in [y_lo, y_hi]
+    /// (f32 values computed exactly as the pixel code computes X and Y).
+    pub(super) fn block_facts(
+        &mut self,
+        f: &'a Function,
+        p: &Prefix<'a>,
+        x: [ir::Value; 2],
+        y: [ir::Value; 2],
+    ) -> Res<BlockFacts> {
+        let mut pixel_assigned = HashSet::new();
+        assigned_locals(&f.pixel, &mut pixel_assigned);
+        let role = |r| f.params.iter().find(|q| q.role == r).map(|q| q.local);
+        let x_local = role(crate::ir::ParamRole::X).filter(|l| elem_scalar(&f.local(*l).ty) == Scalar::Float);
+        let y_local = role(crate::ir::ParamRole::Y).filter(|l| elem_scalar(&f.local(*l).ty) == Scalar::Float);
+        let one = self.b.ins().iconst(types::I8, 1);
+        let mut env = BlockEnv {
+            locals: HashMap::new(),
+            pixel_assigned,
+            x: Abs::F {
+                lo: x[0],
+                hi: x[1],
+                ok: one,
+            },
+            y: Abs::F {
+                lo: y[0],
+                hi: y[1],
+                ok: one,
+            },
+            x_local,
+            y_local,
+        };
+        let mut dead = self.b.ins().iconst(types::I8, 0);
+        let mut pass = one;
+        let mut decidable = vec![false; p.guards];
+        self.abs_stmts(&p.stmts, &mut env, &mut dead, &mut pass, &mut decidable)?;
+        Ok(BlockFacts { dead, pass, decidable })
+    }
+
+    fn abs_stmts(
+        &mut self,
+        stmts: &[PStmt<'a>],
+        env: &mut BlockEnv,
+        dead: &mut ir::Value,
+        pass: &mut ir::Value,
+        decidable: &mut [bool],
+    ) -> Res<()> {
+        for s in stmts {
+            match s {
+                PStmt::Assign { local, value, .. } => {
+                    let v = self.abs_expr(value, env)?;
+                    let to = elem_scalar(&self.frame().func.local(*local).ty);
+                    let v = self.abs_convert(v, elem_scalar(&value.ty), to);
+                    env.locals.insert(*local, v);
+                }
+                PStmt::Guard { cond, id, .. } => {
+                    if let Abs::B { t, f } = self.abs_expr(cond, env)? {
+                        decidable[*id] = true;
+                        let fires_everywhere = self.b.ins().icmp_imm_s(IntCC::Equal, f, 0);
+                        *dead = self.b.ins().bor(*dead, fires_everywhere);
+                        let never_fires = self.b.ins().icmp_imm_s(IntCC::Equal, t, 0);
+                        *pass = self.b.ins().band(*pass, never_fires);
+                    }
+                }
+                PStmt::Kill(_) => {
+                    *dead = self.b.ins().iconst(types::I8, 1);
+                }
+                PStmt::UniformIf { cond, then, otherwise } => {
+                    let c = self.eval_uniform(cond)?;
+                    let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
+                    let mut sides = vec![];
+                    for branch in [then, otherwise] {
+                        let mut side_env = BlockEnv {
+                            locals: env.locals.clone(),
+                            pixel_assigned: std::mem::take(&mut env.pixel_assigned),
+                            x: env.x.clone(),
+                            y: env.y.clone(),
+                            x_local: env.x_local,
+                            y_local: env.y_local,
+                        };
+                        let mut d = self.b.ins().iconst(types::I8, 0);
+                        let mut p = self.b.ins().iconst(types::I8, 1);
+                        let r = self.abs_stmts(branch, &mut side_env, &mut d, &mut p, decidable);
+                        env.pixel_assigned = std::mem::take(&mut side_env.pixel_assigned);
+                        r?;
+                        sides.push((side_env.locals, d, p));
+                    }
+                    let (else_locals, de, pe) = sides.pop().expect("two sides");
+                    let (then_locals, dt, pt) = sides.pop().expect("two sides");
+                    let d = self.b.ins().select(c, dt, de);
+                    let p = self.b.ins().select(c, pt, pe);
+                    *dead = self.b.ins().bor(*dead, d);
+                    *pass = self.b.ins().band(*pass, p);
+                    let keys: HashSet<LocalId> = then_locals.keys().chain(else_locals.keys()).copied().collect();
+                    for k in keys {
+                        let merged = match (then_locals.get(&k), else_locals.get(&k)) {
+                            (Some(a), Some(b)) => self.abs_select(c, a, b),
+                            _ => Abs::Top,
+                        };
+                        env.locals.insert(k, merged);
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn abs_select(&mut self, c: ir::Value, a: &Abs, b: &Abs) -> Abs {
+        let mut sel = |x: ir::Value, y: ir::Value| self.b.ins().select(c, x, y);
+        match (a, b) {
+            (Abs::F { lo, hi, ok }, Abs::F { lo: l2, hi: h2, ok: o2 }) => Abs::F {
+                lo: sel(*lo, *l2),
+                hi: sel(*hi, *h2),
+                ok: sel(*ok, *o2),
+            },
+            (Abs::I { lo, hi, ok }, Abs::I { lo: l2, hi: h2, ok: o2 }) => Abs::I {
+                lo: sel(*lo, *l2),
+                hi: sel(*hi, *h2),
+                ok: sel(*ok, *o2),
+            },
+            (Abs::B { t, f }, Abs::B { t: t2, f: f2 }) => Abs::B {
+                t: sel(*t, *t2),
+                f: sel(*f, *f2),
+            },
+            _ => Abs::Top,
+        }
+    }
+
+    /// i8: |v| is finite.
+    fn finite(&mut self, v: ir::Value) -> ir::Value {
+        let a = self.b.ins().fabs(v);
+        let inf = self.b.ins().f32const(f32::INFINITY);
+        self.b.ins().fcmp(FloatCC::LessThan, a, inf)
+    }
+
+    /// i8: the i64 `v` is in the i32 range.
+    fn fits_i32(&mut self, v: ir::Value) -> ir::Value {
+        let lo = self
+            .b
+            .ins()
+            .icmp_imm_s(IntCC::SignedGreaterThanOrEqual, v, i32::MIN as i64);
+        let hi = self
+            .b
+            .ins()
+            .icmp_imm_s(IntCC::SignedLessThanOrEqual, v, i32::MAX as i64);
+        self.b.ins().band(lo, hi)
+    }
+
+    fn float_iv(&mut self, lo: ir::Value, hi: ir::Value, ok: ir::Value) -> Abs {
+        let a = self.finite(lo);
+        let b = self.finite(hi);
+        let ok = self.b.ins().band(ok, a);
+        let ok = self.b.ins().band(ok, b);
+        Abs::F { lo, hi, ok }
+    }
+
+    fn int_iv(&mut self, lo: ir::Value, hi: ir::Value, ok: ir::Value) -> Abs {
+        let a = self.fits_i32(lo);
+        let b = self.fits_i32(hi);
+        let ok = self.b.ins().band(ok, a);
+        let ok = self.b.ins().band(ok, b);
+        Abs::I { lo, hi, ok }
+    }
+
+    /// A uniform value as a one-point abstract value.
+    fn abs_point(&mut self, sc: Scalar, v: ir::Value) -> Abs {
+        match sc {
+            Scalar::Float => {
+                let ok = self.b.ins().iconst(types::I8, 1);
+                self.float_iv(v, v, ok)
+            }
+            Scalar::Int => {
+                let w = self.b.ins().sextend(types::I64, v);
+                let ok = self.b.ins().iconst(types::I8, 1);
+                Abs::I { lo: w, hi: w, ok }
+            }
+            Scalar::Bool => {
+                let f = self.b.ins().bxor_imm_s(v, 1);
+                Abs::B { t: v, f }
+            }
+            Scalar::Fixed(_) => Abs::Top,
+        }
+    }
+
+    fn abs_expr(&mut self, e: &'a Expr, env: &BlockEnv) -> Res<Abs> {
+        let sc = elem_scalar(&e.ty);
+        let scalar_shape = e.ty.dims.is_empty() && !e.ty.per_seq && matches!(e.ty.elem, Elem::Scalar(_));
+        if !scalar_shape {
+            return Ok(Abs::Top);
+        }
+        if !e.var.is_varying() && !reads_any(e, &env.pixel_assigned) && !matches!(sc, Scalar::Fixed(_)) {
+            let v = self.eval_uniform(e)?;
+            return Ok(self.abs_point(v.scalar, v.comps[0]));
+        }
+        Ok(match &e.kind {
+            ExprKind::Local(l) => {
+                if let Some(v) = env.locals.get(l) {
+                    v.clone()
+                } else if Some(*l) == env.x_local {
+                    env.x.clone()
+                } else if Some(*l) == env.y_local {
+                    env.y.clone()
+                } else {
+                    Abs::Top
+                }
+            }
+            ExprKind::Unary { op, expr } => {
+                let v = self.abs_expr(expr, env)?;
+                match (op, v) {
+                    (UnaryOp::Not, Abs::B { t, f }) => Abs::B { t: f, f: t },
+                    (UnaryOp::Neg, Abs::F { lo, hi, ok }) => {
+                        let nlo = self.b.ins().fneg(hi);
+                        let nhi = self.b.ins().fneg(lo);
+                        Abs::F { lo: nlo, hi: nhi, ok }
+                    }
+                    (UnaryOp::Neg, Abs::I { lo, hi, ok }) => {
+                        let nlo = self.b.ins().ineg(hi);
+                        let nhi = self.b.ins().ineg(lo);
+                        self.int_iv(nlo, nhi, ok)
+                    }
+                    _ => Abs::Top,
+                }
+            }
+            ExprKind::Convert(inner) => {
+                let v = self.abs_expr(inner, env)?;
+                self.abs_convert(v, elem_scalar(&inner.ty), sc)
+            }
+            ExprKind::Binary { op, lhs, rhs } => {
+                if elem_scalar(&lhs.ty) != elem_scalar(&rhs.ty) {
+                    return Ok(Abs::Top);
+                }
+                let a = self.abs_expr(lhs, env)?;
+                let c = self.abs_expr(rhs, env)?;
+                self.abs_binary(*op, a, c)
+            }
+            ExprKind::Builtin { func, args } if sc == Scalar::Float => {
+                let mut vals = vec![];
+                for a in args {
+                    if elem_scalar(&a.ty) != Scalar::Float {
+                        return Ok(Abs::Top);
+                    }
+                    vals.push(self.abs_expr(a, env)?);
+                }
+                self.abs_builtin(*func, &vals)
+            }
+            _ => Abs::Top,
+        })
+    }
+
+    fn abs_convert(&mut self, v: Abs, from: Scalar, to: Scalar) -> Abs {
+        match (v, from, to) {
+            (v, a, b) if a == b => v,
+            // Truncation and saturation are monotone; `ok` excludes NaN.
+            (Abs::F { lo, hi, ok }, Scalar::Float, Scalar::Int) => {
+                let l = self.b.ins().fcvt_to_sint_sat(types::I32, lo);
+                let h = self.b.ins().fcvt_to_sint_sat(types::I32, hi);
+                let l = self.b.ins().sextend(types::I64, l);
+                let h = self.b.ins().sextend(types::I64, h);
+                Abs::I { lo: l, hi: h, ok }
+            }
+            (Abs::I { lo, hi, ok }, Scalar::Int, Scalar::Float) => {
+                let l = self.b.ins().ireduce(types::I32, lo);
+                let h = self.b.ins().ireduce(types::I32, hi);
+                let l = self.b.ins().fcvt_from_sint(types::F32, l);
+                let h = self.b.ins().fcvt_from_sint(types::F32, h);
+                Abs::F { lo: l, hi: h, ok }
+            }
+            _ => Abs::Top,
+        }
+    }
+
+    fn abs_binary(&mut self, op: BinOp, a: Abs, c: Abs) -> Abs {
+        match (a, c) {
+            (Abs::F { lo: al, hi: ah, ok: ao }, Abs::F { lo: cl, hi: ch, ok: co }) => {
+                let ok = self.b.ins().band(ao, co);
+                match op {
+                    BinOp::Add => {
+                        let lo = self.b.ins().fadd(al, cl);
+                        let hi = self.b.ins().fadd(ah, ch);
+                        self.float_iv(lo, hi, ok)
+                    }
+                    BinOp::Sub => {
+                        let lo = self.b.ins().fsub(al, ch);
+                        let hi = self.b.ins().fsub(ah, cl);
+                        self.float_iv(lo, hi, ok)
+                    }
+                    BinOp::Mul | BinOp::Div => {
+                        let ok = if op == BinOp::Div {
+                            // The divisor interval must not contain zero.
+                            let zero = self.b.ins().f32const(0.0);
+                            let pos = self.b.ins().fcmp(FloatCC::GreaterThan, cl, zero);
+                            let neg = self.b.ins().fcmp(FloatCC::LessThan, ch, zero);
+                            let nz = self.b.ins().bor(pos, neg);
+                            self.b.ins().band(ok, nz)
+                        } else {
+                            ok
+                        };
+                        let mut corner = |x, y| {
+                            if op == BinOp::Mul {
+                                self.b.ins().fmul(x, y)
+                            } else {
+                                self.b.ins().fdiv(x, y)
+                            }
+                        };
+                        let p = [corner(al, cl), corner(al, ch), corner(ah, cl), corner(ah, ch)];
+                        let lo1 = self.b.ins().fmin(p[0], p[1]);
+                        let lo2 = self.b.ins().fmin(p[2], p[3]);
+                        let lo = self.b.ins().fmin(lo1, lo2);
+                        let hi1 = self.b.ins().fmax(p[0], p[1]);
+                        let hi2 = self.b.ins().fmax(p[2], p[3]);
+                        let hi = self.b.ins().fmax(hi1, hi2);
+                        self.float_iv(lo, hi, ok)
+                    }
+                    BinOp::Lt => self.decide(ok, [al, ah], [cl, ch], Cmp::Lt, true),
+                    BinOp::Le => self.decide(ok, [al, ah], [cl, ch], Cmp::Le, true),
+                    BinOp::Gt => self.decide(ok, [cl, ch], [al, ah], Cmp::Lt, true),
+                    BinOp::Ge => self.decide(ok, [cl, ch], [al, ah], Cmp::Le, true),
+                    BinOp::Eq => self.decide(ok, [al, ah], [cl, ch], Cmp::Eq, true),
+                    BinOp::Ne => match self.decide(ok, [al, ah], [cl, ch], Cmp::Eq, true) {
+                        Abs::B { t, f } => Abs::B { t: f, f: t },
+                        other => other,
+                    },
+                    _ => Abs::Top,
+                }
+            }
+            (Abs::I { lo: al, hi: ah, ok: ao }, Abs::I { lo: cl, hi: ch, ok: co }) => {
+                let ok = self.b.ins().band(ao, co);
+                match op {
+                    BinOp::Add => {
+                        let lo = self.b.ins().iadd(al, cl);
+                        let hi = self.b.ins().iadd(ah, ch);
+                        self.int_iv(lo, hi, ok)
+                    }
+                    BinOp::Sub => {
+                        let lo = self.b.ins().isub(al, ch);
+                        let hi = self.b.ins().isub(ah, cl);
+                        self.int_iv(lo, hi, ok)
+                    }
+                    BinOp::Mul => {
+                        // i32 * i32 fits i64; a not-ok operand already poisons the result.
+                        let p = [
+                            self.b.ins().imul(al, cl),
+                            self.b.ins().imul(al, ch),
+                            self.b.ins().imul(ah, cl),
+                            self.b.ins().imul(ah, ch),
+                        ];
+                        let lo1 = self.b.ins().smin(p[0], p[1]);
+                        let lo2 = self.b.ins().smin(p[2], p[3]);
+                        let lo = self.b.ins().smin(lo1, lo2);
+                        let hi1 = self.b.ins().smax(p[0], p[1]);
+                        let hi2 = self.b.ins().smax(p[2], p[3]);
+                        let hi = self.b.ins().smax(hi1, hi2);
+                        self.int_iv(lo, hi, ok)
+                    }
+                    BinOp::Lt => self.decide(ok, [al, ah], [cl, ch], Cmp::Lt, false),
+                    BinOp::Le => self.decide(ok, [al, ah], [cl, ch], Cmp::Le, false),
+                    BinOp::Gt => self.decide(ok, [cl, ch], [al, ah], Cmp::Lt, false),
+                    BinOp::Ge => self.decide(ok, [cl, ch], [al, ah], Cmp::Le, false),
+                    BinOp::Eq => self.decide(ok, [al, ah], [cl, ch], Cmp::Eq, false),
+                    BinOp::Ne => match self.decide(ok, [al, ah], [cl, ch], Cmp::Eq, false) {
+                        Abs::B { t, f } => Abs::B { t: f, f: t },
+                        other => other,
+                    },
+                    _ => Abs::Top,
+                }
+            }
+            (Abs::B { t: at, f: af }, Abs::B { t: ct, f: cf }) => match op {
+                BinOp::And => Abs::B {
+                    t: self.b.ins().band(at, ct),
+                    f: self.b.ins().bor(af, cf),
+                },
+                BinOp::Or => Abs::B {
+                    t: self.b.ins().bor(at, ct),
+                    f: self.b.ins().band(af, cf),
+                },
+                _ => Abs::Top,
+            },
+            _ => Abs::Top,
+        }
+    }
+
+    /// Tri-state result of `a cmp c` over intervals `a` and `c` (f32 or i64 endpoints).
+    /// Not `ok`: both outcomes possible.
+    fn decide(&mut self, ok: ir::Value, a: [ir::Value; 2], c: [ir::Value; 2], cmp: Cmp, float: bool) -> Abs {
+        let test = |l: &mut Self, fcc: FloatCC, icc: IntCC, x: ir::Value, y: ir::Value| {
+            if float {
+                l.b.ins().fcmp(fcc, x, y)
+            } else {
+                l.b.ins().icmp(icc, x, y)
+            }
+        };
+        let (sure_true, sure_false) = match cmp {
+            Cmp::Lt => (
+                test(self, FloatCC::LessThan, IntCC::SignedLessThan, a[1], c[0]),
+                test(
+                    self,
+                    FloatCC::GreaterThanOrEqual,
+                    IntCC::SignedGreaterThanOrEqual,
+                    a[0],
+                    c[1],
+                ),
+            ),
+            Cmp::Le => (
+                test(self, FloatCC::LessThanOrEqual, IntCC::SignedLessThanOrEqual, a[1], c[0]),
+                test(self, FloatCC::GreaterThan, IntCC::SignedGreaterThan, a[0], c[1]),
+            ),
+            Cmp::Eq => {
+                let e1 = test(self, FloatCC::Equal, IntCC::Equal, a[0], a[1]);
+                let e2 = test(self, FloatCC::Equal, IntCC::Equal, a[1], c[0]);
+                let e3 = test(self, FloatCC::Equal, IntCC::Equal, c[0], c[1]);
+                let all = self.b.ins().band(e1, e2);
+                let all = self.b.ins().band(all, e3);
+                let below = test(self, FloatCC::LessThan, IntCC::SignedLessThan, a[1], c[0]);
+                let above = test(self, FloatCC::LessThan, IntCC::SignedLessThan, c[1], a[0]);
+                (all, self.b.ins().bor(below, above))
+            }
+        };
+        let sure_true = self.b.ins().band(sure_true, ok);
+        let sure_false = self.b.ins().band(sure_false, ok);
+        Abs::B {
+            t: self.b.ins().bxor_imm_s(sure_false, 1),
+            f: self.b.ins().bxor_imm_s(sure_true, 1),
+        }
+    }
+
+    fn abs_builtin(&mut self, func: Builtin, vals: &[Abs]) -> Abs {
+        match (func, vals) {
+            (Builtin::Floor | Builtin::Ceil, [Abs::F { lo, hi, ok }]) => {
+                let (l, h) = if func == Builtin::Floor {
+                    (self.b.ins().floor(*lo), self.b.ins().floor(*hi))
+                } else {
+                    (self.b.ins().ceil(*lo), self.b.ins().ceil(*hi))
+                };
+                Abs::F { lo: l, hi: h, ok: *ok }
+            }
+            (Builtin::Abs, [Abs::F { lo, hi, ok }]) => {
+                // [lo, hi] above zero: itself; below: mirrored; across: [0, max(-lo, hi)].
+                let zero = self.b.ins().f32const(0.0);
+                let nlo = self.b.ins().fneg(*hi);
+                let nhi = self.b.ins().fneg(*lo);
+                let above = self.b.ins().fcmp(FloatCC::GreaterThanOrEqual, *lo, zero);
+                let below = self.b.ins().fcmp(FloatCC::LessThanOrEqual, *hi, zero);
+                let across_hi = self.b.ins().fmax(nhi, *hi);
+                let l = self.b.ins().select(below, nlo, zero);
+                let l = self.b.ins().select(above, *lo, l);
+                let h = self.b.ins().select(below, nhi, across_hi);
+                let h = self.b.ins().select(above, *hi, h);
+                Abs::F { lo: l, hi: h, ok: *ok }
+            }
+            (Builtin::Min | Builtin::Max, [Abs::F { lo, hi, ok }, Abs::F { lo: l2, hi: h2, ok: o2 }]) => {
+                let (l, h) = if func == Builtin::Min {
+                    (self.b.ins().fmin(*lo, *l2), self.b.ins().fmin(*hi, *h2))
+                } else {
+                    (self.b.ins().fmax(*lo, *l2), self.b.ins().fmax(*hi, *h2))
+                };
+                let ok = self.b.ins().band(*ok, *o2);
+                Abs::F { lo: l, hi: h, ok }
+            }
+            _ => Abs::Top,
+        }
+    }
+
+    /// The pixel statements of the *pass* variant: the prefix with its decidable guards
+    /// dropped (the block facts proved they fire for no lane), then the rest as written.
+    pub(super) fn prefix_without_guards(&mut self, stmts: &[PStmt<'a>], decidable: &[bool]) -> Res<()> {
+        for s in stmts {
+            match s {
+                PStmt::Assign { stmt, .. } | PStmt::Kill(stmt) => self.stmt(stmt)?,
+                PStmt::Guard { stmt, id, .. } => {
+                    if !decidable[*id] {
+                        self.stmt(stmt)?;
+                    }
+                }
+                PStmt::UniformIf { cond, then, otherwise } => {
+                    let c = self.eval_uniform(cond)?;
+                    let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
+                    let then_blk = self.b.create_block();
+                    let else_blk = self.b.create_block();
+                    let join = self.b.create_block();
+                    self.b.ins().brif(c, then_blk, &[], else_blk, &[]);
+                    self.b.switch_to_block(then_blk);
+                    self.prefix_without_guards(then, decidable)?;
+                    self.b.ins().jump(join, &[]);
+                    self.b.switch_to_block(else_blk);
+                    self.prefix_without_guards(otherwise, decidable)?;
+                    self.b.ins().jump(join, &[]);
+                    self.b.switch_to_block(join);
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+#[derive(Clone, Copy)]
+enum Cmp {
+    Lt,
+    Le,
+    Eq,
+}
