@@ -139,7 +139,7 @@ fn pure(e: &Expr) -> bool {
         ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => pure(lhs) && pure(rhs),
         ExprKind::Select { cond, then, otherwise } => pure(cond) && pure(then) && pure(otherwise),
         ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().all(pure),
-        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount => true,
+        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => true,
     }
 }
 
@@ -178,7 +178,7 @@ fn reads_any(e: &Expr, set: &HashSet<LocalId>) -> bool {
             reads_any(cond, set) || reads_any(then, set) || reads_any(otherwise, set)
         }
         ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().any(|a| reads_any(a, set)),
-        ExprKind::Const(_) | ExprKind::SeqCount => false,
+        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => false,
     }
 }
 
