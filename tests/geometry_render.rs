@@ -341,3 +341,75 @@ fn ill_behaved_views_warn_and_never_panic() {
     let frame = common::render(&r, 1);
     no_nan_or_inf(&frame);
 }
+
+/// The ill-behaved cases of seed 000 section 9 that the renderer must survive: each one is
+/// named by its warning, and the frame holds no NaN or infinity.
+#[test]
+fn projective_model_non_factorizable_view_and_double_pyramid_are_named_and_survived() {
+    let program = common::library();
+    let tri = [[-0.5, -0.5, -3.0, 1.0], [0.5, -0.5, -3.0, 1.0], [0.0, 0.5, -3.0, 1.0]];
+    let reversed_perspective = |near: f64, far: f64| {
+        // z_c = a z_e + b, w_c = -z_e: depth 1 at z_e = -near, 0 at z_e = -far.
+        let (a, b) = (near / (far - near), near * far / (far - near));
+        DMat4::from_cols(
+            DVec4::new(1.0, 0.0, 0.0, 0.0),
+            DVec4::new(0.0, 1.0, 0.0, 0.0),
+            DVec4::new(0.0, 0.0, a, -1.0),
+            DVec4::new(0.0, 0.0, b, 0.0),
+        )
+    };
+    let cases: Vec<(&str, Box<dyn Fn(&mut Renderer)>)> = vec![
+        (
+            "model transform is projective",
+            Box::new(|r: &mut Renderer| {
+                r.perspective_checked(60.0, 1.0, 10.0).unwrap();
+                let mut m = DMat4::IDENTITY;
+                m.z_axis.w = 0.05; // w' = w + 0.05 z: a projective model matrix
+                r.concat(m).unwrap();
+            }),
+        ),
+        (
+            "lighting happens in world coordinates",
+            Box::new(move |r: &mut Renderer| {
+                // A view whose image is sheared (x += 0.5 y): not of the canonical form.
+                let mut shear = DMat4::IDENTITY;
+                shear.y_axis.x = 0.5;
+                r.view_matrix(shear * reversed_perspective(1.0, 10.0)).unwrap();
+            }),
+        ),
+        (
+            "double pyramid",
+            Box::new(move |r: &mut Renderer| {
+                // Near and far planes on opposite sides of the eye.
+                r.view_matrix(reversed_perspective(-1.0, 10.0)).unwrap();
+            }),
+        ),
+    ];
+    for (expected, setup) in cases {
+        let mut r = common::renderer(&program, W, H, true);
+        // Lit, so the lighting space matters (an unlit scene does not warn about it).
+        r.shading_setup
+            .lights
+            .push(primflow::runtime::shading::SceneLight::Directional {
+                towards_light: [0.0, 0.0, 1.0],
+                colour: [1.0; 3],
+            });
+        r.material_interp("N", "perspective_linear", &[]).unwrap();
+        r.material("N", &[0.0, 0.0, 1.0].into()).unwrap();
+        setup(&mut r);
+        r.material_interp("Cs", "perspective_linear", &[]).unwrap();
+        r.material("Cs", &[1.0, 0.5, 0.25].into()).unwrap();
+        triangle(&mut r, tri);
+        let warnings: Vec<String> = r.take_warnings().iter().map(|w| w.message.clone()).collect();
+        assert!(
+            warnings.iter().any(|w| w.contains(expected)),
+            "{expected}: {warnings:?}"
+        );
+        let frame = common::render(&r, 1);
+        no_nan_or_inf(&frame);
+        assert!(
+            frame.write_counts.as_ref().unwrap().iter().all(|&c| c <= 1),
+            "{expected}: a pixel written twice"
+        );
+    }
+}

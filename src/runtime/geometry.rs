@@ -201,6 +201,19 @@ impl GeometryState {
             choice
                 .warnings
                 .retain(|w| !matches!(w, Warning::NonFactorizableView(_)));
+        } else if let Err(why) = state.view_factoring {
+            // Deferred shading lights in world coordinates whenever V has no factoring,
+            // whichever facet pipeline was chosen: say so (seed 000 9.5).
+            let singular = choice.warnings.contains(&Warning::SingularView);
+            if lit
+                && !singular
+                && !choice
+                    .warnings
+                    .iter()
+                    .any(|w| matches!(w, Warning::NonFactorizableView(_)))
+            {
+                choice.warnings.push(Warning::NonFactorizableView(why));
+            }
         }
         choice
     }
