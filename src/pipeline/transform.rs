@@ -574,25 +574,11 @@ impl TransformState {
     /// device_from_object, device_from_world, device_from_lighting, object_from_device,
     /// world_from_device, lighting_from_device. A matrix without an inverse gives zeros there.
     pub fn abi_spaces(&self) -> [[f32; 16]; 6] {
-        let inv = |m: DMat4| m.try_inverse().unwrap_or(DMat4::ZERO);
-        let mats = [
+        abi_spaces_from([
             self.device_from_object(),
             self.device_from_world(),
             self.device_from_lighting(),
-            inv(self.device_from_object()),
-            inv(self.device_from_world()),
-            inv(self.device_from_lighting()),
-        ];
-        mats.map(|m| {
-            let rows = m.to_cols_array_2d();
-            let mut out = [0f32; 16];
-            for (c, col) in rows.iter().enumerate() {
-                for (r, v) in col.iter().enumerate() {
-                    out[r * 4 + c] = *v as f32;
-                }
-            }
-            out
-        })
+        ])
     }
 
     /// The ill-behaved cases the current state is in (seed 000 section 9), each once.
@@ -751,4 +737,29 @@ pub fn oblique_matrix(bounds: [f64; 4], near: f64, far: f64, direction: DVec3) -
         DVec4::new(hx * near, hy * near, 0.0, 1.0),
     );
     Ok(orthographic_matrix(bounds, near, far)? * shear)
+}
+
+/// The kernel ABI's `spaces` block from device_from_object, device_from_world and
+/// device_from_lighting: those three, then their inverses (taken in f64 and rounded once; a
+/// matrix without an inverse gives zeros), each row-major f32.
+pub fn abi_spaces_from(device_from: [DMat4; 3]) -> [[f32; 16]; 6] {
+    let inv = |m: DMat4| m.try_inverse().unwrap_or(DMat4::ZERO);
+    let mats = [
+        device_from[0],
+        device_from[1],
+        device_from[2],
+        inv(device_from[0]),
+        inv(device_from[1]),
+        inv(device_from[2]),
+    ];
+    mats.map(|m| {
+        let cols = m.to_cols_array_2d();
+        let mut out = [0f32; 16];
+        for (c, col) in cols.iter().enumerate() {
+            for (r, v) in col.iter().enumerate() {
+                out[r * 4 + c] = *v as f32;
+            }
+        }
+        out
+    })
 }

@@ -145,32 +145,11 @@ impl GeometryState {
 
     /// The six matrices of the kernel ABI's `spaces` block (see `abi::ArgLayout`).
     pub fn abi_spaces(&self) -> [[f32; 16]; 6] {
-        let inv = |m: DMat4| {
-            let det = m.determinant();
-            if det != 0.0 && det.is_finite() {
-                m.inverse()
-            } else {
-                DMat4::ZERO
-            }
-        };
-        let mats = [
+        crate::pipeline::transform::abi_spaces_from([
             self.device_from_object(),
             self.device_from_world(),
             self.device_from_lighting(),
-            inv(self.device_from_object()),
-            inv(self.device_from_world()),
-            inv(self.device_from_lighting()),
-        ];
-        mats.map(|m| {
-            let cols = m.to_cols_array_2d();
-            let mut out = [0f32; 16];
-            for (c, col) in cols.iter().enumerate() {
-                for (r, v) in col.iter().enumerate() {
-                    out[r * 4 + c] = *v as f32;
-                }
-            }
-            out
-        })
+        ])
     }
 
     /// The pipeline seed 000 would run for a primitive of `geometry`.
