@@ -206,3 +206,44 @@ fn spheres_behind_the_eye_or_degenerate_draw_nothing() {
         .count();
     assert_eq!(covered, 0);
 }
+
+/// The normal the sphere returns is in lighting coordinates: a sphere turned about its own
+/// centre by the model matrix (and seen from an oblique camera) looks the same and must
+/// return the same normals; an object-space normal would turn with the model matrix.
+#[test]
+fn normals_are_returned_in_lighting_coordinates_whatever_the_model_matrix() {
+    let program = library();
+    let render_with = |model: &dyn Fn(&mut primflow::runtime::Renderer)| {
+        let mut r = renderer(&program, 64, 64, false);
+        r.perspective_checked(40.0, 1.0, 50.0).unwrap();
+        r.look_at([3.0, 2.0, 4.0], [0.0, 0.0, -6.0], [0.0, 1.0, 0.0]).unwrap();
+        r.translate([0.0, 0.0, -6.0]).unwrap();
+        model(&mut r);
+        r.material_interp("N", "implicit", &[]).unwrap();
+        r.material("N", &Value(vec![0.0, 0.0, 1.0])).unwrap();
+        r.begin("sphere").unwrap();
+        r.rast_param("radius", &Value(vec![1.5])).unwrap();
+        r.end().unwrap();
+        assert!(r.take_warnings().is_empty());
+        render(&r, 1)
+    };
+    let plain = render_with(&|_| {});
+    let turned = render_with(&|r| r.rotate(90.0, [0.3, 1.0, 0.2]).unwrap());
+    let mut compared = 0;
+    let mut worst = 0f32;
+    for y in 0..64 {
+        for x in 0..64 {
+            if !(plain.written(x, y) && turned.written(x, y)) {
+                continue;
+            }
+            let (a, b) = (plain.param_at("N", x, y).unwrap(), turned.param_at("N", x, y).unwrap());
+            worst = worst.max((0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f32::max));
+            compared += 1;
+        }
+    }
+    assert!(compared > 300, "only {compared} pixels");
+    assert!(
+        worst < 1e-3,
+        "normals differ by {worst} when the sphere is turned about its centre"
+    );
+}
