@@ -15,6 +15,8 @@ use crate::abi::{TileCtx, MODE_BOUND};
 
 /// Everything the per-pixel code needs, computed once per triangle exactly as the prim does.
 pub(crate) struct Setup<const T: usize> {
+    /// G-buffer plane of each component (the argument block's plane table).
+    pub planes: [u32; T],
     pub bound: [f32; 4],
     pub exact: bool,
     pub ox16: i32,
@@ -138,7 +140,13 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32) -> Option<Setup<T>>
     let q0 = 1.0 / sv(0, 3);
     let q1 = 1.0 / sv(1, 3);
     let q2 = 1.0 / sv(2, 3);
+    let mut planes = [0u32; T];
+    for (c, p) in planes.iter_mut().enumerate() {
+        // SAFETY: the plane table has T words after word 0.
+        *p = unsafe { word(args, 1 + c) };
+    }
     let mut s = Setup::<T> {
+        planes,
         bound,
         exact,
         ox16: (ox * 16.0) as i32,
@@ -229,11 +237,7 @@ pub unsafe extern "C" fn scalar<const P: usize, const L: usize, const T: usize, 
     let Some([rx0, ry0, rx1, ry1]) = bound_or_rect(ctx, s.bound) else {
         return;
     };
-    let mut planes = [0u32; T];
-    for (c, p) in planes.iter_mut().enumerate() {
-        // SAFETY: the plane table has T words after word 0.
-        *p = unsafe { word(args, 1 + c) };
-    }
+    let planes = s.planes;
     for py in ry0..ry1 {
         let y = py as f32 + 0.5;
         for px in rx0..rx1 {
@@ -305,11 +309,7 @@ pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, co
     let Some([rx0, ry0, rx1, ry1]) = bound_or_rect(ctx, s.bound) else {
         return;
     };
-    let mut planes = [0u32; T];
-    for (c, p) in planes.iter_mut().enumerate() {
-        // SAFETY: the plane table has T words after word 0.
-        *p = unsafe { word(args, 1 + c) };
-    }
+    let planes = s.planes;
     let lane_offsets = _mm256_setr_ps(0.5, 1.5, 2.5, 3.5, 4.5, 5.5, 6.5, 7.5);
     let lane_index = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     let sign = _mm256_set1_epi32(i32::MIN);
