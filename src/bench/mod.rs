@@ -131,7 +131,7 @@ fn fill(layers: usize, kind: Option<&'static str>, k: usize) -> Workload {
         build: Box::new(move |r| {
             bind(r, kind, k);
             let mut rng = Lcg(1);
-            let s = SIZE as f32;
+            let s = r.options.width as f32;
             for layer in 0..layers {
                 let z = (layer + 1) as f32 / (layers + 1) as f32;
                 let mut corner = |x: f32, y: f32| [x, y, z, 1.0 + 2.0 * rng.next() as f32];
@@ -156,7 +156,8 @@ fn small(count: usize, k: usize) -> Workload {
             let radius = (20.0f64 * 4.0 / 3f64.sqrt()).sqrt() / 3f64.sqrt();
             for i in 0..count {
                 let z = (i + 1) as f32 / (count + 1) as f32;
-                let (cx, cy) = (rng.next() * SIZE as f64, rng.next() * SIZE as f64);
+                let size = f64::from(r.options.width);
+                let (cx, cy) = (rng.next() * size, rng.next() * size);
                 let a = rng.next() * std::f64::consts::TAU;
                 let v = std::array::from_fn(|j| {
                     let t = a + j as f64 * std::f64::consts::TAU / 3.0;
@@ -315,7 +316,28 @@ fn render(
     Ok((out.frame, ms))
 }
 
-fn same_frame(a: &Frame, b: &Frame) -> bool {
+/// A `size` x `size` renderer holding workload `w`'s primitives.
+fn scene(program: &Arc<Program>, size: u32, w: &Workload, count_writes: bool) -> Renderer {
+    let mut r = Renderer::new(program.clone());
+    r.set_image_size(size, size).expect("bench scene: image size");
+    r.options.count_writes = count_writes;
+    (w.build)(&mut r);
+    r
+}
+
+/// The `fill` workload (full-viewport quads back to front) at `size` x `size`; the criterion
+/// benches use it too.
+pub fn fill_scene(program: &Arc<Program>, size: u32, layers: usize, kind: Option<&'static str>, k: usize) -> Renderer {
+    scene(program, size, &fill(layers, kind, k), false)
+}
+
+/// The `small` workload (20 px triangles, perspective_linear) at `size` x `size`.
+pub fn small_scene(program: &Arc<Program>, size: u32, count: usize, k: usize) -> Renderer {
+    scene(program, size, &small(count, k), false)
+}
+
+/// Bit-for-bit equal depth and shading-parameter planes.
+pub fn same_frame(a: &Frame, b: &Frame) -> bool {
     a.depth == b.depth
         && a.planes.len() == b.planes.len()
         && a.planes
@@ -362,9 +384,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
     let mut compile = vec![];
     for w in &selected {
         bar.set_message(w.name.clone());
-        let mut r = Renderer::new(program.clone());
-        r.set_image_size(SIZE, SIZE).map_err(|e| e.message.clone())?;
-        (w.build)(&mut r);
+        let r = scene(&program, SIZE, w, false);
 
         // Compile time of this workload's variant, on a fresh JIT.
         let mut fresh = Jit::new(program.clone()).map_err(|e| e.to_string())?;
@@ -393,10 +413,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
             }
             bar.inc(1);
         }
-        let mut counted = Renderer::new(program.clone());
-        counted.set_image_size(SIZE, SIZE).map_err(|e| e.message.clone())?;
-        counted.options.count_writes = true;
-        (w.build)(&mut counted);
+        let counted = scene(&program, SIZE, w, true);
         let (frame, _) = render(&counted, &mut jit, &one)?;
         let pixels: u64 = frame
             .write_counts
