@@ -2,8 +2,9 @@
 //!
 //! | knob | scene | settings | primary figure |
 //! |---|---|---|---|
-//! | sphere | a unit sphere filling most of the view | procedural (when the library has a sphere primitive), icosphere of 20 ... 81 920 triangles | silhouette error (px) |
-//! | nurb | a rational bicubic patch seen from above | tessellation tolerance 8 ... 0.25 px | geometric error (px) |
+//! | sphere | a unit sphere filling most of the view | procedural (prims/sphere.prim), icosphere of 20 ... 81 920 triangles | silhouette error (px), normal error (deg) |
+//! | nurb | a rational bicubic patch seen from above | prims/nurb_surface.prim's `tolerance` 8 ... 0.25 px | geometric error (px) |
+//! | nurb_polynomial | the same patch with weights 1 | the same | geometric error (px) |
 //! | interpolation | a textured plane at a grazing angle | perspective_linear; linear on 2 ... 512 triangles | texture-coordinate error |
 //! | arithmetic | a jittered mesh of small triangles sharing edges | int 1/16 snap (library), fixed<32,16>, fixed<32,8>, f32, f64 | pixels unlike the exact rasteriser |
 //! | lighting | a lit icosphere in a wide perspective | per-vertex Phong in LC, WC, DC | colour error |
