@@ -11,6 +11,11 @@
 //! it produces the same buffers as the JIT kernel, bit for bit. Bound mode runs the same
 //! code, as the JIT does: the hull bound and every triangle's bound are unioned.
 //!
+//! The two flavours: "scalar" is the prim's algorithm as written (each triangle's three
+//! corners evaluated afresh) with the scalar screen_triangle; "SIMD" is what one would
+//! write by hand for speed — every tessellation point evaluated once and reused (same
+//! inputs, same operations, same bits) — with the AVX2 screen_triangle.
+//!
 //! A rejected surface draws nothing, as in the prim, but records no W0801 run-time
 //! warning (the prim reports its reason through an out-of-range index at a source site;
 //! the hand-written kernel has no site to name).
@@ -378,6 +383,7 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
     args: *const u32,
     triangle: KernelFn,
     clip: bool,
+    memo: bool,
 ) {
     let word = |i: usize| unsafe { *args.add(i) };
     let float = |i: usize| f32::from_bits(word(i));
@@ -539,15 +545,16 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
             outer_n += 1;
         }
     }
-    let (mut inner_pu, mut inner_pv, mut inner_at) = ([0f32; 128], [0f32; 128], [0f32; 128]);
+    // Inner loop points are grid points: kept as (gi, gj), their parameters computed by
+    // `point_uv` with the prim's formula.
+    let (mut inner_grid, mut inner_at) = ([(0usize, 0usize); 128], [0f32; 128]);
     let mut inner_n = 0;
     for side in 0..4 {
         let steps = if side % 2 == 0 { nu - 2 } else { nv - 2 };
         for k in 0..steps {
             let gi = [1 + k, nu - 1, nu - 1 - k, 1][side];
             let gj = [1, 1 + k, nv - 1, nv - 1 - k][side];
-            inner_pu[inner_n] = u0 + gi as f32 * (u1 - u0) / nu as f32;
-            inner_pv[inner_n] = v0 + gj as f32 * (v1 - v0) / nv as f32;
+            inner_grid[inner_n] = (gi as usize, gj as usize);
             inner_at[inner_n] = side as f32 + k as f32 / steps as f32;
             inner_n += 1;
         }
@@ -581,26 +588,39 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
     let ring = outer_n + inner_n;
     let (nu, nv) = (nu as usize, nv as usize);
     let cells = (nu - 2) * (nv - 2);
+    // Points by id: the outer loop's first, then grid point (gi, gj) at
+    // outer_n + gj * (nu + 1) + gi.
+    let grid = |gi: usize, gj: usize| outer_n + gj * (nu + 1) + gi;
+    let point_uv = |id: usize| -> (f32, f32) {
+        if id < outer_n {
+            (outer_u[id], outer_v[id])
+        } else {
+            let (gi, gj) = ((id - outer_n) % (nu + 1), (id - outer_n) / (nu + 1));
+            (
+                u0 + gi as f32 * (u1 - u0) / nu as f32,
+                v0 + gj as f32 * (v1 - v0) / nv as f32,
+            )
+        }
+    };
+    // `memo`: every point is evaluated once (the prim evaluates each triangle's three
+    // corners afresh, about six times per point). Same inputs, same operations, so the
+    // same bits either way.
+    let mut evaluated: Vec<Option<([f32; 4], [f32; T])>> = if memo {
+        vec![None; outer_n + (nu + 1) * (nv + 1)]
+    } else {
+        vec![]
+    };
     let (mut ia, mut ib) = (0usize, 0usize);
     for t in 0..ring + 2 * cells {
-        let (tri_u, tri_v);
+        let ids: [usize; 3];
         if t < ring {
             // Advance on the loop whose next point comes first around the perimeter.
             let next_a = if ia + 1 < outer_n { outer_at[ia + 1] } else { 4.0 };
             let next_b = if ib + 1 < inner_n { inner_at[ib + 1] } else { 4.0 };
             let take_a = ia < outer_n && (ib >= inner_n || next_a <= next_b);
             let (a0, a1) = (ia % outer_n, (ia + 1) % outer_n);
-            let (b0, b1) = (ib % inner_n, (ib + 1) % inner_n);
-            tri_u = [
-                outer_u[a0],
-                if take_a { outer_u[a1] } else { inner_pu[b1] },
-                inner_pu[b0],
-            ];
-            tri_v = [
-                outer_v[a0],
-                if take_a { outer_v[a1] } else { inner_pv[b1] },
-                inner_pv[b0],
-            ];
+            let (b0, b1) = (inner_grid[ib % inner_n], inner_grid[(ib + 1) % inner_n]);
+            ids = [a0, if take_a { a1 } else { grid(b1.0, b1.1) }, grid(b0.0, b0.1)];
             if take_a {
                 ia += 1;
             } else {
@@ -609,17 +629,24 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
         } else {
             let (c, second) = ((t - ring) / 2, (t - ring) % 2);
             let (gi, gj) = (1 + c % (nu - 2), 1 + c / (nu - 2));
-            let ua = u0 + gi as f32 * (u1 - u0) / nu as f32;
-            let ub = u0 + (gi + 1) as f32 * (u1 - u0) / nu as f32;
-            let va = v0 + gj as f32 * (v1 - v0) / nv as f32;
-            let vb = v0 + (gj + 1) as f32 * (v1 - v0) / nv as f32;
-            tri_u = [ua, ub, if second == 0 { ub } else { ua }];
-            tri_v = [va, if second == 0 { va } else { vb }, vb];
+            ids = if second == 0 {
+                [grid(gi, gj), grid(gi + 1, gj), grid(gi + 1, gj + 1)]
+            } else {
+                [grid(gi, gj), grid(gi + 1, gj + 1), grid(gi, gj + 1)]
+            };
         }
         let mut corner = [[0f32; 4]; 3];
         let mut corner_data = [[0f32; T]; 3];
         for q in 0..3 {
-            (corner[q], corner_data[q]) = net.corner::<NORMAL>(tri_u[q], tri_v[q]);
+            let eval = || {
+                let (u, v) = point_uv(ids[q]);
+                net.corner::<NORMAL>(u, v)
+            };
+            (corner[q], corner_data[q]) = match evaluated.get_mut(ids[q]) {
+                Some(Some(done)) => *done,
+                Some(slot) => *slot.insert(eval()),
+                None => eval(),
+            };
         }
         sink.polygon(clip, &corner, &corner_data);
     }
@@ -652,7 +679,7 @@ unsafe extern "C" fn kernel<
     #[cfg(not(target_arch = "x86_64"))]
     let triangle: KernelFn = screen_triangle::scalar::<P, L, T, COUNT>;
     // SAFETY: as this function's contract.
-    unsafe { surface::<T, NORMAL>(ctx, args, triangle, CLIP) }
+    unsafe { surface::<T, NORMAL>(ctx, args, triangle, CLIP, SIMD) }
 }
 
 macro_rules! nurb_table {
