@@ -27,6 +27,8 @@
 //! space matrices; u_count, v_count, u_order, v_order; u_knots[16]; v_knots[16]; tolerance;
 //! then per sequence point vertex (4 floats), weight, interp_data (T floats).
 
+// `!(a < b)` is the prims' NaN-rejecting test, kept as written (a NaN fails it).
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 use super::screen_triangle;
 use super::sphere::{apply_point, space_matrix};
 use crate::abi::{ArgLayout, BindingKind, KernelFn, ParamSlot, TileCtx, VariantKey, MODE_BOUND};

@@ -16,6 +16,8 @@
 //! `object_y`, `object_z` (3 each, lighting coordinates). `Handwritten::kernel` checks the
 //! layout against these offsets before handing a kernel out.
 
+// `!(a < b)` is the prims' NaN-rejecting test, kept as written (a NaN fails it).
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 use super::screen_triangle::{bound_or_rect, depth_raw};
 use crate::abi::{ArgLayout, Binding, BindingKind, KernelFn, ParamSlot, TileCtx, VariantKey, MODE_BOUND};
 
@@ -273,8 +275,8 @@ pub unsafe extern "C" fn scalar<const T: usize, const COUNT: bool>(ctx: *mut Til
             let z_finite = s.zc + t_finite;
             let q_over_a = q / s.a;
             let z_other = if s.a != 0.0 { s.zc + q_over_a } else { -1.0 };
-            let finite_ok = z_finite >= 0.0 && z_finite <= 1.0;
-            let other_ok = z_other >= 0.0 && z_other <= 1.0;
+            let finite_ok = (0.0..=1.0).contains(&z_finite);
+            let other_ok = (0.0..=1.0).contains(&z_other);
             if !finite_ok && !other_ok {
                 continue;
             }
@@ -303,9 +305,9 @@ pub unsafe extern "C" fn scalar<const T: usize, const COUNT: bool>(ctx: *mut Til
                     });
                     let v = lit.map(|l| s.handedness * l);
                     let len = dot3(v, v).sqrt();
-                    for k in 0..T {
-                        if s.planes[k] < ctx.num_planes {
-                            *ctx.gbuf.add(s.planes[k] as usize * ctx.plane_stride as usize + idx) = v[k] / len;
+                    for (&plane, vk) in s.planes.iter().zip(v) {
+                        if plane < ctx.num_planes {
+                            *ctx.gbuf.add(plane as usize * ctx.plane_stride as usize + idx) = vk / len;
                         }
                     }
                 }
@@ -439,10 +441,10 @@ pub unsafe extern "C" fn avx2<const T: usize, const COUNT: bool>(ctx: *mut TileC
                         mul(handed, lit)
                     });
                     let len = _mm256_sqrt_ps(dot(v, v));
-                    for k in 0..T {
-                        if s.planes[k] < ctx.num_planes {
-                            let dst = ctx.gbuf.add(s.planes[k] as usize * ctx.plane_stride as usize + base);
-                            _mm256_maskstore_ps(dst, mask, _mm256_div_ps(v[k], len));
+                    for (&plane, vk) in s.planes.iter().zip(v) {
+                        if plane < ctx.num_planes {
+                            let dst = ctx.gbuf.add(plane as usize * ctx.plane_stride as usize + base);
+                            _mm256_maskstore_ps(dst, mask, _mm256_div_ps(vk, len));
                         }
                     }
                 }
