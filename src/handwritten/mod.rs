@@ -7,7 +7,9 @@
 //! `linear` ones (the shapes the benchmark uses), for up to 16 of each; other keys are an
 //! error, never a silent fallback.
 
+pub mod nurb;
 pub mod screen_triangle;
+pub mod sphere;
 
 use std::sync::Arc;
 
@@ -46,6 +48,9 @@ fn has_avx2() -> bool {
         false
     }
 }
+
+/// A shape file's kernel lookup: the entry for a key under a layout, or why there is none.
+type EntryFor = fn(&ArgLayout, &VariantKey, bool) -> Result<KernelFn, String>;
 
 pub struct Handwritten {
     program: Arc<Program>,
@@ -111,6 +116,23 @@ impl KernelSource for Handwritten {
     fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, JitError> {
         let f = self.program.func(func);
         let err = |m: String| JitError { message: m };
+        let shape = match f.name.as_str() {
+            "sphere" => Some(sphere::entry_for as EntryFor),
+            "nurb_surface" => Some(nurb::entry_for as EntryFor),
+            _ => None,
+        };
+        if let Some(entry_for) = shape {
+            let layout = ArgLayout::new(&self.program, func, key);
+            let entry = entry_for(&layout, key, self.flavor == Flavor::Simd && has_avx2()).map_err(err)?;
+            return Ok(Arc::new(Kernel {
+                func,
+                key: key.clone(),
+                entry,
+                layout,
+                compile_micros: 0,
+                warnings: vec![],
+            }));
+        }
         if f.name != "screen_triangle" {
             return Err(err(format!("no hand-written kernel for primitive `{}`", f.name)));
         }
