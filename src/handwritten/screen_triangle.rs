@@ -455,21 +455,22 @@ pub(crate) fn exact_span<const T: usize>(s: &Setup<T>, py: i32, rx0: i32, rx1: i
     let (mut lo, mut hi) = (i64::from(rx0), i64::from(rx1));
     for i in 0..3 {
         let a = i64::from(s.ea[i]);
-        // Exact (64-bit) value of the row's constant part; every term fits comfortably.
+        // Exact value of the row's constant part (|eb * sy| <= 2^62, |ec| < 2^31). The
+        // products below fit too; the sums are checked (an overflow gives up on the row).
         let r = i64::from(s.eb[i]) * i64::from(sy) + i64::from(s.ec[i]);
-        let e = |px: i32| a * sx(px) + r;
-        if !(in_i32(e(first)) && in_i32(e(last))) {
+        let e = |px: i32| (a * sx(px)).checked_add(r);
+        if !(e(first).is_some_and(in_i32) && e(last).is_some_and(in_i32)) {
             return None;
         }
         // e(px) = 16 a px + c0.
-        let c0 = a * (8 - i64::from(s.ox16)) + r;
+        let c0 = (a * (8 - i64::from(s.ox16))).checked_add(r)?;
         let slope = 16 * a;
         if slope > 0 {
             // px > -c0 / slope  <=>  px >= floor(-c0 / slope) + 1.
-            lo = lo.max((-c0).div_euclid(slope) + 1);
+            lo = lo.max(c0.checked_neg()?.div_euclid(slope) + 1);
         } else if slope < 0 {
             // (-slope) px < c0  <=>  px < ceil(c0 / -slope).
-            hi = hi.min(-((-c0).div_euclid(-slope)));
+            hi = hi.min(-(c0.checked_neg()?.div_euclid(-slope)));
         } else if c0 <= 0 {
             return Some((rx0, rx0));
         }
@@ -581,7 +582,7 @@ macro_rules! sse_kernel {
                 // Per-group edge state for the rows that test edges per group.
                 let sy = ((y * 16.0) as i32).wrapping_sub(s.oy16);
                 let sx = _mm_add_epi32(
-                    _mm_set1_epi32((16 * gx + 8).wrapping_sub(s.ox16)),
+                    _mm_set1_epi32(gx.wrapping_mul(16).wrapping_add(8).wrapping_sub(s.ox16)),
                     _mm_setr_epi32(0, 16, 32, 48),
                 );
                 let mut edge: [__m128i; 3] = std::array::from_fn(|i| {
