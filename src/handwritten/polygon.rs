@@ -150,8 +150,9 @@ impl Fan {
     }
 }
 
-/// The exported kernel: `polygon` for the key's shape, fanning into `triangle_kernel`'s
-/// screen_triangle of flavour `ISA` (see `handwritten::isa`).
+/// The exported kernel: [`polygon`] for the key's shape, fanning into the hand-written
+/// screen_triangle of form `ISA` (a `handwritten::isa` constant) for the same key; `CLIP`
+/// is the prim's `clipping()`.
 ///
 /// # Safety
 /// As [`polygon`].
