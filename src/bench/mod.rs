@@ -4,9 +4,9 @@
 //! Every workload is rendered first by each kernel source and the frames compared bit for
 //! bit (a benchmark of kernels that disagree measures nothing); then the sources are timed
 //! interleaved (JIT, scalar, SSE, AVX2, JIT on all threads, ...) for several runs and the
-//! median frame time is reported, so drift of the machine (clock, other load) hits every kernel alike.
-//! Throughput is depth writes per second (pixels that passed coverage and the Z test) and
-//! primitives per second.
+//! median frame time is reported, so drift of the machine (clock, other load) hits every
+//! kernel alike. Throughput is depth writes per second (pixels that passed coverage and the
+//! Z test) and primitives per second.
 
 use std::sync::Arc;
 use std::time::Instant;
