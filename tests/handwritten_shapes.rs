@@ -42,7 +42,7 @@ fn jit_and_handwritten_agree(program: &Arc<Program>, r: &Renderer, what: &str) -
         out.diags.items
     );
     let jit = out.frame;
-    for flavor in [Flavor::Scalar, Flavor::Simd] {
+    for flavor in [Flavor::Scalar, Flavor::Avx2] {
         let mut hand = Handwritten::new(program.clone(), flavor);
         let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
         let out = pool.install(|| r.render(&mut hand));
