@@ -157,46 +157,70 @@ fn interior_multiplicity(knots: &[f32; 16], count: usize, order: usize) -> usize
     most
 }
 
-/// The prim's `nurb_second_derivative_bound`.
-fn second_derivative_bound(knots: &[f32; 16], count: usize, order: usize, x: &[f32; 12], y: &[f32; 12]) -> f32 {
+/// The prim's `nurb_second_derivative_bound`: the largest second-derivative control point
+/// of Q = W (p - c) plus `radius` times that of W.
+#[allow(clippy::too_many_arguments)]
+fn second_derivative_bound(
+    knots: &[f32; 16],
+    count: usize,
+    order: usize,
+    x: &[f32; 12],
+    y: &[f32; 12],
+    w: &[f32; 12],
+    (cx, cy, radius): (f32, f32, f32),
+) -> f32 {
     let p = order - 1;
     if p < 2 {
         return 0.0;
     }
-    let (mut dx, mut dy) = ([0f32; 12], [0f32; 12]);
+    let (mut dx, mut dy, mut dw) = ([0f32; 12], [0f32; 12], [0f32; 12]);
     for i in 0..count - 1 {
         let span = knots[i + p + 1] - knots[i + 1];
-        dx[i] = if span > 0.0 {
-            p as f32 * (x[i + 1] - x[i]) / span
-        } else {
-            0.0
-        };
-        dy[i] = if span > 0.0 {
-            p as f32 * (y[i + 1] - y[i]) / span
-        } else {
-            0.0
-        };
+        if span > 0.0 {
+            dx[i] = p as f32 * (w[i + 1] * (x[i + 1] - cx) - w[i] * (x[i] - cx)) / span;
+            dy[i] = p as f32 * (w[i + 1] * (y[i + 1] - cy) - w[i] * (y[i] - cy)) / span;
+            dw[i] = p as f32 * (w[i + 1] - w[i]) / span;
+        }
     }
-    let mut most = 0f32;
+    let (mut most_q, mut most_w) = (0f32, 0f32);
     for i in 0..count.saturating_sub(2) {
         let span = knots[i + p + 1] - knots[i + 2];
         if span > 0.0 {
             let qx = (p - 1) as f32 * (dx[i + 1] - dx[i]) / span;
             let qy = (p - 1) as f32 * (dy[i + 1] - dy[i]) / span;
-            most = jit_max(most, (qx * qx + qy * qy).sqrt());
+            most_q = jit_max(most_q, (qx * qx + qy * qy).sqrt());
+            most_w = jit_max(most_w, ((p - 1) as f32 * (dw[i + 1] - dw[i]) / span).abs());
         }
     }
-    most
+    most_q + radius * most_w
 }
 
-/// The prim's `nurb_steps`: steps so that step^2 * m <= limit, between 1 and 32.
-fn steps(range: f32, m: f32, limit: f32) -> i32 {
+/// The prim's `nurb_edge_bound`: a boundary curve's bound from its own points only.
+fn edge_bound(knots: &[f32; 16], count: usize, order: usize, x: &[f32; 12], y: &[f32; 12], w: &[f32; 12]) -> f32 {
+    let (mut x_lo, mut x_hi, mut y_lo, mut y_hi, mut w_min) = (x[0], x[0], y[0], y[0], w[0]);
+    for i in 1..count {
+        x_lo = jit_min(x_lo, x[i]);
+        x_hi = jit_max(x_hi, x[i]);
+        y_lo = jit_min(y_lo, y[i]);
+        y_hi = jit_max(y_hi, y[i]);
+        w_min = jit_min(w_min, w[i]);
+    }
+    let (cx, cy) = (0.5 * (x_lo + x_hi), 0.5 * (y_lo + y_hi));
+    let mut radius = 0f32;
+    for i in 0..count {
+        radius = jit_max(radius, ((x[i] - cx) * (x[i] - cx) + (y[i] - cy) * (y[i] - cy)).sqrt());
+    }
+    second_derivative_bound(knots, count, order, x, y, w, (cx, cy, radius)) / w_min
+}
+
+/// The prim's `nurb_steps`: steps so that step^2 * m <= limit, between 1 and `finest` + 1.
+fn steps(range: f32, m: f32, limit: f32, finest: i32) -> i32 {
     if !(m > 0.0) {
         return 1;
     }
     let steps = (range * (m / limit).sqrt()).ceil();
     // `int(...)` saturates, NaN to 0, as Rust's `as` does.
-    jit_min(jit_max(steps, 1.0), 32.0) as i32
+    jit_min(jit_max(steps, 1.0), (finest + 1) as f32) as i32
 }
 
 /// The parts of the argument block the tessellation reads, after validation.
@@ -289,7 +313,9 @@ impl<const T: usize> Surface<T> {
             }
             vertex_data[..3].copy_from_slice(&normal);
         }
-        (surface, vertex_data)
+        // The prim hands `polygon` the point divided by the patch's denominator.
+        let denominator = weight_rows[pv];
+        (surface.map(|c| c / denominator), vertex_data)
     }
 }
 
@@ -450,8 +476,8 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
         sx[i] = p[0] / p[3];
         sy[i] = p[1] / p[3];
     }
+    let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (sx[0], sx[0], sy[0], sy[0]);
     if all_in_front {
-        let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (sx[0], sx[0], sy[0], sy[0]);
         for i in 1..n {
             x_lo = jit_min(x_lo, sx[i]);
             x_hi = jit_max(x_hi, sx[i]);
@@ -467,71 +493,105 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
     if !(tolerance > 0.0) {
         return;
     }
-    let finest = 32;
+    let (unbounded, finest) = (32, 128);
 
     // ---- Step counts. Edges: from their own row / column only.
     let (u0, u1) = (u_knots[u_order - 1], u_knots[u_count]);
     let (v0, v1) = (v_knots[v_order - 1], v_knots[v_count]);
-    let (mut e_bottom, mut e_top, mut e_left, mut e_right) = (finest, finest, finest, finest);
-    let (mut inner_u, mut inner_v) = (finest, finest);
+    let (mut e_bottom, mut e_top, mut e_left, mut e_right) = (unbounded, unbounded, unbounded, unbounded);
+    let (mut inner_u, mut inner_v) = (unbounded, unbounded);
     if all_in_front {
+        let (cx, cy) = (0.5 * (x_lo + x_hi), 0.5 * (y_lo + y_hi));
+        let (mut radius, mut w_min) = (0f32, h[0][3]);
+        for i in 0..n {
+            radius = jit_max(
+                radius,
+                ((sx[i] - cx) * (sx[i] - cx) + (sy[i] - cy) * (sy[i] - cy)).sqrt(),
+            );
+            w_min = jit_min(w_min, h[i][3]);
+        }
+        let net = (cx, cy, radius);
         let (mut m_bottom, mut m_top, mut m_left, mut m_right) = (0f32, 0f32, 0f32, 0f32);
-        let (mut m_uu, mut m_vv, mut m_uv) = (0f32, 0f32, 0f32);
+        let (mut m_uu, mut m_vv) = (0f32, 0f32);
         for j in 0..v_count {
-            let (mut row_x, mut row_y) = ([0f32; 12], [0f32; 12]);
+            let (mut row_x, mut row_y, mut row_w) = ([0f32; 12], [0f32; 12], [0f32; 12]);
             for i in 0..u_count {
                 row_x[i] = sx[j * u_count + i];
                 row_y[i] = sy[j * u_count + i];
+                row_w[i] = h[j * u_count + i][3];
             }
-            let m = second_derivative_bound(&u_knots, u_count, u_order, &row_x, &row_y);
-            m_uu = jit_max(m_uu, m);
+            m_uu = jit_max(
+                m_uu,
+                second_derivative_bound(&u_knots, u_count, u_order, &row_x, &row_y, &row_w, net),
+            );
             if j == 0 {
-                m_bottom = m;
+                m_bottom = edge_bound(&u_knots, u_count, u_order, &row_x, &row_y, &row_w);
             }
             if j == v_count - 1 {
-                m_top = m;
+                m_top = edge_bound(&u_knots, u_count, u_order, &row_x, &row_y, &row_w);
             }
         }
         for i in 0..u_count {
-            let (mut col_x, mut col_y) = ([0f32; 12], [0f32; 12]);
+            let (mut col_x, mut col_y, mut col_w) = ([0f32; 12], [0f32; 12], [0f32; 12]);
             for j in 0..v_count {
                 col_x[j] = sx[j * u_count + i];
                 col_y[j] = sy[j * u_count + i];
+                col_w[j] = h[j * u_count + i][3];
             }
-            let m = second_derivative_bound(&v_knots, v_count, v_order, &col_x, &col_y);
-            m_vv = jit_max(m_vv, m);
+            m_vv = jit_max(
+                m_vv,
+                second_derivative_bound(&v_knots, v_count, v_order, &col_x, &col_y, &col_w, net),
+            );
             if i == 0 {
-                m_left = m;
+                m_left = edge_bound(&v_knots, v_count, v_order, &col_x, &col_y, &col_w);
             }
             if i == u_count - 1 {
-                m_right = m;
+                m_right = edge_bound(&v_knots, v_count, v_order, &col_x, &col_y, &col_w);
             }
         }
         let (pu, pv) = (u_order - 1, v_order - 1);
+        let (mut m_uv_q, mut m_uv_w) = (0f32, 0f32);
         for j in 0..v_count - 1 {
             let sv = v_knots[j + pv + 1] - v_knots[j + 1];
             for i in 0..u_count - 1 {
                 let su = u_knots[i + pu + 1] - u_knots[i + 1];
                 if su > 0.0 && sv > 0.0 {
                     let (a, b) = (j * u_count + i, (j + 1) * u_count + i);
-                    let dx = ((sx[b + 1] - sx[b]) - (sx[a + 1] - sx[a])) * pu as f32 * pv as f32 / (su * sv);
-                    let dy = ((sy[b + 1] - sy[b]) - (sy[a + 1] - sy[a])) * pu as f32 * pv as f32 / (su * sv);
-                    m_uv = jit_max(m_uv, (dx * dx + dy * dy).sqrt());
+                    let corners = [a, a + 1, b, b + 1];
+                    let qx = corners.map(|at| h[at][3] * (sx[at] - cx));
+                    let qy = corners.map(|at| h[at][3] * (sy[at] - cy));
+                    let scale = (pu * pv) as f32 / (su * sv);
+                    let dx = ((qx[3] - qx[2]) - (qx[1] - qx[0])) * scale;
+                    let dy = ((qy[3] - qy[2]) - (qy[1] - qy[0])) * scale;
+                    let dw = ((h[b + 1][3] - h[b][3]) - (h[a + 1][3] - h[a][3])) * scale;
+                    m_uv_q = jit_max(m_uv_q, (dx * dx + dy * dy).sqrt());
+                    m_uv_w = jit_max(m_uv_w, dw.abs());
                 }
             }
         }
-        e_bottom = steps(u1 - u0, m_bottom, 8.0 * tolerance);
-        e_top = steps(u1 - u0, m_top, 8.0 * tolerance);
-        e_left = steps(v1 - v0, m_left, 8.0 * tolerance);
-        e_right = steps(v1 - v0, m_right, 8.0 * tolerance);
-        inner_u = steps(u1 - u0, m_uu + m_uv, 4.0 * tolerance);
-        inner_v = steps(v1 - v0, m_vv + m_uv, 4.0 * tolerance);
+        m_uu /= w_min;
+        m_vv /= w_min;
+        let m_uv = (m_uv_q + radius * m_uv_w) / w_min;
+        e_bottom = steps(u1 - u0, m_bottom, 2.0 * tolerance, finest);
+        e_top = steps(u1 - u0, m_top, 2.0 * tolerance, finest);
+        e_left = steps(v1 - v0, m_left, 2.0 * tolerance, finest);
+        e_right = steps(v1 - v0, m_right, 2.0 * tolerance, finest);
+        inner_u = steps(u1 - u0, m_uu + m_uv, 4.0 * tolerance, finest);
+        inner_v = steps(v1 - v0, m_vv + m_uv, 4.0 * tolerance, finest);
+        // The prim reports W0801 when the cap is reached; the hand-written kernel has no
+        // site to name, and draws at the cap like the prim.
+        e_bottom = e_bottom.min(finest);
+        e_top = e_top.min(finest);
+        e_left = e_left.min(finest);
+        e_right = e_right.min(finest);
+        inner_u = inner_u.min(finest);
+        inner_v = inner_v.min(finest);
     }
     let nu = inner_u.max(3).max(e_bottom.max(e_top));
     let nv = inner_v.max(3).max(e_left.max(e_right));
 
     // ---- The ring: boundary points and the grid's outer loop, by perimeter position.
-    let (mut outer_u, mut outer_v, mut outer_at) = ([0f32; 128], [0f32; 128], [0f32; 128]);
+    let (mut outer_u, mut outer_v, mut outer_at) = ([0f32; 512], [0f32; 512], [0f32; 512]);
     let mut outer_n = 0;
     for side in 0..4 {
         let e = [e_bottom, e_right, e_top, e_left][side];
@@ -549,7 +609,7 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
     }
     // Inner loop points are grid points: kept as (gi, gj), their parameters computed by
     // `point_uv` with the prim's formula.
-    let (mut inner_grid, mut inner_at) = ([(0usize, 0usize); 128], [0f32; 128]);
+    let (mut inner_grid, mut inner_at) = ([(0usize, 0usize); 512], [0f32; 512]);
     let mut inner_n = 0;
     for side in 0..4 {
         let steps = if side % 2 == 0 { nu - 2 } else { nv - 2 };
@@ -616,11 +676,12 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
     for t in 0..ring + 2 * cells {
         let ids: [usize; 3];
         if t < ring {
-            // Advance on the loop whose next point comes first around the perimeter.
+            // Advance on the loop whose next segment's middle comes first around the
+            // perimeter.
             let next_a = if ia + 1 < outer_n { outer_at[ia + 1] } else { 4.0 };
             let next_b = if ib + 1 < inner_n { inner_at[ib + 1] } else { 4.0 };
-            let take_a = ia < outer_n && (ib >= inner_n || next_a <= next_b);
             let (a0, a1) = (ia % outer_n, (ia + 1) % outer_n);
+            let take_a = ia < outer_n && (ib >= inner_n || outer_at[a0] + next_a <= inner_at[ib % inner_n] + next_b);
             let (b0, b1) = (inner_grid[ib % inner_n], inner_grid[(ib + 1) % inner_n]);
             ids = [a0, if take_a { a1 } else { grid(b1.0, b1.1) }, grid(b0.0, b0.1)];
             if take_a {
