@@ -113,6 +113,17 @@ fn main() {
             "{name:<28} {clif:5} CLIF lines {wall:6.2} ms wall, {cpu:6.2} ms thread CPU, compile_micros {reported} (min of {rounds})"
         );
     }
+    let mut ttfp = vec![];
+    for _ in 0..rounds.min(10) {
+        ttfp.push(primflow::bench::time_to_first_pixel().expect("renders"));
+    }
+    ttfp.sort_by(|a, b| a.total_cmp(b));
+    println!(
+        "time to first pixel (bench): min {:.2} ms, median {:.2} ms of {}",
+        ttfp[0],
+        ttfp[ttfp.len() / 2],
+        ttfp.len()
+    );
     if let Some(path) = args.iter().find_map(|a| a.strip_prefix("clif=")) {
         let tier = if args.iter().any(|a| a == "fast") {
             Tier::Fast

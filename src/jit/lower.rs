@@ -214,6 +214,7 @@ pub(crate) struct Lower<'a, 'b> {
 pub(crate) fn lower_kernel(
     program: &Program,
     func_id: FuncId,
+    body: &Function,
     key: &VariantKey,
     layout: &ArgLayout,
     func: &mut ir::Function,
@@ -222,9 +223,12 @@ pub(crate) fn lower_kernel(
     frontend: cranelift_codegen::isa::TargetFrontendConfig,
     block_culling: bool,
 ) -> Res<Vec<String>> {
-    let f = program.functions.get(func_id.0 as usize).ok_or_else(|| JitError {
-        message: format!("no function {}", func_id.0),
-    })?;
+    // `body` is `func_id`'s function, possibly rewritten by IR passes (`super::unroll`);
+    // callees and interpolators come from `program`.
+    if program.functions.get(func_id.0 as usize).is_none() {
+        return err(format!("no function {}", func_id.0));
+    }
+    let f = body;
     if f.kind != FuncKind::Primitive {
         return err(format!(
             "`{}` is an interpolator, not a primitive: it has no kernel",

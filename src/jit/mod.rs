@@ -51,7 +51,7 @@ use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, Linkage, Module};
 
 use crate::abi::{ArgLayout, KernelFn, VariantKey};
-use crate::ir::{FuncId, Program};
+use crate::ir::{FuncId, Function, Program};
 use libm::LibmFn;
 use lower::{Linker, Res};
 
@@ -93,7 +93,7 @@ type CacheKey = (FuncId, VariantKey);
 /// How much work the code generator spends on a kernel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Tier {
-    /// Tier 0: regalloc2's single-pass register allocator, no block-level culling. Compiles
+    /// Tier 0: regalloc2's single-pass register allocator, `opt_level=none`, no block-level culling. Compiles
     /// several times faster; the kernel runs slower (mostly spills).
     Fast,
     /// Tier 1: the backtracking register allocator and block-level culling.
@@ -120,8 +120,9 @@ impl Default for JitOptions {
 /// Owns the JIT module (the code memory) and the kernel cache for one program.
 pub struct Jit {
     program: Arc<Program>,
-    /// What is lowered: `program` after [`unroll::unroll_program`] (or `program` itself).
-    lowered: Arc<Program>,
+    /// Kernel bodies as lowered: each function after [`unroll::unroll_function`] (when
+    /// `options.unroll_loops`), made on first use and shared with the tier-1 worker.
+    bodies: Arc<Mutex<HashMap<FuncId, Arc<Function>>>>,
     options: JitOptions,
     /// The background tier-1 compiler of a tiered JIT.
     tier_up: Option<TierUp>,
@@ -272,22 +273,30 @@ struct TierUp {
 }
 
 impl TierUp {
-    fn start(program: Arc<Program>, unroll_loops: bool) -> Result<TierUp, JitError> {
+    /// `bodies`: the feeding JIT's kernel bodies, shared.
+    fn start(
+        program: Arc<Program>,
+        bodies: Arc<Mutex<HashMap<FuncId, Arc<Function>>>>,
+        unroll_loops: bool,
+    ) -> Result<TierUp, JitError> {
         let options = JitOptions {
             tier: Tier::Optimised,
             unroll_loops,
         };
-        // Built here so an ISA error shows at once; the module moves to the worker.
-        let mut jit = Jit::with_options(program, options)?;
         let state: Arc<(Mutex<TierUpState>, Condvar)> = Arc::default();
         let (tx, rx) = mpsc::channel::<CacheKey>();
         let shared = state.clone();
         let worker = std::thread::Builder::new()
             .name("primflow-tier1".into())
             .spawn(move || {
+                // Built on the worker so the first frame does not wait for a second ISA.
+                let mut jit = Jit::build(program, bodies, options);
                 // Ends when the feeding JIT drops its sender.
                 while let Ok((func, key)) = rx.recv() {
-                    let result = jit.kernel(func, &key);
+                    let result = match &mut jit {
+                        Ok(jit) => jit.kernel(func, &key),
+                        Err(e) => Err(e.clone()),
+                    };
                     let (lock, done) = &*shared;
                     let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
                     match result {
@@ -358,7 +367,7 @@ impl Jit {
                 ..JitOptions::default()
             },
         )?;
-        jit.tier_up = Some(TierUp::start(program, jit.options.unroll_loops)?);
+        jit.tier_up = Some(TierUp::start(program, jit.bodies.clone(), jit.options.unroll_loops)?);
         Ok(jit)
     }
 
@@ -379,12 +388,31 @@ impl Jit {
     }
 
     pub fn with_options(program: Arc<Program>, options: JitOptions) -> Result<Jit, JitError> {
+        Jit::build(program, Arc::default(), options)
+    }
+
+    /// `func`'s body as lowered (see `bodies`).
+    fn body(&self, func: FuncId) -> Arc<Function> {
+        let mut bodies = self.bodies.lock().unwrap_or_else(|e| e.into_inner());
+        bodies
+            .entry(func)
+            .or_insert_with(|| {
+                let f = self.program.func(func);
+                Arc::new(if self.options.unroll_loops {
+                    unroll::unroll_function(f)
+                } else {
+                    f.clone()
+                })
+            })
+            .clone()
+    }
+
+    fn build(
+        program: Arc<Program>,
+        bodies: Arc<Mutex<HashMap<FuncId, Arc<Function>>>>,
+        options: JitOptions,
+    ) -> Result<Jit, JitError> {
         let isa = host_isa(options.tier)?;
-        let lowered = if options.unroll_loops {
-            Arc::new(unroll::unroll_program(&program))
-        } else {
-            program.clone()
-        };
         let mut builder = JITBuilder::with_isa(isa.clone(), default_libcall_names());
         for f in LibmFn::ALL {
             builder.symbol(f.symbol(), f.address());
@@ -399,7 +427,7 @@ impl Jit {
         }
         Ok(Jit {
             program,
-            lowered,
+            bodies,
             options,
             tier_up: None,
             isa,
@@ -462,7 +490,7 @@ impl Jit {
 
     /// Compile `root` and every not-yet-compiled primitive it reaches under `key`.
     fn compile_batch(&mut self, root: FuncId, key: &VariantKey) -> Result<(), JitError> {
-        let program = self.lowered.clone();
+        let program = self.program.clone();
         let mut pending = vec![];
         if !self.declared.contains_key(&(root, key.clone())) {
             let name = format!("pf_root_{}", self.next_name);
@@ -483,6 +511,7 @@ impl Jit {
             }
             let started = Instant::now();
             let layout = ArgLayout::new(&program, f, key);
+            let body = self.body(f);
             let mut ctx = self.module.make_context();
             ctx.func.signature = kernel_signature(&self.isa);
             ctx.func.name = UserFuncName::user(0, f.0);
@@ -500,6 +529,7 @@ impl Jit {
                 let lowered = lower::lower_kernel(
                     &program,
                     f,
+                    &body,
                     key,
                     &layout,
                     &mut ctx.func,
@@ -565,9 +595,11 @@ impl Jit {
         let mut f = ir::Function::with_name_signature(UserFuncName::user(0, func.0), kernel_signature(&self.isa));
         let mut fctx = FunctionBuilderContext::new();
         let mut linker = PrintLinker { isa: &self.isa };
+        let body = self.body(func);
         lower::lower_kernel(
-            &self.lowered,
+            &self.program,
             func,
+            &body,
             key,
             &layout,
             &mut f,

@@ -33,8 +33,8 @@
 use std::collections::HashMap;
 
 use crate::ir::{
-    BinOp, ConstValue, Elem, Expr, ExprKind, Function, InterpArm, LocalId, LoopId, Place, Program, Scalar, Stmt,
-    StmtKind, UnaryOp, Variability,
+    BinOp, ConstValue, Elem, Expr, ExprKind, Function, InterpArm, LocalId, LoopId, Place, Scalar, Stmt, StmtKind,
+    UnaryOp, Variability,
 };
 
 /// Longest loop unrolled (trips).
@@ -44,14 +44,6 @@ pub(crate) const MAX_UNROLLED_STMTS: usize = 512;
 
 /// Known values of uniform scalar int locals at the current point.
 type Env = HashMap<LocalId, i32>;
-
-/// Every function of `p` with its constant-trip loops unrolled.
-pub(crate) fn unroll_program(p: &Program) -> Program {
-    Program {
-        functions: p.functions.iter().map(unroll_function).collect(),
-        sites: p.sites.clone(),
-    }
-}
 
 /// `f` with its constant-trip uniform loops unrolled and integer constants propagated.
 pub(crate) fn unroll_function(f: &Function) -> Function {
