@@ -62,6 +62,18 @@ fn main() {
 
     let scene = primflow::bench::fill_scene(&program, 64, 1, Some("perspective_linear"), 4);
     let inst = &scene.instances()[0];
+    if args.iter().any(|a| a == "profile") {
+        // Only tier-0 compiles, for `perf record`.
+        for _ in 0..rounds {
+            let opts = JitOptions {
+                tier: Tier::Fast,
+                ..JitOptions::default()
+            };
+            let mut jit = Jit::with_options(program.clone(), opts).expect("host ISA");
+            jit.kernel(inst.func, &inst.key).expect("compiles");
+        }
+        return;
+    }
     let configs = [
         (
             "tier 0 (fast)",
