@@ -2,11 +2,15 @@
 //! wall time and in this thread's CPU time (from /proc/thread-self/schedstat, so other load on
 //! the machine does not count), plus the library's parse + check time.
 //!
-//! Run: `cargo run --release --example compile_probe -- [rounds] [timings]`.
-//! Compiles the bench's `fill perspective_linear K=4` screen_triangle variant `rounds` times
-//! (default 20) on fresh JITs, for each configuration (tier 0, tier 1, unrolling off), and
-//! prints the minimum of each. With `timings` it prints Cranelift's pass timings of the last
-//! compile as well.
+//! Run: `cargo run --release --example compile_probe -- [rounds] [options]`.
+//! Compiles the bench's `fill perspective_linear K=4` screen_triangle variant (or
+//! `kind=linear|none`, `k=N`) `rounds` times (default 20) on fresh JITs, for each
+//! configuration (tier 0, tier 1, unrolling off), prints the minimum of each and the
+//! bench's time to first pixel. Options: `timings [fast]` adds Cranelift's pass timings
+//! summed over `rounds` compiles (tier 1, or tier 0 with `fast`); `clif=FILE [fast]` writes
+//! the CLIF; `profile` only compiles tier 0 `rounds` times (for `perf record`); `speed`
+//! times tier 1, tier 1 without unrolling, tier 0 and the hand-written kernels on the
+//! bench's fill and small scenes instead.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -60,8 +64,26 @@ fn main() {
         rounds.min(5)
     );
 
-    let scene = primflow::bench::fill_scene(&program, 64, 1, Some("perspective_linear"), 4);
+    // `kind=linear|none|perspective_linear` (default), `k=N` (default 4): the variant.
+    let kind = args
+        .iter()
+        .find_map(|a| a.strip_prefix("kind="))
+        .unwrap_or("perspective_linear");
+    let k: usize = args
+        .iter()
+        .find_map(|a| a.strip_prefix("k=")?.parse().ok())
+        .unwrap_or(4);
+    let kind: Option<&'static str> = match kind {
+        "none" => None,
+        "linear" => Some("linear"),
+        _ => Some("perspective_linear"),
+    };
+    let scene = primflow::bench::fill_scene(&program, 64, 1, kind, if kind.is_none() { 0 } else { k });
     let inst = &scene.instances()[0];
+    if args.iter().any(|a| a == "speed") {
+        speed(&program, rounds);
+        return;
+    }
     if args.iter().any(|a| a == "profile") {
         // Only tier-0 compiles, for `perf record`.
         for _ in 0..rounds {
@@ -172,5 +194,63 @@ fn main() {
         }
         println!("Cranelift pass timings, total of {rounds} compiles ({tier:?}):");
         println!("{}", cranelift_codegen::timing::take_current());
+    }
+}
+
+/// Steady-state kernel speed, interleaved: tier 1, tier 1 without unrolling, tier 0, and the
+/// hand-written scalar and AVX2 kernels on the bench's fill and small scenes (one thread,
+/// median of `rounds` frames).
+fn speed(program: &Arc<primflow::ir::Program>, rounds: usize) {
+    use primflow::handwritten::{Flavor, Handwritten};
+    use primflow::runtime::KernelSource;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool");
+    let scenes = [
+        (
+            "fill perspective_linear K=4",
+            primflow::bench::fill_scene(program, 512, 20, Some("perspective_linear"), 4),
+        ),
+        (
+            "small perspective_linear K=4",
+            primflow::bench::small_scene(program, 512, 20000, 4),
+        ),
+    ];
+    for (name, r) in &scenes {
+        let jit =
+            |tier, unroll_loops| Jit::with_options(program.clone(), JitOptions { tier, unroll_loops }).expect("ISA");
+        let mut sources: Vec<(&str, Box<dyn KernelSource + Send>)> = vec![
+            ("tier 1", Box::new(jit(Tier::Optimised, true))),
+            ("tier 1 no unroll", Box::new(jit(Tier::Optimised, false))),
+            ("tier 0", Box::new(jit(Tier::Fast, true))),
+            ("scalar", Box::new(Handwritten::new(program.clone(), Flavor::Scalar))),
+            ("AVX2", Box::new(Handwritten::new(program.clone(), Flavor::Simd))),
+        ];
+        let mut times = vec![vec![]; sources.len()];
+        let reference = pool.install(|| r.render(sources[0].1.as_mut())).frame;
+        for (i, (n, s)) in sources.iter_mut().enumerate() {
+            let f = pool.install(|| r.render(s.as_mut())).frame;
+            assert!(primflow::bench::same_frame(&reference, &f), "{name}: {n} differs");
+            let _ = i;
+        }
+        for _ in 0..rounds {
+            for (i, (_, s)) in sources.iter_mut().enumerate() {
+                let t = Instant::now();
+                pool.install(|| r.render(s.as_mut()));
+                times[i].push(t.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+        let med = |v: &mut Vec<f64>| {
+            v.sort_by(|a, b| a.total_cmp(b));
+            v[v.len() / 2]
+        };
+        let meds: Vec<f64> = times.iter_mut().map(med).collect();
+        println!("{name}:");
+        for (i, (n, _)) in sources.iter().enumerate() {
+            println!(
+                "  {n:<18} {:8.2} ms  /scalar {:.2}x  /AVX2 {:.2}x",
+                meds[i],
+                meds[3] / meds[i],
+                meds[4] / meds[i]
+            );
+        }
     }
 }
