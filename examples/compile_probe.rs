@@ -78,8 +78,21 @@ fn main() {
         "linear" => Some("linear"),
         _ => Some("perspective_linear"),
     };
-    let scene = primflow::bench::fill_scene(&program, 64, 1, kind, if kind.is_none() { 0 } else { k });
+    let mut scene = primflow::bench::fill_scene(&program, 64, 1, kind, if kind.is_none() { 0 } else { k });
+    // `scene=FILE`: the first instance of a scene file instead.
+    if let Some(path) = args.iter().find_map(|a| a.strip_prefix("scene=")) {
+        let mut sources = SourceMap::new();
+        let file = sources.add(path, std::fs::read_to_string(path).expect("scene file"));
+        scene = primflow::runtime::Renderer::new(program.clone());
+        let mut diags = Diagnostics::new();
+        primflow::scene::load_into(&sources, file, &mut scene, &mut diags);
+    }
     let inst = &scene.instances()[0];
+    println!(
+        "variant: `{}` {}",
+        program.func(inst.func).name,
+        primflow::runtime::describe_key(&inst.key)
+    );
     if args.iter().any(|a| a == "speed") {
         speed(&program, rounds);
         return;

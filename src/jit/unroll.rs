@@ -16,7 +16,8 @@
 //! division in i64 narrowed back). A uniform (`varying == false`) loop is unrolled when,
 //! starting from the environment at its entry, its condition folds to a constant on every
 //! trip and becomes false within [`MAX_TRIPS`] trips, the copies stay under
-//! [`MAX_UNROLLED_STMTS`] statements, and no `break`/`continue` targets the loop itself.
+//! [`MAX_UNROLLED_STMTS`] statements and contain no loop that stays a loop, and no
+//! `break`/`continue` targets the loop itself.
 //! Otherwise the loop is kept and every local it assigns is forgotten at its entry (its body
 //! runs with what holds on every trip) and after it.
 //!
@@ -202,7 +203,10 @@ impl Unroller<'_> {
             for s in body.iter().chain(step) {
                 self.stmt(s, &mut trip_env, &mut out);
             }
-            if count_stmts(&out) > MAX_UNROLLED_STMTS {
+            // A body that still holds a loop after unrolling gains nothing (its arrays stay
+            // dynamically indexed) and only grows the code (measured: the NURB kernel's
+            // `for (side < 4)` around run-time loops, +3% CLIF).
+            if count_stmts(&out) > MAX_UNROLLED_STMTS || contains_loop(&out) {
                 return None;
             }
         }
@@ -218,6 +222,15 @@ fn jumps_to(list: &[Stmt], id: LoopId) -> bool {
         StmtKind::If { then, otherwise, .. } => jumps_to(then, id) || jumps_to(otherwise, id),
         StmtKind::Loop { body, step, .. } => jumps_to(body, id) || jumps_to(step, id),
         StmtKind::Interpolation { arms } => arms.iter().any(|a| jumps_to(&a.body, id)),
+        _ => false,
+    })
+}
+
+fn contains_loop(list: &[Stmt]) -> bool {
+    list.iter().any(|s| match &s.kind {
+        StmtKind::Loop { .. } => true,
+        StmtKind::If { then, otherwise, .. } => contains_loop(then) || contains_loop(otherwise),
+        StmtKind::Interpolation { arms } => arms.iter().any(|a| contains_loop(&a.body)),
         _ => false,
     })
 }
