@@ -129,7 +129,6 @@ fn main() {
             JitOptions {
                 tier: Tier::Optimised,
                 unroll_loops: false,
-                ..JitOptions::default()
             },
         ),
         (
@@ -137,7 +136,6 @@ fn main() {
             JitOptions {
                 tier: Tier::Fast,
                 unroll_loops: false,
-                ..JitOptions::default()
             },
         ),
     ];
