@@ -637,8 +637,15 @@ impl Jit {
                 .and_then(|v| v.as_bool())
                 .unwrap_or(false)
         };
+        let tiers = match (self.options.tier, self.tier_up.is_some()) {
+            (_, true) => {
+                "tiered (tier 0: single_pass regalloc, opt_level=none; tier 1 in the background: opt_level=speed)"
+            }
+            (Tier::Fast, false) => "tier 0 (single_pass regalloc, opt_level=none)",
+            (Tier::Optimised, false) => "opt_level=speed",
+        };
         format!(
-            "{} opt_level=speed has_sse41={} has_avx={} has_avx2={} has_fma={} has_avx512f={}; \
+            "{} {tiers} has_sse41={} has_avx={} has_avx2={} has_fma={} has_avx512f={}; \
              4 pixels per group (f32x4)",
             self.isa.triple(),
             flag("has_sse41"),
