@@ -203,6 +203,9 @@ pub(crate) struct Lower<'a, 'b> {
     /// Per binding component: its G-buffer plane's base address (see `plane_table`).
     plane_ptrs: Option<StackSlot>,
     written: Vec<bool>,
+    /// Walk pass rectangles in blocks with interval facts (see [`block`]); off in tier 0,
+    /// where the extra variant of the pixel code costs more compile time than it saves.
+    block_culling: bool,
     pub(crate) warnings: Vec<String>,
 }
 
@@ -211,16 +214,21 @@ pub(crate) struct Lower<'a, 'b> {
 pub(crate) fn lower_kernel(
     program: &Program,
     func_id: FuncId,
+    body: &Function,
     key: &VariantKey,
     layout: &ArgLayout,
     func: &mut ir::Function,
     fctx: &mut cranelift_frontend::FunctionBuilderContext,
     linker: &mut dyn Linker,
     frontend: cranelift_codegen::isa::TargetFrontendConfig,
+    block_culling: bool,
 ) -> Res<Vec<String>> {
-    let f = program.functions.get(func_id.0 as usize).ok_or_else(|| JitError {
-        message: format!("no function {}", func_id.0),
-    })?;
+    // `body` is `func_id`'s function, possibly rewritten by IR passes (`super::unroll`);
+    // callees and interpolators come from `program`.
+    if program.functions.get(func_id.0 as usize).is_none() {
+        return err(format!("no function {}", func_id.0));
+    }
+    let f = body;
     if f.kind != FuncKind::Primitive {
         return err(format!(
             "`{}` is an interpolator, not a primitive: it has no kernel",
@@ -263,6 +271,7 @@ pub(crate) fn lower_kernel(
         scratch,
         plane_ptrs: None,
         written: vec![false; key.bindings.len()],
+        block_culling,
         warnings: vec![],
     };
     l.body(f)?;
@@ -445,7 +454,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let loops_done = self.b.create_block();
 
         let prefix = block::prefix(f);
-        if prefix.guards == 0 {
+        if prefix.guards == 0 || !self.block_culling {
             self.pixel_rows(f, &rect, [lo_y, hi_y], [gx_start, hi_x], None, loops_done)?;
             self.b.switch_to_block(loops_done);
             return Ok(());
@@ -561,6 +570,11 @@ impl<'a, 'b> Lower<'a, 'b> {
     fn spill_uniforms(&mut self, f: &'a Function) {
         let mut pixel_assigned = std::collections::HashSet::new();
         block::assigned_locals(&f.pixel, &mut pixel_assigned);
+        // Uniform locals the variant's pixel code never touches (e.g. the `linear` planes
+        // when only perspective_linear parameters are bound) are not stored: their setup
+        // computations are then dead and Cranelift drops them.
+        let mut pixel_used = std::collections::HashSet::new();
+        self.live_pixel_locals(&f.pixel, &mut pixel_used);
         let frame = &self.frames[0];
         let mut moves = vec![];
         for (i, st) in frame.storage.iter().enumerate() {
@@ -570,7 +584,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 .params
                 .iter()
                 .any(|p| p.local.0 as usize == i && matches!(p.role, ParamRole::X | ParamRole::Y | ParamRole::Z));
-            if local.var.is_varying() || is_pixel_param || vars.is_empty() {
+            if local.var.is_varying() || is_pixel_param || vars.is_empty() || !pixel_used.contains(&LocalId(i as u32)) {
                 continue;
             }
             moves.push((i, vars.clone(), pixel_assigned.contains(&LocalId(i as u32))));
@@ -1366,32 +1380,10 @@ impl<'a, 'b> Lower<'a, 'b> {
                 ArmKind::Default => None,
             })
             .collect();
-        let has_other = self
-            .key
-            .bindings
-            .iter()
-            .any(|b| matches!(b.kind, BindingKind::Shared(_) | BindingKind::Constant));
         for arm in arms {
-            let mut view = vec![];
-            let mut bindings = vec![];
-            let mut ic = 0;
-            for (i, b) in self.key.bindings.iter().enumerate() {
-                if let BindingKind::Kind(k) = &b.kind {
-                    let serves = match &arm.kind {
-                        ArmKind::Named(n) => n == k,
-                        ArmKind::Default => !named.contains(&k.as_str()),
-                    };
-                    if serves {
-                        view.extend(ic..ic + b.components);
-                        bindings.push(i);
-                    }
-                    ic += b.components;
-                }
-            }
-            let needed = !view.is_empty() || (arm.kind == ArmKind::Default && has_other);
-            if !needed {
+            let Some((view, bindings)) = self.arm_view(arms, &named, arm) else {
                 continue;
-            }
+            };
             let saved_view = std::mem::replace(&mut self.view, view);
             let saved_arm = self.arm.replace(ArmInfo { bindings });
             let r = self.stmts(&arm.body);
@@ -1400,6 +1392,83 @@ impl<'a, 'b> Lower<'a, 'b> {
             r?;
         }
         Ok(())
+    }
+
+    /// The interpolation-data view and the bindings of `arm` under this key, or `None` if
+    /// the key gives the arm nothing to do (it is not lowered). `named`: the arms' kinds.
+    fn arm_view(
+        &self,
+        _arms: &[crate::ir::InterpArm],
+        named: &[&str],
+        arm: &crate::ir::InterpArm,
+    ) -> Option<(Vec<u32>, Vec<usize>)> {
+        let has_other = self
+            .key
+            .bindings
+            .iter()
+            .any(|b| matches!(b.kind, BindingKind::Shared(_) | BindingKind::Constant));
+        let mut view = vec![];
+        let mut bindings = vec![];
+        let mut ic = 0;
+        for (i, b) in self.key.bindings.iter().enumerate() {
+            if let BindingKind::Kind(k) = &b.kind {
+                let serves = match &arm.kind {
+                    ArmKind::Named(n) => n == k,
+                    ArmKind::Default => !named.contains(&k.as_str()),
+                };
+                if serves {
+                    view.extend(ic..ic + b.components);
+                    bindings.push(i);
+                }
+                ic += b.components;
+            }
+        }
+        let needed = !view.is_empty() || (arm.kind == ArmKind::Default && has_other);
+        needed.then_some((view, bindings))
+    }
+
+    /// Every local read or assigned by `stmts` as this key lowers them (arms the key gives
+    /// nothing to do are skipped, like [`Self::interpolation`] skips them).
+    fn live_pixel_locals(&self, stmts: &[Stmt], out: &mut std::collections::HashSet<LocalId>) {
+        for s in stmts {
+            match &s.kind {
+                StmtKind::Assign { place, value } => {
+                    out.insert(place.local);
+                    place.indices.iter().for_each(|(i, _)| expr_locals(i, out));
+                    expr_locals(value, out);
+                }
+                StmtKind::If { cond, then, otherwise } => {
+                    expr_locals(cond, out);
+                    self.live_pixel_locals(then, out);
+                    self.live_pixel_locals(otherwise, out);
+                }
+                StmtKind::Loop { cond, body, step, .. } => {
+                    if let Some(c) = cond {
+                        expr_locals(c, out);
+                    }
+                    self.live_pixel_locals(body, out);
+                    self.live_pixel_locals(step, out);
+                }
+                StmtKind::Interpolation { arms } => {
+                    let named: Vec<&str> = arms
+                        .iter()
+                        .filter_map(|a| match &a.kind {
+                            ArmKind::Named(k) => Some(k.as_str()),
+                            ArmKind::Default => None,
+                        })
+                        .collect();
+                    for arm in arms {
+                        if self.arm_view(arms, &named, arm).is_some() {
+                            self.live_pixel_locals(&arm.body, out);
+                        }
+                    }
+                }
+                StmtKind::InterpolatorReturn(Some(e)) => expr_locals(e, out),
+                StmtKind::Bound(es) => es.iter().for_each(|e| expr_locals(e, out)),
+                StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| expr_locals(e, out)),
+                StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::InterpolatorReturn(None) => {}
+            }
+        }
     }
 
     /// Store a varying f32x4 into G-buffer component `g` (global binding component index)
@@ -2764,6 +2833,31 @@ fn mark_dynamic_expr(e: &Expr, dynamic: &mut [bool]) {
             args.iter().for_each(|a| mark_dynamic_expr(a, dynamic))
         }
         ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
+    }
+}
+
+/// Every local `e` reads.
+fn expr_locals(e: &Expr, out: &mut std::collections::HashSet<LocalId>) {
+    match &e.kind {
+        ExprKind::Local(l) => {
+            out.insert(*l);
+        }
+        ExprKind::Index { base, index, .. } => {
+            expr_locals(base, out);
+            expr_locals(index, out);
+        }
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => expr_locals(expr, out),
+        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
+            expr_locals(lhs, out);
+            expr_locals(rhs, out);
+        }
+        ExprKind::Select { cond, then, otherwise } => {
+            expr_locals(cond, out);
+            expr_locals(then, out);
+            expr_locals(otherwise, out);
+        }
+        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| expr_locals(a, out)),
+        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
     }
 }
 

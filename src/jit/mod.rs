@@ -11,6 +11,22 @@
 //! the integer/fixed-point arithmetic and conversions, [`builtin`] the built-in functions,
 //! [`libm`] the `extern "C"` math helpers kernels link against.
 //!
+//! Tiers ([`Tier`], [`JitOptions`]): tier 0 ([`Tier::Fast`]) compiles with regalloc2's
+//! single-pass allocator and without block-level culling, so a scene's first frame starts
+//! quickly; tier 1 ([`Tier::Optimised`]) is the full pipeline. A *tiered* JIT
+//! ([`Jit::tiered`]) answers each new (function, key) with a tier-0 kernel at once and asks a
+//! background worker thread, which owns a second JIT module, for the tier-1 kernel; later
+//! requests get the tier-1 kernel once it is ready (the renderer asks once per frame, so the
+//! next frame uses it). Both tiers compute the same buffers bit for bit: they lower the same
+//! IR with the same floating-point operations in the same order, and block culling only
+//! decides which pixels run, never what they compute (`tests/jit_tiers.rs`). Compiled code
+//! is never freed (cranelift-jit leaks a module's memory unless told otherwise), so every
+//! entry point a JIT hands out stays callable for the life of the process, beyond the
+//! `KernelSource` contract.
+//!
+//! Before lowering, [`unroll`] unrolls uniform loops with a compile-time trip count
+//! ([`JitOptions::unroll_loops`]).
+//!
 //! Run-time errors a kernel records carry a `SiteId` in `TileCtx::error_site`, except
 //! `ERR_CALL_DEPTH`, which has no site and records `u32::MAX`.
 
@@ -18,10 +34,12 @@ mod builtin;
 mod fixed;
 pub mod libm;
 mod lower;
+mod unroll;
 mod value;
 
 use std::collections::{HashMap, HashSet};
-use std::sync::Arc;
+use std::sync::{mpsc, Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
 use std::time::Instant;
 
 use cranelift_codegen::ir::{self, types, AbiParam, UserFuncName};
@@ -33,7 +51,7 @@ use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, Linkage, Module};
 
 use crate::abi::{ArgLayout, KernelFn, VariantKey};
-use crate::ir::{FuncId, Program};
+use crate::ir::{FuncId, Function, Program};
 use libm::LibmFn;
 use lower::{Linker, Res};
 
@@ -72,9 +90,42 @@ fn jit_err(what: &str, e: impl std::fmt::Display) -> JitError {
 
 type CacheKey = (FuncId, VariantKey);
 
+/// How much work the code generator spends on a kernel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Tier {
+    /// Tier 0: regalloc2's single-pass register allocator, `opt_level=none`, no block-level culling. Compiles
+    /// several times faster; the kernel runs slower (mostly spills).
+    Fast,
+    /// Tier 1: the backtracking register allocator and block-level culling.
+    Optimised,
+}
+
+/// How a [`Jit`] compiles.
+#[derive(Clone, Debug)]
+pub struct JitOptions {
+    pub tier: Tier,
+    /// Unroll uniform loops with a compile-time trip count before lowering (see [`unroll`]).
+    pub unroll_loops: bool,
+}
+
+impl Default for JitOptions {
+    fn default() -> JitOptions {
+        JitOptions {
+            tier: Tier::Optimised,
+            unroll_loops: true,
+        }
+    }
+}
+
 /// Owns the JIT module (the code memory) and the kernel cache for one program.
 pub struct Jit {
     program: Arc<Program>,
+    /// Kernel bodies as lowered: each function after [`unroll::unroll_function`] (when
+    /// `options.unroll_loops`), made on first use and shared with the tier-1 worker.
+    bodies: Arc<Mutex<HashMap<FuncId, Arc<Function>>>>,
+    options: JitOptions,
+    /// The background tier-1 compiler of a tiered JIT.
+    tier_up: Option<TierUp>,
     isa: OwnedTargetIsa,
     module: JITModule,
     cache: HashMap<CacheKey, Arc<Kernel>>,
@@ -87,10 +138,18 @@ pub struct Jit {
     next_name: u32,
 }
 
-/// The host ISA with the flags kernels are compiled with.
-fn host_isa() -> Result<OwnedTargetIsa, JitError> {
+/// The host ISA with the flags kernels of `tier` are compiled with.
+fn host_isa(tier: Tier) -> Result<OwnedTargetIsa, JitError> {
     let mut flags = settings::builder();
-    flags.set("opt_level", "speed").map_err(|e| jit_err("opt_level", e))?;
+    // Tier 0 skips the e-graph pass (a third of its compile time); lowering still drops
+    // unused pure instructions, and no pass at either level changes a float result.
+    let opt = if tier == Tier::Fast { "none" } else { "speed" };
+    flags.set("opt_level", opt).map_err(|e| jit_err("opt_level", e))?;
+    if tier == Tier::Fast {
+        flags
+            .set("regalloc_algorithm", "single_pass")
+            .map_err(|e| jit_err("regalloc_algorithm", e))?;
+    }
     // cranelift-jit needs non-PIC code (JITBuilder::with_isa does not set it).
     flags.set("is_pic", "false").map_err(|e| jit_err("is_pic", e))?;
     // The verifier costs ~30% compile time; keep it for debug builds, where tests run.
@@ -196,9 +255,180 @@ impl Linker for PrintLinker<'_> {
     }
 }
 
+/// What the tier-1 worker has finished, shared with the JIT that feeds it.
+#[derive(Default)]
+struct TierUpState {
+    ready: HashMap<CacheKey, Arc<Kernel>>,
+    /// Requests sent and not yet answered.
+    pending: usize,
+    /// Tier-1 compile failures (the tier-0 kernel stays in use).
+    failed: HashMap<CacheKey, JitError>,
+}
+
+/// The background tier-1 compiler: a thread owning an optimising [`Jit`].
+struct TierUp {
+    requests: Option<mpsc::Sender<CacheKey>>,
+    state: Arc<(Mutex<TierUpState>, Condvar)>,
+    worker: Option<JoinHandle<()>>,
+}
+
+impl TierUp {
+    /// `bodies`: the feeding JIT's kernel bodies, shared.
+    fn start(
+        program: Arc<Program>,
+        bodies: Arc<Mutex<HashMap<FuncId, Arc<Function>>>>,
+        unroll_loops: bool,
+    ) -> Result<TierUp, JitError> {
+        let options = JitOptions {
+            tier: Tier::Optimised,
+            unroll_loops,
+        };
+        let state: Arc<(Mutex<TierUpState>, Condvar)> = Arc::default();
+        let (tx, rx) = mpsc::channel::<CacheKey>();
+        let shared = state.clone();
+        let worker = std::thread::Builder::new()
+            .name("primflow-tier1".into())
+            .spawn(move || {
+                lower_this_threads_priority();
+                // Built on the worker so the first frame does not wait for a second ISA.
+                let mut jit = Jit::build(program, bodies, options);
+                // Ends when the feeding JIT drops its sender.
+                while let Ok((func, key)) = rx.recv() {
+                    let result = match &mut jit {
+                        Ok(jit) => jit.kernel(func, &key),
+                        Err(e) => Err(e.clone()),
+                    };
+                    let (lock, done) = &*shared;
+                    let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
+                    match result {
+                        Ok(k) => {
+                            st.ready.insert((func, key), k);
+                        }
+                        Err(e) => {
+                            st.failed.insert((func, key), e);
+                        }
+                    }
+                    st.pending -= 1;
+                    done.notify_all();
+                }
+            })
+            .map_err(|e| jit_err("starting the tier-1 compiler thread", e))?;
+        Ok(TierUp {
+            requests: Some(tx),
+            state,
+            worker: Some(worker),
+        })
+    }
+
+    fn ready(&self, ck: &CacheKey) -> Option<Arc<Kernel>> {
+        let st = self.state.0.lock().unwrap_or_else(|e| e.into_inner());
+        st.ready.get(ck).cloned()
+    }
+
+    fn request(&self, ck: CacheKey) {
+        let Some(tx) = &self.requests else { return };
+        let mut st = self.state.0.lock().unwrap_or_else(|e| e.into_inner());
+        if tx.send(ck).is_ok() {
+            st.pending += 1;
+        }
+    }
+
+    fn wait(&self) {
+        let (lock, done) = &*self.state;
+        let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
+        while st.pending > 0 {
+            st = done.wait(st).unwrap_or_else(|e| e.into_inner());
+        }
+    }
+}
+
+/// Make the calling thread yield to the render threads: tier-1 compiles are background work
+/// (measured: without this, the time to first pixel doubled on a loaded 2-core machine as
+/// the worker competed with the first frame). Linux `setpriority` on thread 0 = the caller.
+fn lower_this_threads_priority() {
+    #[cfg(target_os = "linux")]
+    {
+        extern "C" {
+            fn setpriority(which: i32, who: u32, prio: i32) -> i32;
+        }
+        const PRIO_PROCESS: i32 = 0;
+        // SAFETY: plain system call with scalar arguments; failure only leaves the priority.
+        unsafe { setpriority(PRIO_PROCESS, 0, 10) };
+    }
+}
+
+impl Drop for TierUp {
+    fn drop(&mut self) {
+        // Closing the channel ends the worker after its current compile.
+        self.requests = None;
+        if let Some(w) = self.worker.take() {
+            let _ = w.join();
+        }
+    }
+}
+
 impl Jit {
+    /// An optimising (tier-1) JIT with loop unrolling: the default.
     pub fn new(program: Arc<Program>) -> Result<Jit, JitError> {
-        let isa = host_isa()?;
+        Jit::with_options(program, JitOptions::default())
+    }
+
+    /// A tiered JIT: tier-0 kernels at once, tier-1 kernels compiled in the background and
+    /// handed out once ready (see the module doc).
+    pub fn tiered(program: Arc<Program>) -> Result<Jit, JitError> {
+        let mut jit = Jit::with_options(
+            program.clone(),
+            JitOptions {
+                tier: Tier::Fast,
+                ..JitOptions::default()
+            },
+        )?;
+        jit.tier_up = Some(TierUp::start(program, jit.bodies.clone(), jit.options.unroll_loops)?);
+        Ok(jit)
+    }
+
+    /// Wait until every tier-1 compile requested so far has finished (no-op if not tiered).
+    pub fn wait_for_tier_up(&self) {
+        if let Some(t) = &self.tier_up {
+            t.wait();
+        }
+    }
+
+    /// The tier-1 kernel of (func, key), if a tiered JIT has it ready.
+    pub fn tier_up_kernel(&self, func: FuncId, key: &VariantKey) -> Option<Arc<Kernel>> {
+        self.tier_up.as_ref()?.ready(&(func, key.clone()))
+    }
+
+    pub fn options(&self) -> &JitOptions {
+        &self.options
+    }
+
+    pub fn with_options(program: Arc<Program>, options: JitOptions) -> Result<Jit, JitError> {
+        Jit::build(program, Arc::default(), options)
+    }
+
+    /// `func`'s body as lowered (see `bodies`).
+    fn body(&self, func: FuncId) -> Arc<Function> {
+        let mut bodies = self.bodies.lock().unwrap_or_else(|e| e.into_inner());
+        bodies
+            .entry(func)
+            .or_insert_with(|| {
+                let f = self.program.func(func);
+                Arc::new(if self.options.unroll_loops {
+                    unroll::unroll_function(f)
+                } else {
+                    f.clone()
+                })
+            })
+            .clone()
+    }
+
+    fn build(
+        program: Arc<Program>,
+        bodies: Arc<Mutex<HashMap<FuncId, Arc<Function>>>>,
+        options: JitOptions,
+    ) -> Result<Jit, JitError> {
+        let isa = host_isa(options.tier)?;
         let mut builder = JITBuilder::with_isa(isa.clone(), default_libcall_names());
         for f in LibmFn::ALL {
             builder.symbol(f.symbol(), f.address());
@@ -213,6 +443,9 @@ impl Jit {
         }
         Ok(Jit {
             program,
+            bodies,
+            options,
+            tier_up: None,
             isa,
             module,
             cache: HashMap::new(),
@@ -240,9 +473,15 @@ impl Jit {
 
     /// The kernel for `func` under `key`, compiled on first use and cached. Primitives it
     /// calls are compiled for the same key.
+    /// A tiered JIT returns the tier-1 kernel once it is ready, the tier-0 one before.
     pub fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, JitError> {
         self.check_func(func)?;
         let ck = (func, key.clone());
+        if let Some(t) = &self.tier_up {
+            if let Some(k) = t.ready(&ck) {
+                return Ok(k);
+            }
+        }
         if let Some(k) = self.cache.get(&ck) {
             return Ok(k.clone());
         }
@@ -250,9 +489,14 @@ impl Jit {
             return Err(e.clone());
         }
         match self.compile_batch(func, key) {
-            Ok(()) => self.cache.get(&ck).cloned().ok_or_else(|| JitError {
-                message: "kernel missing after compilation".into(),
-            }),
+            Ok(()) => {
+                if let Some(t) = &self.tier_up {
+                    t.request(ck.clone());
+                }
+                self.cache.get(&ck).cloned().ok_or_else(|| JitError {
+                    message: "kernel missing after compilation".into(),
+                })
+            }
             Err(e) => {
                 self.failed.insert(ck, e.clone());
                 Err(e)
@@ -283,6 +527,7 @@ impl Jit {
             }
             let started = Instant::now();
             let layout = ArgLayout::new(&program, f, key);
+            let body = self.body(f);
             let mut ctx = self.module.make_context();
             ctx.func.signature = kernel_signature(&self.isa);
             ctx.func.name = UserFuncName::user(0, f.0);
@@ -300,12 +545,14 @@ impl Jit {
                 let lowered = lower::lower_kernel(
                     &program,
                     f,
+                    &body,
                     key,
                     &layout,
                     &mut ctx.func,
                     &mut self.fctx,
                     &mut linker,
                     self.isa.frontend_config(),
+                    self.options.tier == Tier::Optimised,
                 );
                 if lowered.is_err() {
                     // A lowering error leaves the builder context mid-function; the next
@@ -364,15 +611,18 @@ impl Jit {
         let mut f = ir::Function::with_name_signature(UserFuncName::user(0, func.0), kernel_signature(&self.isa));
         let mut fctx = FunctionBuilderContext::new();
         let mut linker = PrintLinker { isa: &self.isa };
+        let body = self.body(func);
         lower::lower_kernel(
             &self.program,
             func,
+            &body,
             key,
             &layout,
             &mut f,
             &mut fctx,
             &mut linker,
             self.isa.frontend_config(),
+            self.options.tier == Tier::Optimised,
         )?;
         Ok(f.display().to_string())
     }
@@ -387,8 +637,15 @@ impl Jit {
                 .and_then(|v| v.as_bool())
                 .unwrap_or(false)
         };
+        let tiers = match (self.options.tier, self.tier_up.is_some()) {
+            (_, true) => {
+                "tiered (tier 0: single_pass regalloc, opt_level=none; tier 1 in the background: opt_level=speed)"
+            }
+            (Tier::Fast, false) => "tier 0 (single_pass regalloc, opt_level=none)",
+            (Tier::Optimised, false) => "opt_level=speed",
+        };
         format!(
-            "{} opt_level=speed has_sse41={} has_avx={} has_avx2={} has_fma={} has_avx512f={}; \
+            "{} {tiers} has_sse41={} has_avx={} has_avx2={} has_fma={} has_avx512f={}; \
              4 pixels per group (f32x4)",
             self.isa.triple(),
             flag("has_sse41"),

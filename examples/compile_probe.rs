@@ -1,0 +1,267 @@
+//! Compile-time probe (issue 5): how long one kernel variant takes to build and compile, in
+//! wall time and in this thread's CPU time (from /proc/thread-self/schedstat, so other load on
+//! the machine does not count), plus the library's parse + check time.
+//!
+//! Run: `cargo run --release --example compile_probe -- [rounds] [options]`.
+//! Compiles the bench's `fill perspective_linear K=4` screen_triangle variant (or
+//! `kind=linear|none`, `k=N`) `rounds` times (default 20) on fresh JITs, for each
+//! configuration (tier 0, tier 1, unrolling off), prints the minimum of each and the
+//! bench's time to first pixel. Options: `timings [fast]` adds Cranelift's pass timings
+//! summed over `rounds` compiles (tier 1, or tier 0 with `fast`); `clif=FILE [fast]` writes
+//! the CLIF; `profile` only compiles tier 0 `rounds` times (for `perf record`); `speed`
+//! times tier 1, tier 1 without unrolling, tier 0 and the hand-written kernels on the
+//! bench's fill and small scenes instead.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use primflow::diag::{Diagnostics, SourceMap};
+use primflow::jit::{Jit, JitOptions, Tier};
+use primflow::runtime::Registry;
+
+#[repr(C)]
+struct Timespec {
+    tv_sec: i64,
+    tv_nsec: i64,
+}
+
+extern "C" {
+    fn clock_gettime(clock: i32, tp: *mut Timespec) -> i32;
+}
+
+/// This thread's CPU time in nanoseconds (Linux `CLOCK_THREAD_CPUTIME_ID`).
+fn thread_cpu_ns() -> u64 {
+    const CLOCK_THREAD_CPUTIME_ID: i32 = 3;
+    let mut t = Timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: `t` is a valid, writable timespec for the duration of the call.
+    unsafe { clock_gettime(CLOCK_THREAD_CPUTIME_ID, &mut t) };
+    t.tv_sec as u64 * 1_000_000_000 + t.tv_nsec as u64
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let rounds: usize = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(20);
+    let timings = args.iter().any(|a| a == "timings");
+
+    let mut best_parse = (f64::MAX, f64::MAX);
+    let mut program = None;
+    for _ in 0..rounds.min(5) {
+        let (w, c) = (Instant::now(), thread_cpu_ns());
+        let mut sources = SourceMap::new();
+        let mut diags = Diagnostics::new();
+        let p = Registry::load(&mut sources, &[], &[], &mut diags)
+            .map(|r| r.program)
+            .expect("the library checks");
+        best_parse.0 = best_parse.0.min(w.elapsed().as_secs_f64() * 1e3);
+        best_parse.1 = best_parse.1.min((thread_cpu_ns() - c) as f64 / 1e6);
+        program = Some(p);
+    }
+    let program: Arc<_> = program.expect("parsed");
+    println!(
+        "parse + check library: {:.2} ms wall, {:.2} ms thread CPU (min of {})",
+        best_parse.0,
+        best_parse.1,
+        rounds.min(5)
+    );
+
+    // `kind=linear|none|perspective_linear` (default), `k=N` (default 4): the variant.
+    let kind = args
+        .iter()
+        .find_map(|a| a.strip_prefix("kind="))
+        .unwrap_or("perspective_linear");
+    let k: usize = args
+        .iter()
+        .find_map(|a| a.strip_prefix("k=")?.parse().ok())
+        .unwrap_or(4);
+    let kind: Option<&'static str> = match kind {
+        "none" => None,
+        "linear" => Some("linear"),
+        _ => Some("perspective_linear"),
+    };
+    let mut scene = primflow::bench::fill_scene(&program, 64, 1, kind, if kind.is_none() { 0 } else { k });
+    // `scene=FILE`: the first instance of a scene file instead.
+    if let Some(path) = args.iter().find_map(|a| a.strip_prefix("scene=")) {
+        let mut sources = SourceMap::new();
+        let file = sources.add(path, std::fs::read_to_string(path).expect("scene file"));
+        scene = primflow::runtime::Renderer::new(program.clone());
+        let mut diags = Diagnostics::new();
+        primflow::scene::load_into(&sources, file, &mut scene, &mut diags);
+    }
+    let inst = &scene.instances()[0];
+    println!(
+        "variant: `{}` {}",
+        program.func(inst.func).name,
+        primflow::runtime::describe_key(&inst.key)
+    );
+    if args.iter().any(|a| a == "speed") {
+        speed(&program, rounds);
+        return;
+    }
+    if args.iter().any(|a| a == "profile") {
+        // Only tier-0 compiles, for `perf record`.
+        for _ in 0..rounds {
+            let opts = JitOptions {
+                tier: Tier::Fast,
+                ..JitOptions::default()
+            };
+            let mut jit = Jit::with_options(program.clone(), opts).expect("host ISA");
+            jit.kernel(inst.func, &inst.key).expect("compiles");
+        }
+        return;
+    }
+    let configs = [
+        (
+            "tier 0 (fast)",
+            JitOptions {
+                tier: Tier::Fast,
+                ..JitOptions::default()
+            },
+        ),
+        (
+            "tier 1 (optimised)",
+            JitOptions {
+                tier: Tier::Optimised,
+                ..JitOptions::default()
+            },
+        ),
+        (
+            "tier 1, loops not unrolled",
+            JitOptions {
+                tier: Tier::Optimised,
+                unroll_loops: false,
+            },
+        ),
+        (
+            "tier 0, loops not unrolled",
+            JitOptions {
+                tier: Tier::Fast,
+                unroll_loops: false,
+            },
+        ),
+    ];
+    for (name, opts) in configs {
+        let (mut wall, mut cpu, mut reported) = (f64::MAX, f64::MAX, u64::MAX);
+        for _ in 0..rounds {
+            let mut jit = Jit::with_options(program.clone(), opts.clone()).expect("host ISA");
+            let (w, c) = (Instant::now(), thread_cpu_ns());
+            let k = jit.kernel(inst.func, &inst.key).expect("compiles");
+            wall = wall.min(w.elapsed().as_secs_f64() * 1e3);
+            cpu = cpu.min((thread_cpu_ns() - c) as f64 / 1e6);
+            reported = reported.min(k.compile_micros);
+        }
+        let clif = Jit::with_options(program.clone(), opts.clone())
+            .expect("host ISA")
+            .clif(inst.func, &inst.key)
+            .map(|t| t.lines().count())
+            .unwrap_or(0);
+        println!(
+            "{name:<28} {clif:5} CLIF lines {wall:6.2} ms wall, {cpu:6.2} ms thread CPU, compile_micros {reported} (min of {rounds})"
+        );
+    }
+    let mut ttfp = vec![];
+    for _ in 0..rounds.min(10) {
+        ttfp.push(primflow::bench::time_to_first_pixel().expect("renders"));
+    }
+    ttfp.sort_by(|a, b| a.total_cmp(b));
+    println!(
+        "time to first pixel (bench): min {:.2} ms, median {:.2} ms of {}",
+        ttfp[0],
+        ttfp[ttfp.len() / 2],
+        ttfp.len()
+    );
+    if let Some(path) = args.iter().find_map(|a| a.strip_prefix("clif=")) {
+        let tier = if args.iter().any(|a| a == "fast") {
+            Tier::Fast
+        } else {
+            Tier::Optimised
+        };
+        let jit = Jit::with_options(
+            program.clone(),
+            JitOptions {
+                tier,
+                ..JitOptions::default()
+            },
+        )
+        .expect("host ISA");
+        std::fs::write(path, jit.clif(inst.func, &inst.key).expect("lowers")).expect("writes the CLIF");
+    }
+    if timings {
+        let tier = if args.iter().any(|a| a == "fast") {
+            Tier::Fast
+        } else {
+            Tier::Optimised
+        };
+        let _ = cranelift_codegen::timing::take_current();
+        for _ in 0..rounds {
+            let mut jit = Jit::with_options(
+                program.clone(),
+                JitOptions {
+                    tier,
+                    ..JitOptions::default()
+                },
+            )
+            .expect("host ISA");
+            jit.kernel(inst.func, &inst.key).expect("compiles");
+        }
+        println!("Cranelift pass timings, total of {rounds} compiles ({tier:?}):");
+        println!("{}", cranelift_codegen::timing::take_current());
+    }
+}
+
+/// Steady-state kernel speed, interleaved: tier 1, tier 1 without unrolling, tier 0, and the
+/// hand-written scalar and AVX2 kernels on the bench's fill and small scenes (one thread,
+/// median of `rounds` frames).
+fn speed(program: &Arc<primflow::ir::Program>, rounds: usize) {
+    use primflow::handwritten::{Flavor, Handwritten};
+    use primflow::runtime::KernelSource;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool");
+    let scenes = [
+        (
+            "fill perspective_linear K=4",
+            primflow::bench::fill_scene(program, 512, 20, Some("perspective_linear"), 4),
+        ),
+        (
+            "small perspective_linear K=4",
+            primflow::bench::small_scene(program, 512, 20000, 4),
+        ),
+    ];
+    for (name, r) in &scenes {
+        let jit =
+            |tier, unroll_loops| Jit::with_options(program.clone(), JitOptions { tier, unroll_loops }).expect("ISA");
+        let mut sources: Vec<(&str, Box<dyn KernelSource + Send>)> = vec![
+            ("tier 1", Box::new(jit(Tier::Optimised, true))),
+            ("tier 1 no unroll", Box::new(jit(Tier::Optimised, false))),
+            ("tier 0", Box::new(jit(Tier::Fast, true))),
+            ("scalar", Box::new(Handwritten::new(program.clone(), Flavor::Scalar))),
+            ("AVX2", Box::new(Handwritten::new(program.clone(), Flavor::Simd))),
+        ];
+        let mut times = vec![vec![]; sources.len()];
+        let reference = pool.install(|| r.render(sources[0].1.as_mut())).frame;
+        for (i, (n, s)) in sources.iter_mut().enumerate() {
+            let f = pool.install(|| r.render(s.as_mut())).frame;
+            assert!(primflow::bench::same_frame(&reference, &f), "{name}: {n} differs");
+            let _ = i;
+        }
+        for _ in 0..rounds {
+            for (i, (_, s)) in sources.iter_mut().enumerate() {
+                let t = Instant::now();
+                pool.install(|| r.render(s.as_mut()));
+                times[i].push(t.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+        let med = |v: &mut Vec<f64>| {
+            v.sort_by(|a, b| a.total_cmp(b));
+            v[v.len() / 2]
+        };
+        let meds: Vec<f64> = times.iter_mut().map(med).collect();
+        println!("{name}:");
+        for (i, (n, _)) in sources.iter().enumerate() {
+            println!(
+                "  {n:<18} {:8.2} ms  /scalar {:.2}x  /AVX2 {:.2}x",
+                meds[i],
+                meds[3] / meds[i],
+                meds[4] / meds[i]
+            );
+        }
+    }
+}

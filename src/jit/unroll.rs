@@ -1,0 +1,481 @@
+//! IR -> IR before lowering: unrolls uniform loops whose trip count is a compile-time
+//! constant and propagates integer constants, so arrays indexed by the loop variable become
+//! SSA values.
+//!
+//! Why: a loop like screen_triangle's `for (int i = 0; i < 3; i++) vx[i] = ...` makes `vx`
+//! a stack slot addressed with a clamped dynamic index, an error record per access and a
+//! fuel check per trip; that was about half of the kernel's CLIF and most of the register
+//! allocator's time (docs/performance.md). After this pass every such index is a constant,
+//! `lower::mark_dynamic_stmt` keeps the array in SSA variables and the clamping, error
+//! records and fuel checks are gone.
+//!
+//! The pass walks each statement list forward with an environment of *known* locals: uniform
+//! scalar `int` locals whose current value is a compile-time constant. Reads of known locals
+//! become constants, and integer arithmetic, comparisons, `!`, `&&`, `||` and `?:` on constants
+//! are folded with exactly the JIT's semantics (wrapping `+ - *`, `x / 0 == x % 0 == 0`,
+//! division in i64 narrowed back). A uniform (`varying == false`) loop is unrolled when,
+//! starting from the environment at its entry, its condition folds to a constant on every
+//! trip and becomes false within [`MAX_TRIPS`] trips, the copies stay under
+//! [`MAX_UNROLLED_STMTS`] statements and contain no loop that stays a loop, and no
+//! `break`/`continue` targets the loop itself.
+//! Otherwise the loop is kept and every local it assigns is forgotten at its entry (its body
+//! runs with what holds on every trip) and after it.
+//!
+//! What changes at run time: nothing in any pixel or error result, with one documented
+//! exception: an unrolled loop spends no fuel. Fuel exists so no source can hang the
+//! renderer; a loop with a constant trip count at most `MAX_TRIPS` cannot. Loops whose trip
+//! count is not a compile-time constant keep their fuel checks, index clamping and error
+//! records unchanged (`tests/jit_unroll.rs`).
+//!
+//! Invariants kept: the output is a checked program in the sense of [`crate::ir`] (same
+//! locals, sites, loop ids, parameter layout); a folded expression is a uniform constant of
+//! the expression's own type.
+
+use std::collections::HashMap;
+
+use crate::ir::{
+    BinOp, ConstValue, Elem, Expr, ExprKind, Function, InterpArm, LocalId, LoopId, Place, Scalar, Stmt, StmtKind,
+    UnaryOp, Variability,
+};
+
+/// Longest loop unrolled (trips).
+pub(crate) const MAX_TRIPS: u32 = 16;
+/// Largest unrolled result of one loop, in statements (nested ones counted).
+pub(crate) const MAX_UNROLLED_STMTS: usize = 512;
+
+/// Known values of uniform scalar int locals at the current point.
+type Env = HashMap<LocalId, i32>;
+
+/// `f` with its constant-trip uniform loops unrolled and integer constants propagated.
+pub(crate) fn unroll_function(f: &Function) -> Function {
+    let u = Unroller { f };
+    let mut env = Env::new();
+    let setup = u.stmts(&f.setup, &mut env);
+    // The pixel part runs once per pixel group after setup: what it assigns itself may hold
+    // a previous group's value when it starts, so it is not known there.
+    let mut assigned = vec![];
+    assigned_locals(&f.pixel, &mut assigned);
+    for l in assigned {
+        env.remove(&l);
+    }
+    let pixel = u.stmts(&f.pixel, &mut env);
+    Function {
+        setup,
+        pixel,
+        ..f.clone()
+    }
+}
+
+struct Unroller<'a> {
+    f: &'a Function,
+}
+
+impl Unroller<'_> {
+    /// A local whose constant value is tracked: a uniform scalar int.
+    fn tracked(&self, l: LocalId) -> bool {
+        self.f.locals.get(l.0 as usize).is_some_and(|local| {
+            local.var == Variability::Uniform && local.ty.is_scalar() && local.ty.elem == Elem::Scalar(Scalar::Int)
+        })
+    }
+
+    fn stmts(&self, list: &[Stmt], env: &mut Env) -> Vec<Stmt> {
+        let mut out = Vec::with_capacity(list.len());
+        for s in list {
+            self.stmt(s, env, &mut out);
+        }
+        out
+    }
+
+    fn stmt(&self, s: &Stmt, env: &mut Env, out: &mut Vec<Stmt>) {
+        let kind = match &s.kind {
+            StmtKind::Assign { place, value } => {
+                let value = fold(value, env);
+                let place = Place {
+                    local: place.local,
+                    indices: place.indices.iter().map(|(i, site)| (fold(i, env), *site)).collect(),
+                    span: place.span,
+                };
+                match (&value.kind, place.indices.is_empty() && self.tracked(place.local)) {
+                    (ExprKind::Const(ConstValue::Int(v)), true) => env.insert(place.local, *v),
+                    _ => env.remove(&place.local),
+                };
+                StmtKind::Assign { place, value }
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                let cond = fold(cond, env);
+                if let ExprKind::Const(ConstValue::Bool(c)) = cond.kind {
+                    // A constant condition: only the taken side exists.
+                    for t in if c { then } else { otherwise } {
+                        self.stmt(t, env, out);
+                    }
+                    return;
+                }
+                let mut then_env = env.clone();
+                let then = self.stmts(then, &mut then_env);
+                let otherwise = self.stmts(otherwise, env);
+                env.retain(|l, v| then_env.get(l) == Some(v));
+                StmtKind::If { cond, then, otherwise }
+            }
+            StmtKind::Loop {
+                id,
+                cond,
+                body,
+                step,
+                varying,
+                site,
+            } => {
+                if !varying {
+                    if let Some(unrolled) = self.unroll(*id, cond.as_ref(), body, step, env) {
+                        out.extend(unrolled);
+                        return;
+                    }
+                }
+                // Kept: its body and step see only what holds on every trip.
+                let mut assigned = vec![];
+                assigned_locals(body, &mut assigned);
+                assigned_locals(step, &mut assigned);
+                for l in assigned {
+                    env.remove(&l);
+                }
+                StmtKind::Loop {
+                    id: *id,
+                    cond: cond.as_ref().map(|c| fold(c, env)),
+                    body: self.stmts(body, &mut env.clone()),
+                    step: self.stmts(step, &mut env.clone()),
+                    varying: *varying,
+                    site: *site,
+                }
+            }
+            StmtKind::Interpolation { arms } => {
+                // Any subset of the arms runs (one per bound kind).
+                let entry = env.clone();
+                let arms = arms
+                    .iter()
+                    .map(|a| {
+                        let mut arm_env = entry.clone();
+                        let body = self.stmts(&a.body, &mut arm_env);
+                        env.retain(|l, v| arm_env.get(l) == Some(v));
+                        InterpArm {
+                            kind: a.kind.clone(),
+                            body,
+                            span: a.span,
+                        }
+                    })
+                    .collect();
+                StmtKind::Interpolation { arms }
+            }
+            StmtKind::InterpolatorReturn(e) => StmtKind::InterpolatorReturn(e.as_ref().map(|e| fold(e, env))),
+            StmtKind::Bound(es) => StmtKind::Bound(Box::new(es.each_ref().map(|e| fold(e, env)))),
+            StmtKind::CallPrimitive { callee, args } => StmtKind::CallPrimitive {
+                callee: *callee,
+                args: args.iter().map(|a| fold(a, env)).collect(),
+            },
+            StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => s.kind.clone(),
+        };
+        out.push(Stmt { kind, span: s.span });
+    }
+
+    /// The statements of `loop id` run trip by trip, if its trip count is a compile-time
+    /// constant within the limits; `env` then holds the state after the loop.
+    fn unroll(
+        &self,
+        id: LoopId,
+        cond: Option<&Expr>,
+        body: &[Stmt],
+        step: &[Stmt],
+        env: &mut Env,
+    ) -> Option<Vec<Stmt>> {
+        let cond = cond?;
+        if jumps_to(body, id) || jumps_to(step, id) {
+            return None;
+        }
+        let mut trip_env = env.clone();
+        let mut out = vec![];
+        for _ in 0..=MAX_TRIPS {
+            match fold(cond, &trip_env).kind {
+                ExprKind::Const(ConstValue::Bool(false)) => {
+                    *env = trip_env;
+                    return Some(out);
+                }
+                ExprKind::Const(ConstValue::Bool(true)) => {}
+                _ => return None,
+            }
+            for s in body.iter().chain(step) {
+                self.stmt(s, &mut trip_env, &mut out);
+            }
+            // A body that still holds a loop after unrolling gains nothing (its arrays stay
+            // dynamically indexed) and only grows the code (measured: the NURB kernel's
+            // `for (side < 4)` around run-time loops, +3% CLIF).
+            if count_stmts(&out) > MAX_UNROLLED_STMTS || contains_loop(&out) {
+                return None;
+            }
+        }
+        // Still running after MAX_TRIPS: too long to unroll.
+        None
+    }
+}
+
+/// Whether a `break`/`continue` in `list` targets loop `id`.
+fn jumps_to(list: &[Stmt], id: LoopId) -> bool {
+    list.iter().any(|s| match &s.kind {
+        StmtKind::Break(l) | StmtKind::Continue(l) => *l == id,
+        StmtKind::If { then, otherwise, .. } => jumps_to(then, id) || jumps_to(otherwise, id),
+        StmtKind::Loop { body, step, .. } => jumps_to(body, id) || jumps_to(step, id),
+        StmtKind::Interpolation { arms } => arms.iter().any(|a| jumps_to(&a.body, id)),
+        _ => false,
+    })
+}
+
+fn contains_loop(list: &[Stmt]) -> bool {
+    list.iter().any(|s| match &s.kind {
+        StmtKind::Loop { .. } => true,
+        StmtKind::If { then, otherwise, .. } => contains_loop(then) || contains_loop(otherwise),
+        StmtKind::Interpolation { arms } => arms.iter().any(|a| contains_loop(&a.body)),
+        _ => false,
+    })
+}
+
+fn count_stmts(list: &[Stmt]) -> usize {
+    list.iter()
+        .map(|s| {
+            1 + match &s.kind {
+                StmtKind::If { then, otherwise, .. } => count_stmts(then) + count_stmts(otherwise),
+                StmtKind::Loop { body, step, .. } => count_stmts(body) + count_stmts(step),
+                StmtKind::Interpolation { arms } => arms.iter().map(|a| count_stmts(&a.body)).sum(),
+                _ => 0,
+            }
+        })
+        .sum()
+}
+
+/// Every local assigned (whole or in part) anywhere in `list`.
+fn assigned_locals(list: &[Stmt], out: &mut Vec<LocalId>) {
+    for s in list {
+        match &s.kind {
+            StmtKind::Assign { place, .. } => out.push(place.local),
+            StmtKind::If { then, otherwise, .. } => {
+                assigned_locals(then, out);
+                assigned_locals(otherwise, out);
+            }
+            StmtKind::Loop { body, step, .. } => {
+                assigned_locals(body, out);
+                assigned_locals(step, out);
+            }
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| assigned_locals(&a.body, out)),
+            _ => {}
+        }
+    }
+}
+
+fn constant(e: &Expr, c: ConstValue) -> Expr {
+    Expr {
+        kind: ExprKind::Const(c),
+        ty: e.ty.clone(),
+        var: Variability::Uniform,
+        span: e.span,
+    }
+}
+
+fn is_scalar_of(e: &Expr, s: Scalar) -> bool {
+    e.ty.is_scalar() && e.ty.elem == Elem::Scalar(s)
+}
+
+/// `e` with known locals replaced by their values and constant int/bool operations folded.
+fn fold(e: &Expr, env: &Env) -> Expr {
+    let kind = match &e.kind {
+        ExprKind::Local(l) => {
+            if let (Some(&v), true) = (env.get(l), is_scalar_of(e, Scalar::Int)) {
+                return constant(e, ConstValue::Int(v));
+            }
+            return e.clone();
+        }
+        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => return e.clone(),
+        ExprKind::Index { base, index, site } => ExprKind::Index {
+            base: Box::new(fold(base, env)),
+            index: Box::new(fold(index, env)),
+            site: *site,
+        },
+        ExprKind::Unary { op, expr } => {
+            let x = fold(expr, env);
+            match (op, &x.kind, e.ty.is_scalar()) {
+                (UnaryOp::Neg, ExprKind::Const(ConstValue::Int(v)), true) if is_scalar_of(e, Scalar::Int) => {
+                    return constant(e, ConstValue::Int(v.wrapping_neg()));
+                }
+                (UnaryOp::Not, ExprKind::Const(ConstValue::Bool(v)), true) if is_scalar_of(e, Scalar::Bool) => {
+                    return constant(e, ConstValue::Bool(!v));
+                }
+                _ => {}
+            }
+            ExprKind::Unary {
+                op: *op,
+                expr: Box::new(x),
+            }
+        }
+        ExprKind::Binary { op, lhs, rhs } => {
+            let (a, c) = (fold(lhs, env), fold(rhs, env));
+            if let Some(v) = fold_binary(*op, &a, &c) {
+                if e.ty.is_scalar() && e.ty.elem == Elem::Scalar(const_scalar(v)) {
+                    return constant(e, v);
+                }
+            }
+            ExprKind::Binary {
+                op: *op,
+                lhs: Box::new(a),
+                rhs: Box::new(c),
+            }
+        }
+        ExprKind::Convert(x) => ExprKind::Convert(Box::new(fold(x, env))),
+        ExprKind::Select { cond, then, otherwise } => {
+            let c = fold(cond, env);
+            // Expressions are pure: a constant condition selects one side.
+            if let ExprKind::Const(ConstValue::Bool(v)) = c.kind {
+                let side = fold(if v { then } else { otherwise }, env);
+                if side.ty == e.ty && side.var <= e.var {
+                    return side;
+                }
+            }
+            ExprKind::Select {
+                cond: Box::new(c),
+                then: Box::new(fold(then, env)),
+                otherwise: Box::new(fold(otherwise, env)),
+            }
+        }
+        ExprKind::Builtin { func, args } => ExprKind::Builtin {
+            func: *func,
+            args: args.iter().map(|a| fold(a, env)).collect(),
+        },
+        ExprKind::List(items) => ExprKind::List(items.iter().map(|a| fold(a, env)).collect()),
+        ExprKind::MatMul { lhs, rhs } => ExprKind::MatMul {
+            lhs: Box::new(fold(lhs, env)),
+            rhs: Box::new(fold(rhs, env)),
+        },
+    };
+    Expr {
+        kind,
+        ty: e.ty.clone(),
+        var: e.var,
+        span: e.span,
+    }
+}
+
+fn const_scalar(c: ConstValue) -> Scalar {
+    match c {
+        ConstValue::Int(_) => Scalar::Int,
+        ConstValue::Bool(_) => Scalar::Bool,
+        // Never produced by `fold_binary`.
+        ConstValue::Float(_) | ConstValue::Fixed(_) => Scalar::Float,
+    }
+}
+
+/// `a op c` on scalar int or bool constants, with the JIT's semantics (see `lower::binop`
+/// and `fixed::int_div_rem`).
+fn fold_binary(op: BinOp, a: &Expr, c: &Expr) -> Option<ConstValue> {
+    if !a.ty.is_scalar() || !c.ty.is_scalar() {
+        return None;
+    }
+    match (&a.kind, &c.kind) {
+        (ExprKind::Const(ConstValue::Int(x)), ExprKind::Const(ConstValue::Int(y)))
+            if is_scalar_of(a, Scalar::Int) && is_scalar_of(c, Scalar::Int) =>
+        {
+            let (x, y) = (*x, *y);
+            Some(match op {
+                BinOp::Add => ConstValue::Int(x.wrapping_add(y)),
+                BinOp::Sub => ConstValue::Int(x.wrapping_sub(y)),
+                BinOp::Mul => ConstValue::Int(x.wrapping_mul(y)),
+                // In i64, i32::MIN / -1 does not overflow; narrowing wraps it back.
+                BinOp::Div if y == 0 => ConstValue::Int(0),
+                BinOp::Div => ConstValue::Int((x as i64 / y as i64) as i32),
+                BinOp::Rem if y == 0 => ConstValue::Int(0),
+                BinOp::Rem => ConstValue::Int((x as i64 % y as i64) as i32),
+                BinOp::Lt => ConstValue::Bool(x < y),
+                BinOp::Le => ConstValue::Bool(x <= y),
+                BinOp::Gt => ConstValue::Bool(x > y),
+                BinOp::Ge => ConstValue::Bool(x >= y),
+                BinOp::Eq => ConstValue::Bool(x == y),
+                BinOp::Ne => ConstValue::Bool(x != y),
+                BinOp::And | BinOp::Or => return None,
+            })
+        }
+        (ExprKind::Const(ConstValue::Bool(x)), ExprKind::Const(ConstValue::Bool(y)))
+            if is_scalar_of(a, Scalar::Bool) && is_scalar_of(c, Scalar::Bool) =>
+        {
+            let (x, y) = (*x, *y);
+            Some(match op {
+                BinOp::And => ConstValue::Bool(x && y),
+                BinOp::Or => ConstValue::Bool(x || y),
+                BinOp::Eq => ConstValue::Bool(x == y),
+                BinOp::Ne => ConstValue::Bool(x != y),
+                _ => return None,
+            })
+        }
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diag::Span;
+    use crate::ir::Type;
+
+    fn int(v: i32) -> Expr {
+        Expr {
+            kind: ExprKind::Const(ConstValue::Int(v)),
+            ty: Type::int(),
+            var: Variability::Uniform,
+            span: Span::default(),
+        }
+    }
+
+    fn bin(op: BinOp, a: Expr, c: Expr) -> Expr {
+        let ty = if matches!(
+            op,
+            BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne
+        ) {
+            Type::bool()
+        } else {
+            Type::int()
+        };
+        Expr {
+            kind: ExprKind::Binary {
+                op,
+                lhs: Box::new(a),
+                rhs: Box::new(c),
+            },
+            ty,
+            var: Variability::Uniform,
+            span: Span::default(),
+        }
+    }
+
+    fn folded(e: &Expr) -> Option<ConstValue> {
+        match fold(e, &Env::new()).kind {
+            ExprKind::Const(c) => Some(c),
+            _ => None,
+        }
+    }
+
+    /// Folding follows the JIT's integer semantics, edge cases included.
+    #[test]
+    fn folds_ints_like_the_jit() {
+        let cases = [
+            (BinOp::Add, i32::MAX, 1, i32::MIN),
+            (BinOp::Mul, 65536, 65536, 0),
+            (BinOp::Div, 7, -2, -3),
+            (BinOp::Rem, -7, 3, -1),
+            (BinOp::Div, 5, 0, 0),
+            (BinOp::Rem, 5, 0, 0),
+            (BinOp::Div, i32::MIN, -1, i32::MIN),
+            (BinOp::Rem, i32::MIN, -1, 0),
+        ];
+        for (op, x, y, want) in cases {
+            assert_eq!(
+                folded(&bin(op, int(x), int(y))),
+                Some(ConstValue::Int(want)),
+                "{op:?} {x} {y}"
+            );
+        }
+        assert_eq!(folded(&bin(BinOp::Lt, int(2), int(3))), Some(ConstValue::Bool(true)));
+        assert_eq!(folded(&bin(BinOp::Ge, int(2), int(3))), Some(ConstValue::Bool(false)));
+    }
+}

@@ -1,0 +1,136 @@
+//! Tiered compilation (src/jit/mod.rs): tier-0 kernels (single-pass register allocation,
+//! opt_level none, no block culling) and tier-1 kernels must write the same buffers bit for
+//! bit, and a tiered JIT must hand out tier 0 first and tier 1 once its background compile
+//! is done. The scenes are the example scenes (triangles with every interpolation kind,
+//! spheres, NURB patches, the geometry pipeline) and the benchmark's fill and small-triangle
+//! workloads.
+
+use std::sync::Arc;
+
+use primflow::bench::{fill_scene, same_frame, small_scene};
+use primflow::diag::{Diagnostics, SourceMap};
+use primflow::ir::Program;
+use primflow::jit::{Jit, JitOptions, Tier};
+use primflow::runtime::{Frame, KernelSource, Registry, Renderer};
+
+fn library() -> (SourceMap, Arc<Program>) {
+    let mut sources = SourceMap::new();
+    let mut diags = Diagnostics::new();
+    let registry = Registry::load(&mut sources, &[], &[], &mut diags)
+        .unwrap_or_else(|| panic!("library does not compile:\n{}", diags.render(&sources)));
+    (sources, registry.program)
+}
+
+fn example_scene(sources: &mut SourceMap, program: &Arc<Program>, name: &str) -> Renderer {
+    let path = format!("{}/examples/{name}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let file = sources.add(name, text);
+    let mut r = Renderer::new(program.clone());
+    let mut diags = Diagnostics::new();
+    primflow::scene::load_into(sources, file, &mut r, &mut diags);
+    assert!(!diags.has_errors(), "{name}: {}", diags.render(sources));
+    r
+}
+
+fn render(r: &Renderer, source: &mut dyn KernelSource) -> Frame {
+    let out = r.render(source);
+    assert!(!out.diags.has_errors(), "{:?}", out.diags.items);
+    out.frame
+}
+
+fn written_depths(f: &Frame) -> usize {
+    f.depth.iter().filter(|&&d| d != 0).count()
+}
+
+fn scenes(sources: &mut SourceMap, program: &Arc<Program>) -> Vec<(String, Renderer)> {
+    let mut out = vec![];
+    for name in [
+        "triangles.scene",
+        "interpolators.scene",
+        "spheres.scene",
+        "nurb_surface.scene",
+        "geometry.scene",
+    ] {
+        out.push((name.to_string(), example_scene(sources, program, name)));
+    }
+    for kind in [Some("perspective_linear"), Some("linear"), None] {
+        out.push((format!("fill {kind:?}"), fill_scene(program, 96, 4, kind, 4)));
+    }
+    out.push(("small".into(), small_scene(program, 96, 300, 4)));
+    out
+}
+
+#[test]
+fn tier_0_and_tier_1_kernels_write_identical_frames() {
+    let (mut sources, program) = library();
+    for (name, r) in scenes(&mut sources, &program) {
+        let mut fast = Jit::with_options(
+            program.clone(),
+            JitOptions {
+                tier: Tier::Fast,
+                ..JitOptions::default()
+            },
+        )
+        .unwrap();
+        let mut optimised = Jit::new(program.clone()).unwrap();
+        let a = render(&r, &mut fast);
+        let b = render(&r, &mut optimised);
+        assert!(written_depths(&b) > 0, "{name}: the scene draws something");
+        assert!(same_frame(&a, &b), "{name}: tier 0 and tier 1 frames differ");
+        assert_eq!(a.colors.is_some(), b.colors.is_some());
+        if let (Some(x), Some(y)) = (&a.colors, &b.colors) {
+            assert!(
+                x.iter()
+                    .flatten()
+                    .zip(y.iter().flatten())
+                    .all(|(p, q)| p.to_bits() == q.to_bits()),
+                "{name}: shaded colours differ"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_tiered_jit_hands_out_tier_1_once_its_background_compile_is_done() {
+    let (mut sources, program) = library();
+    for (name, r) in scenes(&mut sources, &program).into_iter().take(4) {
+        let mut jit = Jit::tiered(program.clone()).unwrap();
+        let first = render(&r, &mut jit);
+        jit.wait_for_tier_up();
+        let inst = &r.instances()[0];
+        let tier1 = jit
+            .tier_up_kernel(inst.func, &inst.key)
+            .unwrap_or_else(|| panic!("{name}: no tier-1 kernel after waiting"));
+        let handed = jit.kernel(inst.func, &inst.key).unwrap();
+        assert_eq!(
+            handed.entry as usize, tier1.entry as usize,
+            "{name}: the JIT hands out the tier-1 kernel"
+        );
+        let second = render(&r, &mut jit);
+        assert!(written_depths(&first) > 0, "{name}: the scene draws something");
+        assert!(same_frame(&first, &second), "{name}: tier-0 and tier-1 frames differ");
+    }
+}
+
+#[test]
+fn tier_0_compiles_a_different_kernel_than_tier_1() {
+    // Guards the test above against both tiers silently being the same configuration.
+    let (_sources, program) = library();
+    let r = fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
+    let inst = &r.instances()[0];
+    let fast = Jit::with_options(
+        program.clone(),
+        JitOptions {
+            tier: Tier::Fast,
+            ..JitOptions::default()
+        },
+    )
+    .unwrap();
+    let optimised = Jit::new(program.clone()).unwrap();
+    let a = fast.clif(inst.func, &inst.key).unwrap();
+    let b = optimised.clif(inst.func, &inst.key).unwrap();
+    assert!(
+        a.lines().count() < b.lines().count(),
+        "tier 0 has no block-culling variant, so less CLIF"
+    );
+}
