@@ -353,3 +353,81 @@ fn kernels_are_cached_per_key_and_clif_is_printable() {
     assert!(jit.isa_summary().contains("4 pixels per group (f32x4)"));
     assert!(jit.kernel(FuncId(9), &key).is_err());
 }
+
+/// `Z = (c ? arr[i] : 0.5) / 8` with `i` out of range: only the taken arm may record.
+fn guarded_index_prim(varying_cond: bool) -> Function {
+    let mut fb = Fb::new("guarded", FuncKind::Primitive);
+    let (x, _y, z) = fb.xyz();
+    let k = fb.param("k", Type::int(), ParamRole::PerPrimitive);
+    let arr_ty = Type::array(Elem::Scalar(Scalar::Float), vec![4]);
+    let arr = fb.local("arr", arr_ty, Uniform);
+    // Uniform: k < 4. Varying: X < 2, so lanes 2.. take the constant arm.
+    let cond = if varying_cond {
+        bin(BinOp::Lt, x, fc(2.0))
+    } else {
+        bin(BinOp::Lt, k.clone(), ic(4))
+    };
+    fb.f.pixel = vec![
+        assign(&arr, list(vec![fc(1.0), fc(2.0), fc(3.0), fc(4.0)])),
+        assign(&z, bin(BinOp::Div, select(cond, index(arr, k, 2), fc(0.5)), fc(8.0))),
+    ];
+    fb.f
+}
+
+#[test]
+fn an_untaken_conditional_arm_records_no_index_error() {
+    // Uniform condition: k = 7 selects the constant arm, k = 2 the in-range read.
+    let mut jit = jit_for(vec![guarded_index_prim(false)], 3);
+    let kern = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
+    for (kv, want) in [(7, 0.5), (2, 3.0)] {
+        let mut tile = Tile::new(0);
+        let ctx = tile.render(&kern, &[1, kv as u32]);
+        assert_eq!(ctx.error, ERR_NONE, "k = {kv}");
+        assert_eq!(tile.depth_at(5, 5), raw_depth(want / 8.0), "k = {kv}");
+    }
+    // Varying condition, k = 7 out of range: lanes X < 2 take the read and record it...
+    let mut jit = jit_for(vec![guarded_index_prim(true)], 3);
+    let kern = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
+    let mut tile = Tile::new(0);
+    let ctx = tile.render(&kern, &[1, 7]);
+    assert_eq!((ctx.error, ctx.error_site), (ERR_INDEX, 2));
+    assert_eq!(tile.depth_at(0, 0), raw_depth(4.0 / 8.0));
+    assert_eq!(tile.depth_at(5, 0), raw_depth(0.5 / 8.0));
+}
+
+/// `Z = (k < 4 && arr[k] > 2 ? 1 : 2) / 8` and the `||` twin `k >= 4 || arr[k] <= 2`.
+fn short_circuit_prim(or: bool) -> Function {
+    let mut fb = Fb::new("short", FuncKind::Primitive);
+    let (_x, _y, z) = fb.xyz();
+    let k = fb.param("k", Type::int(), ParamRole::PerPrimitive);
+    let arr = fb.local("arr", Type::array(Elem::Scalar(Scalar::Float), vec![4]), Uniform);
+    let read = index(arr.clone(), k.clone(), 2);
+    let cond = if or {
+        bin(BinOp::Or, bin(BinOp::Ge, k, ic(4)), bin(BinOp::Le, read, fc(2.0)))
+    } else {
+        bin(BinOp::And, bin(BinOp::Lt, k, ic(4)), bin(BinOp::Gt, read, fc(2.0)))
+    };
+    fb.f.pixel = vec![
+        assign(&arr, list(vec![fc(1.0), fc(2.0), fc(3.0), fc(4.0)])),
+        assign(&z, bin(BinOp::Div, select(cond, fc(1.0), fc(2.0)), fc(8.0))),
+    ];
+    fb.f
+}
+
+#[test]
+fn the_right_side_of_and_or_records_errors_only_where_it_would_be_evaluated() {
+    for or in [false, true] {
+        let mut jit = jit_for(vec![short_circuit_prim(or)], 3);
+        let kern = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
+        // k = 7: the left side decides, the out-of-range read is never "evaluated".
+        // k = 3: arr[3] = 4 > 2.
+        for (kv, and_true) in [(7, false), (3, true)] {
+            let mut tile = Tile::new(0);
+            let ctx = tile.render(&kern, &[1, kv as u32]);
+            assert_eq!(ctx.error, ERR_NONE, "or = {or}, k = {kv}");
+            let holds = if or { !and_true } else { and_true };
+            let want = if holds { 1.0 } else { 2.0 };
+            assert_eq!(tile.depth_at(3, 3), raw_depth(want / 8.0), "or = {or}, k = {kv}");
+        }
+    }
+}

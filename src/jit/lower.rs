@@ -206,6 +206,10 @@ pub(crate) struct Lower<'a, 'b> {
     /// Walk pass rectangles in blocks with interval facts (see [`block`]); off in tier 0,
     /// where the extra variant of the pixel code costs more compile time than it saves.
     block_culling: bool,
+    /// While lowering an arm of `c ? a : b`: the uniform condition under which that arm is
+    /// the one taken. A run-time error in an untaken arm is not an error (the language
+    /// evaluates one arm; the JIT evaluates both and selects).
+    error_guard: Option<ir::Value>,
     pub(crate) warnings: Vec<String>,
 }
 
@@ -272,6 +276,7 @@ pub(crate) fn lower_kernel(
         plane_ptrs: None,
         written: vec![false; key.bindings.len()],
         block_culling,
+        error_guard: None,
         warnings: vec![],
     };
     l.body(f)?;
@@ -332,11 +337,43 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.switch_to_block(dead);
     }
 
+    /// Evaluate `e` as the language would only when the bool `cb` is `taken`: the arm of
+    /// `c ? a : b`, the right side of `&&` / `||`. The JIT evaluates it regardless, so its
+    /// run-time errors are guarded: by `cb` itself when uniform; for a varying `cb` (lane
+    /// masks) the executing lanes narrow to those where `cb == taken`, and uniform errors
+    /// inside count if some such lane exists.
+    fn eval_guarded(&mut self, e: &'a Expr, varying: bool, cb: ir::Value, taken: bool) -> Res<Val> {
+        let outer_guard = self.error_guard;
+        let outer_exec = self.exec();
+        let guard = if varying {
+            let lanes = if taken { cb } else { self.b.ins().bnot(cb) };
+            let lanes = match outer_exec {
+                Some(x) => self.b.ins().band(x, lanes),
+                None => lanes,
+            };
+            self.set_exec(lanes);
+            self.b.ins().vany_true(lanes)
+        } else {
+            let cc = if taken { IntCC::NotEqual } else { IntCC::Equal };
+            self.b.ins().icmp_imm_s(cc, cb, 0)
+        };
+        self.error_guard = Some(match outer_guard {
+            Some(g) => self.b.ins().band(g, guard),
+            None => guard,
+        });
+        let v = self.eval(e);
+        self.error_guard = outer_guard;
+        if let Some(x) = outer_exec {
+            self.set_exec(x);
+        }
+        v
+    }
+
     /// Record `code` at `site` if no error was recorded yet and `cond` (i8) holds.
     fn record_error(&mut self, code: u32, site: u32, cond: Option<ir::Value>) {
         let old = self.load_ctx(types::I32, ctx_off::ERROR);
         let mut first = self.b.ins().icmp_imm_s(IntCC::Equal, old, 0);
-        if let Some(c) = cond {
+        for c in cond.into_iter().chain(self.error_guard) {
             first = self.b.ins().band(first, c);
         }
         let code_v = self.b.ins().iconst(types::I32, code as i64);
@@ -2430,7 +2467,13 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             ExprKind::Binary { op, lhs, rhs } => {
                 let a = self.eval(lhs)?;
-                let c = self.eval(rhs)?;
+                let c = match op {
+                    // `a && b` reads b only where a holds, `a || b` only where it does not.
+                    BinOp::And | BinOp::Or if a.scalar == Scalar::Bool => {
+                        self.eval_guarded(rhs, a.varying, a.comps[0], *op == BinOp::And)?
+                    }
+                    _ => self.eval(rhs)?,
+                };
                 self.binary(*op, a, c)
             }
             ExprKind::Convert(inner) => {
@@ -2455,9 +2498,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             ExprKind::Select { cond, then, otherwise } => {
                 let c = self.eval(cond)?;
-                let t = self.eval(then)?;
-                let o = self.eval(otherwise)?;
                 let cb = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
+                let t = self.eval_guarded(then, c.varying, cb, true)?;
+                let o = self.eval_guarded(otherwise, c.varying, cb, false)?;
                 let (t, o) = self.unify(t, o)?;
                 if !c.varying && !t.varying {
                     let comps = t
