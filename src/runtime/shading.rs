@@ -199,6 +199,10 @@ pub struct Shader {
     /// Normals from LC to this space.
     normals_from_lighting: NormalMatrix,
     setup: LightingSetup<f64>,
+    /// `setup` with ambient and diffuse zeroed on both sides: its Phong sum is the specular
+    /// share alone (built once per frame, not per pixel). `None` for a side without
+    /// specular, whose share is zero.
+    specular_only: [Option<LightingSetup<f64>>; 2],
     /// The eye point (perspective) for fog distance, or a point on the near plane and the
     /// towards-viewer direction (parallel).
     eye: Eye<f64>,
@@ -286,18 +290,21 @@ impl Shader {
             .collect();
         let front = material(&setup.front);
         let back = setup.back.as_ref().map(material).unwrap_or(front);
+        let lighting = LightingSetup {
+            front,
+            back,
+            ambient_light: setup.ambient_light,
+            lights,
+            eye,
+        };
+        let specular_only = [front, back].map(|m| specular_only_setup(&lighting, &m));
         Some(Shader {
             effects,
             space: setup.space,
             space_from_device,
             normals_from_lighting: NormalMatrix::of(&space_from_lighting),
-            setup: LightingSetup {
-                front,
-                back,
-                ambient_light: setup.ambient_light,
-                lights,
-                eye,
-            },
+            setup: lighting,
+            specular_only,
             eye,
             near_point: to_space(near_centre),
             fog: setup.fog,
@@ -366,11 +373,13 @@ impl Shader {
                 let facing = px.facing.unwrap_or_else(|| self.setup.facing(&sample));
                 let lit = self.setup.shade_facing(&sample, facing);
                 // Ambient and diffuse take the base colour; the specular highlight does not.
-                let material = match facing {
-                    Facing::Front => &self.setup.front,
-                    Facing::Back => &self.setup.back,
+                let side = match facing {
+                    Facing::Front => 0,
+                    Facing::Back => 1,
                 };
-                let unlit_spec = lit_specular_share(&self.setup, &sample, facing, material);
+                let unlit_spec = self.specular_only[side]
+                    .as_ref()
+                    .map_or([0.0; 3], |only| only.shade_facing(&sample, facing));
                 c = [0, 1, 2].map(|k| (lit[k] - unlit_spec[k]) * base[k] + unlit_spec[k]);
             }
             if FOG {
@@ -398,23 +407,20 @@ impl Shader {
     }
 }
 
-/// The specular part of the Phong sum at `s` (so the caller can leave it untinted).
-fn lit_specular_share(
-    setup: &LightingSetup<f64>,
-    s: &Sample<f64>,
-    facing: Facing,
-    material: &Material<f64>,
-) -> [f64; 3] {
+/// `setup` lit with `material`'s specular term alone on both sides (so the caller can leave
+/// the highlight untinted), or `None` when the material has no specular term.
+fn specular_only_setup(setup: &LightingSetup<f64>, material: &Material<f64>) -> Option<LightingSetup<f64>> {
     if material.specular == [0.0; 3] {
-        return [0.0; 3];
+        return None;
     }
-    let mut only_specular = setup.clone();
     let m = Material {
         ambient: [0.0; 3],
         diffuse: [0.0; 3],
         ..*material
     };
-    only_specular.front = m;
-    only_specular.back = m;
-    only_specular.shade_facing(s, facing)
+    Some(LightingSetup {
+        front: m,
+        back: m,
+        ..setup.clone()
+    })
 }
