@@ -1,9 +1,10 @@
 //! Rendering a frame: compile, bound, bin, render tiles in parallel, shade, write images.
 //!
 //! 1. Every (primitive, key) the instances need is compiled once through the [`KernelSource`].
-//! 2. Each instance's kernel runs once in `MODE_BOUND` on an empty tile with no buffers; its
-//!    recorded screen bound (conservative) bins it into the tiles it overlaps. A NaN bound,
-//!    or no bound at all, puts it in no tile.
+//! 2. Each instance's kernel runs once in `MODE_BOUND` on an empty tile with no buffers
+//!    (instances in parallel, binned afterwards in submission order); its recorded screen
+//!    bound (conservative) bins it into the tiles it overlaps. A NaN bound, or no bound at
+//!    all, puts it in no tile.
 //! 3. Tiles render in parallel with rayon. A tile task renders into its worker's scratch
 //!    buffers (depth u32 with 0 = farthest, G-buffer planes f32, write counts; zeroed per
 //!    tile, reused from tile to tile), running its instances in submission order in
@@ -206,9 +207,18 @@ impl Renderer {
         let tiles_x = opts.width.div_ceil(opts.tile_size) as usize;
         let mut bins: Vec<Vec<usize>> = vec![vec![]; tiles.len()];
         let mut errors: Vec<(usize, u32, u32)> = vec![];
-        for (i, (inst, kernel)) in self.instances().iter().zip(&ready).enumerate() {
-            let Some(kernel) = kernel else { continue };
-            let (bound, error) = run_bound(kernel, inst, opts);
+        // The bound runs are independent (each on its own context): run them in parallel,
+        // in chunks so a scene of tiny primitives is not one rayon task per instance, and
+        // bin serially in submission order.
+        let bounds: Vec<_> = self
+            .instances()
+            .par_iter()
+            .zip(ready.par_iter())
+            .with_min_len(256)
+            .map(|(inst, kernel)| kernel.as_ref().map(|k| run_bound(k, inst, opts)))
+            .collect();
+        for (i, outcome) in bounds.into_iter().enumerate() {
+            let Some((bound, error)) = outcome else { continue };
             if let Some((code, site)) = error {
                 errors.push((i, code, site));
             }
