@@ -757,7 +757,7 @@ pub fn effects_scene(program: &Arc<Program>, size: u32, layers: usize, set: Effe
 pub struct EffectsRow {
     pub effects: String,
     pub set: EffectSet,
-    /// Whole frame (bound pass, tiles, gather, shading), one thread.
+    /// Whole frame (bound pass, tiles, shading), one thread.
     pub frame_ms: f64,
     /// Of which the tile kernels (the same primitives in every row).
     pub kernels_ms: f64,
@@ -899,7 +899,7 @@ fn rendered_colours(frame: &Frame) -> Vec<[f32; 3]> {
 pub fn format_effects(series: &EffectsSeries) -> String {
     let mut s = format!(
         "effects series: {size}x{size}, {layers} full-viewport layers (Cs, N, st perspective_linear), JIT; \
-         frame = bound pass + tile kernels + gather + deferred shading\n",
+         frame = bound pass + tile kernels (written straight into the frame) + deferred shading\n",
         size = series.size,
         layers = series.layers
     );

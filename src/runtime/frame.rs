@@ -234,7 +234,7 @@ impl Renderer {
         let tiles_started = Instant::now();
         stats.setup_micros = micros_between(started, tiles_started);
 
-        // 3. Tiles in parallel; results gathered in tile order.
+        // 3. Tiles in parallel, each copying itself into the frame; errors kept in tile order.
         let num_planes = self.num_planes();
         let instances = self.instances();
         let pixels = (opts.width * opts.height) as usize;
