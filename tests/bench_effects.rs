@@ -175,6 +175,8 @@ fn series_table_has_a_row_per_effect_set() {
 fn report_has_effects_thread_figures_and_llvmpipe_rows() {
     // The smallest real run: the sphere workloads and the effects series (512 x 512, one
     // timed run each).
+    // `..default()` keeps this test compiling when BenchOptions gains a field.
+    #[allow(clippy::needless_update)]
     let opts = BenchOptions {
         filter: Some("sphere".into()),
         quick: true,
