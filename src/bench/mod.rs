@@ -18,6 +18,7 @@ use crate::diag::{Diagnostics, SourceMap};
 use crate::handwritten::{Flavor, Handwritten};
 use crate::ir::Program;
 use crate::jit::Jit;
+use crate::runtime::shading::{Fog, SceneLight, SurfaceMaterial, Texture};
 use crate::runtime::{Frame, KernelSource, Registry, Renderer, Value};
 
 #[derive(Clone, Debug)]
@@ -89,7 +90,10 @@ pub struct BenchReport {
     pub compile: Vec<CompileTiming>,
     /// Parse + check the library, compile the kernels of a one-triangle scene, render it.
     pub time_to_first_pixel_ms: f64,
-    pub not_covered: Vec<String>,
+    /// What a frame costs per shading effect (`None` when filtered out).
+    pub effects: Option<EffectsSeries>,
+    /// The JIT's one-thread figures against Mesa llvmpipe's, for the workloads it has.
+    pub llvmpipe: Vec<LlvmpipeComparison>,
 }
 
 const SIZE: u32 = 512;
@@ -275,8 +279,17 @@ fn nurbs(count: usize) -> Workload {
     }
 }
 
+/// Layers of the fill workloads and of the effects series.
+fn layers_for(quick: bool) -> usize {
+    if quick {
+        20
+    } else {
+        100
+    }
+}
+
 fn workloads(quick: bool) -> Vec<Workload> {
-    let layers = if quick { 20 } else { 100 };
+    let layers = layers_for(quick);
     let small_count = if quick { 20_000 } else { 200_000 };
     vec![
         fill(layers, Some("perspective_linear"), 4),
@@ -287,6 +300,7 @@ fn workloads(quick: bool) -> Vec<Workload> {
         fill(layers, Some("perspective_linear"), 16),
         small(small_count, 0),
         spheres(),
+        spheres_lit(),
         polygons(if quick { 500 } else { 5_000 }),
         nurbs(if quick { 20 } else { 50 }),
     ]
@@ -502,7 +516,22 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
             timings,
         });
     }
+    let effects = if effects_selected(opts.filter.as_deref()) {
+        bar.set_message("effects series");
+        Some(effects_series(
+            &program,
+            SIZE,
+            layers_for(opts.quick),
+            runs,
+            &one,
+            &all,
+            &bar,
+        )?)
+    } else {
+        None
+    };
     bar.finish_and_clear();
+    let llvmpipe = llvmpipe_comparisons(&results);
     Ok(BenchReport {
         machine: machine_description(threads),
         isa: jit.isa_summary(),
@@ -512,7 +541,8 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
         workloads: results,
         compile,
         time_to_first_pixel_ms: ttfp,
-        not_covered: vec!["effects series (the shading pass is not timed by this benchmark yet)".into()],
+        effects,
+        llvmpipe,
     })
 }
 
@@ -582,6 +612,12 @@ pub fn format_table(report: &BenchReport) -> String {
             w.thread_scaling
         ));
     }
+    s.push_str(&format_scaling_and_llvmpipe(report));
+    s.push('\n');
+    if let Some(effects) = &report.effects {
+        s.push_str(&format_effects(effects));
+        s.push('\n');
+    }
     s.push_str("JIT compile time per variant (tier 0 | tier 1, background):\n");
     for c in &report.compile {
         s.push_str(&format!(
@@ -593,10 +629,444 @@ pub fn format_table(report: &BenchReport) -> String {
         "time to first pixel (parse + check library, compile, render): {:.1} ms\n",
         report.time_to_first_pixel_ms
     ));
-    if !report.not_covered.is_empty() {
-        s.push_str("not benchmarked yet: ");
-        s.push_str(&report.not_covered.join("; "));
-        s.push('\n');
+    s
+}
+
+// ---------------------------------------------------------------------------------------
+// The effects series: what the deferred shading pass costs, effect by effect.
+// ---------------------------------------------------------------------------------------
+
+/// Which deferred-shading effects one frame of the effects series turns on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct EffectSet {
+    /// Number of lights (half directional, half positional); 0 = unlit.
+    pub lights: usize,
+    pub fog: bool,
+    pub texture: bool,
+}
+
+/// The frames of the effects series, in report order: none, each effect alone, all.
+pub const EFFECT_SETS: [(&str, EffectSet); 5] = [
+    (
+        "none (colour = Cs)",
+        EffectSet {
+            lights: 0,
+            fog: false,
+            texture: false,
+        },
+    ),
+    (
+        "8 lights",
+        EffectSet {
+            lights: 8,
+            fog: false,
+            texture: false,
+        },
+    ),
+    (
+        "fog",
+        EffectSet {
+            lights: 0,
+            fog: true,
+            texture: false,
+        },
+    ),
+    (
+        "texture",
+        EffectSet {
+            lights: 0,
+            fog: false,
+            texture: true,
+        },
+    ),
+    (
+        "8 lights + fog + texture",
+        EffectSet {
+            lights: 8,
+            fog: true,
+            texture: true,
+        },
+    ),
+];
+
+/// The fog colour of the effects series (tests check colours move towards it).
+pub const EFFECTS_FOG_COLOUR: [f64; 3] = [0.6, 0.7, 0.9];
+
+/// The scene of the effects series: `layers` full-viewport quads drawn back to front (the
+/// `fill` workload's geometry, device coordinates, every pixel visible), with a colour `Cs`,
+/// a normal `N` and texture coordinates `st` interpolated perspective-correctly; then the
+/// effects of `set`. Every set renders the same primitives with the same kernel, so frames
+/// differ only in the shading pass.
+pub fn effects_scene(program: &Arc<Program>, size: u32, layers: usize, set: EffectSet) -> Renderer {
+    let mut r = Renderer::new(program.clone());
+    r.set_image_size(size, size).expect("bench scene: image size");
+    for name in ["Cs", "N", "st"] {
+        r.material_interp(name, "perspective_linear", &[])
+            .expect("bench scene: material_interp");
+    }
+    let s = size as f32;
+    let mut rng = Lcg(7);
+    for layer in 0..layers {
+        let z = (layer + 1) as f32 / (layers + 1) as f32;
+        let corners = [(0.0, 0.0), (s, 0.0), (s, s), (0.0, s)];
+        let w: Vec<f32> = (0..4).map(|_| 1.0 + 2.0 * rng.next() as f32).collect();
+        let mut corner_values = vec![];
+        for (c, &(x, y)) in corners.iter().enumerate() {
+            let cs = [0.3 + 0.7 * rng.next(), 0.3 + 0.7 * rng.next(), 0.3 + 0.7 * rng.next()];
+            let n = [rng.next() - 0.5, rng.next() - 0.5, 1.0];
+            let st = [(c == 1 || c == 2) as u8 as f64, (c >= 2) as u8 as f64];
+            corner_values.push(([x, y, z, w[c]], cs, n, st));
+        }
+        for tri in [[0, 1, 2], [0, 2, 3]] {
+            r.begin("screen_triangle").expect("bench scene: begin");
+            let v: Vec<f32> = tri.iter().flat_map(|&c| corner_values[c].0).collect();
+            r.rast_param("screen_vertex", &Value(v))
+                .expect("bench scene: rast_param");
+            for &c in &tri {
+                let (_, cs, n, st) = corner_values[c];
+                for (name, value) in [("Cs", &cs[..]), ("N", &n[..]), ("st", &st[..])] {
+                    r.material(name, &Value(value.iter().map(|&x| x as f32).collect()))
+                        .expect("bench scene: material");
+                }
+                r.sequence_point().expect("bench scene: sequence_point");
+            }
+            r.end().expect("bench scene: end");
+        }
+    }
+    let setup = &mut r.shading_setup;
+    setup.front = SurfaceMaterial {
+        ka: 1.0,
+        kd: 0.8,
+        ks: 0.5,
+        shininess: 16.0,
+        specular_colour: [1.0; 3],
+    };
+    let f = f64::from(size);
+    for i in 0..set.lights {
+        let t = i as f64 / set.lights.max(1) as f64 * std::f64::consts::TAU;
+        let colour = [
+            0.5 + 0.5 * t.cos(),
+            0.5 + 0.5 * (t + 2.1).cos(),
+            0.5 + 0.5 * (t + 4.2).cos(),
+        ]
+        .map(|c| c * 0.3);
+        setup.lights.push(if i % 2 == 0 {
+            SceneLight::Directional {
+                towards_light: [t.cos() * 0.5, t.sin() * 0.5, 1.0],
+                colour,
+            }
+        } else {
+            SceneLight::Positional {
+                position: [f * (0.5 + 0.4 * t.cos()), f * (0.5 + 0.4 * t.sin()), 2.0],
+                colour,
+                attenuation: [1.0, 0.0, 0.0],
+            }
+        });
+    }
+    if set.fog {
+        // Device coordinates: distance from the eye is 1 - z (the nearest layer is at
+        // z = layers / (layers + 1)), so fog from 0 to 0.5 tints every visible pixel.
+        setup.fog = Some(Fog {
+            colour: EFFECTS_FOG_COLOUR,
+            start: 0.0,
+            end: 0.5,
+        });
+    }
+    if set.texture {
+        setup.texture = Some(Texture {
+            param: "st".into(),
+            scale: 8.0,
+            dark: 0.5,
+        });
+    }
+    r
+}
+
+/// One frame of the effects series, timed (medians over the interleaved runs).
+#[derive(Clone, Debug, Serialize)]
+pub struct EffectsRow {
+    pub effects: String,
+    pub set: EffectSet,
+    /// Whole frame (bound pass, tiles, shading), one thread.
+    pub frame_ms: f64,
+    /// Of which the tile kernels (the same primitives in every row).
+    pub kernels_ms: f64,
+    /// Of which the deferred shading pass (0 when the scene turns no effect on).
+    pub shading_ms: f64,
+    /// Frame time minus the `none` frame's, and the ratio to it.
+    pub extra_ms: f64,
+    pub ratio_to_none: f64,
+    /// Whole frame with all threads, and 1-thread time over it.
+    pub frame_ms_all_threads: f64,
+    pub shading_ms_all_threads: f64,
+    pub thread_scaling: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct EffectsSeries {
+    pub size: u32,
+    pub layers: usize,
+    pub threads: usize,
+    pub rows: Vec<EffectsRow>,
+}
+
+/// Whether the effects series runs under `filter` (any of its row names, or "effects").
+fn effects_selected(filter: Option<&str>) -> bool {
+    filter.is_none_or(|f| {
+        "effects".contains(f)
+            || EFFECT_SETS
+                .iter()
+                .any(|(name, _)| format!("effects {name}").contains(f))
+    })
+}
+
+/// Render the effects series at `size` x `size`: first every frame once on each pool, checking
+/// that the thread count changes nothing and that every effect changes the colours (a
+/// benchmark of an effect that does nothing measures nothing); then `runs` interleaved rounds
+/// (every set, one thread then all threads) and the medians.
+pub fn effects_series(
+    program: &Arc<Program>,
+    size: u32,
+    layers: usize,
+    runs: usize,
+    one: &rayon::ThreadPool,
+    all: &rayon::ThreadPool,
+    bar: &ProgressBar,
+) -> Result<EffectsSeries, String> {
+    let mut jit = Jit::new(program.clone()).map_err(|e| e.to_string())?;
+    let scenes: Vec<Renderer> = EFFECT_SETS
+        .iter()
+        .map(|&(_, set)| effects_scene(program, size, layers, set))
+        .collect();
+    bar.inc_length((EFFECT_SETS.len() * (2 + 2 * runs)) as u64);
+    let render_timed = |r: &Renderer, jit: &mut Jit, pool: &rayon::ThreadPool| {
+        let started = Instant::now();
+        let out = pool.install(|| r.render(jit));
+        let ms = started.elapsed().as_secs_f64() * 1e3;
+        if out.diags.has_errors() {
+            return Err(format!("effects series: {:?}", out.diags.items));
+        }
+        Ok((out, ms))
+    };
+
+    let mut none_colours: Option<Vec<[f32; 3]>> = None;
+    for ((name, set), r) in EFFECT_SETS.iter().zip(&scenes) {
+        let (single, _) = render_timed(r, &mut jit, one)?;
+        let (multi, _) = render_timed(r, &mut jit, all)?;
+        if !same_frame(&single.frame, &multi.frame) || single.frame.colors != multi.frame.colors {
+            return Err(format!("effects {name}: the frame depends on the thread count"));
+        }
+        let colours = rendered_colours(&single.frame);
+        match &none_colours {
+            None => none_colours = Some(colours),
+            Some(none) => {
+                if single.effects.lit != (set.lights > 0)
+                    || single.effects.fog != set.fog
+                    || single.effects.texture != set.texture
+                    || colours == *none
+                {
+                    return Err(format!(
+                        "effects {name}: the shading pass did not change the colours (effects run: {})",
+                        single.effects
+                    ));
+                }
+            }
+        }
+        bar.inc(2);
+    }
+
+    // Interleaved timed rounds: [set][one, all] -> (frame ms, kernels ms, shading ms).
+    let mut times: Vec<[Vec<[f64; 3]>; 2]> = vec![Default::default(); scenes.len()];
+    for _ in 0..runs {
+        for (r, t) in scenes.iter().zip(times.iter_mut()) {
+            for (slot, pool) in [one, all].into_iter().enumerate() {
+                let (out, ms) = render_timed(r, &mut jit, pool)?;
+                let s = &out.stats;
+                t[slot].push([ms, s.tiles_micros as f64 / 1e3, s.shade_micros as f64 / 1e3]);
+                bar.inc(1);
+            }
+        }
+    }
+    let med = |v: &[[f64; 3]], k: usize| median(v.iter().map(|x| x[k]).collect());
+    let none_ms = med(&times[0][0], 0);
+    let rows = EFFECT_SETS
+        .iter()
+        .zip(&times)
+        .map(|(&(name, set), [t1, tn])| {
+            let frame_ms = med(t1, 0);
+            let frame_ms_all_threads = med(tn, 0);
+            EffectsRow {
+                effects: name.to_string(),
+                set,
+                frame_ms,
+                kernels_ms: med(t1, 1),
+                shading_ms: med(t1, 2),
+                extra_ms: frame_ms - none_ms,
+                ratio_to_none: frame_ms / none_ms,
+                frame_ms_all_threads,
+                shading_ms_all_threads: med(tn, 2),
+                thread_scaling: frame_ms / frame_ms_all_threads,
+            }
+        })
+        .collect();
+    Ok(EffectsSeries {
+        size,
+        layers,
+        threads: all.current_num_threads(),
+        rows,
+    })
+}
+
+/// Every pixel's displayed colour (clamped), row-major.
+fn rendered_colours(frame: &Frame) -> Vec<[f32; 3]> {
+    (0..frame.height)
+        .flat_map(|y| (0..frame.width).map(move |x| (x, y)))
+        .map(|(x, y)| frame.color_at(x, y))
+        .collect()
+}
+
+/// The effects series as a text table.
+pub fn format_effects(series: &EffectsSeries) -> String {
+    let mut s = format!(
+        "effects series: {size}x{size}, {layers} full-viewport layers (Cs, N, st perspective_linear), JIT; \
+         frame = bound pass + tile kernels (written straight into the frame) + deferred shading\n",
+        size = series.size,
+        layers = series.layers
+    );
+    s.push_str(&format!(
+        "{:<26} {:>9} {:>10} {:>10} {:>9} {:>8} {:>11} {:>10} {:>9}\n",
+        "effects",
+        "frame ms",
+        "kernels ms",
+        "shading ms",
+        "+ms",
+        "x none",
+        format!("{}t frame ms", series.threads),
+        format!("{}t shade ms", series.threads),
+        format!("{}t/1t", series.threads)
+    ));
+    for r in &series.rows {
+        s.push_str(&format!(
+            "{:<26} {:>9.2} {:>10.2} {:>10.2} {:>+9.2} {:>7.2}x {:>11.2} {:>10.2} {:>8.2}x\n",
+            r.effects,
+            r.frame_ms,
+            r.kernels_ms,
+            r.shading_ms,
+            r.extra_ms,
+            r.ratio_to_none,
+            r.frame_ms_all_threads,
+            r.shading_ms_all_threads,
+            r.thread_scaling
+        ));
+    }
+    s
+}
+
+// ---------------------------------------------------------------------------------------
+// Thread scaling and the llvmpipe reference figures.
+// ---------------------------------------------------------------------------------------
+
+/// Mesa llvmpipe (LLVM JIT, 8-wide AVX2, one rasterizer thread) on the same workloads, as
+/// stated in issue 5: (workload, figure, unit). Units: `Mpix/s` = depth writes (hit pixels)
+/// per second, `Mprim/s` = primitives per second.
+pub const LLVMPIPE: [(&str, f64, &str); 6] = [
+    ("fill perspective_linear K=4", 746.0, "Mpix/s"),
+    ("fill linear K=4", 842.0, "Mpix/s"),
+    ("fill none K=0", 976.0, "Mpix/s"),
+    ("small perspective_linear K=4", 2.1, "Mprim/s"),
+    ("sphere implicit N", 88.0, "Mpix/s"),
+    ("sphere lit", 88.0, "Mpix/s"),
+];
+
+/// The JIT's one-thread figure on a workload against llvmpipe's.
+#[derive(Clone, Debug, Serialize)]
+pub struct LlvmpipeComparison {
+    pub workload: String,
+    pub unit: String,
+    pub llvmpipe: f64,
+    pub jit_one_thread: f64,
+    /// `jit_one_thread / llvmpipe` (above 1: faster than llvmpipe).
+    pub ratio: f64,
+}
+
+/// Compare the measured workloads that llvmpipe has a figure for.
+pub fn llvmpipe_comparisons(results: &[WorkloadResult]) -> Vec<LlvmpipeComparison> {
+    LLVMPIPE
+        .iter()
+        .filter_map(|&(name, reference, unit)| {
+            let w = results.iter().find(|w| w.workload.starts_with(name))?;
+            let t = w.timings.iter().find(|t| t.kernel == "JIT" && t.threads == 1)?;
+            let measured = if unit == "Mprim/s" {
+                t.mprims_per_s
+            } else {
+                t.mpixels_per_s
+            };
+            Some(LlvmpipeComparison {
+                workload: w.workload.clone(),
+                unit: unit.to_string(),
+                llvmpipe: reference,
+                jit_one_thread: measured,
+                ratio: measured / reference,
+            })
+        })
+        .collect()
+}
+
+/// `sphere lit`: the sphere workload with one light and a specular highlight, so the timed
+/// frame includes the deferred shading pass (llvmpipe's sphere figure is a lit fragment
+/// shader). Built from [`spheres`] so it shares its geometry and kernels.
+fn spheres_lit() -> Workload {
+    let mut w = spheres();
+    w.name = "sphere lit (diffuse + specular)".into();
+    let geometry = std::mem::replace(&mut w.build, Box::new(|_| {}));
+    w.build = Box::new(move |r| {
+        geometry(r);
+        r.shading_setup.front = SurfaceMaterial {
+            ka: 1.0,
+            kd: 0.8,
+            ks: 0.5,
+            shininess: 32.0,
+            specular_colour: [1.0; 3],
+        };
+        r.shading_setup.lights.push(SceneLight::Directional {
+            towards_light: [0.4, 0.6, 1.0],
+            colour: [1.0; 3],
+        });
+    });
+    w
+}
+
+/// Per workload: JIT one thread, all threads, and the ratio; then llvmpipe's figures.
+fn format_scaling_and_llvmpipe(report: &BenchReport) -> String {
+    let mut s = format!(
+        "thread scaling (JIT, median ms per whole frame: bound pass, tile kernels, copy into the frame, and the \
+         deferred shading pass where the scene has effects, as in `sphere lit`): 1 thread vs {} threads\n",
+        report.threads
+    );
+    for w in &report.workloads {
+        let ms = |n: usize| {
+            w.timings
+                .iter()
+                .find(|t| t.kernel == "JIT" && t.threads == n)
+                .map(|t| t.median_ms)
+        };
+        if let (Some(one), Some(all)) = (ms(1), ms(report.threads)) {
+            s.push_str(&format!(
+                "  {:<34} {:>9.2} {:>9.2} {:>6.2}x\n",
+                w.workload, one, all, w.thread_scaling
+            ));
+        }
+    }
+    if !report.llvmpipe.is_empty() {
+        s.push_str(
+            "\nagainst Mesa llvmpipe (issue 5's figures: 8-wide AVX2, one rasterizer thread), JIT one thread:\n",
+        );
+        for c in &report.llvmpipe {
+            s.push_str(&format!(
+                "  {:<34} {:>9.1} {:<8} llvmpipe {:>6.1} {:<8} {:>6.2}x llvmpipe\n",
+                c.workload, c.jit_one_thread, c.unit, c.llvmpipe, c.unit, c.ratio
+            ));
+        }
     }
     s
 }

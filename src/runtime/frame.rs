@@ -1,21 +1,25 @@
 //! Rendering a frame: compile, bound, bin, render tiles in parallel, shade, write images.
 //!
 //! 1. Every (primitive, key) the instances need is compiled once through the [`KernelSource`].
-//! 2. Each instance's kernel runs once in `MODE_BOUND` on an empty tile with no buffers; its
-//!    recorded screen bound (conservative) bins it into the tiles it overlaps. A NaN bound,
-//!    or no bound at all, puts it in no tile.
-//! 3. Tiles render in parallel with rayon. A tile owns its depth buffer (u32, 0 = farthest),
-//!    G-buffer planes (f32, 0) and write counts, runs its instances in submission order in
-//!    `MODE_RENDER` with fresh fuel each, and hands its buffers back. Tiles are gathered in
-//!    tile order and copied into the frame sequentially, so the result is bit-identical
-//!    whatever the number of threads.
+//! 2. Each instance's kernel runs once in `MODE_BOUND` on an empty tile with no buffers
+//!    (instances in parallel, binned afterwards in submission order); its recorded screen
+//!    bound (conservative) bins it into the tiles it overlaps. A NaN bound, or no bound at
+//!    all, puts it in no tile.
+//! 3. Tiles render in parallel with rayon. A tile task renders into its worker's scratch
+//!    buffers (depth u32 with 0 = farthest, G-buffer planes f32, write counts; zeroed per
+//!    tile, reused from tile to tile), running its instances in submission order in
+//!    `MODE_RENDER` with fresh fuel each, then copies the tile into the frame through row
+//!    slices it alone owns (tiles are disjoint). Every pixel is computed by one tile from the
+//!    same zeroed start whatever the schedule, so the result is bit-identical whatever the
+//!    number of threads, and no serial pass gathers the tiles.
 //! 4. Kernel run-time errors become warnings at the failing site of the primitive source,
-//!    once per (site, error).
+//!    once per (site, error), in tile order.
 //!
-//! Shading is minimal for now: a pixel whose depth was written (depth != 0; a write of exactly
-//! the far value 0 is indistinguishable from none, and a `Z > depth` test never passes there
-//! anyway) shows the `Cs` shading parameter clamped to [0, 1] (white without one, as
-//! OpenGL's default colour), other pixels the background.
+//! Then the deferred shading pass ([`super::shading`]) when the scene turns an effect on,
+//! rows in parallel. Without one, a pixel whose depth was written (depth != 0; a write of
+//! exactly the far value 0 is indistinguishable from none, and a `Z > depth` test never
+//! passes there anyway) shows the `Cs` shading parameter clamped to [0, 1] (white without
+//! one, as OpenGL's default colour), other pixels the background.
 
 use std::collections::{BTreeSet, HashMap};
 use std::sync::Arc;
@@ -71,6 +75,13 @@ pub struct RenderStats {
     pub kernels_compiled: usize,
     pub compile_micros: u64,
     pub render_micros: u64,
+    /// Of `render_micros`: compiling (or looking up) kernels, the bound pass and binning
+    /// (serial).
+    pub setup_micros: u64,
+    /// Of `render_micros`: allocating the frame and rendering the tiles into it (parallel).
+    pub tiles_micros: u64,
+    /// Of `render_micros`: the deferred shading pass (0 when the scene turns no effect on).
+    pub shade_micros: u64,
     /// Instance-tile pairs rendered (an instance counts once per tile it was binned into).
     pub tile_invocations: usize,
 }
@@ -103,12 +114,44 @@ struct Tile {
     y1: u32,
 }
 
-struct TileResult {
+/// A rayon worker's tile buffers, reused from tile to tile (cleared, not reallocated):
+/// depth (u32, 0 = farthest), G-buffer planes and write counts, each `stride * rows`.
+#[derive(Default)]
+struct TileScratch {
     depth: Vec<u32>,
     gbuf: Vec<f32>,
     counts: Vec<u32>,
-    /// (instance, error code, site) of each failing invocation, in order.
-    errors: Vec<(usize, u32, u32)>,
+}
+
+/// Where one tile's pixels go in the frame: for every frame buffer, one mutable slice per
+/// tile row (`tile.x1 - tile.x0` long). Tiles are disjoint, so every tile task owns its
+/// slices and writes them while the others run.
+struct TileTarget<'f> {
+    depth: Vec<&'f mut [u32]>,
+    /// `[plane][row]`.
+    planes: Vec<Vec<&'f mut [f32]>>,
+    /// Empty when writes are not counted.
+    counts: Vec<&'f mut [u32]>,
+}
+
+/// Cut a `width`-wide row-major buffer into each tile's row slices, tiles in
+/// [`tile_grid`] order (row-major, `tile_size` square, cut at the right and bottom edges).
+fn tile_rows<T>(buf: &mut [T], width: usize, tile_size: usize, tiles: usize) -> Vec<Vec<&mut [T]>> {
+    let mut out: Vec<Vec<&mut [T]>> = (0..tiles).map(|_| Vec::with_capacity(tile_size)).collect();
+    if width == 0 || tile_size == 0 {
+        return out;
+    }
+    let tiles_x = width.div_ceil(tile_size);
+    for (y, mut row) in buf.chunks_mut(width).enumerate() {
+        let first = (y / tile_size) * tiles_x;
+        for slot in out.iter_mut().skip(first).take(tiles_x) {
+            let len = tile_size.min(row.len());
+            let (piece, rest) = std::mem::take(&mut row).split_at_mut(len);
+            slot.push(piece);
+            row = rest;
+        }
+    }
+    out
 }
 
 impl Renderer {
@@ -164,9 +207,18 @@ impl Renderer {
         let tiles_x = opts.width.div_ceil(opts.tile_size) as usize;
         let mut bins: Vec<Vec<usize>> = vec![vec![]; tiles.len()];
         let mut errors: Vec<(usize, u32, u32)> = vec![];
-        for (i, (inst, kernel)) in self.instances().iter().zip(&ready).enumerate() {
-            let Some(kernel) = kernel else { continue };
-            let (bound, error) = run_bound(kernel, inst, opts);
+        // The bound runs are independent (each on its own context): run them in parallel,
+        // in chunks so a scene of tiny primitives is not one rayon task per instance, and
+        // bin serially in submission order.
+        let bounds: Vec<_> = self
+            .instances()
+            .par_iter()
+            .zip(ready.par_iter())
+            .with_min_len(256)
+            .map(|(inst, kernel)| kernel.as_ref().map(|k| run_bound(k, inst, opts)))
+            .collect();
+        for (i, outcome) in bounds.into_iter().enumerate() {
+            let Some((bound, error)) = outcome else { continue };
             if let Some((code, site)) = error {
                 errors.push((i, code, site));
             }
@@ -179,23 +231,23 @@ impl Renderer {
             }
         }
         stats.tile_invocations = bins.iter().map(Vec::len).sum();
+        let tiles_started = Instant::now();
+        stats.setup_micros = micros_between(started, tiles_started);
 
-        // 3. Tiles in parallel; results gathered in tile order.
+        // 3. Tiles in parallel, each copying itself into the frame; errors kept in tile order.
         let num_planes = self.num_planes();
         let instances = self.instances();
-        let results: Vec<TileResult> = tiles
-            .par_iter()
-            .zip(bins.par_iter())
-            .map(|(tile, bin)| render_tile(tile, bin, instances, &ready, num_planes, opts))
-            .collect();
-
+        let pixels = (opts.width * opts.height) as usize;
         let mut frame = Frame {
             width: opts.width,
             height: opts.height,
             background: opts.background,
-            depth: vec![0; (opts.width * opts.height) as usize],
-            planes: vec![vec![0.0; (opts.width * opts.height) as usize]; num_planes as usize],
-            write_counts: opts.count_writes.then(|| vec![0; (opts.width * opts.height) as usize]),
+            // One `vec![0; n]` per buffer (not `vec![plane; k]`, which clones by copying): the
+            // allocator hands back untouched zero pages, first written by the tile tasks, in
+            // parallel.
+            depth: vec![0; pixels],
+            planes: (0..num_planes).map(|_| vec![0.0; pixels]).collect(),
+            write_counts: opts.count_writes.then(|| vec![0; pixels]),
             params: self
                 .shading_params()
                 .iter()
@@ -207,10 +259,19 @@ impl Renderer {
                 .collect(),
             colors: None,
         };
-        for (tile, result) in tiles.iter().zip(results) {
-            frame.copy_tile(tile, &result);
-            errors.extend(result.errors);
-        }
+        let targets = frame.tile_targets(tiles.len(), opts.tile_size);
+        let tile_errors: Vec<Vec<(usize, u32, u32)>> = tiles
+            .par_iter()
+            .zip(bins.par_iter())
+            .zip(targets.into_par_iter())
+            .map_init(TileScratch::default, |scratch, ((tile, bin), target)| {
+                render_tile(tile, bin, instances, &ready, num_planes, opts, scratch, target)
+            })
+            .collect();
+        errors.extend(tile_errors.into_iter().flatten());
+
+        let shade_started = Instant::now();
+        stats.tiles_micros = micros_between(tiles_started, shade_started);
 
         // Deferred shading over the visible pixels, compiled for the scene's effects.
         let effects = self.shading_setup.effects();
@@ -222,6 +283,7 @@ impl Renderer {
         if let Some(shader) = Shader::new(&self.shading_setup, &spaces) {
             frame.colors = Some(frame.shade(&shader, self.shading_setup.texture.as_ref().map(|t| t.param.as_str())));
         }
+        stats.shade_micros = shade_started.elapsed().as_micros() as u64;
 
         // 4. Run-time errors, once per (site, code), in a thread-independent order.
         report_runtime_errors(&program, &errors, instances, &mut diags);
@@ -234,6 +296,10 @@ impl Renderer {
             effects,
         }
     }
+}
+
+fn micros_between(from: Instant, to: Instant) -> u64 {
+    to.duration_since(from).as_micros() as u64
 }
 
 fn compile_one(
@@ -382,6 +448,9 @@ fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<(usize, usi
     ))
 }
 
+/// Render one tile's instances into `scratch`, then copy the tile into the frame through
+/// `target`; returns the tile's run-time errors (instance, code, site) in order.
+#[allow(clippy::too_many_arguments)]
 fn render_tile(
     tile: &Tile,
     bin: &[usize],
@@ -389,17 +458,21 @@ fn render_tile(
     ready: &[Option<Arc<Kernel>>],
     num_planes: u32,
     opts: &RenderOptions,
-) -> TileResult {
+    scratch: &mut TileScratch,
+    mut target: TileTarget<'_>,
+) -> Vec<(usize, u32, u32)> {
     let stride = tile_stride(tile.x1 - tile.x0);
     let rows = tile.y1 - tile.y0;
     let plane_len = (stride * rows) as usize;
-    let mut depth = vec![0u32; plane_len];
-    let mut gbuf = vec![0f32; plane_len * num_planes as usize];
-    let mut counts = if opts.count_writes {
-        vec![0u32; plane_len]
-    } else {
-        vec![]
-    };
+    // Every tile starts from zeroed buffers of its own size, exactly as if freshly allocated.
+    fn reset<T: Copy + Default>(buf: &mut Vec<T>, len: usize) {
+        buf.clear();
+        buf.resize(len, T::default());
+    }
+    reset(&mut scratch.depth, plane_len);
+    reset(&mut scratch.gbuf, plane_len * num_planes as usize);
+    reset(&mut scratch.counts, if opts.count_writes { plane_len } else { 0 });
+    let (depth, gbuf, counts) = (&mut scratch.depth, &mut scratch.gbuf, &mut scratch.counts);
     let mut errors = vec![];
     for &i in bin {
         let (Some(kernel), inst) = (&ready[i], &instances[i]) else {
@@ -421,18 +494,28 @@ fn render_tile(
         // was compiled with count_writes == opts.count_writes, so it touches write_count
         // only when that buffer is full size. The argument block is long enough for the
         // kernel's layout (checked in `render`). Nothing else aliases these buffers while
-        // the kernel runs: the tile is owned by this rayon task.
+        // the kernel runs: the scratch belongs to this rayon task.
         unsafe { (kernel.entry)(&mut ctx, inst.args.as_ptr()) };
         if ctx.error != 0 {
             errors.push((i, ctx.error, ctx.error_site));
         }
     }
-    TileResult {
-        depth,
-        gbuf,
-        counts,
-        errors,
+    // Into the frame, row by row (the tile's stride may exceed its width).
+    let stride = stride as usize;
+    let copy_rows = |dst: &mut [&mut [u32]], src: &[u32]| {
+        for (row, d) in dst.iter_mut().enumerate() {
+            d.copy_from_slice(&src[row * stride..row * stride + d.len()]);
+        }
+    };
+    copy_rows(&mut target.depth, depth);
+    copy_rows(&mut target.counts, counts);
+    for (p, dst) in target.planes.iter_mut().enumerate() {
+        let plane = &gbuf[p * plane_len..(p + 1) * plane_len];
+        for (row, d) in dst.iter_mut().enumerate() {
+            d.copy_from_slice(&plane[row * stride..row * stride + d.len()]);
+        }
     }
+    errors
 }
 
 fn report_runtime_errors(
@@ -462,22 +545,26 @@ fn report_runtime_errors(
 }
 
 impl Frame {
-    fn copy_tile(&mut self, tile: &Tile, result: &TileResult) {
-        let stride = tile_stride(tile.x1 - tile.x0) as usize;
-        let plane_len = stride * (tile.y1 - tile.y0) as usize;
-        let w = (tile.x1 - tile.x0) as usize;
-        for row in 0..(tile.y1 - tile.y0) as usize {
-            let src = row * stride;
-            let dst = (tile.y0 as usize + row) * self.width as usize + tile.x0 as usize;
-            self.depth[dst..dst + w].copy_from_slice(&result.depth[src..src + w]);
-            for (p, plane) in self.planes.iter_mut().enumerate() {
-                let s = p * plane_len + src;
-                plane[dst..dst + w].copy_from_slice(&result.gbuf[s..s + w]);
-            }
-            if let Some(counts) = &mut self.write_counts {
-                counts[dst..dst + w].copy_from_slice(&result.counts[src..src + w]);
-            }
-        }
+    /// Every tile's [`TileTarget`] into this frame's buffers, in [`tile_grid`] order.
+    fn tile_targets(&mut self, tiles: usize, tile_size: u32) -> Vec<TileTarget<'_>> {
+        let (width, ts) = (self.width as usize, tile_size as usize);
+        let mut depth = tile_rows(&mut self.depth, width, ts, tiles).into_iter();
+        let mut counts = self
+            .write_counts
+            .as_mut()
+            .map(|c| tile_rows(c, width, ts, tiles).into_iter());
+        let mut planes: Vec<_> = self
+            .planes
+            .iter_mut()
+            .map(|p| tile_rows(p, width, ts, tiles).into_iter())
+            .collect();
+        (0..tiles)
+            .map(|_| TileTarget {
+                depth: depth.next().unwrap_or_default(),
+                planes: planes.iter_mut().map(|p| p.next().unwrap_or_default()).collect(),
+                counts: counts.as_mut().and_then(|c| c.next()).unwrap_or_default(),
+            })
+            .collect()
     }
 
     fn index(&self, x: u32, y: u32) -> Option<usize> {
@@ -549,18 +636,24 @@ impl Frame {
         self.colors.as_ref().map(|c| c[i])
     }
 
-    /// Run `shader` over every written pixel; unwritten pixels get zero.
+    /// Run `shader` over every written pixel; unwritten pixels get zero. Rows are shaded in
+    /// parallel (each pixel's colour depends on that pixel's inputs alone, so the result is
+    /// the same for any thread count).
     fn shade(&self, shader: &Shader, texture_param: Option<&str>) -> Vec<[f32; 3]> {
         let get = |name: &str| self.param(name).cloned();
         let (cs, normal, facing) = (get("Cs"), get(super::api::NORMAL_PARAM), get(super::api::FACING_PARAM));
         let st = texture_param.and_then(get);
         let mut colors = vec![[0f32; 3]; self.depth.len()];
-        // Row by row: bounded memory for the inputs, same order on every run.
-        for y in 0..self.height {
-            let mut inputs = vec![];
-            let mut slots = vec![];
-            for x in 0..self.width {
-                let i = (y * self.width + x) as usize;
+        let width = self.width as usize;
+        if width == 0 {
+            return colors;
+        }
+        colors.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+            // Per row: bounded memory for the inputs.
+            let mut inputs = Vec::with_capacity(width);
+            let mut slots = Vec::with_capacity(width);
+            for (x, _) in row.iter().enumerate() {
+                let i = y * width + x;
                 if self.depth[i] == 0 {
                     continue;
                 }
@@ -571,8 +664,8 @@ impl Frame {
                     _ => [1.0; 3],
                 };
                 inputs.push(PixelInputs {
-                    x,
-                    y,
+                    x: x as u32,
+                    y: y as u32,
                     depth: f64::from(self.depth[i]) / 4294967296.0,
                     cs,
                     normal: normal
@@ -591,14 +684,14 @@ impl Frame {
                         .filter(|p| p.components >= 2)
                         .map(|p| [plane(p, 0), plane(p, 1)]),
                 });
-                slots.push(i);
+                slots.push(x);
             }
             let mut out = vec![[0f32; 3]; inputs.len()];
             shader.shade(&inputs, &mut out);
-            for (i, c) in slots.into_iter().zip(out) {
-                colors[i] = c;
+            for (x, c) in slots.into_iter().zip(out) {
+                row[x] = c;
             }
-        }
+        });
         colors
     }
 
@@ -693,6 +786,30 @@ mod tests {
             rects,
             vec![(0, 0, 64, 64), (64, 0, 100, 64), (0, 64, 64, 70), (64, 64, 100, 70)]
         );
+    }
+
+    #[test]
+    fn tile_rows_cut_the_frame_like_the_tile_grid() {
+        for (w, h, ts) in [(100, 70, 64), (9, 7, 5), (64, 64, 64), (5, 3, 8)] {
+            let tiles = tile_grid(&opts(w, h, ts));
+            let mut buf: Vec<usize> = (0..(w * h) as usize).collect();
+            let rows = tile_rows(&mut buf, w as usize, ts as usize, tiles.len());
+            assert_eq!(rows.len(), tiles.len());
+            for (tile, rows) in tiles.iter().zip(&rows) {
+                assert_eq!(rows.len(), (tile.y1 - tile.y0) as usize, "{w}x{h}/{ts}");
+                for (r, row) in rows.iter().enumerate() {
+                    let y = tile.y0 as usize + r;
+                    let expected: Vec<usize> = (tile.x0..tile.x1).map(|x| y * w as usize + x as usize).collect();
+                    assert_eq!(
+                        &row[..],
+                        &expected[..],
+                        "{w}x{h}/{ts} tile at ({}, {})",
+                        tile.x0,
+                        tile.y0
+                    );
+                }
+            }
+        }
     }
 
     #[test]

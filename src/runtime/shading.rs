@@ -23,6 +23,7 @@ use glam::{DMat4, DVec3, DVec4};
 
 use crate::pipeline::face::Facing;
 use crate::pipeline::lighting::{Eye, Light, LightKind, LightingSetup, Material, Sample};
+use crate::pipeline::real::{add3, dot3, length3, normalize3, scale3, sub3};
 use crate::pipeline::transform::NormalMatrix;
 
 /// A light as the scene gives it, in world coordinates.
@@ -286,18 +287,19 @@ impl Shader {
             .collect();
         let front = material(&setup.front);
         let back = setup.back.as_ref().map(material).unwrap_or(front);
+        let lighting = LightingSetup {
+            front,
+            back,
+            ambient_light: setup.ambient_light,
+            lights,
+            eye,
+        };
         Some(Shader {
             effects,
             space: setup.space,
             space_from_device,
             normals_from_lighting: NormalMatrix::of(&space_from_lighting),
-            setup: LightingSetup {
-                front,
-                back,
-                ambient_light: setup.ambient_light,
-                lights,
-                eye,
-            },
+            setup: lighting,
             eye,
             near_point: to_space(near_centre),
             fog: setup.fog,
@@ -364,13 +366,8 @@ impl Shader {
                     normal,
                 };
                 let facing = px.facing.unwrap_or_else(|| self.setup.facing(&sample));
-                let lit = self.setup.shade_facing(&sample, facing);
                 // Ambient and diffuse take the base colour; the specular highlight does not.
-                let material = match facing {
-                    Facing::Front => &self.setup.front,
-                    Facing::Back => &self.setup.back,
-                };
-                let unlit_spec = lit_specular_share(&self.setup, &sample, facing, material);
+                let (lit, unlit_spec) = phong_and_specular_share(&self.setup, &sample, facing);
                 c = [0, 1, 2].map(|k| (lit[k] - unlit_spec[k]) * base[k] + unlit_spec[k]);
             }
             if FOG {
@@ -398,23 +395,150 @@ impl Shader {
     }
 }
 
-/// The specular part of the Phong sum at `s` (so the caller can leave it untinted).
-fn lit_specular_share(
-    setup: &LightingSetup<f64>,
-    s: &Sample<f64>,
-    facing: Facing,
-    material: &Material<f64>,
-) -> [f64; 3] {
-    if material.specular == [0.0; 3] {
-        return [0.0; 3];
-    }
-    let mut only_specular = setup.clone();
-    let m = Material {
-        ambient: [0.0; 3],
-        diffuse: [0.0; 3],
-        ..*material
+/// The Phong colour at `s` (`LightingSetup::shade_facing`) and its specular share alone (the
+/// same sum with the material's ambient and diffuse zeroed; zero without specular), in one
+/// pass over the lights. Each sum repeats `shade_facing`'s operations in its order, so both
+/// are bit-identical to evaluating `shade_facing` twice (the unit test checks), while the
+/// shared work (normal, eye vector, light vectors, attenuation, the power) is done once.
+fn phong_and_specular_share(setup: &LightingSetup<f64>, s: &Sample<f64>, facing: Facing) -> ([f64; 3], [f64; 3]) {
+    let mul3 = |a: [f64; 3], b: [f64; 3]| [a[0] * b[0], a[1] * b[1], a[2] * b[2]];
+    let material = match facing {
+        Facing::Front => &setup.front,
+        Facing::Back => &setup.back,
     };
-    only_specular.front = m;
-    only_specular.back = m;
-    only_specular.shade_facing(s, facing)
+    let with_specular = material.specular != [0.0; 3];
+    let mut colour = mul3(material.ambient, setup.ambient_light);
+    let mut specular = mul3([0.0; 3], setup.ambient_light);
+    let Some(mut n) = normalize3(s.normal) else {
+        return (colour, if with_specular { specular } else { [0.0; 3] });
+    };
+    if facing == Facing::Back {
+        n = scale3(n, -1.0);
+    }
+    let v = setup.towards_eye(s.point);
+    for light in &setup.lights {
+        let (l, att) = match light.kind {
+            LightKind::Directional { towards_light } => (normalize3(towards_light), 1.0),
+            LightKind::Positional { position, attenuation } => {
+                let to_light = sub3(position, s.point);
+                let d = length3(to_light);
+                let denom = attenuation[0] + attenuation[1] * d + attenuation[2] * d * d;
+                let att = if denom > 0.0 && denom.is_finite() {
+                    1.0 / denom
+                } else {
+                    1.0
+                };
+                (normalize3(to_light), att)
+            }
+        };
+        let Some(l) = l else { continue };
+        let n_dot_l = dot3(n, l);
+        if n_dot_l <= 0.0 {
+            continue;
+        }
+        let mut term = scale3(material.diffuse, n_dot_l);
+        let mut term_specular = scale3([0.0; 3], n_dot_l);
+        if let Some(v) = v {
+            let r = sub3(scale3(n, 2.0 * n_dot_l), l);
+            let r_dot_v = dot3(r, v);
+            if r_dot_v > 0.0 {
+                let highlight = scale3(material.specular, r_dot_v.powf(material.shininess));
+                term = add3(term, highlight);
+                term_specular = add3(term_specular, highlight);
+            }
+        }
+        colour = add3(colour, scale3(mul3(term, light.colour), att));
+        specular = add3(specular, scale3(mul3(term_specular, light.colour), att));
+    }
+    (colour, if with_specular { specular } else { [0.0; 3] })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The specular share as the two-call path computes it: `shade_facing` on a copy of the
+    /// setup whose materials keep only the specular term.
+    fn specular_share_reference(setup: &LightingSetup<f64>, s: &Sample<f64>, facing: Facing) -> [f64; 3] {
+        let material = match facing {
+            Facing::Front => setup.front,
+            Facing::Back => setup.back,
+        };
+        if material.specular == [0.0; 3] {
+            return [0.0; 3];
+        }
+        let m = Material {
+            ambient: [0.0; 3],
+            diffuse: [0.0; 3],
+            ..material
+        };
+        LightingSetup {
+            front: m,
+            back: m,
+            ..setup.clone()
+        }
+        .shade_facing(s, facing)
+    }
+
+    #[test]
+    fn fused_phong_is_bit_identical_to_two_shade_calls() {
+        let mut seed = 0x9e3779b97f4a7c15u64;
+        let mut next = move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 4.0 - 2.0
+        };
+        let mut v3 = || [next(), next(), next()];
+        let mut checked = 0;
+        for case in 0..400 {
+            let material = |spec: bool, v: &mut dyn FnMut() -> [f64; 3]| Material {
+                ambient: v().map(f64::abs),
+                diffuse: v().map(f64::abs),
+                specular: if spec { v().map(f64::abs) } else { [0.0; 3] },
+                shininess: 1.0 + v()[0].abs() * 20.0,
+            };
+            let lights = (0..case % 9)
+                .map(|i| Light {
+                    kind: if i % 2 == 0 {
+                        LightKind::Directional { towards_light: v3() }
+                    } else {
+                        LightKind::Positional {
+                            position: v3(),
+                            attenuation: [1.0, v3()[0].abs(), if i % 3 == 0 { -5.0 } else { 0.1 }],
+                        }
+                    },
+                    colour: v3().map(f64::abs),
+                })
+                .collect();
+            let setup = LightingSetup {
+                front: material(case % 4 != 0, &mut v3),
+                back: material(case % 5 != 0, &mut v3),
+                ambient_light: v3().map(f64::abs),
+                lights,
+                eye: if case % 3 == 0 {
+                    Eye::Direction(v3())
+                } else {
+                    Eye::Point(v3())
+                },
+            };
+            let normal = if case % 17 == 0 { [0.0; 3] } else { v3() };
+            let sample = Sample { point: v3(), normal };
+            for facing in [Facing::Front, Facing::Back] {
+                let (lit, spec) = phong_and_specular_share(&setup, &sample, facing);
+                let expected_lit = setup.shade_facing(&sample, facing);
+                let expected_spec = specular_share_reference(&setup, &sample, facing);
+                assert_eq!(
+                    lit.map(f64::to_bits),
+                    expected_lit.map(f64::to_bits),
+                    "case {case} {facing:?}"
+                );
+                assert_eq!(
+                    spec.map(f64::to_bits),
+                    expected_spec.map(f64::to_bits),
+                    "case {case} {facing:?}"
+                );
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 800);
+    }
 }
