@@ -32,7 +32,7 @@ fn bench_scene(c: &mut Criterion, name: &str, scene: &Renderer, program: &Arc<Pr
     let mut sources: Vec<(&str, Box<dyn KernelSource + Send>)> = vec![
         ("jit", Box::new(Jit::new(program.clone()).unwrap())),
         ("scalar", Box::new(Handwritten::new(program.clone(), Flavor::Scalar))),
-        ("simd", Box::new(Handwritten::new(program.clone(), Flavor::Simd))),
+        ("simd", Box::new(Handwritten::new(program.clone(), Flavor::Avx2))),
     ];
     // Correctness first; this also compiles the JIT kernel outside the timed loop.
     let mut frames = vec![];

@@ -2,8 +2,9 @@
 //!
 //! | knob | scene | settings | primary figure |
 //! |---|---|---|---|
-//! | sphere | a unit sphere filling most of the view | procedural (when the library has a sphere primitive), icosphere of 20 ... 81 920 triangles | silhouette error (px) |
-//! | nurb | a rational bicubic patch seen from above | tessellation tolerance 8 ... 0.25 px | geometric error (px) |
+//! | sphere | a unit sphere filling most of the view | procedural (prims/sphere.prim), icosphere of 20 ... 81 920 triangles | silhouette error (px), normal error (deg) |
+//! | nurb | a rational bicubic patch seen from above | prims/nurb_surface.prim's `tolerance` 8 ... 0.25 px | geometric error (px) |
+//! | nurb_polynomial | the same patch with weights 1 | the same | geometric error (px) |
 //! | interpolation | a textured plane at a grazing angle | perspective_linear; linear on 2 ... 512 triangles | texture-coordinate error |
 //! | arithmetic | a jittered mesh of small triangles sharing edges | int 1/16 snap (library), fixed<32,16>, fixed<32,8>, f32, f64 | pixels unlike the exact rasteriser |
 //! | lighting | a lit icosphere in a wide perspective | per-vertex Phong in LC, WC, DC | colour error |
@@ -17,7 +18,7 @@ use glam::{DMat4, DVec3, Mat4, Vec3};
 use crate::pipeline::factor::factor_view;
 use crate::pipeline::lighting::{Eye, Light, LightKind, LightingSetup, Material, Sample};
 use crate::pipeline::transform::{look_at_matrix, perspective_matrix};
-use crate::runtime::Frame;
+use crate::runtime::{Frame, Renderer, Value};
 
 use super::reference::{self, ray_sphere, RefFrame};
 use super::scene::{Camera, Interp, Item, ParamSpec, Patch, Scene, Sphere, Triangle};
@@ -117,7 +118,20 @@ impl Scenes {
 pub fn all<'a>(scenes: &'a Scenes, quick: bool, _ctx: &Ctx) -> Vec<Knob<'a>> {
     vec![
         sphere_knob(scenes, quick),
-        nurb_knob(scenes, quick),
+        nurb_knob(
+            scenes,
+            quick,
+            "nurb",
+            "NURB patch (rational): tessellation tolerance (geometric error)",
+            standard_patch(),
+        ),
+        nurb_knob(
+            scenes,
+            quick,
+            "nurb_polynomial",
+            "NURB patch (polynomial, weights 1): tessellation tolerance (geometric error)",
+            polynomial_patch(),
+        ),
         interpolation_knob(quick),
         arithmetic_knob(quick),
         lighting_knob(quick),
@@ -278,6 +292,52 @@ pub fn silhouette_distance(camera: &Camera, s: &Sphere, x: f64, y: f64) -> f64 {
     (0.5 * (lo + hi) - r).abs()
 }
 
+/// A renderer for one frame of `camera` whose current transform is the camera's
+/// `device_from_world` (rounded to f32, the API's precision), with no model or view stack:
+/// world, object and lighting coordinates are then one space, so a primitive's points and
+/// its `implicit` normals come back in world coordinates, where the reference works.
+fn world_renderer(ctx: &Ctx, camera: &Camera) -> Result<Renderer, String> {
+    let mut r = Renderer::new(ctx.program.clone());
+    r.set_image_size(camera.width, camera.height)
+        .map_err(|e| e.to_string())?;
+    r.set_transform(camera.device_from_world.as_mat4());
+    Ok(r)
+}
+
+/// Close the instances of a renderer filled by hand: any API warning is a failure (an
+/// accuracy figure of a half-submitted scene would mean nothing).
+fn no_warnings(r: &mut Renderer) -> Result<(), String> {
+    match r.take_warnings().first() {
+        Some(w) => Err(w.to_string()),
+        None => Ok(()),
+    }
+}
+
+/// The procedural sphere (prims/sphere.prim) of `s` under `camera`, its normal bound to
+/// `N` by `implicit` interpolation.
+fn procedural_sphere(ctx: &Ctx, camera: &Camera, s: &Sphere) -> Result<Renderer, String> {
+    let issue = |e: crate::runtime::ApiIssue| e.to_string();
+    let mut r = world_renderer(ctx, camera)?;
+    r.material_interp("N", "implicit", &[]).map_err(issue)?;
+    // The value before the first write; the sphere replaces it at every pixel it covers.
+    r.material("N", &Value(vec![0.0, 0.0, 1.0])).map_err(issue)?;
+    r.begin("sphere").map_err(issue)?;
+    let centre = s.centre.as_vec3().to_array().to_vec();
+    r.rast_param("center", &Value(centre)).map_err(issue)?;
+    r.rast_param("radius", &Value(vec![s.radius as f32])).map_err(issue)?;
+    r.end().map_err(issue)?;
+    no_warnings(&mut r)?;
+    Ok(r)
+}
+
+/// Knob 1. Every setting renders the same unit sphere under the same camera: the
+/// procedural sphere (a quadric per pixel, its normal from the `implicit` interpolation)
+/// and icosphere tessellations of 20 ... 81 920 triangles (per-vertex normals,
+/// perspective-correct; back faces culled on the host). Silhouette error: for every pixel
+/// whose coverage differs from the reference's analytic ray casting, the distance of its
+/// centre from the true silhouette (so a pixel centre 0.01 px from the rim that flips
+/// counts 0.01 px, not a whole pixel). Normal error: the angle between the returned normal
+/// and the analytic one, over the pixels both cover.
 fn sphere_knob<'a>(scenes: &'a Scenes, quick: bool) -> Knob<'a> {
     let (camera, sphere) = sphere_setup(quick);
     let params = vec![ParamSpec {
@@ -290,8 +350,18 @@ fn sphere_knob<'a>(scenes: &'a Scenes, quick: bool) -> Knob<'a> {
     reference_scene.items.push(Item::Sphere(sphere.clone()));
     let reference = reference::render(&reference_scene);
 
-    let levels = if quick { 0..=5 } else { 0..=6 };
     let mut settings = vec![];
+    let mut missing = vec![];
+    if scenes.has_sphere_prim {
+        let (camera, sphere) = (camera.clone(), sphere.clone());
+        settings.push(Setting::new(PROCEDURAL_SPHERE, move |ctx: &mut Ctx| {
+            let r = procedural_sphere(ctx, &camera, &sphere)?;
+            Ok(Output::Jit(ctx.render(&r)?))
+        }));
+    } else {
+        missing.push("procedural sphere: the library has no `sphere` primitive (prims/sphere.prim)".into());
+    }
+    let levels = if quick { 0..=5 } else { 0..=6 };
     for level in levels {
         let mesh = icosphere(level);
         let (camera, sphere, params) = (camera.clone(), sphere.clone(), params.clone());
@@ -309,14 +379,6 @@ fn sphere_knob<'a>(scenes: &'a Scenes, quick: bool) -> Knob<'a> {
             let r = scene.submit(&ctx.program, "screen_triangle")?;
             Ok(Output::Jit(ctx.render(&r)?))
         }));
-    }
-    let mut missing = vec![];
-    if !scenes.has_sphere_prim {
-        missing.push("procedural sphere: the library has no `sphere` primitive yet (prims/sphere.prim)".into());
-    } else {
-        missing.push(
-            "procedural sphere: prims/sphere.prim is loaded, but this build does not know its parameters yet".into(),
-        );
     }
     Knob {
         name: "sphere",
@@ -336,8 +398,7 @@ fn sphere_knob<'a>(scenes: &'a Scenes, quick: bool) -> Knob<'a> {
                             reference.value("N", 1, i),
                             reference.value("N", 2, i),
                         );
-                        let cos = n.normalize_or_zero().dot(m).clamp(-1.0, 1.0);
-                        normal.push(cos.acos().to_degrees());
+                        normal.push(angle_degrees(n, m));
                     }
                     (false, false) => {}
                     _ => silhouette.push(silhouette_distance(&camera, &sphere, x, y)),
@@ -350,6 +411,20 @@ fn sphere_knob<'a>(scenes: &'a Scenes, quick: bool) -> Knob<'a> {
         }),
         missing,
     }
+}
+
+/// The label of knob 1's procedural setting.
+pub const PROCEDURAL_SPHERE: &str = "procedural (sphere.prim)";
+
+/// The angle between `n` (any length) and the unit vector `m`, in degrees; 180 for a zero
+/// `n` (no normal at all is as wrong as it gets). The angle comes from atan2 of the cross
+/// and dot products, which keeps its digits for tiny angles where acos of a dot product
+/// near 1 would round to 0 (the procedural sphere's normals are off by ~1e-5 degrees).
+pub fn angle_degrees(n: DVec3, m: DVec3) -> f64 {
+    if n.length_squared() == 0.0 || !n.is_finite() {
+        return 180.0;
+    }
+    n.cross(m).length().atan2(n.dot(m)).to_degrees()
 }
 
 // ---------------------------------------------------------------------------------------
@@ -381,6 +456,15 @@ pub fn standard_patch() -> Patch {
     }
 }
 
+/// The standard patch with every weight 1: a polynomial bicubic, the case for which
+/// nurb_surface.prim's step-count bound is exact (up to perspective).
+pub fn polynomial_patch() -> Patch {
+    Patch {
+        weights: [[1.0; 4]; 4],
+        ..standard_patch()
+    }
+}
+
 fn nurb_camera(quick: bool) -> Camera {
     let (w, h) = size(quick, 128, 128);
     Camera::perspective(
@@ -396,83 +480,65 @@ fn nurb_camera(quick: bool) -> Camera {
     .expect("the patch camera is valid")
 }
 
-/// The largest screen distance between the patch and an n x n grid tessellation of it,
-/// sampled at each cell's edge midpoints and at the midpoint of its diagonal (the chords
-/// of the two triangles).
-pub fn tessellation_deviation(camera: &Camera, p: &Patch, n: usize) -> f64 {
-    let at = |i: f64, j: f64| p.eval(i / n as f64, j / n as f64);
-    let xy = |q: DVec3| {
-        let s = camera.screen(q);
-        glam::DVec2::new(s[0], s[1])
-    };
-    let mut worst: f64 = 0.0;
-    for i in 0..n {
-        for j in 0..n {
-            let (fi, fj) = (i as f64, j as f64);
-            for ((a, b), (c, d)) in [
-                ((fi, fj), (fi + 1.0, fj)),
-                ((fi, fj), (fi, fj + 1.0)),
-                ((fi, fj), (fi + 1.0, fj + 1.0)),
-                ((fi + 1.0, fj), (fi + 1.0, fj + 1.0)),
-                ((fi, fj + 1.0), (fi + 1.0, fj + 1.0)),
-            ] {
-                let chord = (at(a, b) + at(c, d)) * 0.5;
-                let surface = at(0.5 * (a + c), 0.5 * (b + d));
-                worst = worst.max(xy(chord).distance(xy(surface)));
-            }
+/// The parameter knob 2 binds on the NURB primitive: homogeneous texture coordinates
+/// `(u / D, v / D, 1 / D)`, `D` the rational denominator of the patch.
+///
+/// Why homogeneous: nurb_surface.prim evaluates a shading parameter as the rational spline
+/// of its control values, `sum B w d / sum B w`. Control values `d = (i/3, j/3, 1) / w`
+/// turn that into `(sum B i/3, sum B j/3, sum B) / D = (u, v, 1) / D` (Bernstein
+/// polynomials reproduce linear functions), so at every tessellation vertex the ratio of
+/// the components is exactly the vertex's (u, v), whatever the weights. Between vertices
+/// the primitive interpolates the three components perspective-correctly across each flat
+/// triangle, and (c0 / c2, c1 / c2) is the parameter the tessellation assigns to the
+/// pixel. Plain (u, v) control values would instead come out as `sum B w u_i / D`, not u,
+/// for a rational patch.
+pub const NURB_UV_PARAM: &str = "uvh";
+
+/// The standard patch as one instance of prims/nurb_surface.prim with tessellation
+/// tolerance `tolerance` px: control points in world coordinates through the camera's
+/// transform (so the primitive receives their homogeneous device coordinates), weights per
+/// point, and [`NURB_UV_PARAM`] per point.
+fn procedural_patch(ctx: &Ctx, camera: &Camera, p: &Patch, tolerance: f64) -> Result<Renderer, String> {
+    let issue = |e: crate::runtime::ApiIssue| e.to_string();
+    let mut r = world_renderer(ctx, camera)?;
+    r.material_interp(NURB_UV_PARAM, "perspective_linear", &[])
+        .map_err(issue)?;
+    r.material(NURB_UV_PARAM, &Value(vec![0.0, 0.0, 1.0])).map_err(issue)?;
+    r.begin("nurb_surface").map_err(issue)?;
+    r.rast_param("tolerance", &Value(vec![tolerance as f32]))
+        .map_err(issue)?;
+    // Sequence points u fastest: point (i, j) of the patch (i along u) is number 4 j + i.
+    for j in 0..4 {
+        for i in 0..4 {
+            let w = p.weights[i][j];
+            r.rast_param("weight", &Value(vec![w as f32])).map_err(issue)?;
+            let uvh = [i as f64 / 3.0 / w, j as f64 / 3.0 / w, 1.0 / w];
+            r.material(NURB_UV_PARAM, &Value(uvh.map(|c| c as f32).to_vec()))
+                .map_err(issue)?;
+            let q = p.points[i][j].as_vec3();
+            r.vertex(q.x, q.y, q.z, 1.0).map_err(issue)?;
         }
     }
-    worst
+    r.end().map_err(issue)?;
+    no_warnings(&mut r)?;
+    Ok(r)
 }
 
-/// The smallest grid resolution whose deviation is within `tolerance` pixels (at most 1024).
-pub fn tessellation_for(camera: &Camera, p: &Patch, tolerance: f64) -> usize {
-    let ok = |n: usize| tessellation_deviation(camera, p, n) <= tolerance;
-    let mut hi = 1;
-    while !ok(hi) && hi < 1024 {
-        hi *= 2;
-    }
-    let mut lo = hi / 2;
-    // Invariant: hi is fine, lo is not (or 0).
-    while hi - lo > 1 {
-        let mid = (lo + hi) / 2;
-        if ok(mid) {
-            hi = mid;
-        } else {
-            lo = mid;
-        }
-    }
-    hi
-}
-
-/// An n x n grid of the patch as device-space triangles with (u, v) per vertex.
-pub fn patch_triangles(camera: &Camera, p: &Patch, n: usize) -> Vec<Item> {
-    let screen: Vec<[f64; 4]> = (0..=n)
-        .flat_map(|i| (0..=n).map(move |j| (i, j)))
-        .map(|(i, j)| camera.screen(p.eval(i as f64 / n as f64, j as f64 / n as f64)))
-        .collect();
-    let idx = |i: usize, j: usize| i * (n + 1) + j;
-    let uv = |i: usize, j: usize| vec![i as f64 / n as f64, j as f64 / n as f64];
-    let mut items = Vec::with_capacity(2 * n * n);
-    for i in 0..n {
-        for j in 0..n {
-            for c in [
-                [(i, j), (i + 1, j), (i + 1, j + 1)],
-                [(i, j), (i + 1, j + 1), (i, j + 1)],
-            ] {
-                items.push(Item::Triangle(Triangle {
-                    vertices: c.map(|(a, b)| screen[idx(a, b)]),
-                    values: c.map(|(a, b)| uv(a, b)),
-                }));
-            }
-        }
-    }
-    items
-}
-
-fn nurb_knob<'a>(scenes: &'a Scenes, quick: bool) -> Knob<'a> {
+/// Knob 2 (`patch` is the rational [`standard_patch`] for knob `nurb`, its polynomial twin
+/// for `nurb_polynomial`). prims/nurb_surface.prim tessellates the patch itself, at its
+/// `tolerance` of 8 ... 0.25 px. Geometric error at a pixel both cover: the screen
+/// distance between where the true surface point of the tessellation's (u, v) projects
+/// and where the reference's (Newton inversion of the f64 patch at the pixel centre) does.
+/// That is the screen displacement of everything attached to the surface by its parameters
+/// (texture, the surface point itself), the figure the tolerance promises to bound.
+pub fn nurb_knob<'a>(
+    scenes: &'a Scenes,
+    quick: bool,
+    name: &'static str,
+    title: &'static str,
+    patch: Patch,
+) -> Knob<'a> {
     let camera = nurb_camera(quick);
-    let patch = standard_patch();
     let params = vec![ParamSpec {
         name: "uv".into(),
         components: 2,
@@ -484,28 +550,24 @@ fn nurb_knob<'a>(scenes: &'a Scenes, quick: bool) -> Knob<'a> {
     let reference = reference::render(&reference_scene);
 
     let mut settings = vec![];
-    for tolerance in [8.0, 4.0, 2.0, 1.0, 0.5, 0.25] {
-        let n = tessellation_for(&camera, &patch, tolerance);
-        let (camera, patch, params) = (camera.clone(), patch.clone(), params.clone());
-        let label = format!("tolerance {tolerance} px ({} tris)", 2 * n * n);
-        settings.push(Setting::new(label, move |ctx: &mut Ctx| {
-            let mut scene = Scene::new(camera.width, camera.height, params.clone());
-            scene.items = patch_triangles(&camera, &patch, n);
-            let r = scene.submit(&ctx.program, "screen_triangle")?;
-            Ok(Output::Jit(ctx.render(&r)?))
-        }));
-    }
-    let missing = if scenes.has_nurb_prim {
-        vec![
-            "procedural NURB: prims/nurb_surface.prim is loaded, but this build does not know its parameters yet"
-                .into(),
-        ]
+    let mut missing = vec![];
+    if scenes.has_nurb_prim {
+        for tolerance in NURB_TOLERANCES {
+            let (camera, patch) = (camera.clone(), patch.clone());
+            settings.push(Setting::new(
+                format!("tolerance {tolerance} px"),
+                move |ctx: &mut Ctx| {
+                    let r = procedural_patch(ctx, &camera, &patch, tolerance)?;
+                    Ok(Output::Jit(ctx.render(&r)?))
+                },
+            ));
+        }
     } else {
-        vec!["tessellation inside the NURB primitive: the library has no `nurb_surface` primitive yet; the patch is tessellated on the host".into()]
-    };
+        missing.push("NURB tessellation: the library has no `nurb_surface` primitive (prims/nurb_surface.prim)".into());
+    }
     Knob {
-        name: "nurb",
-        title: "NURB patch: tessellation tolerance (geometric error)",
+        name,
+        title,
         settings,
         measure: Box::new(move |out| {
             let b = buffers(out);
@@ -519,9 +581,16 @@ fn nurb_knob<'a>(scenes: &'a Scenes, quick: bool) -> Knob<'a> {
             for i in 0..reference.count.len() {
                 match (b.covered(i), reference.covered(i)) {
                     (true, true) => {
-                        let here = xy(b.value("uv", 0, i), b.value("uv", 1, i));
+                        let h = [0, 1, 2].map(|c| b.value(NURB_UV_PARAM, c, i));
                         let truth = xy(reference.value("uv", 0, i), reference.value("uv", 1, i));
-                        geometric.push(here.distance(truth));
+                        // A tessellation's (u, v) is inside the patch; the clamp only
+                        // keeps rounding at its border from leaving the domain.
+                        let (u, v) = ((h[0] / h[2]).clamp(0.0, 1.0), (h[1] / h[2]).clamp(0.0, 1.0));
+                        geometric.push(if h[2] != 0.0 && u.is_finite() && v.is_finite() {
+                            xy(u, v).distance(truth)
+                        } else {
+                            f64::INFINITY
+                        });
                     }
                     (false, false) => {}
                     _ => edge += 1,
@@ -535,6 +604,9 @@ fn nurb_knob<'a>(scenes: &'a Scenes, quick: bool) -> Knob<'a> {
         missing,
     }
 }
+
+/// Knob 2's settings: prims/nurb_surface.prim's `tolerance`, in pixels.
+pub const NURB_TOLERANCES: [f64; 6] = [8.0, 4.0, 2.0, 1.0, 0.5, 0.25];
 
 // ---------------------------------------------------------------------------------------
 // Knob 3: interpolation

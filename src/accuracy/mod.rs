@@ -69,7 +69,7 @@ pub const VARIANT_PRIMS: [(&str, &str); 7] = [
 
 #[derive(Clone, Debug)]
 pub struct AccuracyOptions {
-    /// Only knobs whose name contains this (`sphere`, `nurb`, `interpolation`,
+    /// Only knobs whose name contains this (`sphere`, `nurb`, `nurb_polynomial`, `interpolation`,
     /// `arithmetic`, `lighting`, `depth`).
     pub filter: Option<String>,
     /// Small images, fewer settings and runs: under a minute on two cores.
@@ -311,7 +311,7 @@ pub fn run(opts: &AccuracyOptions) -> Result<Report, String> {
         selected.retain(|k| k.name.contains(f.as_str()));
         if selected.is_empty() {
             return Err(format!(
-                "no knob matches `{f}` (knobs: sphere, nurb, interpolation, arithmetic, lighting, depth)"
+                "no knob matches `{f}` (knobs: sphere, nurb, nurb_polynomial, interpolation, arithmetic, lighting, depth)"
             ));
         }
     }
@@ -355,6 +355,9 @@ fn machine_summary() -> String {
 fn fmt_num(v: f64) -> String {
     if v == 0.0 {
         "0".into()
+    } else if v.fract() == 0.0 && v.abs() < 1e9 {
+        // Pixel counts (and whole numbers generally) without a fraction.
+        format!("{v:.0}")
     } else if v.abs() >= 1e4 || v.abs() < 1e-3 {
         format!("{v:.2e}")
     } else {
@@ -371,14 +374,14 @@ pub fn format_table(report: &Report) -> String {
         if report.quick { "; quick run" } else { "" }
     );
     s.push_str(&format!(
-        "{:<14} {:<30} {:<18} {:>10} {:>10} {:>8} {:>10} {:>8}\n",
+        "{:<15} {:<30} {:<21} {:>10} {:>10} {:>8} {:>10} {:>8}\n",
         "knob", "setting", "error", "max", "mean", "pixels", "ms/frame", "time x"
     ));
     for k in &report.knobs {
         for r in &k.rows {
             let metric = format!("{} ({})", r.metric, r.unit);
             s.push_str(&format!(
-                "{:<14} {:<30} {:<18} {:>10} {:>10} {:>8} {:>10.3} {:>8.2}\n",
+                "{:<15} {:<30} {:<21} {:>10} {:>10} {:>8} {:>10.3} {:>8.2}\n",
                 r.knob,
                 r.setting,
                 metric,
@@ -389,9 +392,9 @@ pub fn format_table(report: &Report) -> String {
                 r.time_ratio
             ));
         }
-        s.push_str(&format!("{:<14} most accurate: {}\n", "", k.most_accurate));
+        s.push_str(&format!("{:<15} most accurate: {}\n", "", k.most_accurate));
         for m in &k.missing {
-            s.push_str(&format!("{:<14} not measured: {m}\n", ""));
+            s.push_str(&format!("{:<15} not measured: {m}\n", ""));
         }
         s.push('\n');
     }

@@ -3,10 +3,10 @@
 //!
 //! Every workload is rendered first by each kernel source and the frames compared bit for
 //! bit (a benchmark of kernels that disagree measures nothing); then the sources are timed
-//! interleaved (JIT, scalar, SIMD, JIT, ...) for several runs and the median frame time is
-//! reported, so drift of the machine (clock, other load) hits every kernel alike.
-//! Throughput is depth writes per second (pixels that passed coverage and the Z test) and
-//! primitives per second.
+//! interleaved (JIT, scalar, SSE, AVX2, JIT on all threads, ...) for several runs and the
+//! median frame time is reported, so drift of the machine (clock, other load) hits every
+//! kernel alike. Throughput is depth writes per second (pixels that passed coverage and the
+//! Z test) and primitives per second.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -61,6 +61,9 @@ pub struct WorkloadResult {
     /// faster).
     /// `None` where no hand-written kernel exists.
     pub jit_vs_scalar: Option<f64>,
+    /// Over the 4-lane SSE4.1 kernel (the JIT's width).
+    pub jit_vs_sse: Option<f64>,
+    /// Over the 8-lane AVX2 kernel.
     pub jit_vs_simd: Option<f64>,
     /// JIT all-threads throughput over JIT one-thread throughput.
     pub thread_scaling: f64,
@@ -80,6 +83,7 @@ pub struct BenchReport {
     pub machine: String,
     pub isa: String,
     pub simd_kernel: String,
+    pub sse_kernel: String,
     pub threads: usize,
     pub workloads: Vec<WorkloadResult>,
     pub compile: Vec<CompileTiming>,
@@ -95,10 +99,12 @@ struct Workload {
     name: String,
     build: Box<dyn Fn(&mut Renderer)>,
     primitives: usize,
-    /// Whether hand-written kernels exist for it (screen_triangle only, so far); the others
-    /// report the JIT alone.
-    handwritten: bool,
+    /// The hand-written forms that exist for it (screen_triangle and polygon have all three,
+    /// sphere and NURB surface scalar and AVX2); empty: the JIT's figures are shown alone.
+    handwritten: &'static [Flavor],
 }
+
+const ALL_FLAVORS: [Flavor; 3] = [Flavor::Scalar, Flavor::Sse, Flavor::Avx2];
 
 /// (name, interpolation kind) of the four shading parameters of the fill and small workloads.
 fn bind(r: &mut Renderer, kind: Option<&str>, k: usize) {
@@ -130,7 +136,7 @@ fn fill(layers: usize, kind: Option<&'static str>, k: usize) -> Workload {
     Workload {
         name: format!("fill {label} K={k}"),
         primitives: layers * 2,
-        handwritten: true,
+        handwritten: &ALL_FLAVORS,
         build: Box::new(move |r| {
             bind(r, kind, k);
             let mut rng = Lcg(1);
@@ -151,7 +157,7 @@ fn small(count: usize, k: usize) -> Workload {
     Workload {
         name: format!("small perspective_linear K={k}"),
         primitives: count,
-        handwritten: true,
+        handwritten: &ALL_FLAVORS,
         build: Box::new(move |r| {
             bind(r, Some("perspective_linear"), k);
             let mut rng = Lcg(2);
@@ -183,7 +189,7 @@ fn spheres() -> Workload {
     Workload {
         name: "sphere implicit N".into(),
         primitives: 20,
-        handwritten: false,
+        handwritten: &[Flavor::Scalar, Flavor::Avx2],
         build: Box::new(|r| {
             r.perspective(50.0, 1.0, 100.0);
             r.material_interp("N", "implicit", &[])
@@ -211,7 +217,7 @@ fn polygons(count: usize) -> Workload {
     Workload {
         name: "polygon hither K=4".into(),
         primitives: count,
-        handwritten: false,
+        handwritten: &ALL_FLAVORS,
         build: Box::new(move |r| {
             r.perspective(60.0, 1.0, 100.0);
             bind(r, Some("perspective_linear"), 4);
@@ -245,7 +251,7 @@ fn nurbs(count: usize) -> Workload {
     Workload {
         name: "nurb bicubic tol=0.5".into(),
         primitives: count,
-        handwritten: false,
+        handwritten: &[Flavor::Scalar, Flavor::Avx2],
         build: Box::new(move |r| {
             r.perspective(50.0, 1.0, 100.0);
             let mut rng = Lcg(6);
@@ -374,7 +380,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
         .collect();
 
     let bar = if opts.progress {
-        ProgressBar::new((selected.len() * (runs * 4 + 4)) as u64)
+        ProgressBar::new((selected.len() * (runs * 5 + 5)) as u64)
     } else {
         ProgressBar::hidden()
     };
@@ -382,7 +388,8 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
 
     let mut jit = Jit::tiered(program.clone()).map_err(|e| e.to_string())?;
     let mut scalar = Handwritten::new(program.clone(), Flavor::Scalar);
-    let mut simd = Handwritten::new(program.clone(), Flavor::Simd);
+    let mut sse = Handwritten::new(program.clone(), Flavor::Sse);
+    let mut simd = Handwritten::new(program.clone(), Flavor::Avx2);
     let mut results = vec![];
     let mut compile = vec![];
     for w in &selected {
@@ -402,7 +409,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
             });
         }
 
-        // Correctness first: all three produce the same frame; count the pixels written.
+        // Correctness first: all four produce the same frame; count the pixels written.
         // The JIT's first frame may run tier-0 kernels; the tier-1 ones must agree with it
         // bit for bit, and the timed runs below use them.
         let (reference, _) = render(&r, &mut jit, &one)?;
@@ -414,11 +421,12 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
                 w.name
             ));
         }
-        for (name, source) in [
-            ("scalar", &mut scalar as &mut (dyn KernelSource + Send)),
-            ("SIMD", &mut simd),
+        for (name, flavor, source) in [
+            ("scalar", Flavor::Scalar, &mut scalar as &mut (dyn KernelSource + Send)),
+            ("SSE", Flavor::Sse, &mut sse),
+            ("SIMD", Flavor::Avx2, &mut simd),
         ] {
-            if w.handwritten {
+            if w.handwritten.contains(&flavor) {
                 let (frame, _) = render(&r, source, &one)?;
                 if !same_frame(&reference, &frame) {
                     return Err(format!(
@@ -438,20 +446,26 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
         bar.inc(2);
 
         // Interleaved timed runs.
-        let mut times: [Vec<f64>; 4] = Default::default();
+        let mut times: [Vec<f64>; 5] = Default::default();
         for _ in 0..runs {
             times[0].push(render(&r, &mut jit, &one)?.1);
-            if w.handwritten {
-                times[1].push(render(&r, &mut scalar, &one)?.1);
-                times[2].push(render(&r, &mut simd, &one)?.1);
+            for (slot, flavor, source) in [
+                (1, Flavor::Scalar, &mut scalar),
+                (2, Flavor::Sse, &mut sse),
+                (3, Flavor::Avx2, &mut simd),
+            ] {
+                if w.handwritten.contains(&flavor) {
+                    times[slot].push(render(&r, source, &one)?.1);
+                }
             }
-            times[3].push(render(&r, &mut jit, &all)?.1);
-            bar.inc(4);
+            times[4].push(render(&r, &mut jit, &all)?.1);
+            bar.inc(5);
         }
         let names = [
             "JIT".to_string(),
             "scalar".to_string(),
-            format!("SIMD {}", Flavor::Simd.describe()),
+            format!("SSE {}", Flavor::Sse.describe()),
+            format!("SIMD {}", Flavor::Avx2.describe()),
             "JIT".to_string(),
         ];
         let timings: Vec<KernelTiming> = times
@@ -463,7 +477,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
                 let ms = median(t);
                 KernelTiming {
                     kernel,
-                    threads: if i == 3 { threads } else { 1 },
+                    threads: if i == 4 { threads } else { 1 },
                     median_ms: ms,
                     mpixels_per_s: pixels as f64 / ms / 1e3,
                     mprims_per_s: w.primitives as f64 / ms / 1e3,
@@ -482,6 +496,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
             primitives: w.primitives,
             pixels_written: pixels,
             jit_vs_scalar: ms("scalar", 1).map(|t| t / jit_one),
+            jit_vs_sse: ms("SSE", 1).map(|t| t / jit_one),
             jit_vs_simd: ms("SIMD", 1).map(|t| t / jit_one),
             thread_scaling: ms("JIT", threads).map_or(f64::NAN, |t| jit_one / t),
             timings,
@@ -491,15 +506,13 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
     Ok(BenchReport {
         machine: machine_description(threads),
         isa: jit.isa_summary(),
-        simd_kernel: Flavor::Simd.describe().to_string(),
+        simd_kernel: Flavor::Avx2.describe().to_string(),
+        sse_kernel: Flavor::Sse.describe().to_string(),
         threads,
         workloads: results,
         compile,
         time_to_first_pixel_ms: ttfp,
-        not_covered: vec![
-            "hand-written sphere, polygon and NURB kernels (the JIT's figures are shown alone)".into(),
-            "effects series (the shading pass is not timed by this benchmark yet)".into(),
-        ],
+        not_covered: vec!["effects series (the shading pass is not timed by this benchmark yet)".into()],
     })
 }
 
@@ -544,25 +557,26 @@ fn machine_description(threads: usize) -> String {
 pub fn format_table(report: &BenchReport) -> String {
     let mut s = String::new();
     s.push_str(&format!(
-        "machine: {}\nJIT: {}\nhand-written SIMD: {}\n\n",
-        report.machine, report.isa, report.simd_kernel
+        "machine: {}\nJIT: {}\nhand-written SSE: {}\nhand-written SIMD: {}\n\n",
+        report.machine, report.isa, report.sse_kernel, report.simd_kernel
     ));
     s.push_str(&format!(
-        "{:<32} {:<22} {:>7} {:>10} {:>10} {:>10}\n",
+        "{:<32} {:<26} {:>7} {:>10} {:>10} {:>10}\n",
         "workload", "kernel", "threads", "ms", "Mpix/s", "Mprim/s"
     ));
     for w in &report.workloads {
         for t in &w.timings {
             s.push_str(&format!(
-                "{:<32} {:<22} {:>7} {:>10.2} {:>10.1} {:>10.3}\n",
+                "{:<32} {:<26} {:>7} {:>10.2} {:>10.1} {:>10.3}\n",
                 w.workload, t.kernel, t.threads, t.median_ms, t.mpixels_per_s, t.mprims_per_s
             ));
         }
         let ratio = |r: Option<f64>| r.map_or("n/a (no hand-written kernel)".to_string(), |r| format!("{r:.2}x"));
         s.push_str(&format!(
-            "{:<32} JIT/scalar {}   JIT/SIMD {}   {} threads/1 thread {:.2}x\n\n",
+            "{:<32} JIT/scalar {}   JIT/SSE {}   JIT/AVX2 {}   {} threads/1 thread {:.2}x\n\n",
             "",
             ratio(w.jit_vs_scalar),
+            ratio(w.jit_vs_sse),
             ratio(w.jit_vs_simd),
             report.threads,
             w.thread_scaling

@@ -1,7 +1,9 @@
-//! screen_triangle written by hand in Rust, in two forms: portable scalar code and AVX2
-//! (8 pixels per step, per-row hoisting, empty-group skipping, masked stores).
+//! screen_triangle written by hand in Rust, in three forms: portable scalar code; SSE4.1
+//! (4 pixels per step, the width of the JIT's f32x4 groups: per-row coverage spans, so
+//! groups inside the triangle run without edge tests or blends); and AVX2 (8 pixels per
+//! step, per-row hoisting, empty-group skipping, masked stores).
 //!
-//! Both mirror `prims/screen_triangle.prim` operation for operation (same snapping, same
+//! All mirror `prims/screen_triangle.prim` operation for operation (same snapping, same
 //! integer edge functions and top-left rule, same float expression order), so on the same
 //! scene they produce the same buffers as the JIT kernel; the benchmark checks that before
 //! it reports a time.
@@ -253,7 +255,8 @@ pub unsafe extern "C" fn scalar<const P: usize, const L: usize, const T: usize, 
                         > 0
                 })
             } else {
-                (0..3).all(|i| s.fa[i] * x + s.fb[i] * y + s.fc[i] > 0.0)
+                // The prim returns when `e <= 0`: a NaN edge value keeps the pixel.
+                (0..3).all(|i| !(s.fa[i] * x + s.fb[i] * y + s.fc[i] <= 0.0))
             };
             if !inside {
                 continue;
@@ -348,7 +351,8 @@ pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, co
                         _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(s.fa[i]), x), fby[i]),
                         _mm256_set1_ps(s.fc[i]),
                     );
-                    mask = _mm256_and_si256(mask, _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GT_OQ>(e, zero)));
+                    // !(e <= 0), as the prim returns: a NaN edge value keeps the pixel.
+                    mask = _mm256_and_si256(mask, _mm256_castps_si256(_mm256_cmp_ps::<_CMP_NLE_UQ>(e, zero)));
                 }
             }
             if _mm256_testz_si256(mask, mask) != 0 {
@@ -422,6 +426,368 @@ pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, co
                 }
             }
             px += 8;
+        }
+    }
+}
+
+/// Rows narrower than this many pixels test the edges per group instead of solving for the
+/// row's span (up to three 64-bit divisions a row, which a few groups of tests beat).
+const SPAN_MIN_WIDTH: i32 = 32;
+
+/// The pixels `[a, b)` of row `py`, within `[rx0, rx1)`, whose centres pass the prim's three
+/// integer edge tests (`ea * sx + eb * sy + ec > 0`); `a >= b` when none does.
+///
+/// The prim evaluates the edges in wrapping 32-bit arithmetic, which is the exact value
+/// modulo 2^32. Along a row the exact value is linear in the pixel, so when it lies in the
+/// i32 range at both ends of `[rx0, rx1)` it does at every pixel between, wrapping changes
+/// nothing, and the inequality can be solved exactly in 64 bits. Otherwise `None`: the
+/// caller tests the row's pixels one by one, as the prim does.
+pub(crate) fn exact_span<const T: usize>(s: &Setup<T>, py: i32, rx0: i32, rx1: i32) -> Option<(i32, i32)> {
+    let in_i32 = |v: i64| v >= i64::from(i32::MIN) && v <= i64::from(i32::MAX);
+    // sx = int(X * 16) - int(ox * 16) with X = px + 0.5: X * 16 is exactly 16 px + 8 for
+    // any pixel of a tile (|px| < 2^19), so int() of it is too.
+    let sx = |px: i32| 16 * i64::from(px) + 8 - i64::from(s.ox16);
+    let (first, last) = (rx0, rx1 - 1);
+    if !(in_i32(sx(first)) && in_i32(sx(last))) {
+        return None;
+    }
+    let sy = (((py as f32 + 0.5) * 16.0) as i32).wrapping_sub(s.oy16);
+    let (mut lo, mut hi) = (i64::from(rx0), i64::from(rx1));
+    for i in 0..3 {
+        let a = i64::from(s.ea[i]);
+        // Exact value of the row's constant part (|eb * sy| <= 2^62, |ec| < 2^31). The
+        // products below fit too; the sums are checked (an overflow gives up on the row).
+        let r = i64::from(s.eb[i]) * i64::from(sy) + i64::from(s.ec[i]);
+        let e = |px: i32| (a * sx(px)).checked_add(r);
+        if !(e(first).is_some_and(in_i32) && e(last).is_some_and(in_i32)) {
+            return None;
+        }
+        // e(px) = 16 a px + c0.
+        let c0 = (a * (8 - i64::from(s.ox16))).checked_add(r)?;
+        let slope = 16 * a;
+        if slope > 0 {
+            // px > -c0 / slope  <=>  px >= floor(-c0 / slope) + 1.
+            lo = lo.max(c0.checked_neg()?.div_euclid(slope) + 1);
+        } else if slope < 0 {
+            // (-slope) px < c0  <=>  px < ceil(c0 / -slope).
+            hi = hi.min(-(c0.checked_neg()?.div_euclid(-slope)));
+        } else if c0 <= 0 {
+            return Some((rx0, rx0));
+        }
+    }
+    // Both now lie in [rx0, rx1] or the span is empty: they fit an i32.
+    let lo = lo.clamp(i64::from(rx0), i64::from(rx1)) as i32;
+    let hi = hi.clamp(i64::from(rx0), i64::from(rx1)) as i32;
+    Some((lo, hi))
+}
+
+/// The SSE4.1 kernel's body, stamped out twice by [`sse_kernel!`]: once with legacy SSE
+/// encoding (any x86_64 CPU with SSE4.1) and once with VEX encoding (three-operand forms,
+/// unaligned memory operands) for CPUs with AVX, which is what the JIT emits there. Both are
+/// 128-bit, 4 pixels per step: the JIT's width.
+///
+/// Per row: the integer edges are solved for the span of covered pixels ([`exact_span`]), so
+/// groups inside it run without edge tests, and the depth range test is dropped for the row
+/// when both ends of the span pass it (z is monotone in x: each f32 operation of
+/// `(za * x + zb * y) + zc` is). Per group: depth converted and tested, then every store is
+/// a plain store when all four lanes pass and a load + blend + store otherwise. Groups start
+/// at tile-aligned x, like the JIT's, so a 4-lane load or store never leaves the row.
+/// Narrow rectangles, rows whose edge values could wrap, and triangles on the float edge
+/// path test the edges per group.
+macro_rules! sse_kernel {
+    ($(#[$doc:meta])* $name:ident, $features:literal) => {
+        $(#[$doc])*
+        ///
+        /// # Safety
+        /// As [`scalar`], and the CPU must support the enabled features (the caller checks).
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        pub unsafe extern "C" fn $name<const P: usize, const L: usize, const T: usize, const COUNT: bool>(
+            ctx: *mut TileCtx,
+            args: *const u32,
+        ) {
+            use std::arch::x86_64::*;
+
+            /// float -> fixed<32,32> raw as the JIT converts (nearest, saturating), for z in
+            /// [0, 1]; lanes outside it are masked off by the caller. Below 2^31 the
+            /// signed conversion rounds to nearest even (the MXCSR default) and is exact;
+            /// from 2^31 on it gives 0x8000_0000, and z * 2^32 - 2^31 (exact there, an
+            /// integer) supplies the low bits; 2^32 itself (z == 1) converts to 0x8000_0000
+            /// in the second conversion, which the arithmetic shift turns into all ones.
+            #[inline]
+            #[target_feature(enable = $features)]
+            fn depth_raw4(z: __m128) -> __m128i {
+                let scaled = _mm_mul_ps(z, _mm_set1_ps(4294967296.0));
+                let low = _mm_cvtps_epi32(scaled);
+                let above = _mm_max_ps(_mm_sub_ps(scaled, _mm_set1_ps(2147483648.0)), _mm_setzero_ps());
+                let high = _mm_cvtps_epi32(above);
+                let high = _mm_or_si128(high, _mm_srai_epi32::<31>(high));
+                _mm_or_si128(low, high)
+            }
+
+            /// (a * x + by) + c, the prim's plane expression with b * y hoisted per row.
+            #[inline]
+            #[target_feature(enable = $features)]
+            fn plane(a: __m128, x: __m128, by: __m128, c: __m128) -> __m128 {
+                _mm_add_ps(_mm_add_ps(_mm_mul_ps(a, x), by), c)
+            }
+
+            // SAFETY: as in `scalar`.
+            let ctx = unsafe { &mut *ctx };
+            let Some(s) = (unsafe { setup::<T>(args) }) else { return };
+            let Some([rx0, ry0, rx1, ry1]) = bound_or_rect(ctx, s.bound) else {
+                return;
+            };
+            let stride = ctx.stride as usize;
+            // Each component's G-buffer plane in this tile, or null for a plane the frame
+            // lacks (its stores are skipped).
+            let plane_base: [*mut f32; T] = std::array::from_fn(|c| {
+                if s.planes[c] < ctx.num_planes {
+                    // SAFETY: plane `planes[c]` of `num_planes` starts inside gbuf.
+                    unsafe { ctx.gbuf.add(s.planes[c] as usize * ctx.plane_stride as usize) }
+                } else {
+                    std::ptr::null_mut()
+                }
+            });
+            let splat = |v: f32| _mm_set1_ps(v);
+            let (za, zc) = (splat(s.z[0]), splat(s.z[2]));
+            let (qa, qc) = (splat(s.q[0]), splat(s.q[2]));
+            let a_of: [__m128; T] = std::array::from_fn(|c| splat(if c < P { s.ga[c] } else { s.la[c] }));
+            let c_of: [__m128; T] = std::array::from_fn(|c| splat(if c < P { s.gc[c] } else { s.lc[c] }));
+            let (zero, one) = (_mm_setzero_ps(), _mm_set1_ps(1.0));
+            let all_lanes = _mm_set1_epi32(-1);
+            let lane_offsets = _mm_setr_ps(0.5, 1.5, 2.5, 3.5);
+            let lane_index = _mm_setr_epi32(0, 1, 2, 3);
+            // Integer edge x step per group: sx grows by 16 per pixel.
+            let edge_step: [__m128i; 3] = std::array::from_fn(|i| _mm_set1_epi32(s.ea[i].wrapping_mul(64)));
+            let spans = s.exact && rx1 - rx0 >= SPAN_MIN_WIDTH;
+
+            for py in ry0..ry1 {
+                let y = py as f32 + 0.5;
+                let row = (py - ctx.y0) as usize * stride;
+                // The pixels to visit and whether the edges are already decided for them.
+                let (cx0, cx1, edges_known) = match spans.then(|| exact_span(&s, py, rx0, rx1)).flatten() {
+                    Some((a, b)) if a >= b => continue,
+                    Some((a, b)) => (a, b, true),
+                    None => (rx0, rx1, false),
+                };
+                let z_at = |px: i32| s.z[0] * (px as f32 + 0.5) + s.z[1] * y + s.z[2];
+                let in_range = |z: f32| z >= 0.0 && z <= 1.0;
+                let depth_known = edges_known && in_range(z_at(cx0)) && in_range(z_at(cx1 - 1));
+                let (zby, qby) = (splat(s.z[1] * y), splat(s.q[1] * y));
+                let by_of: [__m128; T] = std::array::from_fn(|c| splat(if c < P { s.gb[c] } else { s.lb[c] } * y));
+
+                let mut gx = ctx.x0 + ((cx0 - ctx.x0) & !3);
+                let mut x = _mm_add_ps(_mm_set1_ps(gx as f32), lane_offsets);
+                // Per-group edge state for the rows that test edges per group.
+                let sy = ((y * 16.0) as i32).wrapping_sub(s.oy16);
+                let sx = _mm_add_epi32(
+                    _mm_set1_epi32(gx.wrapping_mul(16).wrapping_add(8).wrapping_sub(s.ox16)),
+                    _mm_setr_epi32(0, 16, 32, 48),
+                );
+                let mut edge: [__m128i; 3] = std::array::from_fn(|i| {
+                    _mm_add_epi32(
+                        _mm_mullo_epi32(_mm_set1_epi32(s.ea[i]), sx),
+                        _mm_set1_epi32(s.eb[i].wrapping_mul(sy).wrapping_add(s.ec[i])),
+                    )
+                });
+                let fby: [__m128; 3] = std::array::from_fn(|i| splat(s.fb[i] * y));
+
+                while gx < cx1 {
+                    let mut live = if gx < cx0 || gx + 4 > cx1 {
+                        let px = _mm_add_epi32(_mm_set1_epi32(gx), lane_index);
+                        _mm_and_si128(
+                            _mm_cmpgt_epi32(px, _mm_set1_epi32(cx0 - 1)),
+                            _mm_cmplt_epi32(px, _mm_set1_epi32(cx1)),
+                        )
+                    } else {
+                        all_lanes
+                    };
+                    if !edges_known {
+                        if s.exact {
+                            for e in &edge {
+                                live = _mm_and_si128(live, _mm_cmpgt_epi32(*e, _mm_setzero_si128()));
+                            }
+                        } else {
+                            for i in 0..3 {
+                                let e = plane(splat(s.fa[i]), x, fby[i], splat(s.fc[i]));
+                                // !(e <= 0), as the prim returns: NaN keeps the pixel.
+                                live = _mm_and_si128(live, _mm_castps_si128(_mm_cmpnle_ps(e, zero)));
+                            }
+                        }
+                    }
+                    let z = plane(za, x, zby, zc);
+                    if !depth_known {
+                        let z_ok = _mm_and_ps(_mm_cmpge_ps(z, zero), _mm_cmple_ps(z, one));
+                        live = _mm_and_si128(live, _mm_castps_si128(z_ok));
+                    }
+                    if _mm_testz_si128(live, live) == 0 {
+                        let tz = depth_raw4(z);
+                        let base = row + (gx - ctx.x0) as usize;
+                        // SAFETY: the group lies in one row of the tile buffers (groups start
+                        // at tile-aligned x and the stride is whole groups), so 4 elements
+                        // from `base` are in every `stride * rows` buffer and plane.
+                        unsafe {
+                            let zptr = ctx.depth.add(base) as *mut __m128i;
+                            let old = _mm_loadu_si128(zptr);
+                            // Unsigned tz >= old.
+                            let nearer = _mm_cmpeq_epi32(_mm_max_epu32(tz, old), tz);
+                            let pass = _mm_and_si128(live, nearer);
+                            let bits = _mm_movemask_ps(_mm_castsi128_ps(pass));
+                            if bits != 0 {
+                                let full = bits == 0b1111;
+                                let pass_f = _mm_castsi128_ps(pass);
+                                if full {
+                                    _mm_storeu_si128(zptr, tz);
+                                } else {
+                                    _mm_storeu_si128(
+                                        zptr,
+                                        _mm_castps_si128(_mm_blendv_ps(
+                                            _mm_castsi128_ps(old),
+                                            _mm_castsi128_ps(tz),
+                                            pass_f,
+                                        )),
+                                    );
+                                }
+                                if COUNT {
+                                    let cptr = ctx.write_count.add(base) as *mut __m128i;
+                                    _mm_storeu_si128(cptr, _mm_sub_epi32(_mm_loadu_si128(cptr), pass));
+                                }
+                                let qw = plane(qa, x, qby, qc);
+                                for c in 0..T {
+                                    if plane_base[c].is_null() {
+                                        continue;
+                                    }
+                                    let mut v = plane(a_of[c], x, by_of[c], c_of[c]);
+                                    if c < P {
+                                        v = _mm_div_ps(v, qw);
+                                    }
+                                    let dst = plane_base[c].add(base);
+                                    if !full {
+                                        v = _mm_blendv_ps(_mm_loadu_ps(dst), v, pass_f);
+                                    }
+                                    _mm_storeu_ps(dst, v);
+                                }
+                            }
+                        }
+                    }
+                    gx += 4;
+                    x = _mm_add_ps(x, _mm_set1_ps(4.0));
+                    if !edges_known && s.exact {
+                        // Exact modulo 2^32, as the prim's wrapping products are.
+                        for (e, step) in edge.iter_mut().zip(&edge_step) {
+                            *e = _mm_add_epi32(*e, *step);
+                        }
+                    }
+                }
+            }
+        }
+    };
+}
+
+sse_kernel!(
+    /// SSE4.1 kernel, legacy (two-operand) encoding.
+    sse41,
+    "sse4.1"
+);
+sse_kernel!(
+    /// SSE4.1 kernel, VEX (three-operand) encoding, for CPUs with AVX; still 128-bit.
+    sse41_vex,
+    "sse4.1,avx"
+);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::abi::{KernelFn, DEFAULT_FUEL, MODE_RENDER};
+
+    /// Buffers of one tile after drawing `tris` (argument blocks) with `kernel`.
+    fn draw(kernel: KernelFn, tris: &[Vec<u32>]) -> (Vec<u32>, Vec<u32>, Vec<f32>) {
+        // A tile that starts off the group grid of the screen and is not whole groups wide.
+        let (x0, y0, x1, y1) = (66, 3, 111, 40);
+        let stride = 48u32;
+        let len = (stride * (y1 - y0) as u32) as usize;
+        let planes = 3u32;
+        let mut depth = vec![0u32; len];
+        let mut counts = vec![0u32; len];
+        let mut gbuf = vec![0f32; len * planes as usize];
+        for args in tris {
+            let mut ctx = TileCtx {
+                x0,
+                y0,
+                x1,
+                y1,
+                mode: MODE_RENDER,
+                stride,
+                depth: depth.as_mut_ptr(),
+                gbuf: gbuf.as_mut_ptr(),
+                plane_stride: len as u32,
+                num_planes: planes,
+                write_count: counts.as_mut_ptr(),
+                bound: [0.0; 4],
+                bound_set: 0,
+                error: 0,
+                error_site: 0,
+                fuel: DEFAULT_FUEL,
+                call_depth: 0,
+                width: 200,
+                height: 100,
+            };
+            // SAFETY: the context's buffers are `len` (x planes) long with the stride given,
+            // and `args` is a screen_triangle block for 2 + 2 components.
+            unsafe { kernel(&mut ctx, args.as_ptr()) };
+        }
+        (depth, counts, gbuf)
+    }
+
+    /// The legacy-encoded and VEX-encoded SSE kernels draw exactly what the scalar one
+    /// does (which tests/handwritten_twins.rs holds to the JIT) on one tile, with a plane
+    /// the frame lacks (index 7 of 3), wide, narrow and huge (float edge) triangles.
+    #[test]
+    fn sse_forms_match_scalar_on_a_tile() {
+        let mut seed = 12345u64;
+        let mut next = move |lo: f32, hi: f32| {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            lo + (hi - lo) * ((seed >> 40) as f32 / (1u64 << 24) as f32)
+        };
+        let mut tris = vec![];
+        for k in 0..400 {
+            let size = [2.0, 10.0, 60.0, 3000.0][k % 4];
+            let (cx, cy) = (next(50.0, 130.0), next(-10.0, 50.0));
+            let mut args = vec![1u32, 0, 1, 7, 2];
+            for _ in 0..3 {
+                let (x, y) = (next(cx - size, cx + size), next(cy - size, cy + size));
+                // Every other triangle on the 1/16 grid: exact edge ties.
+                let snap = |v: f32| if k % 2 == 0 { (v * 16.0).round() / 16.0 } else { v };
+                for v in [snap(x), snap(y), next(-0.2, 1.2), next(0.3, 3.0)] {
+                    args.push(v.to_bits());
+                }
+            }
+            args.extend((0..12).map(|_| next(-2.0, 2.0).to_bits()));
+            tris.push(args);
+        }
+        let reference = draw(scalar::<2, 2, 4, true>, &tris);
+        assert!(reference.0.iter().filter(|&&d| d != 0).count() > 1000);
+        let mut forms: Vec<(&str, KernelFn)> = vec![];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("sse4.1") {
+                forms.push(("sse41", sse41::<2, 2, 4, true>));
+            }
+            if std::arch::is_x86_feature_detected!("sse4.1") && std::arch::is_x86_feature_detected!("avx") {
+                forms.push(("sse41_vex", sse41_vex::<2, 2, 4, true>));
+            }
+        }
+        for (name, kernel) in forms {
+            let (depth, counts, gbuf) = draw(kernel, &tris);
+            assert!(depth == reference.0, "{name}: depth differs");
+            assert!(counts == reference.1, "{name}: write counts differ");
+            let differing = gbuf
+                .iter()
+                .zip(&reference.2)
+                .filter(|(a, b)| a.to_bits() != b.to_bits())
+                .count();
+            assert_eq!(differing, 0, "{name}: {differing} G-buffer values differ");
         }
     }
 }

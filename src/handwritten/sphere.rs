@@ -1,0 +1,516 @@
+//! The sphere written by hand in Rust, in two forms: portable scalar code and AVX2 (8 pixels
+//! per step, per-row terms hoisted, masked stores).
+//!
+//! Both mirror `prims/sphere.prim` operation for operation: the same space matrices read
+//! from the argument block and applied in the JIT's order (`transform` of a 4-component
+//! point is `((m[i][3] w + m[i][0] x) + m[i][1] y) + m[i][2] z`, literal zeros included),
+//! the same error-free `sphere_power`, the same cancellation-free discriminant and root
+//! choice per pixel, and no fused multiply-add anywhere. Every operation is an IEEE
+//! add/sub/mul/div/sqrt (no libm call), so on the same scene they produce the same depth and
+//! normal buffers as the JIT kernel, bit for bit; the benchmark and
+//! `tests/handwritten_shapes.rs` check that.
+//!
+//! Keys served: no bindings, or exactly one 3-component `implicit` binding (the normal, in
+//! lighting coordinates). Argument block (see `abi::ArgLayout`): word 0 n_seq; `T` plane
+//! indices; the six space matrices (96 floats); `center` (3); `radius`; `object_x`,
+//! `object_y`, `object_z` (3 each, lighting coordinates). `Handwritten::kernel` checks the
+//! layout against these offsets before handing a kernel out.
+
+// `!(a < b)` is the prims' NaN-rejecting test, kept as written (a NaN fails it).
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+use super::screen_triangle::{bound_or_rect, depth_raw};
+use crate::abi::{ArgLayout, Binding, BindingKind, KernelFn, ParamSlot, TileCtx, VariantKey, MODE_BOUND};
+
+/// Word offset of the space matrices for `t` plane-table entries.
+pub(crate) const fn spaces_at(t: usize) -> usize {
+    1 + t
+}
+
+/// Word offset of `center`; `radius` and `object_x/y/z` follow it.
+pub(crate) const fn params_at(t: usize) -> usize {
+    spaces_at(t) + 96
+}
+
+/// Float literals of the prim, converted as the front end converts them (parsed as f64,
+/// then rounded to f32).
+const LIMIT: f32 = 1e30f64 as f32;
+const TINY: f32 = 1e-30f64 as f32;
+const MARGIN: f32 = 1e-3f64 as f32;
+
+/// Everything the per-pixel code needs, computed once per sphere as the prim does.
+pub(crate) struct SphereSetup<const T: usize> {
+    pub planes: [u32; T],
+    /// The silhouette's bounding box, when the prim's `bound` statement ran.
+    pub bound: Option<[f32; 4]>,
+    pub sx: f32,
+    pub sy: f32,
+    pub zc: f32,
+    pub g0: [f32; 3],
+    pub g1: [f32; 3],
+    pub gamma: [f32; 3],
+    pub gamma_w: f32,
+    /// `n0[3]` and `n1[3]`: the homogeneous w of a pixel step in x and y.
+    pub n0w: f32,
+    pub n1w: f32,
+    pub inv_cw: f32,
+    pub r2: f32,
+    pub a: f32,
+    pub normal_x: [f32; 3],
+    pub normal_y: [f32; 3],
+    pub normal_z: [f32; 3],
+    pub handedness: f32,
+}
+
+#[inline(always)]
+fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[inline(always)]
+fn cross3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// `transform` of a 4-component point by a row-major matrix, in the JIT's order.
+#[inline(always)]
+pub(crate) fn apply_point(m: &[f32; 16], v: [f32; 4]) -> [f32; 4] {
+    std::array::from_fn(|i| m[i * 4 + 3] * v[3] + m[i * 4] * v[0] + m[i * 4 + 1] * v[1] + m[i * 4 + 2] * v[2])
+}
+
+/// Space matrix `k` (0 device_from_object ... 3 object_from_device, see `abi::ArgLayout`).
+///
+/// # Safety
+/// `args` must hold the space matrices at `at`.
+#[inline(always)]
+pub(crate) unsafe fn space_matrix(args: *const u32, at: usize, k: usize) -> [f32; 16] {
+    // SAFETY: the caller guarantees the 96 words at `at`.
+    std::array::from_fn(|i| f32::from_bits(unsafe { *args.add(at + 16 * k + i) }))
+}
+
+/// The rounding error of s = a + b (Knuth), as the prim's `exact_sum_error`.
+fn exact_sum_error(a: f32, b: f32, s: f32) -> f32 {
+    let bv = s - a;
+    let av = s - bv;
+    (a - av) + (b - bv)
+}
+
+/// The rounding error of p = a * b (Dekker), as the prim's `exact_product_error`.
+fn exact_product_error(a: f32, b: f32, p: f32) -> f32 {
+    let (ca, cb) = (4097.0 * a, 4097.0 * b);
+    let (ah, bh) = (ca - (ca - a), cb - (cb - b));
+    let (al, bl) = (a - ah, b - bh);
+    ((ah * bh - p) + ah * bl + al * bh) + al * bl
+}
+
+/// |d|^2 - r^2 to nearly twice float precision, as the prim's `sphere_power`.
+fn sphere_power(d: [f32; 3], r: f32) -> f32 {
+    let (mut sum, mut err) = (0f32, 0f32);
+    for di in d {
+        let p = di * di;
+        let s = sum + p;
+        err += exact_sum_error(sum, p, s) + exact_product_error(di, di, p);
+        sum = s;
+    }
+    let p = r * r;
+    let s = sum - p;
+    err += exact_sum_error(sum, -p, s) - exact_product_error(r, r, p);
+    s + err
+}
+
+/// The uniform part of the prim. `None` when it returns before its `bound` statement (no
+/// bound recorded, no pixel drawn).
+///
+/// # Safety
+/// `args` must hold the sphere argument block for `T` plane-table entries.
+pub(crate) unsafe fn setup<const T: usize>(args: *const u32) -> Option<SphereSetup<T>> {
+    let word = |i: usize| unsafe { *args.add(i) };
+    let float = |i: usize| f32::from_bits(word(i));
+    let p = params_at(T);
+    let center = [float(p), float(p + 1), float(p + 2)];
+    let r = float(p + 3);
+    let object_x = [float(p + 4), float(p + 5), float(p + 6)];
+    let object_y = [float(p + 7), float(p + 8), float(p + 9)];
+    let object_z = [float(p + 10), float(p + 11), float(p + 12)];
+    if !(r > 0.0 && r < LIMIT) {
+        return None;
+    }
+    if !center.iter().all(|c| c.abs() < LIMIT) {
+        return None;
+    }
+    let normal_x = cross3(object_y, object_z);
+    let normal_y = cross3(object_z, object_x);
+    let normal_z = cross3(object_x, object_y);
+    let handedness = if dot3(object_x, normal_x) < 0.0 { -1.0 } else { 1.0 };
+
+    // SAFETY: the layout has the six matrices at spaces_at(T).
+    let object_from_device = unsafe { space_matrix(args, spaces_at(T), 3) };
+    let device_from_object = unsafe { space_matrix(args, spaces_at(T), 0) };
+    let n0 = apply_point(&object_from_device, [1.0, 0.0, 0.0, 0.0]);
+    let n1 = apply_point(&object_from_device, [0.0, 1.0, 0.0, 0.0]);
+    let n2 = apply_point(&object_from_device, [0.0, 0.0, 1.0, 0.0]);
+    let center_device = apply_point(&device_from_object, [center[0], center[1], center[2], 1.0]);
+    let m0 = apply_point(&device_from_object, [1.0, 0.0, 0.0, 0.0]);
+    let m1 = apply_point(&device_from_object, [0.0, 1.0, 0.0, 0.0]);
+    let m2 = apply_point(&device_from_object, [0.0, 0.0, 1.0, 0.0]);
+    let m3 = [m0[3], m1[3], m2[3]];
+    let row0 = [m0[0], m1[0], m2[0]];
+    let row1 = [m0[1], m1[1], m2[1]];
+
+    let cw = center_device[3];
+    let cw2 = cw * cw;
+    let w_reach = r * dot3(m3, m3).sqrt();
+    if cw <= -w_reach {
+        return None;
+    }
+    if !(cw.abs() > TINY) {
+        return None;
+    }
+    let (sx, sy, zc) = (center_device[0] / cw, center_device[1] / cw, center_device[2] / cw);
+
+    let lead = cw2 - w_reach * w_reach;
+    let mut bound = None;
+    if lead > 0.0 && cw > 0.0 {
+        let kx: [f32; 3] = std::array::from_fn(|c| row0[c] - sx * m3[c]);
+        let ky: [f32; 3] = std::array::from_fn(|c| row1[c] - sy * m3[c]);
+        let r2 = r * r;
+        let (bx, by) = (r2 * dot3(kx, m3), r2 * dot3(ky, m3));
+        let ex = (bx * bx + lead * r2 * dot3(kx, kx)).sqrt();
+        let ey = (by * by + lead * r2 * dot3(ky, ky)).sqrt();
+        let (x_lo, x_hi) = ((-bx - ex) / lead, (ex - bx) / lead);
+        let (y_lo, y_hi) = ((-by - ey) / lead, (ey - by) / lead);
+        let mx = 1.0 + MARGIN * (x_hi - x_lo);
+        let my = 1.0 + MARGIN * (y_hi - y_lo);
+        bound = Some([sx + x_lo - mx, sy + y_lo - my, sx + x_hi + mx, sy + y_hi + my]);
+    }
+
+    let g = |n: [f32; 4]| -> [f32; 3] { std::array::from_fn(|c| n[c] - center[c] * n[3]) };
+    let (g0, g1, gamma) = (g(n0), g(n1), g(n2));
+    let gamma_w = n2[3];
+    let r2 = r * r;
+    let mut a = dot3(gamma, gamma);
+    if gamma_w != 0.0 {
+        let eye_to_center: [f32; 3] = std::array::from_fn(|c| center[c] - n2[c] / gamma_w);
+        a = gamma_w * gamma_w * sphere_power(eye_to_center, r);
+    }
+    let mut planes = [0u32; T];
+    for (c, plane) in planes.iter_mut().enumerate() {
+        *plane = word(1 + c);
+    }
+    Some(SphereSetup {
+        planes,
+        bound,
+        sx,
+        sy,
+        zc,
+        g0,
+        g1,
+        gamma,
+        gamma_w,
+        n0w: n0[3],
+        n1w: n1[3],
+        inv_cw: 1.0 / cw,
+        r2,
+        a,
+        normal_x,
+        normal_y,
+        normal_z,
+        handedness,
+    })
+}
+
+/// Bound mode: record the bound (the viewport when the prim ran no `bound`). Render mode:
+/// the tile's pixel rectangle to evaluate, as the JIT's pass rectangle.
+fn pass_rect<const T: usize>(ctx: &mut TileCtx, s: &SphereSetup<T>) -> Option<[i32; 4]> {
+    match s.bound {
+        Some(b) => bound_or_rect(ctx, b),
+        None if ctx.mode == MODE_BOUND => {
+            bound_or_rect(ctx, [0.0, 0.0, ctx.width as f32, ctx.height as f32]);
+            None
+        }
+        None => bound_or_rect(
+            ctx,
+            [f32::NEG_INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::INFINITY],
+        ),
+    }
+}
+
+/// Portable scalar kernel.
+///
+/// # Safety
+/// Called by the runtime with a valid `ctx` and the argument block of a sphere instance
+/// whose key has `T` (0 or 3, one `implicit` binding) components.
+pub unsafe extern "C" fn scalar<const T: usize, const COUNT: bool>(ctx: *mut TileCtx, args: *const u32) {
+    // SAFETY: the runtime hands a valid, exclusive context for the duration of the call.
+    let ctx = unsafe { &mut *ctx };
+    let Some(s) = (unsafe { setup::<T>(args) }) else { return };
+    let Some([rx0, ry0, rx1, ry1]) = pass_rect(ctx, &s) else {
+        return;
+    };
+    for py in ry0..ry1 {
+        let y = py as f32 + 0.5;
+        let dy = y - s.sy;
+        for px in rx0..rx1 {
+            let x = px as f32 + 0.5;
+            let dx = x - s.sx;
+            let delta: [f32; 3] = std::array::from_fn(|c| dx * s.g0[c] + dy * s.g1[c]);
+            let delta_w = s.inv_cw + dx * s.n0w + dy * s.n1w;
+            let across = cross3(s.gamma, delta);
+            let along: [f32; 3] = std::array::from_fn(|c| delta_w * s.gamma[c] - s.gamma_w * delta[c]);
+            let disc = s.r2 * dot3(along, along) - dot3(across, across);
+            if !(disc >= 0.0) {
+                continue;
+            }
+            let b = dot3(delta, s.gamma) - s.r2 * delta_w * s.gamma_w;
+            let c = dot3(delta, delta) - s.r2 * delta_w * delta_w;
+            let root = disc.sqrt();
+            let q = if b >= 0.0 { -(b + root) } else { root - b };
+            if q == 0.0 {
+                continue;
+            }
+            let t_finite = c / q;
+            let z_finite = s.zc + t_finite;
+            let q_over_a = q / s.a;
+            let z_other = if s.a != 0.0 { s.zc + q_over_a } else { -1.0 };
+            let finite_ok = (0.0..=1.0).contains(&z_finite);
+            let other_ok = (0.0..=1.0).contains(&z_other);
+            if !finite_ok && !other_ok {
+                continue;
+            }
+            let mut t = t_finite;
+            if other_ok && (!finite_ok || q_over_a > t_finite) {
+                t = q_over_a;
+            }
+            let tz = depth_raw(s.zc + t);
+            let idx = (py - ctx.y0) as usize * ctx.stride as usize + (px - ctx.x0) as usize;
+            // SAFETY: (px, py) lies in the tile, so idx < stride * rows, the length of the
+            // depth, G-buffer planes and write-count buffers; planes are checked below.
+            unsafe {
+                let zbuf = ctx.depth.add(idx);
+                if tz < *zbuf {
+                    continue;
+                }
+                *zbuf = tz;
+                if COUNT {
+                    *ctx.write_count.add(idx) += 1;
+                }
+                if T == 3 {
+                    let w = delta_w + t * s.gamma_w;
+                    let outward: [f32; 3] = std::array::from_fn(|k| (delta[k] + t * s.gamma[k]) / w);
+                    let lit: [f32; 3] = std::array::from_fn(|k| {
+                        outward[0] * s.normal_x[k] + outward[1] * s.normal_y[k] + outward[2] * s.normal_z[k]
+                    });
+                    let v = lit.map(|l| s.handedness * l);
+                    let len = dot3(v, v).sqrt();
+                    for (&plane, vk) in s.planes.iter().zip(v) {
+                        if plane < ctx.num_planes {
+                            *ctx.gbuf.add(plane as usize * ctx.plane_stride as usize + idx) = vk / len;
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// AVX2 kernel: 8 pixels per step, row terms hoisted, empty groups skipped, masked stores.
+///
+/// # Safety
+/// As [`scalar`], and the CPU must support AVX2 (the caller checks).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+pub unsafe extern "C" fn avx2<const T: usize, const COUNT: bool>(ctx: *mut TileCtx, args: *const u32) {
+    use std::arch::x86_64::*;
+    // SAFETY: as in `scalar`.
+    let ctx = unsafe { &mut *ctx };
+    let Some(s) = (unsafe { setup::<T>(args) }) else { return };
+    let Some([rx0, ry0, rx1, ry1]) = pass_rect(ctx, &s) else {
+        return;
+    };
+    let set1 = |v: f32| _mm256_set1_ps(v);
+    let add = |a, b| _mm256_add_ps(a, b);
+    let sub = |a, b| _mm256_sub_ps(a, b);
+    let mul = |a, b| _mm256_mul_ps(a, b);
+    let dot = |a: [__m256; 3], b: [__m256; 3]| add(add(mul(a[0], b[0]), mul(a[1], b[1])), mul(a[2], b[2]));
+    let lane_offsets = _mm256_setr_ps(0.5, 1.5, 2.5, 3.5, 4.5, 5.5, 6.5, 7.5);
+    let lane_index = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    let sign = _mm256_set1_epi32(i32::MIN);
+    let (zero, one) = (_mm256_setzero_ps(), set1(1.0));
+    let g0 = s.g0.map(set1);
+    let gamma = s.gamma.map(set1);
+    let (gamma_w, r2, zc) = (set1(s.gamma_w), set1(s.r2), set1(s.zc));
+    let (inv_cw, n0w, sx) = (set1(s.inv_cw), set1(s.n0w), set1(s.sx));
+    let (a, a_nonzero) = (set1(s.a), s.a != 0.0);
+    for py in ry0..ry1 {
+        let dy = (py as f32 + 0.5) - s.sy;
+        let row = (py - ctx.y0) as usize * ctx.stride as usize;
+        // Per-row terms: dy * g1 and dy * n1[3] (the prim adds them last).
+        let dy_g1: [__m256; 3] = std::array::from_fn(|c| set1(dy * s.g1[c]));
+        let dy_n1w = set1(dy * s.n1w);
+        let mut px = rx0;
+        while px < rx1 {
+            let n = (rx1 - px).min(8);
+            let live = _mm256_cmpgt_epi32(_mm256_set1_epi32(n), lane_index);
+            let x = add(set1(px as f32), lane_offsets);
+            let dx = sub(x, sx);
+            let delta: [__m256; 3] = std::array::from_fn(|c| add(mul(dx, g0[c]), dy_g1[c]));
+            let delta_w = add(add(inv_cw, mul(dx, n0w)), dy_n1w);
+            let across: [__m256; 3] = std::array::from_fn(|c| {
+                let (i, j) = [(1, 2), (2, 0), (0, 1)][c];
+                sub(mul(gamma[i], delta[j]), mul(gamma[j], delta[i]))
+            });
+            let along: [__m256; 3] = std::array::from_fn(|c| sub(mul(delta_w, gamma[c]), mul(gamma_w, delta[c])));
+            let disc = sub(mul(r2, dot(along, along)), dot(across, across));
+            let mut mask = _mm256_and_si256(live, _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(disc, zero)));
+            if _mm256_testz_si256(mask, mask) != 0 {
+                px += 8;
+                continue;
+            }
+            let b = sub(dot(delta, gamma), mul(mul(r2, delta_w), gamma_w));
+            let c = sub(dot(delta, delta), mul(mul(r2, delta_w), delta_w));
+            let root = _mm256_sqrt_ps(disc);
+            let b_nonneg = _mm256_cmp_ps::<_CMP_GE_OQ>(b, zero);
+            // -(b + root) by flipping the sign bit, as the JIT's fneg.
+            let q = _mm256_blendv_ps(
+                sub(root, b),
+                _mm256_xor_ps(add(b, root), _mm256_castsi256_ps(sign)),
+                b_nonneg,
+            );
+            mask = _mm256_andnot_si256(_mm256_castps_si256(_mm256_cmp_ps::<_CMP_EQ_OQ>(q, zero)), mask);
+            let t_finite = _mm256_div_ps(c, q);
+            let z_finite = add(zc, t_finite);
+            let q_over_a = _mm256_div_ps(q, a);
+            let z_other = if a_nonzero { add(zc, q_over_a) } else { set1(-1.0) };
+            let in_range = |z| {
+                _mm256_and_ps(
+                    _mm256_cmp_ps::<_CMP_GE_OQ>(z, zero),
+                    _mm256_cmp_ps::<_CMP_LE_OQ>(z, one),
+                )
+            };
+            let finite_ok = in_range(z_finite);
+            let other_ok = in_range(z_other);
+            mask = _mm256_and_si256(mask, _mm256_castps_si256(_mm256_or_ps(finite_ok, other_ok)));
+            if _mm256_testz_si256(mask, mask) != 0 {
+                px += 8;
+                continue;
+            }
+            let take_other = _mm256_and_ps(
+                other_ok,
+                _mm256_or_ps(
+                    _mm256_andnot_ps(finite_ok, _mm256_castsi256_ps(_mm256_set1_epi32(-1))),
+                    _mm256_cmp_ps::<_CMP_GT_OQ>(q_over_a, t_finite),
+                ),
+            );
+            let t = _mm256_blendv_ps(t_finite, q_over_a, take_other);
+            let tz = depth_raw8(add(zc, t));
+            let base = row + (px - ctx.x0) as usize;
+            // SAFETY: lanes beyond `n` are masked off, and maskload/maskstore never touch
+            // memory of masked-off lanes; the first `n` pixels of the row lie in the tile.
+            unsafe {
+                let zptr = ctx.depth.add(base) as *mut i32;
+                let old = _mm256_maskload_epi32(zptr, live);
+                // Unsigned tz < old: the JIT's `sphere_z < Z` return.
+                let farther = _mm256_cmpgt_epi32(_mm256_xor_si256(old, sign), _mm256_xor_si256(tz, sign));
+                mask = _mm256_andnot_si256(farther, mask);
+                if _mm256_testz_si256(mask, mask) != 0 {
+                    px += 8;
+                    continue;
+                }
+                _mm256_maskstore_epi32(zptr, mask, tz);
+                if COUNT {
+                    let cptr = ctx.write_count.add(base) as *mut i32;
+                    let counts = _mm256_maskload_epi32(cptr, mask);
+                    _mm256_maskstore_epi32(cptr, mask, _mm256_sub_epi32(counts, mask));
+                }
+                if T == 3 {
+                    let w = add(delta_w, mul(t, gamma_w));
+                    let outward: [__m256; 3] =
+                        std::array::from_fn(|k| _mm256_div_ps(add(delta[k], mul(t, gamma[k])), w));
+                    let handed = set1(s.handedness);
+                    let v: [__m256; 3] = std::array::from_fn(|k| {
+                        let lit = add(
+                            add(
+                                mul(outward[0], set1(s.normal_x[k])),
+                                mul(outward[1], set1(s.normal_y[k])),
+                            ),
+                            mul(outward[2], set1(s.normal_z[k])),
+                        );
+                        mul(handed, lit)
+                    });
+                    let len = _mm256_sqrt_ps(dot(v, v));
+                    for (&plane, vk) in s.planes.iter().zip(v) {
+                        if plane < ctx.num_planes {
+                            let dst = ctx.gbuf.add(plane as usize * ctx.plane_stride as usize + base);
+                            _mm256_maskstore_ps(dst, mask, _mm256_div_ps(vk, len));
+                        }
+                    }
+                }
+            }
+            px += 8;
+        }
+    }
+}
+
+/// float -> fixed<32,32> raw for 8 depths in [0, 1], as [`depth_raw`] (nearest, saturating).
+/// Values below 2^31 convert directly; values in [2^31, 2^32) are shifted down by 2^31
+/// first (exact there) and the top bit set back; 2^32 itself (z == 1) saturates.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+pub(crate) fn depth_raw8(z: std::arch::x86_64::__m256) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::*;
+    let two32 = _mm256_set1_ps(4294967296.0);
+    let two31 = _mm256_set1_ps(2147483648.0);
+    let scaled = _mm256_round_ps::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(_mm256_mul_ps(z, two32));
+    let high = _mm256_cmp_ps::<_CMP_GE_OQ>(scaled, two31);
+    let shifted = _mm256_blendv_ps(scaled, _mm256_sub_ps(scaled, two31), high);
+    let tz = _mm256_cvtps_epi32(shifted);
+    let tz = _mm256_or_si256(
+        tz,
+        _mm256_and_si256(_mm256_castps_si256(high), _mm256_set1_epi32(i32::MIN)),
+    );
+    _mm256_or_si256(tz, _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(scaled, two32)))
+}
+
+/// The kernel for `key`, after checking that the key is one this file serves and that the
+/// argument layout has the offsets the kernel reads.
+pub(crate) fn entry_for(layout: &ArgLayout, key: &VariantKey, simd: bool) -> Result<KernelFn, String> {
+    let t = match key.bindings.as_slice() {
+        [] => 0,
+        [Binding {
+            kind: BindingKind::Kind(k),
+            components: 3,
+        }] if k == "implicit" => 3,
+        _ => return Err("the hand-written sphere serves no bindings or one 3-component `implicit` binding".into()),
+    };
+    let p = params_at(t) as u32;
+    let fixed = |offset: u32, words: u32| ParamSlot::Fixed { offset, words };
+    let expected = [
+        fixed(p, 3),
+        fixed(p + 3, 1),
+        fixed(p + 4, 3),
+        fixed(p + 7, 3),
+        fixed(p + 10, 3),
+    ];
+    if layout.spaces != Some(spaces_at(t) as u32) || layout.params.get(..5) != Some(&expected[..]) {
+        return Err("sphere's parameters are not the ones the hand-written kernel reads".into());
+    }
+    #[cfg(target_arch = "x86_64")]
+    if simd {
+        return Ok(match (t, key.count_writes) {
+            (0, false) => avx2::<0, false>,
+            (0, true) => avx2::<0, true>,
+            (_, false) => avx2::<3, false>,
+            (_, true) => avx2::<3, true>,
+        });
+    }
+    let _ = simd;
+    Ok(match (t, key.count_writes) {
+        (0, false) => scalar::<0, false>,
+        (0, true) => scalar::<0, true>,
+        (_, false) => scalar::<3, false>,
+        (_, true) => scalar::<3, true>,
+    })
+}
