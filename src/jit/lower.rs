@@ -810,30 +810,48 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         self.b.ins().jump(group_end, &[]);
 
-        // End of group: write Z back for the lanes that assigned it.
+        // End of group: write Z back for the lanes that assigned it. Nothing else writes
+        // the depth buffer during the group, so the depth loaded at its start is the old
+        // value to blend with; when every lane assigned Z it is a plain store.
         self.b.switch_to_block(group_end);
-        if let (Some(zp), Some(_)) = (f.param_by_role(ParamRole::Z), z_raw) {
+        if let (Some(zp), Some(z_old)) = (f.param_by_role(ParamRole::Z), z_raw) {
             let zi = f.params.iter().position(|p| p.role == ParamRole::Z).unwrap_or(0);
             let zsc = match f.local(zp.local).ty.elem {
                 Elem::Scalar(s) => s,
                 Elem::Interp => Scalar::Float,
             };
-            let written = self.b.use_var(z_written);
-            let any = self.b.ins().vany_true(written);
-            let store_blk = self.b.create_block();
-            let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
-            self.b.ins().brif(none, next, &[], store_blk, &[]);
-            self.b.switch_to_block(store_blk);
             let zvar = match &self.frames[0].storage[zi] {
                 Storage::Z(v) => *v,
                 _ => return err("Z parameter without storage"),
             };
+            let written = self.b.use_var(z_written);
+            let all = self.b.ins().vall_true(written);
+            let full_blk = self.b.create_block();
+            let part_blk = self.b.create_block();
+            let blend_blk = self.b.create_block();
+            let stored = self.b.create_block();
+            self.b.ins().brif(all, full_blk, &[], part_blk, &[]);
+
+            self.b.switch_to_block(full_blk);
             let zval = self.b.use_var(zvar);
             let raw = fixed::convert(&mut self.b, zsc, Scalar::Fixed(DEPTH_FORMAT), zval);
             let addr = self.tile_addr(ctx_off::DEPTH, tile_idx);
-            let old = self.b.ins().load(I32X4, mem_flags(), addr, 0);
-            let new = self.b.ins().blendv(written, raw, old);
+            self.b.ins().store(mem_flags(), raw, addr, 0);
+            self.b.ins().jump(stored, &[]);
+
+            self.b.switch_to_block(part_blk);
+            let any = self.b.ins().vany_true(written);
+            let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
+            self.b.ins().brif(none, next, &[], blend_blk, &[]);
+            self.b.switch_to_block(blend_blk);
+            let zval = self.b.use_var(zvar);
+            let raw = fixed::convert(&mut self.b, zsc, Scalar::Fixed(DEPTH_FORMAT), zval);
+            let addr = self.tile_addr(ctx_off::DEPTH, tile_idx);
+            let new = self.b.ins().blendv(written, raw, z_old);
             self.b.ins().store(mem_flags(), new, addr, 0);
+            self.b.ins().jump(stored, &[]);
+
+            self.b.switch_to_block(stored);
             if self.key.count_writes {
                 let caddr = self.tile_addr(ctx_off::WRITE_COUNT, tile_idx);
                 let old = self.b.ins().load(I32X4, mem_flags(), caddr, 0);
@@ -1474,29 +1492,62 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// Store a varying f32x4 into G-buffer component `g` (global binding component index)
     /// for the executing lanes; planes at or past `ctx.num_planes` are not written.
     fn store_plane(&mut self, g: u32, v: ir::Value) {
-        let p = self.pix.as_ref().expect("plane stores run in pixel context");
-        let tile_idx = p.tile_idx;
-        let exec = self.exec().expect("pixel context");
+        self.store_planes(&[(g, v)]);
+    }
+
+    /// Store several components for the executing lanes, with one test for the common case:
+    /// when every lane executes and every plane of the key exists (`plane_table`), each
+    /// store is a plain vector store. Otherwise each is load + blend + store to its plane's
+    /// address, or to a scratch slot for a plane the frame does not have (branch-free, so
+    /// values shared by several stores, like a perspective divisor, are computed once).
+    /// Same memory contents either way: a full mask blends nothing from the old value.
+    fn store_planes(&mut self, stores: &[(u32, ir::Value)]) {
         let Some(table) = self.plane_ptrs else {
             return;
         };
-        // The plane's base address, or null for a plane the frame does not have: then the
-        // store goes to a scratch slot. Branch-free, so values shared by several stores
-        // (a perspective divisor) are computed once.
-        let slot_addr = self.b.ins().stack_addr(types::I64, table, 0);
-        let base = self.b.ins().load(types::I64, mem_flags(), slot_addr, (8 * g) as i32);
+        if stores.is_empty() {
+            return;
+        }
+        let p = self.pix.as_ref().expect("plane stores run in pixel context");
+        let tile_idx = p.tile_idx;
+        let exec = self.exec().expect("pixel context");
         let bytes = self.b.ins().ishl_imm_u(tile_idx, 2);
-        let real = self.b.ins().iadd(base, bytes);
-        let dummy = self.b.ins().stack_addr(types::I64, self.scratch, 0);
-        let addr = self.b.ins().select(base, real, dummy);
-        let old = self.b.ins().load(F32X4, mem_flags(), addr, 0);
-        let new = blend(&mut self.b, exec, v, old);
-        self.b.ins().store(mem_flags(), new, addr, 0);
+        let all_lanes = self.b.ins().vall_true(exec);
+        let slot_addr = self.b.ins().stack_addr(types::I64, table, 0);
+        let n = self.key.total_components();
+        let all_planes = self.b.ins().load(types::I8, mem_flags(), slot_addr, (8 * n) as i32);
+        let full = self.b.ins().band(all_lanes, all_planes);
+        let full_blk = self.b.create_block();
+        let part_blk = self.b.create_block();
+        let join = self.b.create_block();
+        self.b.ins().brif(full, full_blk, &[], part_blk, &[]);
+
+        self.b.switch_to_block(full_blk);
+        for &(g, v) in stores {
+            let base = self.b.ins().load(types::I64, mem_flags(), slot_addr, (8 * g) as i32);
+            let addr = self.b.ins().iadd(base, bytes);
+            self.b.ins().store(mem_flags(), v, addr, 0);
+        }
+        self.b.ins().jump(join, &[]);
+
+        self.b.switch_to_block(part_blk);
+        for &(g, v) in stores {
+            let base = self.b.ins().load(types::I64, mem_flags(), slot_addr, (8 * g) as i32);
+            let real = self.b.ins().iadd(base, bytes);
+            let dummy = self.b.ins().stack_addr(types::I64, self.scratch, 0);
+            let addr = self.b.ins().select(base, real, dummy);
+            let old = self.b.ins().load(F32X4, mem_flags(), addr, 0);
+            let new = blend(&mut self.b, exec, v, old);
+            self.b.ins().store(mem_flags(), new, addr, 0);
+        }
+        self.b.ins().jump(join, &[]);
+        self.b.switch_to_block(join);
     }
 
     /// Once per kernel run, before the pixel loops: the base address of every binding
     /// component's G-buffer plane (null when its plane index is not below
     /// `ctx.num_planes`), so a store costs a load and an add instead of recomputing it.
+    /// After the `n` addresses, one byte: 1 when every plane exists (the stores' fast path).
     fn plane_table(&mut self) {
         let n = self.key.total_components();
         if n == 0 {
@@ -1504,8 +1555,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         let slot = self
             .b
-            .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8 * n, 3));
+            .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8 * n + 8, 3));
         let num = self.load_ctx(types::I32, ctx_off::NUM_PLANES);
+        let mut all_valid = self.b.ins().iconst(types::I8, 1);
         let pstride = self.load_ctx(types::I32, ctx_off::PLANE_STRIDE);
         let ps64 = self.b.ins().uextend(types::I64, pstride);
         let gbuf = self.load_ctx(types::I64, ctx_off::GBUF);
@@ -1525,7 +1577,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             let base = self.b.ins().iadd(gbuf, bytes);
             let base = self.b.ins().select(valid, base, null);
             self.b.ins().store(mem_flags(), base, addr, (8 * g) as i32);
+            all_valid = self.b.ins().band(all_valid, valid);
         }
+        self.b.ins().store(mem_flags(), all_valid, addr, (8 * n) as i32);
         self.plane_ptrs = Some(slot);
     }
 
@@ -1541,14 +1595,17 @@ impl<'a, 'b> Lower<'a, 'b> {
                 let comps = self.key.bindings[bi].components;
                 let g0 = self.global_offset(bi);
                 if v.comps.len() == 1 || v.comps.len() == comps as usize {
-                    for c in 0..comps {
-                        let x = if v.comps.len() == 1 {
-                            v.comps[0]
-                        } else {
-                            v.comps[c as usize]
-                        };
-                        self.store_plane(g0 + c, x);
-                    }
+                    let batch: Vec<(u32, ir::Value)> = (0..comps)
+                        .map(|c| {
+                            let x = if v.comps.len() == 1 {
+                                v.comps[0]
+                            } else {
+                                v.comps[c as usize]
+                            };
+                            (g0 + c, x)
+                        })
+                        .collect();
+                    self.store_planes(&batch);
                 } else {
                     self.warnings.push(format!(
                         "interpolator `{}` returns {} components for a parameter of {}; not stored",
@@ -1592,6 +1649,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         };
         let offsets = self.kind_offsets();
         let fname = self.frame().func.name.clone();
+        // Every binding's components, stored together under one full-mask test.
+        let mut batch = vec![];
         for bi in bindings {
             let Some(&(_, ic, gc)) = offsets.iter().find(|o| o.0 == bi) else {
                 continue;
@@ -1621,10 +1680,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                 continue;
             }
             for (c, x) in vals.into_iter().enumerate() {
-                self.store_plane(gc + c as u32, x.expect("checked above"));
+                batch.push((gc + c as u32, x.expect("checked above")));
             }
             self.written[bi] = true;
         }
+        self.store_planes(&batch);
         Ok(())
     }
 
