@@ -72,6 +72,9 @@ struct PassRect {
     lo_x: ir::Value,
     hi_x: ir::Value,
     stride64: ir::Value,
+    /// A group starting at `g` has all four lanes inside [lo_x, hi_x) iff
+    /// `(g - lo_x) <u interior_lim` (`max(hi_x - lo_x - 3, 0)`: 0 makes no group interior).
+    interior_lim: ir::Value,
 }
 
 pub(crate) fn err<T>(msg: impl Into<String>) -> Res<T> {
@@ -444,12 +447,17 @@ impl<'a, 'b> Lower<'a, 'b> {
         let off = self.b.ins().isub(lo_x, x0);
         let off = self.b.ins().band_imm_s(off, !3i64);
         let gx_start = self.b.ins().iadd(x0, off);
+        let width = self.b.ins().isub(hi_x, lo_x);
+        let lim = self.b.ins().iadd_imm_s(width, -3);
+        let zero_i = self.b.ins().iconst(types::I32, 0);
+        let interior_lim = self.b.ins().smax(lim, zero_i);
         let rect = PassRect {
             x0,
             y0,
             lo_x,
             hi_x,
             stride64,
+            interior_lim,
         };
         let loops_done = self.b.create_block();
 
@@ -470,8 +478,16 @@ impl<'a, 'b> Lower<'a, 'b> {
         let h64 = self.b.ins().sextend(types::I64, h);
         let area = self.b.ins().imul(w64, h64);
         let small_rect = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, area, SMALL_RECT);
+        // Consecutive pass blocks of a block row run as one *span* (one row prologue per
+        // pixel row for the whole run, not per block): a pass block extends the pending
+        // span; a dead or full block, or the row's end, first flushes it. `after` says what
+        // follows the flush: 0 the next block row, 1 the next block (dead), 2 the full code
+        // on this block.
         let by = self.b.declare_var(types::I32);
         let bxv = self.b.declare_var(types::I32);
+        let span_lo = self.b.declare_var(types::I32);
+        let span_hi = self.b.declare_var(types::I32);
+        let after = self.b.declare_var(types::I32);
         self.b.def_var(by, lo_y);
         let brow_hdr = self.b.create_block();
         let brow_body = self.b.create_block();
@@ -481,7 +497,15 @@ impl<'a, 'b> Lower<'a, 'b> {
         let blk_next = self.b.create_block();
         let blk_choose = self.b.create_block();
         let blk_full = self.b.create_block();
-        let blk_pass = self.b.create_block();
+        let blk_extend = self.b.create_block();
+        let row_end = self.b.create_block();
+        let to_full = self.b.create_block();
+        let to_dead = self.b.create_block();
+        let flush = self.b.create_block();
+        let flush_run = self.b.create_block();
+        let flush_done = self.b.create_block();
+        let after_flush = self.b.create_block();
+        let after_not_end = self.b.create_block();
         self.b.ins().jump(brow_hdr, &[]);
 
         self.b.switch_to_block(brow_hdr);
@@ -490,23 +514,25 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(done, loops_done, &[], brow_body, &[]);
 
         self.b.switch_to_block(brow_body);
+        let y = self.b.use_var(by);
+        let y_end = self.b.ins().iadd_imm_s(y, BLOCK_H as i64);
+        let y_end = self.b.ins().smin(y_end, hi_y);
         self.b.def_var(bxv, gx_start);
+        self.b.def_var(span_lo, gx_start);
+        self.b.def_var(span_hi, gx_start);
         self.b.ins().jump(blk_hdr, &[]);
 
         self.b.switch_to_block(blk_hdr);
         let x = self.b.use_var(bxv);
         let done = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, x, hi_x);
-        self.b.ins().brif(done, brow_next, &[], blk_body, &[]);
+        self.b.ins().brif(done, row_end, &[], blk_body, &[]);
 
         self.b.switch_to_block(blk_body);
-        let y = self.b.use_var(by);
         let x = self.b.use_var(bxv);
-        let y_end = self.b.ins().iadd_imm_s(y, BLOCK_H as i64);
-        let y_end = self.b.ins().smin(y_end, hi_y);
         let x_end = self.b.ins().iadd_imm_s(x, BLOCK_W as i64);
         let x_end = self.b.ins().smin(x_end, hi_x);
         let blk_eval = self.b.create_block();
-        self.b.ins().brif(small_rect, blk_full, &[], blk_eval, &[]);
+        self.b.ins().brif(small_rect, to_full, &[], blk_eval, &[]);
         self.b.switch_to_block(blk_eval);
         // Centres of the block's first and last live pixels, computed as the pixel code
         // computes X and Y (int -> float, + 0.5), so the endpoints are bit-identical.
@@ -521,21 +547,60 @@ impl<'a, 'b> Lower<'a, 'b> {
         let xs = [centre(self, x_first), centre(self, x_last)];
         let ys = [centre(self, y), centre(self, y_last)];
         let facts = self.block_facts(f, &prefix, xs, ys)?;
-        self.b.ins().brif(facts.dead, blk_next, &[], blk_choose, &[]);
+        self.b.ins().brif(facts.dead, to_dead, &[], blk_choose, &[]);
         self.b.switch_to_block(blk_choose);
-        self.b.ins().brif(facts.pass, blk_pass, &[], blk_full, &[]);
+        self.b.ins().brif(facts.pass, blk_extend, &[], to_full, &[]);
 
-        self.b.switch_to_block(blk_full);
-        self.pixel_rows(f, &rect, [y, y_end], [x, x_end], None, blk_next)?;
-        self.b.switch_to_block(blk_pass);
+        // A pass block: start the span here if none is pending, and extend it to this
+        // block's end (blocks are visited left to right, so the span stays contiguous).
+        self.b.switch_to_block(blk_extend);
+        let lo = self.b.use_var(span_lo);
+        let hi = self.b.use_var(span_hi);
+        let empty = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, lo, hi);
+        let lo = self.b.ins().select(empty, x, lo);
+        self.b.def_var(span_lo, lo);
+        self.b.def_var(span_hi, x_end);
+        self.b.ins().jump(blk_next, &[]);
+
+        for (blk, code) in [(row_end, 0), (to_dead, 1), (to_full, 2)] {
+            self.b.switch_to_block(blk);
+            let c = self.b.ins().iconst(types::I32, code);
+            self.b.def_var(after, c);
+            self.b.ins().jump(flush, &[]);
+        }
+
+        self.b.switch_to_block(flush);
+        let lo = self.b.use_var(span_lo);
+        let hi = self.b.use_var(span_hi);
+        let pending = self.b.ins().icmp(IntCC::SignedLessThan, lo, hi);
+        self.b.ins().brif(pending, flush_run, &[], after_flush, &[]);
+        self.b.switch_to_block(flush_run);
         self.pixel_rows(
             f,
             &rect,
             [y, y_end],
-            [x, x_end],
+            [lo, hi],
             Some((&prefix, &facts.decidable)),
-            blk_next,
+            flush_done,
         )?;
+        self.b.switch_to_block(flush_done);
+        let hi = self.b.use_var(span_hi);
+        self.b.def_var(span_lo, hi);
+        self.b.ins().jump(after_flush, &[]);
+
+        self.b.switch_to_block(after_flush);
+        let a = self.b.use_var(after);
+        let at_end = self.b.ins().icmp_imm_s(IntCC::Equal, a, 0);
+        self.b.ins().brif(at_end, brow_next, &[], after_not_end, &[]);
+        self.b.switch_to_block(after_not_end);
+        let is_dead = self.b.ins().icmp_imm_s(IntCC::Equal, a, 1);
+        self.b.ins().brif(is_dead, blk_next, &[], blk_full, &[]);
+
+        self.b.switch_to_block(blk_full);
+        let x = self.b.use_var(bxv);
+        let x_end = self.b.ins().iadd_imm_s(x, BLOCK_W as i64);
+        let x_end = self.b.ins().smin(x_end, hi_x);
+        self.pixel_rows(f, &rect, [y, y_end], [x, x_end], None, blk_next)?;
 
         self.b.switch_to_block(blk_next);
         let x = self.b.use_var(bxv);
@@ -645,6 +710,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     ) -> Res<()> {
         let py = self.b.declare_var(types::I32);
         let gx = self.b.declare_var(types::I32);
+        let xv = self.b.declare_var(F32X4);
         self.b.def_var(py, ys[0]);
         let row_hdr = self.b.create_block();
         let row_body = self.b.create_block();
@@ -669,6 +735,18 @@ impl<'a, 'b> Lower<'a, 'b> {
         let yf = self.b.ins().fadd(yf, half);
         let y_f = self.b.ins().splat(F32X4, yf);
         self.b.def_var(gx, gs[0]);
+        // X of the group's lanes, carried across the row: centre of the first group's
+        // lanes (int -> float, + 0.5, as the pixel's X is defined), then + 4.0 per group.
+        // Exact, so bit-identical to converting each group's lane indices: every value is
+        // a multiple of 0.5 below 2^22 in magnitude (images are at most 16384 pixels wide).
+        let g0 = self.b.ins().splat(I32X4, gs[0]);
+        let iota = self.iota();
+        let px0 = self.b.ins().iadd(g0, iota);
+        let pxf = self.b.ins().fcvt_from_sint(F32X4, px0);
+        let half = self.b.ins().f32const(0.5);
+        let halfv = self.b.ins().splat(F32X4, half);
+        let x0_f = self.b.ins().fadd(pxf, halfv);
+        self.b.def_var(xv, x0_f);
         self.b.ins().jump(grp_hdr, &[]);
 
         self.b.switch_to_block(grp_hdr);
@@ -686,7 +764,15 @@ impl<'a, 'b> Lower<'a, 'b> {
             };
             let g = self.b.use_var(gx);
             let g = self.b.ins().iadd_imm_s(g, 4 * k as i64);
-            self.pixel_group(f, rect, g, row_base, y_f, pass, next)?;
+            let x_f = self.b.use_var(xv);
+            let x_f = if k == 0 {
+                x_f
+            } else {
+                let step = self.b.ins().f32const(4.0 * k as f32);
+                let step = self.b.ins().splat(F32X4, step);
+                self.b.ins().fadd(x_f, step)
+            };
+            self.pixel_group(f, rect, g, row_base, [x_f, y_f], pass, next)?;
             if k + 1 != unroll {
                 self.b.switch_to_block(next);
             }
@@ -696,6 +782,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         let g = self.b.use_var(gx);
         let g = self.b.ins().iadd_imm_s(g, 4 * unroll as i64);
         self.b.def_var(gx, g);
+        let x_f = self.b.use_var(xv);
+        let step = self.b.ins().f32const(4.0 * unroll as f32);
+        let step = self.b.ins().splat(F32X4, step);
+        let x_f = self.b.ins().fadd(x_f, step);
+        self.b.def_var(xv, x_f);
         self.b.ins().jump(grp_hdr, &[]);
 
         self.b.switch_to_block(row_next);
@@ -706,7 +797,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         Ok(())
     }
 
-    /// The pixel code for the group of 4 pixels starting at `g`; ends by jumping to `next`.
+    /// The pixel code for the group of 4 pixels starting at `g` (lane centres `xy_f`);
+    /// ends by jumping to `next`.
     #[allow(clippy::too_many_arguments)]
     fn pixel_group(
         &mut self,
@@ -714,12 +806,26 @@ impl<'a, 'b> Lower<'a, 'b> {
         rect: &PassRect,
         g: ir::Value,
         row_base: ir::Value,
-        y_f: ir::Value,
+        xy_f: [ir::Value; 2],
         pass: Option<(&block::Prefix<'a>, &[bool])>,
         next: Block,
     ) -> Res<()> {
+        let [x_f, y_f] = xy_f;
         let grp_run = self.b.create_block();
+        let mask = self.b.append_block_param(grp_run, I32X4);
         let group_end = self.b.create_block();
+        let edge = self.b.create_block();
+        let col = self.b.ins().isub(g, rect.x0);
+        let col64 = self.b.ins().sextend(types::I64, col);
+        let tile_idx = self.b.ins().iadd(row_base, col64);
+        // Lanes outside [lo_x, hi_x) start dead. Only a group at either end of the
+        // rectangle has such lanes: one unsigned compare tells the others apart.
+        let d = self.b.ins().isub(g, rect.lo_x);
+        let interior = self.b.ins().icmp(IntCC::UnsignedLessThan, d, rect.interior_lim);
+        let all = mask_const(&mut self.b, true);
+        self.b.ins().brif(interior, grp_run, &[all.into()], edge, &[]);
+
+        self.b.switch_to_block(edge);
         let gs = self.b.ins().splat(I32X4, g);
         let iota = self.iota();
         let px = self.b.ins().iadd(gs, iota);
@@ -727,13 +833,10 @@ impl<'a, 'b> Lower<'a, 'b> {
         let hi_s = self.b.ins().splat(I32X4, rect.hi_x);
         let ge = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, px, lo_s);
         let lt = self.b.ins().icmp(IntCC::SignedLessThan, px, hi_s);
-        let mask = self.b.ins().band(ge, lt);
-        let col = self.b.ins().isub(g, rect.x0);
-        let col64 = self.b.ins().sextend(types::I64, col);
-        let tile_idx = self.b.ins().iadd(row_base, col64);
-        let any = self.b.ins().vany_true(mask);
+        let edge_mask = self.b.ins().band(ge, lt);
+        let any = self.b.ins().vany_true(edge_mask);
         let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
-        self.b.ins().brif(none, next, &[], grp_run, &[]);
+        self.b.ins().brif(none, next, &[], grp_run, &[edge_mask.into()]);
 
         self.b.switch_to_block(grp_run);
         let alive = self.b.declare_var(I32X4);
@@ -743,10 +846,6 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.def_var(exec, mask);
         let none_mask = mask_const(&mut self.b, false);
         self.b.def_var(z_written, none_mask);
-        let pxf = self.b.ins().fcvt_from_sint(F32X4, px);
-        let half = self.b.ins().f32const(0.5);
-        let halfv = self.b.ins().splat(F32X4, half);
-        let x_f = self.b.ins().fadd(pxf, halfv);
         let needs_depth = f.param_by_role(ParamRole::Z).is_some()
             || self
                 .key
