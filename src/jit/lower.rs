@@ -51,6 +51,7 @@ use crate::ir::{
 };
 
 mod block;
+mod hoist;
 
 pub(crate) type Res<T> = Result<T, JitError>;
 
@@ -201,6 +202,13 @@ pub(crate) struct Lower<'a, 'b> {
     has_bound: Variable,
     /// The uniform frame's slot and the slot holding its address (see `spill_uniforms`).
     uniform_frame: Option<(StackSlot, StackSlot)>,
+    /// Byte offset of the uniform frame's vector section (word `w` splatted at
+    /// `vec_section + 16 * w`; see [`hoist`]).
+    vec_section: u32,
+    /// Row-invariant pixel terms evaluated once per row into the frame's row section.
+    hoists: Vec<hoist::Hoist<'a>>,
+    /// Scalar frame reads of the current group -> the byte offset of their splat.
+    splat_src: std::collections::HashMap<ir::Value, u32>,
     /// A 16-byte slot that stores to planes the frame does not have go to.
     scratch: StackSlot,
     /// Per binding component: its G-buffer plane's base address (see `plane_table`).
@@ -271,6 +279,9 @@ pub(crate) fn lower_kernel(
         bound_vars,
         has_bound,
         uniform_frame: None,
+        vec_section: 0,
+        hoists: vec![],
+        splat_src: std::collections::HashMap::new(),
         scratch,
         plane_ptrs: None,
         written: vec![false; key.bindings.len()],
@@ -655,17 +666,42 @@ impl<'a, 'b> Lower<'a, 'b> {
             moves.push((i, vars.clone(), pixel_assigned.contains(&LocalId(i as u32))));
         }
         let frozen_words: u32 = moves.iter().filter(|m| !m.2).map(|m| m.1.len() as u32).sum();
-        let frame_slot = (frozen_words > 0).then(|| {
-            self.b
-                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 4 * frozen_words, 4))
-        });
+        // Words first, so the hoisting analysis sees which locals live in the frame.
         let mut next_word = 0;
+        let mut placed = vec![];
         for (i, vars, assigned) in moves {
-            let (addr, first, storage) = match (assigned, frame_slot) {
-                (false, Some(fs)) => {
-                    let at = next_word;
-                    next_word += vars.len() as u32;
-                    (self.b.ins().stack_addr(types::I64, fs, 0), at, Storage::Frame(at))
+            let at = (!assigned).then(|| {
+                let at = next_word;
+                next_word += vars.len() as u32;
+                self.frames[0].storage[i] = Storage::Frame(at);
+                at
+            });
+            placed.push((i, vars, at));
+        }
+        self.vec_section = (4 * frozen_words).div_ceil(16) * 16;
+        let row_section = self.vec_section + 16 * frozen_words;
+        self.hoists = self.collect_hoists(f, row_section);
+        let frame_bytes = row_section + self.hoists.iter().map(|h| 16 * h.comps).sum::<u32>();
+        let frame_slot = (frame_bytes > 0).then(|| {
+            self.b
+                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, frame_bytes, 4))
+        });
+        for (i, vars, at) in placed {
+            let sc = elem_scalar(&f.locals[i].ty);
+            match (at, frame_slot) {
+                (Some(first), Some(fs)) => {
+                    let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+                    for (c, v) in vars.iter().enumerate() {
+                        let x = self.b.use_var(*v);
+                        let w = first + c as u32;
+                        self.b.ins().store(mem_flags(), x, addr, (4 * w) as i32);
+                        if sc != Scalar::Bool {
+                            let xv = splat(&mut self.b, sc, x);
+                            self.b
+                                .ins()
+                                .store(mem_flags(), xv, addr, (self.vec_section + 16 * w) as i32);
+                        }
+                    }
                 }
                 _ => {
                     let slot = self.b.create_sized_stack_slot(StackSlotData::new(
@@ -673,16 +709,14 @@ impl<'a, 'b> Lower<'a, 'b> {
                         4 * vars.len() as u32,
                         2,
                     ));
-                    (self.b.ins().stack_addr(types::I64, slot, 0), 0, Storage::Stack(slot))
+                    let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                    for (c, v) in vars.iter().enumerate() {
+                        let x = self.b.use_var(*v);
+                        self.b.ins().store(mem_flags(), x, addr, (4 * c) as i32);
+                    }
+                    self.frames[0].storage[i] = Storage::Stack(slot);
                 }
-            };
-            for (c, v) in vars.iter().enumerate() {
-                let x = self.b.use_var(*v);
-                self.b
-                    .ins()
-                    .store(mem_flags(), x, addr, (4 * (first + c as u32)) as i32);
             }
-            self.frames[0].storage[i] = storage;
         }
         if let Some(fs) = frame_slot {
             // The frame's address, reloaded per group through this slot (see above).
@@ -693,6 +727,91 @@ impl<'a, 'b> Lower<'a, 'b> {
             let pa = self.b.ins().stack_addr(types::I64, ptr_slot, 0);
             self.b.ins().store(mem_flags(), addr, pa, 0);
             self.uniform_frame = Some((fs, ptr_slot));
+        } else {
+            self.hoists.clear();
+        }
+    }
+
+    /// Row prologue: evaluate the hoisted terms for row centre `y_f` into the frame's row
+    /// section (see [`hoist`]), with the operations the group code would use.
+    fn row_hoists(&mut self, f: &'a Function, y_f: ir::Value) -> Res<()> {
+        let (Some((fs, _)), false) = (self.uniform_frame, self.hoists.is_empty()) else {
+            return Ok(());
+        };
+        if let Some(p) = f.param_by_role(ParamRole::Y) {
+            let i = p.local.0 as usize;
+            if let (Storage::Vars(vs), Elem::Scalar(sc)) = (&self.frames[0].storage[i], f.local(p.local).ty.elem) {
+                let var = vs[0];
+                let v = fixed::convert(&mut self.b, Scalar::Float, sc, y_f);
+                self.b.def_var(var, v);
+            }
+        }
+        for k in 0..self.hoists.len() {
+            let (expr, view, offset, comps) = {
+                let h = &self.hoists[k];
+                (h.expr, h.view.clone(), h.offset, h.comps)
+            };
+            let saved = std::mem::replace(&mut self.view, view);
+            let v = self.eval(expr);
+            self.view = saved;
+            let v = v?;
+            if v.comps.len() != comps as usize {
+                return err("hoisted row term has an unexpected number of components");
+            }
+            let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+            for (c, &x) in v.comps.iter().enumerate() {
+                let x = splat(&mut self.b, v.scalar, x);
+                self.b
+                    .ins()
+                    .store(mem_flags(), x, addr, (offset + 16 * c as u32) as i32);
+            }
+        }
+        Ok(())
+    }
+
+    /// In a group: the value of a hoisted row term, read from the frame's row section.
+    fn hoisted(&mut self, e: &'a Expr) -> Option<Val> {
+        let base = self.pix.as_ref()?.frame_base?;
+        if self.frames.len() != 1 {
+            return None;
+        }
+        let h = self
+            .hoists
+            .iter()
+            .find(|h| std::ptr::eq(h.expr, e) && h.view == self.view)?;
+        let (offset, comps, scalar) = (h.offset, h.comps, h.scalar);
+        let ty = cl_type(scalar, true);
+        let comps = (0..comps)
+            .map(|c| self.b.ins().load(ty, args_flags(), base, (offset + 16 * c) as i32))
+            .collect();
+        Some(Val {
+            comps,
+            scalar,
+            varying: true,
+        })
+    }
+
+    /// Broadcast uniform component `c` of scalar type `sc`: a frame word read in this group
+    /// loads its splat from the vector section, anything else is splatted here.
+    fn splat_of(&mut self, sc: Scalar, c: ir::Value) -> ir::Value {
+        if self.b.func.dfg.value_type(c).is_vector() {
+            return c;
+        }
+        if let (Some(&off), Some(base)) = (self.splat_src.get(&c), self.pix.as_ref().and_then(|p| p.frame_base)) {
+            return self.b.ins().load(cl_type(sc, true), args_flags(), base, off as i32);
+        }
+        splat(&mut self.b, sc, c)
+    }
+
+    fn to_varying_val(&mut self, v: Val) -> Val {
+        if v.varying {
+            return v;
+        }
+        let comps = v.comps.iter().map(|&c| self.splat_of(v.scalar, c)).collect();
+        Val {
+            comps,
+            scalar: v.scalar,
+            varying: true,
         }
     }
 
@@ -734,6 +853,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let half = self.b.ins().f32const(0.5);
         let yf = self.b.ins().fadd(yf, half);
         let y_f = self.b.ins().splat(F32X4, yf);
+        self.row_hoists(f, y_f)?;
         self.b.def_var(gx, gs[0]);
         // X of the group's lanes, carried across the row: centre of the first group's
         // lanes (int -> float, + 0.5, as the pixel's X is defined), then + 4.0 per group.
@@ -2347,7 +2467,14 @@ impl<'a, 'b> Lower<'a, 'b> {
                             (None, Some((fs, _))) => (self.b.ins().stack_addr(types::I64, fs, 0), false),
                             (None, None) => return err("uniform frame missing"),
                         };
-                        Ok(self.read_memory(addr, sc, false, &offs, word + acc.base, acc.dyn_off, false, pure))
+                        let v = self.read_memory(addr, sc, false, &offs, word + acc.base, acc.dyn_off, false, pure);
+                        if pure && sc != Scalar::Bool && matches!(acc.dyn_off, Dyn::None) {
+                            for (&c, &o) in v.comps.iter().zip(&offs) {
+                                let w = word + acc.base + o;
+                                self.splat_src.insert(c, self.vec_section + 16 * w);
+                            }
+                        }
+                        Ok(v)
                     }
                     Storage::Args => {
                         let pi = fr
@@ -2539,6 +2666,9 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     pub(crate) fn eval(&mut self, e: &'a Expr) -> Res<Val> {
+        if let Some(v) = self.hoisted(e) {
+            return Ok(v);
+        }
         let sc = elem_scalar(&e.ty);
         match &e.kind {
             ExprKind::Const(c) => {
@@ -2748,8 +2878,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     pub(crate) fn unify(&mut self, a: Val, c: Val) -> Res<(Val, Val)> {
         let (mut a, mut c) = (a, c);
         if a.varying != c.varying {
-            a = to_varying(&mut self.b, a);
-            c = to_varying(&mut self.b, c);
+            a = self.to_varying_val(a);
+            c = self.to_varying_val(c);
         }
         if a.comps.len() != c.comps.len() {
             if a.comps.len() == 1 {
