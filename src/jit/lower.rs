@@ -13,7 +13,10 @@
 //!    When the pixel part opens with coverage tests (`if (c) return;`), the rectangle is
 //!    walked in blocks of `BLOCK_W` x `BLOCK_H` pixels instead; [`block`] evaluates the
 //!    tests over each block with interval arithmetic and skips blocks no lane survives, and
-//!    runs blocks every lane passes with a variant of the pixel code without those tests.
+//!    runs blocks every lane passes with a variant of the pixel code without those tests;
+//!    consecutive pass blocks of a block row run as one span. Per row, the pixel terms that
+//!    depend on Y alone are evaluated once ([`hoist`]); X steps by 4.0 per group; only the
+//!    groups at the rectangle's ends build a lane mask (the others start all ones).
 //! 3. Per group the pixel statements run on vectors under masks: `alive` (lanes not yet
 //!    retired) and `exec` (the lanes the current statement runs for, always a subset of
 //!    `alive`). Varying `if` runs both sides under their masks, skipping a side with no lane;
