@@ -13,7 +13,10 @@
 //!    When the pixel part opens with coverage tests (`if (c) return;`), the rectangle is
 //!    walked in blocks of `BLOCK_W` x `BLOCK_H` pixels instead; [`block`] evaluates the
 //!    tests over each block with interval arithmetic and skips blocks no lane survives, and
-//!    runs blocks every lane passes with a variant of the pixel code without those tests.
+//!    runs blocks every lane passes with a variant of the pixel code without those tests;
+//!    consecutive pass blocks of a block row run as one span. Per row, the pixel terms that
+//!    depend on Y alone are evaluated once ([`hoist`]); X steps by 4.0 per group; only the
+//!    groups at the rectangle's ends build a lane mask (the others start all ones).
 //! 3. Per group the pixel statements run on vectors under masks: `alive` (lanes not yet
 //!    retired) and `exec` (the lanes the current statement runs for, always a subset of
 //!    `alive`). Varying `if` runs both sides under their masks, skipping a side with no lane;
@@ -51,6 +54,7 @@ use crate::ir::{
 };
 
 mod block;
+mod hoist;
 
 pub(crate) type Res<T> = Result<T, JitError>;
 
@@ -72,6 +76,9 @@ struct PassRect {
     lo_x: ir::Value,
     hi_x: ir::Value,
     stride64: ir::Value,
+    /// A group starting at `g` has all four lanes inside [lo_x, hi_x) iff
+    /// `(g - lo_x) <u interior_lim` (`max(hi_x - lo_x - 3, 0)`: 0 makes no group interior).
+    interior_lim: ir::Value,
 }
 
 pub(crate) fn err<T>(msg: impl Into<String>) -> Res<T> {
@@ -198,6 +205,13 @@ pub(crate) struct Lower<'a, 'b> {
     has_bound: Variable,
     /// The uniform frame's slot and the slot holding its address (see `spill_uniforms`).
     uniform_frame: Option<(StackSlot, StackSlot)>,
+    /// Byte offset of the uniform frame's vector section (word `w` splatted at
+    /// `vec_section + 16 * w`; see [`hoist`]).
+    vec_section: u32,
+    /// Row-invariant pixel terms evaluated once per row into the frame's row section.
+    hoists: Vec<hoist::Hoist<'a>>,
+    /// Scalar frame reads of the current group -> the byte offset of their splat.
+    splat_src: std::collections::HashMap<ir::Value, u32>,
     /// A 16-byte slot that stores to planes the frame does not have go to.
     scratch: StackSlot,
     /// Per binding component: its G-buffer plane's base address (see `plane_table`).
@@ -272,6 +286,9 @@ pub(crate) fn lower_kernel(
         bound_vars,
         has_bound,
         uniform_frame: None,
+        vec_section: 0,
+        hoists: vec![],
+        splat_src: std::collections::HashMap::new(),
         scratch,
         plane_ptrs: None,
         written: vec![false; key.bindings.len()],
@@ -481,12 +498,17 @@ impl<'a, 'b> Lower<'a, 'b> {
         let off = self.b.ins().isub(lo_x, x0);
         let off = self.b.ins().band_imm_s(off, !3i64);
         let gx_start = self.b.ins().iadd(x0, off);
+        let width = self.b.ins().isub(hi_x, lo_x);
+        let lim = self.b.ins().iadd_imm_s(width, -3);
+        let zero_i = self.b.ins().iconst(types::I32, 0);
+        let interior_lim = self.b.ins().smax(lim, zero_i);
         let rect = PassRect {
             x0,
             y0,
             lo_x,
             hi_x,
             stride64,
+            interior_lim,
         };
         let loops_done = self.b.create_block();
 
@@ -507,8 +529,16 @@ impl<'a, 'b> Lower<'a, 'b> {
         let h64 = self.b.ins().sextend(types::I64, h);
         let area = self.b.ins().imul(w64, h64);
         let small_rect = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, area, SMALL_RECT);
+        // Consecutive pass blocks of a block row run as one *span* (one row prologue per
+        // pixel row for the whole run, not per block): a pass block extends the pending
+        // span; a dead or full block, or the row's end, first flushes it. `after` says what
+        // follows the flush: 0 the next block row, 1 the next block (dead), 2 the full code
+        // on this block.
         let by = self.b.declare_var(types::I32);
         let bxv = self.b.declare_var(types::I32);
+        let span_lo = self.b.declare_var(types::I32);
+        let span_hi = self.b.declare_var(types::I32);
+        let after = self.b.declare_var(types::I32);
         self.b.def_var(by, lo_y);
         let brow_hdr = self.b.create_block();
         let brow_body = self.b.create_block();
@@ -518,7 +548,15 @@ impl<'a, 'b> Lower<'a, 'b> {
         let blk_next = self.b.create_block();
         let blk_choose = self.b.create_block();
         let blk_full = self.b.create_block();
-        let blk_pass = self.b.create_block();
+        let blk_extend = self.b.create_block();
+        let row_end = self.b.create_block();
+        let to_full = self.b.create_block();
+        let to_dead = self.b.create_block();
+        let flush = self.b.create_block();
+        let flush_run = self.b.create_block();
+        let flush_done = self.b.create_block();
+        let after_flush = self.b.create_block();
+        let after_not_end = self.b.create_block();
         self.b.ins().jump(brow_hdr, &[]);
 
         self.b.switch_to_block(brow_hdr);
@@ -527,23 +565,25 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(done, loops_done, &[], brow_body, &[]);
 
         self.b.switch_to_block(brow_body);
+        let y = self.b.use_var(by);
+        let y_end = self.b.ins().iadd_imm_s(y, BLOCK_H as i64);
+        let y_end = self.b.ins().smin(y_end, hi_y);
         self.b.def_var(bxv, gx_start);
+        self.b.def_var(span_lo, gx_start);
+        self.b.def_var(span_hi, gx_start);
         self.b.ins().jump(blk_hdr, &[]);
 
         self.b.switch_to_block(blk_hdr);
         let x = self.b.use_var(bxv);
         let done = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, x, hi_x);
-        self.b.ins().brif(done, brow_next, &[], blk_body, &[]);
+        self.b.ins().brif(done, row_end, &[], blk_body, &[]);
 
         self.b.switch_to_block(blk_body);
-        let y = self.b.use_var(by);
         let x = self.b.use_var(bxv);
-        let y_end = self.b.ins().iadd_imm_s(y, BLOCK_H as i64);
-        let y_end = self.b.ins().smin(y_end, hi_y);
         let x_end = self.b.ins().iadd_imm_s(x, BLOCK_W as i64);
         let x_end = self.b.ins().smin(x_end, hi_x);
         let blk_eval = self.b.create_block();
-        self.b.ins().brif(small_rect, blk_full, &[], blk_eval, &[]);
+        self.b.ins().brif(small_rect, to_full, &[], blk_eval, &[]);
         self.b.switch_to_block(blk_eval);
         // Centres of the block's first and last live pixels, computed as the pixel code
         // computes X and Y (int -> float, + 0.5), so the endpoints are bit-identical.
@@ -558,21 +598,60 @@ impl<'a, 'b> Lower<'a, 'b> {
         let xs = [centre(self, x_first), centre(self, x_last)];
         let ys = [centre(self, y), centre(self, y_last)];
         let facts = self.block_facts(f, &prefix, xs, ys)?;
-        self.b.ins().brif(facts.dead, blk_next, &[], blk_choose, &[]);
+        self.b.ins().brif(facts.dead, to_dead, &[], blk_choose, &[]);
         self.b.switch_to_block(blk_choose);
-        self.b.ins().brif(facts.pass, blk_pass, &[], blk_full, &[]);
+        self.b.ins().brif(facts.pass, blk_extend, &[], to_full, &[]);
 
-        self.b.switch_to_block(blk_full);
-        self.pixel_rows(f, &rect, [y, y_end], [x, x_end], None, blk_next)?;
-        self.b.switch_to_block(blk_pass);
+        // A pass block: start the span here if none is pending, and extend it to this
+        // block's end (blocks are visited left to right, so the span stays contiguous).
+        self.b.switch_to_block(blk_extend);
+        let lo = self.b.use_var(span_lo);
+        let hi = self.b.use_var(span_hi);
+        let empty = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, lo, hi);
+        let lo = self.b.ins().select(empty, x, lo);
+        self.b.def_var(span_lo, lo);
+        self.b.def_var(span_hi, x_end);
+        self.b.ins().jump(blk_next, &[]);
+
+        for (blk, code) in [(row_end, 0), (to_dead, 1), (to_full, 2)] {
+            self.b.switch_to_block(blk);
+            let c = self.b.ins().iconst(types::I32, code);
+            self.b.def_var(after, c);
+            self.b.ins().jump(flush, &[]);
+        }
+
+        self.b.switch_to_block(flush);
+        let lo = self.b.use_var(span_lo);
+        let hi = self.b.use_var(span_hi);
+        let pending = self.b.ins().icmp(IntCC::SignedLessThan, lo, hi);
+        self.b.ins().brif(pending, flush_run, &[], after_flush, &[]);
+        self.b.switch_to_block(flush_run);
         self.pixel_rows(
             f,
             &rect,
             [y, y_end],
-            [x, x_end],
+            [lo, hi],
             Some((&prefix, &facts.decidable)),
-            blk_next,
+            flush_done,
         )?;
+        self.b.switch_to_block(flush_done);
+        let hi = self.b.use_var(span_hi);
+        self.b.def_var(span_lo, hi);
+        self.b.ins().jump(after_flush, &[]);
+
+        self.b.switch_to_block(after_flush);
+        let a = self.b.use_var(after);
+        let at_end = self.b.ins().icmp_imm_s(IntCC::Equal, a, 0);
+        self.b.ins().brif(at_end, brow_next, &[], after_not_end, &[]);
+        self.b.switch_to_block(after_not_end);
+        let is_dead = self.b.ins().icmp_imm_s(IntCC::Equal, a, 1);
+        self.b.ins().brif(is_dead, blk_next, &[], blk_full, &[]);
+
+        self.b.switch_to_block(blk_full);
+        let x = self.b.use_var(bxv);
+        let x_end = self.b.ins().iadd_imm_s(x, BLOCK_W as i64);
+        let x_end = self.b.ins().smin(x_end, hi_x);
+        self.pixel_rows(f, &rect, [y, y_end], [x, x_end], None, blk_next)?;
 
         self.b.switch_to_block(blk_next);
         let x = self.b.use_var(bxv);
@@ -627,17 +706,42 @@ impl<'a, 'b> Lower<'a, 'b> {
             moves.push((i, vars.clone(), pixel_assigned.contains(&LocalId(i as u32))));
         }
         let frozen_words: u32 = moves.iter().filter(|m| !m.2).map(|m| m.1.len() as u32).sum();
-        let frame_slot = (frozen_words > 0).then(|| {
-            self.b
-                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 4 * frozen_words, 4))
-        });
+        // Words first, so the hoisting analysis sees which locals live in the frame.
         let mut next_word = 0;
+        let mut placed = vec![];
         for (i, vars, assigned) in moves {
-            let (addr, first, storage) = match (assigned, frame_slot) {
-                (false, Some(fs)) => {
-                    let at = next_word;
-                    next_word += vars.len() as u32;
-                    (self.b.ins().stack_addr(types::I64, fs, 0), at, Storage::Frame(at))
+            let at = (!assigned).then(|| {
+                let at = next_word;
+                next_word += vars.len() as u32;
+                self.frames[0].storage[i] = Storage::Frame(at);
+                at
+            });
+            placed.push((i, vars, at));
+        }
+        self.vec_section = (4 * frozen_words).div_ceil(16) * 16;
+        let row_section = self.vec_section + 16 * frozen_words;
+        self.hoists = self.collect_hoists(f, row_section);
+        let frame_bytes = row_section + self.hoists.iter().map(|h| 16 * h.comps).sum::<u32>();
+        let frame_slot = (frame_bytes > 0).then(|| {
+            self.b
+                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, frame_bytes, 4))
+        });
+        for (i, vars, at) in placed {
+            let sc = elem_scalar(&f.locals[i].ty);
+            match (at, frame_slot) {
+                (Some(first), Some(fs)) => {
+                    let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+                    for (c, v) in vars.iter().enumerate() {
+                        let x = self.b.use_var(*v);
+                        let w = first + c as u32;
+                        self.b.ins().store(mem_flags(), x, addr, (4 * w) as i32);
+                        if sc != Scalar::Bool {
+                            let xv = splat(&mut self.b, sc, x);
+                            self.b
+                                .ins()
+                                .store(mem_flags(), xv, addr, (self.vec_section + 16 * w) as i32);
+                        }
+                    }
                 }
                 _ => {
                     let slot = self.b.create_sized_stack_slot(StackSlotData::new(
@@ -645,16 +749,14 @@ impl<'a, 'b> Lower<'a, 'b> {
                         4 * vars.len() as u32,
                         2,
                     ));
-                    (self.b.ins().stack_addr(types::I64, slot, 0), 0, Storage::Stack(slot))
+                    let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                    for (c, v) in vars.iter().enumerate() {
+                        let x = self.b.use_var(*v);
+                        self.b.ins().store(mem_flags(), x, addr, (4 * c) as i32);
+                    }
+                    self.frames[0].storage[i] = Storage::Stack(slot);
                 }
-            };
-            for (c, v) in vars.iter().enumerate() {
-                let x = self.b.use_var(*v);
-                self.b
-                    .ins()
-                    .store(mem_flags(), x, addr, (4 * (first + c as u32)) as i32);
             }
-            self.frames[0].storage[i] = storage;
         }
         if let Some(fs) = frame_slot {
             // The frame's address, reloaded per group through this slot (see above).
@@ -665,6 +767,91 @@ impl<'a, 'b> Lower<'a, 'b> {
             let pa = self.b.ins().stack_addr(types::I64, ptr_slot, 0);
             self.b.ins().store(mem_flags(), addr, pa, 0);
             self.uniform_frame = Some((fs, ptr_slot));
+        } else {
+            self.hoists.clear();
+        }
+    }
+
+    /// Row prologue: evaluate the hoisted terms for row centre `y_f` into the frame's row
+    /// section (see [`hoist`]), with the operations the group code would use.
+    fn row_hoists(&mut self, f: &'a Function, y_f: ir::Value) -> Res<()> {
+        let (Some((fs, _)), false) = (self.uniform_frame, self.hoists.is_empty()) else {
+            return Ok(());
+        };
+        if let Some(p) = f.param_by_role(ParamRole::Y) {
+            let i = p.local.0 as usize;
+            if let (Storage::Vars(vs), Elem::Scalar(sc)) = (&self.frames[0].storage[i], f.local(p.local).ty.elem) {
+                let var = vs[0];
+                let v = fixed::convert(&mut self.b, Scalar::Float, sc, y_f);
+                self.b.def_var(var, v);
+            }
+        }
+        for k in 0..self.hoists.len() {
+            let (expr, view, offset, comps) = {
+                let h = &self.hoists[k];
+                (h.expr, h.view.clone(), h.offset, h.comps)
+            };
+            let saved = std::mem::replace(&mut self.view, view);
+            let v = self.eval(expr);
+            self.view = saved;
+            let v = v?;
+            if v.comps.len() != comps as usize {
+                return err("hoisted row term has an unexpected number of components");
+            }
+            let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+            for (c, &x) in v.comps.iter().enumerate() {
+                let x = splat(&mut self.b, v.scalar, x);
+                self.b
+                    .ins()
+                    .store(mem_flags(), x, addr, (offset + 16 * c as u32) as i32);
+            }
+        }
+        Ok(())
+    }
+
+    /// In a group: the value of a hoisted row term, read from the frame's row section.
+    fn hoisted(&mut self, e: &'a Expr) -> Option<Val> {
+        let base = self.pix.as_ref()?.frame_base?;
+        if self.frames.len() != 1 {
+            return None;
+        }
+        let h = self
+            .hoists
+            .iter()
+            .find(|h| std::ptr::eq(h.expr, e) && h.view == self.view)?;
+        let (offset, comps, scalar) = (h.offset, h.comps, h.scalar);
+        let ty = cl_type(scalar, true);
+        let comps = (0..comps)
+            .map(|c| self.b.ins().load(ty, args_flags(), base, (offset + 16 * c) as i32))
+            .collect();
+        Some(Val {
+            comps,
+            scalar,
+            varying: true,
+        })
+    }
+
+    /// Broadcast uniform component `c` of scalar type `sc`: a frame word read in this group
+    /// loads its splat from the vector section, anything else is splatted here.
+    fn splat_of(&mut self, sc: Scalar, c: ir::Value) -> ir::Value {
+        if self.b.func.dfg.value_type(c).is_vector() {
+            return c;
+        }
+        if let (Some(&off), Some(base)) = (self.splat_src.get(&c), self.pix.as_ref().and_then(|p| p.frame_base)) {
+            return self.b.ins().load(cl_type(sc, true), args_flags(), base, off as i32);
+        }
+        splat(&mut self.b, sc, c)
+    }
+
+    fn to_varying_val(&mut self, v: Val) -> Val {
+        if v.varying {
+            return v;
+        }
+        let comps = v.comps.iter().map(|&c| self.splat_of(v.scalar, c)).collect();
+        Val {
+            comps,
+            scalar: v.scalar,
+            varying: true,
         }
     }
 
@@ -682,6 +869,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     ) -> Res<()> {
         let py = self.b.declare_var(types::I32);
         let gx = self.b.declare_var(types::I32);
+        let xv = self.b.declare_var(F32X4);
         self.b.def_var(py, ys[0]);
         let row_hdr = self.b.create_block();
         let row_body = self.b.create_block();
@@ -705,7 +893,20 @@ impl<'a, 'b> Lower<'a, 'b> {
         let half = self.b.ins().f32const(0.5);
         let yf = self.b.ins().fadd(yf, half);
         let y_f = self.b.ins().splat(F32X4, yf);
+        self.row_hoists(f, y_f)?;
         self.b.def_var(gx, gs[0]);
+        // X of the group's lanes, carried across the row: centre of the first group's
+        // lanes (int -> float, + 0.5, as the pixel's X is defined), then + 4.0 per group.
+        // Exact, so bit-identical to converting each group's lane indices: every value is
+        // a multiple of 0.5 below 2^22 in magnitude (images are at most 16384 pixels wide).
+        let g0 = self.b.ins().splat(I32X4, gs[0]);
+        let iota = self.iota();
+        let px0 = self.b.ins().iadd(g0, iota);
+        let pxf = self.b.ins().fcvt_from_sint(F32X4, px0);
+        let half = self.b.ins().f32const(0.5);
+        let halfv = self.b.ins().splat(F32X4, half);
+        let x0_f = self.b.ins().fadd(pxf, halfv);
+        self.b.def_var(xv, x0_f);
         self.b.ins().jump(grp_hdr, &[]);
 
         self.b.switch_to_block(grp_hdr);
@@ -723,7 +924,15 @@ impl<'a, 'b> Lower<'a, 'b> {
             };
             let g = self.b.use_var(gx);
             let g = self.b.ins().iadd_imm_s(g, 4 * k as i64);
-            self.pixel_group(f, rect, g, row_base, y_f, pass, next)?;
+            let x_f = self.b.use_var(xv);
+            let x_f = if k == 0 {
+                x_f
+            } else {
+                let step = self.b.ins().f32const(4.0 * k as f32);
+                let step = self.b.ins().splat(F32X4, step);
+                self.b.ins().fadd(x_f, step)
+            };
+            self.pixel_group(f, rect, g, row_base, [x_f, y_f], pass, next)?;
             if k + 1 != unroll {
                 self.b.switch_to_block(next);
             }
@@ -733,6 +942,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         let g = self.b.use_var(gx);
         let g = self.b.ins().iadd_imm_s(g, 4 * unroll as i64);
         self.b.def_var(gx, g);
+        let x_f = self.b.use_var(xv);
+        let step = self.b.ins().f32const(4.0 * unroll as f32);
+        let step = self.b.ins().splat(F32X4, step);
+        let x_f = self.b.ins().fadd(x_f, step);
+        self.b.def_var(xv, x_f);
         self.b.ins().jump(grp_hdr, &[]);
 
         self.b.switch_to_block(row_next);
@@ -743,7 +957,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         Ok(())
     }
 
-    /// The pixel code for the group of 4 pixels starting at `g`; ends by jumping to `next`.
+    /// The pixel code for the group of 4 pixels starting at `g` (lane centres `xy_f`);
+    /// ends by jumping to `next`.
     #[allow(clippy::too_many_arguments)]
     fn pixel_group(
         &mut self,
@@ -751,12 +966,26 @@ impl<'a, 'b> Lower<'a, 'b> {
         rect: &PassRect,
         g: ir::Value,
         row_base: ir::Value,
-        y_f: ir::Value,
+        xy_f: [ir::Value; 2],
         pass: Option<(&block::Prefix<'a>, &[bool])>,
         next: Block,
     ) -> Res<()> {
+        let [x_f, y_f] = xy_f;
         let grp_run = self.b.create_block();
+        let mask = self.b.append_block_param(grp_run, I32X4);
         let group_end = self.b.create_block();
+        let edge = self.b.create_block();
+        let col = self.b.ins().isub(g, rect.x0);
+        let col64 = self.b.ins().sextend(types::I64, col);
+        let tile_idx = self.b.ins().iadd(row_base, col64);
+        // Lanes outside [lo_x, hi_x) start dead. Only a group at either end of the
+        // rectangle has such lanes: one unsigned compare tells the others apart.
+        let d = self.b.ins().isub(g, rect.lo_x);
+        let interior = self.b.ins().icmp(IntCC::UnsignedLessThan, d, rect.interior_lim);
+        let all = mask_const(&mut self.b, true);
+        self.b.ins().brif(interior, grp_run, &[all.into()], edge, &[]);
+
+        self.b.switch_to_block(edge);
         let gs = self.b.ins().splat(I32X4, g);
         let iota = self.iota();
         let px = self.b.ins().iadd(gs, iota);
@@ -764,13 +993,10 @@ impl<'a, 'b> Lower<'a, 'b> {
         let hi_s = self.b.ins().splat(I32X4, rect.hi_x);
         let ge = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, px, lo_s);
         let lt = self.b.ins().icmp(IntCC::SignedLessThan, px, hi_s);
-        let mask = self.b.ins().band(ge, lt);
-        let col = self.b.ins().isub(g, rect.x0);
-        let col64 = self.b.ins().sextend(types::I64, col);
-        let tile_idx = self.b.ins().iadd(row_base, col64);
-        let any = self.b.ins().vany_true(mask);
+        let edge_mask = self.b.ins().band(ge, lt);
+        let any = self.b.ins().vany_true(edge_mask);
         let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
-        self.b.ins().brif(none, next, &[], grp_run, &[]);
+        self.b.ins().brif(none, next, &[], grp_run, &[edge_mask.into()]);
 
         self.b.switch_to_block(grp_run);
         let alive = self.b.declare_var(I32X4);
@@ -780,10 +1006,6 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.def_var(exec, mask);
         let none_mask = mask_const(&mut self.b, false);
         self.b.def_var(z_written, none_mask);
-        let pxf = self.b.ins().fcvt_from_sint(F32X4, px);
-        let half = self.b.ins().f32const(0.5);
-        let halfv = self.b.ins().splat(F32X4, half);
-        let x_f = self.b.ins().fadd(pxf, halfv);
         let needs_depth = f.param_by_role(ParamRole::Z).is_some()
             || self
                 .key
@@ -847,30 +1069,48 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         self.b.ins().jump(group_end, &[]);
 
-        // End of group: write Z back for the lanes that assigned it.
+        // End of group: write Z back for the lanes that assigned it. Nothing else writes
+        // the depth buffer during the group, so the depth loaded at its start is the old
+        // value to blend with; when every lane assigned Z it is a plain store.
         self.b.switch_to_block(group_end);
-        if let (Some(zp), Some(_)) = (f.param_by_role(ParamRole::Z), z_raw) {
+        if let (Some(zp), Some(z_old)) = (f.param_by_role(ParamRole::Z), z_raw) {
             let zi = f.params.iter().position(|p| p.role == ParamRole::Z).unwrap_or(0);
             let zsc = match f.local(zp.local).ty.elem {
                 Elem::Scalar(s) => s,
                 Elem::Interp => Scalar::Float,
             };
-            let written = self.b.use_var(z_written);
-            let any = self.b.ins().vany_true(written);
-            let store_blk = self.b.create_block();
-            let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
-            self.b.ins().brif(none, next, &[], store_blk, &[]);
-            self.b.switch_to_block(store_blk);
             let zvar = match &self.frames[0].storage[zi] {
                 Storage::Z(v) => *v,
                 _ => return err("Z parameter without storage"),
             };
+            let written = self.b.use_var(z_written);
+            let all = self.b.ins().vall_true(written);
+            let full_blk = self.b.create_block();
+            let part_blk = self.b.create_block();
+            let blend_blk = self.b.create_block();
+            let stored = self.b.create_block();
+            self.b.ins().brif(all, full_blk, &[], part_blk, &[]);
+
+            self.b.switch_to_block(full_blk);
             let zval = self.b.use_var(zvar);
             let raw = fixed::convert(&mut self.b, zsc, Scalar::Fixed(DEPTH_FORMAT), zval);
             let addr = self.tile_addr(ctx_off::DEPTH, tile_idx);
-            let old = self.b.ins().load(I32X4, mem_flags(), addr, 0);
-            let new = self.b.ins().blendv(written, raw, old);
+            self.b.ins().store(mem_flags(), raw, addr, 0);
+            self.b.ins().jump(stored, &[]);
+
+            self.b.switch_to_block(part_blk);
+            let any = self.b.ins().vany_true(written);
+            let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
+            self.b.ins().brif(none, next, &[], blend_blk, &[]);
+            self.b.switch_to_block(blend_blk);
+            let zval = self.b.use_var(zvar);
+            let raw = fixed::convert(&mut self.b, zsc, Scalar::Fixed(DEPTH_FORMAT), zval);
+            let addr = self.tile_addr(ctx_off::DEPTH, tile_idx);
+            let new = self.b.ins().blendv(written, raw, z_old);
             self.b.ins().store(mem_flags(), new, addr, 0);
+            self.b.ins().jump(stored, &[]);
+
+            self.b.switch_to_block(stored);
             if self.key.count_writes {
                 let caddr = self.tile_addr(ctx_off::WRITE_COUNT, tile_idx);
                 let old = self.b.ins().load(I32X4, mem_flags(), caddr, 0);
@@ -1511,29 +1751,62 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// Store a varying f32x4 into G-buffer component `g` (global binding component index)
     /// for the executing lanes; planes at or past `ctx.num_planes` are not written.
     fn store_plane(&mut self, g: u32, v: ir::Value) {
-        let p = self.pix.as_ref().expect("plane stores run in pixel context");
-        let tile_idx = p.tile_idx;
-        let exec = self.exec().expect("pixel context");
+        self.store_planes(&[(g, v)]);
+    }
+
+    /// Store several components for the executing lanes, with one test for the common case:
+    /// when every lane executes and every plane of the key exists (`plane_table`), each
+    /// store is a plain vector store. Otherwise each is load + blend + store to its plane's
+    /// address, or to a scratch slot for a plane the frame does not have (branch-free, so
+    /// values shared by several stores, like a perspective divisor, are computed once).
+    /// Same memory contents either way: a full mask blends nothing from the old value.
+    fn store_planes(&mut self, stores: &[(u32, ir::Value)]) {
         let Some(table) = self.plane_ptrs else {
             return;
         };
-        // The plane's base address, or null for a plane the frame does not have: then the
-        // store goes to a scratch slot. Branch-free, so values shared by several stores
-        // (a perspective divisor) are computed once.
-        let slot_addr = self.b.ins().stack_addr(types::I64, table, 0);
-        let base = self.b.ins().load(types::I64, mem_flags(), slot_addr, (8 * g) as i32);
+        if stores.is_empty() {
+            return;
+        }
+        let p = self.pix.as_ref().expect("plane stores run in pixel context");
+        let tile_idx = p.tile_idx;
+        let exec = self.exec().expect("pixel context");
         let bytes = self.b.ins().ishl_imm_u(tile_idx, 2);
-        let real = self.b.ins().iadd(base, bytes);
-        let dummy = self.b.ins().stack_addr(types::I64, self.scratch, 0);
-        let addr = self.b.ins().select(base, real, dummy);
-        let old = self.b.ins().load(F32X4, mem_flags(), addr, 0);
-        let new = blend(&mut self.b, exec, v, old);
-        self.b.ins().store(mem_flags(), new, addr, 0);
+        let all_lanes = self.b.ins().vall_true(exec);
+        let slot_addr = self.b.ins().stack_addr(types::I64, table, 0);
+        let n = self.key.total_components();
+        let all_planes = self.b.ins().load(types::I8, mem_flags(), slot_addr, (8 * n) as i32);
+        let full = self.b.ins().band(all_lanes, all_planes);
+        let full_blk = self.b.create_block();
+        let part_blk = self.b.create_block();
+        let join = self.b.create_block();
+        self.b.ins().brif(full, full_blk, &[], part_blk, &[]);
+
+        self.b.switch_to_block(full_blk);
+        for &(g, v) in stores {
+            let base = self.b.ins().load(types::I64, mem_flags(), slot_addr, (8 * g) as i32);
+            let addr = self.b.ins().iadd(base, bytes);
+            self.b.ins().store(mem_flags(), v, addr, 0);
+        }
+        self.b.ins().jump(join, &[]);
+
+        self.b.switch_to_block(part_blk);
+        for &(g, v) in stores {
+            let base = self.b.ins().load(types::I64, mem_flags(), slot_addr, (8 * g) as i32);
+            let real = self.b.ins().iadd(base, bytes);
+            let dummy = self.b.ins().stack_addr(types::I64, self.scratch, 0);
+            let addr = self.b.ins().select(base, real, dummy);
+            let old = self.b.ins().load(F32X4, mem_flags(), addr, 0);
+            let new = blend(&mut self.b, exec, v, old);
+            self.b.ins().store(mem_flags(), new, addr, 0);
+        }
+        self.b.ins().jump(join, &[]);
+        self.b.switch_to_block(join);
     }
 
     /// Once per kernel run, before the pixel loops: the base address of every binding
     /// component's G-buffer plane (null when its plane index is not below
     /// `ctx.num_planes`), so a store costs a load and an add instead of recomputing it.
+    /// After the `n` addresses, one byte: 1 when every plane exists (the stores' fast path).
     fn plane_table(&mut self) {
         let n = self.key.total_components();
         if n == 0 {
@@ -1541,8 +1814,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         let slot = self
             .b
-            .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8 * n, 3));
+            .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8 * n + 8, 3));
         let num = self.load_ctx(types::I32, ctx_off::NUM_PLANES);
+        let mut all_valid = self.b.ins().iconst(types::I8, 1);
         let pstride = self.load_ctx(types::I32, ctx_off::PLANE_STRIDE);
         let ps64 = self.b.ins().uextend(types::I64, pstride);
         let gbuf = self.load_ctx(types::I64, ctx_off::GBUF);
@@ -1562,7 +1836,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             let base = self.b.ins().iadd(gbuf, bytes);
             let base = self.b.ins().select(valid, base, null);
             self.b.ins().store(mem_flags(), base, addr, (8 * g) as i32);
+            all_valid = self.b.ins().band(all_valid, valid);
         }
+        self.b.ins().store(mem_flags(), all_valid, addr, (8 * n) as i32);
         self.plane_ptrs = Some(slot);
     }
 
@@ -1578,14 +1854,17 @@ impl<'a, 'b> Lower<'a, 'b> {
                 let comps = self.key.bindings[bi].components;
                 let g0 = self.global_offset(bi);
                 if v.comps.len() == 1 || v.comps.len() == comps as usize {
-                    for c in 0..comps {
-                        let x = if v.comps.len() == 1 {
-                            v.comps[0]
-                        } else {
-                            v.comps[c as usize]
-                        };
-                        self.store_plane(g0 + c, x);
-                    }
+                    let batch: Vec<(u32, ir::Value)> = (0..comps)
+                        .map(|c| {
+                            let x = if v.comps.len() == 1 {
+                                v.comps[0]
+                            } else {
+                                v.comps[c as usize]
+                            };
+                            (g0 + c, x)
+                        })
+                        .collect();
+                    self.store_planes(&batch);
                 } else {
                     self.warnings.push(format!(
                         "interpolator `{}` returns {} components for a parameter of {}; not stored",
@@ -1629,6 +1908,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         };
         let offsets = self.kind_offsets();
         let fname = self.frame().func.name.clone();
+        // Every binding's components, stored together under one full-mask test.
+        let mut batch = vec![];
         for bi in bindings {
             let Some(&(_, ic, gc)) = offsets.iter().find(|o| o.0 == bi) else {
                 continue;
@@ -1658,10 +1939,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                 continue;
             }
             for (c, x) in vals.into_iter().enumerate() {
-                self.store_plane(gc + c as u32, x.expect("checked above"));
+                batch.push((gc + c as u32, x.expect("checked above")));
             }
             self.written[bi] = true;
         }
+        self.store_planes(&batch);
         Ok(())
     }
 
@@ -2225,7 +2507,14 @@ impl<'a, 'b> Lower<'a, 'b> {
                             (None, Some((fs, _))) => (self.b.ins().stack_addr(types::I64, fs, 0), false),
                             (None, None) => return err("uniform frame missing"),
                         };
-                        Ok(self.read_memory(addr, sc, false, &offs, word + acc.base, acc.dyn_off, false, pure))
+                        let v = self.read_memory(addr, sc, false, &offs, word + acc.base, acc.dyn_off, false, pure);
+                        if pure && sc != Scalar::Bool && matches!(acc.dyn_off, Dyn::None) {
+                            for (&c, &o) in v.comps.iter().zip(&offs) {
+                                let w = word + acc.base + o;
+                                self.splat_src.insert(c, self.vec_section + 16 * w);
+                            }
+                        }
+                        Ok(v)
                     }
                     Storage::Args => {
                         let pi = fr
@@ -2417,6 +2706,9 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     pub(crate) fn eval(&mut self, e: &'a Expr) -> Res<Val> {
+        if let Some(v) = self.hoisted(e) {
+            return Ok(v);
+        }
         let sc = elem_scalar(&e.ty);
         match &e.kind {
             ExprKind::Const(c) => {
@@ -2632,8 +2924,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     pub(crate) fn unify(&mut self, a: Val, c: Val) -> Res<(Val, Val)> {
         let (mut a, mut c) = (a, c);
         if a.varying != c.varying {
-            a = to_varying(&mut self.b, a);
-            c = to_varying(&mut self.b, c);
+            a = self.to_varying_val(a);
+            c = self.to_varying_val(c);
         }
         if a.comps.len() != c.comps.len() {
             if a.comps.len() == 1 {

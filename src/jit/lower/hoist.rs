@@ -1,0 +1,196 @@
+//! Per-row hoisting of pixel-code terms that depend on Y alone, and the splatted copies of
+//! the uniform frame, so a pixel group reads both as one folded vector memory operand.
+//!
+//! A group is 4 pixels of one row, so a varying expression whose only varying input is Y
+//! (`b * Y` of a plane `a*X + b*Y + c`, `int(Y * 16) - int(oy * 16)`) has the same value in
+//! every group of a row. [`Lower::collect_hoists`] finds, at compile time, the *maximal*
+//! such subexpressions of the pixel code that contain an operation; the row prologue of
+//! every pixel loop evaluates each once per row with the same operations the group would
+//! use and stores it in the *row section* of the uniform frame; the group reads it back
+//! instead of computing it. Only the hoisted subterm moves: the sums around it stay in
+//! source order, so results are bit-identical (no re-association).
+//!
+//! Invariants of a hoisted expression: pure (no index that may fail, no call, no division
+//! of integers, no fixed point or bool arithmetic), its leaves are constants, Y (when the
+//! pixel code never assigns Y) and uniform locals in the uniform frame or parameters in the
+//! argument block (neither changes while the pixel loops run), and it is scalar or
+//! interpolation_data (one component per view component). Expressions are keyed by address
+//! together with the interpolation view they were collected under.
+//!
+//! The uniform frame also gets a *vector section*: every non-bool word splatted to 16
+//! bytes, written once per kernel run. A uniform read in a group that feeds a varying
+//! operation then loads the splat (`vmulps xmm, xmm, [base + off]`) instead of
+//! broadcasting the scalar in every group.
+
+use std::collections::HashSet;
+
+use crate::ir::{BinOp, ConstValue, Elem, Expr, ExprKind, Function, LocalId, Scalar, Stmt, StmtKind, UnaryOp};
+
+use super::{Lower, Storage};
+
+/// One hoisted expression: where its components live in the row section.
+pub(super) struct Hoist<'a> {
+    pub expr: &'a Expr,
+    /// The interpolation view it is evaluated under.
+    pub view: Vec<u32>,
+    /// Byte offset of its first component in the uniform frame (16 bytes per component).
+    pub offset: u32,
+    pub comps: u32,
+    pub scalar: Scalar,
+}
+
+impl<'a, 'b> Lower<'a, 'b> {
+    /// The maximal row-invariant varying subexpressions of `f`'s pixel code, in the order
+    /// met, with the view each is lowered under; offsets start at `first_offset`.
+    pub(super) fn collect_hoists(&self, f: &'a Function, first_offset: u32) -> Vec<Hoist<'a>> {
+        let mut assigned = HashSet::new();
+        super::block::assigned_locals(&f.pixel, &mut assigned);
+        let y = f
+            .param_by_role(crate::ir::ParamRole::Y)
+            .map(|p| p.local)
+            .filter(|l| !assigned.contains(l));
+        let mut out = vec![];
+        let view: Vec<u32> = (0..self.n_interp).collect();
+        let mut next = first_offset;
+        self.hoists_in(f, &f.pixel, &view, y, &assigned, &mut out, &mut next);
+        out
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn hoists_in(
+        &self,
+        f: &'a Function,
+        stmts: &'a [Stmt],
+        view: &[u32],
+        y: Option<LocalId>,
+        assigned: &HashSet<LocalId>,
+        out: &mut Vec<Hoist<'a>>,
+        next: &mut u32,
+    ) {
+        for s in stmts {
+            match &s.kind {
+                StmtKind::Assign { value, .. } => self.hoists_expr(f, value, view, y, assigned, out, next),
+                StmtKind::If { cond, then, otherwise } => {
+                    self.hoists_expr(f, cond, view, y, assigned, out, next);
+                    self.hoists_in(f, then, view, y, assigned, out, next);
+                    self.hoists_in(f, otherwise, view, y, assigned, out, next);
+                }
+                StmtKind::Interpolation { arms } => {
+                    let named: Vec<&str> = arms
+                        .iter()
+                        .filter_map(|a| match &a.kind {
+                            crate::ir::ArmKind::Named(k) => Some(k.as_str()),
+                            crate::ir::ArmKind::Default => None,
+                        })
+                        .collect();
+                    for arm in arms {
+                        if let Some((arm_view, _)) = self.arm_view(arms, &named, arm) {
+                            self.hoists_in(f, &arm.body, &arm_view, y, assigned, out, next);
+                        }
+                    }
+                }
+                StmtKind::InterpolatorReturn(Some(e)) => self.hoists_expr(f, e, view, y, assigned, out, next),
+                // Loop bodies run a data-dependent number of times per group; their terms
+                // are left where they are.
+                _ => {}
+            }
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn hoists_expr(
+        &self,
+        f: &'a Function,
+        e: &'a Expr,
+        view: &[u32],
+        y: Option<LocalId>,
+        assigned: &HashSet<LocalId>,
+        out: &mut Vec<Hoist<'a>>,
+        next: &mut u32,
+    ) {
+        let has_op = !matches!(e.kind, ExprKind::Local(_) | ExprKind::Const(_) | ExprKind::Index { .. });
+        if e.var.is_varying() && has_op && e.ty.dims.is_empty() && self.row_invariant(f, e, y, assigned) {
+            let (comps, scalar) = match e.ty.elem {
+                Elem::Interp => (view.len() as u32, Scalar::Float),
+                Elem::Scalar(s @ (Scalar::Float | Scalar::Int)) => (1, s),
+                _ => (0, Scalar::Bool),
+            };
+            if comps > 0 {
+                out.push(Hoist {
+                    expr: e,
+                    view: view.to_vec(),
+                    offset: *next,
+                    comps,
+                    scalar,
+                });
+                *next += 16 * comps;
+                return;
+            }
+        }
+        match &e.kind {
+            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => {
+                self.hoists_expr(f, expr, view, y, assigned, out, next)
+            }
+            ExprKind::Binary { lhs, rhs, .. } => {
+                self.hoists_expr(f, lhs, view, y, assigned, out, next);
+                self.hoists_expr(f, rhs, view, y, assigned, out, next);
+            }
+            ExprKind::Select { cond, then, otherwise } => {
+                self.hoists_expr(f, cond, view, y, assigned, out, next);
+                self.hoists_expr(f, then, view, y, assigned, out, next);
+                self.hoists_expr(f, otherwise, view, y, assigned, out, next);
+            }
+            ExprKind::Builtin { args, .. } => {
+                for a in args {
+                    self.hoists_expr(f, a, view, y, assigned, out, next);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// `e` has the same value in every group of a row (see the module comment).
+    fn row_invariant(&self, f: &Function, e: &Expr, y: Option<LocalId>, assigned: &HashSet<LocalId>) -> bool {
+        let plain = |t: &crate::ir::Type| {
+            t.dims.is_empty() && matches!(t.elem, Elem::Interp | Elem::Scalar(Scalar::Float | Scalar::Int))
+        };
+        match &e.kind {
+            ExprKind::Const(ConstValue::Float(_) | ConstValue::Int(_)) => true,
+            ExprKind::Local(l) => {
+                if Some(*l) == y {
+                    return true;
+                }
+                let Some(local) = f.locals.get(l.0 as usize) else {
+                    return false;
+                };
+                !local.var.is_varying()
+                    && !assigned.contains(l)
+                    && !local.ty.per_seq
+                    && matches!(
+                        self.frames[0].storage.get(l.0 as usize),
+                        Some(Storage::Frame(_) | Storage::Args)
+                    )
+            }
+            ExprKind::Index { base, index, .. } => {
+                let in_range = match (&index.kind, base.ty.per_seq, base.ty.dims.first()) {
+                    (ExprKind::Const(ConstValue::Int(k)), false, Some(&len)) => *k >= 0 && (*k as i64) < len as i64,
+                    _ => false,
+                };
+                in_range && matches!(base.kind, ExprKind::Local(_)) && self.row_invariant(f, base, y, assigned)
+            }
+            ExprKind::Unary { op: UnaryOp::Neg, expr } => plain(&e.ty) && self.row_invariant(f, expr, y, assigned),
+            ExprKind::Convert(expr) => plain(&e.ty) && plain(&expr.ty) && self.row_invariant(f, expr, y, assigned),
+            ExprKind::Binary { op, lhs, rhs } => {
+                let float = matches!(e.ty.elem, Elem::Interp | Elem::Scalar(Scalar::Float));
+                let op_ok = matches!(op, BinOp::Add | BinOp::Sub | BinOp::Mul) || (*op == BinOp::Div && float);
+                op_ok
+                    && plain(&e.ty)
+                    && plain(&lhs.ty)
+                    && plain(&rhs.ty)
+                    && self.row_invariant(f, lhs, y, assigned)
+                    && self.row_invariant(f, rhs, y, assigned)
+            }
+            _ => false,
+        }
+    }
+}
