@@ -1,11 +1,14 @@
 //! Rendering a frame: compile, bound, bin, render tiles in parallel, shade, write images.
 //!
 //! 1. Every (primitive, key) the instances need is compiled once through the [`KernelSource`].
-//! 2. Each instance's kernel runs once in `MODE_BOUND` on an empty tile with no buffers; its
-//!    recorded screen bound (conservative) bins it into the tiles it overlaps. A NaN bound,
-//!    or no bound at all, puts it in no tile.
+//! 2. Instances become *draws*: an instance of a primitive that only calls primitives
+//!    (`abi::expands`) runs once in `MODE_EXPAND` and is replaced by the calls it makes, in
+//!    call order ([`super::expand`]; off with `RenderOptions::expand_calls`); any other
+//!    instance is one draw. Each draw's kernel runs once in `MODE_BOUND` on an empty tile
+//!    with no buffers; its recorded screen bound (conservative) bins it into the tiles it
+//!    overlaps. A NaN bound, or no bound at all, puts it in no tile.
 //! 3. Tiles render in parallel with rayon. A tile owns its depth buffer (u32, 0 = farthest),
-//!    G-buffer planes (f32, 0) and write counts, runs its instances in submission order in
+//!    G-buffer planes (f32, 0) and write counts, runs its draws in order in
 //!    `MODE_RENDER` with fresh fuel each, and hands its buffers back. Tiles are gathered in
 //!    tile order and copied into the frame sequentially, so the result is bit-identical
 //!    whatever the number of threads.
@@ -32,6 +35,7 @@ use crate::ir::{FuncId, Program};
 use crate::jit::Kernel;
 
 use super::api::{Instance, RenderOptions, Renderer, MAX_IMAGE_SIDE, MAX_TILE_SIDE};
+use super::expand::{Draw, Expansion};
 use super::kernels::KernelSource;
 use super::shading::{Effects, PixelInputs, Shader, ShadingSpaces};
 
@@ -71,8 +75,16 @@ pub struct RenderStats {
     pub kernels_compiled: usize,
     pub compile_micros: u64,
     pub render_micros: u64,
-    /// Instance-tile pairs rendered (an instance counts once per tile it was binned into).
+    /// Draw-tile pairs rendered (a draw — an instance, or a call an expanded instance made —
+    /// counts once per tile it was binned into).
     pub tile_invocations: usize,
+    /// Instances replaced by the calls they make (`RenderOptions::expand_calls`).
+    pub expanded_instances: usize,
+    /// Draws those instances produced.
+    pub expanded_calls: usize,
+    /// Instances whose expansion exceeded `RenderOptions::expand_budget_words` (rendered
+    /// per tile instead).
+    pub expand_over_budget: usize,
 }
 
 /// A render's frame, statistics and diagnostics (compile failures are errors, kernel warnings
@@ -159,34 +171,46 @@ impl Renderer {
             ready.push(usable);
         }
 
-        // 2. Bound pass and binning.
+        // 2. Expansion, bound pass and binning, instance by instance: an instance that only
+        // calls primitives is replaced by the calls it makes (see `expand`); every draw is
+        // bound and binned.
         let tiles = tile_grid(opts);
         let tiles_x = opts.width.div_ceil(opts.tile_size) as usize;
         let mut bins: Vec<Vec<usize>> = vec![vec![]; tiles.len()];
         let mut errors: Vec<(usize, u32, u32)> = vec![];
-        for (i, (inst, kernel)) in self.instances().iter().zip(&ready).enumerate() {
+        let instances = self.instances();
+        let mut expansion = Expansion::new(&program, opts);
+        for (i, (inst, kernel)) in instances.iter().zip(&ready).enumerate() {
             let Some(kernel) = kernel else { continue };
-            let (bound, error) = run_bound(kernel, inst, opts);
-            if let Some((code, site)) = error {
-                errors.push((i, code, site));
-            }
-            if let Some((tx0, ty0, tx1, ty1)) = bound.and_then(|b| tiles_overlapped(b, opts)) {
-                for ty in ty0..=ty1 {
-                    for tx in tx0..=tx1 {
-                        bins[ty * tiles_x + tx].push(i);
+            let first = expansion.len();
+            expansion.add(i, inst, kernel, &mut errors);
+            for d in first..expansion.len() {
+                let draw = expansion.draw(d, instances);
+                let (bound, error) = run_bound(&draw, opts);
+                if let Some((code, site)) = error {
+                    errors.push((i, code, site));
+                }
+                if let Some((tx0, ty0, tx1, ty1)) = bound.and_then(|b| tiles_overlapped(b, opts)) {
+                    for ty in ty0..=ty1 {
+                        for tx in tx0..=tx1 {
+                            bins[ty * tiles_x + tx].push(d);
+                        }
                     }
                 }
             }
         }
+        let draws = expansion.draws(instances);
+        stats.expanded_instances = expansion.expanded_instances;
+        stats.expanded_calls = expansion.expanded_calls;
+        stats.expand_over_budget = expansion.over_budget;
         stats.tile_invocations = bins.iter().map(Vec::len).sum();
 
         // 3. Tiles in parallel; results gathered in tile order.
         let num_planes = self.num_planes();
-        let instances = self.instances();
         let results: Vec<TileResult> = tiles
             .par_iter()
             .zip(bins.par_iter())
-            .map(|(tile, bin)| render_tile(tile, bin, instances, &ready, num_planes, opts))
+            .map(|(tile, bin)| render_tile(tile, bin, &draws, num_planes, opts))
             .collect();
 
         let mut frame = Frame {
@@ -308,7 +332,7 @@ fn tile_grid(opts: &RenderOptions) -> Vec<Tile> {
     tiles
 }
 
-fn fresh_ctx(opts: &RenderOptions, mode: u32) -> TileCtx {
+pub(super) fn fresh_ctx(opts: &RenderOptions, mode: u32) -> TileCtx {
     TileCtx {
         x0: 0,
         y0: 0,
@@ -329,13 +353,16 @@ fn fresh_ctx(opts: &RenderOptions, mode: u32) -> TileCtx {
         call_depth: 0,
         width: opts.width,
         height: opts.height,
+        expand: None,
+        expand_state: std::ptr::null_mut(),
     }
 }
 
-/// Run an instance's kernel in bound mode: its screen bound (if it recorded one) and its
+/// Run a draw's kernel in bound mode: its screen bound (if it recorded one) and its
 /// run-time error.
-fn run_bound(kernel: &Kernel, inst: &Instance, opts: &RenderOptions) -> (Option<[f32; 4]>, Option<(u32, u32)>) {
+fn run_bound(draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>, Option<(u32, u32)>) {
     let mut ctx = fresh_ctx(opts, MODE_BOUND);
+    ctx.call_depth = draw.call_depth;
     // Zero-size buffers: bound mode never touches them, and the empty tile rectangle
     // (x0 = x1 = 0) means even a pixel pass would cover no pixel.
     let mut no_depth: Vec<u32> = Vec::new();
@@ -345,9 +372,10 @@ fn run_bound(kernel: &Kernel, inst: &Instance, opts: &RenderOptions) -> (Option<
     ctx.gbuf = no_planes.as_mut_ptr();
     ctx.write_count = no_counts.as_mut_ptr();
     // SAFETY: `ctx` is a valid TileCtx naming (empty) buffers that outlive the call, and
-    // `inst.args` holds at least `kernel.layout.words(n_seq)` words (checked when the kernel
-    // was made ready), which is all the ABI lets a kernel read.
-    unsafe { (kernel.entry)(&mut ctx, inst.args.as_ptr()) };
+    // `draw.args` holds at least the words the kernel's layout reads (checked when the
+    // kernel was made ready, or when the call was recorded), which is all the ABI lets a
+    // kernel read.
+    unsafe { (draw.entry)(&mut ctx, draw.args.as_ptr()) };
     let bound = (ctx.bound_set != 0).then_some(ctx.bound);
     let error = (ctx.error != 0).then_some((ctx.error, ctx.error_site));
     (bound, error)
@@ -382,14 +410,7 @@ fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<(usize, usi
     ))
 }
 
-fn render_tile(
-    tile: &Tile,
-    bin: &[usize],
-    instances: &[Instance],
-    ready: &[Option<Arc<Kernel>>],
-    num_planes: u32,
-    opts: &RenderOptions,
-) -> TileResult {
+fn render_tile(tile: &Tile, bin: &[usize], draws: &[Draw], num_planes: u32, opts: &RenderOptions) -> TileResult {
     let stride = tile_stride(tile.x1 - tile.x0);
     let rows = tile.y1 - tile.y0;
     let plane_len = (stride * rows) as usize;
@@ -402,10 +423,9 @@ fn render_tile(
     };
     let mut errors = vec![];
     for &i in bin {
-        let (Some(kernel), inst) = (&ready[i], &instances[i]) else {
-            continue;
-        };
+        let draw = &draws[i];
         let mut ctx = fresh_ctx(opts, MODE_RENDER);
+        ctx.call_depth = draw.call_depth;
         ctx.x0 = tile.x0 as i32;
         ctx.y0 = tile.y0 as i32;
         ctx.x1 = tile.x1 as i32;
@@ -420,11 +440,11 @@ fn render_tile(
         // write_count are `stride * rows` long, gbuf `num_planes * plane_stride`; the kernel
         // was compiled with count_writes == opts.count_writes, so it touches write_count
         // only when that buffer is full size. The argument block is long enough for the
-        // kernel's layout (checked in `render`). Nothing else aliases these buffers while
-        // the kernel runs: the tile is owned by this rayon task.
-        unsafe { (kernel.entry)(&mut ctx, inst.args.as_ptr()) };
+        // kernel's layout (checked in `render` and when calls were recorded). Nothing else
+        // aliases these buffers while the kernel runs: the tile is owned by this rayon task.
+        unsafe { (draw.entry)(&mut ctx, draw.args.as_ptr()) };
         if ctx.error != 0 {
-            errors.push((i, ctx.error, ctx.error_site));
+            errors.push((draw.instance, ctx.error, ctx.error_site));
         }
     }
     TileResult {
