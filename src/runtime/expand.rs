@@ -18,19 +18,26 @@
 //! (the per-tile path shares one invocation's fuel between the caller and all its calls), and
 //! run-time errors of the caller's setup are recorded once, by the expand run.
 //!
-//! The recorded words are budgeted (`RenderOptions::expand_budget_words`); an instance whose
-//! expansion would exceed the budget is rolled back and rendered per tile, as without
-//! expansion. Where it sits: `frame::Renderer::render` step 2, between compiling and binning.
+//! Instances are expanded and their draws bound (`MODE_BOUND`) in parallel, one rayon job per
+//! instance, each with its own recorder and argument pool; the renderer then bins the draws
+//! sequentially in instance order, so the draw list does not depend on the thread count.
+//!
+//! The recorded words are budgeted (`RenderOptions::expand_budget_words`, one counter for the
+//! frame): an instance whose expansion would exceed what is left is rolled back (its words
+//! refunded) and rendered per tile, as without expansion. Under that pressure, which
+//! instances fall back can depend on the order jobs run in; the pixels never do.
+//! Where it sits: `frame::Renderer::render` step 2, between compiling and binning.
 
 use std::collections::HashMap;
 use std::ffi::c_void;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::abi::{expands, ArgLayout, KernelFn, TileCtx, VariantKey, CALLEE_UNKNOWN, MAX_CALL_DEPTH, MODE_EXPAND};
 use crate::ir::{FuncId, Program};
 use crate::jit::Kernel;
 
 use super::api::{Instance, RenderOptions};
-use super::frame::fresh_ctx;
+use super::frame::{fresh_ctx, run_bound};
 
 /// Budget charged per recorded call on top of its argument words (what its bookkeeping takes).
 const CALL_WORDS: usize = 12;
@@ -51,7 +58,7 @@ pub(crate) struct Draw<'a> {
 enum Args {
     /// The submitted instance's own block.
     Instance,
-    /// `pool[start..start + len]`.
+    /// `pool[start..start + len]` of the instance's [`Expanded`].
     Pool { start: usize, len: usize },
 }
 
@@ -60,25 +67,42 @@ struct Item {
     entry: KernelFn,
     args: Args,
     call_depth: u32,
-    instance: usize,
 }
 
-/// The draw list built instance by instance, and what expanding cost.
-pub(crate) struct Expansion<'p> {
-    program: &'p Program,
-    opts: &'p RenderOptions,
+/// The words the frame's expansion may still record, shared by the parallel jobs.
+pub(crate) struct Budget(AtomicUsize);
+
+impl Budget {
+    pub fn new(words: usize) -> Budget {
+        Budget(AtomicUsize::new(words))
+    }
+
+    /// Take `cost` words; false (and nothing taken) when fewer are left.
+    fn take(&self, cost: usize) -> bool {
+        self.0
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |left| left.checked_sub(cost))
+            .is_ok()
+    }
+
+    fn refund(&self, words: usize) {
+        self.0.fetch_add(words, Ordering::Relaxed);
+    }
+}
+
+/// One submitted instance's draws (itself, or the calls it made), their bounds and the
+/// run-time errors met on the way, in order.
+pub(crate) struct Expanded {
     /// Argument blocks of recorded calls, back to back.
     pool: Vec<u32>,
     items: Vec<Item>,
-    budget_left: usize,
-    /// Layouts of recorded callees under the frame's key, to check each block's length.
-    layouts: HashMap<VariantKey, HashMap<u32, ArgLayout>>,
-    /// Instances replaced by their calls.
-    pub expanded_instances: usize,
-    /// Draws those instances produced.
-    pub expanded_calls: usize,
-    /// Instances whose expansion exceeded the budget (rendered per tile).
-    pub over_budget: usize,
+    /// Each draw's screen bound from its `MODE_BOUND` run (`None`: it recorded none).
+    pub bounds: Vec<Option<[f32; 4]>>,
+    /// (error code, site) of the expand and bound runs, in order.
+    pub errors: Vec<(u32, u32)>,
+    /// The instance was replaced by its calls.
+    pub expanded: bool,
+    /// Its expansion exceeded the budget (it is drawn per tile instead).
+    pub over_budget: bool,
 }
 
 /// One call recorded by [`record_call`].
@@ -91,10 +115,12 @@ struct Call {
 }
 
 /// What one `MODE_EXPAND` run recorded (`TileCtx::expand_state` points at it during the run).
-struct Recorder {
+struct Recorder<'b> {
     words: Vec<u32>,
     calls: Vec<Call>,
-    budget_left: usize,
+    budget: &'b Budget,
+    /// Words taken from `budget` by this recorder.
+    charged: usize,
     over_budget: bool,
 }
 
@@ -118,12 +144,12 @@ unsafe extern "C" fn record_call(
     };
     let len = words as usize;
     let cost = len.saturating_add(CALL_WORDS);
-    if rec.over_budget || cost > rec.budget_left {
+    if rec.over_budget || !rec.budget.take(cost) {
         // Keep running (the setup ends on its own, fuel-bounded); the expansion is dropped.
         rec.over_budget = true;
         return;
     }
-    rec.budget_left -= cost;
+    rec.charged += cost;
     let start = rec.words.len();
     // SAFETY: `args` is `words` words long (the contract above).
     rec.words
@@ -139,17 +165,18 @@ unsafe extern "C" fn record_call(
 
 /// Run `entry` on `args` once in `MODE_EXPAND` at `call_depth`: the calls it made, and its
 /// run-time error.
-fn run_expand(
+fn run_expand<'b>(
     entry: KernelFn,
     args: &[u32],
     call_depth: u32,
     opts: &RenderOptions,
-    budget_left: usize,
-) -> (Recorder, Option<(u32, u32)>) {
+    budget: &'b Budget,
+) -> (Recorder<'b>, Option<(u32, u32)>) {
     let mut rec = Recorder {
         words: vec![],
         calls: vec![],
-        budget_left,
+        budget,
+        charged: 0,
         over_budget: false,
     };
     let mut ctx = fresh_ctx(opts, MODE_EXPAND);
@@ -165,85 +192,93 @@ fn run_expand(
     ctx.expand_state = (&mut rec as *mut Recorder).cast::<c_void>();
     // SAFETY: `ctx` names (empty) buffers that outlive the call and a recorder that is not
     // touched otherwise until the call returns; `args` is at least as long as the kernel's
-    // layout reads (checked by the caller for instances, by `Expansion::fits` for calls).
+    // layout reads (checked by the renderer for instances, by `Expander::fits` for calls).
     unsafe { entry(&mut ctx, args.as_ptr()) };
     let error = (ctx.error != 0).then_some((ctx.error, ctx.error_site));
     (rec, error)
 }
 
-impl<'p> Expansion<'p> {
-    pub fn new(program: &'p Program, opts: &'p RenderOptions) -> Expansion<'p> {
-        Expansion {
-            program,
-            opts,
+/// Expands one instance.
+struct Expander<'p> {
+    program: &'p Program,
+    opts: &'p RenderOptions,
+    budget: &'p Budget,
+    key: &'p VariantKey,
+    out: Expanded,
+    /// Words this instance took from the budget (refunded if it falls back).
+    charged: usize,
+    /// Layouts of recorded callees under the key, to check each block's length.
+    layouts: HashMap<u32, ArgLayout>,
+}
+
+/// The draws of instance `inst` (whose kernel is `kernel`), each bound: its calls if its
+/// primitive expands (and expansion is on and fits the budget), else itself.
+pub(crate) fn expand_instance(
+    program: &Program,
+    opts: &RenderOptions,
+    budget: &Budget,
+    inst: &Instance,
+    kernel: &Kernel,
+) -> Expanded {
+    let mut e = Expander {
+        program,
+        opts,
+        budget,
+        key: &kernel.key,
+        out: Expanded {
             pool: vec![],
             items: vec![],
-            budget_left: opts.expand_budget_words,
-            layouts: HashMap::new(),
-            expanded_instances: 0,
-            expanded_calls: 0,
-            over_budget: 0,
+            bounds: vec![],
+            errors: vec![],
+            expanded: false,
+            over_budget: false,
+        },
+        charged: 0,
+        layouts: HashMap::new(),
+    };
+    let itself = Item {
+        entry: kernel.entry,
+        args: Args::Instance,
+        call_depth: 0,
+    };
+    if opts.expand_calls && expands(program, inst.func) {
+        if e.expand(kernel.entry, &inst.args, 0) {
+            e.out.expanded = true;
+        } else {
+            // Over budget: forget what it recorded and render it per tile, as without
+            // expansion (which reports its run-time errors again).
+            budget.refund(e.charged);
+            e.out.pool = vec![];
+            e.out.items.clear();
+            e.out.errors.clear();
+            e.out.over_budget = true;
         }
     }
-
-    /// Draws so far.
-    pub fn len(&self) -> usize {
-        self.items.len()
+    if !e.out.expanded {
+        e.out.items.push(itself);
     }
-
-    /// Append instance `index`'s draws: its calls if it expands (and expansion is on and fits
-    /// the budget), else the instance itself. Run-time errors of expand runs go to `errors`
-    /// as (instance, code, site).
-    pub fn add(&mut self, index: usize, inst: &Instance, kernel: &Kernel, errors: &mut Vec<(usize, u32, u32)>) {
-        let itself = Item {
-            entry: kernel.entry,
-            args: Args::Instance,
-            call_depth: 0,
-            instance: index,
-        };
-        if !(self.opts.expand_calls && expands(self.program, inst.func)) {
-            self.items.push(itself);
-            return;
-        }
-        let (pool_mark, items_mark, budget_mark, errors_mark) =
-            (self.pool.len(), self.items.len(), self.budget_left, errors.len());
-        if self.expand(kernel.entry, &inst.args, 0, &kernel.key, index, errors) {
-            self.expanded_instances += 1;
-            self.expanded_calls += self.items.len() - items_mark;
-            return;
-        }
-        // Over budget: forget what it recorded and render it per tile, as without expansion
-        // (which reports its run-time errors again).
-        self.pool.truncate(pool_mark);
-        self.items.truncate(items_mark);
-        self.budget_left = budget_mark;
-        errors.truncate(errors_mark);
-        self.over_budget += 1;
-        self.items.push(itself);
+    let mut out = e.out;
+    for i in 0..out.items.len() {
+        let (bound, error) = run_bound(&out.draw(i, inst, 0), opts);
+        out.bounds.push(bound);
+        out.errors.extend(error);
     }
+    out
+}
 
+impl Expander<'_> {
     /// Expand one invocation (`entry` on `args` at `call_depth`) into draws; false when the
     /// budget ran out.
-    fn expand(
-        &mut self,
-        entry: KernelFn,
-        args: &[u32],
-        call_depth: u32,
-        key: &VariantKey,
-        instance: usize,
-        errors: &mut Vec<(usize, u32, u32)>,
-    ) -> bool {
-        let (rec, error) = run_expand(entry, args, call_depth, self.opts, self.budget_left);
-        self.budget_left = rec.budget_left;
-        if let Some((code, site)) = error {
-            errors.push((instance, code, site));
-        }
+    fn expand(&mut self, entry: KernelFn, args: &[u32], call_depth: u32) -> bool {
+        let (rec, error) = run_expand(entry, args, call_depth, self.opts, self.budget);
+        self.charged += rec.charged;
+        self.out.errors.extend(error);
         if rec.over_budget {
             return false;
         }
         for call in &rec.calls {
             let block = &rec.words[call.start..call.start + call.len];
-            if !self.fits(call.callee, key, block) {
+            if !self.fits(call.callee, block) {
                 // Cannot happen for blocks the JIT or the hand-written kernels build; never
                 // hand a kernel a block shorter than its layout reads.
                 continue;
@@ -252,63 +287,59 @@ impl<'p> Expansion<'p> {
                 && call.call_depth <= MAX_CALL_DEPTH
                 && expands(self.program, FuncId(call.callee));
             if expands_too {
-                if !self.expand(call.entry, block, call.call_depth, key, instance, errors) {
+                if !self.expand(call.entry, block, call.call_depth) {
                     return false;
                 }
                 continue;
             }
-            let start = self.pool.len();
-            self.pool.extend_from_slice(block);
-            self.items.push(Item {
+            let start = self.out.pool.len();
+            self.out.pool.extend_from_slice(block);
+            self.out.items.push(Item {
                 entry: call.entry,
                 args: Args::Pool { start, len: call.len },
                 call_depth: call.call_depth,
-                instance,
             });
         }
         true
     }
 
-    /// Whether `block` is at least as long as `callee`'s layout under `key` reads (an
+    /// Whether `block` is at least as long as `callee`'s layout under the key reads (an
     /// unknown callee is taken at its word: its block is what a native kernel built for it).
-    fn fits(&mut self, callee: u32, key: &VariantKey, block: &[u32]) -> bool {
+    fn fits(&mut self, callee: u32, block: &[u32]) -> bool {
         if callee == CALLEE_UNKNOWN {
             return true;
         }
         if callee as usize >= self.program.functions.len() {
             return false;
         }
-        let program = self.program;
-        if !self.layouts.contains_key(key) {
-            self.layouts.insert(key.clone(), HashMap::new());
-        }
-        let Some(of_key) = self.layouts.get_mut(key) else {
-            return false;
-        };
-        let layout = of_key
+        let (program, key) = (self.program, self.key);
+        let layout = self
+            .layouts
             .entry(callee)
             .or_insert_with(|| ArgLayout::new(program, FuncId(callee), key));
         let n_seq = block.first().copied().unwrap_or(0);
         layout.words(n_seq) <= block.len()
     }
+}
 
-    /// Draw `i` (below [`Self::len`]).
-    pub fn draw<'a>(&'a self, i: usize, instances: &'a [Instance]) -> Draw<'a> {
+impl Expanded {
+    /// Draws of this instance.
+    pub fn len(&self) -> usize {
+        self.items.len()
+    }
+
+    /// Draw `i` (below [`Self::len`]) of instance `inst`, number `index`.
+    pub fn draw<'a>(&'a self, i: usize, inst: &'a Instance, index: usize) -> Draw<'a> {
         let item = self.items[i];
         let args = match item.args {
-            Args::Instance => instances[item.instance].args.as_slice(),
+            Args::Instance => inst.args.as_slice(),
             Args::Pool { start, len } => &self.pool[start..start + len],
         };
         Draw {
             entry: item.entry,
             args,
             call_depth: item.call_depth,
-            instance: item.instance,
+            instance: index,
         }
-    }
-
-    /// Every draw, in order.
-    pub fn draws<'a>(&'a self, instances: &'a [Instance]) -> Vec<Draw<'a>> {
-        (0..self.items.len()).map(|i| self.draw(i, instances)).collect()
     }
 }

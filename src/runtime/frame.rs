@@ -35,7 +35,7 @@ use crate::ir::{FuncId, Program};
 use crate::jit::Kernel;
 
 use super::api::{Instance, RenderOptions, Renderer, MAX_IMAGE_SIDE, MAX_TILE_SIDE};
-use super::expand::{Draw, Expansion};
+use super::expand::{expand_instance, Budget, Draw, Expanded};
 use super::kernels::KernelSource;
 use super::shading::{Effects, PixelInputs, Shader, ShadingSpaces};
 
@@ -171,38 +171,41 @@ impl Renderer {
             ready.push(usable);
         }
 
-        // 2. Expansion, bound pass and binning, instance by instance: an instance that only
-        // calls primitives is replaced by the calls it makes (see `expand`); every draw is
-        // bound and binned.
+        // 2. Expansion and bound pass, one parallel job per instance: an instance that only
+        // calls primitives is replaced by the calls it makes (see `expand`), and every draw
+        // is bound. Then binning, in instance order.
         let tiles = tile_grid(opts);
         let tiles_x = opts.width.div_ceil(opts.tile_size) as usize;
         let mut bins: Vec<Vec<usize>> = vec![vec![]; tiles.len()];
         let mut errors: Vec<(usize, u32, u32)> = vec![];
         let instances = self.instances();
-        let mut expansion = Expansion::new(&program, opts);
-        for (i, (inst, kernel)) in instances.iter().zip(&ready).enumerate() {
-            let Some(kernel) = kernel else { continue };
-            let first = expansion.len();
-            expansion.add(i, inst, kernel, &mut errors);
-            for d in first..expansion.len() {
-                let draw = expansion.draw(d, instances);
-                let (bound, error) = run_bound(&draw, opts);
-                if let Some((code, site)) = error {
-                    errors.push((i, code, site));
-                }
+        let budget = Budget::new(opts.expand_budget_words);
+        let expanded: Vec<Option<Expanded>> = instances
+            .par_iter()
+            .zip(ready.par_iter())
+            .map(|(inst, kernel)| {
+                let kernel = kernel.as_ref()?;
+                Some(expand_instance(&program, opts, &budget, inst, kernel))
+            })
+            .collect();
+        let mut draws: Vec<Draw> = vec![];
+        for (i, e) in expanded.iter().enumerate() {
+            let Some(e) = e else { continue };
+            stats.expanded_instances += usize::from(e.expanded);
+            stats.expanded_calls += if e.expanded { e.len() } else { 0 };
+            stats.expand_over_budget += usize::from(e.over_budget);
+            errors.extend(e.errors.iter().map(|&(code, site)| (i, code, site)));
+            for (d, bound) in e.bounds.iter().enumerate() {
                 if let Some((tx0, ty0, tx1, ty1)) = bound.and_then(|b| tiles_overlapped(b, opts)) {
                     for ty in ty0..=ty1 {
                         for tx in tx0..=tx1 {
-                            bins[ty * tiles_x + tx].push(d);
+                            bins[ty * tiles_x + tx].push(draws.len());
                         }
                     }
                 }
+                draws.push(e.draw(d, &instances[i], i));
             }
         }
-        let draws = expansion.draws(instances);
-        stats.expanded_instances = expansion.expanded_instances;
-        stats.expanded_calls = expansion.expanded_calls;
-        stats.expand_over_budget = expansion.over_budget;
         stats.tile_invocations = bins.iter().map(Vec::len).sum();
 
         // 3. Tiles in parallel; results gathered in tile order.
@@ -360,7 +363,7 @@ pub(super) fn fresh_ctx(opts: &RenderOptions, mode: u32) -> TileCtx {
 
 /// Run a draw's kernel in bound mode: its screen bound (if it recorded one) and its
 /// run-time error.
-fn run_bound(draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>, Option<(u32, u32)>) {
+pub(super) fn run_bound(draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>, Option<(u32, u32)>) {
     let mut ctx = fresh_ctx(opts, MODE_BOUND);
     ctx.call_depth = draw.call_depth;
     // Zero-size buffers: bound mode never touches them, and the empty tile rectangle
