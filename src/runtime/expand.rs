@@ -92,17 +92,29 @@ impl Budget {
 /// One submitted instance's draws (itself, or the calls it made), their bounds and the
 /// run-time errors met on the way, in order.
 pub(crate) struct Expanded {
-    /// Argument blocks of recorded calls, back to back.
-    pool: Vec<u32>,
-    items: Vec<Item>,
-    /// Each draw's screen bound from its `MODE_BOUND` run (`None`: it recorded none).
-    pub bounds: Vec<Option<[f32; 4]>>,
+    draws: Draws,
     /// (error code, site) of the expand and bound runs, in order.
     pub errors: Vec<(u32, u32)>,
     /// The instance was replaced by its calls.
     pub expanded: bool,
     /// Its expansion exceeded the budget (it is drawn per tile instead).
     pub over_budget: bool,
+}
+
+/// The draws of one instance. Most instances are drawn as themselves: that case allocates
+/// nothing (a frame may hold hundreds of thousands of small triangles).
+enum Draws {
+    Itself {
+        entry: KernelFn,
+        bound: Option<[f32; 4]>,
+    },
+    Calls {
+        /// Argument blocks of the recorded calls, back to back.
+        pool: Vec<u32>,
+        items: Vec<Item>,
+        /// Each item's screen bound from its `MODE_BOUND` run (`None`: it recorded none).
+        bounds: Vec<Option<[f32; 4]>>,
+    },
 }
 
 /// One call recorded by [`record_call`].
@@ -204,7 +216,9 @@ struct Expander<'p> {
     opts: &'p RenderOptions,
     budget: &'p Budget,
     key: &'p VariantKey,
-    out: Expanded,
+    pool: Vec<u32>,
+    items: Vec<Item>,
+    errors: Vec<(u32, u32)>,
     /// Words this instance took from the budget (refunded if it falls back).
     charged: usize,
     /// Layouts of recorded callees under the key, to check each block's length.
@@ -220,50 +234,75 @@ pub(crate) fn expand_instance(
     inst: &Instance,
     kernel: &Kernel,
 ) -> Expanded {
-    let mut e = Expander {
-        program,
-        opts,
-        budget,
-        key: &kernel.key,
-        out: Expanded {
+    let mut over_budget = false;
+    let mut errors = vec![];
+    if opts.expand_calls && expands(program, inst.func) {
+        let mut e = Expander {
+            program,
+            opts,
+            budget,
+            key: &kernel.key,
             pool: vec![],
             items: vec![],
-            bounds: vec![],
             errors: vec![],
-            expanded: false,
-            over_budget: false,
-        },
-        charged: 0,
-        layouts: HashMap::new(),
-    };
+            charged: 0,
+            layouts: HashMap::new(),
+        };
+        if e.expand(kernel.entry, &inst.args, 0) {
+            let mut bounds = Vec::with_capacity(e.items.len());
+            for item in &e.items {
+                let (bound, error) = run_bound(&item.draw(&e.pool, inst, 0), opts);
+                bounds.push(bound);
+                e.errors.extend(error);
+            }
+            return Expanded {
+                draws: Draws::Calls {
+                    pool: e.pool,
+                    items: e.items,
+                    bounds,
+                },
+                errors: e.errors,
+                expanded: true,
+                over_budget: false,
+            };
+        }
+        // Over budget: forget what it recorded and render it per tile, as without expansion
+        // (which reports its run-time errors again).
+        budget.refund(e.charged);
+        over_budget = true;
+    }
     let itself = Item {
         entry: kernel.entry,
         args: Args::Instance,
         call_depth: 0,
     };
-    if opts.expand_calls && expands(program, inst.func) {
-        if e.expand(kernel.entry, &inst.args, 0) {
-            e.out.expanded = true;
-        } else {
-            // Over budget: forget what it recorded and render it per tile, as without
-            // expansion (which reports its run-time errors again).
-            budget.refund(e.charged);
-            e.out.pool = vec![];
-            e.out.items.clear();
-            e.out.errors.clear();
-            e.out.over_budget = true;
+    let (bound, error) = run_bound(&itself.draw(&[], inst, 0), opts);
+    errors.extend(error);
+    Expanded {
+        draws: Draws::Itself {
+            entry: kernel.entry,
+            bound,
+        },
+        errors,
+        expanded: false,
+        over_budget,
+    }
+}
+
+impl Item {
+    /// This item of instance `inst` (number `index`) whose recorded blocks are in `pool`.
+    fn draw<'a>(&self, pool: &'a [u32], inst: &'a Instance, index: usize) -> Draw<'a> {
+        let args = match self.args {
+            Args::Instance => inst.args.as_slice(),
+            Args::Pool { start, len } => &pool[start..start + len],
+        };
+        Draw {
+            entry: self.entry,
+            args,
+            call_depth: self.call_depth,
+            instance: index,
         }
     }
-    if !e.out.expanded {
-        e.out.items.push(itself);
-    }
-    let mut out = e.out;
-    for i in 0..out.items.len() {
-        let (bound, error) = run_bound(&out.draw(i, inst, 0), opts);
-        out.bounds.push(bound);
-        out.errors.extend(error);
-    }
-    out
 }
 
 impl Expander<'_> {
@@ -272,7 +311,7 @@ impl Expander<'_> {
     fn expand(&mut self, entry: KernelFn, args: &[u32], call_depth: u32) -> bool {
         let (rec, error) = run_expand(entry, args, call_depth, self.opts, self.budget);
         self.charged += rec.charged;
-        self.out.errors.extend(error);
+        self.errors.extend(error);
         if rec.over_budget {
             return false;
         }
@@ -292,9 +331,9 @@ impl Expander<'_> {
                 }
                 continue;
             }
-            let start = self.out.pool.len();
-            self.out.pool.extend_from_slice(block);
-            self.out.items.push(Item {
+            let start = self.pool.len();
+            self.pool.extend_from_slice(block);
+            self.items.push(Item {
                 entry: call.entry,
                 args: Args::Pool { start, len: call.len },
                 call_depth: call.call_depth,
@@ -325,21 +364,30 @@ impl Expander<'_> {
 impl Expanded {
     /// Draws of this instance.
     pub fn len(&self) -> usize {
-        self.items.len()
+        match &self.draws {
+            Draws::Itself { .. } => 1,
+            Draws::Calls { items, .. } => items.len(),
+        }
+    }
+
+    /// The bound of draw `i` (below [`Self::len`]).
+    pub fn bound(&self, i: usize) -> Option<[f32; 4]> {
+        match &self.draws {
+            Draws::Itself { bound, .. } => *bound,
+            Draws::Calls { bounds, .. } => bounds[i],
+        }
     }
 
     /// Draw `i` (below [`Self::len`]) of instance `inst`, number `index`.
     pub fn draw<'a>(&'a self, i: usize, inst: &'a Instance, index: usize) -> Draw<'a> {
-        let item = self.items[i];
-        let args = match item.args {
-            Args::Instance => inst.args.as_slice(),
-            Args::Pool { start, len } => &self.pool[start..start + len],
-        };
-        Draw {
-            entry: item.entry,
-            args,
-            call_depth: item.call_depth,
-            instance: index,
+        match &self.draws {
+            Draws::Itself { entry, .. } => Draw {
+                entry: *entry,
+                args: &inst.args,
+                call_depth: 0,
+                instance: index,
+            },
+            Draws::Calls { pool, items, .. } => items[i].draw(pool, inst, index),
         }
     }
 }

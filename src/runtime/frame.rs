@@ -195,8 +195,8 @@ impl Renderer {
             stats.expanded_calls += if e.expanded { e.len() } else { 0 };
             stats.expand_over_budget += usize::from(e.over_budget);
             errors.extend(e.errors.iter().map(|&(code, site)| (i, code, site)));
-            for (d, bound) in e.bounds.iter().enumerate() {
-                if let Some((tx0, ty0, tx1, ty1)) = bound.and_then(|b| tiles_overlapped(b, opts)) {
+            for d in 0..e.len() {
+                if let Some((tx0, ty0, tx1, ty1)) = e.bound(d).and_then(|b| tiles_overlapped(b, opts)) {
                     for ty in ty0..=ty1 {
                         for tx in tx0..=tx1 {
                             bins[ty * tiles_x + tx].push(draws.len());
