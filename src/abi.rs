@@ -6,8 +6,13 @@
 //! instance's sequence-point count) and the tile buffers the context names (each
 //! `stride * rows` long). Pixel groups are `GROUP` pixels of one row, and `stride` is a
 //! multiple of `GROUP`, so a group never straddles a row or the end of a buffer.
+//!
+//! A third mode, `MODE_EXPAND`, serves primitives that only call other primitives (no pixel
+//! code of their own, [`expands`]): the runtime runs such an instance once, its calls are
+//! handed to `TileCtx::expand` instead of being made, and the recorded calls are bound,
+//! binned and rendered as instances of their own (see `runtime::expand`).
 
-use crate::ir::{Elem, FuncId, ParamRole, Program, Type};
+use crate::ir::{Elem, FuncId, FuncKind, ParamRole, Program, Stmt, StmtKind, Type};
 
 /// Pixels per group: one f32x4 per varying value.
 pub const GROUP: u32 = 4;
@@ -16,6 +21,10 @@ pub const GROUP: u32 = 4;
 pub const MODE_BOUND: u32 = 0;
 /// Kernel mode: render the pixels of the tile.
 pub const MODE_RENDER: u32 = 1;
+/// Kernel mode: run the setup once and record every primitive call it makes through
+/// `TileCtx::expand` instead of making it (the tile is empty; no pixel is touched). Only run
+/// on primitives for which [`expands`] holds.
+pub const MODE_EXPAND: u32 = 2;
 
 /// Run-time error codes a kernel can record (the first one wins).
 pub const ERR_NONE: u32 = 0;
@@ -58,6 +67,12 @@ pub struct TileCtx {
     /// Viewport size in pixels (bounds are clamped to it).
     pub width: u32,
     pub height: u32,
+    /// In `MODE_EXPAND`: where a primitive call goes instead of to the callee (after the
+    /// call-depth check, with `call_depth` already the callee's). `None` in the other modes;
+    /// a call in `MODE_EXPAND` with `None` here is dropped.
+    pub expand: Option<ExpandFn>,
+    /// The recorder `expand` writes to (opaque to kernels; null outside `MODE_EXPAND`).
+    pub expand_state: *mut std::ffi::c_void,
 }
 
 pub const MAX_CALL_DEPTH: u32 = 16;
@@ -65,6 +80,72 @@ pub const DEFAULT_FUEL: u64 = 1 << 28;
 
 /// The signature of every compiled kernel.
 pub type KernelFn = unsafe extern "C" fn(ctx: *mut TileCtx, args: *const u32);
+
+/// `FuncId` value a native (hand-written) kernel passes to [`ExpandFn`] when it does not
+/// know the callee's function: the call is then rendered as it is, never expanded further.
+pub const CALLEE_UNKNOWN: u32 = u32::MAX;
+
+/// Records one primitive call made in `MODE_EXPAND`: `ctx` the caller's context (its
+/// `call_depth` is the callee's), `callee` the callee's `FuncId` (or [`CALLEE_UNKNOWN`]),
+/// `entry` the callee's kernel for the caller's key, `args` the argument block the call
+/// built, `words` long (`ArgLayout::words` of the callee for the block's word 0). The
+/// callee is not run; the recorder copies the block before it returns.
+pub type ExpandFn =
+    unsafe extern "C" fn(ctx: *mut TileCtx, callee: u32, entry: Option<KernelFn>, args: *const u32, words: u32);
+
+/// Whether the runtime expands instances of `func`: a primitive with no pixel part of its own
+/// whose setup calls primitives. Everything such a primitive draws, it draws through its
+/// calls, so running it once in `MODE_EXPAND` and rendering the recorded calls in its place
+/// (in call order) draws the same pixels as running it in every tile. An unknown id is
+/// `false`.
+pub fn expands(program: &Program, func: FuncId) -> bool {
+    fn calls(stmts: &[Stmt]) -> bool {
+        stmts.iter().any(|s| match &s.kind {
+            StmtKind::CallPrimitive { .. } => true,
+            StmtKind::If { then, otherwise, .. } => calls(then) || calls(otherwise),
+            StmtKind::Loop { body, step, .. } => calls(body) || calls(step),
+            StmtKind::Interpolation { arms } => arms.iter().any(|a| calls(&a.body)),
+            _ => false,
+        })
+    }
+    program
+        .functions
+        .get(func.0 as usize)
+        .is_some_and(|f| f.kind == FuncKind::Primitive && f.pixel.is_empty() && calls(&f.setup))
+}
+
+/// What a native kernel does where its primitive's source calls another primitive, as the
+/// JIT's call does: bump `call_depth` (past `MAX_CALL_DEPTH` the call is skipped and
+/// `ERR_CALL_DEPTH` recorded), then in `MODE_EXPAND` hand the call to `ctx.expand` (as
+/// [`CALLEE_UNKNOWN`]: rendered as recorded), in the other modes run `entry` on `args`.
+///
+/// # Safety
+/// `ctx` is a valid context the caller owns for the call, and `args` a complete argument
+/// block of `entry`'s primitive under the caller's key.
+pub unsafe fn call_primitive(ctx: *mut TileCtx, entry: KernelFn, args: &[u32]) {
+    // SAFETY: the caller's contract.
+    let c = unsafe { &mut *ctx };
+    let depth = c.call_depth.wrapping_add(1);
+    c.call_depth = depth;
+    if depth > MAX_CALL_DEPTH {
+        if c.error == ERR_NONE {
+            c.error = ERR_CALL_DEPTH;
+            c.error_site = u32::MAX;
+        }
+    } else if c.mode == MODE_EXPAND {
+        if let Some(record) = c.expand {
+            // SAFETY: `record` is the runtime's recorder for this context; `args` is
+            // `args.len()` words long.
+            unsafe { record(ctx, CALLEE_UNKNOWN, Some(entry), args.as_ptr(), args.len() as u32) };
+        }
+    } else {
+        // SAFETY: the caller's contract.
+        unsafe { entry(ctx, args.as_ptr()) };
+    }
+    // SAFETY: as above (`c` is not used across the calls, which may write the context).
+    let c = unsafe { &mut *ctx };
+    c.call_depth = c.call_depth.wrapping_sub(1);
+}
 
 /// How one shading parameter of a primitive instance gets its value.
 #[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]

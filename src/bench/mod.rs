@@ -68,6 +68,9 @@ pub struct WorkloadResult {
     pub jit_vs_simd: Option<f64>,
     /// JIT all-threads throughput over JIT one-thread throughput.
     pub thread_scaling: f64,
+    /// JIT frame time with the calling primitives' setup rerun per tile over the time with
+    /// it run once (expansion); `None` for workloads without calling primitives.
+    pub expand_speedup: Option<f64>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -451,6 +454,23 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
             }
             bar.inc(1);
         }
+        // Workloads of calling primitives (polygon, NURB) also time the per-tile path, where
+        // the caller's setup reruns in every tile (`RenderOptions::expand_calls` off): the
+        // before/after of expansion, checked equal first.
+        let per_tile = r
+            .instances()
+            .iter()
+            .any(|inst| crate::abi::expands(&program, inst.func))
+            .then(|| {
+                let mut p = scene(&program, SIZE, w, false);
+                p.options.expand_calls = false;
+                p
+            });
+        if let Some(p) = &per_tile {
+            if !same_frame(&reference, &render(p, &mut jit, &one)?.0) {
+                return Err(format!("{}: the per-tile frame differs from the expanded one", w.name));
+            }
+        }
         let counted = scene(&program, SIZE, w, true);
         let (frame, _) = render(&counted, &mut jit, &one)?;
         let pixels: u64 = frame
@@ -460,7 +480,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
         bar.inc(2);
 
         // Interleaved timed runs.
-        let mut times: [Vec<f64>; 5] = Default::default();
+        let mut times: [Vec<f64>; 6] = Default::default();
         for _ in 0..runs {
             times[0].push(render(&r, &mut jit, &one)?.1);
             for (slot, flavor, source) in [
@@ -473,6 +493,9 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
                 }
             }
             times[4].push(render(&r, &mut jit, &all)?.1);
+            if let Some(p) = &per_tile {
+                times[5].push(render(p, &mut jit, &one)?.1);
+            }
             bar.inc(5);
         }
         let names = [
@@ -481,6 +504,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
             format!("SSE {}", Flavor::Sse.describe()),
             format!("SIMD {}", Flavor::Avx2.describe()),
             "JIT".to_string(),
+            "JIT, setup per tile".to_string(),
         ];
         let timings: Vec<KernelTiming> = times
             .into_iter()
@@ -513,6 +537,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
             jit_vs_sse: ms("SSE", 1).map(|t| t / jit_one),
             jit_vs_simd: ms("SIMD", 1).map(|t| t / jit_one),
             thread_scaling: ms("JIT", threads).map_or(f64::NAN, |t| jit_one / t),
+            expand_speedup: ms("JIT, setup per tile", 1).map(|t| t / jit_one),
             timings,
         });
     }
@@ -603,7 +628,7 @@ pub fn format_table(report: &BenchReport) -> String {
         }
         let ratio = |r: Option<f64>| r.map_or("n/a (no hand-written kernel)".to_string(), |r| format!("{r:.2}x"));
         s.push_str(&format!(
-            "{:<32} JIT/scalar {}   JIT/SSE {}   JIT/AVX2 {}   {} threads/1 thread {:.2}x\n\n",
+            "{:<32} JIT/scalar {}   JIT/SSE {}   JIT/AVX2 {}   {} threads/1 thread {:.2}x\n",
             "",
             ratio(w.jit_vs_scalar),
             ratio(w.jit_vs_sse),
@@ -611,6 +636,13 @@ pub fn format_table(report: &BenchReport) -> String {
             report.threads,
             w.thread_scaling
         ));
+        if let Some(x) = w.expand_speedup {
+            s.push_str(&format!(
+                "{:<32} setup once per primitive (expanded) vs once per tile: {x:.2}x faster\n",
+                ""
+            ));
+        }
+        s.push('\n');
     }
     s.push_str(&format_scaling_and_llvmpipe(report));
     s.push('\n');

@@ -16,6 +16,11 @@
 //! write by hand for speed — every tessellation point evaluated once and reused (same
 //! inputs, same operations, same bits) — with the AVX2 screen_triangle.
 //!
+//! In `MODE_EXPAND` the triangles are recorded through `abi::call_primitive` instead of
+//! drawn: the JIT's kernel records `polygon` calls, which the runtime expands in turn into
+//! the same screen_triangle calls, so both yield the same triangle instances in the same
+//! order (the hand-written ones one call level shallower, which screen_triangle never reads).
+//!
 //! A rejected surface draws nothing, as in the prim, but records no W0801 run-time
 //! warning (the prim reports its reason through an out-of-range index at a source site;
 //! the hand-written kernel has no site to name).
@@ -31,7 +36,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 use super::screen_triangle;
 use super::sphere::{apply_point, space_matrix};
-use crate::abi::{ArgLayout, BindingKind, KernelFn, ParamSlot, TileCtx, VariantKey, MODE_BOUND};
+use crate::abi::{call_primitive, ArgLayout, BindingKind, KernelFn, ParamSlot, TileCtx, VariantKey, MODE_BOUND};
 
 /// Word offset of the first fixed parameter (`u_count`) for `t` plane-table entries.
 pub(crate) const fn params_at(t: usize) -> usize {
@@ -339,9 +344,11 @@ impl<const T: usize> TriangleSink<T> {
                 self.block[1 + T + 12 + v * T + c] = x.to_bits();
             }
         }
-        // SAFETY: `ctx` is the caller's valid context and `block` a complete screen_triangle
-        // argument block for T components.
-        unsafe { (self.triangle)(self.ctx, self.block.as_ptr()) };
+        // SAFETY: `ctx` is the caller's valid context and the block's first `1 + T + 12 + 3T`
+        // words a complete screen_triangle argument block for T components. In MODE_EXPAND
+        // the triangle is recorded (the JIT records the polygon, whose expansion records
+        // the same triangle).
+        unsafe { call_primitive(self.ctx, self.triangle, &self.block[..1 + T + 12 + 3 * T]) };
     }
 
     /// The prim `polygon` on three vertices: the plain fan, or (`clip`) clipped against the

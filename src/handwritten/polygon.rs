@@ -14,10 +14,14 @@
 //! (`T` words); then, from `fixed = 1 + T`, `vertex` (4 words per point) and
 //! `interp_data` (`T` words per point) at `fixed + max(n, 1) * seq_offset`.
 //!
+//! Each fan triangle goes through `abi::call_primitive`, as the JIT's call does: run in bound
+//! and render mode, recorded for the runtime in `MODE_EXPAND` (so an expanded polygon yields
+//! the same triangle instances from either kernel).
+//!
 //! The variant key's `trivial_accept` makes the prim's `clipping()` false (only the plain
 //! fan is compiled); the kernels take it as the const generic `CLIP` (= `clipping()`).
 
-use crate::abi::{KernelFn, TileCtx};
+use crate::abi::{call_primitive, KernelFn, TileCtx};
 
 /// Most interpolation components a hand-written polygon handles (the size of the argument
 /// block it builds for screen_triangle on its stack).
@@ -142,10 +146,12 @@ impl Fan {
             return;
         }
         self.set(2, s, data);
-        // SAFETY: the block is screen_triangle's argument block for this key (n_seq, the
-        // caller's plane table, screen_vertex, interp_data), and the caller vouches for
-        // `ctx` and `triangle`.
-        unsafe { (self.triangle)(self.ctx, self.block.as_ptr()) };
+        let words = 1 + self.t + 12 + 3 * self.t;
+        // SAFETY: the block's first `words` words are screen_triangle's argument block for
+        // this key (n_seq, the caller's plane table, screen_vertex, interp_data), and the
+        // caller vouches for `ctx` and `triangle`. In MODE_EXPAND the call is recorded, as
+        // the JIT's polygon records it.
+        unsafe { call_primitive(self.ctx, self.triangle, &self.block[..words]) };
         self.set(1, s, data);
     }
 }

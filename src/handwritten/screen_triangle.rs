@@ -732,6 +732,8 @@ mod tests {
                 call_depth: 0,
                 width: 200,
                 height: 100,
+                expand: None,
+                expand_state: std::ptr::null_mut(),
             };
             // SAFETY: the context's buffers are `len` (x planes) long with the stride given,
             // and `args` is a screen_triangle block for 2 + 2 components.

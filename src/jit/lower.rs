@@ -3,7 +3,8 @@
 //! Shape of every kernel (`fn(ctx, args)`):
 //! 1. `setup` as scalar code: uniform values are `f32`/`i32`/`i8` SSA variables; `bound`
 //!    unions into `ctx.bound` in bound mode and sets the pass rectangle; primitive calls build
-//!    the callee's argument block in a stack slot and call it directly.
+//!    the callee's argument block in a stack slot and call it directly, or in `MODE_EXPAND`
+//!    hand it to `ctx.expand` (the runtime renders the call later as an instance).
 //! 2. If there is a pixel part: in bound mode record the viewport unless a bound ran, and
 //!    return; in render mode loop rows, then 4-pixel groups of the pass rectangle clipped to
 //!    the tile (groups start at tile-aligned x; lanes outside start dead), `UNROLL` groups
@@ -46,7 +47,7 @@ use super::value::{
 use super::JitError;
 use crate::abi::{
     interpolator_arg_words, type_words, ArgLayout, BindingKind, ParamSlot, VariantKey, ERR_CALL_DEPTH, ERR_FUEL,
-    ERR_INDEX, MAX_CALL_DEPTH, MODE_BOUND,
+    ERR_INDEX, MAX_CALL_DEPTH, MODE_BOUND, MODE_EXPAND,
 };
 use crate::ir::{
     ArmKind, BinOp, ConstValue, Elem, Expr, ExprKind, FixedFormat, FuncId, FuncKind, Function, LocalId, LoopId,
@@ -2191,12 +2192,53 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().jump(after, &[]);
         self.b.switch_to_block(call_blk);
         let fref = self.linker.kernel_ref(self.b.func, callee)?;
+        // In MODE_EXPAND the call is recorded, not made (`abi::ExpandFn`): the runtime
+        // renders it later as an instance of its own.
+        let mode = self.load_ctx(types::I32, ctx_off::MODE);
+        let expanding = self.b.ins().icmp_imm_s(IntCC::Equal, mode, MODE_EXPAND as i64);
+        let record_blk = self.b.create_block();
+        let run_blk = self.b.create_block();
+        self.b.ins().brif(expanding, record_blk, &[], run_blk, &[]);
+        self.b.switch_to_block(record_blk);
+        self.record_call(callee, fref, base, words)?;
+        self.b.ins().jump(after, &[]);
+        self.b.switch_to_block(run_blk);
         self.b.ins().call(fref, &[self.ctx, base]);
         self.b.ins().jump(after, &[]);
         self.b.switch_to_block(after);
         let d = self.load_ctx(types::I32, ctx_off::CALL_DEPTH);
         let d = self.b.ins().iadd_imm_s(d, -1);
         self.store_ctx(d, ctx_off::CALL_DEPTH);
+        Ok(())
+    }
+
+    /// Hand the call (callee id, its kernel's address, the argument block, its length) to
+    /// `ctx.expand`; nothing when that is null.
+    fn record_call(&mut self, callee: FuncId, fref: ir::FuncRef, base: ir::Value, words: usize) -> Res<()> {
+        let words = u32::try_from(words).map_err(|_| JitError {
+            message: "primitive call argument block too large".into(),
+        })?;
+        let recorder = self.load_ctx(types::I64, ctx_off::EXPAND);
+        let have = self.b.ins().icmp_imm_s(IntCC::NotEqual, recorder, 0);
+        let call_blk = self.b.create_block();
+        let done = self.b.create_block();
+        self.b.ins().brif(have, call_blk, &[], done, &[]);
+        self.b.switch_to_block(call_blk);
+        let mut sig = ir::Signature::new(self.b.func.signature.call_conv);
+        sig.params.push(ir::AbiParam::new(types::I64)); // ctx
+        sig.params.push(ir::AbiParam::new(types::I32)); // callee FuncId
+        sig.params.push(ir::AbiParam::new(types::I64)); // callee kernel entry
+        sig.params.push(ir::AbiParam::new(types::I64)); // argument block
+        sig.params.push(ir::AbiParam::new(types::I32)); // its words
+        let sig = self.b.import_signature(sig);
+        let entry = self.b.ins().func_addr(types::I64, fref);
+        let id = self.b.ins().iconst(types::I32, i64::from(callee.0));
+        let n = self.b.ins().iconst(types::I32, i64::from(words));
+        self.b
+            .ins()
+            .call_indirect(sig, recorder, &[self.ctx, id, entry, base, n]);
+        self.b.ins().jump(done, &[]);
+        self.b.switch_to_block(done);
         Ok(())
     }
 

@@ -114,7 +114,18 @@ pub struct RenderOptions {
     /// Compile kernels that count depth writes per pixel (`Frame::write_count_at`).
     pub count_writes: bool,
     pub background: [f32; 3],
+    /// Run each instance of a primitive that only calls other primitives (`abi::expands`)
+    /// once in `MODE_EXPAND` and render the calls it makes as instances of their own, binned
+    /// by their own bounds (the frame is bit-identical either way). `false` runs its whole
+    /// setup in every tile its bound touches (kept to compare against, and by the bench).
+    pub expand_calls: bool,
+    /// Most argument words (plus a fixed charge per call) the expansion of one frame may
+    /// record; an instance whose expansion would exceed it is rendered per tile instead.
+    pub expand_budget_words: usize,
 }
+
+/// Default `RenderOptions::expand_budget_words`: 2^25 words (128 MiB of recorded calls).
+pub const EXPAND_BUDGET_WORDS: usize = 1 << 25;
 
 impl Default for RenderOptions {
     fn default() -> RenderOptions {
@@ -124,6 +135,8 @@ impl Default for RenderOptions {
             tile_size: 64,
             count_writes: false,
             background: [0.0; 3],
+            expand_calls: true,
+            expand_budget_words: EXPAND_BUDGET_WORDS,
         }
     }
 }

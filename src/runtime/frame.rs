@@ -1,17 +1,20 @@
 //! Rendering a frame: compile, bound, bin, render tiles in parallel, shade, write images.
 //!
 //! 1. Every (primitive, key) the instances need is compiled once through the [`KernelSource`].
-//! 2. Each instance's kernel runs once in `MODE_BOUND` on an empty tile with no buffers
-//!    (instances in parallel, binned afterwards in submission order); its recorded screen
-//!    bound (conservative) bins it into the tiles it overlaps. A NaN bound, or no bound at
-//!    all, puts it in no tile.
+//! 2. Instances become *draws*: an instance of a primitive that only calls primitives
+//!    (`abi::expands`) runs once in `MODE_EXPAND` and is replaced by the calls it makes, in
+//!    call order ([`super::expand`]; off with `RenderOptions::expand_calls`); any other
+//!    instance is one draw. Each draw's kernel runs once in `MODE_BOUND` on an empty tile
+//!    with no buffers (instances expand and bound in parallel, draws are binned afterwards
+//!    in submission order); its recorded screen bound (conservative) bins it into the tiles
+//!    it overlaps. A NaN bound, or no bound at all, puts it in no tile.
 //! 3. Tiles render in parallel with rayon. A tile task renders into its worker's scratch
 //!    buffers (depth u32 with 0 = farthest, G-buffer planes f32, write counts; zeroed per
-//!    tile, reused from tile to tile), running its instances in submission order in
-//!    `MODE_RENDER` with fresh fuel each, then copies the tile into the frame through row
-//!    slices it alone owns (tiles are disjoint). Every pixel is computed by one tile from the
-//!    same zeroed start whatever the schedule, so the result is bit-identical whatever the
-//!    number of threads, and no serial pass gathers the tiles.
+//!    tile, reused from tile to tile), running its draws in order in `MODE_RENDER` with
+//!    fresh fuel each, then copies the tile into the frame through row slices it alone owns
+//!    (tiles are disjoint). Every pixel is computed by one tile from the same zeroed start
+//!    whatever the schedule, so the result is bit-identical whatever the number of threads,
+//!    and no serial pass gathers the tiles.
 //! 4. Kernel run-time errors become warnings at the failing site of the primitive source,
 //!    once per (site, error), in tile order.
 //!
@@ -36,6 +39,7 @@ use crate::ir::{FuncId, Program};
 use crate::jit::Kernel;
 
 use super::api::{Instance, RenderOptions, Renderer, MAX_IMAGE_SIDE, MAX_TILE_SIDE};
+use super::expand::{expand_instance, Budget, Draw, Expanded};
 use super::kernels::KernelSource;
 use super::shading::{Effects, PixelInputs, Shader, ShadingSpaces};
 
@@ -82,8 +86,16 @@ pub struct RenderStats {
     pub tiles_micros: u64,
     /// Of `render_micros`: the deferred shading pass (0 when the scene turns no effect on).
     pub shade_micros: u64,
-    /// Instance-tile pairs rendered (an instance counts once per tile it was binned into).
+    /// Draw-tile pairs rendered (a draw — an instance, or a call an expanded instance made —
+    /// counts once per tile it was binned into).
     pub tile_invocations: usize,
+    /// Instances replaced by the calls they make (`RenderOptions::expand_calls`).
+    pub expanded_instances: usize,
+    /// Draws those instances produced.
+    pub expanded_calls: usize,
+    /// Instances whose expansion exceeded `RenderOptions::expand_budget_words` (rendered
+    /// per tile instead).
+    pub expand_over_budget: usize,
 }
 
 /// A render's frame, statistics and diagnostics (compile failures are errors, kernel warnings
@@ -202,32 +214,39 @@ impl Renderer {
             ready.push(usable);
         }
 
-        // 2. Bound pass and binning.
+        // 2. Expansion and bound pass, one parallel job per instance: an instance that only
+        // calls primitives is replaced by the calls it makes (see `expand`), and every draw
+        // is bound. Then binning, in instance order.
         let tiles = tile_grid(opts);
         let tiles_x = opts.width.div_ceil(opts.tile_size) as usize;
         let mut bins: Vec<Vec<usize>> = vec![vec![]; tiles.len()];
         let mut errors: Vec<(usize, u32, u32)> = vec![];
-        // The bound runs are independent (each on its own context): run them in parallel,
-        // in chunks so a scene of tiny primitives is not one rayon task per instance, and
-        // bin serially in submission order.
-        let bounds: Vec<_> = self
-            .instances()
+        let instances = self.instances();
+        let budget = Budget::new(opts.expand_budget_words);
+        let expanded: Vec<Option<Expanded>> = instances
             .par_iter()
             .zip(ready.par_iter())
-            .with_min_len(256)
-            .map(|(inst, kernel)| kernel.as_ref().map(|k| run_bound(k, inst, opts)))
+            .map(|(inst, kernel)| {
+                let kernel = kernel.as_ref()?;
+                Some(expand_instance(&program, opts, &budget, inst, kernel))
+            })
             .collect();
-        for (i, outcome) in bounds.into_iter().enumerate() {
-            let Some((bound, error)) = outcome else { continue };
-            if let Some((code, site)) = error {
-                errors.push((i, code, site));
-            }
-            if let Some((tx0, ty0, tx1, ty1)) = bound.and_then(|b| tiles_overlapped(b, opts)) {
-                for ty in ty0..=ty1 {
-                    for tx in tx0..=tx1 {
-                        bins[ty * tiles_x + tx].push(i);
+        let mut draws: Vec<Draw> = vec![];
+        for (i, e) in expanded.iter().enumerate() {
+            let Some(e) = e else { continue };
+            stats.expanded_instances += usize::from(e.expanded);
+            stats.expanded_calls += if e.expanded { e.len() } else { 0 };
+            stats.expand_over_budget += usize::from(e.over_budget);
+            errors.extend(e.errors.iter().map(|&(code, site)| (i, code, site)));
+            for d in 0..e.len() {
+                if let Some((tx0, ty0, tx1, ty1)) = e.bound(d).and_then(|b| tiles_overlapped(b, opts)) {
+                    for ty in ty0..=ty1 {
+                        for tx in tx0..=tx1 {
+                            bins[ty * tiles_x + tx].push(draws.len());
+                        }
                     }
                 }
+                draws.push(e.draw(d, &instances[i], i));
             }
         }
         stats.tile_invocations = bins.iter().map(Vec::len).sum();
@@ -236,7 +255,6 @@ impl Renderer {
 
         // 3. Tiles in parallel, each copying itself into the frame; errors kept in tile order.
         let num_planes = self.num_planes();
-        let instances = self.instances();
         let pixels = (opts.width * opts.height) as usize;
         let mut frame = Frame {
             width: opts.width,
@@ -265,7 +283,7 @@ impl Renderer {
             .zip(bins.par_iter())
             .zip(targets.into_par_iter())
             .map_init(TileScratch::default, |scratch, ((tile, bin), target)| {
-                render_tile(tile, bin, instances, &ready, num_planes, opts, scratch, target)
+                render_tile(tile, bin, &draws, num_planes, opts, scratch, target)
             })
             .collect();
         errors.extend(tile_errors.into_iter().flatten());
@@ -374,7 +392,7 @@ fn tile_grid(opts: &RenderOptions) -> Vec<Tile> {
     tiles
 }
 
-fn fresh_ctx(opts: &RenderOptions, mode: u32) -> TileCtx {
+pub(super) fn fresh_ctx(opts: &RenderOptions, mode: u32) -> TileCtx {
     TileCtx {
         x0: 0,
         y0: 0,
@@ -395,13 +413,16 @@ fn fresh_ctx(opts: &RenderOptions, mode: u32) -> TileCtx {
         call_depth: 0,
         width: opts.width,
         height: opts.height,
+        expand: None,
+        expand_state: std::ptr::null_mut(),
     }
 }
 
-/// Run an instance's kernel in bound mode: its screen bound (if it recorded one) and its
+/// Run a draw's kernel in bound mode: its screen bound (if it recorded one) and its
 /// run-time error.
-fn run_bound(kernel: &Kernel, inst: &Instance, opts: &RenderOptions) -> (Option<[f32; 4]>, Option<(u32, u32)>) {
+pub(super) fn run_bound(draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>, Option<(u32, u32)>) {
     let mut ctx = fresh_ctx(opts, MODE_BOUND);
+    ctx.call_depth = draw.call_depth;
     // Zero-size buffers: bound mode never touches them, and the empty tile rectangle
     // (x0 = x1 = 0) means even a pixel pass would cover no pixel.
     let mut no_depth: Vec<u32> = Vec::new();
@@ -411,9 +432,10 @@ fn run_bound(kernel: &Kernel, inst: &Instance, opts: &RenderOptions) -> (Option<
     ctx.gbuf = no_planes.as_mut_ptr();
     ctx.write_count = no_counts.as_mut_ptr();
     // SAFETY: `ctx` is a valid TileCtx naming (empty) buffers that outlive the call, and
-    // `inst.args` holds at least `kernel.layout.words(n_seq)` words (checked when the kernel
-    // was made ready), which is all the ABI lets a kernel read.
-    unsafe { (kernel.entry)(&mut ctx, inst.args.as_ptr()) };
+    // `draw.args` holds at least the words the kernel's layout reads (checked when the
+    // kernel was made ready, or when the call was recorded), which is all the ABI lets a
+    // kernel read.
+    unsafe { (draw.entry)(&mut ctx, draw.args.as_ptr()) };
     let bound = (ctx.bound_set != 0).then_some(ctx.bound);
     let error = (ctx.error != 0).then_some((ctx.error, ctx.error_site));
     (bound, error)
@@ -448,14 +470,12 @@ fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<(usize, usi
     ))
 }
 
-/// Render one tile's instances into `scratch`, then copy the tile into the frame through
+/// Render one tile's draws into `scratch`, then copy the tile into the frame through
 /// `target`; returns the tile's run-time errors (instance, code, site) in order.
-#[allow(clippy::too_many_arguments)]
 fn render_tile(
     tile: &Tile,
     bin: &[usize],
-    instances: &[Instance],
-    ready: &[Option<Arc<Kernel>>],
+    draws: &[Draw],
     num_planes: u32,
     opts: &RenderOptions,
     scratch: &mut TileScratch,
@@ -475,10 +495,9 @@ fn render_tile(
     let (depth, gbuf, counts) = (&mut scratch.depth, &mut scratch.gbuf, &mut scratch.counts);
     let mut errors = vec![];
     for &i in bin {
-        let (Some(kernel), inst) = (&ready[i], &instances[i]) else {
-            continue;
-        };
+        let draw = &draws[i];
         let mut ctx = fresh_ctx(opts, MODE_RENDER);
+        ctx.call_depth = draw.call_depth;
         ctx.x0 = tile.x0 as i32;
         ctx.y0 = tile.y0 as i32;
         ctx.x1 = tile.x1 as i32;
@@ -493,11 +512,11 @@ fn render_tile(
         // write_count are `stride * rows` long, gbuf `num_planes * plane_stride`; the kernel
         // was compiled with count_writes == opts.count_writes, so it touches write_count
         // only when that buffer is full size. The argument block is long enough for the
-        // kernel's layout (checked in `render`). Nothing else aliases these buffers while
-        // the kernel runs: the scratch belongs to this rayon task.
-        unsafe { (kernel.entry)(&mut ctx, inst.args.as_ptr()) };
+        // kernel's layout (checked in `render` and when calls were recorded). Nothing else
+        // aliases these buffers while the kernel runs: the scratch belongs to this rayon task.
+        unsafe { (draw.entry)(&mut ctx, draw.args.as_ptr()) };
         if ctx.error != 0 {
-            errors.push((i, ctx.error, ctx.error_site));
+            errors.push((draw.instance, ctx.error, ctx.error_site));
         }
     }
     // Into the frame, row by row (the tile's stride may exceed its width).

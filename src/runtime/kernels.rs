@@ -6,7 +6,8 @@
 //! the same ABI (`abi::KernelFn`). The contract a source must keep: the returned kernel's
 //! `layout` is `ArgLayout::new(program, func, key)` and its `entry` stays callable for as long
 //! as the source is alive; the renderer checks the layout and borrows the source for the whole
-//! render.
+//! render. A kernel of a primitive that `abi::expands` must also honour `MODE_EXPAND`: hand
+//! its calls to `TileCtx::expand` instead of making them (`abi::call_primitive` does both).
 
 use std::sync::Arc;
 

@@ -10,6 +10,7 @@
 //! - [`api`]: `begin` / `rast_param` / `material` / `material_interp` / `sequence_point` /
 //!   `vertex` / `end`, the current transform, instances and their argument blocks.
 //! - [`frame`]: binning, parallel tile rendering, the [`Frame`] and its images.
+//! - `expand`: runs a primitive that only calls primitives once and bins its calls instead.
 //! - [`geometry`]: the geometry pipeline at `end`: clip codes, trivial reject / accept,
 //!   clipping, culling, points to device and normals to lighting coordinates.
 //! - [`shading`]: the deferred shading pass (Phong, fog, texture), one monomorphised
@@ -19,6 +20,7 @@
 //! - [`kernels`]: the [`KernelSource`] seam between renderer and JIT.
 
 pub mod api;
+mod expand;
 pub mod frame;
 pub mod geometry;
 pub mod kernels;
@@ -27,7 +29,7 @@ pub mod shading;
 pub mod transform;
 pub mod value;
 
-pub use api::{ApiIssue, Instance, RenderOptions, Renderer, ShadingParam, Target};
+pub use api::{ApiIssue, Instance, RenderOptions, Renderer, ShadingParam, Target, EXPAND_BUDGET_WORDS};
 pub use frame::{describe_key, Frame, KernelReport, ParamPlanes, RenderOutput, RenderStats};
 pub use kernels::KernelSource;
 pub use registry::Registry;

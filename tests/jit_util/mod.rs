@@ -292,6 +292,8 @@ impl Tile {
             call_depth: 0,
             width: 64,
             height: 32,
+            expand: None,
+            expand_state: std::ptr::null_mut(),
         }
     }
     /// Run `k` in render mode with the given args; returns the context afterwards.

@@ -1,0 +1,393 @@
+//! Expansion: run a calling primitive's setup once per instance, not once per tile.
+//!
+//! A primitive with no pixel part of its own whose setup calls primitives
+//! ([`abi::expands`](crate::abi::expands): polygon -> screen_triangle, nurb_surface -> polygon)
+//! draws only through its calls. Binned by its whole bound, its kernel would redo the whole
+//! setup (clipping, de Boor evaluation, tessellation) in every tile it touches. Instead, after
+//! compiling and before binning, the renderer runs it once in `MODE_EXPAND`: every call it
+//! makes reaches [`record_call`] through `TileCtx::expand` (with the callee's kernel entry, its
+//! `FuncId` and a copy of the argument block the call built) instead of running. Recorded
+//! callees that expand themselves are expanded in turn at their recorded call depth; the others
+//! become *draws* that replace the instance in the draw list, in call order. The renderer then
+//! bounds, bins and renders draws exactly as it did instances.
+//!
+//! Invariant: a tile runs the same kernels with the same argument blocks in the same order as
+//! it would have run through the calling instance (a call made in a tile the callee's bound
+//! misses draws nothing there, binning being conservative), so the frame is bit-identical to
+//! the per-tile path. The exceptions are limits, not pixels: a draw gets fresh fuel of its own
+//! (the per-tile path shares one invocation's fuel between the caller and all its calls), and
+//! run-time errors of the caller's setup are recorded once, by the expand run.
+//!
+//! Instances are expanded and their draws bound (`MODE_BOUND`) in parallel, one rayon job per
+//! instance, each with its own recorder and argument pool; the renderer then bins the draws
+//! sequentially in instance order, so the draw list does not depend on the thread count.
+//!
+//! The recorded words are budgeted (`RenderOptions::expand_budget_words`, one counter for the
+//! frame): an instance whose expansion would exceed what is left is rolled back (its words
+//! refunded) and rendered per tile, as without expansion. Under that pressure, which
+//! instances fall back can depend on the order jobs run in; the pixels never do.
+//! Where it sits: `frame::Renderer::render` step 2, between compiling and binning.
+
+use std::collections::HashMap;
+use std::ffi::c_void;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use crate::abi::{expands, ArgLayout, KernelFn, TileCtx, VariantKey, CALLEE_UNKNOWN, MAX_CALL_DEPTH, MODE_EXPAND};
+use crate::ir::{FuncId, Program};
+use crate::jit::Kernel;
+
+use super::api::{Instance, RenderOptions};
+use super::frame::{fresh_ctx, run_bound};
+
+/// Budget charged per recorded call on top of its argument words (what its bookkeeping takes).
+const CALL_WORDS: usize = 12;
+
+/// One kernel invocation per tile it is binned into: a submitted instance, or a call that an
+/// expanded instance made.
+pub(crate) struct Draw<'a> {
+    pub entry: KernelFn,
+    pub args: &'a [u32],
+    /// `TileCtx::call_depth` to run it at (0 for an instance, the call's depth for a call).
+    pub call_depth: u32,
+    /// The submitted instance it comes from (its run-time errors are reported as that one's).
+    pub instance: usize,
+}
+
+/// Where a draw's argument block lives.
+#[derive(Clone, Copy)]
+enum Args {
+    /// The submitted instance's own block.
+    Instance,
+    /// `pool[start..start + len]` of the instance's [`Expanded`].
+    Pool { start: usize, len: usize },
+}
+
+#[derive(Clone, Copy)]
+struct Item {
+    entry: KernelFn,
+    args: Args,
+    call_depth: u32,
+}
+
+/// The words the frame's expansion may still record, shared by the parallel jobs.
+pub(crate) struct Budget(AtomicUsize);
+
+impl Budget {
+    pub fn new(words: usize) -> Budget {
+        Budget(AtomicUsize::new(words))
+    }
+
+    /// Take `cost` words; false (and nothing taken) when fewer are left.
+    fn take(&self, cost: usize) -> bool {
+        self.0
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |left| left.checked_sub(cost))
+            .is_ok()
+    }
+
+    fn refund(&self, words: usize) {
+        self.0.fetch_add(words, Ordering::Relaxed);
+    }
+}
+
+/// One submitted instance's draws (itself, or the calls it made), their bounds and the
+/// run-time errors met on the way, in order.
+pub(crate) struct Expanded {
+    draws: Draws,
+    /// (error code, site) of the expand and bound runs, in order.
+    pub errors: Vec<(u32, u32)>,
+    /// The instance was replaced by its calls.
+    pub expanded: bool,
+    /// Its expansion exceeded the budget (it is drawn per tile instead).
+    pub over_budget: bool,
+}
+
+/// The draws of one instance. Most instances are drawn as themselves: that case allocates
+/// nothing (a frame may hold hundreds of thousands of small triangles).
+enum Draws {
+    Itself {
+        entry: KernelFn,
+        bound: Option<[f32; 4]>,
+    },
+    Calls {
+        /// Argument blocks of the recorded calls, back to back.
+        pool: Vec<u32>,
+        items: Vec<Item>,
+        /// Each item's screen bound from its `MODE_BOUND` run (`None`: it recorded none).
+        bounds: Vec<Option<[f32; 4]>>,
+    },
+}
+
+/// One call recorded by [`record_call`].
+struct Call {
+    callee: u32,
+    entry: KernelFn,
+    start: usize,
+    len: usize,
+    call_depth: u32,
+}
+
+/// What one `MODE_EXPAND` run recorded (`TileCtx::expand_state` points at it during the run).
+struct Recorder<'b> {
+    words: Vec<u32>,
+    calls: Vec<Call>,
+    budget: &'b Budget,
+    /// Words taken from `budget` by this recorder.
+    charged: usize,
+    over_budget: bool,
+}
+
+/// `abi::ExpandFn`: copy one call into the recorder named by `ctx.expand_state`.
+///
+/// # Safety
+/// `ctx` is the context of a running `MODE_EXPAND` invocation whose `expand_state` points at
+/// a live `Recorder` no one else touches during the call, and `args` is `words` words long
+/// (both as [`run_expand`] and the kernels that call this guarantee).
+unsafe extern "C" fn record_call(
+    ctx: *mut TileCtx,
+    callee: u32,
+    entry: Option<KernelFn>,
+    args: *const u32,
+    words: u32,
+) {
+    // SAFETY: the contract above; nothing else holds a reference to either while this runs.
+    let (ctx, rec) = unsafe { (&*ctx, &mut *(*ctx).expand_state.cast::<Recorder>()) };
+    let (Some(entry), false) = (entry, args.is_null()) else {
+        return;
+    };
+    let len = words as usize;
+    let cost = len.saturating_add(CALL_WORDS);
+    if rec.over_budget || !rec.budget.take(cost) {
+        // Keep running (the setup ends on its own, fuel-bounded); the expansion is dropped.
+        rec.over_budget = true;
+        return;
+    }
+    rec.charged += cost;
+    let start = rec.words.len();
+    // SAFETY: `args` is `words` words long (the contract above).
+    rec.words
+        .extend_from_slice(unsafe { std::slice::from_raw_parts(args, len) });
+    rec.calls.push(Call {
+        callee,
+        entry,
+        start,
+        len,
+        call_depth: ctx.call_depth,
+    });
+}
+
+/// Run `entry` on `args` once in `MODE_EXPAND` at `call_depth`: the calls it made, and its
+/// run-time error.
+fn run_expand<'b>(
+    entry: KernelFn,
+    args: &[u32],
+    call_depth: u32,
+    opts: &RenderOptions,
+    budget: &'b Budget,
+) -> (Recorder<'b>, Option<(u32, u32)>) {
+    let mut rec = Recorder {
+        words: vec![],
+        calls: vec![],
+        budget,
+        charged: 0,
+        over_budget: false,
+    };
+    let mut ctx = fresh_ctx(opts, MODE_EXPAND);
+    ctx.call_depth = call_depth;
+    // Zero-size buffers and an empty tile, as in bound mode: nothing can be drawn.
+    let mut no_depth: Vec<u32> = Vec::new();
+    let mut no_planes: Vec<f32> = Vec::new();
+    let mut no_counts: Vec<u32> = Vec::new();
+    ctx.depth = no_depth.as_mut_ptr();
+    ctx.gbuf = no_planes.as_mut_ptr();
+    ctx.write_count = no_counts.as_mut_ptr();
+    ctx.expand = Some(record_call);
+    ctx.expand_state = (&mut rec as *mut Recorder).cast::<c_void>();
+    // SAFETY: `ctx` names (empty) buffers that outlive the call and a recorder that is not
+    // touched otherwise until the call returns; `args` is at least as long as the kernel's
+    // layout reads (checked by the renderer for instances, by `Expander::fits` for calls).
+    unsafe { entry(&mut ctx, args.as_ptr()) };
+    let error = (ctx.error != 0).then_some((ctx.error, ctx.error_site));
+    (rec, error)
+}
+
+/// Expands one instance.
+struct Expander<'p> {
+    program: &'p Program,
+    opts: &'p RenderOptions,
+    budget: &'p Budget,
+    key: &'p VariantKey,
+    pool: Vec<u32>,
+    items: Vec<Item>,
+    errors: Vec<(u32, u32)>,
+    /// Words this instance took from the budget (refunded if it falls back).
+    charged: usize,
+    /// Layouts of recorded callees under the key, to check each block's length.
+    layouts: HashMap<u32, ArgLayout>,
+}
+
+/// The draws of instance `inst` (whose kernel is `kernel`), each bound: its calls if its
+/// primitive expands (and expansion is on and fits the budget), else itself.
+pub(crate) fn expand_instance(
+    program: &Program,
+    opts: &RenderOptions,
+    budget: &Budget,
+    inst: &Instance,
+    kernel: &Kernel,
+) -> Expanded {
+    let mut over_budget = false;
+    let mut errors = vec![];
+    if opts.expand_calls && expands(program, inst.func) {
+        let mut e = Expander {
+            program,
+            opts,
+            budget,
+            key: &kernel.key,
+            pool: vec![],
+            items: vec![],
+            errors: vec![],
+            charged: 0,
+            layouts: HashMap::new(),
+        };
+        if e.expand(kernel.entry, &inst.args, 0) {
+            let mut bounds = Vec::with_capacity(e.items.len());
+            for item in &e.items {
+                let (bound, error) = run_bound(&item.draw(&e.pool, inst, 0), opts);
+                bounds.push(bound);
+                e.errors.extend(error);
+            }
+            return Expanded {
+                draws: Draws::Calls {
+                    pool: e.pool,
+                    items: e.items,
+                    bounds,
+                },
+                errors: e.errors,
+                expanded: true,
+                over_budget: false,
+            };
+        }
+        // Over budget: forget what it recorded and render it per tile, as without expansion
+        // (which reports its run-time errors again).
+        budget.refund(e.charged);
+        over_budget = true;
+    }
+    let itself = Item {
+        entry: kernel.entry,
+        args: Args::Instance,
+        call_depth: 0,
+    };
+    let (bound, error) = run_bound(&itself.draw(&[], inst, 0), opts);
+    errors.extend(error);
+    Expanded {
+        draws: Draws::Itself {
+            entry: kernel.entry,
+            bound,
+        },
+        errors,
+        expanded: false,
+        over_budget,
+    }
+}
+
+impl Item {
+    /// This item of instance `inst` (number `index`) whose recorded blocks are in `pool`.
+    fn draw<'a>(&self, pool: &'a [u32], inst: &'a Instance, index: usize) -> Draw<'a> {
+        let args = match self.args {
+            Args::Instance => inst.args.as_slice(),
+            Args::Pool { start, len } => &pool[start..start + len],
+        };
+        Draw {
+            entry: self.entry,
+            args,
+            call_depth: self.call_depth,
+            instance: index,
+        }
+    }
+}
+
+impl Expander<'_> {
+    /// Expand one invocation (`entry` on `args` at `call_depth`) into draws; false when the
+    /// budget ran out.
+    fn expand(&mut self, entry: KernelFn, args: &[u32], call_depth: u32) -> bool {
+        let (rec, error) = run_expand(entry, args, call_depth, self.opts, self.budget);
+        self.charged += rec.charged;
+        self.errors.extend(error);
+        if rec.over_budget {
+            return false;
+        }
+        for call in &rec.calls {
+            let block = &rec.words[call.start..call.start + call.len];
+            if !self.fits(call.callee, block) {
+                // Cannot happen for blocks the JIT or the hand-written kernels build; never
+                // hand a kernel a block shorter than its layout reads.
+                continue;
+            }
+            let expands_too = call.callee != CALLEE_UNKNOWN
+                && call.call_depth <= MAX_CALL_DEPTH
+                && expands(self.program, FuncId(call.callee));
+            if expands_too {
+                if !self.expand(call.entry, block, call.call_depth) {
+                    return false;
+                }
+                continue;
+            }
+            let start = self.pool.len();
+            self.pool.extend_from_slice(block);
+            self.items.push(Item {
+                entry: call.entry,
+                args: Args::Pool { start, len: call.len },
+                call_depth: call.call_depth,
+            });
+        }
+        true
+    }
+
+    /// Whether `block` is at least as long as `callee`'s layout under the key reads (an
+    /// unknown callee is taken at its word: its block is what a native kernel built for it).
+    fn fits(&mut self, callee: u32, block: &[u32]) -> bool {
+        if callee == CALLEE_UNKNOWN {
+            return true;
+        }
+        if callee as usize >= self.program.functions.len() {
+            return false;
+        }
+        let (program, key) = (self.program, self.key);
+        let layout = self
+            .layouts
+            .entry(callee)
+            .or_insert_with(|| ArgLayout::new(program, FuncId(callee), key));
+        let n_seq = block.first().copied().unwrap_or(0);
+        layout.words(n_seq) <= block.len()
+    }
+}
+
+impl Expanded {
+    /// Draws of this instance.
+    pub fn len(&self) -> usize {
+        match &self.draws {
+            Draws::Itself { .. } => 1,
+            Draws::Calls { items, .. } => items.len(),
+        }
+    }
+
+    /// The bound of draw `i` (below [`Self::len`]).
+    pub fn bound(&self, i: usize) -> Option<[f32; 4]> {
+        match &self.draws {
+            Draws::Itself { bound, .. } => *bound,
+            Draws::Calls { bounds, .. } => bounds[i],
+        }
+    }
+
+    /// Draw `i` (below [`Self::len`]) of instance `inst`, number `index`.
+    pub fn draw<'a>(&'a self, i: usize, inst: &'a Instance, index: usize) -> Draw<'a> {
+        match &self.draws {
+            Draws::Itself { entry, .. } => Draw {
+                entry: *entry,
+                args: &inst.args,
+                call_depth: 0,
+                instance: index,
+            },
+            Draws::Calls { pool, items, .. } => items[i].draw(pool, inst, index),
+        }
+    }
+}
