@@ -233,7 +233,7 @@ fn speed(program: &Arc<primflow::ir::Program>, rounds: usize) {
             ("tier 1 no unroll", Box::new(jit(Tier::Optimised, false))),
             ("tier 0", Box::new(jit(Tier::Fast, true))),
             ("scalar", Box::new(Handwritten::new(program.clone(), Flavor::Scalar))),
-            ("AVX2", Box::new(Handwritten::new(program.clone(), Flavor::Simd))),
+            ("AVX2", Box::new(Handwritten::new(program.clone(), Flavor::Avx2))),
         ];
         let mut times = vec![vec![]; sources.len()];
         let reference = pool.install(|| r.render(sources[0].1.as_mut())).frame;
