@@ -131,6 +131,8 @@ fn render(kernel: &Kernel, case: &Case, x0: i32, y0: i32) -> (Vec<u32>, Vec<f32>
         call_depth: 0,
         width: 4096,
         height: 4096,
+        expand: None,
+        expand_state: std::ptr::null_mut(),
     };
     // SAFETY: ctx points at live buffers of TW * TH elements (one plane); args has the
     // layout's length for one sequence point.
