@@ -1,6 +1,7 @@
 //! The pixel loops' row structure (src/jit/lower.rs, src/jit/lower/hoist.rs) on a primitive
 //! that is not screen_triangle: Y-only terms hoisted per row (a uniform frame local times Y,
-//! interpolation data times Y, an int conversion of Y), X carried from group to group,
+//! interpolation data times Y, an int conversion of Y), uniform operations feeding varying
+//! ones (evaluated per row, not per group), X carried from group to group,
 //! the lane mask only at the rectangle's ends (a pass rectangle that starts and ends
 //! mid-group), pass blocks run as spans, and the full-mask store fast path next to blended
 //! partial groups. Every pixel is compared with a scalar reference evaluated in Rust in the
@@ -25,11 +26,11 @@ const TH: usize = 37;
 /// `ramp(cx, r2, a, b, c, k, bx0, by0, bx1, by1, d[3])`:
 /// ```text
 /// bound(bx0, by0, bx1, by1); float bb = b * 2;        // setup
-/// float dx = X - cx;
+/// float dx = X - (cx + 0.25);                       // uniform operand: per row
 /// if (dx * dx > r2) return;                           // guard: block culling
 /// Z = a * X + bb * Y + c;
 /// interpolation { linear:
-///     interpolator_return(d[0] * X + float(int(Y * 16) * k) + d[1] * Y); }
+///     interpolator_return(d[0] * X + float(int(Y * 16) * (k + 1)) + d[1] * Y); }
 /// ```
 fn ramp() -> Function {
     let mut fb = Fb::new("ramp", FuncKind::Primitive);
@@ -60,7 +61,11 @@ fn ramp() -> Function {
         ),
         c,
     );
-    let yint = bin(BinOp::Mul, conv(bin(BinOp::Mul, y.clone(), fc(16.0)), Scalar::Int), k);
+    let yint = bin(
+        BinOp::Mul,
+        conv(bin(BinOp::Mul, y.clone(), fc(16.0)), Scalar::Int),
+        bin(BinOp::Add, k, ic(1)),
+    );
     let value = bin(
         BinOp::Add,
         bin(
@@ -71,7 +76,7 @@ fn ramp() -> Function {
         bin(BinOp::Mul, index(d, ic(1), 1), y),
     );
     fb.f.pixel = vec![
-        assign(&dx, bin(BinOp::Sub, x, cx)),
+        assign(&dx, bin(BinOp::Sub, x, bin(BinOp::Add, cx, fc(0.25)))),
         if_(
             bin(BinOp::Gt, bin(BinOp::Mul, dx.clone(), dx.clone()), r2),
             vec![ret()],
@@ -153,13 +158,13 @@ fn expected(case: &Case, x0: i32, y0: i32) -> (Vec<u32>, Vec<f32>) {
             if !(x >= bx0 && x <= bx1 && y >= by0 && y <= by1) {
                 continue;
             }
-            let dx = x - case.cx;
+            let dx = x - (case.cx + 0.25);
             if dx * dx > case.r2 {
                 continue;
             }
             let z = case.a * x + bb * y + case.c;
             depth[row * TW + col] = raw_depth(z as f64);
-            let yint = ((y * 16.0) as i32).wrapping_mul(case.k);
+            let yint = ((y * 16.0) as i32).wrapping_mul(case.k.wrapping_add(1));
             plane[row * TW + col] = case.d[0] * x + yint as f32 + case.d[1] * y;
         }
     }
@@ -206,7 +211,7 @@ fn row_terms_and_partial_groups_match_a_scalar_reference() {
         d: [0.75, -1.25, 9.0],
     };
     let written = check(&case, 100, 50);
-    // 56 columns (101..=156) inside |x - 128| <= 20 -> x in 108.5..=147.5 -> 40 columns,
+    // 56 columns (101..=156) inside |x - 128.25| <= 20 -> x in 108.5..=147.5 -> 40 columns,
     // times 29 rows.
     assert_eq!(written, 40 * 29);
 }

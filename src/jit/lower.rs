@@ -1368,6 +1368,12 @@ impl<'a, 'b> Lower<'a, 'b> {
             return err("varying condition outside per-pixel code");
         };
         let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
+        if otherwise.is_empty()
+            && matches!(then, [s] if matches!(s.kind, StmtKind::Return))
+            && self.frame().interp_binding.is_none()
+        {
+            return self.varying_guard_return(entry, c);
+        }
         let then_mask = self.b.ins().band(entry, c);
         let else_mask = self.b.ins().band_not(entry, c);
         let then_out = self.b.declare_var(I32X4);
@@ -1406,6 +1412,34 @@ impl<'a, 'b> Lower<'a, 'b> {
         let e = self.b.use_var(else_out);
         let m = self.b.ins().bor(t, e);
         self.set_exec(m);
+        Ok(())
+    }
+
+    /// `if (c) return;` with a varying `c` in the primitive's own pixel code (a coverage or
+    /// depth guard): the lanes executing it with `c` set retire, the others go on.
+    ///
+    /// Same masks as the general path (`then` with `exec = entry & c`, `lower_return`, the
+    /// join's `exec = else_mask`), without its branch on "any lane takes `then`" and the
+    /// mask copies around it: `alive &= !(entry & c)`, `exec = entry & !c`, and the group
+    /// ends when no lane is left. While pixel code runs `alive` is never empty (the group
+    /// ends when it becomes so), so when no lane takes the `then` the test cannot end the
+    /// group early: both paths end in the same state.
+    fn varying_guard_return(&mut self, entry: ir::Value, c: ir::Value) -> Res<()> {
+        let Some(p) = &self.pix else {
+            return err("varying condition outside per-pixel code");
+        };
+        let (alive_var, group_end) = (p.alive, p.group_end);
+        let leaving = self.b.ins().band(entry, c);
+        let alive = self.b.use_var(alive_var);
+        let alive = self.b.ins().band_not(alive, leaving);
+        self.b.def_var(alive_var, alive);
+        let stay = self.b.ins().band_not(entry, c);
+        self.set_exec(stay);
+        let any = self.b.ins().vany_true(alive);
+        let all_gone = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
+        let cont = self.b.create_block();
+        self.b.ins().brif(all_gone, group_end, &[], cont, &[]);
+        self.b.switch_to_block(cont);
         Ok(())
     }
 

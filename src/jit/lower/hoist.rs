@@ -131,9 +131,31 @@ impl<'a, 'b> Lower<'a, 'b> {
             ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => {
                 self.hoists_expr(f, expr, view, y, assigned, out, next)
             }
-            ExprKind::Binary { lhs, rhs, .. } => {
-                self.hoists_expr(f, lhs, view, y, assigned, out, next);
-                self.hoists_expr(f, rhs, view, y, assigned, out, next);
+            ExprKind::Binary { op, lhs, rhs } => {
+                // A uniform operand of a varying operation is splatted in every group; when
+                // it is itself an operation (`int(ox * 16)` in `int(X * 16) - int(ox * 16)`)
+                // it is also recomputed there. Evaluate it in the row prologue instead (the
+                // same scalar operations, then the splat the group would make).
+                let splats_operand = e.var.is_varying()
+                    && matches!(
+                        op,
+                        BinOp::Add | BinOp::Sub | BinOp::Mul | BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge
+                    );
+                for side in [lhs, rhs] {
+                    if splats_operand && self.uniform_operation(f, side, y, assigned) {
+                        let Elem::Scalar(scalar) = side.ty.elem else { continue };
+                        out.push(Hoist {
+                            expr: side,
+                            view: view.to_vec(),
+                            offset: *next,
+                            comps: 1,
+                            scalar,
+                        });
+                        *next += 16;
+                    } else {
+                        self.hoists_expr(f, side, view, y, assigned, out, next);
+                    }
+                }
             }
             ExprKind::Select { cond, then, otherwise } => {
                 self.hoists_expr(f, cond, view, y, assigned, out, next);
@@ -147,6 +169,17 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             _ => {}
         }
+    }
+
+    /// `e` is a uniform float or int scalar computed by an operation from frame words,
+    /// arguments and constants only (hoistable like a row term; no Y in it).
+    fn uniform_operation(&self, f: &Function, e: &Expr, y: Option<LocalId>, assigned: &HashSet<LocalId>) -> bool {
+        !e.var.is_varying()
+            && !matches!(e.kind, ExprKind::Local(_) | ExprKind::Const(_) | ExprKind::Index { .. })
+            && e.ty.dims.is_empty()
+            && !e.ty.per_seq
+            && matches!(e.ty.elem, Elem::Scalar(Scalar::Float | Scalar::Int))
+            && self.row_invariant(f, e, y, assigned)
     }
 
     /// `e` has the same value in every group of a row (see the module comment).
