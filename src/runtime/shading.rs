@@ -627,9 +627,12 @@ impl Shader {
     ) {
         let count = lanes.len();
         lanes.simd = self.kernel == ShadingKernel::Simd;
+        // Lane arrays are padded to whole chunks; padding lanes have a zero normal (so they
+        // light nothing) and are never written out.
+        let padded = count.div_ceil(CHUNK) * CHUNK;
         let resize32 = |v: &mut Vec<f32>| {
             v.clear();
-            v.resize(count, 0.0);
+            v.resize(padded, 0.0);
         };
         for k in 0..3 {
             resize32(&mut lanes.base[k]);
@@ -639,7 +642,7 @@ impl Shader {
             resize32(&mut lanes.diffuse[k]);
             resize32(&mut lanes.specular[k]);
             lanes.p[k].clear();
-            lanes.p[k].resize(count, 0.0);
+            lanes.p[k].resize(padded, 0.0);
         }
         resize32(&mut lanes.lane_back);
         resize32(&mut lanes.fog);
@@ -805,61 +808,120 @@ unsafe fn light_pass_avx2(light: &LaneLight, shininess: [f32; 2], with_specular:
     light_pass_body(light, shininess, with_specular, lanes);
 }
 
-/// The lane loop for one light: branch-free selects so it vectorises. Positional lights
+/// Lanes per chunk of the light loop: the lane arrays are padded to a multiple of it, and
+/// each chunk is straight-line code over `[f32; CHUNK]` the compiler turns into vectors (one
+/// AVX2 register, or two SSE ones, per array).
+pub const CHUNK: usize = 8;
+
+/// The lane loop for one light, specialised for its kind and for whether any material has
+/// a specular term: branch-free selects over chunks of [`CHUNK`] lanes. Positional lights
 /// take the vector to the light, its length and the attenuation in f64 (so huge distances
 /// and lights close to a far surface keep their precision), the rest is f32.
 #[inline(always)]
 fn light_pass_body(light: &LaneLight, shininess: [f32; 2], with_specular: bool, lanes: &mut ShadeLanes) {
-    let count = lanes.len();
-    let [nx, ny, nz] = &lanes.n;
-    let [vx, vy, vz] = &lanes.v;
-    let [px, py, pz] = &lanes.p;
-    let back = &lanes.lane_back[..count];
-    let [dr, dg, db] = &mut lanes.diffuse;
-    let [sr, sg, sb] = &mut lanes.specular;
-    let (nx, ny, nz) = (&nx[..count], &ny[..count], &nz[..count]);
-    let (vx, vy, vz) = (&vx[..count], &vy[..count], &vz[..count]);
-    let (px, py, pz) = (&px[..count], &py[..count], &pz[..count]);
-    let (dr, dg, db) = (&mut dr[..count], &mut dg[..count], &mut db[..count]);
-    let (sr, sg, sb) = (&mut sr[..count], &mut sg[..count], &mut sb[..count]);
+    match (light.positional, with_specular) {
+        (false, false) => light_chunks::<false, false>(light, shininess, lanes),
+        (false, true) => light_chunks::<false, true>(light, shininess, lanes),
+        (true, false) => light_chunks::<true, false>(light, shininess, lanes),
+        (true, true) => light_chunks::<true, true>(light, shininess, lanes),
+    }
+}
+
+#[inline(always)]
+fn chunk<T>(v: &[T], c: usize) -> &[T; CHUNK] {
+    v[c * CHUNK..(c + 1) * CHUNK]
+        .try_into()
+        .expect("lane arrays are padded to whole chunks")
+}
+
+#[inline(always)]
+fn chunk_mut<T>(v: &mut [T], c: usize) -> &mut [T; CHUNK] {
+    (&mut v[c * CHUNK..(c + 1) * CHUNK])
+        .try_into()
+        .expect("lane arrays are padded to whole chunks")
+}
+
+#[inline(always)]
+fn light_chunks<const POSITIONAL: bool, const SPECULAR: bool>(
+    light: &LaneLight,
+    shininess: [f32; 2],
+    lanes: &mut ShadeLanes,
+) {
+    let chunks = lanes.lane_back.len() / CHUNK;
     let [c0, c1, c2] = light.attenuation;
     let [qx, qy, qz] = light.position;
-    for i in 0..count {
-        let (l, att) = if light.positional {
-            let (dx, dy, dz) = (qx - px[i], qy - py[i], qz - pz[i]);
-            let d = (dx * dx + dy * dy + dz * dz).sqrt();
-            let usable = d > 0.0 && d.is_finite();
-            let inv = if usable { 1.0 / d } else { 0.0 };
-            let denom = c0 + c1 * d + c2 * d * d;
-            let att = if denom > 0.0 && denom.is_finite() {
-                1.0 / denom
-            } else {
-                1.0
-            };
-            ([(dx * inv) as f32, (dy * inv) as f32, (dz * inv) as f32], att as f32)
+    for c in 0..chunks {
+        let (nx, ny, nz) = (chunk(&lanes.n[0], c), chunk(&lanes.n[1], c), chunk(&lanes.n[2], c));
+        let back = chunk(&lanes.lane_back, c);
+        let mut l = [[0f32; CHUNK]; 3];
+        let mut att = [1f32; CHUNK];
+        if POSITIONAL {
+            let (px, py, pz) = (chunk(&lanes.p[0], c), chunk(&lanes.p[1], c), chunk(&lanes.p[2], c));
+            for j in 0..CHUNK {
+                let (dx, dy, dz) = (qx - px[j], qy - py[j], qz - pz[j]);
+                let d = (dx * dx + dy * dy + dz * dz).sqrt();
+                let usable = d > 0.0 && d < f64::INFINITY;
+                let inv = if usable { 1.0 / d } else { 0.0 };
+                let denom = c0 + c1 * d + c2 * d * d;
+                let a = if denom > 0.0 && denom < f64::INFINITY {
+                    1.0 / denom
+                } else {
+                    1.0
+                };
+                l[0][j] = (dx * inv) as f32;
+                l[1][j] = (dy * inv) as f32;
+                l[2][j] = (dz * inv) as f32;
+                att[j] = a as f32;
+            }
         } else {
-            (light.towards, 1.0f32)
-        };
-        let n_dot_l = nx[i] * l[0] + ny[i] * l[1] + nz[i] * l[2];
-        let lit = n_dot_l > 0.0;
-        let is_back = back[i] != 0.0;
-        let side = |v: [[f32; 3]; 2]| if is_back { v[1] } else { v[0] };
-        let weight = if lit { n_dot_l * att } else { 0.0 };
-        let kd = side(light.diffuse);
-        dr[i] += weight * kd[0];
-        dg[i] += weight * kd[1];
-        db[i] += weight * kd[2];
-        if with_specular {
-            let two_ndl = 2.0 * n_dot_l;
-            let (rx, ry, rz) = (two_ndl * nx[i] - l[0], two_ndl * ny[i] - l[1], two_ndl * nz[i] - l[2]);
-            let r_dot_v = rx * vx[i] + ry * vy[i] + rz * vz[i];
-            let shine = if is_back { shininess[1] } else { shininess[0] };
-            let h = pow_positive(r_dot_v.max(1.0e-30), shine);
-            let h = if lit && r_dot_v > 0.0 { h * att } else { 0.0 };
-            let ks = side(light.specular);
-            sr[i] += h * ks[0];
-            sg[i] += h * ks[1];
-            sb[i] += h * ks[2];
+            for j in 0..CHUNK {
+                for k in 0..3 {
+                    l[k][j] = light.towards[k];
+                }
+            }
+        }
+        let mut weight = [0f32; CHUNK];
+        let mut n_dot_l = [0f32; CHUNK];
+        for j in 0..CHUNK {
+            n_dot_l[j] = nx[j] * l[0][j] + ny[j] * l[1][j] + nz[j] * l[2][j];
+            weight[j] = if n_dot_l[j] > 0.0 { n_dot_l[j] * att[j] } else { 0.0 };
+        }
+        for k in 0..3 {
+            let (front, back_colour) = (light.diffuse[0][k], light.diffuse[1][k]);
+            let acc = chunk_mut(&mut lanes.diffuse[k], c);
+            for j in 0..CHUNK {
+                let kd = if back[j] != 0.0 { back_colour } else { front };
+                acc[j] += weight[j] * kd;
+            }
+        }
+        if SPECULAR {
+            let (vx, vy, vz) = (chunk(&lanes.v[0], c), chunk(&lanes.v[1], c), chunk(&lanes.v[2], c));
+            let mut highlight = [0f32; CHUNK];
+            for j in 0..CHUNK {
+                let two_ndl = 2.0 * n_dot_l[j];
+                let r = [
+                    two_ndl * nx[j] - l[0][j],
+                    two_ndl * ny[j] - l[1][j],
+                    two_ndl * nz[j] - l[2][j],
+                ];
+                let r_dot_v = r[0] * vx[j] + r[1] * vy[j] + r[2] * vz[j];
+                let shine = if back[j] != 0.0 { shininess[1] } else { shininess[0] };
+                let base = if r_dot_v > 1.0e-30 { r_dot_v } else { 1.0e-30 };
+                let h = pow_positive(base, shine);
+                highlight[j] = if n_dot_l[j] > 0.0 && r_dot_v > 0.0 {
+                    h * att[j]
+                } else {
+                    0.0
+                };
+            }
+            for k in 0..3 {
+                let (front, back_colour) = (light.specular[0][k], light.specular[1][k]);
+                let acc = chunk_mut(&mut lanes.specular[k], c);
+                for j in 0..CHUNK {
+                    let ks = if back[j] != 0.0 { back_colour } else { front };
+                    acc[j] += highlight[j] * ks;
+                }
+            }
         }
     }
 }
@@ -883,7 +945,9 @@ fn pow_positive(x: f32, s: f32) -> f32 {
     let series = 1.0 + t2 * (1.0 / 3.0 + t2 * (1.0 / 5.0 + t2 * (1.0 / 7.0 + t2 * (1.0 / 9.0))));
     let log2 = e as f32 + 2.0 * std::f32::consts::LOG2_E * t * series;
     // exp2 y = 2^k * e^(f ln 2), k = round(y), |f| <= 1/2: Taylor to degree 7 (< 6e-9).
-    let y = (s * log2).clamp(-126.0, 126.0);
+    let y = s * log2;
+    let y = if y < -126.0 { -126.0 } else { y };
+    let y = if y > 126.0 { 126.0 } else { y };
     let k = (y + 12_582_912.0) - 12_582_912.0;
     let z = (y - k) * std::f32::consts::LN_2;
     let p = 1.0
