@@ -520,8 +520,6 @@ pub struct ShadeLanes {
     diffuse: [Vec<f32>; 3],
     specular: [Vec<f32>; 3],
     fog: Vec<f32>,
-    /// Run the AVX2 build of the light loop when the CPU has it.
-    simd: bool,
 }
 
 impl ShadeLanes {
@@ -625,89 +623,216 @@ impl Shader {
         lanes: &mut ShadeLanes,
         out: &mut [[f32; 3]],
     ) {
+        let simd = self.kernel == ShadingKernel::Simd;
+        with_simd(
+            simd,
+            #[inline(always)]
+            || self.shade_lanes_body::<LIT, FOG, TEXTURE>(y, lanes, out),
+        );
+    }
+
+    /// The body of [`Self::shade_lanes_for`], inlined into the AVX2 or the baseline build.
+    #[inline(always)]
+    fn shade_lanes_body<const LIT: bool, const FOG: bool, const TEXTURE: bool>(
+        &self,
+        y: u32,
+        lanes: &mut ShadeLanes,
+        out: &mut [[f32; 3]],
+    ) {
         let count = lanes.len();
-        lanes.simd = self.kernel == ShadingKernel::Simd;
         // Lane arrays are padded to whole chunks; padding lanes have a zero normal (so they
         // light nothing) and are never written out.
         let padded = count.div_ceil(CHUNK) * CHUNK;
-        let resize32 = |v: &mut Vec<f32>| {
-            v.clear();
-            v.resize(padded, 0.0);
-        };
+        let pad32 = |v: &mut Vec<f32>, fill: f32| v.resize(padded, fill);
         for k in 0..3 {
-            resize32(&mut lanes.base[k]);
-            resize32(&mut lanes.n[k]);
-            resize32(&mut lanes.v[k]);
-            resize32(&mut lanes.ambient[k]);
-            resize32(&mut lanes.diffuse[k]);
-            resize32(&mut lanes.specular[k]);
+            pad32(&mut lanes.cs[k], 0.0);
+            for v in [&mut lanes.base[k], &mut lanes.n[k], &mut lanes.v[k]] {
+                v.clear();
+                v.resize(padded, 0.0);
+            }
+            for v in [&mut lanes.ambient[k], &mut lanes.diffuse[k], &mut lanes.specular[k]] {
+                v.clear();
+                v.resize(padded, 0.0);
+            }
             lanes.p[k].clear();
             lanes.p[k].resize(padded, 0.0);
         }
-        resize32(&mut lanes.lane_back);
-        resize32(&mut lanes.fog);
+        lanes.x.resize(padded, 0);
+        lanes.depth.resize(padded, 0.0);
+        if let Some(n) = &mut lanes.normal {
+            n.iter_mut().for_each(|v| v.resize(padded, 0.0));
+        }
+        if let Some(st) = &mut lanes.st {
+            st.iter_mut().for_each(|v| v.resize(padded, 0.0));
+        }
+        lanes.lane_back.clear();
+        lanes.lane_back.resize(padded, 0.0);
+        lanes.fog.clear();
+        lanes.fog.resize(padded, 1.0);
+        let given_back: Option<Vec<f32>> = lanes.back.as_ref().map(|b| {
+            let mut v: Vec<f32> = b.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect();
+            v.resize(padded, 0.0);
+            v
+        });
 
-        // Per-pixel geometry, f64, the reference's own operations.
-        let front_ambient = [0, 1, 2].map(|k| (self.setup.front.ambient[k] * self.setup.ambient_light[k]) as f32);
-        let back_ambient = [0, 1, 2].map(|k| (self.setup.back.ambient[k] * self.setup.ambient_light[k]) as f32);
-        for i in 0..count {
-            let mut base = [0, 1, 2].map(|k| lanes.cs[k][i]);
-            if TEXTURE {
-                if let (Some(t), Some(st)) = (&self.texture, &lanes.st) {
-                    let (s, tt) = (f64::from(st[0][i]), f64::from(st[1][i]));
-                    let cell = (s * t.scale).floor() + (tt * t.scale).floor();
-                    if cell.is_finite() && cell.rem_euclid(2.0) == 1.0 {
-                        base = [0, 1, 2].map(|k| (f64::from(base[k]) * t.dark) as f32);
+        // Per-pixel geometry in f64: the decisions (facing, texture cell, which lanes are
+        // lit) follow the reference's operations.
+        let m = self.space_from_device;
+        let (mx, mz) = (m.x_axis.to_array(), m.z_axis.to_array());
+        let row = (m.y_axis * (f64::from(y) + 0.5) + m.w_axis).to_array();
+        let device_space = self.space == LightingSpaceChoice::Device;
+        let nm = self.normals_from_lighting.matrix;
+        let (na, nb, nc) = (nm.x_axis.to_array(), nm.y_axis.to_array(), nm.z_axis.to_array());
+        let ambient = [&self.setup.front, &self.setup.back]
+            .map(|m| [0, 1, 2].map(|k| (m.ambient[k] * self.setup.ambient_light[k]) as f32));
+        let (eye_point, eye_direction) = match self.eye {
+            Eye::Point(e) => (Some(e), None),
+            Eye::Direction(d) => (None, normalize3(d)),
+        };
+        let setup_eye_point = match self.setup.eye {
+            Eye::Point(e) => Some(e),
+            Eye::Direction(_) => None,
+        };
+        let setup_eye_direction = match self.setup.eye {
+            Eye::Direction(d) => normalize3(d),
+            Eye::Point(_) => None,
+        };
+        let fog_direction = eye_direction.map(|d| DVec3::from_array(d).normalize_or_zero().to_array());
+        for c in 0..padded / CHUNK {
+            let xs = chunk(&lanes.x, c);
+            let depth = chunk(&lanes.depth, c);
+            let mut p = [[0f64; CHUNK]; 3];
+            if LIT || FOG {
+                for j in 0..CHUNK {
+                    let x = f64::from(xs[j]) + 0.5;
+                    if device_space {
+                        p[0][j] = x;
+                        p[1][j] = f64::from(y) + 0.5;
+                        p[2][j] = depth[j];
+                    } else {
+                        let q = [0, 1, 2, 3].map(|k| mx[k] * x + row[k] + mz[k] * depth[j]);
+                        let ok = q[3] != 0.0 && q.iter().all(|v| v.is_finite());
+                        for k in 0..3 {
+                            p[k][j] = if ok { q[k] / q[3] } else { 0.0 };
+                        }
                     }
                 }
             }
-            for k in 0..3 {
-                lanes.base[k][i] = base[k];
+            if TEXTURE {
+                if let (Some(t), Some(st)) = (&self.texture, &lanes.st) {
+                    let (s, tt) = (chunk(&st[0], c), chunk(&st[1], c));
+                    for j in 0..CHUNK {
+                        let cell = (f64::from(s[j]) * t.scale).floor() + (f64::from(tt[j]) * t.scale).floor();
+                        // cell.rem_euclid(2.0) == 1.0 without the fmod call (exact for
+                        // every finite cell).
+                        let odd = cell.is_finite() && cell - 2.0 * (cell * 0.5).floor() == 1.0;
+                        for k in 0..3 {
+                            let cs = lanes.cs[k][c * CHUNK + j];
+                            lanes.base[k][c * CHUNK + j] = if odd { (f64::from(cs) * t.dark) as f32 } else { cs };
+                        }
+                    }
+                }
+            } else {
+                for k in 0..3 {
+                    chunk_mut(&mut lanes.base[k], c).copy_from_slice(chunk(&lanes.cs[k], c));
+                }
             }
-            if !(LIT || FOG) {
-                continue;
-            }
-            let position = self.position(lanes.x[i], y, lanes.depth[i]);
             if FOG {
-                lanes.fog[i] = self.fog_factor(position) as f32;
+                if let Some(fog) = &self.fog {
+                    let span = fog.end - fog.start;
+                    let f = chunk_mut(&mut lanes.fog, c);
+                    for j in 0..CHUNK {
+                        let distance = match (eye_point, fog_direction) {
+                            (Some(e), _) => {
+                                let d = [p[0][j] - e[0], p[1][j] - e[1], p[2][j] - e[2]];
+                                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+                            }
+                            (None, Some(d)) => {
+                                let q = self.near_point;
+                                let along = (q.x - p[0][j]) * d[0] + (q.y - p[1][j]) * d[1] + (q.z - p[2][j]) * d[2];
+                                if along > 0.0 {
+                                    along
+                                } else {
+                                    0.0
+                                }
+                            }
+                            (None, None) => 0.0,
+                        };
+                        let factor = if span > 0.0 {
+                            let t = (fog.end - distance) / span;
+                            if t < 0.0 {
+                                0.0
+                            } else if t > 1.0 {
+                                1.0
+                            } else {
+                                t
+                            }
+                        } else if distance < fog.end {
+                            1.0
+                        } else {
+                            0.0
+                        };
+                        f[j] = factor as f32;
+                    }
+                }
             }
             if LIT {
                 for k in 0..3 {
-                    lanes.p[k][i] = position[k];
+                    chunk_mut(&mut lanes.p[k], c).copy_from_slice(&p[k]);
                 }
-                let normal = lanes
-                    .normal
-                    .as_ref()
-                    .map(|n| {
-                        let n = DVec3::new(f64::from(n[0][i]), f64::from(n[1][i]), f64::from(n[2][i]));
-                        self.normals_from_lighting.transform(n).0.to_array()
-                    })
-                    .unwrap_or([0.0; 3]);
-                let sample = Sample {
-                    point: position.to_array(),
-                    normal,
-                };
-                let facing = match &lanes.back {
-                    Some(b) if b[i] => Facing::Back,
-                    Some(_) => Facing::Front,
-                    None => self.setup.facing(&sample),
-                };
-                let back = facing == Facing::Back;
-                lanes.lane_back[i] = if back { 1.0 } else { 0.0 };
-                let ambient = if back { back_ambient } else { front_ambient };
-                for k in 0..3 {
-                    lanes.ambient[k][i] = ambient[k];
-                }
-                // A zero normal lights with ambient alone: n stays zero, so N.L = 0.
-                if let Some(n) = normalize3(normal) {
-                    let n = if back { scale3(n, -1.0) } else { n };
-                    for k in 0..3 {
-                        lanes.n[k][i] = n[k] as f32;
-                    }
-                    if let Some(v) = self.setup.towards_eye(sample.point) {
+                let mut n = [[0f64; CHUNK]; 3];
+                let mut has_n = [false; CHUNK];
+                if let Some(normal) = &lanes.normal {
+                    let (n0, n1, n2) = (chunk(&normal[0], c), chunk(&normal[1], c), chunk(&normal[2], c));
+                    for j in 0..CHUNK {
+                        let g = [f64::from(n0[j]), f64::from(n1[j]), f64::from(n2[j])];
+                        // NormalMatrix::transform: to the space lit in, unit, (0, 0, 1) if
+                        // degenerate; then normalize3 as the lighting does.
+                        let t = [0, 1, 2].map(|k| na[k] * g[0] + nb[k] * g[1] + nc[k] * g[2]);
+                        let len = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+                        let ok = len > 0.0 && len.is_finite();
+                        let t = if ok { t.map(|v| v / len) } else { [0.0, 0.0, 1.0] };
+                        let len2 = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+                        has_n[j] = len2 > 0.0 && len2.is_finite();
+                        let inv = if has_n[j] { 1.0 / len2 } else { 0.0 };
                         for k in 0..3 {
-                            lanes.v[k][i] = v[k] as f32;
+                            n[k][j] = t[k] * inv;
                         }
+                    }
+                }
+                let mut v = [[0f64; CHUNK]; 3];
+                let mut has_v = [false; CHUNK];
+                for j in 0..CHUNK {
+                    let (dir, ok) = match (setup_eye_point, setup_eye_direction) {
+                        (Some(e), _) => {
+                            let d = [e[0] - p[0][j], e[1] - p[1][j], e[2] - p[2][j]];
+                            let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                            let ok = len > 0.0 && len.is_finite();
+                            let inv = if ok { 1.0 / len } else { 0.0 };
+                            (d.map(|v| v * inv), ok)
+                        }
+                        (None, Some(d)) => (d, true),
+                        (None, None) => ([0.0; 3], false),
+                    };
+                    has_v[j] = ok;
+                    for k in 0..3 {
+                        v[k][j] = dir[k];
+                    }
+                }
+                let lane_back = chunk_mut(&mut lanes.lane_back, c);
+                for j in 0..CHUNK {
+                    let back = match &given_back {
+                        Some(b) => b[c * CHUNK + j] != 0.0,
+                        None => has_v[j] && has_n[j] && n[0][j] * v[0][j] + n[1][j] * v[1][j] + n[2][j] * v[2][j] < 0.0,
+                    };
+                    lane_back[j] = if back { 1.0 } else { 0.0 };
+                    let sign = if back { -1.0 } else { 1.0 };
+                    for k in 0..3 {
+                        let i = c * CHUNK + j;
+                        lanes.n[k][i] = (n[k][j] * sign) as f32;
+                        // No normal: no eye vector either (the reference skips the lights).
+                        lanes.v[k][i] = if has_n[j] { v[k][j] as f32 } else { 0.0 };
+                        lanes.ambient[k][i] = ambient[usize::from(back)][k];
                     }
                 }
             }
@@ -740,7 +865,7 @@ impl Shader {
                         lane_light.attenuation = attenuation;
                     }
                 }
-                light_pass(&lane_light, shininess, with_specular, lanes);
+                light_pass_body(&lane_light, shininess, with_specular, lanes);
             }
         }
 
@@ -759,40 +884,26 @@ impl Shader {
             }
         }
     }
-
-    /// The fog blend factor at `position` (1 = no fog), as the reference computes it.
-    fn fog_factor(&self, position: DVec3) -> f64 {
-        let Some(fog) = &self.fog else { return 1.0 };
-        let distance = match self.eye {
-            Eye::Point(e) => (position - DVec3::from_array(e)).length(),
-            Eye::Direction(d) => {
-                let d = DVec3::from_array(d).normalize_or_zero();
-                (self.near_point - position).dot(d).max(0.0)
-            }
-        };
-        let span = fog.end - fog.start;
-        if span > 0.0 {
-            ((fog.end - distance) / span).clamp(0.0, 1.0)
-        } else if distance < fog.end {
-            1.0
-        } else {
-            0.0
-        }
-    }
 }
 
-/// One light over every lane: dispatches to the AVX2 build of the loop when the CPU has it
-/// (detected once), otherwise the baseline build. Both are the same source.
-fn light_pass(light: &LaneLight, shininess: [f32; 2], with_specular: bool, lanes: &mut ShadeLanes) {
+/// Run `body` compiled for AVX2 + FMA when `simd` is set and the CPU has them (detected
+/// once), otherwise as compiled for the baseline target. `body` must be `#[inline(always)]`
+/// so its code lands in the feature-enabled function.
+#[inline(always)]
+fn with_simd<R>(simd: bool, body: impl FnOnce() -> R) -> R {
     #[cfg(target_arch = "x86_64")]
     {
-        if lanes.simd && avx2_available() {
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn avx2<R>(body: impl FnOnce() -> R) -> R {
+            body()
+        }
+        if simd && avx2_available() {
             // SAFETY: the CPU supports AVX2 and FMA (checked at run time just above).
-            unsafe { light_pass_avx2(light, shininess, with_specular, lanes) };
-            return;
+            return unsafe { avx2(body) };
         }
     }
-    light_pass_body(light, shininess, with_specular, lanes);
+    let _ = simd;
+    body()
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -800,12 +911,6 @@ fn avx2_available() -> bool {
     use std::sync::OnceLock;
     static AVX2: OnceLock<bool> = OnceLock::new();
     *AVX2.get_or_init(|| is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma"))
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn light_pass_avx2(light: &LaneLight, shininess: [f32; 2], with_specular: bool, lanes: &mut ShadeLanes) {
-    light_pass_body(light, shininess, with_specular, lanes);
 }
 
 /// Lanes per chunk of the light loop: the lane arrays are padded to a multiple of it, and
