@@ -710,11 +710,17 @@ impl Shader {
                         p[1][j] = f64::from(y) + 0.5;
                         p[2][j] = depth[j];
                     } else {
-                        let q = [0, 1, 2, 3].map(|k| mx[k] * x + row[k] + mz[k] * depth[j]);
-                        let ok = q[3] != 0.0 && q.iter().all(|v| v.is_finite());
-                        for k in 0..3 {
-                            p[k][j] = if ok { q[k] / q[3] } else { 0.0 };
-                        }
+                        let z = depth[j];
+                        let q0 = mx[0] * x + row[0] + mz[0] * z;
+                        let q1 = mx[1] * x + row[1] + mz[1] * z;
+                        let q2 = mx[2] * x + row[2] + mz[2] * z;
+                        let q3 = mx[3] * x + row[3] + mz[3] * z;
+                        // Finite and w != 0 (x - x is 0 only for finite x).
+                        let ok = q3 != 0.0 && (q0 - q0) + (q1 - q1) + (q2 - q2) + (q3 - q3) == 0.0;
+                        let inv_w = if ok { 1.0 / q3 } else { 0.0 };
+                        p[0][j] = if ok { q0 * inv_w } else { 0.0 };
+                        p[1][j] = if ok { q1 * inv_w } else { 0.0 };
+                        p[2][j] = if ok { q2 * inv_w } else { 0.0 };
                     }
                 }
             }
@@ -788,12 +794,18 @@ impl Shader {
                         let g = [f64::from(n0[j]), f64::from(n1[j]), f64::from(n2[j])];
                         // NormalMatrix::transform: to the space lit in, unit, (0, 0, 1) if
                         // degenerate; then normalize3 as the lighting does.
-                        let t = [0, 1, 2].map(|k| na[k] * g[0] + nb[k] * g[1] + nc[k] * g[2]);
-                        let len = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
-                        let ok = len > 0.0 && len.is_finite();
-                        let t = if ok { t.map(|v| v / len) } else { [0.0, 0.0, 1.0] };
+                        let t0 = na[0] * g[0] + nb[0] * g[1] + nc[0] * g[2];
+                        let t1 = na[1] * g[0] + nb[1] * g[1] + nc[1] * g[2];
+                        let t2 = na[2] * g[0] + nb[2] * g[1] + nc[2] * g[2];
+                        let len = (t0 * t0 + t1 * t1 + t2 * t2).sqrt();
+                        let ok = len > 0.0 && len < f64::INFINITY;
+                        let t = if ok {
+                            [t0 / len, t1 / len, t2 / len]
+                        } else {
+                            [0.0, 0.0, 1.0]
+                        };
                         let len2 = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
-                        has_n[j] = len2 > 0.0 && len2.is_finite();
+                        has_n[j] = len2 > 0.0 && len2 < f64::INFINITY;
                         let inv = if has_n[j] { 1.0 / len2 } else { 0.0 };
                         for k in 0..3 {
                             n[k][j] = t[k] * inv;
@@ -807,9 +819,9 @@ impl Shader {
                         (Some(e), _) => {
                             let d = [e[0] - p[0][j], e[1] - p[1][j], e[2] - p[2][j]];
                             let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                            let ok = len > 0.0 && len.is_finite();
+                            let ok = len > 0.0 && len < f64::INFINITY;
                             let inv = if ok { 1.0 / len } else { 0.0 };
-                            (d.map(|v| v * inv), ok)
+                            ([d[0] * inv, d[1] * inv, d[2] * inv], ok)
                         }
                         (None, Some(d)) => (d, true),
                         (None, None) => ([0.0; 3], false),
@@ -869,18 +881,39 @@ impl Shader {
             }
         }
 
+        // Final colours, chunked (into `base`), then scattered to their pixels.
         let fog_colour = self.fog.map(|f| f.colour.map(|c| c as f32)).unwrap_or([0.0; 3]);
-        for i in 0..count {
-            let mut c = [0, 1, 2].map(|k| lanes.base[k][i]);
-            if LIT {
-                c = [0, 1, 2].map(|k| (lanes.ambient[k][i] + lanes.diffuse[k][i]) * c[k] + lanes.specular[k][i]);
+        for k in 0..3 {
+            let fog_k = fog_colour[k];
+            for c in 0..padded / CHUNK {
+                let mut colour = *chunk(&lanes.base[k], c);
+                if LIT {
+                    let (a, d, sp) = (
+                        chunk(&lanes.ambient[k], c),
+                        chunk(&lanes.diffuse[k], c),
+                        chunk(&lanes.specular[k], c),
+                    );
+                    for j in 0..CHUNK {
+                        colour[j] = (a[j] + d[j]) * colour[j] + sp[j];
+                    }
+                }
+                if FOG {
+                    let f = chunk(&lanes.fog, c);
+                    for j in 0..CHUNK {
+                        colour[j] = f[j] * colour[j] + (1.0 - f[j]) * fog_k;
+                    }
+                }
+                for v in colour.iter_mut() {
+                    // Non-finite colours are black, as in the reference.
+                    *v = if (*v - *v) == 0.0 { *v } else { 0.0 };
+                }
+                *chunk_mut(&mut lanes.base[k], c) = colour;
             }
-            if FOG {
-                let f = lanes.fog[i];
-                c = [0, 1, 2].map(|k| f * c[k] + (1.0 - f) * fog_colour[k]);
-            }
-            if let Some(o) = out.get_mut(lanes.x[i] as usize) {
-                *o = c.map(|v| if v.is_finite() { v } else { 0.0 });
+        }
+        let (r, g, b) = (&lanes.base[0], &lanes.base[1], &lanes.base[2]);
+        for (i, &x) in lanes.x[..count].iter().enumerate() {
+            if let Some(o) = out.get_mut(x as usize) {
+                *o = [r[i], g[i], b[i]];
             }
         }
     }
