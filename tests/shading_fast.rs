@@ -261,3 +261,36 @@ fn materials_outside_the_stated_domain_run_the_reference() {
         }
     }
 }
+
+#[test]
+fn world_and_device_spaces_parallel_views_and_distinguish_match_the_f64_reference() {
+    use primflow::runtime::shading::LightingSpaceChoice;
+    for space in [LightingSpaceChoice::World, LightingSpaceChoice::Device] {
+        let mut r = lit_sphere(true, true, true);
+        r.shading_setup.space = space;
+        let (a, b, c) = frames(&mut r);
+        check(&format!("sphere lit in {space:?}"), &a, &b, &c);
+    }
+    // A parallel (orthographic) view: the eye is a direction; facing from the rasterizer
+    // (`distinguish`) rather than from the normal.
+    let program = common::library();
+    let mut r = common::renderer(&program, W, H, false);
+    r.ortho_checked([-1.3, 1.3, -1.3, 1.3], 0.5, 10.0).unwrap();
+    r.look_at([0.4, 0.6, 3.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0]).unwrap();
+    r.set_distinguish(true);
+    r.shading_setup.lights = lights(1.0);
+    r.shading_setup.front.ks = 0.7;
+    r.shading_setup.front.shininess = 40.0;
+    r.shading_setup.fog = Some(Fog {
+        colour: [0.3, 0.3, 0.3],
+        start: 2.0,
+        end: 4.0,
+    });
+    r.material_interp("Cs", "perspective_linear", &[]).unwrap();
+    r.material_interp("N", "perspective_linear", &[]).unwrap();
+    r.material_interp("st", "perspective_linear", &[]).unwrap();
+    r.material("Cs", &Value(vec![0.5, 0.8, 0.6])).unwrap();
+    sphere(&mut r, 12, 18, 1.0, |p| p);
+    let (a, b, c) = frames(&mut r);
+    check("parallel view with distinguish", &a, &b, &c);
+}
