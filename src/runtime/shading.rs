@@ -702,14 +702,16 @@ impl Shader {
             let xs = chunk(&lanes.x, c);
             let depth = chunk(&lanes.depth, c);
             let mut p = [[0f64; CHUNK]; 3];
-            if LIT || FOG {
+            if (LIT || FOG) && device_space {
+                for j in 0..CHUNK {
+                    p[0][j] = f64::from(xs[j]) + 0.5;
+                    p[1][j] = f64::from(y) + 0.5;
+                    p[2][j] = depth[j];
+                }
+            } else if LIT || FOG {
                 for j in 0..CHUNK {
                     let x = f64::from(xs[j]) + 0.5;
-                    if device_space {
-                        p[0][j] = x;
-                        p[1][j] = f64::from(y) + 0.5;
-                        p[2][j] = depth[j];
-                    } else {
+                    {
                         let z = depth[j];
                         let q0 = mx[0] * x + row[0] + mz[0] * z;
                         let q1 = mx[1] * x + row[1] + mz[1] * z;
@@ -717,7 +719,8 @@ impl Shader {
                         let q3 = mx[3] * x + row[3] + mz[3] * z;
                         // Finite and w != 0 (x - x is 0 only for finite x).
                         let ok = q3 != 0.0 && (q0 - q0) + (q1 - q1) + (q2 - q2) + (q3 - q3) == 0.0;
-                        let inv_w = if ok { 1.0 / q3 } else { 0.0 };
+                        // Divide unconditionally (then select) so the loop stays branch-free.
+                        let inv_w = 1.0 / if ok { q3 } else { 1.0 };
                         p[0][j] = if ok { q0 * inv_w } else { 0.0 };
                         p[1][j] = if ok { q1 * inv_w } else { 0.0 };
                         p[2][j] = if ok { q2 * inv_w } else { 0.0 };
@@ -747,38 +750,33 @@ impl Shader {
                 if let Some(fog) = &self.fog {
                     let span = fog.end - fog.start;
                     let f = chunk_mut(&mut lanes.fog, c);
-                    for j in 0..CHUNK {
-                        let distance = match (eye_point, fog_direction) {
-                            (Some(e), _) => {
+                    let mut distance = [0f64; CHUNK];
+                    match (eye_point, fog_direction) {
+                        (Some(e), _) => {
+                            for j in 0..CHUNK {
                                 let d = [p[0][j] - e[0], p[1][j] - e[1], p[2][j] - e[2]];
-                                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+                                distance[j] = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
                             }
-                            (None, Some(d)) => {
-                                let q = self.near_point;
+                        }
+                        (None, Some(d)) => {
+                            let q = self.near_point;
+                            for j in 0..CHUNK {
                                 let along = (q.x - p[0][j]) * d[0] + (q.y - p[1][j]) * d[1] + (q.z - p[2][j]) * d[2];
-                                if along > 0.0 {
-                                    along
-                                } else {
-                                    0.0
-                                }
+                                distance[j] = if along > 0.0 { along } else { 0.0 };
                             }
-                            (None, None) => 0.0,
-                        };
-                        let factor = if span > 0.0 {
-                            let t = (fog.end - distance) / span;
-                            if t < 0.0 {
-                                0.0
-                            } else if t > 1.0 {
-                                1.0
-                            } else {
-                                t
-                            }
-                        } else if distance < fog.end {
-                            1.0
-                        } else {
-                            0.0
-                        };
-                        f[j] = factor as f32;
+                        }
+                        (None, None) => {}
+                    }
+                    if span > 0.0 {
+                        for j in 0..CHUNK {
+                            let t = (fog.end - distance[j]) / span;
+                            let t = if t < 0.0 { 0.0 } else { t };
+                            f[j] = (if t > 1.0 { 1.0 } else { t }) as f32;
+                        }
+                    } else {
+                        for j in 0..CHUNK {
+                            f[j] = if distance[j] < fog.end { 1.0 } else { 0.0 };
+                        }
                     }
                 }
             }
@@ -799,14 +797,19 @@ impl Shader {
                         let t2 = na[2] * g[0] + nb[2] * g[1] + nc[2] * g[2];
                         let len = (t0 * t0 + t1 * t1 + t2 * t2).sqrt();
                         let ok = len > 0.0 && len < f64::INFINITY;
-                        let t = if ok {
-                            [t0 / len, t1 / len, t2 / len]
-                        } else {
-                            [0.0, 0.0, 1.0]
-                        };
+                        let safe_len = if ok { len } else { 1.0 };
+                        let t = [
+                            if ok { t0 / safe_len } else { 0.0 },
+                            if ok { t1 / safe_len } else { 0.0 },
+                            if ok { t2 / safe_len } else { 1.0 },
+                        ];
                         let len2 = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
                         has_n[j] = len2 > 0.0 && len2 < f64::INFINITY;
-                        let inv = if has_n[j] { 1.0 / len2 } else { 0.0 };
+                        let inv = if has_n[j] {
+                            1.0 / if has_n[j] { len2 } else { 1.0 }
+                        } else {
+                            0.0
+                        };
                         for k in 0..3 {
                             n[k][j] = t[k] * inv;
                         }
@@ -814,37 +817,56 @@ impl Shader {
                 }
                 let mut v = [[0f64; CHUNK]; 3];
                 let mut has_v = [false; CHUNK];
-                for j in 0..CHUNK {
-                    let (dir, ok) = match (setup_eye_point, setup_eye_direction) {
-                        (Some(e), _) => {
+                match (setup_eye_point, setup_eye_direction) {
+                    (Some(e), _) => {
+                        for j in 0..CHUNK {
                             let d = [e[0] - p[0][j], e[1] - p[1][j], e[2] - p[2][j]];
                             let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
                             let ok = len > 0.0 && len < f64::INFINITY;
-                            let inv = if ok { 1.0 / len } else { 0.0 };
-                            ([d[0] * inv, d[1] * inv, d[2] * inv], ok)
+                            let inv = if ok { 1.0 / if ok { len } else { 1.0 } } else { 0.0 };
+                            has_v[j] = ok;
+                            for k in 0..3 {
+                                v[k][j] = d[k] * inv;
+                            }
                         }
-                        (None, Some(d)) => (d, true),
-                        (None, None) => ([0.0; 3], false),
-                    };
-                    has_v[j] = ok;
-                    for k in 0..3 {
-                        v[k][j] = dir[k];
                     }
+                    (None, Some(d)) => {
+                        for j in 0..CHUNK {
+                            has_v[j] = true;
+                            for k in 0..3 {
+                                v[k][j] = d[k];
+                            }
+                        }
+                    }
+                    (None, None) => {}
                 }
                 let lane_back = chunk_mut(&mut lanes.lane_back, c);
-                for j in 0..CHUNK {
-                    let back = match &given_back {
-                        Some(b) => b[c * CHUNK + j] != 0.0,
-                        None => has_v[j] && has_n[j] && n[0][j] * v[0][j] + n[1][j] * v[1][j] + n[2][j] * v[2][j] < 0.0,
-                    };
-                    lane_back[j] = if back { 1.0 } else { 0.0 };
-                    let sign = if back { -1.0 } else { 1.0 };
-                    for k in 0..3 {
-                        let i = c * CHUNK + j;
-                        lanes.n[k][i] = (n[k][j] * sign) as f32;
+                match &given_back {
+                    Some(b) => lane_back.copy_from_slice(chunk(b, c)),
+                    None => {
+                        for j in 0..CHUNK {
+                            let dot = n[0][j] * v[0][j] + n[1][j] * v[1][j] + n[2][j] * v[2][j];
+                            lane_back[j] = if has_v[j] && has_n[j] && dot < 0.0 { 1.0 } else { 0.0 };
+                        }
+                    }
+                }
+                let lane_back = *lane_back;
+                for k in 0..3 {
+                    let (lane_n, lane_v) = (chunk_mut(&mut lanes.n[k], c), chunk_mut(&mut lanes.v[k], c));
+                    for j in 0..CHUNK {
+                        let back = lane_back[j] != 0.0;
+                        lane_n[j] = (if back { -n[k][j] } else { n[k][j] }) as f32;
                         // No normal: no eye vector either (the reference skips the lights).
-                        lanes.v[k][i] = if has_n[j] { v[k][j] as f32 } else { 0.0 };
-                        lanes.ambient[k][i] = ambient[usize::from(back)][k];
+                        lane_v[j] = if has_n[j] { v[k][j] as f32 } else { 0.0 };
+                    }
+                    let (front_ambient, back_ambient) = (ambient[0][k], ambient[1][k]);
+                    let lane_ambient = chunk_mut(&mut lanes.ambient[k], c);
+                    for j in 0..CHUNK {
+                        lane_ambient[j] = if lane_back[j] != 0.0 {
+                            back_ambient
+                        } else {
+                            front_ambient
+                        };
                     }
                 }
             }
