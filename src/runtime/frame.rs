@@ -671,9 +671,13 @@ impl Frame {
         }
         let get = |name: &str| self.param(name).cloned();
         let cs = get("Cs").filter(|p| p.components == 1 || p.components >= 3);
-        let normal = get(super::api::NORMAL_PARAM).filter(|p| p.components == 3);
-        let facing = get(super::api::FACING_PARAM);
-        let st = texture_param.and_then(get).filter(|p| p.components >= 2);
+        // Gather only what the frame's effects read.
+        let effects = shader.effects();
+        let normal = get(super::api::NORMAL_PARAM).filter(|p| effects.lit && p.components == 3);
+        let facing = get(super::api::FACING_PARAM).filter(|_| effects.lit);
+        let st = texture_param
+            .and_then(get)
+            .filter(|p| effects.texture && p.components >= 2);
         let plane = |p: &ParamPlanes, k: u32, row: usize| {
             let start = row * width;
             &self.planes[(p.first_plane + k) as usize][start..start + width]
