@@ -638,7 +638,7 @@ pub fn format_table(report: &BenchReport) -> String {
         ));
         if let Some(x) = w.expand_speedup {
             s.push_str(&format!(
-                "{:<32} setup once per primitive (expanded) vs once per tile: {x:.2}x faster\n",
+                "{:<32} setup once per primitive (expanded) vs once per tile: {x:.2}x the speed\n",
                 ""
             ));
         }
