@@ -15,6 +15,7 @@
 
 use glam::{DMat4, DVec3, Mat4, Vec3};
 
+use crate::bench::Lcg;
 use crate::pipeline::factor::factor_view;
 use crate::pipeline::lighting::{Eye, Light, LightKind, LightingSetup, Material, Sample};
 use crate::pipeline::transform::{look_at_matrix, perspective_matrix};
@@ -1129,17 +1130,5 @@ fn depth_knob<'a>(quick: bool) -> Knob<'a> {
             ])
         }),
         missing: vec![],
-    }
-}
-
-/// A tiny deterministic generator, so every run measures the same scene.
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
     }
 }

@@ -309,10 +309,11 @@ fn workloads(quick: bool) -> Vec<Workload> {
     ]
 }
 
-/// A tiny deterministic generator, so every run benchmarks the same scene.
-struct Lcg(u64);
+/// A tiny deterministic generator, so every run benchmarks (and `accuracy` measures) the
+/// same scene.
+pub(crate) struct Lcg(pub(crate) u64);
 impl Lcg {
-    fn next(&mut self) -> f64 {
+    pub(crate) fn next(&mut self) -> f64 {
         self.0 = self
             .0
             .wrapping_mul(6364136223846793005)
