@@ -224,6 +224,26 @@ pub(crate) fn depth_raw(z: f32) -> u32 {
     (z * 4294967296.0).round_ties_even() as u32
 }
 
+/// float -> fixed<32,32> raw for 8 depths in [0, 1], as [`depth_raw`] (nearest, saturating).
+/// Values below 2^31 convert directly; values in [2^31, 2^32) are shifted down by 2^31
+/// first (exact there) and the top bit set back; 2^32 itself (z == 1) saturates.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+pub(crate) fn depth_raw8(z: std::arch::x86_64::__m256) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::*;
+    let two32 = _mm256_set1_ps(4294967296.0);
+    let two31 = _mm256_set1_ps(2147483648.0);
+    let scaled = _mm256_round_ps::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(_mm256_mul_ps(z, two32));
+    let high = _mm256_cmp_ps::<_CMP_GE_OQ>(scaled, two31);
+    let shifted = _mm256_blendv_ps(scaled, _mm256_sub_ps(scaled, two31), high);
+    let tz = _mm256_cvtps_epi32(shifted);
+    let tz = _mm256_or_si256(
+        tz,
+        _mm256_and_si256(_mm256_castps_si256(high), _mm256_set1_epi32(i32::MIN)),
+    );
+    _mm256_or_si256(tz, _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(scaled, two32)))
+}
+
 /// Portable scalar kernel.
 ///
 /// # Safety
@@ -318,8 +338,6 @@ pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, co
     let sign = _mm256_set1_epi32(i32::MIN);
     let zero_i = _mm256_setzero_si256();
     let (one, zero) = (_mm256_set1_ps(1.0), _mm256_setzero_ps());
-    let scale = _mm256_set1_ps(4294967296.0);
-    let two32 = _mm256_set1_ps(4294967296.0);
     let sixteen = _mm256_set1_ps(16.0);
     for py in ry0..ry1 {
         let y = py as f32 + 0.5;
@@ -369,18 +387,7 @@ pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, co
                 _mm256_cmp_ps::<_CMP_LE_OQ>(z, one),
             );
             mask = _mm256_and_si256(mask, _mm256_castps_si256(in_range));
-            // fixed<32,32>: nearest(z * 2^32) saturated to u32. z is in [0, 1] on live lanes.
-            // The signed conversion takes values below 2^31 directly; values in [2^31, 2^32)
-            // are shifted down by 2^31 first (exact there, not below it) and the top bit set
-            // back; 2^32 itself (z == 1) saturates to u32::MAX.
-            let scaled = _mm256_round_ps::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(_mm256_mul_ps(z, scale));
-            let two31 = _mm256_set1_ps(2147483648.0);
-            let high = _mm256_cmp_ps::<_CMP_GE_OQ>(scaled, two31);
-            let shifted = _mm256_blendv_ps(scaled, _mm256_sub_ps(scaled, two31), high);
-            let tz = _mm256_cvtps_epi32(shifted);
-            let tz = _mm256_or_si256(tz, _mm256_and_si256(_mm256_castps_si256(high), sign));
-            let saturated = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(scaled, two32));
-            let tz = _mm256_or_si256(tz, saturated);
+            let tz = depth_raw8(z);
             let base = row + (px - ctx.x0) as usize;
             // SAFETY: lanes beyond `n` are masked off, and maskload/maskstore never touch
             // memory of masked-off lanes; the first `n` pixels of the row lie in the tile.

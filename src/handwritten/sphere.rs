@@ -18,6 +18,8 @@
 
 // `!(a < b)` is the prims' NaN-rejecting test, kept as written (a NaN fails it).
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
+#[cfg(target_arch = "x86_64")]
+use super::screen_triangle::depth_raw8;
 use super::screen_triangle::{bound_or_rect, depth_raw};
 use crate::abi::{ArgLayout, Binding, BindingKind, KernelFn, ParamSlot, TileCtx, VariantKey, MODE_BOUND};
 
@@ -452,26 +454,6 @@ pub unsafe extern "C" fn avx2<const T: usize, const COUNT: bool>(ctx: *mut TileC
             px += 8;
         }
     }
-}
-
-/// float -> fixed<32,32> raw for 8 depths in [0, 1], as [`depth_raw`] (nearest, saturating).
-/// Values below 2^31 convert directly; values in [2^31, 2^32) are shifted down by 2^31
-/// first (exact there) and the top bit set back; 2^32 itself (z == 1) saturates.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-pub(crate) fn depth_raw8(z: std::arch::x86_64::__m256) -> std::arch::x86_64::__m256i {
-    use std::arch::x86_64::*;
-    let two32 = _mm256_set1_ps(4294967296.0);
-    let two31 = _mm256_set1_ps(2147483648.0);
-    let scaled = _mm256_round_ps::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(_mm256_mul_ps(z, two32));
-    let high = _mm256_cmp_ps::<_CMP_GE_OQ>(scaled, two31);
-    let shifted = _mm256_blendv_ps(scaled, _mm256_sub_ps(scaled, two31), high);
-    let tz = _mm256_cvtps_epi32(shifted);
-    let tz = _mm256_or_si256(
-        tz,
-        _mm256_and_si256(_mm256_castps_si256(high), _mm256_set1_epi32(i32::MIN)),
-    );
-    _mm256_or_si256(tz, _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(scaled, two32)))
 }
 
 /// The kernel for `key`, after checking that the key is one this file serves and that the
