@@ -204,10 +204,21 @@ fn report_has_effects_thread_figures_and_llvmpipe_rows() {
     for c in &report.llvmpipe {
         assert_eq!(c.llvmpipe, 88.0);
         assert!((c.ratio - c.jit_one_thread / 88.0).abs() < 1e-12);
+        // The sphere has scalar and AVX2 kernels: the fastest of them stands beside the JIT.
+        let (kernel, figure) = c.best_handwritten.as_ref().expect("hand-written sphere kernels");
+        let w = report.workloads.iter().find(|w| w.workload == c.workload).unwrap();
+        let fastest = w
+            .timings
+            .iter()
+            .filter(|t| t.threads == 1 && !t.kernel.starts_with("JIT"))
+            .map(|t| t.mpixels_per_s)
+            .fold(0.0, f64::max);
+        assert_eq!(*figure, fastest, "{kernel}");
     }
     let table = format_table(&report);
     assert!(table.contains("thread scaling"), "{table}");
     assert!(table.contains("x llvmpipe"), "{table}");
+    assert!(table.contains("hand-written best"), "{table}");
     let json = serde_json::to_value(&report).unwrap();
     assert!(json["llvmpipe"].as_array().is_some_and(|a| a.len() == 2));
     assert!(json["effects"].is_null());
