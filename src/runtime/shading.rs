@@ -561,6 +561,11 @@ struct FastSetup {
     fog_colour: [f32; 3],
 }
 
+/// The filtered facing test's margin on the squared cosine: a facing is decided from the
+/// unnormalised `t . d` when `(t . d)^2 > FACING_MARGIN |t|^2 |d|^2`, i.e. the cosine is
+/// beyond 1e-9, six orders above the rounding error of the reference's own cosine.
+const FACING_MARGIN: f64 = 1.0e-18;
+
 /// Largest integer shininess taken by repeated squaring: at most 2 log2(n) = 14 f32
 /// multiplications, relative error below 1e-5 (the unit test sweeps it).
 const MAX_INTEGER_SHININESS: u32 = 128;
@@ -646,7 +651,9 @@ impl FastSetup {
 struct ChunkGeometry {
     n: [[f32; CHUNK]; 3],
     v: [[f32; CHUNK]; 3],
-    back: [f32; CHUNK],
+    /// All ones for a back-facing pixel, zero for a front-facing one (a bit mask, so the
+    /// per-side selects stay vector blends: see [`select`]).
+    back: [u32; CHUNK],
 }
 
 impl Shader {
@@ -812,7 +819,7 @@ impl Shader {
 
         let mut colour = base;
         if LIT {
-            let g = self.chunk_geometry(row, x0, &p);
+            let g = self.chunk_geometry(row, x0, &p, &depth_raw.map(|d| d != 0));
             let mut diffuse = [[0f32; CHUNK]; 3];
             let mut specular = [[0f32; CHUNK]; 3];
             for light in &fast.lights {
@@ -827,7 +834,7 @@ impl Shader {
             for k in 0..3 {
                 let (front_ambient, back_ambient) = (fast.ambient[0][k], fast.ambient[1][k]);
                 for j in 0..CHUNK {
-                    let ambient = if g.back[j] != 0.0 { back_ambient } else { front_ambient };
+                    let ambient = select(g.back[j], back_ambient, front_ambient);
                     colour[k][j] = (ambient + diffuse[k][j]) * colour[k][j] + specular[k][j];
                 }
             }
@@ -884,10 +891,124 @@ impl Shader {
         colour
     }
 
+    /// The chunk's geometry for the light loop: [`Self::chunk_geometry_filtered`] when every
+    /// written pixel's facing is clear, otherwise [`Self::chunk_geometry_exact`].
+    #[inline(always)]
+    fn chunk_geometry(
+        &self,
+        row: &RowInputs<'_>,
+        x0: usize,
+        p: &[[f64; CHUNK]; 3],
+        written: &[bool; CHUNK],
+    ) -> ChunkGeometry {
+        match self.chunk_geometry_filtered(row, x0, p, written) {
+            Some(g) => g,
+            None => self.chunk_geometry_exact(row, x0, p),
+        }
+    }
+
+    /// The common case without divisions in f64: the normal `t = M g` and the eye offset
+    /// `d` (eye - position, or the eye direction) in f64, the facing from the sign of the
+    /// *unnormalised* `t . d`, then `t` and `d` normalised in f32 (8 lanes per instruction
+    /// instead of 4). The sign is the reference's whenever `|t . d| > 1e-9 |t| |d|` (the
+    /// reference's own f64 error in the cosine is ~1e-15; [`FACING_MARGIN`]). `None` when a
+    /// written pixel's facing is closer to grazing than that, its normal or eye offset is
+    /// zero, non-finite or outside [1e-15, 1e15] in length, or the frame has no normal:
+    /// the chunk then runs the exact path.
+    #[inline(always)]
+    fn chunk_geometry_filtered(
+        &self,
+        row: &RowInputs<'_>,
+        x0: usize,
+        p: &[[f64; CHUNK]; 3],
+        written: &[bool; CHUNK],
+    ) -> Option<ChunkGeometry> {
+        let normal = row.normal?;
+        let fast = &self.fast;
+        let nm = self.normals_from_lighting.matrix;
+        let (na, nb, nc) = (nm.x_axis.to_array(), nm.y_axis.to_array(), nm.z_axis.to_array());
+        let (g0, g1, g2) = (
+            load_chunk(normal[0], x0, 0.0),
+            load_chunk(normal[1], x0, 0.0),
+            load_chunk(normal[2], x0, 0.0),
+        );
+        let mut t = [[0f64; CHUNK]; 3];
+        for j in 0..CHUNK {
+            let g = [f64::from(g0[j]), f64::from(g1[j]), f64::from(g2[j])];
+            t[0][j] = na[0] * g[0] + nb[0] * g[1] + nc[0] * g[2];
+            t[1][j] = na[1] * g[0] + nb[1] * g[1] + nc[1] * g[2];
+            t[2][j] = na[2] * g[0] + nb[2] * g[1] + nc[2] * g[2];
+        }
+        let mut d = [[0f64; CHUNK]; 3];
+        match (fast.lit_eye_point, fast.lit_eye_direction) {
+            (Some(e), _) => {
+                for k in 0..3 {
+                    for j in 0..CHUNK {
+                        d[k][j] = e[k] - p[k][j];
+                    }
+                }
+            }
+            (None, Some(direction)) => {
+                for k in 0..3 {
+                    d[k] = [direction[k]; CHUNK];
+                }
+            }
+            (None, None) => return None,
+        }
+        let mut usable = [false; CHUNK];
+        let mut clear = [false; CHUNK];
+        let mut back = [0u32; CHUNK];
+        for j in 0..CHUNK {
+            let tt = t[0][j] * t[0][j] + t[1][j] * t[1][j] + t[2][j] * t[2][j];
+            let dd = d[0][j] * d[0][j] + d[1][j] * d[1][j] + d[2][j] * d[2][j];
+            let td = t[0][j] * d[0][j] + t[1][j] * d[1][j] + t[2][j] * d[2][j];
+            usable[j] = tt > 1.0e-30 && tt < 1.0e30 && dd > 1.0e-30 && dd < 1.0e30;
+            clear[j] = td * td > FACING_MARGIN * tt * dd;
+            back[j] = if td < 0.0 { u32::MAX } else { 0 };
+        }
+        let recorded = row.facing.map(|plane| load_chunk(plane, x0, 0.0));
+        if let Some(recorded) = recorded {
+            for j in 0..CHUNK {
+                back[j] = if recorded[j] < 0.0 { u32::MAX } else { 0 };
+            }
+        }
+        let mut decided = true;
+        for j in 0..CHUNK {
+            decided &= !written[j] || (usable[j] && (recorded.is_some() || clear[j]));
+        }
+        if !decided {
+            return None;
+        }
+        let mut lane_n = [[0f32; CHUNK]; 3];
+        let mut lane_v = [[0f32; CHUNK]; 3];
+        for j in 0..CHUNK {
+            let tf = [t[0][j] as f32, t[1][j] as f32, t[2][j] as f32];
+            let df = [d[0][j] as f32, d[1][j] as f32, d[2][j] as f32];
+            let t_len = (tf[0] * tf[0] + tf[1] * tf[1] + tf[2] * tf[2]).sqrt();
+            let d_len = (df[0] * df[0] + df[1] * df[1] + df[2] * df[2]).sqrt();
+            // Unusable lanes are unwritten (discarded): zero keeps them quiet.
+            let t_scale = if usable[j] {
+                select(back[j], -1.0, 1.0) / t_len
+            } else {
+                0.0
+            };
+            let d_scale = if usable[j] { 1.0 / d_len } else { 0.0 };
+            for k in 0..3 {
+                lane_n[k][j] = tf[k] * t_scale;
+                lane_v[k][j] = df[k] * d_scale;
+            }
+        }
+        Some(ChunkGeometry {
+            n: lane_n,
+            v: lane_v,
+            back,
+        })
+    }
+
     /// Per-pixel geometry in f64 with the reference's operations (the decisions: facing,
     /// which lanes have a normal and an eye vector), rounded to f32 for the light loop.
     #[inline(always)]
-    fn chunk_geometry(&self, row: &RowInputs<'_>, x0: usize, p: &[[f64; CHUNK]; 3]) -> ChunkGeometry {
+    fn chunk_geometry_exact(&self, row: &RowInputs<'_>, x0: usize, p: &[[f64; CHUNK]; 3]) -> ChunkGeometry {
         let fast = &self.fast;
         let nm = self.normals_from_lighting.matrix;
         let (na, nb, nc) = (nm.x_axis.to_array(), nm.y_axis.to_array(), nm.z_axis.to_array());
@@ -951,18 +1072,18 @@ impl Shader {
             }
             (None, None) => {}
         }
-        let mut back = [0f32; CHUNK];
+        let mut back = [0u32; CHUNK];
         match row.facing {
             Some(plane) => {
                 let recorded = load_chunk(plane, x0, 0.0);
                 for j in 0..CHUNK {
-                    back[j] = if recorded[j] < 0.0 { 1.0 } else { 0.0 };
+                    back[j] = if recorded[j] < 0.0 { u32::MAX } else { 0 };
                 }
             }
             None => {
                 for j in 0..CHUNK {
                     let dot = n[0][j] * v[0][j] + n[1][j] * v[1][j] + n[2][j] * v[2][j];
-                    back[j] = if has_v[j] && has_n[j] && dot < 0.0 { 1.0 } else { 0.0 };
+                    back[j] = if has_v[j] && has_n[j] && dot < 0.0 { u32::MAX } else { 0 };
                 }
             }
         }
@@ -970,7 +1091,7 @@ impl Shader {
         let mut lane_v = [[0f32; CHUNK]; 3];
         for k in 0..3 {
             for j in 0..CHUNK {
-                lane_n[k][j] = (if back[j] != 0.0 { -n[k][j] } else { n[k][j] }) as f32;
+                lane_n[k][j] = (if back[j] != 0 { -n[k][j] } else { n[k][j] }) as f32;
                 // No normal: no eye vector either (the reference skips the lights).
                 lane_v[k][j] = if has_n[j] { v[k][j] as f32 } else { 0.0 };
             }
@@ -981,6 +1102,14 @@ impl Shader {
             back,
         }
     }
+}
+
+/// `if_set` where `mask` is all ones, `if_clear` where it is zero, as bit operations: a
+/// plain `if` between two constants can compile to a select of *addresses* and per-lane
+/// scalar loads, which kept the light loop from vectorising.
+#[inline(always)]
+fn select(mask: u32, if_set: f32, if_clear: f32) -> f32 {
+    f32::from_bits((if_set.to_bits() & mask) | (if_clear.to_bits() & !mask))
 }
 
 /// `CHUNK` values of `plane` from `x0`, `fill` past its end: one fixed-size copy for whole
@@ -1085,7 +1214,7 @@ fn light_chunk<const POSITIONAL: bool, const SPECULAR: bool>(
     for k in 0..3 {
         let (front, back_colour) = (light.diffuse[0][k], light.diffuse[1][k]);
         for j in 0..CHUNK {
-            let kd = if back[j] != 0.0 { back_colour } else { front };
+            let kd = select(back[j], back_colour, front);
             diffuse[k][j] += weight[j] * kd;
         }
     }
@@ -1108,11 +1237,7 @@ fn light_chunk<const POSITIONAL: bool, const SPECULAR: bool>(
             None => {
                 let mut h = [0f32; CHUNK];
                 for j in 0..CHUNK {
-                    let shine = if back[j] != 0.0 {
-                        fast.shininess[1]
-                    } else {
-                        fast.shininess[0]
-                    };
+                    let shine = select(back[j], fast.shininess[1], fast.shininess[0]);
                     h[j] = pow_positive(base[j], shine);
                 }
                 h
@@ -1129,7 +1254,7 @@ fn light_chunk<const POSITIONAL: bool, const SPECULAR: bool>(
         for k in 0..3 {
             let (front, back_colour) = (light.specular[0][k], light.specular[1][k]);
             for j in 0..CHUNK {
-                let ks = if back[j] != 0.0 { back_colour } else { front };
+                let ks = select(back[j], back_colour, front);
                 specular[k][j] += highlight[j] * ks;
             }
         }
