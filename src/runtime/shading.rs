@@ -983,11 +983,13 @@ impl Shader {
                 back[j] = if recorded[j] < 0.0 { u32::MAX } else { 0 };
             }
         }
-        let mut decided = true;
+        // Non-short-circuit `&` and `|` on purpose: `&&`/`||` here compiled to a branch per lane.
+        let given = recorded.is_some();
+        let mut undecided = false;
         for j in 0..CHUNK {
-            decided &= !written[j] || (usable[j] && (recorded.is_some() || clear[j]));
+            undecided |= written[j] & !(usable[j] & (given | clear[j]));
         }
-        if !decided {
+        if undecided {
             return None;
         }
         let mut lane_n = [[0f32; CHUNK]; 3];
