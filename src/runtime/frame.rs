@@ -19,7 +19,7 @@
 //!    once per (site, error), in tile order.
 //!
 //! Then the deferred shading pass ([`super::shading`]) when the scene turns an effect on,
-//! rows in parallel. Without one, a pixel whose depth was written (depth != 0; a write of
+//! bands of rows in parallel. Without one, a pixel whose depth was written (depth != 0; a write of
 //! exactly the far value 0 is indistinguishable from none, and a `Z > depth` test never
 //! passes there anyway) shows the `Cs` shading parameter clamped to [0, 1] (white without
 //! one, as OpenGL's default colour), other pixels the background.

@@ -20,15 +20,19 @@
 //! (`lighting_space`); DC lighting is wrong under perspective on purpose.
 //!
 //! Kernels ([`ShadingKernel`]): the pass above, scalar f64 per pixel ([`Shader::shade`]), is
-//! the *reference*. The default kernel ([`Shader::shade_lanes`]) shades a row's written
-//! pixels as lanes: per-pixel geometry (position, normal, eye vector, facing, fog distance,
-//! texture cell) in f64 chunks, then each light as one branch-free f32 pass over the lanes
-//! (positional light vectors and attenuation in f64), compiled for AVX2 + FMA when the CPU
-//! has them and for the baseline target otherwise — bit-identical results either way.
-//! Stated bound (tests/shading_fast.rs): every channel within 1/4096 of the reference before
-//! quantisation, the 8-bit image equal or off by one on at most 2% of covered pixels. Values
-//! outside the bound's domain (shininess outside [1, 16384], coefficients above 1e6 or
-//! non-finite) run the reference instead.
+//! the *reference*. The default kernel ([`Shader::shade_row`]) is one fused pass over a row
+//! of the G-buffer in chunks of [`CHUNK`] pixels: each chunk loads its planes contiguously
+//! ([`RowInputs`]; unwritten pixels ride along and are masked to zero), computes the
+//! position in f64, decides the facing from the sign of the unnormalised f64 `N . (eye - P)`
+//! when it is clear by a 1e-9 margin on the cosine (otherwise the chunk takes the exact path
+//! with the reference's f64 operations), normalises normal and eye vector in f32, runs every
+//! light (f32; positional light vectors and attenuation in f64), fog and the final colour in
+//! registers, and stores the colours once. Compiled for AVX2 + FMA when the CPU has them
+//! and for the baseline target otherwise — bit-identical results either way.
+//! Stated bound (tests/shading_fast.rs, tests/shading_rows.rs): every channel within 1/4096
+//! of the reference before quantisation, the 8-bit image equal or off by one on at most 2% of
+//! covered pixels. Values outside the bound's domain (shininess outside [1, 16384],
+//! coefficients above 1e6 or non-finite) run the reference instead.
 
 use glam::{DMat4, DVec3, DVec4};
 
@@ -498,10 +502,10 @@ fn phong_and_specular_share(setup: &LightingSetup<f64>, s: &Sample<f64>, facing:
 }
 
 // ---------------------------------------------------------------------------------------
-// The fast pass: a row of written pixels in structure-of-arrays form ("lanes"), per-pixel
-// geometry in f64 (position, eye vector, facing, normal, fog distance, texture cell: the
-// decisions that must match the reference exactly), then the light loop OUTSIDE the pixel
-// loop, each light a branch-free f32 loop over the lanes that the compiler vectorises.
+// The fast pass: one fused pass per row over chunks of CHUNK contiguous pixels. Per chunk:
+// position in f64; facing from a filtered f64 sign test (exact f64 path near grazing);
+// normal and eye vector in f32; every light, fog and the final colour in f32 lanes the
+// compiler vectorises; one masked store.
 
 /// Largest shininess the fast kernels take (the polynomial power's error bound holds up to
 /// it); larger, non-finite or below 1 (where the highlight jumps at R.V = 0) runs the f64
