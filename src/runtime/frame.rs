@@ -19,7 +19,7 @@
 //!    once per (site, error), in tile order.
 //!
 //! Then the deferred shading pass ([`super::shading`]) when the scene turns an effect on,
-//! rows in parallel. Without one, a pixel whose depth was written (depth != 0; a write of
+//! bands of rows in parallel. Without one, a pixel whose depth was written (depth != 0; a write of
 //! exactly the far value 0 is indistinguishable from none, and a `Z > depth` test never
 //! passes there anyway) shows the `Cs` shading parameter clamped to [0, 1] (white without
 //! one, as OpenGL's default colour), other pixels the background.
@@ -41,7 +41,11 @@ use crate::jit::Kernel;
 use super::api::{Instance, RenderOptions, Renderer, MAX_IMAGE_SIDE, MAX_TILE_SIDE};
 use super::expand::{expand_instance, Budget, Draw, Expanded};
 use super::kernels::KernelSource;
-use super::shading::{Effects, PixelInputs, ShadeLanes, Shader, ShadingKernel, ShadingSpaces};
+use super::shading::{Effects, PixelInputs, RowInputs, Shader, ShadingKernel, ShadingSpaces};
+
+/// Rows per parallel task of the shading pass: enough work per task (~4k pixels at 512
+/// wide) that rayon's scheduling is noise, and still dozens of tasks per frame for two cores.
+const SHADE_BAND_ROWS: usize = 8;
 
 /// Tile buffer row stride for a tile `width` pixels wide: whole pixel groups.
 pub fn tile_stride(width: u32) -> u32 {
@@ -655,10 +659,11 @@ impl Frame {
         self.colors.as_ref().map(|c| c[i])
     }
 
-    /// Run `shader` over every written pixel; unwritten pixels get zero. Rows are shaded in
-    /// parallel (each pixel's colour depends on that pixel's inputs alone, so the result is
-    /// the same for any thread count). The fast kernels gather a row's written pixels into
-    /// lanes (unwritten ones are skipped); the f64 reference takes them one by one.
+    /// Run `shader` over every written pixel; unwritten pixels get zero. Bands of
+    /// [`SHADE_BAND_ROWS`] rows are shaded in parallel (each pixel's colour depends on that
+    /// pixel's inputs alone, so the result is the same for any thread count). The fast
+    /// kernels read each row's planes as contiguous slices ([`RowInputs`]) in one fused pass;
+    /// the f64 reference takes the written pixels one by one.
     fn shade(&self, shader: &Shader, texture_param: Option<&str>) -> Vec<[f32; 3]> {
         let mut colors = vec![[0f32; 3]; self.depth.len()];
         let width = self.width as usize;
@@ -671,7 +676,7 @@ impl Frame {
         }
         let get = |name: &str| self.param(name).cloned();
         let cs = get("Cs").filter(|p| p.components == 1 || p.components >= 3);
-        // Gather only what the frame's effects read.
+        // Read only what the frame's effects need.
         let effects = shader.effects();
         let normal = get(super::api::NORMAL_PARAM).filter(|p| effects.lit && p.components == 3);
         let facing = get(super::api::FACING_PARAM).filter(|_| effects.lit);
@@ -683,44 +688,25 @@ impl Frame {
             &self.planes[(p.first_plane + k) as usize][start..start + width]
         };
         colors
-            .par_chunks_mut(width)
+            .par_chunks_mut(width * SHADE_BAND_ROWS)
             .enumerate()
-            .for_each_init(ShadeLanes::default, |lanes, (y, row)| {
-                lanes.reset(normal.is_some(), facing.is_some(), st.is_some());
-                let depth = &self.depth[y * width..(y + 1) * width];
-                let cs_planes = cs.as_ref().map(|p| {
-                    let k = |c: u32| if p.components == 1 { 0 } else { c };
-                    [plane(p, k(0), y), plane(p, k(1), y), plane(p, k(2), y)]
-                });
-                let normal_planes = normal
-                    .as_ref()
-                    .map(|p| [plane(p, 0, y), plane(p, 1, y), plane(p, 2, y)]);
-                let facing_plane = facing.as_ref().map(|p| plane(p, 0, y));
-                let st_planes = st.as_ref().map(|p| [plane(p, 0, y), plane(p, 1, y)]);
-                for (x, &d) in depth.iter().enumerate() {
-                    if d == 0 {
-                        continue;
-                    }
-                    lanes.x.push(x as u32);
-                    lanes.depth.push(f64::from(d) / 4294967296.0);
-                    for k in 0..3 {
-                        lanes.cs[k].push(cs_planes.map_or(1.0, |c| c[k][x]));
-                    }
-                    if let (Some(n), Some(lanes_n)) = (normal_planes, lanes.normal.as_mut()) {
-                        for k in 0..3 {
-                            lanes_n[k].push(n[k][x]);
-                        }
-                    }
-                    if let (Some(f), Some(back)) = (facing_plane, lanes.back.as_mut()) {
-                        back.push(f[x] < 0.0);
-                    }
-                    if let (Some(s), Some(lanes_st)) = (st_planes, lanes.st.as_mut()) {
-                        lanes_st[0].push(s[0][x]);
-                        lanes_st[1].push(s[1][x]);
-                    }
-                }
-                if !lanes.is_empty() {
-                    shader.shade_lanes(y as u32, lanes, row);
+            .for_each(|(band, band_colors)| {
+                for (i, row_colors) in band_colors.chunks_mut(width).enumerate() {
+                    let y = band * SHADE_BAND_ROWS + i;
+                    let row = RowInputs {
+                        y: y as u32,
+                        depth: &self.depth[y * width..(y + 1) * width],
+                        cs: cs.as_ref().map(|p| {
+                            let k = |c: u32| if p.components == 1 { 0 } else { c };
+                            [plane(p, k(0), y), plane(p, k(1), y), plane(p, k(2), y)]
+                        }),
+                        normal: normal
+                            .as_ref()
+                            .map(|p| [plane(p, 0, y), plane(p, 1, y), plane(p, 2, y)]),
+                        facing: facing.as_ref().map(|p| plane(p, 0, y)),
+                        st: st.as_ref().map(|p| [plane(p, 0, y), plane(p, 1, y)]),
+                    };
+                    shader.shade_row(&row, row_colors);
                 }
             });
         colors
