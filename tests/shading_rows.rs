@@ -194,13 +194,14 @@ fn shininess_on_both_power_paths_matches_the_reference() {
         shininess,
         specular_colour: [0.3, 1.0, 0.3],
     };
-    let cases: [(&str, f64, Option<SurfaceMaterial>); 8] = [
+    let cases: [(&str, f64, Option<SurfaceMaterial>); 9] = [
         ("shininess 1", 1.0, None),
         ("shininess 7", 7.0, None),
         ("shininess 32", 32.0, None),
         ("shininess 128", 128.0, None),
         ("shininess 128.5", 128.5, None),
         ("shininess 1000", 1000.0, None),
+        ("shininess 1024 (the fast domain's end)", 1024.0, None),
         ("shininess 32, back 32", 32.0, Some(back(32.0))),
         ("shininess 32, back 400", 32.0, Some(back(400.0))),
     ];
