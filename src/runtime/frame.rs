@@ -32,7 +32,7 @@ use image::{ImageBuffer, Luma, Rgb, RgbImage};
 use rayon::prelude::*;
 
 use crate::abi::{
-    TileCtx, VariantKey, DEFAULT_FUEL, ERR_CALL_DEPTH, ERR_FUEL, ERR_INDEX, GROUP, MODE_BOUND, MODE_RENDER,
+    Binding, TileCtx, VariantKey, DEFAULT_FUEL, ERR_CALL_DEPTH, ERR_FUEL, ERR_INDEX, GROUP, MODE_BOUND, MODE_RENDER,
 };
 use crate::diag::{Diagnostic, Diagnostics};
 use crate::ir::{FuncId, Program};
@@ -166,6 +166,50 @@ fn tile_rows<T>(buf: &mut [T], width: usize, tile_size: usize, tiles: usize) -> 
     out
 }
 
+/// The frame's kernels, one per distinct (primitive, key) of its instances, and which one
+/// each instance uses. Keys are borrowed from the instances (the renderer's `count_writes`
+/// is the same for all of them, so it is not part of the lookup). Consecutive instances
+/// mostly share their primitive and key, so an instance is first compared with the previous
+/// one; only a change of key is looked up in the map (no key is cloned or hashed per
+/// instance).
+#[derive(Default)]
+struct KernelTable<'i> {
+    /// (primitive, bindings, trivial_accept) -> index into `kernels`.
+    slots: HashMap<(FuncId, &'i [Binding], bool), usize>,
+    /// `None`: the kernel failed to compile (reported once).
+    kernels: Vec<Option<Arc<Kernel>>>,
+    /// The previous instance looked up and its slot.
+    last: Option<(&'i Instance, usize)>,
+}
+
+impl<'i> KernelTable<'i> {
+    /// The slot of `inst`'s kernel; `compile` makes it (from the instance's key) the first
+    /// time its (primitive, key) is met.
+    fn slot(&mut self, inst: &'i Instance, compile: impl FnOnce(&VariantKey) -> Option<Arc<Kernel>>) -> usize {
+        let same_as = |other: &Instance| {
+            other.func == inst.func
+                && other.key.trivial_accept == inst.key.trivial_accept
+                && other.key.bindings == inst.key.bindings
+        };
+        if let Some((last, slot)) = self.last {
+            if same_as(last) {
+                return slot;
+            }
+        }
+        let lookup = (inst.func, inst.key.bindings.as_slice(), inst.key.trivial_accept);
+        let slot = match self.slots.get(&lookup) {
+            Some(&slot) => slot,
+            None => {
+                self.kernels.push(compile(&inst.key));
+                self.slots.insert(lookup, self.kernels.len() - 1);
+                self.kernels.len() - 1
+            }
+        };
+        self.last = Some((inst, slot));
+        slot
+    }
+}
+
 impl Renderer {
     /// Render every instance submitted so far. Uses the current rayon thread pool (wrap the
     /// call in `ThreadPool::install` to choose the thread count).
@@ -187,39 +231,48 @@ impl Renderer {
         };
 
         // 1. Compile each (func, key) once, in first-use order.
-        let mut kernels: HashMap<(FuncId, VariantKey), Option<Arc<Kernel>>> = HashMap::new();
-        let mut ready: Vec<Option<Arc<Kernel>>> = Vec::with_capacity(self.instances().len());
+        let mut table = KernelTable::default();
         let mut reports: Vec<KernelReport> = vec![];
-        for inst in self.instances() {
-            let key = VariantKey {
-                count_writes: opts.count_writes,
-                ..inst.key.clone()
-            };
-            let entry = kernels.entry((inst.func, key.clone())).or_insert_with(|| {
-                let kernel = compile_one(&program, source, inst.func, &key, &mut diags);
-                if let Some(k) = &kernel {
-                    stats.kernels_compiled += 1;
-                    stats.compile_micros += k.compile_micros;
-                    reports.push(KernelReport {
-                        primitive: program.func(inst.func).name.clone(),
-                        key: describe_key(&key),
-                        trivial_accept: key.trivial_accept,
-                        compile_micros: k.compile_micros,
-                    });
-                }
-                kernel
-            });
+        let ready: Vec<Option<&Kernel>> = {
+            let mut slots = Vec::with_capacity(self.instances().len());
+            for inst in self.instances() {
+                let slot = table.slot(inst, |key| {
+                    let key = VariantKey {
+                        count_writes: opts.count_writes,
+                        ..key.clone()
+                    };
+                    let kernel = compile_one(&program, source, inst.func, &key, &mut diags);
+                    if let Some(k) = &kernel {
+                        stats.kernels_compiled += 1;
+                        stats.compile_micros += k.compile_micros;
+                        reports.push(KernelReport {
+                            primitive: program.func(inst.func).name.clone(),
+                            key: describe_key(&key),
+                            trivial_accept: key.trivial_accept,
+                            compile_micros: k.compile_micros,
+                        });
+                    }
+                    kernel
+                });
+                slots.push(slot);
+            }
             // Never hand a kernel an argument block shorter than its layout reads.
-            let usable = entry.clone().filter(|k| k.layout.words(inst.n_seq) <= inst.args.len());
-            ready.push(usable);
-        }
+            self.instances()
+                .iter()
+                .zip(slots)
+                .map(|(inst, slot)| {
+                    table.kernels[slot]
+                        .as_deref()
+                        .filter(|k| k.layout.words(inst.n_seq) <= inst.args.len())
+                })
+                .collect()
+        };
 
         // 2. Expansion and bound pass, one parallel job per instance: an instance that only
         // calls primitives is replaced by the calls it makes (see `expand`), and every draw
         // is bound. Then binning, in instance order.
         let tiles = tile_grid(opts);
         let tiles_x = opts.width.div_ceil(opts.tile_size) as usize;
-        let mut bins: Vec<Vec<usize>> = vec![vec![]; tiles.len()];
         let mut errors: Vec<(usize, u32, u32)> = vec![];
         let instances = self.instances();
         let budget = Budget::new(opts.expand_budget_words);
@@ -227,11 +280,12 @@ impl Renderer {
             .par_iter()
             .zip(ready.par_iter())
             .map(|(inst, kernel)| {
-                let kernel = kernel.as_ref()?;
+                let kernel = (*kernel)?;
                 Some(expand_instance(&program, opts, &budget, inst, kernel))
             })
             .collect();
-        let mut draws: Vec<Draw> = vec![];
+        let mut draws: Vec<Draw> = Vec::with_capacity(instances.len());
+        let mut rects: Vec<Option<TileRect>> = Vec::with_capacity(instances.len());
         for (i, e) in expanded.iter().enumerate() {
             let Some(e) = e else { continue };
             stats.expanded_instances += usize::from(e.expanded);
@@ -239,17 +293,12 @@ impl Renderer {
             stats.expand_over_budget += usize::from(e.over_budget);
             errors.extend(e.errors.iter().map(|&(code, site)| (i, code, site)));
             for d in 0..e.len() {
-                if let Some((tx0, ty0, tx1, ty1)) = e.bound(d).and_then(|b| tiles_overlapped(b, opts)) {
-                    for ty in ty0..=ty1 {
-                        for tx in tx0..=tx1 {
-                            bins[ty * tiles_x + tx].push(draws.len());
-                        }
-                    }
-                }
+                rects.push(e.bound(d).and_then(|b| tiles_overlapped(b, opts)));
                 draws.push(e.draw(d, &instances[i], i));
             }
         }
-        stats.tile_invocations = bins.iter().map(Vec::len).sum();
+        let bins = Bins::new(&rects, tiles.len(), tiles_x);
+        stats.tile_invocations = bins.draws.len();
         let tiles_started = Instant::now();
         stats.setup_micros = micros_between(started, tiles_started);
 
@@ -280,7 +329,7 @@ impl Renderer {
         let targets = frame.tile_targets(tiles.len(), opts.tile_size);
         let tile_errors: Vec<Vec<(usize, u32, u32)>> = tiles
             .par_iter()
-            .zip(bins.par_iter())
+            .zip(bins.slices().into_par_iter())
             .zip(targets.into_par_iter())
             .map_init(TileScratch::default, |scratch, ((tile, bin), target)| {
                 render_tile(tile, bin, &draws, num_planes, opts, scratch, target)
@@ -441,10 +490,13 @@ pub(super) fn run_bound(draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>,
     (bound, error)
 }
 
+/// An inclusive rectangle of tile indices: (tx0, ty0, tx1, ty1).
+type TileRect = (usize, usize, usize, usize);
+
 /// The tiles (inclusive tile-index rectangle) a screen bound overlaps, or `None`. Pixels
 /// whose centre lies in the bound are covered; the range is widened by one pixel each way so
 /// float rounding can never drop a tile.
-fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<(usize, usize, usize, usize)> {
+fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<TileRect> {
     if bound.iter().any(|v| v.is_nan()) {
         return None;
     }
@@ -454,10 +506,10 @@ fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<(usize, usi
     let ymin = f64::from(bound[1]).clamp(-2.0, h + 2.0);
     let xmax = f64::from(bound[2]).clamp(-2.0, w + 2.0);
     let ymax = f64::from(bound[3]).clamp(-2.0, h + 2.0);
-    let px0 = ((xmin - 0.5).floor() as i64 - 1).max(0);
-    let py0 = ((ymin - 0.5).floor() as i64 - 1).max(0);
-    let px1 = ((xmax - 0.5).ceil() as i64 + 1).min(i64::from(opts.width) - 1);
-    let py1 = ((ymax - 0.5).ceil() as i64 + 1).min(i64::from(opts.height) - 1);
+    let px0 = (floor_clamped(xmin - 0.5) - 1).max(0);
+    let py0 = (floor_clamped(ymin - 0.5) - 1).max(0);
+    let px1 = (ceil_clamped(xmax - 0.5) + 1).min(i64::from(opts.width) - 1);
+    let py1 = (ceil_clamped(ymax - 0.5) + 1).min(i64::from(opts.height) - 1);
     if px0 > px1 || py0 > py1 {
         return None;
     }
@@ -468,6 +520,64 @@ fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<(usize, usi
         (px1 / ts) as usize,
         (py1 / ts) as usize,
     ))
+}
+
+/// `x.floor() as i64` for a finite `x` well inside the i64 range (a clamped screen
+/// coordinate), without the libm call `floor` is on targets without SSE4.1: truncate, then
+/// step down when that rounded a negative fraction up.
+fn floor_clamped(x: f64) -> i64 {
+    let t = x as i64;
+    t - i64::from((t as f64) > x)
+}
+
+/// `x.ceil() as i64` under the same conditions as [`floor_clamped`].
+fn ceil_clamped(x: f64) -> i64 {
+    let t = x as i64;
+    t + i64::from((t as f64) < x)
+}
+
+/// Every tile's draws, in submission order, as one flat list: tile `t`'s draw indices are
+/// `draws[start[t]..start[t + 1]]` (a counting sort of the draws' tile rectangles: two
+/// passes, no per-tile vector).
+struct Bins {
+    start: Vec<usize>,
+    draws: Vec<usize>,
+}
+
+impl Bins {
+    /// Bin draw `i` into every tile of `rects[i]` (none when `None`), for a grid of `tiles`
+    /// tiles, `tiles_x` per row.
+    fn new(rects: &[Option<TileRect>], tiles: usize, tiles_x: usize) -> Bins {
+        let mut start = vec![0usize; tiles + 1];
+        for &(tx0, ty0, tx1, ty1) in rects.iter().flatten() {
+            for ty in ty0..=ty1 {
+                for tx in tx0..=tx1 {
+                    start[ty * tiles_x + tx + 1] += 1;
+                }
+            }
+        }
+        for t in 0..tiles {
+            start[t + 1] += start[t];
+        }
+        let mut next = start.clone();
+        let mut draws = vec![0usize; start[tiles]];
+        for (i, rect) in rects.iter().enumerate() {
+            let Some((tx0, ty0, tx1, ty1)) = *rect else { continue };
+            for ty in ty0..=ty1 {
+                for tx in tx0..=tx1 {
+                    let t = ty * tiles_x + tx;
+                    draws[next[t]] = i;
+                    next[t] += 1;
+                }
+            }
+        }
+        Bins { start, draws }
+    }
+
+    /// Each tile's draw indices, in tile order.
+    fn slices(&self) -> Vec<&[usize]> {
+        self.start.windows(2).map(|w| &self.draws[w[0]..w[1]]).collect()
+    }
 }
 
 /// Render one tile's draws into `scratch`, then copy the tile into the frame through
@@ -489,25 +599,35 @@ fn render_tile(
         buf.clear();
         buf.resize(len, T::default());
     }
+    if bin.is_empty() {
+        // Nothing draws here: the frame's own buffers are already zero, which is what the
+        // tile's would hold.
+        return vec![];
+    }
     reset(&mut scratch.depth, plane_len);
     reset(&mut scratch.gbuf, plane_len * num_planes as usize);
     reset(&mut scratch.counts, if opts.count_writes { plane_len } else { 0 });
     let (depth, gbuf, counts) = (&mut scratch.depth, &mut scratch.gbuf, &mut scratch.counts);
     let mut errors = vec![];
+    // Every draw starts from this context (a copy: a kernel may change any field of its
+    // own, e.g. fuel, the error or the call depth).
+    let mut start = fresh_ctx(opts, MODE_RENDER);
+    start.x0 = tile.x0 as i32;
+    start.y0 = tile.y0 as i32;
+    start.x1 = tile.x1 as i32;
+    start.y1 = tile.y1 as i32;
+    start.stride = stride;
+    start.depth = depth.as_mut_ptr();
+    start.gbuf = gbuf.as_mut_ptr();
+    start.plane_stride = plane_len as u32;
+    start.num_planes = num_planes;
+    start.write_count = counts.as_mut_ptr();
     for &i in bin {
         let draw = &draws[i];
-        let mut ctx = fresh_ctx(opts, MODE_RENDER);
-        ctx.call_depth = draw.call_depth;
-        ctx.x0 = tile.x0 as i32;
-        ctx.y0 = tile.y0 as i32;
-        ctx.x1 = tile.x1 as i32;
-        ctx.y1 = tile.y1 as i32;
-        ctx.stride = stride;
-        ctx.depth = depth.as_mut_ptr();
-        ctx.gbuf = gbuf.as_mut_ptr();
-        ctx.plane_stride = plane_len as u32;
-        ctx.num_planes = num_planes;
-        ctx.write_count = counts.as_mut_ptr();
+        let mut ctx = TileCtx {
+            call_depth: draw.call_depth,
+            ..start
+        };
         // SAFETY: the context names this tile's own buffers: depth and (when counting)
         // write_count are `stride * rows` long, gbuf `num_planes * plane_stride`; the kernel
         // was compiled with count_writes == opts.count_writes, so it touches write_count
