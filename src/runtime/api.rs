@@ -213,7 +213,51 @@ pub struct Renderer {
     pending_interp: HashMap<String, Interp>,
     block: Option<Block>,
     instances: Vec<Instance>,
+    /// The instances' distinct (primitive, key) pairs, kept as instances are added.
+    variants: Variants,
     warnings: Vec<ApiIssue>,
+}
+
+/// The distinct (primitive, key) pairs of the submitted instances in first-use order, and
+/// which one each instance has: the renderer compiles one kernel per pair and finds an
+/// instance's by index, without comparing, hashing or cloning keys per instance per frame.
+/// Keys are compared without `count_writes` (the renderer sets that from its options).
+#[derive(Default)]
+struct Variants {
+    /// (primitive, key), first-use order.
+    list: Vec<(FuncId, VariantKey)>,
+    /// Per instance, in order: its index into `list`.
+    of_instance: Vec<usize>,
+    /// `list` inverted (keys with `count_writes` false).
+    index: HashMap<(FuncId, VariantKey), usize>,
+}
+
+impl Variants {
+    /// Record the next instance's variant.
+    fn add(&mut self, inst: &Instance) {
+        // Consecutive instances mostly share their primitive and key: compare with the
+        // previous one before hashing.
+        let previous = self.of_instance.last().copied();
+        let same = previous.filter(|&v| {
+            let (func, key) = &self.list[v];
+            *func == inst.func && key.trivial_accept == inst.key.trivial_accept && key.bindings == inst.key.bindings
+        });
+        let v = same.unwrap_or_else(|| {
+            let lookup = (
+                inst.func,
+                VariantKey {
+                    count_writes: false,
+                    ..inst.key.clone()
+                },
+            );
+            let next = self.list.len();
+            *self.index.entry(lookup.clone()).or_insert_with(|| {
+                self.list.push(lookup);
+                next
+            })
+        });
+        self.of_instance.push(v);
+    }
 }
 
 impl Renderer {
@@ -229,6 +273,7 @@ impl Renderer {
             pending_interp: HashMap::new(),
             block: None,
             instances: vec![],
+            variants: Variants::default(),
             warnings: vec![],
         }
     }
@@ -238,6 +283,11 @@ impl Renderer {
     }
     pub fn instances(&self) -> &[Instance] {
         &self.instances
+    }
+    /// The distinct (primitive, key) pairs of the instances, in first-use order (keys with
+    /// `count_writes` false), and per instance the index of its pair.
+    pub(crate) fn variants(&self) -> (&[(FuncId, VariantKey)], &[usize]) {
+        (&self.variants.list, &self.variants.of_instance)
     }
     pub fn shading_params(&self) -> &[ShadingParam] {
         &self.shading
@@ -803,8 +853,10 @@ impl Renderer {
             return Ok(());
         };
         let instance = self.build_instance(func, &block);
-        let ready = self.finish_geometry(instance);
-        self.instances.extend(ready);
+        for inst in self.finish_geometry(instance) {
+            self.variants.add(&inst);
+            self.instances.push(inst);
+        }
         Ok(())
     }
 

@@ -18,9 +18,11 @@
 //! (the per-tile path shares one invocation's fuel between the caller and all its calls), and
 //! run-time errors of the caller's setup are recorded once, by the expand run.
 //!
-//! Instances are expanded and their draws bound (`MODE_BOUND`) in parallel, one rayon job per
-//! instance, each with its own recorder and argument pool; the renderer then bins the draws
-//! sequentially in instance order, so the draw list does not depend on the thread count.
+//! Instances are expanded and their draws bound (`MODE_BOUND`) in parallel (rayon jobs of a
+//! few hundred instances), each instance with its own recorder and argument pool; a draw's
+//! bound is turned into the rectangle of tiles it overlaps right there. The renderer then
+//! bins the draws sequentially in instance order, so every tile's draw list does not depend
+//! on the thread count. An instance drawn as itself (the usual case) allocates nothing.
 //!
 //! The recorded words are budgeted (`RenderOptions::expand_budget_words`, one counter for the
 //! frame): an instance whose expansion would exceed what is left is rolled back (its words
@@ -37,13 +39,14 @@ use crate::ir::{FuncId, Program};
 use crate::jit::Kernel;
 
 use super::api::{Instance, RenderOptions};
-use super::frame::{fresh_ctx, run_bound};
+use super::frame::{fresh_ctx, run_bound, TileRect};
 
 /// Budget charged per recorded call on top of its argument words (what its bookkeeping takes).
 const CALL_WORDS: usize = 12;
 
 /// One kernel invocation per tile it is binned into: a submitted instance, or a call that an
 /// expanded instance made.
+#[derive(Clone, Copy)]
 pub(crate) struct Draw<'a> {
     pub entry: KernelFn,
     pub args: &'a [u32],
@@ -89,32 +92,33 @@ impl Budget {
     }
 }
 
-/// One submitted instance's draws (itself, or the calls it made), their bounds and the
-/// run-time errors met on the way, in order.
-pub(crate) struct Expanded {
-    draws: Draws,
-    /// (error code, site) of the expand and bound runs, in order.
-    pub errors: Vec<(u32, u32)>,
-    /// The instance was replaced by its calls.
-    pub expanded: bool,
-    /// Its expansion exceeded the budget (it is drawn per tile instead).
-    pub over_budget: bool,
-}
-
-/// The draws of one instance. Most instances are drawn as themselves: that case allocates
-/// nothing (a frame may hold hundreds of thousands of small triangles).
-enum Draws {
+/// One submitted instance's draws (itself, or the calls it made), the tiles each overlaps
+/// and the run-time errors met on the way, in order.
+pub(crate) enum Expanded {
+    /// Drawn as itself (the usual case: a frame may hold hundreds of thousands of small
+    /// triangles, so this allocates nothing and stays small).
     Itself {
         entry: KernelFn,
-        bound: Option<[f32; 4]>,
+        /// The tiles its `MODE_BOUND` bound overlaps (`None`: no tile).
+        tiles: Option<TileRect>,
+        /// (error code, site) of its bound run.
+        error: Option<(u32, u32)>,
+        /// Its expansion exceeded the budget (it is drawn per tile instead).
+        over_budget: bool,
     },
-    Calls {
-        /// Argument blocks of the recorded calls, back to back.
-        pool: Vec<u32>,
-        items: Vec<Item>,
-        /// Each item's screen bound from its `MODE_BOUND` run (`None`: it recorded none).
-        bounds: Vec<Option<[f32; 4]>>,
-    },
+    /// Replaced by the calls it made.
+    Calls(Box<CallDraws>),
+}
+
+/// The draws of an instance replaced by its calls.
+pub(crate) struct CallDraws {
+    /// Argument blocks of the recorded calls, back to back.
+    pool: Vec<u32>,
+    items: Vec<Item>,
+    /// The tiles each item's `MODE_BOUND` bound overlaps (`None`: no tile).
+    tiles: Vec<Option<TileRect>>,
+    /// (error code, site) of the expand and bound runs, in order.
+    errors: Vec<(u32, u32)>,
 }
 
 /// One call recorded by [`record_call`].
@@ -225,17 +229,18 @@ struct Expander<'p> {
     layouts: HashMap<u32, ArgLayout>,
 }
 
-/// The draws of instance `inst` (whose kernel is `kernel`), each bound: its calls if its
-/// primitive expands (and expansion is on and fits the budget), else itself.
+/// The draws of instance `inst` (whose kernel is `kernel`), each bound and its bound turned
+/// into the tiles it overlaps by `tiles_of`: its calls if its primitive expands (and
+/// expansion is on and fits the budget), else itself.
 pub(crate) fn expand_instance(
     program: &Program,
     opts: &RenderOptions,
     budget: &Budget,
     inst: &Instance,
     kernel: &Kernel,
+    tiles_of: impl Fn([f32; 4]) -> Option<TileRect>,
 ) -> Expanded {
     let mut over_budget = false;
-    let mut errors = vec![];
     if opts.expand_calls && expands(program, inst.func) {
         let mut e = Expander {
             program,
@@ -249,25 +254,21 @@ pub(crate) fn expand_instance(
             layouts: HashMap::new(),
         };
         if e.expand(kernel.entry, &inst.args, 0) {
-            let mut bounds = Vec::with_capacity(e.items.len());
+            let mut tiles = Vec::with_capacity(e.items.len());
             for item in &e.items {
                 let (bound, error) = run_bound(&item.draw(&e.pool, inst, 0), opts);
-                bounds.push(bound);
+                tiles.push(bound.and_then(&tiles_of));
                 e.errors.extend(error);
             }
-            return Expanded {
-                draws: Draws::Calls {
-                    pool: e.pool,
-                    items: e.items,
-                    bounds,
-                },
+            return Expanded::Calls(Box::new(CallDraws {
+                pool: e.pool,
+                items: e.items,
+                tiles,
                 errors: e.errors,
-                expanded: true,
-                over_budget: false,
-            };
+            }));
         }
-        // Over budget: forget what it recorded and render it per tile, as without expansion
-        // (which reports its run-time errors again).
+        // Over budget: forget what it recorded (errors included) and render it per tile, as
+        // without expansion (which reports its run-time errors again).
         budget.refund(e.charged);
         over_budget = true;
     }
@@ -277,17 +278,27 @@ pub(crate) fn expand_instance(
         call_depth: 0,
     };
     let (bound, error) = run_bound(&itself.draw(&[], inst, 0), opts);
-    errors.extend(error);
-    Expanded {
-        draws: Draws::Itself {
-            entry: kernel.entry,
-            bound,
-        },
-        errors,
-        expanded: false,
+    Expanded::Itself {
+        entry: kernel.entry,
+        tiles: bound.and_then(tiles_of),
+        error,
         over_budget,
     }
 }
+
+impl Draw<'_> {
+    /// A placeholder (no arguments, a kernel that does nothing) for slots about to be
+    /// overwritten.
+    pub const NONE: Draw<'static> = Draw {
+        entry: no_draw,
+        args: &[],
+        call_depth: 0,
+        instance: 0,
+    };
+}
+
+/// The placeholder kernel of [`Draw::NONE`]: touches nothing.
+unsafe extern "C" fn no_draw(_ctx: *mut TileCtx, _args: *const u32) {}
 
 impl Item {
     /// This item of instance `inst` (number `index`) whose recorded blocks are in `pool`.
@@ -364,30 +375,48 @@ impl Expander<'_> {
 impl Expanded {
     /// Draws of this instance.
     pub fn len(&self) -> usize {
-        match &self.draws {
-            Draws::Itself { .. } => 1,
-            Draws::Calls { items, .. } => items.len(),
+        match self {
+            Expanded::Itself { .. } => 1,
+            Expanded::Calls(calls) => calls.items.len(),
         }
     }
 
-    /// The bound of draw `i` (below [`Self::len`]).
-    pub fn bound(&self, i: usize) -> Option<[f32; 4]> {
-        match &self.draws {
-            Draws::Itself { bound, .. } => *bound,
-            Draws::Calls { bounds, .. } => bounds[i],
+    /// Whether the instance was replaced by its calls.
+    pub fn expanded(&self) -> bool {
+        matches!(self, Expanded::Calls(_))
+    }
+
+    /// Whether its expansion exceeded the budget (it is drawn per tile instead).
+    pub fn over_budget(&self) -> bool {
+        matches!(self, Expanded::Itself { over_budget: true, .. })
+    }
+
+    /// (error code, site) of the expand and bound runs, in order.
+    pub fn errors(&self) -> &[(u32, u32)] {
+        match self {
+            Expanded::Itself { error, .. } => error.as_slice(),
+            Expanded::Calls(calls) => &calls.errors,
+        }
+    }
+
+    /// The tiles draw `i` (below [`Self::len`]) overlaps.
+    pub fn tiles(&self, i: usize) -> Option<TileRect> {
+        match self {
+            Expanded::Itself { tiles, .. } => *tiles,
+            Expanded::Calls(calls) => calls.tiles[i],
         }
     }
 
     /// Draw `i` (below [`Self::len`]) of instance `inst`, number `index`.
     pub fn draw<'a>(&'a self, i: usize, inst: &'a Instance, index: usize) -> Draw<'a> {
-        match &self.draws {
-            Draws::Itself { entry, .. } => Draw {
+        match self {
+            Expanded::Itself { entry, .. } => Draw {
                 entry: *entry,
                 args: &inst.args,
                 call_depth: 0,
                 instance: index,
             },
-            Draws::Calls { pool, items, .. } => items[i].draw(pool, inst, index),
+            Expanded::Calls(calls) => calls.items[i].draw(&calls.pool, inst, index),
         }
     }
 }

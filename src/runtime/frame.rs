@@ -1,14 +1,21 @@
 //! Rendering a frame: compile, bound, bin, render tiles in parallel, shade, write images.
 //!
-//! 1. Every (primitive, key) the instances need is compiled once through the [`KernelSource`].
+//! 1. Every (primitive, key) the instances need is compiled once through the [`KernelSource`],
+//!    in first-use order. The renderer interns each instance's key as the instance is added,
+//!    so a frame finds an instance's kernel by index (no key compared, hashed or cloned per
+//!    instance).
 //! 2. Instances become *draws*: an instance of a primitive that only calls primitives
 //!    (`abi::expands`) runs once in `MODE_EXPAND` and is replaced by the calls it makes, in
 //!    call order ([`super::expand`]; off with `RenderOptions::expand_calls`); any other
 //!    instance is one draw. Each draw's kernel runs once in `MODE_BOUND` on an empty tile
 //!    with no buffers (instances expand and bound in parallel, draws are binned afterwards
 //!    in submission order); its recorded screen bound (conservative) bins it into the tiles
-//!    it overlaps. A NaN bound, or no bound at all, puts it in no tile.
-//! 3. Tiles render in parallel with rayon. A tile task renders into its worker's scratch
+//!    it overlaps. A NaN bound, or no bound at all, puts it in no tile. The bins are one flat
+//!    list of draw copies grouped by tile (a counting sort), so a tile task reads its draws
+//!    front to back and prefetches the next draw's arguments while a kernel runs.
+//! 3. Tiles render in parallel with rayon, one job per tile (so that the tiles spread evenly
+//!    over the threads). A tile no draw touches is skipped: the frame starts zeroed, which
+//!    is what it would copy. A tile task renders into its worker's scratch
 //!    buffers (depth u32 with 0 = farthest, G-buffer planes f32, write counts; zeroed per
 //!    tile, reused from tile to tile), running its draws in order in `MODE_RENDER` with
 //!    fresh fuel each, then copies the tile into the frame through row slices it alone owns
@@ -24,7 +31,7 @@
 //! passes there anyway) shows the `Cs` shading parameter clamped to [0, 1] (white without
 //! one, as OpenGL's default colour), other pixels the background.
 
-use std::collections::{BTreeSet, HashMap};
+use std::collections::BTreeSet;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -191,69 +198,73 @@ impl Renderer {
         };
 
         // 1. Compile each (func, key) once, in first-use order.
-        let mut kernels: HashMap<(FuncId, VariantKey), Option<Arc<Kernel>>> = HashMap::new();
-        let mut ready: Vec<Option<Arc<Kernel>>> = Vec::with_capacity(self.instances().len());
+        let (variants, variant_of) = self.variants();
         let mut reports: Vec<KernelReport> = vec![];
-        for inst in self.instances() {
-            let key = VariantKey {
-                count_writes: opts.count_writes,
-                ..inst.key.clone()
-            };
-            let entry = kernels.entry((inst.func, key.clone())).or_insert_with(|| {
-                let kernel = compile_one(&program, source, inst.func, &key, &mut diags);
+        let kernels: Vec<Option<Arc<Kernel>>> = variants
+            .iter()
+            .map(|(func, key)| {
+                let key = VariantKey {
+                    count_writes: opts.count_writes,
+                    ..key.clone()
+                };
+                let kernel = compile_one(&program, source, *func, &key, &mut diags);
                 if let Some(k) = &kernel {
                     stats.kernels_compiled += 1;
                     stats.compile_micros += k.compile_micros;
                     reports.push(KernelReport {
-                        primitive: program.func(inst.func).name.clone(),
+                        primitive: program.func(*func).name.clone(),
                         key: describe_key(&key),
                         trivial_accept: key.trivial_accept,
                         compile_micros: k.compile_micros,
                     });
                 }
                 kernel
-            });
-            // Never hand a kernel an argument block shorter than its layout reads.
-            let usable = entry.clone().filter(|k| k.layout.words(inst.n_seq) <= inst.args.len());
-            ready.push(usable);
-        }
+            })
+            .collect();
+        // Never hand a kernel an argument block shorter than its layout reads.
+        let ready: Vec<Option<&Kernel>> = self
+            .instances()
+            .iter()
+            .zip(variant_of)
+            .map(|(inst, &v)| {
+                kernels[v]
+                    .as_deref()
+                    .filter(|k| k.layout.words(inst.n_seq) <= inst.args.len())
+            })
+            .collect();
 
-        // 2. Expansion and bound pass, one parallel job per instance: an instance that only
-        // calls primitives is replaced by the calls it makes (see `expand`), and every draw
-        // is bound. Then binning, in instance order.
+        // 2. Expansion and bound pass in parallel: an instance that only calls primitives is
+        // replaced by the calls it makes (see `expand`), and every draw is bound and its bound
+        // turned into the tiles it overlaps. Then binning, in instance order.
         let tiles = tile_grid(opts);
         let tiles_x = opts.width.div_ceil(opts.tile_size) as usize;
-        let mut bins: Vec<Vec<usize>> = vec![vec![]; tiles.len()];
         let mut errors: Vec<(usize, u32, u32)> = vec![];
         let instances = self.instances();
         let budget = Budget::new(opts.expand_budget_words);
         let expanded: Vec<Option<Expanded>> = instances
             .par_iter()
             .zip(ready.par_iter())
-            .map(|(inst, kernel)| {
-                let kernel = kernel.as_ref()?;
-                Some(expand_instance(&program, opts, &budget, inst, kernel))
+            .enumerate()
+            .with_max_len(BOUND_JOB)
+            .map(|(i, (inst, kernel))| {
+                if let Some(next) = instances.get(i + 1) {
+                    prefetch(&next.args);
+                }
+                let kernel = (*kernel)?;
+                let tiles_of = |bound| tiles_overlapped(bound, opts);
+                Some(expand_instance(&program, opts, &budget, inst, kernel, tiles_of))
             })
             .collect();
-        let mut draws: Vec<Draw> = vec![];
+        drop(ready);
         for (i, e) in expanded.iter().enumerate() {
             let Some(e) = e else { continue };
-            stats.expanded_instances += usize::from(e.expanded);
-            stats.expanded_calls += if e.expanded { e.len() } else { 0 };
-            stats.expand_over_budget += usize::from(e.over_budget);
-            errors.extend(e.errors.iter().map(|&(code, site)| (i, code, site)));
-            for d in 0..e.len() {
-                if let Some((tx0, ty0, tx1, ty1)) = e.bound(d).and_then(|b| tiles_overlapped(b, opts)) {
-                    for ty in ty0..=ty1 {
-                        for tx in tx0..=tx1 {
-                            bins[ty * tiles_x + tx].push(draws.len());
-                        }
-                    }
-                }
-                draws.push(e.draw(d, &instances[i], i));
-            }
+            stats.expanded_instances += usize::from(e.expanded());
+            stats.expanded_calls += if e.expanded() { e.len() } else { 0 };
+            stats.expand_over_budget += usize::from(e.over_budget());
+            errors.extend(e.errors().iter().map(|&(code, site)| (i, code, site)));
         }
-        stats.tile_invocations = bins.iter().map(Vec::len).sum();
+        let bins = Bins::new(&expanded, instances, tiles.len(), tiles_x);
+        stats.tile_invocations = bins.draws.len();
         let tiles_started = Instant::now();
         stats.setup_micros = micros_between(started, tiles_started);
 
@@ -284,10 +295,11 @@ impl Renderer {
         let targets = frame.tile_targets(tiles.len(), opts.tile_size);
         let tile_errors: Vec<Vec<(usize, u32, u32)>> = tiles
             .par_iter()
-            .zip(bins.par_iter())
+            .zip(bins.slices().into_par_iter())
             .zip(targets.into_par_iter())
+            .with_max_len(1)
             .map_init(TileScratch::default, |scratch, ((tile, bin), target)| {
-                render_tile(tile, bin, &draws, num_planes, opts, scratch, target)
+                render_tile(tile, bin, num_planes, opts, scratch, target)
             })
             .collect();
         errors.extend(tile_errors.into_iter().flatten());
@@ -319,6 +331,12 @@ impl Renderer {
         }
     }
 }
+
+/// Most instances one job of the parallel expansion and bound pass takes: small enough that
+/// the jobs spread evenly over the threads (one preempted thread does not hold back the
+/// frame with a large part of the pass), large enough that scheduling them costs nothing
+/// next to the bound runs (a small triangle's takes well under a microsecond).
+const BOUND_JOB: usize = 512;
 
 fn micros_between(from: Instant, to: Instant) -> u64 {
     to.duration_since(from).as_micros() as u64
@@ -445,10 +463,13 @@ pub(super) fn run_bound(draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>,
     (bound, error)
 }
 
+/// An inclusive rectangle of tile indices: (tx0, ty0, tx1, ty1).
+pub(super) type TileRect = (usize, usize, usize, usize);
+
 /// The tiles (inclusive tile-index rectangle) a screen bound overlaps, or `None`. Pixels
 /// whose centre lies in the bound are covered; the range is widened by one pixel each way so
 /// float rounding can never drop a tile.
-fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<(usize, usize, usize, usize)> {
+fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<TileRect> {
     if bound.iter().any(|v| v.is_nan()) {
         return None;
     }
@@ -458,10 +479,10 @@ fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<(usize, usi
     let ymin = f64::from(bound[1]).clamp(-2.0, h + 2.0);
     let xmax = f64::from(bound[2]).clamp(-2.0, w + 2.0);
     let ymax = f64::from(bound[3]).clamp(-2.0, h + 2.0);
-    let px0 = ((xmin - 0.5).floor() as i64 - 1).max(0);
-    let py0 = ((ymin - 0.5).floor() as i64 - 1).max(0);
-    let px1 = ((xmax - 0.5).ceil() as i64 + 1).min(i64::from(opts.width) - 1);
-    let py1 = ((ymax - 0.5).ceil() as i64 + 1).min(i64::from(opts.height) - 1);
+    let px0 = (floor_clamped(xmin - 0.5) - 1).max(0);
+    let py0 = (floor_clamped(ymin - 0.5) - 1).max(0);
+    let px1 = (ceil_clamped(xmax - 0.5) + 1).min(i64::from(opts.width) - 1);
+    let py1 = (ceil_clamped(ymax - 0.5) + 1).min(i64::from(opts.height) - 1);
     if px0 > px1 || py0 > py1 {
         return None;
     }
@@ -474,12 +495,76 @@ fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<(usize, usi
     ))
 }
 
+/// `x.floor() as i64` for a finite `x` well inside the i64 range (a clamped screen
+/// coordinate), without the libm call `floor` is on targets without SSE4.1: truncate, then
+/// step down when that rounded a negative fraction up.
+fn floor_clamped(x: f64) -> i64 {
+    let t = x as i64;
+    t - i64::from((t as f64) > x)
+}
+
+/// `x.ceil() as i64` under the same conditions as [`floor_clamped`].
+fn ceil_clamped(x: f64) -> i64 {
+    let t = x as i64;
+    t + i64::from((t as f64) < x)
+}
+
+/// Every tile's draws, in submission order, as one flat list: tile `t`'s draws are
+/// `draws[start[t]..start[t + 1]]`, copied there so that a tile task reads its draws
+/// front to back (a counting sort of the draws by the tiles they overlap: two passes, no
+/// per-tile vector).
+struct Bins<'a> {
+    start: Vec<usize>,
+    draws: Vec<Draw<'a>>,
+}
+
+impl<'a> Bins<'a> {
+    /// Bin every draw of `expanded` (instance `i`'s at index `i`, `None` for an instance
+    /// without a usable kernel) into the tiles it overlaps, for a grid of `tiles` tiles,
+    /// `tiles_x` per row.
+    fn new(expanded: &'a [Option<Expanded>], instances: &'a [Instance], tiles: usize, tiles_x: usize) -> Bins<'a> {
+        // Every draw's tile rectangle, with what to do in each of its tiles.
+        let each = |visit: &mut dyn FnMut(usize, &'a Expanded, usize, usize)| {
+            for (i, e) in expanded.iter().enumerate() {
+                let Some(e) = e else { continue };
+                for d in 0..e.len() {
+                    let Some((tx0, ty0, tx1, ty1)) = e.tiles(d) else {
+                        continue;
+                    };
+                    for ty in ty0..=ty1 {
+                        for tx in tx0..=tx1 {
+                            visit(ty * tiles_x + tx, e, d, i);
+                        }
+                    }
+                }
+            }
+        };
+        let mut start = vec![0usize; tiles + 1];
+        each(&mut |t, _, _, _| start[t + 1] += 1);
+        for t in 0..tiles {
+            start[t + 1] += start[t];
+        }
+        let mut next = start.clone();
+        // Every slot is overwritten below (the counts are exact); the filler is never run.
+        let mut draws = vec![Draw::NONE; start[tiles]];
+        each(&mut |t, e, d, i| {
+            draws[next[t]] = e.draw(d, &instances[i], i);
+            next[t] += 1;
+        });
+        Bins { start, draws }
+    }
+
+    /// Each tile's draws, in tile order.
+    fn slices(&self) -> Vec<&[Draw<'a>]> {
+        self.start.windows(2).map(|w| &self.draws[w[0]..w[1]]).collect()
+    }
+}
+
 /// Render one tile's draws into `scratch`, then copy the tile into the frame through
 /// `target`; returns the tile's run-time errors (instance, code, site) in order.
 fn render_tile(
     tile: &Tile,
-    bin: &[usize],
-    draws: &[Draw],
+    bin: &[Draw],
     num_planes: u32,
     opts: &RenderOptions,
     scratch: &mut TileScratch,
@@ -493,25 +578,37 @@ fn render_tile(
         buf.clear();
         buf.resize(len, T::default());
     }
+    if bin.is_empty() {
+        // Nothing draws here: the frame's own buffers are already zero, which is what the
+        // tile's would hold.
+        return vec![];
+    }
     reset(&mut scratch.depth, plane_len);
     reset(&mut scratch.gbuf, plane_len * num_planes as usize);
     reset(&mut scratch.counts, if opts.count_writes { plane_len } else { 0 });
     let (depth, gbuf, counts) = (&mut scratch.depth, &mut scratch.gbuf, &mut scratch.counts);
     let mut errors = vec![];
-    for &i in bin {
-        let draw = &draws[i];
-        let mut ctx = fresh_ctx(opts, MODE_RENDER);
-        ctx.call_depth = draw.call_depth;
-        ctx.x0 = tile.x0 as i32;
-        ctx.y0 = tile.y0 as i32;
-        ctx.x1 = tile.x1 as i32;
-        ctx.y1 = tile.y1 as i32;
-        ctx.stride = stride;
-        ctx.depth = depth.as_mut_ptr();
-        ctx.gbuf = gbuf.as_mut_ptr();
-        ctx.plane_stride = plane_len as u32;
-        ctx.num_planes = num_planes;
-        ctx.write_count = counts.as_mut_ptr();
+    // Every draw starts from this context (a copy: a kernel may change any field of its
+    // own, e.g. fuel, the error or the call depth).
+    let mut start = fresh_ctx(opts, MODE_RENDER);
+    start.x0 = tile.x0 as i32;
+    start.y0 = tile.y0 as i32;
+    start.x1 = tile.x1 as i32;
+    start.y1 = tile.y1 as i32;
+    start.stride = stride;
+    start.depth = depth.as_mut_ptr();
+    start.gbuf = gbuf.as_mut_ptr();
+    start.plane_stride = plane_len as u32;
+    start.num_planes = num_planes;
+    start.write_count = counts.as_mut_ptr();
+    for (j, draw) in bin.iter().enumerate() {
+        if let Some(next) = bin.get(j + 1) {
+            prefetch(next.args);
+        }
+        let mut ctx = TileCtx {
+            call_depth: draw.call_depth,
+            ..start
+        };
         // SAFETY: the context names this tile's own buffers: depth and (when counting)
         // write_count are `stride * rows` long, gbuf `num_planes * plane_stride`; the kernel
         // was compiled with count_writes == opts.count_writes, so it touches write_count
@@ -539,6 +636,28 @@ fn render_tile(
         }
     }
     errors
+}
+
+/// Ask the CPU to start loading the head of an argument block the next kernel will read:
+/// a tile's draws come from anywhere in the submission, so their blocks are scattered in
+/// memory, and the kernel running meanwhile hides the wait. A hint only: it never faults
+/// and changes no value.
+#[inline]
+fn prefetch(args: &[u32]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = args.as_ptr().cast::<i8>();
+        // SAFETY: prefetching is a hint that never faults, whatever the address; SSE (which
+        // `prefetcht0` belongs to) is part of the x86_64 baseline.
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(p) };
+        if args.len() > 16 {
+            // SAFETY: as above; the address is inside the block.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = args;
 }
 
 fn report_runtime_errors(
@@ -879,6 +998,20 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    #[test]
+    fn clamped_floor_and_ceil_match_the_library_ones() {
+        let mut values = vec![-0.0, 0.0, -2.5, -2.0, -1.5, -1.0, -0.5, -1e-9, 1e-9, 0.5, 16386.5];
+        // Every quarter pixel, and values just around integers, over a clamped range.
+        for i in -12..=65_560 {
+            let x = f64::from(i) / 4.0;
+            values.extend([x, x - 1e-7, x + 1e-7]);
+        }
+        for x in values {
+            assert_eq!(floor_clamped(x), x.floor() as i64, "floor {x}");
+            assert_eq!(ceil_clamped(x), x.ceil() as i64, "ceil {x}");
         }
     }
 
