@@ -726,8 +726,6 @@ impl Shader {
     /// fused pass over the row in chunks of [`CHUNK`] pixels. Each chunk loads its planes
     /// contiguously, computes geometry, every light, fog and the final colour in registers
     /// and stores the colours once; a chunk with no written pixel is skipped.
-    // `v - v == 0.0` is the finiteness test that keeps the chunk loops branch-free.
-    #[allow(clippy::eq_op)]
     #[inline(always)]
     fn shade_row_body<const LIT: bool, const FOG: bool, const TEXTURE: bool>(
         &self,
@@ -767,6 +765,8 @@ impl Shader {
 
     /// The colours of the chunk of pixels `x0 ..= x0 + CHUNK - 1` of `row` (lanes past the
     /// row's end or unwritten are computed from placeholder inputs and discarded).
+    // `v - v == 0.0` is the finiteness test that keeps the chunk loops branch-free.
+    #[allow(clippy::eq_op)]
     #[inline(always)]
     fn shade_chunk<const LIT: bool, const FOG: bool, const TEXTURE: bool>(
         &self,
