@@ -79,6 +79,8 @@ pub struct WorkloadResult {
 /// between runs (see [`crate::jit::CompileCost`]).
 #[derive(Clone, Debug, Serialize)]
 pub struct CompileTiming {
+    /// The workload whose first instance's variant this is.
+    pub workload: String,
     pub variant: String,
     /// Tier 0 (what the first frame waits for), wall time, microseconds.
     pub micros: u64,
@@ -436,6 +438,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
             let cost = fresh.compile_cost(inst.func, &inst.key).unwrap_or_default();
             let tier1_cost = fresh.tier_up_compile_cost(inst.func, &inst.key).unwrap_or_default();
             compile.push(CompileTiming {
+                workload: w.name.clone(),
                 variant: crate::runtime::describe_key(&inst.key),
                 micros: kernel.compile_micros,
                 tier1_micros: tier1.map_or(0, |k| k.compile_micros),
@@ -681,11 +684,12 @@ pub fn format_table(report: &BenchReport) -> String {
     ));
     for c in &report.compile {
         s.push_str(&format!(
-            "  {:>22} {:>8} | {:>22} {:>8}  {}\n",
+            "  {:>22} {:>8} | {:>22} {:>8}  {}: {}\n",
             format!("{} ({})", c.cpu_micros, c.batch_cpu_micros),
             c.micros,
             format!("{} ({})", c.tier1_cpu_micros, c.tier1_batch_cpu_micros),
             c.tier1_micros,
+            c.workload,
             c.variant
         ));
     }
