@@ -12,8 +12,9 @@
 //! [`libm`] the `extern "C"` math helpers kernels link against.
 //!
 //! Tiers ([`Tier`], [`JitOptions`]): tier 0 ([`Tier::Fast`]) compiles with regalloc2's
-//! single-pass allocator and without block-level culling, so a scene's first frame starts
-//! quickly; tier 1 ([`Tier::Optimised`]) is the full pipeline. A *tiered* JIT
+//! single-pass allocator, `opt_level=none`, without block-level culling and with a lighter
+//! lowering (`lower::Lower::tier0`: fewer blocks and less CLIF), so a scene's first frame
+//! starts quickly; tier 1 ([`Tier::Optimised`]) is the full pipeline. A *tiered* JIT
 //! ([`Jit::tiered`]) answers each new (function, key) with a tier-0 kernel at once and asks a
 //! background worker thread, which owns a second JIT module, for the tier-1 kernel; later
 //! requests get the tier-1 kernel once it is ready (the renderer asks once per frame, so the
@@ -26,6 +27,9 @@
 //!
 //! Before lowering, [`unroll`] unrolls uniform loops with a compile-time trip count
 //! ([`JitOptions::unroll_loops`]).
+//!
+//! Compiles reuse per-thread Cranelift contexts, and each kernel's cost is recorded in wall
+//! and thread CPU time ([`Jit::compile_cost`], [`CompileCost`]).
 //!
 //! Run-time errors a kernel records carry a `SiteId` in `TileCtx::error_site`, except
 //! `ERR_CALL_DEPTH`, which has no site and records `u32::MAX`.
