@@ -220,11 +220,15 @@ pub(crate) struct Lower<'a, 'b> {
     written: Vec<bool>,
     /// Walk pass rectangles in blocks with interval facts (see [`block`]); off in tier 0,
     /// where the extra variant of the pixel code costs more compile time than it saves.
+    /// Off means tier 0 (see [`Self::tier0`]).
     block_culling: bool,
     /// While lowering an arm of `c ? a : b`: the uniform condition under which that arm is
     /// the one taken. A run-time error in an untaken arm is not an error (the language
     /// evaluates one arm; the JIT evaluates both and selects).
     error_guard: Option<ir::Value>,
+    /// Tier 0: argument-block words already loaded, by (byte offset, scalar, word bools), with
+    /// the block that loaded them (see `load_uniform`).
+    arg_loads: std::collections::HashMap<(i32, Scalar, bool), (Block, ir::Value)>,
     pub(crate) warnings: Vec<String>,
 }
 
@@ -295,6 +299,7 @@ pub(crate) fn lower_kernel(
         written: vec![false; key.bindings.len()],
         block_culling,
         error_guard: None,
+        arg_loads: std::collections::HashMap::new(),
         warnings: vec![],
     };
     l.body(f)?;
@@ -338,6 +343,14 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.switch_to_block(self.exit);
         self.b.ins().return_(&[]);
         Ok(())
+    }
+
+    /// Compiling for tier 0 (`Tier::Fast`): besides skipping block culling, the lowering
+    /// then emits less CLIF where that costs run time only in the one frame tier 0 serves
+    /// (each use says what it skips). Results are bit-identical either way
+    /// (`tests/jit_tiers.rs`).
+    fn tier0(&self) -> bool {
+        !self.block_culling
     }
 
     fn load_ctx(&mut self, ty: ir::Type, off: i32) -> ir::Value {
@@ -736,7 +749,10 @@ impl<'a, 'b> Lower<'a, 'b> {
                         let x = self.b.use_var(*v);
                         let w = first + c as u32;
                         self.b.ins().store(mem_flags(), x, addr, (4 * w) as i32);
-                        if sc != Scalar::Bool {
+                        // Tier 0 stores no splatted copy: a group splats the word it
+                        // reads itself (one instruction per use instead of two stores per
+                        // uniform here, which is less code for the tier that runs one frame).
+                        if sc != Scalar::Bool && !self.tier0() {
                             let xv = splat(&mut self.b, sc, x);
                             self.b
                                 .ins()
@@ -1198,30 +1214,40 @@ impl<'a, 'b> Lower<'a, 'b> {
                         let slot =
                             self.b
                                 .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, bytes, 4));
-                        // Zero it so no run reads stale stack memory.
-                        let z = zero(&mut self.b, sc, varying);
-                        let z = if varying || sc != Scalar::Bool {
-                            z
-                        } else {
-                            self.b.ins().iconst(types::I8, 0)
-                        };
-                        for c in 0..n {
-                            let addr = self.b.ins().stack_addr(types::I64, slot, 0);
-                            self.b
-                                .ins()
-                                .store(mem_flags(), z, addr, (c * comp_bytes(varying)) as i32);
+                        // Zero it so no run reads stale stack memory: all-zero bits are
+                        // zero in every scalar type, so 16 bytes per store from one
+                        // address (a word per store was a quarter of the NURB kernel's
+                        // CLIF: ~21 KB of arrays).
+                        let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                        let zero_vec = mask_const(&mut self.b, false);
+                        for at in (0..bytes / 16).map(|k| 16 * k) {
+                            self.b.ins().store(mem_flags(), zero_vec, addr, at as i32);
+                        }
+                        if bytes % 16 != 0 {
+                            let zero_word = self.b.ins().iconst(types::I32, 0);
+                            for at in (bytes / 16 * 16..bytes).step_by(4) {
+                                self.b.ins().store(mem_flags(), zero_word, addr, at as i32);
+                            }
                         }
                         Storage::Stack(slot)
                     } else {
                         let ty = cl_type(sc, varying);
-                        let z = zero(&mut self.b, sc, varying);
-                        let vars = (0..n)
-                            .map(|_| {
-                                let v = self.b.declare_var(ty);
-                                self.b.def_var(v, z);
-                                v
-                            })
-                            .collect();
+                        let vars = if !self.tier0() {
+                            let z = zero(&mut self.b, sc, varying);
+                            (0..n)
+                                .map(|_| {
+                                    let v = self.b.declare_var(ty);
+                                    self.b.def_var(v, z);
+                                    v
+                                })
+                                .collect()
+                        } else {
+                            // Tier 0: no explicit zero. A variable read where no assignment
+                            // reaches is zero all the same (the SSA builder materialises
+                            // zero there), without ~100 constants at entry and the block
+                            // parameters they feed.
+                            (0..n).map(|_| self.b.declare_var(ty)).collect()
+                        };
                         Storage::Vars(vars)
                     }
                 }
@@ -1351,6 +1377,23 @@ impl<'a, 'b> Lower<'a, 'b> {
         let c = self.eval(cond)?;
         if !c.varying {
             let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
+            // Tier 0: fewer blocks (see `if_converted`).
+            if self.tier0() && self.pix.is_none() && self.if_convertible(then, otherwise) {
+                return self.if_converted(c, then, otherwise);
+            }
+            // Tier 0: `if (c) return;` in setup is one branch to the exit, not a `then`
+            // block, an unreachable block after its return and a join.
+            if self.tier0()
+                && otherwise.is_empty()
+                && matches!(then, [s] if matches!(s.kind, StmtKind::Return))
+                && self.pix.is_none()
+                && self.frame().interp_binding.is_none()
+            {
+                let cont = self.b.create_block();
+                self.b.ins().brif(c, self.exit, &[], cont, &[]);
+                self.b.switch_to_block(cont);
+                return Ok(());
+            }
             let then_blk = self.b.create_block();
             let else_blk = self.b.create_block();
             let join = self.b.create_block();
@@ -1412,6 +1455,86 @@ impl<'a, 'b> Lower<'a, 'b> {
         let e = self.b.use_var(else_out);
         let m = self.b.ins().bor(t, e);
         self.set_exec(m);
+        Ok(())
+    }
+
+    // ------------------------------------------------ tier 0: if-conversion in setup
+
+    /// Tier 0 lowers a small uniform `if` of setup code whose sides only assign SSA
+    /// variables from expressions that cannot fail as straight-line code: both sides, then
+    /// one `select` per variable either side assigns. Each block boundary costs the tier-0
+    /// register allocator (it spills every live value there and reloads it on use), so
+    /// fewer blocks compile faster; the values assigned are the same, so results are
+    /// bit-identical to the branching form.
+    fn if_convertible(&self, then: &[Stmt], otherwise: &[Stmt]) -> bool {
+        const MAX_STMTS: usize = 24;
+        let mut budget = MAX_STMTS;
+        self.speculable_stmts(then, &mut budget) && self.speculable_stmts(otherwise, &mut budget)
+    }
+
+    fn speculable_stmts(&self, stmts: &[Stmt], budget: &mut usize) -> bool {
+        stmts.iter().all(|s| {
+            if *budget == 0 {
+                return false;
+            }
+            *budget -= 1;
+            match &s.kind {
+                StmtKind::Assign { place, value } => {
+                    let fr = self.frame();
+                    let Some(local) = fr.func.locals.get(place.local.0 as usize) else {
+                        return false;
+                    };
+                    let mut ty = local.ty.clone();
+                    for (idx, _) in &place.indices {
+                        if !const_index_in_range(&ty, idx) {
+                            return false;
+                        }
+                        ty = ty.element();
+                    }
+                    matches!(fr.storage.get(place.local.0 as usize), Some(Storage::Vars(_)))
+                        && !local.var.is_varying()
+                        && speculable_expr(value)
+                }
+                StmtKind::If { cond, then, otherwise } => {
+                    key_constant(cond, self.key).is_none()
+                        && speculable_expr(cond)
+                        && self.speculable_stmts(then, budget)
+                        && self.speculable_stmts(otherwise, budget)
+                }
+                _ => false,
+            }
+        })
+    }
+
+    /// Lower `if (c) then else otherwise` (checked by [`Self::if_convertible`]) without
+    /// branches: `then` from the entry values, `otherwise` from the entry values, then each
+    /// assigned variable selects its `then` or `otherwise` value by `c`.
+    fn if_converted(&mut self, c: ir::Value, then: &'a [Stmt], otherwise: &'a [Stmt]) -> Res<()> {
+        let mut locals = std::collections::HashSet::new();
+        block::assigned_locals(then, &mut locals);
+        block::assigned_locals(otherwise, &mut locals);
+        let mut locals: Vec<LocalId> = locals.into_iter().collect();
+        locals.sort_by_key(|l| l.0);
+        let mut vars = vec![];
+        for l in locals {
+            if let Some(Storage::Vars(vs)) = self.frame().storage.get(l.0 as usize) {
+                vars.extend(vs.iter().copied());
+            }
+        }
+        let entry: Vec<ir::Value> = vars.iter().map(|&v| self.b.use_var(v)).collect();
+        self.stmts(then)?;
+        let then_vals: Vec<ir::Value> = vars.iter().map(|&v| self.b.use_var(v)).collect();
+        for (&v, &x) in vars.iter().zip(&entry) {
+            self.b.def_var(v, x);
+        }
+        self.stmts(otherwise)?;
+        for (k, &v) in vars.iter().enumerate() {
+            let else_val = self.b.use_var(v);
+            if then_vals[k] != else_val {
+                let x = self.b.ins().select(c, then_vals[k], else_val);
+                self.b.def_var(v, x);
+            }
+        }
         Ok(())
     }
 
@@ -1806,8 +1929,22 @@ impl<'a, 'b> Lower<'a, 'b> {
         let tile_idx = p.tile_idx;
         let exec = self.exec().expect("pixel context");
         let bytes = self.b.ins().ishl_imm_u(tile_idx, 2);
-        let all_lanes = self.b.ins().vall_true(exec);
         let slot_addr = self.b.ins().stack_addr(types::I64, table, 0);
+        // Tier 0: only the masked store (the all-lanes fast path is a second copy of every
+        // store, which pays only in the long runs of full groups tier 1 serves).
+        if self.tier0() {
+            for &(g, v) in stores {
+                let base = self.b.ins().load(types::I64, mem_flags(), slot_addr, (8 * g) as i32);
+                let real = self.b.ins().iadd(base, bytes);
+                let dummy = self.b.ins().stack_addr(types::I64, self.scratch, 0);
+                let addr = self.b.ins().select(base, real, dummy);
+                let old = self.b.ins().load(F32X4, mem_flags(), addr, 0);
+                let new = blend(&mut self.b, exec, v, old);
+                self.b.ins().store(mem_flags(), new, addr, 0);
+            }
+            return;
+        }
+        let all_lanes = self.b.ins().vall_true(exec);
         let n = self.key.total_components();
         let all_planes = self.b.ins().load(types::I8, mem_flags(), slot_addr, (8 * n) as i32);
         let full = self.b.ins().band(all_lanes, all_planes);
@@ -2335,8 +2472,6 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         let elem_ty = base_ty.element();
         let stride = self.value_comps(&elem_ty, acc.compact);
-        let idx = self.eval(index)?;
-        let idx_comp = fixed::convert(&mut self.b, idx.scalar, Scalar::Int, idx.comps[0]);
         let static_len = if base_ty.per_seq { None } else { Some(base_ty.dims[0]) };
         if let (Some(len), Some(k)) = (static_len, const_int(index)) {
             let clamped = k.clamp(0, len as i64 - 1) as u32;
@@ -2347,6 +2482,8 @@ impl<'a, 'b> Lower<'a, 'b> {
             acc.ty = elem_ty;
             return Ok(acc);
         }
+        let idx = self.eval(index)?;
+        let idx_comp = fixed::convert(&mut self.b, idx.scalar, Scalar::Int, idx.comps[0]);
         // A dynamic index into a temporary: spill it so it can be addressed.
         if let Root::Temp(v) = &acc.root {
             let v = v.clone();
@@ -2439,6 +2576,33 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// Load a scalar of `sc` from `addr + off` bytes in uniform form (bools stored as bytes
     /// or words: any non-zero is true).
     fn load_uniform(&mut self, sc: Scalar, addr: ir::Value, off: i32, word_bools: bool, ro: bool) -> ir::Value {
+        // Tier 0 has no e-graph pass to merge repeated loads of the same argument word (the
+        // argument block is read-only while the kernel runs): within one block, reuse the
+        // first load.
+        let cacheable = ro && addr == self.args && self.tier0();
+        let block = self.b.current_block();
+        if cacheable {
+            if let Some(&(b, v)) = self.arg_loads.get(&(off, sc, word_bools)) {
+                if Some(b) == block {
+                    return v;
+                }
+            }
+        }
+        let v = self.load_uniform_uncached(sc, addr, off, word_bools, ro);
+        if let (true, Some(b)) = (cacheable, block) {
+            self.arg_loads.insert((off, sc, word_bools), (b, v));
+        }
+        v
+    }
+
+    fn load_uniform_uncached(
+        &mut self,
+        sc: Scalar,
+        addr: ir::Value,
+        off: i32,
+        word_bools: bool,
+        ro: bool,
+    ) -> ir::Value {
         let flags = if ro { args_flags() } else { mem_flags() };
         match sc {
             Scalar::Float => self.b.ins().load(types::F32, flags, addr, off),
@@ -2584,7 +2748,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                             (None, None) => return err("uniform frame missing"),
                         };
                         let v = self.read_memory(addr, sc, false, &offs, word + acc.base, acc.dyn_off, false, pure);
-                        if pure && sc != Scalar::Bool && matches!(acc.dyn_off, Dyn::None) {
+                        // Tier 0 keeps no splatted copies (see `spill_uniforms`).
+                        if pure && sc != Scalar::Bool && matches!(acc.dyn_off, Dyn::None) && !self.tier0() {
                             for (&c, &o) in v.comps.iter().zip(&offs) {
                                 let w = word + acc.base + o;
                                 self.splat_src.insert(c, self.vec_section + 16 * w);
@@ -3170,6 +3335,34 @@ fn word_of(b: &mut FunctionBuilder, sc: Scalar, c: ir::Value) -> ir::Value {
     match sc {
         Scalar::Bool => b.ins().uextend(types::I32, c),
         _ => c,
+    }
+}
+
+/// Whether `index` is a constant within `ty`'s outer fixed dimension (indexing then records
+/// no error).
+fn const_index_in_range(ty: &Type, index: &Expr) -> bool {
+    !ty.per_seq
+        && ty
+            .dims
+            .first()
+            .is_some_and(|&n| const_int(index).is_some_and(|k| k >= 0 && k < n as i64))
+}
+
+/// Whether evaluating `e` has no effect but its value (no error record, no control flow), so
+/// it may run when the language would not evaluate it (tier 0's if-conversion).
+fn speculable_expr(e: &Expr) -> bool {
+    match &e.kind {
+        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => true,
+        ExprKind::Index { base, index, .. } => const_index_in_range(&base.ty, index) && speculable_expr(base),
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => speculable_expr(expr),
+        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
+            speculable_expr(lhs) && speculable_expr(rhs)
+        }
+        ExprKind::Select { cond, then, otherwise } => {
+            speculable_expr(cond) && speculable_expr(then) && speculable_expr(otherwise)
+        }
+        ExprKind::Builtin { args, .. } => args.iter().all(speculable_expr),
+        ExprKind::List(items) => items.iter().all(speculable_expr),
     }
 }
 

@@ -12,8 +12,9 @@
 //! [`libm`] the `extern "C"` math helpers kernels link against.
 //!
 //! Tiers ([`Tier`], [`JitOptions`]): tier 0 ([`Tier::Fast`]) compiles with regalloc2's
-//! single-pass allocator and without block-level culling, so a scene's first frame starts
-//! quickly; tier 1 ([`Tier::Optimised`]) is the full pipeline. A *tiered* JIT
+//! single-pass allocator, `opt_level=none`, without block-level culling and with a lighter
+//! lowering (`lower::Lower::tier0`: fewer blocks and less CLIF), so a scene's first frame
+//! starts quickly; tier 1 ([`Tier::Optimised`]) is the full pipeline. A *tiered* JIT
 //! ([`Jit::tiered`]) answers each new (function, key) with a tier-0 kernel at once and asks a
 //! background worker thread, which owns a second JIT module, for the tier-1 kernel; later
 //! requests get the tier-1 kernel once it is ready (the renderer asks once per frame, so the
@@ -27,6 +28,9 @@
 //! Before lowering, [`unroll`] unrolls uniform loops with a compile-time trip count
 //! ([`JitOptions::unroll_loops`]).
 //!
+//! Compiles reuse per-thread Cranelift contexts, and each kernel's cost is recorded in wall
+//! and thread CPU time ([`Jit::compile_cost`], [`CompileCost`]).
+//!
 //! Run-time errors a kernel records carry a `SiteId` in `TileCtx::error_site`, except
 //! `ERR_CALL_DEPTH`, which has no site and records `u32::MAX`.
 
@@ -37,6 +41,7 @@ mod lower;
 mod unroll;
 mod value;
 
+use std::cell::RefCell;
 use std::collections::{HashMap, HashSet};
 use std::sync::{mpsc, Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
@@ -67,6 +72,51 @@ pub struct Kernel {
     pub compile_micros: u64,
     /// Things the specialisation noticed (a bound parameter no arm writes, ...).
     pub warnings: Vec<String>,
+}
+
+/// What compiling one kernel cost (see [`Jit::compile_cost`]).
+///
+/// Wall time counts whatever else the machine runs meanwhile (on a loaded 2-core machine,
+/// the background tier-1 thread and other processes can double it); thread CPU time counts
+/// only the compiling thread's own work, so it is the figure to compare between runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CompileCost {
+    /// Lowering and compiling this kernel (callees excluded): wall time, microseconds
+    /// (the same figure as [`Kernel::compile_micros`]).
+    pub wall_micros: u64,
+    /// The same, in this thread's CPU time, microseconds.
+    pub cpu_micros: u64,
+    /// The whole batch this kernel was compiled in (itself, the callees compiled with it,
+    /// unrolling, linking and making the code executable), thread CPU time, microseconds.
+    pub batch_cpu_micros: u64,
+}
+
+/// The calling thread's CPU time in microseconds (Linux `CLOCK_THREAD_CPUTIME_ID`; elsewhere
+/// 0, so CPU figures read 0). Unlike wall time it does not grow while the thread waits for a
+/// core.
+pub fn thread_cpu_micros() -> u64 {
+    #[cfg(target_os = "linux")]
+    {
+        #[repr(C)]
+        struct Timespec {
+            tv_sec: i64,
+            tv_nsec: i64,
+        }
+        extern "C" {
+            fn clock_gettime(clock: i32, tp: *mut Timespec) -> i32;
+        }
+        const CLOCK_THREAD_CPUTIME_ID: i32 = 3;
+        let mut t = Timespec { tv_sec: 0, tv_nsec: 0 };
+        // SAFETY: `t` is a valid, writable timespec for the duration of the call.
+        if unsafe { clock_gettime(CLOCK_THREAD_CPUTIME_ID, &mut t) } != 0 {
+            return 0;
+        }
+        t.tv_sec as u64 * 1_000_000 + t.tv_nsec as u64 / 1000
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        0
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -134,8 +184,40 @@ pub struct Jit {
     libm: HashMap<LibmFn, cranelift_module::FuncId>,
     /// Kernels that failed to compile, with their error (asking again gives it again).
     failed: HashMap<CacheKey, JitError>,
-    fctx: FunctionBuilderContext,
+    /// What each kernel in `cache` cost to compile.
+    costs: HashMap<CacheKey, CompileCost>,
     next_name: u32,
+}
+
+thread_local! {
+    /// Cranelift contexts and function-builder contexts kept between compiles on this
+    /// thread, so each compile reuses their buffers (the function's tables, the CFG and
+    /// dominator tree, the register allocator's state) instead of growing new ones: that
+    /// allocation was a visible part of a tier-0 compile. Every JIT on the thread shares
+    /// them (the tier-1 worker thread has its own).
+    static SPARE_CONTEXTS: RefCell<Vec<Context>> = const { RefCell::new(Vec::new()) };
+    static SPARE_BUILDER_CONTEXT: RefCell<Option<FunctionBuilderContext>> = const { RefCell::new(None) };
+}
+
+/// Spare contexts kept per thread (a batch rarely compiles more functions at once).
+const MAX_SPARE_CONTEXTS: usize = 4;
+
+/// A cleared Cranelift context, reused if this thread has one.
+fn take_context() -> Context {
+    SPARE_CONTEXTS
+        .with(|spare| spare.borrow_mut().pop())
+        .unwrap_or_else(Context::new)
+}
+
+/// Keep `ctx` (cleared) for the next compile on this thread.
+fn give_back_context(mut ctx: Context) {
+    ctx.clear();
+    SPARE_CONTEXTS.with(|spare| {
+        let mut spare = spare.borrow_mut();
+        if spare.len() < MAX_SPARE_CONTEXTS {
+            spare.push(ctx);
+        }
+    });
 }
 
 /// The host ISA with the flags kernels of `tier` are compiled with.
@@ -259,6 +341,8 @@ impl Linker for PrintLinker<'_> {
 #[derive(Default)]
 struct TierUpState {
     ready: HashMap<CacheKey, Arc<Kernel>>,
+    /// What each kernel in `ready` cost the worker to compile.
+    costs: HashMap<CacheKey, CompileCost>,
     /// Requests sent and not yet answered.
     pending: usize,
     /// Tier-1 compile failures (the tier-0 kernel stays in use).
@@ -302,6 +386,9 @@ impl TierUp {
                     let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
                     match result {
                         Ok(k) => {
+                            if let Some(cost) = jit.as_ref().ok().and_then(|j| j.compile_cost(func, &key)) {
+                                st.costs.insert((func, key.clone()), cost);
+                            }
                             st.ready.insert((func, key), k);
                         }
                         Err(e) => {
@@ -323,6 +410,11 @@ impl TierUp {
     fn ready(&self, ck: &CacheKey) -> Option<Arc<Kernel>> {
         let st = self.state.0.lock().unwrap_or_else(|e| e.into_inner());
         st.ready.get(ck).cloned()
+    }
+
+    fn cost(&self, ck: &CacheKey) -> Option<CompileCost> {
+        let st = self.state.0.lock().unwrap_or_else(|e| e.into_inner());
+        st.costs.get(ck).copied()
     }
 
     fn request(&self, ck: CacheKey) {
@@ -399,6 +491,17 @@ impl Jit {
         self.tier_up.as_ref()?.ready(&(func, key.clone()))
     }
 
+    /// What compiling this JIT's own kernel for (func, key) cost (tier 0 in a tiered JIT), if
+    /// it compiled one.
+    pub fn compile_cost(&self, func: FuncId, key: &VariantKey) -> Option<CompileCost> {
+        self.costs.get(&(func, key.clone())).copied()
+    }
+
+    /// What the background tier-1 compile of (func, key) cost, once it is ready.
+    pub fn tier_up_compile_cost(&self, func: FuncId, key: &VariantKey) -> Option<CompileCost> {
+        self.tier_up.as_ref()?.cost(&(func, key.clone()))
+    }
+
     pub fn options(&self) -> &JitOptions {
         &self.options
     }
@@ -452,7 +555,7 @@ impl Jit {
             declared: HashMap::new(),
             libm,
             failed: HashMap::new(),
-            fctx: FunctionBuilderContext::new(),
+            costs: HashMap::new(),
             next_name: 0,
         })
     }
@@ -506,6 +609,7 @@ impl Jit {
 
     /// Compile `root` and every not-yet-compiled primitive it reaches under `key`.
     fn compile_batch(&mut self, root: FuncId, key: &VariantKey) -> Result<(), JitError> {
+        let batch_cpu = thread_cpu_micros();
         let program = self.program.clone();
         let mut pending = vec![];
         if !self.declared.contains_key(&(root, key.clone())) {
@@ -519,18 +623,22 @@ impl Jit {
         }
         pending.push(root);
         // Lower everything first: a lowering error must not leave a half-defined batch.
-        let mut built: Vec<(FuncId, Context, ArgLayout, Vec<String>, u64)> = vec![];
+        // (function, its CLIF, layout, warnings, wall and CPU microseconds so far)
+        let mut built: Vec<(FuncId, Context, ArgLayout, Vec<String>, u64, u64)> = vec![];
         let mut seen = HashSet::new();
         while let Some(f) = pending.pop() {
             if !seen.insert(f) || self.cache.contains_key(&(f, key.clone())) {
                 continue;
             }
-            let started = Instant::now();
+            let (started, started_cpu) = (Instant::now(), thread_cpu_micros());
             let layout = ArgLayout::new(&program, f, key);
             let body = self.body(f);
-            let mut ctx = self.module.make_context();
+            let mut ctx = take_context();
             ctx.func.signature = kernel_signature(&self.isa);
             ctx.func.name = UserFuncName::user(0, f.0);
+            let mut fctx = SPARE_BUILDER_CONTEXT
+                .with(|spare| spare.borrow_mut().take())
+                .unwrap_or_default();
             let warnings = {
                 let mut linker = ModuleLinker {
                     module: &mut self.module,
@@ -549,24 +657,25 @@ impl Jit {
                     key,
                     &layout,
                     &mut ctx.func,
-                    &mut self.fctx,
+                    &mut fctx,
                     &mut linker,
                     self.isa.frontend_config(),
                     self.options.tier == Tier::Optimised,
                 );
-                if lowered.is_err() {
-                    // A lowering error leaves the builder context mid-function; the next
-                    // kernel must not inherit it.
-                    self.fctx = FunctionBuilderContext::new();
+                // A lowering error leaves the builder context mid-function; the next
+                // kernel must not inherit it, so only a clean one is kept.
+                if lowered.is_ok() {
+                    SPARE_BUILDER_CONTEXT.with(|spare| *spare.borrow_mut() = Some(fctx));
                 }
                 lowered?
             };
             let micros = started.elapsed().as_micros() as u64;
-            built.push((f, ctx, layout, warnings, micros));
+            let cpu = thread_cpu_micros().saturating_sub(started_cpu);
+            built.push((f, ctx, layout, warnings, micros, cpu));
         }
         let mut defined = vec![];
-        for (f, mut ctx, layout, warnings, micros) in built {
-            let started = Instant::now();
+        for (f, mut ctx, layout, warnings, micros, cpu) in built {
+            let (started, started_cpu) = (Instant::now(), thread_cpu_micros());
             let id = self.declared[&(f, key.clone())];
             self.module.define_function(id, &mut ctx).map_err(|e| {
                 let detail = match &e {
@@ -577,13 +686,19 @@ impl Jit {
                     message: format!("compiling `{}`: {detail}", program.func(f).name),
                 }
             })?;
-            self.module.clear_context(&mut ctx);
-            defined.push((f, id, layout, warnings, micros + started.elapsed().as_micros() as u64));
+            give_back_context(ctx);
+            let cost = CompileCost {
+                wall_micros: micros + started.elapsed().as_micros() as u64,
+                cpu_micros: cpu + thread_cpu_micros().saturating_sub(started_cpu),
+                batch_cpu_micros: 0,
+            };
+            defined.push((f, id, layout, warnings, cost));
         }
         self.module
             .finalize_definitions()
             .map_err(|e| jit_err("finalize kernels", e))?;
-        for (f, id, layout, warnings, micros) in defined {
+        let batch_cpu = thread_cpu_micros().saturating_sub(batch_cpu);
+        for (f, id, layout, warnings, cost) in defined {
             let ptr = self.module.get_finalized_function(id);
             // SAFETY: the function was defined with the kernel signature
             // (ctx: i64, args: i64) -> () in the host's default C calling convention, which is
@@ -596,9 +711,16 @@ impl Jit {
                     key: key.clone(),
                     entry,
                     layout,
-                    compile_micros: micros,
+                    compile_micros: cost.wall_micros,
                     warnings,
                 }),
+            );
+            self.costs.insert(
+                (f, key.clone()),
+                CompileCost {
+                    batch_cpu_micros: batch_cpu,
+                    ..cost
+                },
             );
         }
         Ok(())

@@ -34,8 +34,7 @@
 use std::collections::HashMap;
 
 use crate::ir::{
-    BinOp, ConstValue, Elem, Expr, ExprKind, Function, InterpArm, LocalId, LoopId, Place, Scalar, Stmt, StmtKind,
-    UnaryOp, Variability,
+    BinOp, ConstValue, Elem, Expr, ExprKind, Function, LocalId, LoopId, Scalar, Stmt, StmtKind, UnaryOp, Variability,
 };
 
 /// Longest loop unrolled (trips).
@@ -47,10 +46,14 @@ pub(crate) const MAX_UNROLLED_STMTS: usize = 512;
 type Env = HashMap<LocalId, i32>;
 
 /// `f` with its constant-trip uniform loops unrolled and integer constants propagated.
+///
+/// One deep copy of `f`, then rewritten in place: statements move from the copy into the
+/// output, and only unrolled loop bodies are copied again (once per trip).
 pub(crate) fn unroll_function(f: &Function) -> Function {
     let u = Unroller { f };
+    let mut out = f.clone();
     let mut env = Env::new();
-    let setup = u.stmts(&f.setup, &mut env);
+    out.setup = u.stmts(std::mem::take(&mut out.setup), &mut env);
     // The pixel part runs once per pixel group after setup: what it assigns itself may hold
     // a previous group's value when it starts, so it is not known there.
     let mut assigned = vec![];
@@ -58,12 +61,8 @@ pub(crate) fn unroll_function(f: &Function) -> Function {
     for l in assigned {
         env.remove(&l);
     }
-    let pixel = u.stmts(&f.pixel, &mut env);
-    Function {
-        setup,
-        pixel,
-        ..f.clone()
-    }
+    out.pixel = u.stmts(std::mem::take(&mut out.pixel), &mut env);
+    out
 }
 
 struct Unroller<'a> {
@@ -78,7 +77,7 @@ impl Unroller<'_> {
         })
     }
 
-    fn stmts(&self, list: &[Stmt], env: &mut Env) -> Vec<Stmt> {
+    fn stmts(&self, list: Vec<Stmt>, env: &mut Env) -> Vec<Stmt> {
         let mut out = Vec::with_capacity(list.len());
         for s in list {
             self.stmt(s, env, &mut out);
@@ -86,35 +85,33 @@ impl Unroller<'_> {
         out
     }
 
-    fn stmt(&self, s: &Stmt, env: &mut Env, out: &mut Vec<Stmt>) {
-        let kind = match &s.kind {
+    /// Append `s`, folded under `env` (and unrolled where it is such a loop), to `out`;
+    /// `env` then holds what is known after it.
+    fn stmt(&self, mut s: Stmt, env: &mut Env, out: &mut Vec<Stmt>) {
+        match &mut s.kind {
             StmtKind::Assign { place, value } => {
-                let value = fold(value, env);
-                let place = Place {
-                    local: place.local,
-                    indices: place.indices.iter().map(|(i, site)| (fold(i, env), *site)).collect(),
-                    span: place.span,
-                };
+                fold_in(value, env);
+                for (i, _) in &mut place.indices {
+                    fold_in(i, env);
+                }
                 match (&value.kind, place.indices.is_empty() && self.tracked(place.local)) {
                     (ExprKind::Const(ConstValue::Int(v)), true) => env.insert(place.local, *v),
                     _ => env.remove(&place.local),
                 };
-                StmtKind::Assign { place, value }
             }
             StmtKind::If { cond, then, otherwise } => {
-                let cond = fold(cond, env);
+                fold_in(cond, env);
                 if let ExprKind::Const(ConstValue::Bool(c)) = cond.kind {
                     // A constant condition: only the taken side exists.
-                    for t in if c { then } else { otherwise } {
+                    for t in std::mem::take(if c { then } else { otherwise }) {
                         self.stmt(t, env, out);
                     }
                     return;
                 }
                 let mut then_env = env.clone();
-                let then = self.stmts(then, &mut then_env);
-                let otherwise = self.stmts(otherwise, env);
+                *then = self.stmts(std::mem::take(then), &mut then_env);
+                *otherwise = self.stmts(std::mem::take(otherwise), env);
                 env.retain(|l, v| then_env.get(l) == Some(v));
-                StmtKind::If { cond, then, otherwise }
             }
             StmtKind::Loop {
                 id,
@@ -122,9 +119,9 @@ impl Unroller<'_> {
                 body,
                 step,
                 varying,
-                site,
+                ..
             } => {
-                if !varying {
+                if !*varying {
                     if let Some(unrolled) = self.unroll(*id, cond.as_ref(), body, step, env) {
                         out.extend(unrolled);
                         return;
@@ -137,42 +134,31 @@ impl Unroller<'_> {
                 for l in assigned {
                     env.remove(&l);
                 }
-                StmtKind::Loop {
-                    id: *id,
-                    cond: cond.as_ref().map(|c| fold(c, env)),
-                    body: self.stmts(body, &mut env.clone()),
-                    step: self.stmts(step, &mut env.clone()),
-                    varying: *varying,
-                    site: *site,
+                if let Some(c) = cond {
+                    fold_in(c, env);
                 }
+                *body = self.stmts(std::mem::take(body), &mut env.clone());
+                *step = self.stmts(std::mem::take(step), &mut env.clone());
             }
             StmtKind::Interpolation { arms } => {
                 // Any subset of the arms runs (one per bound kind).
                 let entry = env.clone();
-                let arms = arms
-                    .iter()
-                    .map(|a| {
-                        let mut arm_env = entry.clone();
-                        let body = self.stmts(&a.body, &mut arm_env);
-                        env.retain(|l, v| arm_env.get(l) == Some(v));
-                        InterpArm {
-                            kind: a.kind.clone(),
-                            body,
-                            span: a.span,
-                        }
-                    })
-                    .collect();
-                StmtKind::Interpolation { arms }
+                for a in arms.iter_mut() {
+                    let mut arm_env = entry.clone();
+                    a.body = self.stmts(std::mem::take(&mut a.body), &mut arm_env);
+                    env.retain(|l, v| arm_env.get(l) == Some(v));
+                }
             }
-            StmtKind::InterpolatorReturn(e) => StmtKind::InterpolatorReturn(e.as_ref().map(|e| fold(e, env))),
-            StmtKind::Bound(es) => StmtKind::Bound(Box::new(es.each_ref().map(|e| fold(e, env)))),
-            StmtKind::CallPrimitive { callee, args } => StmtKind::CallPrimitive {
-                callee: *callee,
-                args: args.iter().map(|a| fold(a, env)).collect(),
-            },
-            StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => s.kind.clone(),
-        };
-        out.push(Stmt { kind, span: s.span });
+            StmtKind::InterpolatorReturn(e) => {
+                if let Some(e) = e {
+                    fold_in(e, env);
+                }
+            }
+            StmtKind::Bound(es) => es.iter_mut().for_each(|e| fold_in(e, env)),
+            StmtKind::CallPrimitive { args, .. } => args.iter_mut().for_each(|a| fold_in(a, env)),
+            StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
+        }
+        out.push(s);
     }
 
     /// The statements of `loop id` run trip by trip, if its trip count is a compile-time
@@ -201,7 +187,7 @@ impl Unroller<'_> {
                 _ => return None,
             }
             for s in body.iter().chain(step) {
-                self.stmt(s, &mut trip_env, &mut out);
+                self.stmt(s.clone(), &mut trip_env, &mut out);
             }
             // A body that still holds a loop after unrolling gains nothing (its arrays stay
             // dynamically indexed) and only grows the code (measured: the NURB kernel's
@@ -267,95 +253,113 @@ fn assigned_locals(list: &[Stmt], out: &mut Vec<LocalId>) {
     }
 }
 
-fn constant(e: &Expr, c: ConstValue) -> Expr {
-    Expr {
-        kind: ExprKind::Const(c),
-        ty: e.ty.clone(),
-        var: Variability::Uniform,
-        span: e.span,
-    }
-}
-
 fn is_scalar_of(e: &Expr, s: Scalar) -> bool {
     e.ty.is_scalar() && e.ty.elem == Elem::Scalar(s)
 }
 
 /// `e` with known locals replaced by their values and constant int/bool operations folded.
 fn fold(e: &Expr, env: &Env) -> Expr {
-    let kind = match &e.kind {
-        ExprKind::Local(l) => {
-            if let (Some(&v), true) = (env.get(l), is_scalar_of(e, Scalar::Int)) {
-                return constant(e, ConstValue::Int(v));
+    let mut out = e.clone();
+    fold_in(&mut out, env);
+    out
+}
+
+/// [`fold`] in place: replaces known locals by their values and folds constant int/bool
+/// operations, allocating nothing where there is nothing to fold.
+fn fold_in(e: &mut Expr, env: &Env) {
+    // The kind moves out (a unit variant stands in) so its boxes can be reused or moved.
+    let kind = std::mem::replace(&mut e.kind, ExprKind::SeqCount);
+    e.kind = match kind {
+        ExprKind::Local(l) => match env.get(&l) {
+            Some(&v) if is_scalar_of(e, Scalar::Int) => {
+                e.var = Variability::Uniform;
+                ExprKind::Const(ConstValue::Int(v))
             }
-            return e.clone();
-        }
-        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => return e.clone(),
-        ExprKind::Index { base, index, site } => ExprKind::Index {
-            base: Box::new(fold(base, env)),
-            index: Box::new(fold(index, env)),
-            site: *site,
+            _ => ExprKind::Local(l),
         },
-        ExprKind::Unary { op, expr } => {
-            let x = fold(expr, env);
-            match (op, &x.kind, e.ty.is_scalar()) {
+        k @ (ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag) => k,
+        ExprKind::Index {
+            mut base,
+            mut index,
+            site,
+        } => {
+            fold_in(&mut base, env);
+            fold_in(&mut index, env);
+            ExprKind::Index { base, index, site }
+        }
+        ExprKind::Unary { op, mut expr } => {
+            fold_in(&mut expr, env);
+            let folded = match (op, &expr.kind, e.ty.is_scalar()) {
                 (UnaryOp::Neg, ExprKind::Const(ConstValue::Int(v)), true) if is_scalar_of(e, Scalar::Int) => {
-                    return constant(e, ConstValue::Int(v.wrapping_neg()));
+                    Some(ConstValue::Int(v.wrapping_neg()))
                 }
                 (UnaryOp::Not, ExprKind::Const(ConstValue::Bool(v)), true) if is_scalar_of(e, Scalar::Bool) => {
-                    return constant(e, ConstValue::Bool(!v));
+                    Some(ConstValue::Bool(!v))
                 }
-                _ => {}
-            }
-            ExprKind::Unary {
-                op: *op,
-                expr: Box::new(x),
+                _ => None,
+            };
+            match folded {
+                Some(c) => {
+                    e.var = Variability::Uniform;
+                    ExprKind::Const(c)
+                }
+                None => ExprKind::Unary { op, expr },
             }
         }
-        ExprKind::Binary { op, lhs, rhs } => {
-            let (a, c) = (fold(lhs, env), fold(rhs, env));
-            if let Some(v) = fold_binary(*op, &a, &c) {
-                if e.ty.is_scalar() && e.ty.elem == Elem::Scalar(const_scalar(v)) {
-                    return constant(e, v);
+        ExprKind::Binary { op, mut lhs, mut rhs } => {
+            fold_in(&mut lhs, env);
+            fold_in(&mut rhs, env);
+            match fold_binary(op, &lhs, &rhs) {
+                Some(v) if e.ty.is_scalar() && e.ty.elem == Elem::Scalar(const_scalar(v)) => {
+                    e.var = Variability::Uniform;
+                    ExprKind::Const(v)
                 }
-            }
-            ExprKind::Binary {
-                op: *op,
-                lhs: Box::new(a),
-                rhs: Box::new(c),
+                _ => ExprKind::Binary { op, lhs, rhs },
             }
         }
-        ExprKind::Convert(x) => ExprKind::Convert(Box::new(fold(x, env))),
-        ExprKind::Select { cond, then, otherwise } => {
-            let c = fold(cond, env);
+        ExprKind::Convert(mut x) => {
+            fold_in(&mut x, env);
+            ExprKind::Convert(x)
+        }
+        ExprKind::Select {
+            mut cond,
+            mut then,
+            mut otherwise,
+        } => {
+            fold_in(&mut cond, env);
+            let taken = match cond.kind {
+                ExprKind::Const(ConstValue::Bool(v)) => Some(v),
+                _ => None,
+            };
             // Expressions are pure: a constant condition selects one side.
-            if let ExprKind::Const(ConstValue::Bool(v)) = c.kind {
-                let side = fold(if v { then } else { otherwise }, env);
+            if let Some(v) = taken {
+                let side = if v { &mut then } else { &mut otherwise };
+                fold_in(side, env);
                 if side.ty == e.ty && side.var <= e.var {
-                    return side;
+                    *e = *if v { then } else { otherwise };
+                    return;
                 }
+                fold_in(if v { &mut otherwise } else { &mut then }, env);
+            } else {
+                fold_in(&mut then, env);
+                fold_in(&mut otherwise, env);
             }
-            ExprKind::Select {
-                cond: Box::new(c),
-                then: Box::new(fold(then, env)),
-                otherwise: Box::new(fold(otherwise, env)),
-            }
+            ExprKind::Select { cond, then, otherwise }
         }
-        ExprKind::Builtin { func, args } => ExprKind::Builtin {
-            func: *func,
-            args: args.iter().map(|a| fold(a, env)).collect(),
-        },
-        ExprKind::List(items) => ExprKind::List(items.iter().map(|a| fold(a, env)).collect()),
-        ExprKind::MatMul { lhs, rhs } => ExprKind::MatMul {
-            lhs: Box::new(fold(lhs, env)),
-            rhs: Box::new(fold(rhs, env)),
-        },
+        ExprKind::Builtin { func, mut args } => {
+            args.iter_mut().for_each(|a| fold_in(a, env));
+            ExprKind::Builtin { func, args }
+        }
+        ExprKind::List(mut items) => {
+            items.iter_mut().for_each(|a| fold_in(a, env));
+            ExprKind::List(items)
+        }
+        ExprKind::MatMul { mut lhs, mut rhs } => {
+            fold_in(&mut lhs, env);
+            fold_in(&mut rhs, env);
+            ExprKind::MatMul { lhs, rhs }
+        }
     };
-    Expr {
-        kind,
-        ty: e.ty.clone(),
-        var: e.var,
-        span: e.span,
-    }
 }
 
 fn const_scalar(c: ConstValue) -> Scalar {
