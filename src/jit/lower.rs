@@ -530,20 +530,48 @@ impl<'a, 'b> Lower<'a, 'b> {
         let h64 = self.b.ins().sextend(types::I64, h);
         let area = self.b.ins().imul(w64, h64);
         let small_rect = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, area, SMALL_RECT);
-        // Consecutive pass blocks of a block row run as one *span* (one row prologue per
-        // pixel row for the whole run, not per block): a pass block extends the pending
-        // span; a dead or full block, or the row's end, first flushes it. `after` says what
-        // follows the flush: 0 the next block row, 1 the next block (dead), 2 the full code
-        // on this block.
+        // Shape of the walk, block row by block row:
+        // - `row_stage` evaluates the prefix terms that depend on uniforms and Y alone, once
+        //   for the block row ([`block`] caches them); the block loop after it evaluates
+        //   only the X-dependent rest per block.
+        // - Consecutive pass blocks of a block row run as one *span* (one row prologue per
+        //   pixel row for the whole run, not per block): a pass block extends the pending
+        //   span; a dead or full block, or the row's end, first flushes it. `after` says
+        //   what follows the flush: 0 the next block row, 1 the next block (dead), 2 the
+        //   full code on this block.
+        // - The full code runs outside the block loop (`full_entry`, one instance for the
+        //   blocks and for small rectangles) and comes back to `brow_resume`, which
+        //   re-evaluates the row stage: the block loop's values then need no merging, and
+        //   full blocks are few (a primitive's edges).
+        // - The walk starts *coarse*: the whole rectangle as one block (one block row, one
+        //   block), so a tile entirely inside or outside the primitive costs one evaluation.
+        //   When the coarse block is neither dead nor passing, the walk restarts with
+        //   BLOCK_W x BLOCK_H blocks.
         let by = self.b.declare_var(types::I32);
+        let coarse = self.b.declare_var(types::I8);
+        let bw = self.b.declare_var(types::I32);
+        let bh = self.b.declare_var(types::I32);
+        let yes = self.b.ins().iconst(types::I8, 1);
+        self.b.def_var(coarse, yes);
+        let rect_w = self.b.ins().isub(hi_x, gx_start);
+        let rect_h = self.b.ins().isub(hi_y, lo_y);
+        self.b.def_var(bw, rect_w);
+        self.b.def_var(bh, rect_h);
         let bxv = self.b.declare_var(types::I32);
         let span_lo = self.b.declare_var(types::I32);
         let span_hi = self.b.declare_var(types::I32);
         let after = self.b.declare_var(types::I32);
+        // The full run's rectangle and where it returns: 0 the block after it, 1 the end.
+        let full_ys = [self.b.declare_var(types::I32), self.b.declare_var(types::I32)];
+        let full_gs = [self.b.declare_var(types::I32), self.b.declare_var(types::I32)];
+        let full_then = self.b.declare_var(types::I32);
         self.b.def_var(by, lo_y);
         let brow_hdr = self.b.create_block();
         let brow_body = self.b.create_block();
+        let brow_resume = self.b.create_block();
         let brow_next = self.b.create_block();
+        let small_full = self.b.create_block();
+        let row_stage = self.b.create_block();
         let blk_hdr = self.b.create_block();
         let blk_body = self.b.create_block();
         let blk_next = self.b.create_block();
@@ -558,6 +586,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         let flush_done = self.b.create_block();
         let after_flush = self.b.create_block();
         let after_not_end = self.b.create_block();
+        let full_entry = self.b.create_block();
+        let full_done = self.b.create_block();
+        let full_resume = self.b.create_block();
+        let refine = self.b.create_block();
+        let to_full_fine = self.b.create_block();
         self.b.ins().jump(brow_hdr, &[]);
 
         self.b.switch_to_block(brow_hdr);
@@ -566,12 +599,40 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(done, loops_done, &[], brow_body, &[]);
 
         self.b.switch_to_block(brow_body);
-        let y = self.b.use_var(by);
-        let y_end = self.b.ins().iadd_imm_s(y, BLOCK_H as i64);
-        let y_end = self.b.ins().smin(y_end, hi_y);
         self.b.def_var(bxv, gx_start);
-        self.b.def_var(span_lo, gx_start);
-        self.b.def_var(span_hi, gx_start);
+        self.b.ins().jump(brow_resume, &[]);
+
+        self.b.switch_to_block(brow_resume);
+        let y = self.b.use_var(by);
+        let h = self.b.use_var(bh);
+        let y_end = self.b.ins().iadd(y, h);
+        let y_end = self.b.ins().smin(y_end, hi_y);
+        let x = self.b.use_var(bxv);
+        self.b.def_var(span_lo, x);
+        self.b.def_var(span_hi, x);
+        self.b.ins().brif(small_rect, small_full, &[], row_stage, &[]);
+
+        // A small rectangle: the full code over all of it, once.
+        self.b.switch_to_block(small_full);
+        self.b.def_var(full_ys[0], lo_y);
+        self.b.def_var(full_ys[1], hi_y);
+        self.b.def_var(full_gs[0], gx_start);
+        self.b.def_var(full_gs[1], hi_x);
+        let one = self.b.ins().iconst(types::I32, 1);
+        self.b.def_var(full_then, one);
+        self.b.ins().jump(full_entry, &[]);
+
+        // Centres of the first and last live pixels, computed as the pixel code computes X
+        // and Y (int -> float, + 0.5), so the endpoints are bit-identical.
+        let centre = |l: &mut Self, i: ir::Value| {
+            let f = l.b.ins().fcvt_from_sint(types::F32, i);
+            let half = l.b.ins().f32const(0.5);
+            l.b.ins().fadd(f, half)
+        };
+        self.b.switch_to_block(row_stage);
+        let y_last = self.b.ins().iadd_imm_s(y_end, -1);
+        let ys = [centre(self, y), centre(self, y_last)];
+        let row_cache = self.block_cache_row(f, &prefix, ys)?;
         self.b.ins().jump(blk_hdr, &[]);
 
         self.b.switch_to_block(blk_hdr);
@@ -581,27 +642,30 @@ impl<'a, 'b> Lower<'a, 'b> {
 
         self.b.switch_to_block(blk_body);
         let x = self.b.use_var(bxv);
-        let x_end = self.b.ins().iadd_imm_s(x, BLOCK_W as i64);
+        let w = self.b.use_var(bw);
+        let x_end = self.b.ins().iadd(x, w);
         let x_end = self.b.ins().smin(x_end, hi_x);
-        let blk_eval = self.b.create_block();
-        self.b.ins().brif(small_rect, to_full, &[], blk_eval, &[]);
-        self.b.switch_to_block(blk_eval);
-        // Centres of the block's first and last live pixels, computed as the pixel code
-        // computes X and Y (int -> float, + 0.5), so the endpoints are bit-identical.
         let x_first = self.b.ins().smax(x, lo_x);
         let x_last = self.b.ins().iadd_imm_s(x_end, -1);
-        let y_last = self.b.ins().iadd_imm_s(y_end, -1);
-        let centre = |l: &mut Self, i: ir::Value| {
-            let f = l.b.ins().fcvt_from_sint(types::F32, i);
-            let half = l.b.ins().f32const(0.5);
-            l.b.ins().fadd(f, half)
-        };
         let xs = [centre(self, x_first), centre(self, x_last)];
-        let ys = [centre(self, y), centre(self, y_last)];
-        let facts = self.block_facts(f, &prefix, xs, ys)?;
+        let facts = self.block_facts(f, &prefix, &row_cache, xs, ys)?;
         self.b.ins().brif(facts.dead, to_dead, &[], blk_choose, &[]);
         self.b.switch_to_block(blk_choose);
-        self.b.ins().brif(facts.pass, blk_extend, &[], to_full, &[]);
+        self.b.ins().brif(facts.pass, blk_extend, &[], to_full_fine, &[]);
+
+        // Neither dead nor passing: the coarse block is refined (nothing is pending then),
+        // a fine block runs the full code.
+        self.b.switch_to_block(to_full_fine);
+        let c = self.b.use_var(coarse);
+        self.b.ins().brif(c, refine, &[], to_full, &[]);
+        self.b.switch_to_block(refine);
+        let no = self.b.ins().iconst(types::I8, 0);
+        self.b.def_var(coarse, no);
+        let fine_w = self.b.ins().iconst(types::I32, BLOCK_W as i64);
+        let fine_h = self.b.ins().iconst(types::I32, BLOCK_H as i64);
+        self.b.def_var(bw, fine_w);
+        self.b.def_var(bh, fine_h);
+        self.b.ins().jump(brow_body, &[]);
 
         // A pass block: start the span here if none is pending, and extend it to this
         // block's end (blocks are visited left to right, so the span stays contiguous).
@@ -648,21 +712,46 @@ impl<'a, 'b> Lower<'a, 'b> {
         let is_dead = self.b.ins().icmp_imm_s(IntCC::Equal, a, 1);
         self.b.ins().brif(is_dead, blk_next, &[], blk_full, &[]);
 
-        self.b.switch_to_block(blk_full);
-        let x = self.b.use_var(bxv);
-        let x_end = self.b.ins().iadd_imm_s(x, BLOCK_W as i64);
-        let x_end = self.b.ins().smin(x_end, hi_x);
-        self.pixel_rows(f, &rect, [y, y_end], [x, x_end], None, blk_next)?;
-
         self.b.switch_to_block(blk_next);
         let x = self.b.use_var(bxv);
-        let x = self.b.ins().iadd_imm_s(x, BLOCK_W as i64);
+        let w = self.b.use_var(bw);
+        let x = self.b.ins().iadd(x, w);
         self.b.def_var(bxv, x);
         self.b.ins().jump(blk_hdr, &[]);
 
+        // A full block: leave the block loop for the full code.
+        self.b.switch_to_block(blk_full);
+        let x = self.b.use_var(bxv);
+        let w = self.b.use_var(bw);
+        let x_end = self.b.ins().iadd(x, w);
+        let x_end = self.b.ins().smin(x_end, hi_x);
+        self.b.def_var(full_ys[0], y);
+        self.b.def_var(full_ys[1], y_end);
+        self.b.def_var(full_gs[0], x);
+        self.b.def_var(full_gs[1], x_end);
+        let zero = self.b.ins().iconst(types::I32, 0);
+        self.b.def_var(full_then, zero);
+        self.b.ins().jump(full_entry, &[]);
+
+        self.b.switch_to_block(full_entry);
+        let fys = [self.b.use_var(full_ys[0]), self.b.use_var(full_ys[1])];
+        let fgs = [self.b.use_var(full_gs[0]), self.b.use_var(full_gs[1])];
+        self.pixel_rows(f, &rect, fys, fgs, None, full_done)?;
+
+        self.b.switch_to_block(full_done);
+        let then = self.b.use_var(full_then);
+        self.b.ins().brif(then, loops_done, &[], full_resume, &[]);
+        self.b.switch_to_block(full_resume);
+        let x = self.b.use_var(bxv);
+        let w = self.b.use_var(bw);
+        let x = self.b.ins().iadd(x, w);
+        self.b.def_var(bxv, x);
+        self.b.ins().jump(brow_resume, &[]);
+
         self.b.switch_to_block(brow_next);
         let y = self.b.use_var(by);
-        let y = self.b.ins().iadd_imm_s(y, BLOCK_H as i64);
+        let h = self.b.use_var(bh);
+        let y = self.b.ins().iadd(y, h);
         self.b.def_var(by, y);
         self.b.ins().jump(brow_hdr, &[]);
 
