@@ -957,6 +957,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         pass: Option<(&block::Prefix<'a>, &[bool])>,
         done: Block,
     ) -> Res<()> {
+        let first_block = self.b.func.dfg.num_blocks();
         let py = self.b.declare_var(types::I32);
         let gx = self.b.declare_var(types::I32);
         let xv = self.b.declare_var(F32X4);
@@ -975,7 +976,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(finished, done, &[], row_body, &[]);
 
         self.b.switch_to_block(row_body);
-        let y = self.b.use_var(py);
+        let row_y = self.b.use_var(py);
+        let y = row_y;
         let row = self.b.ins().isub(y, rect.y0);
         let row64 = self.b.ins().sextend(types::I64, row);
         let row_base = self.b.ins().imul(row64, rect.stride64);
@@ -1039,12 +1041,28 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.def_var(xv, x_f);
         self.b.ins().jump(grp_hdr, &[]);
 
+        // The row's y as read in `row_body` (dominates this block), not `use_var`: a read
+        // here would be looked up through the group loop and carried through it.
         self.b.switch_to_block(row_next);
-        let y = self.b.use_var(py);
-        let y = self.b.ins().iadd_imm_s(y, 1);
+        let y = self.b.ins().iadd_imm_s(row_y, 1);
         self.b.def_var(py, y);
         self.b.ins().jump(row_hdr, &[]);
+        self.seal_blocks_from(first_block);
         Ok(())
+    }
+
+    /// Seal every block created since block number `first`: a finished loop nest whose
+    /// blocks no later code jumps into.
+    ///
+    /// Why: a variable read after the loops (the block walk's span bounds, read when a
+    /// span is flushed) is looked up through the loop blocks. Unsealed, each loop header
+    /// on the way gets a speculative block parameter that the frontend cannot prove
+    /// redundant later, so the value was carried (and spilled and reloaded) through every
+    /// pixel group. Sealed, the lookup sees all predecessors and drops the parameter.
+    fn seal_blocks_from(&mut self, first: usize) {
+        for i in first..self.b.func.dfg.num_blocks() {
+            self.b.seal_block(Block::from_u32(i as u32));
+        }
     }
 
     /// The pixel code for the group of 4 pixels starting at `g` (lane centres `xy_f`);
@@ -1153,7 +1171,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         match pass {
             None => self.stmts(&f.pixel)?,
             Some((prefix, decidable)) => {
-                self.prefix_without_guards(&prefix.stmts, decidable)?;
+                let mut live = std::collections::HashSet::new();
+                self.live_pixel_locals(&f.pixel[prefix.len..], &mut live);
+                self.prefix_without_guards(&prefix.stmts, &prefix.stmts, decidable, &live)?;
                 self.stmts(&f.pixel[prefix.len..])?;
             }
         }
@@ -1518,11 +1538,17 @@ impl<'a, 'b> Lower<'a, 'b> {
             return err("varying condition outside per-pixel code");
         };
         let (alive_var, group_end) = (p.alive, p.group_end);
-        let leaving = self.b.ins().band(entry, c);
         let alive = self.b.use_var(alive_var);
-        let alive = self.b.ins().band_not(alive, leaving);
+        let stay = self.not_and(entry, c);
+        // Every live lane executing (no varying control flow entered yet, as at a leading
+        // guard): `alive & !(entry & c)` is `stay` itself.
+        let alive = if alive == entry {
+            stay
+        } else {
+            let leaving = self.b.ins().band(entry, c);
+            self.b.ins().band_not(alive, leaving)
+        };
         self.b.def_var(alive_var, alive);
-        let stay = self.b.ins().band_not(entry, c);
         self.set_exec(stay);
         let any = self.b.ins().vany_true(alive);
         let all_gone = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
@@ -1530,6 +1556,26 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(all_gone, group_end, &[], cont, &[]);
         self.b.switch_to_block(cont);
         Ok(())
+    }
+
+    /// `m & !c` for a lane mask `m` and a varying condition `c`. When `c` is a vector
+    /// integer compare, the complementary compare instead (`a <u b` -> `a >=u b`): same
+    /// lanes, and x86 has no unsigned less-than, so `!(a <u b)` was min + compare + not.
+    fn not_and(&mut self, m: ir::Value, c: ir::Value) -> ir::Value {
+        let dfg = &self.b.func.dfg;
+        if let ir::ValueDef::Result(inst, 0) = dfg.value_def(c) {
+            if let ir::InstructionData::IntCompare {
+                opcode: ir::Opcode::Icmp,
+                cond,
+                args,
+            } = dfg.insts[inst]
+            {
+                use cranelift_codegen::ir::condcodes::CondCode;
+                let inv = self.b.ins().icmp(cond.complement(), args[0], args[1]);
+                return self.b.ins().band(m, inv);
+            }
+        }
+        self.b.ins().band_not(m, c)
     }
 
     /// Spend one unit of fuel; out of fuel records ERR_FUEL and jumps to `exit`.

@@ -814,7 +814,15 @@ impl<'a> Lower<'a, '_> {
 
     /// The pixel statements of the *pass* variant: the prefix with its decidable guards
     /// dropped (the block facts proved they fire for no lane), then the rest as written.
-    pub(super) fn prefix_without_guards(&mut self, stmts: &[PStmt<'a>], decidable: &[bool]) -> Res<()> {
+    /// `live` holds the locals the pass variant reads after the prefix (see
+    /// [`pass_live_locals`]).
+    pub(super) fn prefix_without_guards(
+        &mut self,
+        all: &[PStmt<'a>],
+        stmts: &[PStmt<'a>],
+        decidable: &[bool],
+        live: &HashSet<LocalId>,
+    ) -> Res<()> {
         for s in stmts {
             match s {
                 PStmt::Assign { stmt, .. } | PStmt::Kill(stmt) => self.stmt(stmt)?,
@@ -824,6 +832,13 @@ impl<'a> Lower<'a, '_> {
                     }
                 }
                 PStmt::UniformIf { cond, then, otherwise } => {
+                    // An `if` left with nothing the pass variant needs (every guard in it
+                    // dropped, no kill, its locals read nowhere else) is not emitted: its
+                    // assignments would be dead, but the test of its condition would stay
+                    // in every group.
+                    if no_effect_in_pass(all, s, decidable, live) {
+                        continue;
+                    }
                     let c = self.eval_uniform(cond)?;
                     let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
                     let then_blk = self.b.create_block();
@@ -831,10 +846,10 @@ impl<'a> Lower<'a, '_> {
                     let join = self.b.create_block();
                     self.b.ins().brif(c, then_blk, &[], else_blk, &[]);
                     self.b.switch_to_block(then_blk);
-                    self.prefix_without_guards(then, decidable)?;
+                    self.prefix_without_guards(all, then, decidable, live)?;
                     self.b.ins().jump(join, &[]);
                     self.b.switch_to_block(else_blk);
-                    self.prefix_without_guards(otherwise, decidable)?;
+                    self.prefix_without_guards(all, otherwise, decidable, live)?;
                     self.b.ins().jump(join, &[]);
                     self.b.switch_to_block(join);
                 }
@@ -842,6 +857,73 @@ impl<'a> Lower<'a, '_> {
         }
         Ok(())
     }
+}
+
+/// Locals assigned by prefix statements (recursively).
+fn prefix_assigned(stmts: &[PStmt<'_>], out: &mut HashSet<LocalId>) {
+    for s in stmts {
+        match s {
+            PStmt::Assign { local, .. } => {
+                out.insert(*local);
+            }
+            PStmt::UniformIf { then, otherwise, .. } => {
+                prefix_assigned(then, out);
+                prefix_assigned(otherwise, out);
+            }
+            PStmt::Guard { .. } | PStmt::Kill(_) => {}
+        }
+    }
+}
+
+/// Locals the pass variant's prefix reads outside `skip` (an `if` of the prefix): the values
+/// of assignments, the conditions of the guards it keeps and of uniform `if`s.
+fn prefix_reads(stmts: &[PStmt<'_>], skip: &PStmt<'_>, decidable: &[bool], out: &mut HashSet<LocalId>) {
+    for s in stmts {
+        if std::ptr::eq(s, skip) {
+            continue;
+        }
+        match s {
+            PStmt::Assign { value, .. } => super::expr_locals(value, out),
+            PStmt::Guard { cond, id, .. } => {
+                if !decidable[*id] {
+                    super::expr_locals(cond, out);
+                }
+            }
+            PStmt::UniformIf { cond, then, otherwise } => {
+                super::expr_locals(cond, out);
+                prefix_reads(then, skip, decidable, out);
+                prefix_reads(otherwise, skip, decidable, out);
+            }
+            PStmt::Kill(_) => {}
+        }
+    }
+}
+
+/// `s` (a uniform `if` of the prefix) does nothing in the pass variant: every guard in it
+/// is dropped, it kills no lane, and no local it assigns is read outside it (`live`: the
+/// locals the pixel code after the prefix uses).
+fn no_effect_in_pass(all: &[PStmt<'_>], s: &PStmt<'_>, decidable: &[bool], live: &HashSet<LocalId>) -> bool {
+    fn only_dropped(stmts: &[PStmt<'_>], decidable: &[bool]) -> bool {
+        stmts.iter().all(|s| match s {
+            PStmt::Assign { .. } => true,
+            PStmt::Guard { id, .. } => decidable[*id],
+            PStmt::Kill(_) => false,
+            PStmt::UniformIf { then, otherwise, .. } => {
+                only_dropped(then, decidable) && only_dropped(otherwise, decidable)
+            }
+        })
+    }
+    let PStmt::UniformIf { then, otherwise, .. } = s else {
+        return false;
+    };
+    if !only_dropped(then, decidable) || !only_dropped(otherwise, decidable) {
+        return false;
+    }
+    let mut assigned = HashSet::new();
+    prefix_assigned(std::slice::from_ref(s), &mut assigned);
+    let mut reads = live.clone();
+    prefix_reads(all, s, decidable, &mut reads);
+    assigned.is_disjoint(&reads)
 }
 
 #[derive(Clone, Copy)]
