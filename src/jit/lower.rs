@@ -12,10 +12,12 @@
 //!    out of them. Uniform locals move to a stack frame first (`spill_uniforms`) and the
 //!    G-buffer plane addresses are computed once (`plane_table`).
 //!    When the pixel part opens with coverage tests (`if (c) return;`), the rectangle is
-//!    walked in blocks of `BLOCK_W` x `BLOCK_H` pixels instead; [`block`] evaluates the
-//!    tests over each block with interval arithmetic and skips blocks no lane survives, and
-//!    runs blocks every lane passes with a variant of the pixel code without those tests;
-//!    consecutive pass blocks of a block row run as one span. Per row, the pixel terms that
+//!    walked in blocks instead: first the whole rectangle as one block, and only when that
+//!    is neither dead nor passing, blocks of `BLOCK_W` x `BLOCK_H` pixels; [`block`]
+//!    evaluates the tests over each block with interval arithmetic (their uniform and
+//!    Y-only terms once per block row) and skips blocks no lane survives, and runs blocks
+//!    every lane passes with a variant of the pixel code without those tests; consecutive
+//!    pass blocks of a block row run as one span, the others run the full code. Per row, the pixel terms that
 //!    depend on Y alone are evaluated once ([`hoist`]); X steps by 4.0 per group; only the
 //!    groups at the rectangle's ends build a lane mask (the others start all ones).
 //! 3. Per group the pixel statements run on vectors under masks: `alive` (lanes not yet
@@ -981,6 +983,10 @@ impl<'a, 'b> Lower<'a, 'b> {
         let row = self.b.ins().isub(y, rect.y0);
         let row64 = self.b.ins().sextend(types::I64, row);
         let row_base = self.b.ins().imul(row64, rect.stride64);
+        // Element index of pixel x = 0 of this row (the tile's x0 subtracted once per row,
+        // so a group's index is one add): `row_base + (g - x0)`, same value in i64.
+        let x0_64 = self.b.ins().sextend(types::I64, rect.x0);
+        let row_base = self.b.ins().isub(row_base, x0_64);
         let yf = self.b.ins().fcvt_from_sint(types::F32, y);
         let half = self.b.ins().f32const(0.5);
         let yf = self.b.ins().fadd(yf, half);
@@ -1065,8 +1071,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
-    /// The pixel code for the group of 4 pixels starting at `g` (lane centres `xy_f`);
-    /// ends by jumping to `next`.
+    /// The pixel code for the group of 4 pixels starting at `g` (lane centres `xy_f`;
+    /// `row_base` is the element index of x = 0 in the group's row); ends by jumping to
+    /// `next`.
     #[allow(clippy::too_many_arguments)]
     fn pixel_group(
         &mut self,
@@ -1083,9 +1090,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         let mask = self.b.append_block_param(grp_run, I32X4);
         let group_end = self.b.create_block();
         let edge = self.b.create_block();
-        let col = self.b.ins().isub(g, rect.x0);
-        let col64 = self.b.ins().sextend(types::I64, col);
-        let tile_idx = self.b.ins().iadd(row_base, col64);
+        let g64 = self.b.ins().sextend(types::I64, g);
+        let tile_idx = self.b.ins().iadd(row_base, g64);
         // Lanes outside [lo_x, hi_x) start dead. Only a group at either end of the
         // rectangle has such lanes: one unsigned compare tells the others apart.
         let d = self.b.ins().isub(g, rect.lo_x);

@@ -14,7 +14,11 @@
 //! - [`Lower::block_facts`] (run time, once per block) re-evaluates the prefix over the
 //!   block's pixel rectangle with interval arithmetic emitted as scalar CLIF, and yields two
 //!   flags: `dead` (some guard fires for every lane that reaches it) and `pass` (no
-//!   decidable guard fires for any lane).
+//!   decidable guard fires for any lane). The evaluation is staged: [`Lower::block_cache_row`]
+//!   runs once per block row and computes every subexpression that needs no X (uniform
+//!   ones, and those whose only varying input is Y) into an [`AbsCache`]; per block only
+//!   the X-dependent rest is computed. (Measured: recomputing everything per block was 1020
+//!   instructions per block for screen_triangle, a third of a fill frame's kernel work.)
 //!
 //! Soundness: every float operation used (+, -, *, /, conversions, abs/min/max/floor/ceil)
 //! is monotone in each operand once rounded (round-to-nearest is monotone), so evaluating
