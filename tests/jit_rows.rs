@@ -234,3 +234,146 @@ fn everything_passes_and_every_group_is_full_or_an_edge() {
     // Columns -38..=13 (centres -37.5..13.5), rows -20..=13 (centres -19.5..13.5).
     assert_eq!(written, 52 * 34);
 }
+
+/// `split(flag, k, lo, bx0, by0, bx1, by1)`, a guard prefix whose tests sit in a uniform
+/// `if`, with a Y-only term on each side (the block walk evaluates those once per block row
+/// and the X-dependent rest per block):
+/// ```text
+/// bound(bx0, by0, bx1, by1);
+/// if (flag) { int sy = int(Y * 4); if (sy * k + int(X) > 300) return; }
+/// else      { float fy = Y * 0.5;  if (X + fy < lo) return; }
+/// Z = X * 0.001 + Y * 0.002;
+/// ```
+fn split() -> Function {
+    let mut fb = Fb::new("split", FuncKind::Primitive);
+    let (x, y, z) = fb.xyz();
+    let flag = fb.param("flag", Type::bool(), ParamRole::PerPrimitive);
+    let k = fb.param("k", Type::int(), ParamRole::PerPrimitive);
+    let lo = fb.param("lo", float(), ParamRole::PerPrimitive);
+    let bnd: Vec<Expr> = ["bx0", "by0", "bx1", "by1"]
+        .iter()
+        .map(|n| fb.param(n, float(), ParamRole::PerPrimitive))
+        .collect();
+    let sy = fb.local("sy", Type::int(), Varying);
+    let fy = fb.local("fy", float(), Varying);
+    fb.f.setup = vec![bound([bnd[0].clone(), bnd[1].clone(), bnd[2].clone(), bnd[3].clone()])];
+    let int_line = bin(BinOp::Add, bin(BinOp::Mul, sy.clone(), k), conv(x.clone(), Scalar::Int));
+    fb.f.pixel = vec![
+        if_(
+            flag,
+            vec![
+                assign(&sy, conv(bin(BinOp::Mul, y.clone(), fc(4.0)), Scalar::Int)),
+                if_(bin(BinOp::Gt, int_line, ic(300)), vec![ret()], vec![]),
+            ],
+            vec![
+                assign(&fy, bin(BinOp::Mul, y.clone(), fc(0.5))),
+                if_(bin(BinOp::Lt, bin(BinOp::Add, x.clone(), fy), lo), vec![ret()], vec![]),
+            ],
+        ),
+        assign(
+            &z,
+            bin(BinOp::Add, bin(BinOp::Mul, x, fc(0.001)), bin(BinOp::Mul, y, fc(0.002))),
+        ),
+    ];
+    fb.f
+}
+
+/// Renders `split` on a TW x TH tile at (x0, y0) and compares every pixel's depth with the
+/// per-pixel semantics; returns how many pixels were written.
+fn check_split(flag: bool, k: i32, lo: f32, bound: [f32; 4], x0: i32, y0: i32) -> usize {
+    let mut jit = Jit::new(Arc::new(program(vec![split()], 0))).expect("host ISA");
+    let kernel = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
+    let mut args: Vec<u32> = vec![1, flag as u32, k as u32, lo.to_bits()];
+    args.extend(bound.iter().map(|v| v.to_bits()));
+    assert_eq!(kernel.layout.words(1), args.len());
+    let mut depth = vec![0u32; TW * TH];
+    let mut gbuf = vec![0f32; 4];
+    let mut counts = vec![0u32; TW * TH];
+    let mut ctx = TileCtx {
+        x0,
+        y0,
+        x1: x0 + TW as i32,
+        y1: y0 + TH as i32,
+        mode: MODE_RENDER,
+        stride: TW as u32,
+        depth: depth.as_mut_ptr(),
+        gbuf: gbuf.as_mut_ptr(),
+        plane_stride: 0,
+        num_planes: 0,
+        write_count: counts.as_mut_ptr(),
+        bound: [0.0; 4],
+        bound_set: 0,
+        error: 0,
+        error_site: 0,
+        fuel: DEFAULT_FUEL,
+        call_depth: 0,
+        width: 4096,
+        height: 4096,
+        expand: None,
+        expand_state: std::ptr::null_mut(),
+    };
+    // SAFETY: ctx points at live buffers of TW * TH elements (no planes); args has the
+    // layout's length for one sequence point.
+    unsafe { (kernel.entry)(&mut ctx, args.as_ptr()) };
+    assert_eq!(ctx.error, ERR_NONE);
+    let [bx0, by0, bx1, by1] = bound;
+    let mut written = 0;
+    for row in 0..TH {
+        for col in 0..TW {
+            let (x, y) = ((x0 + col as i32) as f32 + 0.5, (y0 + row as i32) as f32 + 0.5);
+            let inside = x >= bx0 && x <= bx1 && y >= by0 && y <= by1;
+            let survives = if flag {
+                let sy = (y * 4.0) as i32;
+                sy.wrapping_mul(k).wrapping_add(x as i32) <= 300
+            } else {
+                x + y * 0.5 >= lo
+            };
+            let want = if inside && survives {
+                raw_depth((x * 0.001 + y * 0.002) as f64)
+            } else {
+                0
+            };
+            assert_eq!(depth[row * TW + col], want, "flag {flag}: depth at ({x}, {y})");
+            written += usize::from(want != 0);
+        }
+    }
+    written
+}
+
+#[test]
+fn guards_in_a_uniform_if_with_row_terms_match_a_scalar_reference() {
+    // Mixed tiles: the coarse block (the whole rectangle) is neither dead nor passing, so
+    // the walk refines into 16x8 blocks; the guard line cuts them diagonally.
+    // int side: 4y * 2 + x <= 300 -> x <= 300 - 8y (rows 20..56 cross it inside 20..80).
+    let n = check_split(true, 2, 0.0, [20.2, 20.7, 79.9, 56.3], 20, 20);
+    assert!(n > 100 && n < 60 * 36, "{n} pixels written");
+    // float side: x + y / 2 >= 70.
+    let n = check_split(false, 0, 70.0, [20.2, 20.7, 79.9, 56.3], 20, 20);
+    assert!(n > 100 && n < 60 * 36, "{n} pixels written");
+}
+
+#[test]
+fn whole_rectangle_decided_at_once_and_small_rectangles_match() {
+    // Every pixel passes: the coarse block passes and the rectangle runs as one span.
+    let n = check_split(false, 0, -1e6, [2.4, 3.1, 57.5, 31.0], 0, 0);
+    assert_eq!(n, 56 * 28);
+    // No pixel survives (int(4y) * 100 >= 600 from the first row on): the coarse block is
+    // dead and nothing is written.
+    assert_eq!(check_split(true, 100, 0.0, [0.0, 1.0, 60.0, 37.0], 0, 0), 0);
+    // Under SMALL_RECT pixels (8 x 9): the full code over the rectangle, no block facts;
+    // int(4y) + int(x) runs from 292 to 331 there, so the guard cuts the rectangle.
+    let n = check_split(true, 1, 0.0, [130.0, 40.2, 137.9, 48.9], 128, 30);
+    assert_eq!(n, 8 * 9 - count_cut(130, 138, 40, 49));
+}
+
+/// Pixels of columns [c0, c1) x rows [r0, r1) where `int(4y) + int(x) > 300` (y, x centres).
+fn count_cut(c0: i32, c1: i32, r0: i32, r1: i32) -> usize {
+    let mut n = 0;
+    for r in r0..r1 {
+        for c in c0..c1 {
+            let (x, y) = (c as f32 + 0.5, r as f32 + 0.5);
+            n += usize::from((y * 4.0) as i32 + x as i32 > 300);
+        }
+    }
+    n
+}

@@ -12,10 +12,12 @@
 //!    out of them. Uniform locals move to a stack frame first (`spill_uniforms`) and the
 //!    G-buffer plane addresses are computed once (`plane_table`).
 //!    When the pixel part opens with coverage tests (`if (c) return;`), the rectangle is
-//!    walked in blocks of `BLOCK_W` x `BLOCK_H` pixels instead; [`block`] evaluates the
-//!    tests over each block with interval arithmetic and skips blocks no lane survives, and
-//!    runs blocks every lane passes with a variant of the pixel code without those tests;
-//!    consecutive pass blocks of a block row run as one span. Per row, the pixel terms that
+//!    walked in blocks instead: first the whole rectangle as one block, and only when that
+//!    is neither dead nor passing, blocks of `BLOCK_W` x `BLOCK_H` pixels; [`block`]
+//!    evaluates the tests over each block with interval arithmetic (their uniform and
+//!    Y-only terms once per block row) and skips blocks no lane survives, and runs blocks
+//!    every lane passes with a variant of the pixel code without those tests; consecutive
+//!    pass blocks of a block row run as one span, the others run the full code. Per row, the pixel terms that
 //!    depend on Y alone are evaluated once ([`hoist`]); X steps by 4.0 per group; only the
 //!    groups at the rectangle's ends build a lane mask (the others start all ones).
 //! 3. Per group the pixel statements run on vectors under masks: `alive` (lanes not yet
@@ -543,20 +545,48 @@ impl<'a, 'b> Lower<'a, 'b> {
         let h64 = self.b.ins().sextend(types::I64, h);
         let area = self.b.ins().imul(w64, h64);
         let small_rect = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, area, SMALL_RECT);
-        // Consecutive pass blocks of a block row run as one *span* (one row prologue per
-        // pixel row for the whole run, not per block): a pass block extends the pending
-        // span; a dead or full block, or the row's end, first flushes it. `after` says what
-        // follows the flush: 0 the next block row, 1 the next block (dead), 2 the full code
-        // on this block.
+        // Shape of the walk, block row by block row:
+        // - `row_stage` evaluates the prefix terms that depend on uniforms and Y alone, once
+        //   for the block row ([`block`] caches them); the block loop after it evaluates
+        //   only the X-dependent rest per block.
+        // - Consecutive pass blocks of a block row run as one *span* (one row prologue per
+        //   pixel row for the whole run, not per block): a pass block extends the pending
+        //   span; a dead or full block, or the row's end, first flushes it. `after` says
+        //   what follows the flush: 0 the next block row, 1 the next block (dead), 2 the
+        //   full code on this block.
+        // - The full code runs outside the block loop (`full_entry`, one instance for the
+        //   blocks and for small rectangles) and comes back to `brow_resume`, which
+        //   re-evaluates the row stage: the block loop's values then need no merging, and
+        //   full blocks are few (a primitive's edges).
+        // - The walk starts *coarse*: the whole rectangle as one block (one block row, one
+        //   block), so a tile entirely inside or outside the primitive costs one evaluation.
+        //   When the coarse block is neither dead nor passing, the walk restarts with
+        //   BLOCK_W x BLOCK_H blocks.
         let by = self.b.declare_var(types::I32);
+        let coarse = self.b.declare_var(types::I8);
+        let bw = self.b.declare_var(types::I32);
+        let bh = self.b.declare_var(types::I32);
+        let yes = self.b.ins().iconst(types::I8, 1);
+        self.b.def_var(coarse, yes);
+        let rect_w = self.b.ins().isub(hi_x, gx_start);
+        let rect_h = self.b.ins().isub(hi_y, lo_y);
+        self.b.def_var(bw, rect_w);
+        self.b.def_var(bh, rect_h);
         let bxv = self.b.declare_var(types::I32);
         let span_lo = self.b.declare_var(types::I32);
         let span_hi = self.b.declare_var(types::I32);
         let after = self.b.declare_var(types::I32);
+        // The full run's rectangle and where it returns: 0 the block after it, 1 the end.
+        let full_ys = [self.b.declare_var(types::I32), self.b.declare_var(types::I32)];
+        let full_gs = [self.b.declare_var(types::I32), self.b.declare_var(types::I32)];
+        let full_then = self.b.declare_var(types::I32);
         self.b.def_var(by, lo_y);
         let brow_hdr = self.b.create_block();
         let brow_body = self.b.create_block();
+        let brow_resume = self.b.create_block();
         let brow_next = self.b.create_block();
+        let small_full = self.b.create_block();
+        let row_stage = self.b.create_block();
         let blk_hdr = self.b.create_block();
         let blk_body = self.b.create_block();
         let blk_next = self.b.create_block();
@@ -571,6 +601,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         let flush_done = self.b.create_block();
         let after_flush = self.b.create_block();
         let after_not_end = self.b.create_block();
+        let full_entry = self.b.create_block();
+        let full_done = self.b.create_block();
+        let full_resume = self.b.create_block();
+        let refine = self.b.create_block();
+        let to_full_fine = self.b.create_block();
         self.b.ins().jump(brow_hdr, &[]);
 
         self.b.switch_to_block(brow_hdr);
@@ -579,12 +614,40 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(done, loops_done, &[], brow_body, &[]);
 
         self.b.switch_to_block(brow_body);
-        let y = self.b.use_var(by);
-        let y_end = self.b.ins().iadd_imm_s(y, BLOCK_H as i64);
-        let y_end = self.b.ins().smin(y_end, hi_y);
         self.b.def_var(bxv, gx_start);
-        self.b.def_var(span_lo, gx_start);
-        self.b.def_var(span_hi, gx_start);
+        self.b.ins().jump(brow_resume, &[]);
+
+        self.b.switch_to_block(brow_resume);
+        let y = self.b.use_var(by);
+        let h = self.b.use_var(bh);
+        let y_end = self.b.ins().iadd(y, h);
+        let y_end = self.b.ins().smin(y_end, hi_y);
+        let x = self.b.use_var(bxv);
+        self.b.def_var(span_lo, x);
+        self.b.def_var(span_hi, x);
+        self.b.ins().brif(small_rect, small_full, &[], row_stage, &[]);
+
+        // A small rectangle: the full code over all of it, once.
+        self.b.switch_to_block(small_full);
+        self.b.def_var(full_ys[0], lo_y);
+        self.b.def_var(full_ys[1], hi_y);
+        self.b.def_var(full_gs[0], gx_start);
+        self.b.def_var(full_gs[1], hi_x);
+        let one = self.b.ins().iconst(types::I32, 1);
+        self.b.def_var(full_then, one);
+        self.b.ins().jump(full_entry, &[]);
+
+        // Centres of the first and last live pixels, computed as the pixel code computes X
+        // and Y (int -> float, + 0.5), so the endpoints are bit-identical.
+        let centre = |l: &mut Self, i: ir::Value| {
+            let f = l.b.ins().fcvt_from_sint(types::F32, i);
+            let half = l.b.ins().f32const(0.5);
+            l.b.ins().fadd(f, half)
+        };
+        self.b.switch_to_block(row_stage);
+        let y_last = self.b.ins().iadd_imm_s(y_end, -1);
+        let ys = [centre(self, y), centre(self, y_last)];
+        let row_cache = self.block_cache_row(f, &prefix, ys)?;
         self.b.ins().jump(blk_hdr, &[]);
 
         self.b.switch_to_block(blk_hdr);
@@ -594,27 +657,30 @@ impl<'a, 'b> Lower<'a, 'b> {
 
         self.b.switch_to_block(blk_body);
         let x = self.b.use_var(bxv);
-        let x_end = self.b.ins().iadd_imm_s(x, BLOCK_W as i64);
+        let w = self.b.use_var(bw);
+        let x_end = self.b.ins().iadd(x, w);
         let x_end = self.b.ins().smin(x_end, hi_x);
-        let blk_eval = self.b.create_block();
-        self.b.ins().brif(small_rect, to_full, &[], blk_eval, &[]);
-        self.b.switch_to_block(blk_eval);
-        // Centres of the block's first and last live pixels, computed as the pixel code
-        // computes X and Y (int -> float, + 0.5), so the endpoints are bit-identical.
         let x_first = self.b.ins().smax(x, lo_x);
         let x_last = self.b.ins().iadd_imm_s(x_end, -1);
-        let y_last = self.b.ins().iadd_imm_s(y_end, -1);
-        let centre = |l: &mut Self, i: ir::Value| {
-            let f = l.b.ins().fcvt_from_sint(types::F32, i);
-            let half = l.b.ins().f32const(0.5);
-            l.b.ins().fadd(f, half)
-        };
         let xs = [centre(self, x_first), centre(self, x_last)];
-        let ys = [centre(self, y), centre(self, y_last)];
-        let facts = self.block_facts(f, &prefix, xs, ys)?;
+        let facts = self.block_facts(f, &prefix, &row_cache, xs, ys)?;
         self.b.ins().brif(facts.dead, to_dead, &[], blk_choose, &[]);
         self.b.switch_to_block(blk_choose);
-        self.b.ins().brif(facts.pass, blk_extend, &[], to_full, &[]);
+        self.b.ins().brif(facts.pass, blk_extend, &[], to_full_fine, &[]);
+
+        // Neither dead nor passing: the coarse block is refined (nothing is pending then),
+        // a fine block runs the full code.
+        self.b.switch_to_block(to_full_fine);
+        let c = self.b.use_var(coarse);
+        self.b.ins().brif(c, refine, &[], to_full, &[]);
+        self.b.switch_to_block(refine);
+        let no = self.b.ins().iconst(types::I8, 0);
+        self.b.def_var(coarse, no);
+        let fine_w = self.b.ins().iconst(types::I32, BLOCK_W as i64);
+        let fine_h = self.b.ins().iconst(types::I32, BLOCK_H as i64);
+        self.b.def_var(bw, fine_w);
+        self.b.def_var(bh, fine_h);
+        self.b.ins().jump(brow_body, &[]);
 
         // A pass block: start the span here if none is pending, and extend it to this
         // block's end (blocks are visited left to right, so the span stays contiguous).
@@ -661,21 +727,46 @@ impl<'a, 'b> Lower<'a, 'b> {
         let is_dead = self.b.ins().icmp_imm_s(IntCC::Equal, a, 1);
         self.b.ins().brif(is_dead, blk_next, &[], blk_full, &[]);
 
-        self.b.switch_to_block(blk_full);
-        let x = self.b.use_var(bxv);
-        let x_end = self.b.ins().iadd_imm_s(x, BLOCK_W as i64);
-        let x_end = self.b.ins().smin(x_end, hi_x);
-        self.pixel_rows(f, &rect, [y, y_end], [x, x_end], None, blk_next)?;
-
         self.b.switch_to_block(blk_next);
         let x = self.b.use_var(bxv);
-        let x = self.b.ins().iadd_imm_s(x, BLOCK_W as i64);
+        let w = self.b.use_var(bw);
+        let x = self.b.ins().iadd(x, w);
         self.b.def_var(bxv, x);
         self.b.ins().jump(blk_hdr, &[]);
 
+        // A full block: leave the block loop for the full code.
+        self.b.switch_to_block(blk_full);
+        let x = self.b.use_var(bxv);
+        let w = self.b.use_var(bw);
+        let x_end = self.b.ins().iadd(x, w);
+        let x_end = self.b.ins().smin(x_end, hi_x);
+        self.b.def_var(full_ys[0], y);
+        self.b.def_var(full_ys[1], y_end);
+        self.b.def_var(full_gs[0], x);
+        self.b.def_var(full_gs[1], x_end);
+        let zero = self.b.ins().iconst(types::I32, 0);
+        self.b.def_var(full_then, zero);
+        self.b.ins().jump(full_entry, &[]);
+
+        self.b.switch_to_block(full_entry);
+        let fys = [self.b.use_var(full_ys[0]), self.b.use_var(full_ys[1])];
+        let fgs = [self.b.use_var(full_gs[0]), self.b.use_var(full_gs[1])];
+        self.pixel_rows(f, &rect, fys, fgs, None, full_done)?;
+
+        self.b.switch_to_block(full_done);
+        let then = self.b.use_var(full_then);
+        self.b.ins().brif(then, loops_done, &[], full_resume, &[]);
+        self.b.switch_to_block(full_resume);
+        let x = self.b.use_var(bxv);
+        let w = self.b.use_var(bw);
+        let x = self.b.ins().iadd(x, w);
+        self.b.def_var(bxv, x);
+        self.b.ins().jump(brow_resume, &[]);
+
         self.b.switch_to_block(brow_next);
         let y = self.b.use_var(by);
-        let y = self.b.ins().iadd_imm_s(y, BLOCK_H as i64);
+        let h = self.b.use_var(bh);
+        let y = self.b.ins().iadd(y, h);
         self.b.def_var(by, y);
         self.b.ins().jump(brow_hdr, &[]);
 
@@ -884,6 +975,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         pass: Option<(&block::Prefix<'a>, &[bool])>,
         done: Block,
     ) -> Res<()> {
+        let first_block = self.b.func.dfg.num_blocks();
         let py = self.b.declare_var(types::I32);
         let gx = self.b.declare_var(types::I32);
         let xv = self.b.declare_var(F32X4);
@@ -902,10 +994,15 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(finished, done, &[], row_body, &[]);
 
         self.b.switch_to_block(row_body);
-        let y = self.b.use_var(py);
+        let row_y = self.b.use_var(py);
+        let y = row_y;
         let row = self.b.ins().isub(y, rect.y0);
         let row64 = self.b.ins().sextend(types::I64, row);
         let row_base = self.b.ins().imul(row64, rect.stride64);
+        // Element index of pixel x = 0 of this row (the tile's x0 subtracted once per row,
+        // so a group's index is one add): `row_base + (g - x0)`, same value in i64.
+        let x0_64 = self.b.ins().sextend(types::I64, rect.x0);
+        let row_base = self.b.ins().isub(row_base, x0_64);
         let yf = self.b.ins().fcvt_from_sint(types::F32, y);
         let half = self.b.ins().f32const(0.5);
         let yf = self.b.ins().fadd(yf, half);
@@ -966,16 +1063,33 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.def_var(xv, x_f);
         self.b.ins().jump(grp_hdr, &[]);
 
+        // The row's y as read in `row_body` (dominates this block), not `use_var`: a read
+        // here would be looked up through the group loop and carried through it.
         self.b.switch_to_block(row_next);
-        let y = self.b.use_var(py);
-        let y = self.b.ins().iadd_imm_s(y, 1);
+        let y = self.b.ins().iadd_imm_s(row_y, 1);
         self.b.def_var(py, y);
         self.b.ins().jump(row_hdr, &[]);
+        self.seal_blocks_from(first_block);
         Ok(())
     }
 
-    /// The pixel code for the group of 4 pixels starting at `g` (lane centres `xy_f`);
-    /// ends by jumping to `next`.
+    /// Seal every block created since block number `first`: a finished loop nest whose
+    /// blocks no later code jumps into.
+    ///
+    /// Why: a variable read after the loops (the block walk's span bounds, read when a
+    /// span is flushed) is looked up through the loop blocks. Unsealed, each loop header
+    /// on the way gets a speculative block parameter that the frontend cannot prove
+    /// redundant later, so the value was carried (and spilled and reloaded) through every
+    /// pixel group. Sealed, the lookup sees all predecessors and drops the parameter.
+    fn seal_blocks_from(&mut self, first: usize) {
+        for i in first..self.b.func.dfg.num_blocks() {
+            self.b.seal_block(Block::from_u32(i as u32));
+        }
+    }
+
+    /// The pixel code for the group of 4 pixels starting at `g` (lane centres `xy_f`;
+    /// `row_base` is the element index of x = 0 in the group's row); ends by jumping to
+    /// `next`.
     #[allow(clippy::too_many_arguments)]
     fn pixel_group(
         &mut self,
@@ -992,9 +1106,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         let mask = self.b.append_block_param(grp_run, I32X4);
         let group_end = self.b.create_block();
         let edge = self.b.create_block();
-        let col = self.b.ins().isub(g, rect.x0);
-        let col64 = self.b.ins().sextend(types::I64, col);
-        let tile_idx = self.b.ins().iadd(row_base, col64);
+        let g64 = self.b.ins().sextend(types::I64, g);
+        let tile_idx = self.b.ins().iadd(row_base, g64);
         // Lanes outside [lo_x, hi_x) start dead. Only a group at either end of the
         // rectangle has such lanes: one unsigned compare tells the others apart.
         let d = self.b.ins().isub(g, rect.lo_x);
@@ -1080,7 +1193,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         match pass {
             None => self.stmts(&f.pixel)?,
             Some((prefix, decidable)) => {
-                self.prefix_without_guards(&prefix.stmts, decidable)?;
+                let mut live = std::collections::HashSet::new();
+                self.live_pixel_locals(&f.pixel[prefix.len..], &mut live);
+                self.prefix_without_guards(&prefix.stmts, &prefix.stmts, decidable, &live)?;
                 self.stmts(&f.pixel[prefix.len..])?;
             }
         }
@@ -1552,11 +1667,17 @@ impl<'a, 'b> Lower<'a, 'b> {
             return err("varying condition outside per-pixel code");
         };
         let (alive_var, group_end) = (p.alive, p.group_end);
-        let leaving = self.b.ins().band(entry, c);
         let alive = self.b.use_var(alive_var);
-        let alive = self.b.ins().band_not(alive, leaving);
+        let stay = self.not_and(entry, c);
+        // Every live lane executing (no varying control flow entered yet, as at a leading
+        // guard): `alive & !(entry & c)` is `stay` itself.
+        let alive = if alive == entry {
+            stay
+        } else {
+            let leaving = self.b.ins().band(entry, c);
+            self.b.ins().band_not(alive, leaving)
+        };
         self.b.def_var(alive_var, alive);
-        let stay = self.b.ins().band_not(entry, c);
         self.set_exec(stay);
         let any = self.b.ins().vany_true(alive);
         let all_gone = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
@@ -1564,6 +1685,26 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(all_gone, group_end, &[], cont, &[]);
         self.b.switch_to_block(cont);
         Ok(())
+    }
+
+    /// `m & !c` for a lane mask `m` and a varying condition `c`. When `c` is a vector
+    /// integer compare, the complementary compare instead (`a <u b` -> `a >=u b`): same
+    /// lanes, and x86 has no unsigned less-than, so `!(a <u b)` was min + compare + not.
+    fn not_and(&mut self, m: ir::Value, c: ir::Value) -> ir::Value {
+        let dfg = &self.b.func.dfg;
+        if let ir::ValueDef::Result(inst, 0) = dfg.value_def(c) {
+            if let ir::InstructionData::IntCompare {
+                opcode: ir::Opcode::Icmp,
+                cond,
+                args,
+            } = dfg.insts[inst]
+            {
+                use cranelift_codegen::ir::condcodes::CondCode;
+                let inv = self.b.ins().icmp(cond.complement(), args[0], args[1]);
+                return self.b.ins().band(m, inv);
+            }
+        }
+        self.b.ins().band_not(m, c)
     }
 
     /// Spend one unit of fuel; out of fuel records ERR_FUEL and jumps to `exit`.
