@@ -337,11 +337,25 @@ impl Lcg {
     }
 }
 
+/// The built-in library, with every primitive the workloads draw (a binary moved away from
+/// its `prims/` directory has none: an error, not a panic while building a scene).
 fn library(sources: &mut SourceMap) -> Result<Arc<Program>, String> {
     let mut diags = Diagnostics::new();
-    Registry::load(sources, &[], &[], &mut diags)
+    let program = Registry::load(sources, &[], &[], &mut diags)
         .map(|r| r.program)
-        .ok_or_else(|| diags.render(sources))
+        .ok_or_else(|| diags.render(sources))?;
+    let missing: Vec<&str> = ["screen_triangle", "polygon", "sphere", "nurb_surface"]
+        .into_iter()
+        .filter(|name| program.find(name).is_none())
+        .collect();
+    if !missing.is_empty() {
+        return Err(format!(
+            "the primitive library at {} lacks {} (the bench draws them)",
+            Registry::builtin_dir().display(),
+            missing.join(", ")
+        ));
+    }
+    Ok(program)
 }
 
 fn render(
