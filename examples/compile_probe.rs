@@ -19,23 +19,9 @@ use primflow::diag::{Diagnostics, SourceMap};
 use primflow::jit::{Jit, JitOptions, Tier};
 use primflow::runtime::Registry;
 
-#[repr(C)]
-struct Timespec {
-    tv_sec: i64,
-    tv_nsec: i64,
-}
-
-extern "C" {
-    fn clock_gettime(clock: i32, tp: *mut Timespec) -> i32;
-}
-
-/// This thread's CPU time in nanoseconds (Linux `CLOCK_THREAD_CPUTIME_ID`).
+/// This thread's CPU time in nanoseconds (the JIT's own clock, microsecond resolution).
 fn thread_cpu_ns() -> u64 {
-    const CLOCK_THREAD_CPUTIME_ID: i32 = 3;
-    let mut t = Timespec { tv_sec: 0, tv_nsec: 0 };
-    // SAFETY: `t` is a valid, writable timespec for the duration of the call.
-    unsafe { clock_gettime(CLOCK_THREAD_CPUTIME_ID, &mut t) };
-    t.tv_sec as u64 * 1_000_000_000 + t.tv_nsec as u64
+    primflow::jit::thread_cpu_micros() * 1000
 }
 
 fn main() {
