@@ -220,3 +220,101 @@ fn float_z_is_stored_rounded_and_saturated() {
         assert!(tile.depth.iter().all(|&d| d == want), "v = {v}: {:x}", tile.depth[0]);
     }
 }
+
+/// The scalar definition of `fixed<32,32>(z)`: `z * 2^32` rounded to nearest (ties to even),
+/// saturated to u32, NaN -> 0 (Rust's `as u32` saturates and maps NaN to 0).
+fn fixed_32_32_ref(z: f32) -> u32 {
+    (z * 4294967296.0).round_ties_even() as u32
+}
+
+/// The vector conversion to `fixed<32,32>` (the depth conversion; on x86 a `maxps` /
+/// `cvttps2dq` sequence) against the scalar definition, over the boundaries (0, -0,
+/// subnormals, rounding ties just above 0, 2^31 and its neighbours, 1 ulp below 1, 1, 2^32
+/// overflow, negative, NaN, +-inf) and a spread of bit patterns. Lane x computes
+/// `(x + 0.5) * v`, so lane 0 is `v / 2` exactly and the other lanes add nearby values.
+#[test]
+fn float_to_fixed_32_32_vector_matches_scalar_definition() {
+    let mut fb = Fb::new("zconv", FuncKind::Primitive);
+    let x = fb.param("X", float(), ParamRole::X);
+    let _y = fb.param("Y", float(), ParamRole::Y);
+    let z = fb.param("Z", fixed(32, 32), ParamRole::Z);
+    let p = fb.param("v", float(), ParamRole::PerPrimitive);
+    fb.f.pixel = vec![assign(
+        &z,
+        conv(bin(BinOp::Mul, x, p), Scalar::Fixed(FixedFormat { bits: 32, frac: 32 })),
+    )];
+    let mut jit = Jit::new(Arc::new(program(vec![fb.f], 0))).unwrap();
+    let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
+
+    let ulp_below = |f: f32| f32::from_bits(f.to_bits() - 1);
+    let ulp_above = |f: f32| f32::from_bits(f.to_bits() + 1);
+    let two_m33 = 2f32.powi(-33);
+    let mut lane0: Vec<f32> = vec![
+        0.0,
+        -0.0,
+        f32::from_bits(1),
+        f32::MIN_POSITIVE,
+        two_m33,
+        ulp_below(two_m33),
+        ulp_above(two_m33),
+        3.0 * two_m33,
+        2f32.powi(-32),
+        0.5,
+        ulp_below(0.5),
+        ulp_above(0.5),
+        0.25,
+        0.75,
+        ulp_below(1.0),
+        1.0,
+        ulp_above(1.0),
+        2.0,
+        1e30,
+        f32::MAX / 4.0,
+        -1e-30,
+        -0.25,
+        -1.0,
+        -1e30,
+        f32::NAN,
+        -f32::NAN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+    ];
+    // A deterministic spread of bit patterns over the whole float range, and a denser one
+    // over [0, 1] where depths live.
+    let mut seed = 0x9e37_79b9u32;
+    for i in 0..600 {
+        seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        let z = if i % 2 == 0 {
+            f32::from_bits(seed)
+        } else {
+            (seed >> 8) as f32 / (1u32 << 24) as f32
+        };
+        lane0.push(z);
+    }
+    let mut checked = 0;
+    for &z0 in &lane0 {
+        // v = 2 * z0 is exact unless it overflows; then lane 0 is inf, still a case.
+        let v = z0 * 2.0;
+        let mut tile = Tile::new(0);
+        assert_eq!(tile.render(&k, &[1, v.to_bits()]).error, ERR_NONE);
+        for lane in 0..W {
+            let zl = (lane as f32 + 0.5) * v;
+            let got = tile.depth_at(lane, 0);
+            assert_eq!(
+                got,
+                fixed_32_32_ref(zl),
+                "z = {zl:e} ({:#x}), lane {lane}",
+                zl.to_bits()
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, lane0.len() * W);
+    // Spot values of the definition itself, so a wrong reference cannot hide a wrong kernel.
+    assert_eq!(fixed_32_32_ref(ulp_below(1.0)), 0xffff_ff00);
+    assert_eq!(fixed_32_32_ref(0.5), 0x8000_0000);
+    assert_eq!(fixed_32_32_ref(ulp_below(0.5)), 0x7fff_ff80);
+    assert_eq!(fixed_32_32_ref(two_m33), 0);
+    assert_eq!(fixed_32_32_ref(3.0 * two_m33), 2);
+    assert_eq!(fixed_32_32_ref(f32::NAN), 0);
+}

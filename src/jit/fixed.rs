@@ -42,6 +42,15 @@ fn f32_like(b: &mut FunctionBuilder, like: ir::Value, x: f32) -> ir::Value {
     }
 }
 
+/// x86 `maxps x, y` on `f32x4`: `y < x ? x : y`, so NaN in either gives `y`. Written as the
+/// select Cranelift's x64 backend matches to one `maxps` (Cranelift's `fmax` expands to
+/// IEEE NaN and signed-zero handling instead).
+fn max_ps(b: &mut FunctionBuilder, x: ir::Value, y: ir::Value) -> ir::Value {
+    let less = b.ins().fcmp(FloatCC::LessThan, y, x);
+    let mask = super::value::to_f32x4(b, less);
+    b.ins().bitselect(mask, x, y)
+}
+
 /// Run a scalar i32 -> i32 computation on a scalar or on each lane of a vector.
 fn per_lane(
     b: &mut FunctionBuilder,
@@ -201,25 +210,24 @@ pub fn int_cc(scalar: Scalar, signed_cc: IntCC) -> IntCC {
 pub fn f32x4_to_u32_sat(b: &mut FunctionBuilder, scaled: ir::Value) -> ir::Value {
     let r = b.ins().nearest(scaled);
     let two31 = f32_like(b, r, 2147483648.0);
-    let big = b.ins().fcmp(FloatCC::GreaterThanOrEqual, r, two31);
     if cfg!(target_arch = "x86_64") {
-        // `cvttps2dq` gives i32::MIN for NaN and out-of-range lanes; the fix-ups below are
-        // cheaper than the generic saturating conversion's NaN and overflow handling.
-        // r < 2^31: exact, or negative / i32::MIN (NaN, r < 0), which smax makes 0.
-        let lo = b.ins().x86_cvtt2dq(I32X4, r);
-        let zero = i32_like(b, lo, 0);
-        let lo = b.ins().smax(lo, zero);
-        // 2^31 <= r < 2^32: r - 2^31 is exact and converts exactly; flipping the sign bit
-        // adds 2^31 back in u32. r >= 2^32 (or +inf): saturate to u32::MAX.
+        // Nine instructions after the rounding, as the hand-written kernel's `depth_raw4`
+        // but saturating below 0 and for NaN too. `cvttps2dq` gives i32::MIN for NaN and
+        // lanes >= 2^31; `maxps(x, 0)` gives 0 for NaN (its second operand) and x < 0.
+        // low: r in [0, 2^31) exactly, i32::MIN (the top bit) for r >= 2^31, 0 otherwise.
+        let zero = f32_like(b, r, 0.0);
+        let low = max_ps(b, r, zero);
+        let low = b.ins().x86_cvtt2dq(I32X4, low);
+        // high: r - 2^31 (exact) for r in [2^31, 2^32), i32::MIN for r >= 2^32 (and +inf),
+        // 0 otherwise; the arithmetic shift turns i32::MIN into all ones (u32::MAX).
         let shifted = b.ins().fsub(r, two31);
-        let hi = b.ins().x86_cvtt2dq(I32X4, shifted);
-        let sign = i32_like(b, hi, i32::MIN as i64);
-        let hi = b.ins().bxor(hi, sign);
-        let two32 = f32_like(b, r, 4294967296.0);
-        let huge = b.ins().fcmp(FloatCC::GreaterThanOrEqual, r, two32);
-        let v = b.ins().bitselect(big, hi, lo);
-        return b.ins().bor(v, huge);
+        let high = max_ps(b, shifted, zero);
+        let high = b.ins().x86_cvtt2dq(I32X4, high);
+        let high_sign = b.ins().sshr_imm_u(high, 31);
+        let high = b.ins().bor(high, high_sign);
+        return b.ins().bor(low, high);
     }
+    let big = b.ins().fcmp(FloatCC::GreaterThanOrEqual, r, two31);
     let lo = b.ins().fcvt_to_sint_sat(I32X4, r);
     let zero = i32_like(b, lo, 0);
     let lo = b.ins().smax(lo, zero);

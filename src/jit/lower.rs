@@ -1116,13 +1116,17 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(interior, grp_run, &[all.into()], edge, &[]);
 
         self.b.switch_to_block(edge);
-        let gs = self.b.ins().splat(I32X4, g);
+        // Lane i is live when lo_x - g <= i < hi_x - g. Splatting the group-relative bounds
+        // (not lo_x and hi_x themselves) keeps loop-invariant vectors out of the group loop:
+        // hoisted, they were spilled, reloaded at the top of every group and stored back
+        // at the bottom.
         let iota = self.iota();
-        let px = self.b.ins().iadd(gs, iota);
-        let lo_s = self.b.ins().splat(I32X4, rect.lo_x);
-        let hi_s = self.b.ins().splat(I32X4, rect.hi_x);
-        let ge = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, px, lo_s);
-        let lt = self.b.ins().icmp(IntCC::SignedLessThan, px, hi_s);
+        let lo_rel = self.b.ins().isub(rect.lo_x, g);
+        let hi_rel = self.b.ins().isub(rect.hi_x, g);
+        let lo_s = self.b.ins().splat(I32X4, lo_rel);
+        let hi_s = self.b.ins().splat(I32X4, hi_rel);
+        let ge = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, iota, lo_s);
+        let lt = self.b.ins().icmp(IntCC::SignedLessThan, iota, hi_s);
         let edge_mask = self.b.ins().band(ge, lt);
         let any = self.b.ins().vany_true(edge_mask);
         let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
@@ -1290,7 +1294,11 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// Address of element `idx` (i64) of the tile buffer whose pointer is at `ptr_off` in ctx.
     fn tile_addr(&mut self, ptr_off: i32, idx: ir::Value) -> ir::Value {
-        let base = self.load_ctx(types::I64, ptr_off);
+        // The context's buffer pointers never change while a kernel runs (the runtime sets
+        // them before the call; kernels write only the error, bound, fuel and call-depth
+        // fields): loaded as read-only, the group loop's two loads of the depth pointer
+        // merge and leave the loop instead of reloading the context pointer every group.
+        let base = self.b.ins().load(types::I64, args_flags(), self.ctx, ptr_off);
         let bytes = self.b.ins().ishl_imm_u(idx, 2);
         self.b.ins().iadd(base, bytes)
     }
