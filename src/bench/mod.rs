@@ -25,7 +25,7 @@ use crate::runtime::{Frame, KernelSource, Registry, Renderer, Value};
 pub struct BenchOptions {
     /// Only workloads whose name contains this.
     pub filter: Option<String>,
-    /// Fewer primitives and runs (finishes in well under two minutes).
+    /// Fewer primitives, at most 5 runs (finishes in well under two minutes).
     pub quick: bool,
     /// Timed runs per kernel (median reported).
     pub runs: usize,
@@ -420,7 +420,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
         .num_threads(threads)
         .build()
         .map_err(|e| e.to_string())?;
-    let runs = if opts.quick { opts.runs.min(3) } else { opts.runs }.max(1);
+    let runs = if opts.quick { opts.runs.min(5) } else { opts.runs }.max(1);
     let selected: Vec<Workload> = workloads(opts.quick)
         .into_iter()
         .filter(|w| opts.filter.as_ref().is_none_or(|f| w.name.contains(f.as_str())))
