@@ -8,7 +8,10 @@ use common::*;
 
 use std::sync::Arc;
 
+use glam::DVec3;
+
 use primflow::diag::{Diagnostics, SourceMap};
+use primflow::handwritten::{Flavor, Handwritten};
 use primflow::ir::Program;
 use primflow::jit::Jit;
 use primflow::runtime::{Frame, Registry, Renderer, Value};
@@ -425,4 +428,154 @@ fn number_list_is_interpolation_data_only_inside_a_named_arm() {
     let (ok, codes) = compile("interpolation { default: v = n; }");
     assert!(!ok);
     assert_eq!(codes, vec!["E0205@4:30"]);
+}
+
+/// Render the flat bilinear patch z = 0, x, y in [-1, 1] (object space; u along x, v along
+/// y, so its object-space normal is +z) through a perspective camera under the model
+/// transform `model`, N bound `implicit`; return the frame and lighting_from_object.
+fn render_flat_patch_under(model: &dyn Fn(&mut Renderer)) -> (Frame, glam::DMat4) {
+    let program = library();
+    let mut r = renderer(&program, 64, 64, false);
+    r.perspective_checked(40.0, 1.0, 50.0).unwrap();
+    r.look_at([1.0, 0.5, 5.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0]).unwrap();
+    model(&mut r);
+    r.material_interp("N", "implicit", &[]).unwrap();
+    r.material("N", &Value(vec![0.0, 0.0, 1.0])).unwrap();
+    r.begin("nurb_surface").unwrap();
+    for (name, value) in [("u_count", 2.0), ("v_count", 2.0), ("u_order", 2.0), ("v_order", 2.0)] {
+        r.rast_param(name, &Value(vec![value])).unwrap();
+    }
+    r.rast_param("u_knots", &Value(padded(&[0.0, 0.0, 1.0, 1.0]))).unwrap();
+    r.rast_param("v_knots", &Value(padded(&[0.0, 0.0, 1.0, 1.0]))).unwrap();
+    r.rast_param("weight", &Value(vec![1.0])).unwrap();
+    for y in [-1.0f32, 1.0] {
+        for x in [-1.0f32, 1.0] {
+            r.vertex(x, y, 0.0, 1.0).unwrap();
+        }
+    }
+    r.end().unwrap();
+    let warnings = r.take_warnings();
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let lighting_from_object = r.geometry.lighting_from_object();
+    (render(&r, 1), lighting_from_object)
+}
+
+/// The implicit normal is returned in LIGHTING coordinates (where the shading pass lights),
+/// not in object coordinates: under a rotating, a non-uniformly scaling and a mirroring
+/// model transform, every covered pixel's N equals the analytic lighting-space normal of
+/// the flat patch, normalise(inverse transpose of lighting_from_object * (0, 0, 1)) in f64,
+/// on the same side of the surface (the mirror flips the cofactor matrix, the handedness
+/// flips it back). Each case's answer differs from the object-space normal (0, 0, 1),
+/// which the prim returned before.
+#[test]
+fn normals_are_returned_in_lighting_coordinates_under_model_transforms() {
+    type Model = fn(&mut Renderer);
+    let cases: [(&str, Model); 3] = [
+        ("rotated", |r| r.rotate(50.0, [0.3, 1.0, 0.2]).unwrap()),
+        ("non-uniformly scaled", |r| {
+            // Scale after the rotation (in world), so the scale axes are oblique to the
+            // patch: the normal is not the scaled normal.
+            r.scale([1.8, 0.5, 1.3]).unwrap();
+            r.rotate(40.0, [1.0, 1.0, 0.0]).unwrap();
+        }),
+        ("mirrored", |r| {
+            r.scale([1.0, 1.0, -1.0]).unwrap();
+            r.rotate(35.0, [1.0, 0.2, 0.0]).unwrap();
+        }),
+    ];
+    for (name, model) in cases {
+        let (frame, lighting_from_object) = render_flat_patch_under(&model);
+        let linear = glam::DMat3::from_mat4(lighting_from_object);
+        let expected = (linear.inverse().transpose() * DVec3::Z).normalize();
+        assert!(
+            (expected - DVec3::Z).abs().max_element() > 0.1,
+            "{name}: the case does not tell lighting from object space ({expected:?})"
+        );
+        let (mut covered, mut worst) = (0, 0.0f64);
+        for y in 0..frame.height {
+            for x in 0..frame.width {
+                if !frame.written(x, y) {
+                    continue;
+                }
+                let n = frame.param_at("N", x, y).unwrap();
+                let got = DVec3::new(n[0].into(), n[1].into(), n[2].into());
+                worst = worst.max((got - expected).abs().max_element());
+                covered += 1;
+            }
+        }
+        println!("{name}: {covered} px, expected {expected:.4?}, worst error {worst:.2e}");
+        assert!(covered > 200, "{name}: only {covered} pixels covered");
+        assert!(worst < 1e-4, "{name}: N off the lighting-space normal by {worst:e}");
+    }
+}
+
+/// The hand-written NURB kernels (scalar and AVX2) map the normal to lighting coordinates
+/// with the prim's operations in the prim's order: on a curved rational patch under a
+/// mirroring, non-uniformly scaling, turning model matrix (every cofactor column and the
+/// handedness matter), their N planes and depth equal the JIT's bit for bit.
+#[test]
+fn handwritten_kernels_map_the_normal_like_the_prim_bit_for_bit() {
+    let program = library();
+    let mut r = renderer(&program, 64, 64, false);
+    r.perspective_checked(40.0, 1.0, 50.0).unwrap();
+    r.look_at([1.0, 0.5, 5.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0]).unwrap();
+    r.scale([1.0, 1.6, -0.7]).unwrap();
+    r.rotate(35.0, [1.0, 0.2, 0.3]).unwrap();
+    r.material_interp("N", "implicit", &[]).unwrap();
+    r.material("N", &Value(vec![0.0, 0.0, 1.0])).unwrap();
+    r.begin("nurb_surface").unwrap();
+    for (name, value) in [("u_count", 3.0), ("v_count", 3.0), ("u_order", 3.0), ("v_order", 3.0)] {
+        r.rast_param(name, &Value(vec![value])).unwrap();
+    }
+    r.rast_param("u_knots", &Value(padded(&[0.0, 0.0, 0.0, 1.0, 1.0, 1.0])))
+        .unwrap();
+    r.rast_param("v_knots", &Value(padded(&[0.0, 0.0, 0.0, 1.0, 1.0, 1.0])))
+        .unwrap();
+    r.rast_param("tolerance", &Value(vec![0.25])).unwrap();
+    for j in 0..3 {
+        for i in 0..3 {
+            let (x, y) = (i as f32 - 1.0, j as f32 - 1.0);
+            let bulge = if i == 1 && j == 1 { 0.9 } else { 0.3 * (x * y) };
+            r.rast_param("weight", &Value(vec![if i == 1 && j == 1 { 1.7 } else { 1.0 }]))
+                .unwrap();
+            r.vertex(x, y, bulge, 1.0).unwrap();
+        }
+    }
+    r.end().unwrap();
+    let warnings = r.take_warnings();
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let jit = render(&r, 2);
+    let covered = (0..jit.height)
+        .flat_map(|y| (0..jit.width).map(move |x| (x, y)))
+        .filter(|&(x, y)| jit.written(x, y))
+        .count();
+    assert!(covered > 300, "only {covered} pixels");
+    for flavor in [Flavor::Scalar, Flavor::Avx2] {
+        let mut hand = Handwritten::new(program.clone(), flavor);
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        let out = pool.install(|| r.render(&mut hand));
+        assert!(
+            out.diags.items.is_empty(),
+            "{}: {:?}",
+            flavor.describe(),
+            out.diags.items
+        );
+        let depth_diff = jit.depth.iter().zip(&out.frame.depth).filter(|(a, b)| a != b).count();
+        assert_eq!(
+            depth_diff,
+            0,
+            "{}: depth differs in {depth_diff} pixels",
+            flavor.describe()
+        );
+        assert_eq!(jit.planes.len(), out.frame.planes.len());
+        for (p, (a, b)) in jit.planes.iter().zip(&out.frame.planes).enumerate() {
+            let differing = a.iter().zip(b).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
+            assert_eq!(
+                differing,
+                0,
+                "{}: plane {p} differs in {differing} pixels",
+                flavor.describe()
+            );
+        }
+    }
 }

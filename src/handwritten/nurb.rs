@@ -30,7 +30,9 @@
 //! perspective-correct (P) first, the linear ones (L) last — for the (P, L) shapes in
 //! [`entry`]. Argument block (see `abi::ArgLayout`): word 0 n_seq; T plane indices; the six
 //! space matrices; u_count, v_count, u_order, v_order; u_knots[16]; v_knots[16]; tolerance;
-//! then per sequence point vertex (4 floats), weight, interp_data (T floats).
+//! object_x, object_y, object_z (3 floats each, in lighting coordinates: the implicit
+//! normal's object-to-lighting cofactor matrix is built from them, as in the prim); then
+//! per sequence point vertex (4 floats), weight, interp_data (T floats).
 
 // `!(a < b)` is the prims' NaN-rejecting test, kept as written (a NaN fails it).
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -45,7 +47,7 @@ pub(crate) const fn params_at(t: usize) -> usize {
 
 /// Words before the per-sequence-point part.
 pub(crate) const fn fixed_words(t: usize) -> usize {
-    params_at(t) + 4 + 16 + 16 + 1
+    params_at(t) + 4 + 16 + 16 + 1 + 9
 }
 
 /// Largest T the kernel's fixed-size buffers hold.
@@ -55,6 +57,22 @@ const TRI_WORDS: usize = 1 + MAX_T + 12 + 3 * MAX_T;
 
 const LIMIT: f32 = 1e30f64 as f32;
 const WEIGHT_FLOOR: f32 = 1e-6f64 as f32;
+
+/// The prim's `dot` of two 3-vectors, in its order.
+#[inline(always)]
+fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The prim's `cross`, in its order.
+#[inline(always)]
+fn cross3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
 
 /// Cranelift's `fmin`: NaN if either operand is NaN, and -0 below +0.
 #[inline(always)]
@@ -241,6 +259,9 @@ struct Surface<const T: usize> {
     h: [[f32; 4]; 144],
     weights: [f32; 144],
     object_from_device: [f32; 16],
+    /// Columns of the object-to-lighting normal matrix (cofactors of lighting_from_object,
+    /// times the handedness).
+    normal_columns: [[f32; 3]; 3],
     /// Offset of interpolation data element 0.
     data_at: usize,
 }
@@ -316,7 +337,14 @@ impl<const T: usize> Surface<T> {
             if length > 0.0 {
                 normal = normal.map(|n| n / length);
             }
-            vertex_data[..3].copy_from_slice(&normal);
+            // To lighting coordinates, and unit length again (a zero normal stays zero).
+            let [nx, ny, nz] = self.normal_columns;
+            let mut lit: [f32; 3] = std::array::from_fn(|c| normal[0] * nx[c] + normal[1] * ny[c] + normal[2] * nz[c]);
+            let lit_length = (lit[0] * lit[0] + lit[1] * lit[1] + lit[2] * lit[2]).sqrt();
+            if lit_length > 0.0 {
+                lit = lit.map(|n| n / lit_length);
+            }
+            vertex_data[..3].copy_from_slice(&lit);
         }
         // The prim hands `polygon` the point divided by the patch's denominator.
         let denominator = weight_rows[pv];
@@ -429,6 +457,9 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
     let u_knots: [f32; 16] = std::array::from_fn(|i| float(f0 + 4 + i));
     let v_knots: [f32; 16] = std::array::from_fn(|i| float(f0 + 20 + i));
     let tolerance = float(f0 + 36);
+    let object_x = [float(f0 + 37), float(f0 + 38), float(f0 + 39)];
+    let object_y = [float(f0 + 40), float(f0 + 41), float(f0 + 42)];
+    let object_z = [float(f0 + 43), float(f0 + 44), float(f0 + 45)];
     let fixed = fixed_words(T);
     let seq = (n_seq as u32).max(1) as usize;
     let vertex = |i: usize| -> [f32; 4] { std::array::from_fn(|c| float(fixed + i * 4 + c)) };
@@ -500,6 +531,18 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
     if !(tolerance > 0.0) {
         return;
     }
+    // The prim's normal matrix: cofactor columns of lighting_from_object, times the
+    // handedness (exactly +-1).
+    let handedness: f32 = if dot3(object_x, cross3(object_y, object_z)) < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    let normal_columns = [
+        cross3(object_y, object_z).map(|c| handedness * c),
+        cross3(object_z, object_x).map(|c| handedness * c),
+        cross3(object_x, object_y).map(|c| handedness * c),
+    ];
     let (unbounded, finest) = (32, 128);
 
     // ---- Step counts. Edges: from their own row / column only.
@@ -642,6 +685,7 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
         h,
         weights,
         object_from_device,
+        normal_columns,
         data_at: fixed + seq * 5,
     };
     let mut sink = TriangleSink::<T> {
@@ -830,10 +874,13 @@ pub(crate) fn entry_for(layout: &ArgLayout, key: &VariantKey, simd: bool) -> Res
         fixed(f0 + 4, 16),
         fixed(f0 + 20, 16),
         fixed(f0 + 36, 1),
+        fixed(f0 + 37, 3),
+        fixed(f0 + 40, 3),
+        fixed(f0 + 43, 3),
         seq(5, t as u32),
     ];
     if layout.spaces != Some(1 + t as u32)
-        || layout.params.get(..10) != Some(&expected[..])
+        || layout.params.get(..13) != Some(&expected[..])
         || layout.fixed_words != fixed_words(t) as u32
     {
         return Err("nurb_surface's parameters are not the ones the hand-written kernel reads".into());
