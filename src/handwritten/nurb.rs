@@ -37,7 +37,7 @@
 // `!(a < b)` is the prims' NaN-rejecting test, kept as written (a NaN fails it).
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 use super::screen_triangle;
-use super::sphere::{apply_point, space_matrix};
+use super::sphere::{apply_point, cross3, dot3, space_matrix};
 use crate::abi::{call_primitive, ArgLayout, BindingKind, KernelFn, ParamSlot, TileCtx, VariantKey, MODE_BOUND};
 
 /// Word offset of the first fixed parameter (`u_count`) for `t` plane-table entries.
@@ -57,22 +57,6 @@ const TRI_WORDS: usize = 1 + MAX_T + 12 + 3 * MAX_T;
 
 const LIMIT: f32 = 1e30f64 as f32;
 const WEIGHT_FLOOR: f32 = 1e-6f64 as f32;
-
-/// The prim's `dot` of two 3-vectors, in its order.
-#[inline(always)]
-fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-/// The prim's `cross`, in its order.
-#[inline(always)]
-fn cross3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
 
 /// Cranelift's `fmin`: NaN if either operand is NaN, and -0 below +0.
 #[inline(always)]

@@ -63,13 +63,15 @@ pub(crate) struct SphereSetup<const T: usize> {
     pub handedness: f32,
 }
 
+/// The language's `dot` of two 3-vectors, in its order (the prims' bits).
 #[inline(always)]
-fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
+pub(crate) fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// The language's `cross`, in its order.
 #[inline(always)]
-fn cross3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+pub(crate) fn cross3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],

@@ -2082,15 +2082,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         // Tier 0: only the masked store (the all-lanes fast path is a second copy of every
         // store, which pays only in the long runs of full groups tier 1 serves).
         if self.tier0() {
-            for &(g, v) in stores {
-                let base = self.b.ins().load(types::I64, mem_flags(), slot_addr, (8 * g) as i32);
-                let real = self.b.ins().iadd(base, bytes);
-                let dummy = self.b.ins().stack_addr(types::I64, self.scratch, 0);
-                let addr = self.b.ins().select(base, real, dummy);
-                let old = self.b.ins().load(F32X4, mem_flags(), addr, 0);
-                let new = blend(&mut self.b, exec, v, old);
-                self.b.ins().store(mem_flags(), new, addr, 0);
-            }
+            self.blended_plane_stores(stores, slot_addr, bytes, exec);
             return;
         }
         let all_lanes = self.b.ins().vall_true(exec);
@@ -2111,6 +2103,20 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().jump(join, &[]);
 
         self.b.switch_to_block(part_blk);
+        self.blended_plane_stores(stores, slot_addr, bytes, exec);
+        self.b.ins().jump(join, &[]);
+        self.b.switch_to_block(join);
+    }
+
+    /// Load + blend + store of each `(plane-table index, value)` under the `exec` mask; a
+    /// plane the frame lacks (null table entry) goes to the scratch slot, branch-free.
+    fn blended_plane_stores(
+        &mut self,
+        stores: &[(u32, ir::Value)],
+        slot_addr: ir::Value,
+        bytes: ir::Value,
+        exec: ir::Value,
+    ) {
         for &(g, v) in stores {
             let base = self.b.ins().load(types::I64, mem_flags(), slot_addr, (8 * g) as i32);
             let real = self.b.ins().iadd(base, bytes);
@@ -2120,8 +2126,6 @@ impl<'a, 'b> Lower<'a, 'b> {
             let new = blend(&mut self.b, exec, v, old);
             self.b.ins().store(mem_flags(), new, addr, 0);
         }
-        self.b.ins().jump(join, &[]);
-        self.b.switch_to_block(join);
     }
 
     /// Once per kernel run, before the pixel loops: the base address of every binding
