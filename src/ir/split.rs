@@ -234,7 +234,8 @@ pub(crate) fn reads_writes(s: &Stmt, r: &mut HashSet<LocalId>, w: &mut HashSet<L
     }
 }
 
-fn expr_reads(e: &Expr, r: &mut HashSet<LocalId>) {
+/// Every local `e` reads.
+pub(crate) fn expr_reads(e: &Expr, r: &mut HashSet<LocalId>) {
     match &e.kind {
         ExprKind::Local(l) => {
             r.insert(*l);

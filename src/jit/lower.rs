@@ -51,6 +51,7 @@ use crate::abi::{
     interpolator_arg_words, type_words, ArgLayout, BindingKind, ParamSlot, VariantKey, ERR_CALL_DEPTH, ERR_FUEL,
     ERR_INDEX, MAX_CALL_DEPTH, MODE_BOUND, MODE_EXPAND,
 };
+use crate::ir::split::expr_reads;
 use crate::ir::{
     ArmKind, BinOp, ConstValue, Elem, Expr, ExprKind, FixedFormat, FuncId, FuncKind, Function, LocalId, LoopId,
     ParamRole, Place, Program, Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp,
@@ -2018,17 +2019,17 @@ impl<'a, 'b> Lower<'a, 'b> {
             match &s.kind {
                 StmtKind::Assign { place, value } => {
                     out.insert(place.local);
-                    place.indices.iter().for_each(|(i, _)| expr_locals(i, out));
-                    expr_locals(value, out);
+                    place.indices.iter().for_each(|(i, _)| expr_reads(i, out));
+                    expr_reads(value, out);
                 }
                 StmtKind::If { cond, then, otherwise } => {
-                    expr_locals(cond, out);
+                    expr_reads(cond, out);
                     self.live_pixel_locals(then, out);
                     self.live_pixel_locals(otherwise, out);
                 }
                 StmtKind::Loop { cond, body, step, .. } => {
                     if let Some(c) = cond {
-                        expr_locals(c, out);
+                        expr_reads(c, out);
                     }
                     self.live_pixel_locals(body, out);
                     self.live_pixel_locals(step, out);
@@ -2047,9 +2048,9 @@ impl<'a, 'b> Lower<'a, 'b> {
                         }
                     }
                 }
-                StmtKind::InterpolatorReturn(Some(e)) => expr_locals(e, out),
-                StmtKind::Bound(es) => es.iter().for_each(|e| expr_locals(e, out)),
-                StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| expr_locals(e, out)),
+                StmtKind::InterpolatorReturn(Some(e)) => expr_reads(e, out),
+                StmtKind::Bound(es) => es.iter().for_each(|e| expr_reads(e, out)),
+                StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| expr_reads(e, out)),
                 StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::InterpolatorReturn(None) => {}
             }
         }
@@ -3590,31 +3591,6 @@ fn mark_dynamic_expr(e: &Expr, dynamic: &mut [bool]) {
             args.iter().for_each(|a| mark_dynamic_expr(a, dynamic))
         }
         ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
-    }
-}
-
-/// Every local `e` reads.
-fn expr_locals(e: &Expr, out: &mut std::collections::HashSet<LocalId>) {
-    match &e.kind {
-        ExprKind::Local(l) => {
-            out.insert(*l);
-        }
-        ExprKind::Index { base, index, .. } => {
-            expr_locals(base, out);
-            expr_locals(index, out);
-        }
-        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => expr_locals(expr, out),
-        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
-            expr_locals(lhs, out);
-            expr_locals(rhs, out);
-        }
-        ExprKind::Select { cond, then, otherwise } => {
-            expr_locals(cond, out);
-            expr_locals(then, out);
-            expr_locals(otherwise, out);
-        }
-        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| expr_locals(a, out)),
-        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
     }
 }
 

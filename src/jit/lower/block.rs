@@ -887,14 +887,14 @@ fn prefix_reads(stmts: &[PStmt<'_>], skip: &PStmt<'_>, decidable: &[bool], out: 
             continue;
         }
         match s {
-            PStmt::Assign { value, .. } => super::expr_locals(value, out),
+            PStmt::Assign { value, .. } => crate::ir::split::expr_reads(value, out),
             PStmt::Guard { cond, id, .. } => {
                 if !decidable[*id] {
-                    super::expr_locals(cond, out);
+                    crate::ir::split::expr_reads(cond, out);
                 }
             }
             PStmt::UniformIf { cond, then, otherwise } => {
-                super::expr_locals(cond, out);
+                crate::ir::split::expr_reads(cond, out);
                 prefix_reads(then, skip, decidable, out);
                 prefix_reads(otherwise, skip, decidable, out);
             }
