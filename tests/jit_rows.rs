@@ -116,29 +116,7 @@ fn render(kernel: &Kernel, case: &Case, x0: i32, y0: i32) -> (Vec<u32>, Vec<f32>
     let mut depth = vec![0u32; TW * TH];
     let mut gbuf = vec![-7.0f32; TW * TH];
     let mut counts = vec![0u32; TW * TH];
-    let mut ctx = TileCtx {
-        x0,
-        y0,
-        x1: x0 + TW as i32,
-        y1: y0 + TH as i32,
-        mode: MODE_RENDER,
-        stride: TW as u32,
-        depth: depth.as_mut_ptr(),
-        gbuf: gbuf.as_mut_ptr(),
-        plane_stride: (TW * TH) as u32,
-        num_planes: 1,
-        write_count: counts.as_mut_ptr(),
-        bound: [0.0; 4],
-        bound_set: 0,
-        error: 0,
-        error_site: 0,
-        fuel: DEFAULT_FUEL,
-        call_depth: 0,
-        width: 4096,
-        height: 4096,
-        expand: None,
-        expand_state: std::ptr::null_mut(),
-    };
+    let mut ctx = tile_ctx(x0, y0, &mut depth, &mut gbuf, &mut counts, 1);
     // SAFETY: ctx points at live buffers of TW * TH elements (one plane); args has the
     // layout's length for one sequence point.
     unsafe { (kernel.entry)(&mut ctx, args.as_ptr()) };
@@ -289,29 +267,7 @@ fn check_split(flag: bool, k: i32, lo: f32, bound: [f32; 4], x0: i32, y0: i32) -
     let mut depth = vec![0u32; TW * TH];
     let mut gbuf = vec![0f32; 4];
     let mut counts = vec![0u32; TW * TH];
-    let mut ctx = TileCtx {
-        x0,
-        y0,
-        x1: x0 + TW as i32,
-        y1: y0 + TH as i32,
-        mode: MODE_RENDER,
-        stride: TW as u32,
-        depth: depth.as_mut_ptr(),
-        gbuf: gbuf.as_mut_ptr(),
-        plane_stride: 0,
-        num_planes: 0,
-        write_count: counts.as_mut_ptr(),
-        bound: [0.0; 4],
-        bound_set: 0,
-        error: 0,
-        error_site: 0,
-        fuel: DEFAULT_FUEL,
-        call_depth: 0,
-        width: 4096,
-        height: 4096,
-        expand: None,
-        expand_state: std::ptr::null_mut(),
-    };
+    let mut ctx = tile_ctx(x0, y0, &mut depth, &mut gbuf, &mut counts, 0);
     // SAFETY: ctx points at live buffers of TW * TH elements (no planes); args has the
     // layout's length for one sequence point.
     unsafe { (kernel.entry)(&mut ctx, args.as_ptr()) };
@@ -376,4 +332,32 @@ fn count_cut(c0: i32, c1: i32, r0: i32, r1: i32) -> usize {
         }
     }
     n
+}
+
+/// A render-mode context for the TW x TH tile at (x0, y0) over the given buffers, with
+/// `num_planes` planes of TW * TH floats in `gbuf`. The buffers must outlive the kernel call.
+fn tile_ctx(x0: i32, y0: i32, depth: &mut [u32], gbuf: &mut [f32], counts: &mut [u32], num_planes: u32) -> TileCtx {
+    TileCtx {
+        x0,
+        y0,
+        x1: x0 + TW as i32,
+        y1: y0 + TH as i32,
+        mode: MODE_RENDER,
+        stride: TW as u32,
+        depth: depth.as_mut_ptr(),
+        gbuf: gbuf.as_mut_ptr(),
+        plane_stride: if num_planes == 0 { 0 } else { (TW * TH) as u32 },
+        num_planes,
+        write_count: counts.as_mut_ptr(),
+        bound: [0.0; 4],
+        bound_set: 0,
+        error: 0,
+        error_site: 0,
+        fuel: DEFAULT_FUEL,
+        call_depth: 0,
+        width: 4096,
+        height: 4096,
+        expand: None,
+        expand_state: std::ptr::null_mut(),
+    }
 }
