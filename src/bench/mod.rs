@@ -392,6 +392,21 @@ pub fn small_scene(program: &Arc<Program>, size: u32, count: usize, k: usize) ->
     scene(program, size, &small(count, k), false)
 }
 
+/// The workloads of the other built-in primitives at `size` x `size` — `sphere implicit N`,
+/// `sphere lit`, `polygon hither` (`polygons` quads) and `nurb` (`patches` patches) — each
+/// with its name and the hand-written forms that exist for it; the criterion benches use them.
+pub fn shape_scenes(
+    program: &Arc<Program>,
+    size: u32,
+    polygons_count: usize,
+    patches: usize,
+) -> Vec<(String, Renderer, &'static [Flavor])> {
+    [spheres(), spheres_lit(), polygons(polygons_count), nurbs(patches)]
+        .into_iter()
+        .map(|w| (w.name.clone(), scene(program, size, &w, false), w.handwritten))
+        .collect()
+}
+
 /// Bit-for-bit equal depth and shading-parameter planes.
 pub fn same_frame(a: &Frame, b: &Frame) -> bool {
     a.depth == b.depth

@@ -1,5 +1,7 @@
-//! Criterion benches of the screen_triangle kernels: the JIT against the hand-written scalar,
-//! SSE4.1 (4 lanes, the JIT's width) and AVX2 twins on the same scenes (`cargo bench --bench screen_triangle`).
+//! Criterion benches of the JIT kernels against their hand-written twins on the same scenes
+//! (`cargo bench --bench kernels`): screen_triangle (scalar, SSE4.1 at the JIT's 4 lanes, AVX2)
+//! on the fill and small workloads, and sphere, polygon (clipped at the hither plane) and NURB
+//! surface against the hand-written forms each has.
 //!
 //! Each scene is rendered once by every source and the frames compared bit for bit before
 //! anything is timed (a benchmark of kernels that disagree measures nothing). Rendering
@@ -9,7 +11,7 @@
 use std::sync::Arc;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use primflow::bench::{fill_scene, same_frame, small_scene};
+use primflow::bench::{fill_scene, same_frame, shape_scenes, small_scene};
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::handwritten::{Flavor, Handwritten};
 use primflow::ir::Program;
@@ -27,14 +29,19 @@ fn library() -> Arc<Program> {
     }
 }
 
-fn bench_scene(c: &mut Criterion, name: &str, scene: &Renderer, program: &Arc<Program>) {
+/// The JIT and the hand-written `flavors` on `scene`, one thread.
+fn bench_scene(c: &mut Criterion, name: &str, scene: &Renderer, program: &Arc<Program>, flavors: &[Flavor]) {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-    let mut sources: Vec<(&str, Box<dyn KernelSource + Send>)> = vec![
-        ("jit", Box::new(Jit::new(program.clone()).unwrap())),
-        ("scalar", Box::new(Handwritten::new(program.clone(), Flavor::Scalar))),
-        ("sse", Box::new(Handwritten::new(program.clone(), Flavor::Sse))),
-        ("avx2", Box::new(Handwritten::new(program.clone(), Flavor::Avx2))),
-    ];
+    let mut sources: Vec<(&str, Box<dyn KernelSource + Send>)> =
+        vec![("jit", Box::new(Jit::new(program.clone()).unwrap()))];
+    for &flavor in flavors {
+        let label = match flavor {
+            Flavor::Scalar => "scalar",
+            Flavor::Sse => "sse",
+            Flavor::Avx2 => "avx2",
+        };
+        sources.push((label, Box::new(Handwritten::new(program.clone(), flavor))));
+    }
     // Correctness first; this also compiles the JIT kernel outside the timed loop.
     let mut frames = vec![];
     for (label, source) in sources.iter_mut() {
@@ -60,6 +67,8 @@ fn bench_scene(c: &mut Criterion, name: &str, scene: &Renderer, program: &Arc<Pr
     group.finish();
 }
 
+const ALL_FLAVORS: [Flavor; 3] = [Flavor::Scalar, Flavor::Sse, Flavor::Avx2];
+
 fn screen_triangle(c: &mut Criterion) {
     let program = library();
     let fill = fill_scene(&program, SIZE, 8, Some("perspective_linear"), 4);
@@ -68,10 +77,25 @@ fn screen_triangle(c: &mut Criterion) {
         "screen_triangle fill 256x256 x8 perspective_linear K=4",
         &fill,
         &program,
+        &ALL_FLAVORS,
     );
     let small = small_scene(&program, SIZE, 5000, 4);
-    bench_scene(c, "screen_triangle small 20px perspective_linear K=4", &small, &program);
+    bench_scene(
+        c,
+        "screen_triangle small 20px perspective_linear K=4",
+        &small,
+        &program,
+        &ALL_FLAVORS,
+    );
 }
 
-criterion_group!(benches, screen_triangle);
+/// Sphere (unlit and lit), hither-clipped polygons and NURB patches at 256x256.
+fn shapes(c: &mut Criterion) {
+    let program = library();
+    for (name, scene, flavors) in shape_scenes(&program, SIZE, 200, 8) {
+        bench_scene(c, &format!("{name} 256x256"), &scene, &program, flavors);
+    }
+}
+
+criterion_group!(benches, screen_triangle, shapes);
 criterion_main!(benches);
