@@ -5,9 +5,11 @@
 //! `cargo run --release --example thread_scaling -- [LAYERS [RUNS [TILE [K]]]]`
 //! (defaults 20 layers as in `bench --quick`, 15 runs, 64 px tiles, K = 4).
 //!
+//! Every frame is rendered into the same `Frame` per thread count (`Renderer::render_into`),
+//! as an application does, so no frame pays for allocating and faulting in fresh buffers.
 //! Prints the median and minimum frame time per thread count and their ratios, and the
-//! median setup (compile lookup, bound pass, binning: serial), tiles (frame allocation and
-//! tile kernels: parallel) and shading times. Run it when the machine is idle: on a shared
+//! median setup (compile lookup, bound pass, binning: serial), tiles (tile kernels and the
+//! copy into the frame: parallel) and shading times. Run it when the machine is idle: on a shared
 //! 2-core machine any other process takes one of the two cores.
 
 use std::time::Instant;
@@ -15,7 +17,7 @@ use std::time::Instant;
 use primflow::bench::fill_scene;
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::jit::Jit;
-use primflow::runtime::Registry;
+use primflow::runtime::{Frame, Registry};
 
 fn arg<T: std::str::FromStr>(i: usize, default: T) -> T {
     std::env::args().nth(i).and_then(|s| s.parse().ok()).unwrap_or(default)
@@ -45,14 +47,15 @@ fn main() -> Result<(), String> {
     let pools: Vec<rayon::ThreadPool> = pools.into_iter().collect::<Result<_, _>>()?;
     // Compile outside the timed runs.
     let _ = pools[0].install(|| scene.render(&mut jit));
+    let mut frames: Vec<Frame> = pools.iter().map(|_| Frame::empty()).collect();
     // [pool] -> (frame ms, setup us, tiles us, shade us) per run.
     let mut runs_of: Vec<Vec<(f64, u64, u64, u64)>> = vec![vec![]; pools.len()];
     for _ in 0..runs {
-        for (pool, times) in pools.iter().zip(runs_of.iter_mut()) {
+        for ((pool, times), frame) in pools.iter().zip(runs_of.iter_mut()).zip(frames.iter_mut()) {
             let started = Instant::now();
-            let out = pool.install(|| scene.render(&mut jit));
+            let report = pool.install(|| scene.render_into(&mut jit, frame));
             let ms = started.elapsed().as_secs_f64() * 1e3;
-            let s = &out.stats;
+            let s = &report.stats;
             times.push((ms, s.setup_micros, s.tiles_micros, s.shade_micros));
         }
     }
