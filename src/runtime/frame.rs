@@ -95,7 +95,8 @@ pub struct RenderStats {
     /// Of `render_micros`: compiling (or looking up) kernels, the bound pass and binning
     /// (serial).
     pub setup_micros: u64,
-    /// Of `render_micros`: allocating the frame and rendering the tiles into it (parallel).
+    /// Of `render_micros`: shaping the frame (allocating only buffers it has no room for)
+    /// and rendering the tiles into it (parallel).
     pub tiles_micros: u64,
     /// Of `render_micros`: the deferred shading pass (0 when the scene turns no effect on).
     pub shade_micros: u64,
