@@ -5,17 +5,21 @@
 //! `cargo run --release --example thread_scaling -- [LAYERS [RUNS [TILE [K]]]]`
 //! (defaults 20 layers as in `bench --quick`, 15 runs, 64 px tiles, K = 4).
 //!
-//! Prints the median and minimum frame time per thread count and their ratios, and the
-//! median setup (compile lookup, bound pass, binning: serial), tiles (frame allocation and
-//! tile kernels: parallel) and shading times. Run it when the machine is idle: on a shared
-//! 2-core machine any other process takes one of the two cores.
+//! Two ways of rendering, interleaved run by run: `reused` renders every frame into the same
+//! `Frame` per thread count (`Renderer::render_into`), as an application does, so no frame
+//! pays for allocating and faulting in fresh buffers (what `primflow bench` times); `fresh`
+//! calls `Renderer::render`, which returns a new frame every time. Prints, per way and
+//! thread count, the median and minimum frame time and the median setup (compile lookup,
+//! bound pass, binning: serial), tiles (tile kernels and the copy into the frame: parallel)
+//! and shading times, then the 2-thread / 1-thread ratios. Run it when the machine is idle:
+//! on a shared 2-core machine any other process takes one of the two cores.
 
 use std::time::Instant;
 
 use primflow::bench::fill_scene;
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::jit::Jit;
-use primflow::runtime::Registry;
+use primflow::runtime::{Frame, Registry, RenderStats};
 
 fn arg<T: std::str::FromStr>(i: usize, default: T) -> T {
     std::env::args().nth(i).and_then(|s| s.parse().ok()).unwrap_or(default)
@@ -24,6 +28,18 @@ fn arg<T: std::str::FromStr>(i: usize, default: T) -> T {
 fn median<T: Copy + PartialOrd>(mut v: Vec<T>) -> T {
     v.sort_by(|a, b| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal));
     v[v.len() / 2]
+}
+
+/// One timed frame: (frame ms, setup us, tiles us, shade us).
+type Run = (f64, u64, u64, u64);
+
+fn run_of(started: Instant, s: &RenderStats) -> Run {
+    (
+        started.elapsed().as_secs_f64() * 1e3,
+        s.setup_micros,
+        s.tiles_micros,
+        s.shade_micros,
+    )
 }
 
 fn main() -> Result<(), String> {
@@ -45,36 +61,43 @@ fn main() -> Result<(), String> {
     let pools: Vec<rayon::ThreadPool> = pools.into_iter().collect::<Result<_, _>>()?;
     // Compile outside the timed runs.
     let _ = pools[0].install(|| scene.render(&mut jit));
-    // [pool] -> (frame ms, setup us, tiles us, shade us) per run.
-    let mut runs_of: Vec<Vec<(f64, u64, u64, u64)>> = vec![vec![]; pools.len()];
+    let mut frames: Vec<Frame> = pools.iter().map(|_| Frame::empty()).collect();
+    // [way][pool] -> one entry per run; way 0 = reused frame, 1 = fresh frame.
+    let mut runs_of: [Vec<Vec<Run>>; 2] = [vec![vec![]; pools.len()], vec![vec![]; pools.len()]];
     for _ in 0..runs {
-        for (pool, times) in pools.iter().zip(runs_of.iter_mut()) {
+        for (p, pool) in pools.iter().enumerate() {
+            let started = Instant::now();
+            let report = pool.install(|| scene.render_into(&mut jit, &mut frames[p]));
+            runs_of[0][p].push(run_of(started, &report.stats));
             let started = Instant::now();
             let out = pool.install(|| scene.render(&mut jit));
-            let ms = started.elapsed().as_secs_f64() * 1e3;
-            let s = &out.stats;
-            times.push((ms, s.setup_micros, s.tiles_micros, s.shade_micros));
+            runs_of[1][p].push(run_of(started, &out.stats));
         }
     }
-    let mut med_ms = vec![];
-    let mut min_ms = vec![];
-    for (pool, times) in pools.iter().zip(&runs_of) {
-        let ms: Vec<f64> = times.iter().map(|t| t.0).collect();
-        let (m, lo) = (median(ms.clone()), ms.iter().copied().fold(f64::INFINITY, f64::min));
+    for (way, name) in ["reused frame (render_into)", "fresh frame (render)"]
+        .iter()
+        .enumerate()
+    {
+        let mut med_ms = vec![];
+        let mut min_ms = vec![];
+        for (pool, times) in pools.iter().zip(&runs_of[way]) {
+            let ms: Vec<f64> = times.iter().map(|t| t.0).collect();
+            let (m, lo) = (median(ms.clone()), ms.iter().copied().fold(f64::INFINITY, f64::min));
+            println!(
+                "{name}, {} thread(s): frame median {m:.2} ms (min {lo:.2}); phases (median us): setup {} tiles {} shade {}",
+                pool.current_num_threads(),
+                median(times.iter().map(|t| t.1).collect()),
+                median(times.iter().map(|t| t.2).collect()),
+                median(times.iter().map(|t| t.3).collect()),
+            );
+            med_ms.push(m);
+            min_ms.push(lo);
+        }
         println!(
-            "{} thread(s): frame median {m:.2} ms (min {lo:.2}); phases (median us): setup {} tiles {} shade {}",
-            pool.current_num_threads(),
-            median(times.iter().map(|t| t.1).collect()),
-            median(times.iter().map(|t| t.2).collect()),
-            median(times.iter().map(|t| t.3).collect()),
+            "{name}: fill perspective_linear K={k}, {layers} layers, tile {tile}, {runs} runs: 2 threads / 1 thread = {:.2}x (medians), {:.2}x (minima)",
+            med_ms[0] / med_ms[1],
+            min_ms[0] / min_ms[1]
         );
-        med_ms.push(m);
-        min_ms.push(lo);
     }
-    println!(
-        "fill perspective_linear K={k}, {layers} layers, tile {tile}, {runs} runs: 2 threads / 1 thread = {:.2}x (medians), {:.2}x (minima)",
-        med_ms[0] / med_ms[1],
-        min_ms[0] / min_ms[1]
-    );
     Ok(())
 }

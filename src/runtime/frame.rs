@@ -14,14 +14,16 @@
 //!    list of draw copies grouped by tile (a counting sort), so a tile task reads its draws
 //!    front to back and prefetches the next draw's arguments while a kernel runs.
 //! 3. Tiles render in parallel with rayon, one job per tile (so that the tiles spread evenly
-//!    over the threads). A tile no draw touches is skipped: the frame starts zeroed, which
-//!    is what it would copy. A tile task renders into its worker's scratch
-//!    buffers (depth u32 with 0 = farthest, G-buffer planes f32, write counts; zeroed per
-//!    tile, reused from tile to tile), running its draws in order in `MODE_RENDER` with
-//!    fresh fuel each, then copies the tile into the frame through row slices it alone owns
-//!    (tiles are disjoint). Every pixel is computed by one tile from the same zeroed start
-//!    whatever the schedule, so the result is bit-identical whatever the number of threads,
-//!    and no serial pass gathers the tiles.
+//!    over the threads). A tile task renders into its thread's scratch buffers (depth u32
+//!    with 0 = farthest, G-buffer planes f32, write counts; zeroed per tile, reused from tile
+//!    to tile and frame to frame), running its draws in order in `MODE_RENDER` with fresh
+//!    fuel each, then copies the tile into the frame through row slices it alone owns
+//!    (tiles are disjoint); a tile no draw touches zeroes its part of the frame instead,
+//!    which is what it would copy. Every pixel is computed by one tile from the same zeroed
+//!    start whatever the schedule, so the result is bit-identical whatever the number of
+//!    threads, no serial pass gathers the tiles, and the frame's earlier contents never
+//!    matter: [`Renderer::render_into`] reuses a caller's [`Frame`] (no allocation, no page
+//!    faults on fresh buffers) and [`Renderer::render`] is it on an empty frame.
 //! 4. Kernel run-time errors become warnings at the failing site of the primitive source,
 //!    once per (site, error), in tile order.
 //!
@@ -93,7 +95,8 @@ pub struct RenderStats {
     /// Of `render_micros`: compiling (or looking up) kernels, the bound pass and binning
     /// (serial).
     pub setup_micros: u64,
-    /// Of `render_micros`: allocating the frame and rendering the tiles into it (parallel).
+    /// Of `render_micros`: shaping the frame (allocating only buffers it has no room for)
+    /// and rendering the tiles into it (parallel).
     pub tiles_micros: u64,
     /// Of `render_micros`: the deferred shading pass (0 when the scene turns no effect on).
     pub shade_micros: u64,
@@ -113,6 +116,17 @@ pub struct RenderStats {
 /// and run-time errors warnings).
 pub struct RenderOutput {
     pub frame: Frame,
+    pub stats: RenderStats,
+    pub diags: Diagnostics,
+    /// Every kernel variant compiled for the frame, in first-use order.
+    pub kernels: Vec<KernelReport>,
+    /// The effects the shading pass was compiled for.
+    pub effects: Effects,
+}
+
+/// What [`Renderer::render_into`] returns besides the frame it filled: the same as a
+/// [`RenderOutput`] without the frame.
+pub struct RenderReport {
     pub stats: RenderStats,
     pub diags: Diagnostics,
     /// Every kernel variant compiled for the frame, in first-use order.
@@ -146,6 +160,20 @@ struct TileScratch {
     counts: Vec<u32>,
 }
 
+thread_local! {
+    /// This thread's tile buffers. Rayon's worker threads live as long as their pool, so a
+    /// worker reuses its buffers for every tile of every frame it renders: no allocation and
+    /// no fresh (page-faulting) memory per tile or per frame, and the buffers stay in the
+    /// core's cache. (`map_init` would not do this: with one job per tile it builds a new
+    /// scratch per tile.) A tile task borrows it for the whole tile and makes no rayon call
+    /// meanwhile, so no other task can run on this thread while it is borrowed.
+    static TILE_SCRATCH: std::cell::RefCell<TileScratch> = std::cell::RefCell::default();
+}
+
+/// Scratch capacity (elements per buffer) a thread keeps after a tile: a huge tile's buffers
+/// are given back rather than held for the thread's lifetime. 64 planes of a 128 x 128 tile.
+const SCRATCH_KEEP: usize = 128 * 128 * 64;
+
 /// Where one tile's pixels go in the frame: for every frame buffer, one mutable slice per
 /// tile row (`tile.x1 - tile.x0` long). Tiles are disjoint, so every tile task owns its
 /// slices and writes them while the others run.
@@ -178,9 +206,33 @@ fn tile_rows<T>(buf: &mut [T], width: usize, tile_size: usize, tiles: usize) -> 
 }
 
 impl Renderer {
-    /// Render every instance submitted so far. Uses the current rayon thread pool (wrap the
-    /// call in `ThreadPool::install` to choose the thread count).
+    /// Render every instance submitted so far into a new [`Frame`]. Uses the current rayon
+    /// thread pool (wrap the call in `ThreadPool::install` to choose the thread count).
+    /// Equivalent to [`Renderer::render_into`] on [`Frame::empty`].
     pub fn render(&self, source: &mut dyn KernelSource) -> RenderOutput {
+        let mut frame = Frame::empty();
+        let RenderReport {
+            stats,
+            diags,
+            kernels,
+            effects,
+        } = self.render_into(source, &mut frame);
+        RenderOutput {
+            frame,
+            stats,
+            diags,
+            kernels,
+            effects,
+        }
+    }
+
+    /// Render every instance submitted so far into `frame`, reusing its buffers: an
+    /// application that renders frame after frame into the same `Frame` pays for no
+    /// allocation, no page fault and no clearing of the whole frame (every pixel is written
+    /// once, by the tile it lies in: rendered and copied, or zeroed when no draw touches the
+    /// tile). Whatever `frame` held before (another size, other planes, colours), the result
+    /// is bit for bit the frame [`Renderer::render`] returns.
+    pub fn render_into(&self, source: &mut dyn KernelSource, frame: &mut Frame) -> RenderReport {
         let started = Instant::now();
         // The options are public fields: clamp them here so that no setting can panic or
         // overflow the frame size (the setters already reject these values).
@@ -270,36 +322,23 @@ impl Renderer {
 
         // 3. Tiles in parallel, each copying itself into the frame; errors kept in tile order.
         let num_planes = self.num_planes();
-        let pixels = (opts.width * opts.height) as usize;
-        let mut frame = Frame {
-            width: opts.width,
-            height: opts.height,
-            background: opts.background,
-            // One `vec![0; n]` per buffer (not `vec![plane; k]`, which clones by copying): the
-            // allocator hands back untouched zero pages, first written by the tile tasks, in
-            // parallel.
-            depth: vec![0; pixels],
-            planes: (0..num_planes).map(|_| vec![0.0; pixels]).collect(),
-            write_counts: opts.count_writes.then(|| vec![0; pixels]),
-            params: self
-                .shading_params()
-                .iter()
-                .map(|p| ParamPlanes {
-                    name: p.name.clone(),
-                    first_plane: p.first_plane,
-                    components: p.components,
-                })
-                .collect(),
-            colors: None,
-        };
+        frame.reset(
+            opts,
+            num_planes,
+            self.shading_params().iter().map(|p| ParamPlanes {
+                name: p.name.clone(),
+                first_plane: p.first_plane,
+                components: p.components,
+            }),
+        );
         let targets = frame.tile_targets(tiles.len(), opts.tile_size);
         let tile_errors: Vec<Vec<(usize, u32, u32)>> = tiles
             .par_iter()
             .zip(bins.slices().into_par_iter())
             .zip(targets.into_par_iter())
             .with_max_len(1)
-            .map_init(TileScratch::default, |scratch, ((tile, bin), target)| {
-                render_tile(tile, bin, num_planes, opts, scratch, target)
+            .map(|((tile, bin), target)| {
+                TILE_SCRATCH.with(|scratch| render_tile(tile, bin, num_planes, opts, &mut scratch.borrow_mut(), target))
             })
             .collect();
         errors.extend(tile_errors.into_iter().flatten());
@@ -314,16 +353,24 @@ impl Renderer {
             lighting_from_world: self.geometry.lighting_from_world(),
             device_from_clip: self.geometry.device_from_clip(),
         };
+        // The previous frame's colour buffer (if any) is reused; without an effect there is
+        // none.
+        let colors = frame.colors.take();
         if let Some(shader) = Shader::new(&self.shading_setup, &spaces) {
-            frame.colors = Some(frame.shade(&shader, self.shading_setup.texture.as_ref().map(|t| t.param.as_str())));
+            let mut buf = colors.unwrap_or_default();
+            frame.shade(
+                &shader,
+                self.shading_setup.texture.as_ref().map(|t| t.param.as_str()),
+                &mut buf,
+            );
+            frame.colors = Some(buf);
         }
         stats.shade_micros = shade_started.elapsed().as_micros() as u64;
 
         // 4. Run-time errors, once per (site, code), in a thread-independent order.
         report_runtime_errors(&program, &errors, instances, &mut diags);
         stats.render_micros = started.elapsed().as_micros() as u64;
-        RenderOutput {
-            frame,
+        RenderReport {
             stats,
             diags,
             kernels: reports,
@@ -579,8 +626,11 @@ fn render_tile(
         buf.resize(len, T::default());
     }
     if bin.is_empty() {
-        // Nothing draws here: the frame's own buffers are already zero, which is what the
-        // tile's would hold.
+        // Nothing draws here: the tile would hold zeros, so its part of the frame (which may
+        // hold an earlier frame) is zeroed directly, without the scratch.
+        target.depth.iter_mut().for_each(|row| row.fill(0));
+        target.counts.iter_mut().for_each(|row| row.fill(0));
+        target.planes.iter_mut().flatten().for_each(|row| row.fill(0.0));
         return vec![];
     }
     reset(&mut scratch.depth, plane_len);
@@ -635,6 +685,9 @@ fn render_tile(
             d.copy_from_slice(&plane[row * stride..row * stride + d.len()]);
         }
     }
+    if scratch.gbuf.capacity() > SCRATCH_KEEP {
+        *scratch = TileScratch::default();
+    }
     errors
 }
 
@@ -687,6 +740,43 @@ fn report_runtime_errors(
 }
 
 impl Frame {
+    /// A 0 x 0 frame with no buffers: the start of [`Renderer::render_into`]'s first frame.
+    pub fn empty() -> Frame {
+        Frame {
+            width: 0,
+            height: 0,
+            background: [0.0; 3],
+            depth: vec![],
+            planes: vec![],
+            write_counts: None,
+            params: vec![],
+            colors: None,
+        }
+    }
+
+    /// Shape the frame for a render with `opts` and `num_planes` planes, keeping the buffers
+    /// it already has (same size: nothing allocated). Contents are left as they are: the
+    /// tile tasks write every pixel.
+    fn reset(&mut self, opts: &RenderOptions, num_planes: u32, params: impl Iterator<Item = ParamPlanes>) {
+        let pixels = (opts.width * opts.height) as usize;
+        self.width = opts.width;
+        self.height = opts.height;
+        self.background = opts.background;
+        self.depth = fit(std::mem::take(&mut self.depth), pixels, 0);
+        self.planes.truncate(num_planes as usize);
+        self.planes.resize_with(num_planes as usize, Vec::new);
+        for plane in &mut self.planes {
+            *plane = fit(std::mem::take(plane), pixels, 0.0);
+        }
+        if opts.count_writes {
+            self.write_counts = Some(fit(self.write_counts.take().unwrap_or_default(), pixels, 0));
+        } else {
+            self.write_counts = None;
+        }
+        self.params.clear();
+        self.params.extend(params);
+    }
+
     /// Every tile's [`TileTarget`] into this frame's buffers, in [`tile_grid`] order.
     fn tile_targets(&mut self, tiles: usize, tile_size: u32) -> Vec<TileTarget<'_>> {
         let (width, ts) = (self.width as usize, tile_size as usize);
@@ -778,20 +868,22 @@ impl Frame {
         self.colors.as_ref().map(|c| c[i])
     }
 
-    /// Run `shader` over every written pixel; unwritten pixels get zero. Bands of
-    /// [`SHADE_BAND_ROWS`] rows are shaded in parallel (each pixel's colour depends on that
-    /// pixel's inputs alone, so the result is the same for any thread count). The fast
+    /// Run `shader` over every written pixel into `colors` (resized to the frame; its old
+    /// contents do not matter); unwritten pixels get zero. Bands of [`SHADE_BAND_ROWS`] rows
+    /// are shaded in parallel (each pixel's colour depends on that pixel's inputs alone, so
+    /// the result is the same for any thread count); each band zeroes its own colours first
+    /// (in parallel, cache-hot, instead of a serial clear of the whole buffer). The fast
     /// kernels read each row's planes as contiguous slices ([`RowInputs`]) in one fused pass;
     /// the f64 reference takes the written pixels one by one.
-    fn shade(&self, shader: &Shader, texture_param: Option<&str>) -> Vec<[f32; 3]> {
-        let mut colors = vec![[0f32; 3]; self.depth.len()];
+    fn shade(&self, shader: &Shader, texture_param: Option<&str>, colors: &mut Vec<[f32; 3]>) {
+        *colors = fit(std::mem::take(colors), self.depth.len(), [0.0; 3]);
         let width = self.width as usize;
         if width == 0 {
-            return colors;
+            return;
         }
         if shader.kernel() == ShadingKernel::ReferenceF64 {
-            self.shade_reference(shader, texture_param, &mut colors);
-            return colors;
+            self.shade_reference(shader, texture_param, colors);
+            return;
         }
         let get = |name: &str| self.param(name).cloned();
         let cs = get("Cs").filter(|p| p.components == 1 || p.components >= 3);
@@ -810,6 +902,8 @@ impl Frame {
             .par_chunks_mut(width * SHADE_BAND_ROWS)
             .enumerate()
             .for_each(|(band, band_colors)| {
+                // `shade_row` skips chunks with no written pixel: they must read zero.
+                band_colors.fill([0.0; 3]);
                 for (i, row_colors) in band_colors.chunks_mut(width).enumerate() {
                     let y = band * SHADE_BAND_ROWS + i;
                     let row = RowInputs {
@@ -828,7 +922,6 @@ impl Frame {
                     shader.shade_row(&row, row_colors);
                 }
             });
-        colors
     }
 
     /// The f64 reference pass ([`ShadingKernel::ReferenceF64`]): one [`PixelInputs`] per
@@ -839,6 +932,8 @@ impl Frame {
         let st = texture_param.and_then(get);
         let width = self.width as usize;
         colors.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+            // Unwritten pixels are zero (the buffer may hold an earlier frame's colours).
+            row.fill([0.0; 3]);
             // Per row: bounded memory for the inputs.
             let mut inputs = Vec::with_capacity(width);
             let mut slots = Vec::with_capacity(width);
@@ -933,6 +1028,18 @@ impl Frame {
             )),
         }
     }
+}
+
+/// `buf` at `len` elements, reusing its memory when it has room. A buffer too small is
+/// replaced by `vec![zero; len]` rather than grown: for zero that is the allocator's untouched
+/// zero pages (no serial clearing pass; the parallel tile tasks touch them first), where
+/// `resize` would write every element here, serially.
+fn fit<T: Clone>(mut buf: Vec<T>, len: usize, zero: T) -> Vec<T> {
+    if buf.capacity() < len {
+        return vec![zero; len];
+    }
+    buf.resize(len, zero);
+    buf
 }
 
 fn clamp01(v: f32) -> f32 {

@@ -30,7 +30,7 @@ pub mod transform;
 pub mod value;
 
 pub use api::{ApiIssue, Instance, RenderOptions, Renderer, ShadingParam, Target, EXPAND_BUDGET_WORDS};
-pub use frame::{describe_key, Frame, KernelReport, ParamPlanes, RenderOutput, RenderStats};
+pub use frame::{describe_key, Frame, KernelReport, ParamPlanes, RenderOutput, RenderReport, RenderStats};
 pub use kernels::KernelSource;
 pub use registry::Registry;
 pub use value::Value;

@@ -1,0 +1,174 @@
+//! `Renderer::render_into`: rendering into a caller's `Frame`, reusing its buffers, gives
+//! bit for bit the frame `Renderer::render` returns, whatever the frame held before (another
+//! scene, another size, more planes, write counts, shaded colours) and whatever the thread
+//! count.
+
+mod common;
+
+use std::sync::Arc;
+
+use common::*;
+use primflow::bench::{effects_scene, EffectSet};
+use primflow::ir::Program;
+use primflow::jit::Jit;
+use primflow::runtime::shading::ShadingKernel;
+use primflow::runtime::{Frame, Renderer};
+
+/// Every field of two frames, floats compared by their bits.
+fn assert_same(a: &Frame, b: &Frame, what: &str) {
+    assert_eq!((a.width, a.height), (b.width, b.height), "{what}: size");
+    assert_eq!(a.background, b.background, "{what}: background");
+    assert_eq!(a.depth, b.depth, "{what}: depth");
+    assert_eq!(a.planes.len(), b.planes.len(), "{what}: plane count");
+    for (p, (x, y)) in a.planes.iter().zip(&b.planes).enumerate() {
+        let bits = |v: &Vec<f32>| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(x), bits(y), "{what}: plane {p}");
+    }
+    assert_eq!(a.write_counts, b.write_counts, "{what}: write counts");
+    assert_eq!(a.params, b.params, "{what}: parameters");
+    let bits = |c: &Option<Vec<[f32; 3]>>| {
+        c.as_ref()
+            .map(|c| c.iter().map(|p| p.map(f32::to_bits)).collect::<Vec<_>>())
+    };
+    assert_eq!(bits(&a.colors), bits(&b.colors), "{what}: colours");
+}
+
+/// 100 x 70 in 16 px tiles (edge tiles cut, widths not a multiple of the group), two
+/// triangles with 4 perspective-interpolated components that leave most tiles empty.
+fn sparse_scene(program: &Arc<Program>) -> Renderer {
+    let mut r = renderer(program, 100, 70, false);
+    r.set_tile_size(16).unwrap();
+    for c in 0..4 {
+        r.material_interp(&format!("p{c}"), "perspective_linear", &[]).unwrap();
+    }
+    let values = |seed: f32| -> [Vec<f32>; 3] { [vec![seed], vec![seed + 0.25], vec![seed + 0.5]] };
+    let params: Vec<(String, [Vec<f32>; 3])> = (0..4).map(|c| (format!("p{c}"), values(c as f32))).collect();
+    let params: Vec<(&str, [Vec<f32>; 3])> = params.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
+    screen_triangle(
+        &mut r,
+        [[3.0, 5.0, 0.4, 1.0], [41.5, 9.0, 0.4, 2.0], [12.0, 33.0, 0.4, 1.5]],
+        &params,
+    );
+    screen_triangle(
+        &mut r,
+        [[20.0, 20.0, 0.6, 1.0], [60.0, 25.0, 0.6, 3.0], [30.0, 50.0, 0.6, 1.0]],
+        &params,
+    );
+    r
+}
+
+/// 128 x 96, every pixel covered by 3 layers with `Cs`, `N`, `st` (8 planes), two lights,
+/// fog and texture on, write counts on: every buffer of a frame in use.
+fn lit_scene(program: &Arc<Program>, kernel: ShadingKernel) -> Renderer {
+    let mut r = effects_scene(
+        program,
+        128,
+        3,
+        EffectSet {
+            lights: 2,
+            fog: true,
+            texture: true,
+        },
+    );
+    r.set_image_size(128, 96).unwrap();
+    r.options.count_writes = true;
+    r.shading_setup.kernel = kernel;
+    r
+}
+
+fn fresh(r: &Renderer, jit: &mut Jit, pool: &rayon::ThreadPool) -> Frame {
+    let out = pool.install(|| r.render(jit));
+    assert!(!out.diags.has_errors(), "{:?}", out.diags.items);
+    out.frame
+}
+
+fn into(r: &Renderer, jit: &mut Jit, pool: &rayon::ThreadPool, frame: &mut Frame) {
+    let report = pool.install(|| r.render_into(jit, frame));
+    assert!(!report.diags.has_errors(), "{:?}", report.diags.items);
+    assert_eq!(report.stats.instances, r.instances().len());
+}
+
+fn pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap()
+}
+
+#[test]
+fn rendering_twice_into_one_frame_gives_the_fresh_frame() {
+    let program = library();
+    let mut jit = Jit::new(program.clone()).unwrap();
+    let one = pool(1);
+    let r = sparse_scene(&program);
+    let reference = fresh(&r, &mut jit, &one);
+    assert!(
+        reference.written(10, 10) && !reference.written(90, 60),
+        "the scene leaves tiles empty"
+    );
+    let mut frame = Frame::empty();
+    into(&r, &mut jit, &one, &mut frame);
+    assert_same(&frame, &reference, "first render into an empty frame");
+    let depth_ptr = frame.depth.as_ptr();
+    into(&r, &mut jit, &one, &mut frame);
+    assert_same(&frame, &reference, "second render into the same frame");
+    assert_eq!(
+        frame.depth.as_ptr(),
+        depth_ptr,
+        "the depth buffer was reused, not reallocated"
+    );
+}
+
+#[test]
+fn a_frame_left_by_another_scene_is_reshaped_and_fully_overwritten() {
+    let program = library();
+    let mut jit = Jit::new(program.clone()).unwrap();
+    let one = pool(1);
+    for kernel in [ShadingKernel::Simd, ShadingKernel::ReferenceF64] {
+        let sparse = sparse_scene(&program);
+        let lit = lit_scene(&program, kernel);
+        let sparse_ref = fresh(&sparse, &mut jit, &one);
+        let lit_ref = fresh(&lit, &mut jit, &one);
+        assert!(lit_ref.colors.is_some() && lit_ref.write_counts.is_some());
+        assert_eq!(lit_ref.planes.len(), 8);
+        assert_eq!(lit_ref.write_count_at(5, 5), Some(3), "three layers over every pixel");
+        let mut frame = Frame::empty();
+        // Bigger, more planes, counts and colours -> smaller, fewer, none -> back.
+        into(&lit, &mut jit, &one, &mut frame);
+        assert_same(&frame, &lit_ref, "lit scene first");
+        into(&sparse, &mut jit, &one, &mut frame);
+        assert_same(&frame, &sparse_ref, "sparse scene after the lit one");
+        assert_eq!(
+            frame.color_at(90, 60),
+            [0.0; 3],
+            "an empty tile shows the background again"
+        );
+        into(&lit, &mut jit, &one, &mut frame);
+        assert_same(&frame, &lit_ref, "lit scene after the sparse one");
+        // Colours left by the lit frame must not survive where the next lit frame writes
+        // nothing (the shading pass skips unwritten pixels).
+        let mut sparse_lit = sparse_scene(&program);
+        sparse_lit.shading_setup = lit.shading_setup.clone();
+        let sparse_lit_ref = fresh(&sparse_lit, &mut jit, &one);
+        assert!(sparse_lit_ref.colors.is_some());
+        into(&sparse_lit, &mut jit, &one, &mut frame);
+        assert_same(&frame, &sparse_lit_ref, "sparse lit scene after the lit one");
+        assert_eq!(frame.shaded_at(90, 60), Some([0.0; 3]));
+    }
+}
+
+#[test]
+fn one_and_two_threads_fill_a_reused_frame_identically() {
+    let program = library();
+    let mut jit = Jit::new(program.clone()).unwrap();
+    let (one, two) = (pool(1), pool(2));
+    let lit = lit_scene(&program, ShadingKernel::Simd);
+    let sparse = sparse_scene(&program);
+    let reference = fresh(&lit, &mut jit, &one);
+    let mut frame = Frame::empty();
+    for round in 0..3 {
+        for (threads, p) in [(1, &one), (2, &two)] {
+            into(&lit, &mut jit, p, &mut frame);
+            assert_same(&frame, &reference, &format!("round {round}, {threads} thread(s)"));
+        }
+        // Another scene in between, on two threads: its pixels must all be replaced.
+        into(&sparse, &mut jit, &two, &mut frame);
+    }
+}
