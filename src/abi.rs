@@ -75,6 +75,38 @@ pub struct TileCtx {
     pub expand_state: *mut std::ffi::c_void,
 }
 
+impl TileCtx {
+    /// A context for a `width` x `height` viewport in `mode` with no tile yet: an empty
+    /// rectangle, null buffers, no bound, no error, full `DEFAULT_FUEL`, call depth 0, no
+    /// expansion recorder. Bound and expand runs use it as it is; a render run first names
+    /// its tile and buffers (`TileCtx { x0, .., ..TileCtx::new(MODE_RENDER, w, h) }`).
+    pub fn new(mode: u32, width: u32, height: u32) -> TileCtx {
+        TileCtx {
+            x0: 0,
+            y0: 0,
+            x1: 0,
+            y1: 0,
+            mode,
+            stride: GROUP,
+            depth: std::ptr::null_mut(),
+            gbuf: std::ptr::null_mut(),
+            plane_stride: 0,
+            num_planes: 0,
+            write_count: std::ptr::null_mut(),
+            bound: [0.0; 4],
+            bound_set: 0,
+            error: 0,
+            error_site: 0,
+            fuel: DEFAULT_FUEL,
+            call_depth: 0,
+            width,
+            height,
+            expand: None,
+            expand_state: std::ptr::null_mut(),
+        }
+    }
+}
+
 pub const MAX_CALL_DEPTH: u32 = 16;
 pub const DEFAULT_FUEL: u64 = 1 << 28;
 

@@ -13,7 +13,7 @@ mod jit_util;
 use std::sync::Arc;
 
 use jit_util::*;
-use primflow::abi::{TileCtx, DEFAULT_FUEL, ERR_NONE, MODE_RENDER};
+use primflow::abi::{TileCtx, ERR_NONE, MODE_RENDER};
 use primflow::ir::Variability::Varying;
 use primflow::ir::*;
 use primflow::jit::{Jit, Kernel};
@@ -88,23 +88,13 @@ fn render(k: &Kernel, case: &Case, x0: i32, y0: i32) -> Vec<u32> {
         y0,
         x1: x0 + TW as i32,
         y1: y0 + TH as i32,
-        mode: MODE_RENDER,
         stride: STRIDE as u32,
         depth: depth.as_mut_ptr(),
         gbuf: gbuf.as_mut_ptr(),
         plane_stride: 0,
         num_planes: 0,
         write_count: counts.as_mut_ptr(),
-        bound: [0.0; 4],
-        bound_set: 0,
-        error: 0,
-        error_site: 0,
-        fuel: DEFAULT_FUEL,
-        call_depth: 0,
-        width: 4096,
-        height: 4096,
-        expand: None,
-        expand_state: std::ptr::null_mut(),
+        ..TileCtx::new(MODE_RENDER, 4096, 4096)
     };
     // SAFETY: ctx points at live buffers of stride * rows elements; args has the layout's
     // length for one sequence point.

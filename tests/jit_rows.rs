@@ -14,7 +14,7 @@ mod jit_util;
 use std::sync::Arc;
 
 use jit_util::*;
-use primflow::abi::{TileCtx, DEFAULT_FUEL, ERR_NONE, MODE_RENDER};
+use primflow::abi::{TileCtx, ERR_NONE, MODE_RENDER};
 use primflow::ir::Variability::{Uniform, Varying};
 use primflow::ir::*;
 use primflow::jit::{Jit, Kernel};
@@ -342,22 +342,12 @@ fn tile_ctx(x0: i32, y0: i32, depth: &mut [u32], gbuf: &mut [f32], counts: &mut 
         y0,
         x1: x0 + TW as i32,
         y1: y0 + TH as i32,
-        mode: MODE_RENDER,
         stride: TW as u32,
         depth: depth.as_mut_ptr(),
         gbuf: gbuf.as_mut_ptr(),
         plane_stride: if num_planes == 0 { 0 } else { (TW * TH) as u32 },
         num_planes,
         write_count: counts.as_mut_ptr(),
-        bound: [0.0; 4],
-        bound_set: 0,
-        error: 0,
-        error_site: 0,
-        fuel: DEFAULT_FUEL,
-        call_depth: 0,
-        width: 4096,
-        height: 4096,
-        expand: None,
-        expand_state: std::ptr::null_mut(),
+        ..TileCtx::new(MODE_RENDER, 4096, 4096)
     }
 }

@@ -706,7 +706,7 @@ sse_kernel!(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::abi::{KernelFn, DEFAULT_FUEL, MODE_RENDER};
+    use crate::abi::{KernelFn, MODE_RENDER};
 
     /// Buffers of one tile after drawing `tris` (argument blocks) with `kernel`.
     fn draw(kernel: KernelFn, tris: &[Vec<u32>]) -> (Vec<u32>, Vec<u32>, Vec<f32>) {
@@ -724,23 +724,13 @@ mod tests {
                 y0,
                 x1,
                 y1,
-                mode: MODE_RENDER,
                 stride,
                 depth: depth.as_mut_ptr(),
                 gbuf: gbuf.as_mut_ptr(),
                 plane_stride: len as u32,
                 num_planes: planes,
                 write_count: counts.as_mut_ptr(),
-                bound: [0.0; 4],
-                bound_set: 0,
-                error: 0,
-                error_site: 0,
-                fuel: DEFAULT_FUEL,
-                call_depth: 0,
-                width: 200,
-                height: 100,
-                expand: None,
-                expand_state: std::ptr::null_mut(),
+                ..TileCtx::new(MODE_RENDER, 200, 100)
             };
             // SAFETY: the context's buffers are `len` (x planes) long with the stride given,
             // and `args` is a screen_triangle block for 2 + 2 components.

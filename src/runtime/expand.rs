@@ -39,7 +39,7 @@ use crate::ir::{FuncId, Program};
 use crate::jit::Kernel;
 
 use super::api::{Instance, RenderOptions};
-use super::frame::{fresh_ctx, run_bound, TileRect};
+use super::frame::{run_bound, TileRect};
 
 /// Budget charged per recorded call on top of its argument words (what its bookkeeping takes).
 const CALL_WORDS: usize = 12;
@@ -195,7 +195,7 @@ fn run_expand<'b>(
         charged: 0,
         over_budget: false,
     };
-    let mut ctx = fresh_ctx(opts, MODE_EXPAND);
+    let mut ctx = TileCtx::new(MODE_EXPAND, opts.width, opts.height);
     ctx.call_depth = call_depth;
     // Zero-size buffers and an empty tile, as in bound mode: nothing can be drawn.
     let mut no_depth: Vec<u32> = Vec::new();

@@ -40,9 +40,7 @@ use std::time::Instant;
 use image::{ImageBuffer, Luma, Rgb, RgbImage};
 use rayon::prelude::*;
 
-use crate::abi::{
-    TileCtx, VariantKey, DEFAULT_FUEL, ERR_CALL_DEPTH, ERR_FUEL, ERR_INDEX, GROUP, MODE_BOUND, MODE_RENDER,
-};
+use crate::abi::{TileCtx, VariantKey, ERR_CALL_DEPTH, ERR_FUEL, ERR_INDEX, GROUP, MODE_BOUND, MODE_RENDER};
 use crate::diag::{Diagnostic, Diagnostics};
 use crate::ir::{FuncId, Program};
 use crate::jit::Kernel;
@@ -461,36 +459,10 @@ fn tile_grid(opts: &RenderOptions) -> Vec<Tile> {
     tiles
 }
 
-pub(super) fn fresh_ctx(opts: &RenderOptions, mode: u32) -> TileCtx {
-    TileCtx {
-        x0: 0,
-        y0: 0,
-        x1: 0,
-        y1: 0,
-        mode,
-        stride: GROUP,
-        depth: std::ptr::null_mut(),
-        gbuf: std::ptr::null_mut(),
-        plane_stride: 0,
-        num_planes: 0,
-        write_count: std::ptr::null_mut(),
-        bound: [0.0; 4],
-        bound_set: 0,
-        error: 0,
-        error_site: 0,
-        fuel: DEFAULT_FUEL,
-        call_depth: 0,
-        width: opts.width,
-        height: opts.height,
-        expand: None,
-        expand_state: std::ptr::null_mut(),
-    }
-}
-
 /// Run a draw's kernel in bound mode: its screen bound (if it recorded one) and its
 /// run-time error.
 pub(super) fn run_bound(draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>, Option<(u32, u32)>) {
-    let mut ctx = fresh_ctx(opts, MODE_BOUND);
+    let mut ctx = TileCtx::new(MODE_BOUND, opts.width, opts.height);
     ctx.call_depth = draw.call_depth;
     // Zero-size buffers: bound mode never touches them, and the empty tile rectangle
     // (x0 = x1 = 0) means even a pixel pass would cover no pixel.
@@ -640,7 +612,7 @@ fn render_tile(
     let mut errors = vec![];
     // Every draw starts from this context (a copy: a kernel may change any field of its
     // own, e.g. fuel, the error or the call depth).
-    let mut start = fresh_ctx(opts, MODE_RENDER);
+    let mut start = TileCtx::new(MODE_RENDER, opts.width, opts.height);
     start.x0 = tile.x0 as i32;
     start.y0 = tile.y0 as i32;
     start.x1 = tile.x1 as i32;

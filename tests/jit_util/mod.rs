@@ -277,23 +277,14 @@ impl Tile {
             y0: self.y0,
             x1: self.x0 + W as i32,
             y1: self.y0 + H as i32,
-            mode,
             stride: W as u32,
             depth: self.depth.as_mut_ptr(),
             gbuf: self.gbuf.as_mut_ptr(),
             plane_stride: (W * H) as u32,
             num_planes: self.planes as u32,
             write_count: self.counts.as_mut_ptr(),
-            bound: [0.0; 4],
-            bound_set: 0,
-            error: 0,
-            error_site: 0,
             fuel,
-            call_depth: 0,
-            width: 64,
-            height: 32,
-            expand: None,
-            expand_state: std::ptr::null_mut(),
+            ..TileCtx::new(mode, 64, 32)
         }
     }
     /// Run `k` in render mode with the given args; returns the context afterwards.
