@@ -338,7 +338,17 @@ impl<'a, 'b> Lower<'a, 'b> {
 
         let frame = self.make_frame(f, self.layout.params.clone(), self.layout.fixed_words, None)?;
         self.frames.push(frame);
-        self.stmts(&f.setup)?;
+        for (i, s) in f.setup.iter().enumerate() {
+            if let StmtKind::Bound(es) = &s.kind {
+                // A bound run wants nothing but the bound: when the rest of the setup can
+                // neither widen it (another `bound`, a call) nor record an error, it ends
+                // here (the rest is the render run's work: edge and plane equations...).
+                let last_effect = f.setup[i + 1..].iter().all(|t| quiet_stmt(f, t));
+                self.lower_bound(es, last_effect)?;
+            } else {
+                self.stmt(s)?;
+            }
+        }
         if !f.pixel.is_empty() {
             self.pixel_passes(f)?;
         }
@@ -438,7 +448,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.store_ctx(one, ctx_off::BOUND_SET);
     }
 
-    fn lower_bound(&mut self, es: &'a [Expr; 4]) -> Res<()> {
+    /// `bound(...)`. `then_done`: nothing after it in the setup matters to a bound run
+    /// (see `body`), so in bound mode the kernel returns right after recording it.
+    fn lower_bound(&mut self, es: &'a [Expr; 4], then_done: bool) -> Res<()> {
         let mut r = [self.b.ins().f32const(0.0); 4];
         for (i, e) in es.iter().enumerate() {
             let v = self.eval_uniform(e)?;
@@ -456,8 +468,17 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(go, union_blk, &[], after, &[]);
         self.b.switch_to_block(union_blk);
         self.union_bound(r);
-        self.b.ins().jump(after, &[]);
-        self.b.switch_to_block(after);
+        if then_done {
+            self.b.ins().jump(self.exit, &[]);
+            // The NaN bound of a bound run is not recorded, and nothing else is either.
+            let render = self.b.create_block();
+            self.b.switch_to_block(after);
+            self.b.ins().brif(is_bound, self.exit, &[], render, &[]);
+            self.b.switch_to_block(render);
+        } else {
+            self.b.ins().jump(after, &[]);
+            self.b.switch_to_block(after);
+        }
         for (i, &v) in r.iter().enumerate() {
             self.b.def_var(self.bound_vars[i], v);
         }
@@ -1475,7 +1496,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 if self.in_pixel() || self.frames.len() > 1 {
                     return err("`bound` in per-pixel code");
                 }
-                self.lower_bound(es)
+                self.lower_bound(es, false)
             }
             StmtKind::CallPrimitive { callee, args } => {
                 if self.in_pixel() || self.frames.len() > 1 {
@@ -3517,6 +3538,34 @@ fn speculable_expr(e: &Expr) -> bool {
         }
         ExprKind::Builtin { args, .. } => args.iter().all(speculable_expr),
         ExprKind::List(items) => items.iter().all(speculable_expr),
+    }
+}
+
+/// Whether running setup statement `s` can matter to a bound run only through its value:
+/// no `bound`, no primitive call, no loop (fuel), no index that may record an error. (An
+/// early `return` is fine: the bound already recorded stays.)
+fn quiet_stmt(f: &Function, s: &Stmt) -> bool {
+    match &s.kind {
+        StmtKind::Assign { place, value } => {
+            // Each index of the place a constant inside its dimension.
+            let Some(local) = f.locals.get(place.local.0 as usize) else {
+                return false;
+            };
+            let mut ty = local.ty.clone();
+            let in_range = place.indices.iter().all(|(index, _)| {
+                let ok = const_index_in_range(&ty, index);
+                if ok {
+                    ty = ty.element();
+                }
+                ok
+            });
+            in_range && speculable_expr(value)
+        }
+        StmtKind::If { cond, then, otherwise } => {
+            speculable_expr(cond) && then.iter().chain(otherwise).all(|t| quiet_stmt(f, t))
+        }
+        StmtKind::Return => true,
+        _ => false,
     }
 }
 
