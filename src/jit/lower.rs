@@ -904,7 +904,13 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// Row prologue: evaluate the hoisted terms for row centre `y_f` into the frame's row
     /// section (see [`hoist`]), with the operations the group code would use.
-    fn row_hoists(&mut self, f: &'a Function, y_f: ir::Value) -> Res<()> {
+    /// `only`: the expressions the loop's variant lowers (a pass span's; `None`: all).
+    fn row_hoists(
+        &mut self,
+        f: &'a Function,
+        y_f: ir::Value,
+        only: Option<&std::collections::HashSet<usize>>,
+    ) -> Res<()> {
         let (Some((fs, _)), false) = (self.uniform_frame, self.hoists.is_empty()) else {
             return Ok(());
         };
@@ -921,6 +927,9 @@ impl<'a, 'b> Lower<'a, 'b> {
                 let h = &self.hoists[k];
                 (h.expr, h.view.clone(), h.offset, h.comps)
             };
+            if only.is_some_and(|set| !set.contains(&(expr as *const Expr as usize))) {
+                continue;
+            }
             let saved = std::mem::replace(&mut self.view, view);
             let v = self.eval(expr);
             self.view = saved;
@@ -998,6 +1007,12 @@ impl<'a, 'b> Lower<'a, 'b> {
         done: Block,
     ) -> Res<()> {
         let first_block = self.b.func.dfg.num_blocks();
+        // The row terms this variant reads (a pass span drops guards, and their terms).
+        let used_exprs = pass.map(|(prefix, decidable)| {
+            let mut live = std::collections::HashSet::new();
+            self.live_pixel_locals(&f.pixel[prefix.len..], &mut live);
+            block::pass_exprs(&prefix.stmts, &f.pixel[prefix.len..], decidable, &live)
+        });
         let py = self.b.declare_var(types::I32);
         let gx = self.b.declare_var(types::I32);
         let xv = self.b.declare_var(F32X4);
@@ -1029,7 +1044,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let half = self.b.ins().f32const(0.5);
         let yf = self.b.ins().fadd(yf, half);
         let y_f = self.b.ins().splat(F32X4, yf);
-        self.row_hoists(f, y_f)?;
+        self.row_hoists(f, y_f, used_exprs.as_ref())?;
         self.b.def_var(gx, gs[0]);
         // X of the group's lanes, carried across the row: centre of the first group's
         // lanes (int -> float, + 0.5, as the pixel's X is defined), then + 4.0 per group.

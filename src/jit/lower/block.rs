@@ -1033,6 +1033,99 @@ impl<'a> Lower<'a, '_> {
     }
 }
 
+/// The expressions (by address) the pass variant lowers: what [`Lower::prefix_without_guards`]
+/// emits, then `rest` (the pixel statements after the prefix). The row prologue of a pass
+/// span evaluates only the hoisted row terms among them: the Y terms of dropped guards
+/// (screen_triangle's `int(Y * 16) - int(oy * 16)` and float edge terms) cost every pixel
+/// row of a span for nothing.
+pub(super) fn pass_exprs(
+    all: &[PStmt<'_>],
+    rest: &[Stmt],
+    decidable: &[bool],
+    live: &HashSet<LocalId>,
+) -> HashSet<usize> {
+    fn prefix(
+        all: &[PStmt<'_>],
+        stmts: &[PStmt<'_>],
+        decidable: &[bool],
+        live: &HashSet<LocalId>,
+        out: &mut HashSet<usize>,
+    ) {
+        for s in stmts {
+            match s {
+                PStmt::Assign { value, .. } => expr_keys(value, out),
+                PStmt::Guard { cond, id, .. } => {
+                    if !decidable[*id] {
+                        expr_keys(cond, out);
+                    }
+                }
+                PStmt::UniformIf { cond, then, otherwise } => {
+                    if !no_effect_in_pass(all, s, decidable, live) {
+                        expr_keys(cond, out);
+                        prefix(all, then, decidable, live, out);
+                        prefix(all, otherwise, decidable, live, out);
+                    }
+                }
+                PStmt::Kill(_) => {}
+            }
+        }
+    }
+    let mut out = HashSet::new();
+    prefix(all, all, decidable, live, &mut out);
+    stmt_keys(rest, &mut out);
+    out
+}
+
+/// Addresses of `e` and all its subexpressions.
+fn expr_keys(e: &Expr, out: &mut HashSet<usize>) {
+    out.insert(key(e));
+    match &e.kind {
+        ExprKind::Index { base, index, .. } => {
+            expr_keys(base, out);
+            expr_keys(index, out);
+        }
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => expr_keys(expr, out),
+        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
+            expr_keys(lhs, out);
+            expr_keys(rhs, out);
+        }
+        ExprKind::Select { cond, then, otherwise } => {
+            expr_keys(cond, out);
+            expr_keys(then, out);
+            expr_keys(otherwise, out);
+        }
+        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| expr_keys(a, out)),
+        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
+    }
+}
+
+/// Addresses of every expression in `stmts`.
+fn stmt_keys(stmts: &[Stmt], out: &mut HashSet<usize>) {
+    for s in stmts {
+        match &s.kind {
+            StmtKind::Assign { place, value } => {
+                place.indices.iter().for_each(|(i, _)| expr_keys(i, out));
+                expr_keys(value, out);
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                expr_keys(cond, out);
+                stmt_keys(then, out);
+                stmt_keys(otherwise, out);
+            }
+            StmtKind::Loop { cond, body, step, .. } => {
+                cond.iter().for_each(|c| expr_keys(c, out));
+                stmt_keys(body, out);
+                stmt_keys(step, out);
+            }
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| stmt_keys(&a.body, out)),
+            StmtKind::InterpolatorReturn(e) => e.iter().for_each(|e| expr_keys(e, out)),
+            StmtKind::Bound(es) => es.iter().for_each(|e| expr_keys(e, out)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr_keys(a, out)),
+            StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
+        }
+    }
+}
+
 /// Locals assigned by prefix statements (recursively).
 fn prefix_assigned(stmts: &[PStmt<'_>], out: &mut HashSet<LocalId>) {
     for s in stmts {
