@@ -338,7 +338,17 @@ impl<'a, 'b> Lower<'a, 'b> {
 
         let frame = self.make_frame(f, self.layout.params.clone(), self.layout.fixed_words, None)?;
         self.frames.push(frame);
-        self.stmts(&f.setup)?;
+        for (i, s) in f.setup.iter().enumerate() {
+            if let StmtKind::Bound(es) = &s.kind {
+                // A bound run wants nothing but the bound: when the rest of the setup can
+                // neither widen it (another `bound`, a call) nor record an error, it ends
+                // here (the rest is the render run's work: edge and plane equations...).
+                let last_effect = f.setup[i + 1..].iter().all(|t| quiet_stmt(f, t));
+                self.lower_bound(es, last_effect)?;
+            } else {
+                self.stmt(s)?;
+            }
+        }
         if !f.pixel.is_empty() {
             self.pixel_passes(f)?;
         }
@@ -438,7 +448,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.store_ctx(one, ctx_off::BOUND_SET);
     }
 
-    fn lower_bound(&mut self, es: &'a [Expr; 4]) -> Res<()> {
+    /// `bound(...)`. `then_done`: nothing after it in the setup matters to a bound run
+    /// (see `body`), so in bound mode the kernel returns right after recording it.
+    fn lower_bound(&mut self, es: &'a [Expr; 4], then_done: bool) -> Res<()> {
         let mut r = [self.b.ins().f32const(0.0); 4];
         for (i, e) in es.iter().enumerate() {
             let v = self.eval_uniform(e)?;
@@ -456,8 +468,17 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(go, union_blk, &[], after, &[]);
         self.b.switch_to_block(union_blk);
         self.union_bound(r);
-        self.b.ins().jump(after, &[]);
-        self.b.switch_to_block(after);
+        if then_done {
+            self.b.ins().jump(self.exit, &[]);
+            // The NaN bound of a bound run is not recorded, and nothing else is either.
+            let render = self.b.create_block();
+            self.b.switch_to_block(after);
+            self.b.ins().brif(is_bound, self.exit, &[], render, &[]);
+            self.b.switch_to_block(render);
+        } else {
+            self.b.ins().jump(after, &[]);
+            self.b.switch_to_block(after);
+        }
         for (i, &v) in r.iter().enumerate() {
             self.b.def_var(self.bound_vars[i], v);
         }
@@ -883,7 +904,13 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// Row prologue: evaluate the hoisted terms for row centre `y_f` into the frame's row
     /// section (see [`hoist`]), with the operations the group code would use.
-    fn row_hoists(&mut self, f: &'a Function, y_f: ir::Value) -> Res<()> {
+    /// `only`: the expressions the loop's variant lowers (a pass span's; `None`: all).
+    fn row_hoists(
+        &mut self,
+        f: &'a Function,
+        y_f: ir::Value,
+        only: Option<&std::collections::HashSet<usize>>,
+    ) -> Res<()> {
         let (Some((fs, _)), false) = (self.uniform_frame, self.hoists.is_empty()) else {
             return Ok(());
         };
@@ -900,6 +927,9 @@ impl<'a, 'b> Lower<'a, 'b> {
                 let h = &self.hoists[k];
                 (h.expr, h.view.clone(), h.offset, h.comps)
             };
+            if only.is_some_and(|set| !set.contains(&(expr as *const Expr as usize))) {
+                continue;
+            }
             let saved = std::mem::replace(&mut self.view, view);
             let v = self.eval(expr);
             self.view = saved;
@@ -977,6 +1007,12 @@ impl<'a, 'b> Lower<'a, 'b> {
         done: Block,
     ) -> Res<()> {
         let first_block = self.b.func.dfg.num_blocks();
+        // The row terms this variant reads (a pass span drops guards, and their terms).
+        let used_exprs = pass.map(|(prefix, decidable)| {
+            let mut live = std::collections::HashSet::new();
+            self.live_pixel_locals(&f.pixel[prefix.len..], &mut live);
+            block::pass_exprs(&prefix.stmts, &f.pixel[prefix.len..], decidable, &live)
+        });
         let py = self.b.declare_var(types::I32);
         let gx = self.b.declare_var(types::I32);
         let xv = self.b.declare_var(F32X4);
@@ -1008,7 +1044,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let half = self.b.ins().f32const(0.5);
         let yf = self.b.ins().fadd(yf, half);
         let y_f = self.b.ins().splat(F32X4, yf);
-        self.row_hoists(f, y_f)?;
+        self.row_hoists(f, y_f, used_exprs.as_ref())?;
         self.b.def_var(gx, gs[0]);
         // X of the group's lanes, carried across the row: centre of the first group's
         // lanes (int -> float, + 0.5, as the pixel's X is defined), then + 4.0 per group.
@@ -1475,7 +1511,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 if self.in_pixel() || self.frames.len() > 1 {
                     return err("`bound` in per-pixel code");
                 }
-                self.lower_bound(es)
+                self.lower_bound(es, false)
             }
             StmtKind::CallPrimitive { callee, args } => {
                 if self.in_pixel() || self.frames.len() > 1 {
@@ -3517,6 +3553,34 @@ fn speculable_expr(e: &Expr) -> bool {
         }
         ExprKind::Builtin { args, .. } => args.iter().all(speculable_expr),
         ExprKind::List(items) => items.iter().all(speculable_expr),
+    }
+}
+
+/// Whether running setup statement `s` can matter to a bound run only through its value:
+/// no `bound`, no primitive call, no loop (fuel), no index that may record an error. (An
+/// early `return` is fine: the bound already recorded stays.)
+fn quiet_stmt(f: &Function, s: &Stmt) -> bool {
+    match &s.kind {
+        StmtKind::Assign { place, value } => {
+            // Each index of the place a constant inside its dimension.
+            let Some(local) = f.locals.get(place.local.0 as usize) else {
+                return false;
+            };
+            let mut ty = local.ty.clone();
+            let in_range = place.indices.iter().all(|(index, _)| {
+                let ok = const_index_in_range(&ty, index);
+                if ok {
+                    ty = ty.element();
+                }
+                ok
+            });
+            in_range && speculable_expr(value)
+        }
+        StmtKind::If { cond, then, otherwise } => {
+            speculable_expr(cond) && then.iter().chain(otherwise).all(|t| quiet_stmt(f, t))
+        }
+        StmtKind::Return => true,
+        _ => false,
     }
 }
 

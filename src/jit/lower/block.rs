@@ -390,35 +390,23 @@ impl<'a> Lower<'a, '_> {
                         }
                         None => None,
                     };
+                    if let (true, Some(c)) = (block, c) {
+                        self.abs_branch(c, then, otherwise, env, cache, flags, decidable)?;
+                        continue;
+                    }
+                    // Before the block stage both sides are walked (their subexpressions
+                    // get cached for the block stage, which takes one side only): a branch
+                    // here would carry every cached value through a join, and moving them
+                    // cost about what the untaken side's Y terms do.
                     let mut sides = vec![];
                     for branch in [then, otherwise] {
                         let mut side_env = env.clone();
                         let mut side_flags = Flags { dead: None, pass: None };
                         self.abs_stmts(branch, &mut side_env, cache, &mut side_flags, decidable)?;
-                        sides.push((side_env.locals, side_flags));
+                        sides.push(side_env.locals);
                     }
-                    let (else_locals, fe) = sides.pop().expect("two sides");
-                    let (then_locals, ft) = sides.pop().expect("two sides");
-                    if let (true, Some(c)) = (block, c) {
-                        let (no, yes) = (self.b.ins().iconst(types::I8, 0), self.b.ins().iconst(types::I8, 1));
-                        let pick =
-                            |l: &mut Self, a: Option<ir::Value>, b: Option<ir::Value>, dflt: ir::Value| match (a, b) {
-                                (None, None) => None,
-                                (a, b) => Some(l.b.ins().select(c, a.unwrap_or(dflt), b.unwrap_or(dflt))),
-                            };
-                        if let Some(d) = pick(self, ft.dead, fe.dead, no) {
-                            flags.dead = Some(match flags.dead {
-                                Some(x) => self.b.ins().bor(x, d),
-                                None => d,
-                            });
-                        }
-                        if let Some(p) = pick(self, ft.pass, fe.pass, yes) {
-                            flags.pass = Some(match flags.pass {
-                                Some(x) => self.b.ins().band(x, p),
-                                None => p,
-                            });
-                        }
-                    }
+                    let else_locals = sides.pop().expect("two sides");
+                    let then_locals = sides.pop().expect("two sides");
                     let keys: HashSet<LocalId> = then_locals.keys().chain(else_locals.keys()).copied().collect();
                     for k in keys {
                         let merged = match (c, then_locals.get(&k), else_locals.get(&k)) {
@@ -433,6 +421,191 @@ impl<'a> Lower<'a, '_> {
             }
         }
         Ok(())
+    }
+
+    /// A uniform `if` of the prefix whose condition `c` is known at this stage: only the
+    /// side `c` takes is evaluated, behind a real branch (evaluating both and selecting cost
+    /// every block the untaken side too: for screen_triangle, the float edge functions of
+    /// an exact triangle). At the join, block parameters carry what each side produced:
+    /// the flags (block stage), the locals it assigned, and the cache entries a later stage
+    /// reads; a side that did not produce a value passes one that knows nothing.
+    #[allow(clippy::too_many_arguments)]
+    fn abs_branch(
+        &mut self,
+        c: ir::Value,
+        then: &[PStmt<'a>],
+        otherwise: &[PStmt<'a>],
+        env: &mut BlockEnv,
+        cache: &mut AbsCache,
+        flags: &mut Flags,
+        decidable: &mut [bool],
+    ) -> Res<()> {
+        let block = env.stage == Stage::Block;
+        let then_blk = self.b.create_block();
+        let else_blk = self.b.create_block();
+        let then_tail = self.b.create_block();
+        let join = self.b.create_block();
+        self.b.ins().brif(c, then_blk, &[], else_blk, &[]);
+        let mut sides = vec![];
+        for (branch, start) in [(then, then_blk), (otherwise, else_blk)] {
+            self.b.switch_to_block(start);
+            let before_values: HashSet<usize> = cache.values.keys().copied().collect();
+            let before_conds: HashSet<usize> = cache.conds.keys().copied().collect();
+            let mut side_env = env.clone();
+            let mut side_flags = Flags { dead: None, pass: None };
+            self.abs_stmts(branch, &mut side_env, cache, &mut side_flags, decidable)?;
+            // What this side added to the cache is valid on its path only.
+            let new_values = take_new(&mut cache.values, &before_values);
+            let new_conds = take_new(&mut cache.conds, &before_conds);
+            sides.push((side_env.locals, side_flags, new_values, new_conds));
+            if start == then_blk {
+                // The then side's jump to the join is emitted from `then_tail`, once the
+                // join's parameters are known.
+                self.b.ins().jump(then_tail, &[]);
+            }
+        }
+        let (else_locals, fe, else_values, else_conds) = sides.pop().expect("two sides");
+        let (then_locals, ft, then_values, then_conds) = sides.pop().expect("two sides");
+
+        let mut carried: Vec<Carried> = vec![];
+        if block {
+            for (dead, a, b) in [(true, ft.dead, fe.dead), (false, ft.pass, fe.pass)] {
+                if a.is_some() || b.is_some() {
+                    carried.push(Carried {
+                        shape: Shape::Flag { dead },
+                        parts: [a.map(|v| vec![v]), b.map(|v| vec![v])],
+                        to: Carry::Flag { dead },
+                    });
+                }
+            }
+        }
+        let mut keys: Vec<LocalId> = then_locals.keys().chain(else_locals.keys()).copied().collect();
+        keys.sort_by_key(|l| l.0);
+        keys.dedup();
+        for k in keys {
+            match (then_locals.get(&k), else_locals.get(&k)) {
+                (Some(Some(a)), Some(Some(b))) if abs_parts(a) == abs_parts(b) && same_shape(a, b) => {
+                    // Unchanged by either side (or the same value on both).
+                    env.locals.insert(k, Some(a.clone()));
+                }
+                (Some(Some(a)), Some(Some(b))) if same_shape(a, b) && !matches!(a, Abs::Top) => {
+                    carried.push(Carried {
+                        shape: Shape::Abs(a.clone()),
+                        parts: [Some(abs_parts(a)), Some(abs_parts(b))],
+                        to: Carry::Local(k),
+                    });
+                }
+                (Some(None), _) | (_, Some(None)) => {
+                    env.locals.insert(k, None);
+                }
+                _ => {
+                    env.locals.insert(k, Some(Abs::Top));
+                }
+            }
+        }
+        if !block {
+            // A later stage reads these, each computed on one side only.
+            for (side, values, conds) in [(0, &then_values, &then_conds), (1, &else_values, &else_conds)] {
+                for (k, v) in values {
+                    if matches!(v, Abs::Top) {
+                        cache.values.insert(*k, Abs::Top);
+                        continue;
+                    }
+                    let mut parts = [None, None];
+                    parts[side] = Some(abs_parts(v));
+                    carried.push(Carried {
+                        shape: Shape::Abs(v.clone()),
+                        parts,
+                        to: Carry::Value(*k),
+                    });
+                }
+                for (k, v) in conds {
+                    let mut parts = [None, None];
+                    parts[side] = Some(vec![*v]);
+                    carried.push(Carried {
+                        shape: Shape::Cond,
+                        parts,
+                        to: Carry::Cond(*k),
+                    });
+                }
+            }
+        }
+
+        let mut params = vec![];
+        for cv in &carried {
+            let first = cv.parts.iter().flatten().next().expect("one side has the value");
+            let tys: Vec<ir::Type> = first.iter().map(|v| self.b.func.dfg.value_type(*v)).collect();
+            params.push(
+                tys.into_iter()
+                    .map(|ty| self.b.append_block_param(join, ty))
+                    .collect::<Vec<_>>(),
+            );
+        }
+        // The else side's last block is the current one; then `then_tail`.
+        for side in [1, 0] {
+            if side == 0 {
+                self.b.switch_to_block(then_tail);
+            }
+            let mut args: Vec<ir::BlockArg> = vec![];
+            for cv in &carried {
+                let parts = match &cv.parts[side] {
+                    Some(p) => p.clone(),
+                    None => self.unknown_parts(&cv.shape),
+                };
+                args.extend(parts.into_iter().map(ir::BlockArg::from));
+            }
+            self.b.ins().jump(join, &args);
+        }
+        self.b.switch_to_block(join);
+        for (cv, ps) in carried.iter().zip(params) {
+            match (&cv.to, &cv.shape) {
+                (Carry::Flag { dead }, _) => {
+                    let v = ps[0];
+                    let slot = if *dead { &mut flags.dead } else { &mut flags.pass };
+                    *slot = Some(match *slot {
+                        Some(x) if *dead => self.b.ins().bor(x, v),
+                        Some(x) => self.b.ins().band(x, v),
+                        None => v,
+                    });
+                }
+                (Carry::Local(k), Shape::Abs(shape)) => {
+                    env.locals.insert(*k, Some(abs_from_parts(shape, &ps)));
+                }
+                (Carry::Value(k), Shape::Abs(shape)) => {
+                    cache.values.insert(*k, abs_from_parts(shape, &ps));
+                }
+                (Carry::Cond(k), _) => {
+                    cache.conds.insert(*k, ps[0]);
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+
+    /// SSA values that know nothing, in the form of `shape`: an interval that is not `ok`,
+    /// a bool with both outcomes possible, a `dead` flag that is false, a `pass` flag or a
+    /// condition... (a condition is only read on the side that computed it).
+    fn unknown_parts(&mut self, shape: &Shape) -> Vec<ir::Value> {
+        match shape {
+            Shape::Flag { dead } => vec![self.b.ins().iconst(types::I8, if *dead { 0 } else { 1 })],
+            Shape::Cond => vec![self.b.ins().iconst(types::I8, 0)],
+            Shape::Abs(Abs::Top) => vec![],
+            Shape::Abs(Abs::F { .. }) => {
+                let z = self.b.ins().f32const(0.0);
+                let no = self.b.ins().iconst(types::I8, 0);
+                vec![z, z, no]
+            }
+            Shape::Abs(Abs::I { .. }) => {
+                let z = self.b.ins().iconst(types::I64, 0);
+                let no = self.b.ins().iconst(types::I8, 0);
+                vec![z, z, no]
+            }
+            Shape::Abs(Abs::B { .. }) => {
+                let yes = self.b.ins().iconst(types::I8, 1);
+                vec![yes, yes]
+            }
+        }
     }
 
     fn abs_select(&mut self, c: ir::Value, a: &Abs, b: &Abs) -> Abs {
@@ -463,17 +636,14 @@ impl<'a> Lower<'a, '_> {
         self.b.ins().fcmp(FloatCC::LessThan, a, inf)
     }
 
-    /// i8: the i64 `v` is in the i32 range.
+    /// i8: the i64 `v` is in the i32 range, i.e. `v + 2^31` (wrapping) in [0, 2^32) as an
+    /// unsigned number: one add and one compare instead of two compares and an and (a
+    /// block evaluates this for both ends of every integer interval).
     fn fits_i32(&mut self, v: ir::Value) -> ir::Value {
-        let lo = self
-            .b
+        let shifted = self.b.ins().iadd_imm_s(v, 1i64 << 31);
+        self.b
             .ins()
-            .icmp_imm_s(IntCC::SignedGreaterThanOrEqual, v, i32::MIN as i64);
-        let hi = self
-            .b
-            .ins()
-            .icmp_imm_s(IntCC::SignedLessThanOrEqual, v, i32::MAX as i64);
-        self.b.ins().band(lo, hi)
+            .icmp_imm_u(IntCC::UnsignedLessThanOrEqual, shifted, u32::MAX as i64)
     }
 
     fn float_iv(&mut self, lo: ir::Value, hi: ir::Value, ok: ir::Value) -> Abs {
@@ -863,6 +1033,99 @@ impl<'a> Lower<'a, '_> {
     }
 }
 
+/// The expressions (by address) the pass variant lowers: what [`Lower::prefix_without_guards`]
+/// emits, then `rest` (the pixel statements after the prefix). The row prologue of a pass
+/// span evaluates only the hoisted row terms among them: the Y terms of dropped guards
+/// (screen_triangle's `int(Y * 16) - int(oy * 16)` and float edge terms) cost every pixel
+/// row of a span for nothing.
+pub(super) fn pass_exprs(
+    all: &[PStmt<'_>],
+    rest: &[Stmt],
+    decidable: &[bool],
+    live: &HashSet<LocalId>,
+) -> HashSet<usize> {
+    fn prefix(
+        all: &[PStmt<'_>],
+        stmts: &[PStmt<'_>],
+        decidable: &[bool],
+        live: &HashSet<LocalId>,
+        out: &mut HashSet<usize>,
+    ) {
+        for s in stmts {
+            match s {
+                PStmt::Assign { value, .. } => expr_keys(value, out),
+                PStmt::Guard { cond, id, .. } => {
+                    if !decidable[*id] {
+                        expr_keys(cond, out);
+                    }
+                }
+                PStmt::UniformIf { cond, then, otherwise } => {
+                    if !no_effect_in_pass(all, s, decidable, live) {
+                        expr_keys(cond, out);
+                        prefix(all, then, decidable, live, out);
+                        prefix(all, otherwise, decidable, live, out);
+                    }
+                }
+                PStmt::Kill(_) => {}
+            }
+        }
+    }
+    let mut out = HashSet::new();
+    prefix(all, all, decidable, live, &mut out);
+    stmt_keys(rest, &mut out);
+    out
+}
+
+/// Addresses of `e` and all its subexpressions.
+fn expr_keys(e: &Expr, out: &mut HashSet<usize>) {
+    out.insert(key(e));
+    match &e.kind {
+        ExprKind::Index { base, index, .. } => {
+            expr_keys(base, out);
+            expr_keys(index, out);
+        }
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => expr_keys(expr, out),
+        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
+            expr_keys(lhs, out);
+            expr_keys(rhs, out);
+        }
+        ExprKind::Select { cond, then, otherwise } => {
+            expr_keys(cond, out);
+            expr_keys(then, out);
+            expr_keys(otherwise, out);
+        }
+        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| expr_keys(a, out)),
+        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
+    }
+}
+
+/// Addresses of every expression in `stmts`.
+fn stmt_keys(stmts: &[Stmt], out: &mut HashSet<usize>) {
+    for s in stmts {
+        match &s.kind {
+            StmtKind::Assign { place, value } => {
+                place.indices.iter().for_each(|(i, _)| expr_keys(i, out));
+                expr_keys(value, out);
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                expr_keys(cond, out);
+                stmt_keys(then, out);
+                stmt_keys(otherwise, out);
+            }
+            StmtKind::Loop { cond, body, step, .. } => {
+                cond.iter().for_each(|c| expr_keys(c, out));
+                stmt_keys(body, out);
+                stmt_keys(step, out);
+            }
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| stmt_keys(&a.body, out)),
+            StmtKind::InterpolatorReturn(e) => e.iter().for_each(|e| expr_keys(e, out)),
+            StmtKind::Bound(es) => es.iter().for_each(|e| expr_keys(e, out)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr_keys(a, out)),
+            StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
+        }
+    }
+}
+
 /// Locals assigned by prefix statements (recursively).
 fn prefix_assigned(stmts: &[PStmt<'_>], out: &mut HashSet<LocalId>) {
     for s in stmts {
@@ -928,6 +1191,74 @@ fn no_effect_in_pass(all: &[PStmt<'_>], s: &PStmt<'_>, decidable: &[bool], live:
     let mut reads = live.clone();
     prefix_reads(all, s, decidable, &mut reads);
     assigned.is_disjoint(&reads)
+}
+
+/// A value carried from the sides of a branching uniform `if` to its join.
+struct Carried {
+    shape: Shape,
+    /// Its SSA parts on the then side and on the else side (`None`: that side has none).
+    parts: [Option<Vec<ir::Value>>; 2],
+    to: Carry,
+}
+
+/// The form of a carried value.
+enum Shape {
+    Abs(Abs),
+    Flag { dead: bool },
+    Cond,
+}
+
+/// Where a carried value goes at the join.
+enum Carry {
+    Flag { dead: bool },
+    Local(LocalId),
+    Value(usize),
+    Cond(usize),
+}
+
+/// An abstract value's SSA parts (block parameters carry them).
+fn abs_parts(a: &Abs) -> Vec<ir::Value> {
+    match a {
+        Abs::Top => vec![],
+        Abs::F { lo, hi, ok } | Abs::I { lo, hi, ok } => vec![*lo, *hi, *ok],
+        Abs::B { t, f } => vec![*t, *f],
+    }
+}
+
+/// `shape` rebuilt from `parts` (as [`abs_parts`] lists them).
+fn abs_from_parts(shape: &Abs, parts: &[ir::Value]) -> Abs {
+    match shape {
+        Abs::Top => Abs::Top,
+        Abs::F { .. } => Abs::F {
+            lo: parts[0],
+            hi: parts[1],
+            ok: parts[2],
+        },
+        Abs::I { .. } => Abs::I {
+            lo: parts[0],
+            hi: parts[1],
+            ok: parts[2],
+        },
+        Abs::B { .. } => Abs::B {
+            t: parts[0],
+            f: parts[1],
+        },
+    }
+}
+
+fn same_shape(a: &Abs, b: &Abs) -> bool {
+    std::mem::discriminant(a) == std::mem::discriminant(b)
+}
+
+/// Remove and return the entries of `map` whose keys are not in `before`, sorted by key
+/// (so the join's parameters come in a deterministic order).
+fn take_new<V>(map: &mut HashMap<usize, V>, before: &HashSet<usize>) -> Vec<(usize, V)> {
+    let mut new_keys: Vec<usize> = map.keys().filter(|k| !before.contains(k)).copied().collect();
+    new_keys.sort_unstable();
+    new_keys
+        .into_iter()
+        .filter_map(|k| map.remove(&k).map(|v| (k, v)))
+        .collect()
 }
 
 #[derive(Clone, Copy)]
