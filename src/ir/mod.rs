@@ -21,6 +21,7 @@
 //! - Indexing carries a [`SiteId`]: codegen clamps the index into range and records a
 //!   runtime error at that site, so no program reads or writes outside its storage.
 
+pub mod forward;
 pub mod print;
 pub mod split;
 

@@ -207,6 +207,9 @@ pub(crate) struct Lower<'a, 'b> {
     arm: Option<ArmInfo>,
     bound_vars: [Variable; 4],
     has_bound: Variable,
+    /// The fuel left (`ctx.fuel` while the kernel runs, kept in a register: loaded at entry,
+    /// stored at the exit and around direct primitive calls, whose callees spend it too).
+    fuel: Variable,
     /// The uniform frame's slot and the slot holding its address (see `spill_uniforms`).
     uniform_frame: Option<(StackSlot, StackSlot)>,
     /// Byte offset of the uniform frame's vector section (word `w` splatted at
@@ -275,6 +278,7 @@ pub(crate) fn lower_kernel(
         b.declare_var(types::F32),
     ];
     let has_bound = b.declare_var(types::I8);
+    let fuel = b.declare_var(types::I64);
     let scratch = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 4));
     let mut l = Lower {
         b,
@@ -293,6 +297,7 @@ pub(crate) fn lower_kernel(
         arm: None,
         bound_vars,
         has_bound,
+        fuel,
         uniform_frame: None,
         vec_section: 0,
         hoists: vec![],
@@ -326,6 +331,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     // ---------------------------------------------------------------- kernel shape
 
     fn body(&mut self, f: &'a Function) -> Res<()> {
+        let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
+        self.b.def_var(self.fuel, fuel);
         // The pass rectangle defaults to everything; `bound` narrows it.
         let ninf = self.b.ins().f32const(f32::NEG_INFINITY);
         let pinf = self.b.ins().f32const(f32::INFINITY);
@@ -344,6 +351,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         self.b.ins().jump(self.exit, &[]);
         self.b.switch_to_block(self.exit);
+        let fuel = self.b.use_var(self.fuel);
+        self.store_ctx(fuel, ctx_off::FUEL);
         self.b.ins().return_(&[]);
         Ok(())
     }
@@ -1718,7 +1727,7 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// Spend one unit of fuel; out of fuel records ERR_FUEL and jumps to `exit`.
     fn spend_fuel(&mut self, site: SiteId, exit: Block) {
-        let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
+        let fuel = self.b.use_var(self.fuel);
         let empty = self.b.ins().icmp_imm_s(IntCC::Equal, fuel, 0);
         let out_blk = self.b.create_block();
         let ok_blk = self.b.create_block();
@@ -1729,7 +1738,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().jump(exit, &[]);
         self.b.switch_to_block(ok_blk);
         let less = self.b.ins().iadd_imm_s(fuel, -1);
-        self.store_ctx(less, ctx_off::FUEL);
+        self.b.def_var(self.fuel, less);
     }
 
     fn uniform_loop(
@@ -2528,7 +2537,12 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.record_call(callee, fref, base, words)?;
         self.b.ins().jump(after, &[]);
         self.b.switch_to_block(run_blk);
+        // The callee spends the same fuel: hand it over in `ctx.fuel` and take back the rest.
+        let fuel = self.b.use_var(self.fuel);
+        self.store_ctx(fuel, ctx_off::FUEL);
         self.b.ins().call(fref, &[self.ctx, base]);
+        let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
+        self.b.def_var(self.fuel, fuel);
         self.b.ins().jump(after, &[]);
         self.b.switch_to_block(after);
         let d = self.load_ctx(types::I32, ctx_off::CALL_DEPTH);
@@ -2686,11 +2700,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 Dyn::Varying(v) => Dyn::Varying(self.b.ins().iadd(v, c)),
             }
         } else {
-            let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx_comp, len);
-            self.record_error(ERR_INDEX, site.0, Some(bad));
-            let zero_s = self.b.ins().iconst(types::I32, 0);
-            let c = self.b.ins().smax(idx_comp, zero_s);
-            let c = self.b.ins().smin(c, last);
+            let c = self.checked_uniform_index(idx_comp, len, last, site);
             let c = self.b.ins().imul_imm_s(c, stride as i64);
             match acc.dyn_off {
                 Dyn::None => Dyn::Uniform(c),
@@ -2704,6 +2714,28 @@ impl<'a, 'b> Lower<'a, 'b> {
         acc.dyn_off = off;
         acc.ty = elem_ty;
         Ok(acc)
+    }
+
+    /// A uniform index `idx` into `len` elements (`last` = `len - 1`), clamped, with
+    /// ERR_INDEX recorded at `site` when it is out of range. The in-range path is one
+    /// unsigned compare and a branch; the clamp and the error record sit in a cold block.
+    /// (Recorded inline with selects, the check was two loads, two stores and ten more
+    /// instructions on every access: most of the NURB tessellation's time.)
+    fn checked_uniform_index(&mut self, idx: ir::Value, len: ir::Value, last: ir::Value, site: SiteId) -> ir::Value {
+        let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
+        let cold = self.b.create_block();
+        let in_range = self.b.create_block();
+        let checked = self.b.append_block_param(in_range, types::I32);
+        self.b.ins().brif(bad, cold, &[], in_range, &[idx.into()]);
+        self.b.set_cold_block(cold);
+        self.b.switch_to_block(cold);
+        self.record_error(ERR_INDEX, site.0, None);
+        let zero_s = self.b.ins().iconst(types::I32, 0);
+        let c = self.b.ins().smax(idx, zero_s);
+        let c = self.b.ins().smin(c, last);
+        self.b.ins().jump(in_range, &[c.into()]);
+        self.b.switch_to_block(in_range);
+        checked
     }
 
     fn resolve(&mut self, e: &'a Expr) -> Res<Access> {
@@ -2771,6 +2803,9 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// Read `count` uniform components laid out `bytes` apart from `base_addr` starting at
     /// component `first` (+ dynamic offset). A varying offset gathers lane by lane.
+    /// Dynamic offsets are clamped indices times strides, never negative, so they widen
+    /// to addresses by zero extension (free on x86_64 after a 32-bit operation; a sign
+    /// extension was one `movslq` per indexed access).
     #[allow(clippy::too_many_arguments)]
     fn read_memory(
         &mut self,
@@ -2792,7 +2827,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 Dyn::None | Dyn::Uniform(_) => {
                     let addr = match dyn_off {
                         Dyn::Uniform(d) => {
-                            let d64 = self.b.ins().sextend(types::I64, d);
+                            let d64 = self.b.ins().uextend(types::I64, d);
                             let db = self.b.ins().imul_imm_s(d64, bytes);
                             self.b.ins().iadd(base_addr, db)
                         }
@@ -2809,7 +2844,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                     let mut acc: Option<ir::Value> = None;
                     for lane in 0..4u8 {
                         let d = self.b.ins().extractlane(dv, lane);
-                        let d64 = self.b.ins().sextend(types::I64, d);
+                        let d64 = self.b.ins().uextend(types::I64, d);
                         let db = self.b.ins().imul_imm_s(d64, bytes);
                         let addr = self.b.ins().iadd(base_addr, db);
                         let lane_off = off + if varying_storage { 4 * lane as i32 } else { 0 };
@@ -3037,7 +3072,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                             let exec = self.exec();
                             for lane in 0..4u8 {
                                 let d = self.b.ins().extractlane(dv, lane);
-                                let d64 = self.b.ins().sextend(types::I64, d);
+                                let d64 = self.b.ins().uextend(types::I64, d);
                                 let db = self.b.ins().imul_imm_s(d64, bytes);
                                 let addr = self.b.ins().iadd(base_addr, db);
                                 let lt = if target == Scalar::Float {
@@ -3082,7 +3117,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         match d {
             Dyn::None => Ok(base),
             Dyn::Uniform(u) => {
-                let d64 = self.b.ins().sextend(types::I64, u);
+                let d64 = self.b.ins().uextend(types::I64, u);
                 let db = self.b.ins().imul_imm_s(d64, bytes);
                 Ok(self.b.ins().iadd(base, db))
             }
