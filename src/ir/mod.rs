@@ -23,6 +23,7 @@
 
 pub mod forward;
 pub mod print;
+pub mod range;
 pub mod split;
 
 use crate::diag::Span;

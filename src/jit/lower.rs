@@ -235,6 +235,9 @@ pub(crate) struct Lower<'a, 'b> {
     /// Tier 0: argument-block words already loaded, by (byte offset, scalar, word bools), with
     /// the block that loaded them (see `load_uniform`).
     arg_loads: std::collections::HashMap<(i32, Scalar, bool), (Block, ir::Value)>,
+    /// Index sites of the primitive's setup whose uniform index is proven in range at every
+    /// occurrence ([`crate::ir::range`]): indexed without clamp or error record.
+    proven_sites: std::collections::HashSet<SiteId>,
     pub(crate) warnings: Vec<String>,
 }
 
@@ -308,6 +311,7 @@ pub(crate) fn lower_kernel(
         block_culling,
         error_guard: None,
         arg_loads: std::collections::HashMap::new(),
+        proven_sites: crate::ir::range::proven_index_sites(body),
         warnings: vec![],
     };
     l.body(f)?;
@@ -2700,7 +2704,14 @@ impl<'a, 'b> Lower<'a, 'b> {
                 Dyn::Varying(v) => Dyn::Varying(self.b.ins().iadd(v, c)),
             }
         } else {
-            let c = self.checked_uniform_index(idx_comp, len, last, site);
+            // Proven in range for this frame's function (the primitive's own body only:
+            // inlined interpolators have sites of their own, never in the set).
+            let proven = self.frames.len() == 1 && self.proven_sites.contains(&site);
+            let c = if proven {
+                idx_comp
+            } else {
+                self.checked_uniform_index(idx_comp, len, last, site)
+            };
             let c = self.b.ins().imul_imm_s(c, stride as i64);
             match acc.dyn_off {
                 Dyn::None => Dyn::Uniform(c),
