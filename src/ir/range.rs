@@ -33,24 +33,27 @@ const TOP: Range = (i32::MIN as i64, i32::MAX as i64);
 
 /// Index sites of `f`'s setup whose index is proven inside its array at every occurrence.
 pub fn proven_index_sites(f: &Function) -> HashSet<SiteId> {
-    let mut a = Analysis {
-        f,
-        loops: vec![],
-        record: true,
-        proven: HashSet::new(),
-        unproven: HashSet::new(),
-    };
-    let start: Vec<Range> = f
-        .locals
-        .iter()
-        .map(|l| {
-            if matches!(l.kind, LocalKind::Param(_)) {
+    // Uniform scalar int locals get a position in the state; nothing else is tracked.
+    let mut slots = Vec::with_capacity(f.locals.len());
+    let mut start = vec![];
+    for l in &f.locals {
+        let int = !l.var.is_varying() && l.ty.is_scalar() && l.ty.elem == Elem::Scalar(Scalar::Int);
+        slots.push(int.then_some(start.len()));
+        if int {
+            start.push(if matches!(l.kind, LocalKind::Param(_)) {
                 TOP
             } else {
                 (0, 0)
-            }
-        })
-        .collect();
+            });
+        }
+    }
+    let mut a = Analysis {
+        f,
+        slots,
+        loops: vec![],
+        proven: HashSet::new(),
+        unproven: HashSet::new(),
+    };
     a.stmts(&f.setup, Some(start));
     a.proven.retain(|s| !a.unproven.contains(s));
     a.proven
@@ -64,9 +67,9 @@ struct LoopFrame {
 
 struct Analysis<'a> {
     f: &'a Function,
+    /// Per local: its position in a state, if tracked.
+    slots: Vec<Option<usize>>,
     loops: Vec<LoopFrame>,
-    /// Judge index sites (off while a loop iterates towards its fixpoint).
-    record: bool,
     proven: HashSet<SiteId>,
     unproven: HashSet<SiteId>,
 }
@@ -98,9 +101,12 @@ fn fits(lo: i64, hi: i64) -> Range {
 impl Analysis<'_> {
     /// A uniform scalar int local: the ones with an interval.
     fn tracked(&self, l: LocalId) -> bool {
-        self.f.locals.get(l.0 as usize).is_some_and(|local| {
-            !local.var.is_varying() && local.ty.is_scalar() && local.ty.elem == Elem::Scalar(Scalar::Int)
-        })
+        self.slot(l).is_some()
+    }
+
+    /// The position of a tracked local in a state.
+    fn slot(&self, l: LocalId) -> Option<usize> {
+        self.slots.get(l.0 as usize).copied().flatten()
     }
 
     fn stmts(&mut self, list: &[Stmt], mut st: State) -> State {
@@ -112,26 +118,31 @@ impl Analysis<'_> {
     }
 
     fn stmt(&mut self, s: &Stmt, st: State) -> State {
+        if let StmtKind::Assign { place, value } = &s.kind {
+            let mut env = st?;
+            let local_ty = self.f.locals.get(place.local.0 as usize).map(|l| l.ty.clone());
+            if let Some(mut ty) = local_ty {
+                for (index, site) in &place.indices {
+                    self.judge(&ty, index, *site, &env);
+                    ty = ty.element();
+                }
+            }
+            for (index, _) in &place.indices {
+                self.visit(index, &env);
+            }
+            self.visit(value, &env);
+            if place.indices.is_empty() && self.tracked(place.local) {
+                let v = self.eval(value, &env);
+                if let Some(at) = self.slot(place.local) {
+                    env[at] = v;
+                }
+            }
+            return Some(env);
+        }
         let env = st.as_ref()?;
         match &s.kind {
-            StmtKind::Assign { place, value } => {
-                let local_ty = self.f.locals.get(place.local.0 as usize).map(|l| l.ty.clone());
-                if let Some(mut ty) = local_ty {
-                    for (index, site) in &place.indices {
-                        self.judge(&ty, index, *site, env);
-                        ty = ty.element();
-                    }
-                }
-                for (index, _) in &place.indices {
-                    self.visit(index, env);
-                }
-                self.visit(value, env);
-                let mut next = env.clone();
-                if place.indices.is_empty() && self.tracked(place.local) {
-                    next[place.local.0 as usize] = self.eval(value, env);
-                }
-                Some(next)
-            }
+            // Handled above (it takes the state by value).
+            StmtKind::Assign { .. } => st,
             StmtKind::If { cond, then, otherwise } => {
                 self.visit(cond, env);
                 let t = self.refine(st.clone(), cond, true);
@@ -183,15 +194,16 @@ impl Analysis<'_> {
     }
 
     fn lower_loop(&mut self, id: LoopId, cond: Option<&Expr>, body: &[Stmt], step: &[Stmt], entry: State) -> State {
-        let outer_record = self.record;
-        self.record = false;
+        // Sites are judged in every round: states only grow from round to round, so a site
+        // unproven in any round is unproven in the last (whose head is the fixpoint), and
+        // "unproven" wins. The last round's exit state is the loop's.
         let mut head = entry.clone();
         let mut round = 0;
         loop {
-            let (back, _) = self.loop_round(id, cond, body, step, head.clone());
+            let (back, exit) = self.loop_round(id, cond, body, step, head.clone());
             let next = join(entry.clone(), back);
             if included(&next, &head) {
-                break;
+                return exit;
             }
             round += 1;
             head = if round >= 2 {
@@ -213,9 +225,6 @@ impl Analysis<'_> {
                 head = head.map(|h| h.iter().map(|_| TOP).collect());
             }
         }
-        self.record = outer_record;
-        let (_, exit) = self.loop_round(id, cond, body, step, head);
-        exit
     }
 
     /// One trip from the loop head: the state back at the head, and the state at the exit.
@@ -290,9 +299,6 @@ impl Analysis<'_> {
     }
 
     fn judge(&mut self, base_ty: &super::Type, index: &Expr, site: SiteId, env: &[Range]) {
-        if !self.record {
-            return;
-        }
         let len = if base_ty.per_seq {
             None
         } else {
@@ -314,7 +320,7 @@ impl Analysis<'_> {
         }
         match &e.kind {
             ExprKind::Const(ConstValue::Int(v)) => (*v as i64, *v as i64),
-            ExprKind::Local(l) if self.tracked(*l) => env.get(l.0 as usize).copied().unwrap_or(TOP),
+            ExprKind::Local(l) => self.slot(*l).and_then(|at| env.get(at).copied()).unwrap_or(TOP),
             ExprKind::Unary { op: UnaryOp::Neg, expr } => {
                 let (lo, hi) = self.eval(expr, env);
                 fits(-hi, -lo)
@@ -438,10 +444,10 @@ impl Analysis<'_> {
             },
             _ => return true,
         };
-        if !self.tracked(l) {
+        let Some(at) = self.slot(l) else {
             return true;
-        }
-        let Some(cur) = env.get(l.0 as usize).copied() else {
+        };
+        let Some(cur) = env.get(at).copied() else {
             return true;
         };
         // `l + offset` must not wrap for the shift to be exact.
@@ -459,7 +465,7 @@ impl Analysis<'_> {
         if lo > hi {
             return false;
         }
-        env[l.0 as usize] = (lo - offset, hi - offset);
+        env[at] = (lo - offset, hi - offset);
         true
     }
 }

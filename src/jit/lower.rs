@@ -2732,8 +2732,16 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// unsigned compare and a branch; the clamp and the error record sit in a cold block.
     /// (Recorded inline with selects, the check was two loads, two stores and ten more
     /// instructions on every access: most of the NURB tessellation's time.)
+    /// Tier 0 records inline with selects instead (same results): two blocks per access
+    /// doubled the NURB kernel's tier-0 compile time.
     fn checked_uniform_index(&mut self, idx: ir::Value, len: ir::Value, last: ir::Value, site: SiteId) -> ir::Value {
         let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
+        if self.tier0() {
+            self.record_error(ERR_INDEX, site.0, Some(bad));
+            let zero_s = self.b.ins().iconst(types::I32, 0);
+            let c = self.b.ins().smax(idx, zero_s);
+            return self.b.ins().smin(c, last);
+        }
         let cold = self.b.create_block();
         let in_range = self.b.create_block();
         let checked = self.b.append_block_param(in_range, types::I32);
