@@ -20,8 +20,10 @@ fn element(i: i64) -> f32 {
 
 /// Three loops over `float a[LEN]`, each a primitive: `sum_min` bounds the loop by
 /// `hi < LEN ? hi : LEN` (proven), `sum_guarded` returns early unless `0 <= lo` and `hi <= LEN`
-/// (proven after the guard), `sum_free` trusts its parameters (not proven: checked). A
-/// fourth, `flat`, draws the expected value for comparison.
+/// (proven after the guard), `sum_free` trusts its parameters (not proven: checked).
+/// `flat` draws the expected value for comparison. `sum_select` reads `i < hi ? a[i] : 0`
+/// up to `i == hi`: the JIT evaluates `a[i]` there too, so that site must not be proven
+/// (and must not report an error: the language takes the other arm).
 fn source(len: usize) -> String {
     let init: Vec<String> = (0..len).map(|i| format!("{}", element(i as i64))).collect();
     let init = init.join(", ");
@@ -67,6 +69,18 @@ primitive flat(float rect[4]; float z; varying float X, Y; inout varying fixed<3
 {{
     bound(rect[0], rect[1], rect[2], rect[3]);
     Z = z;
+}}
+
+primitive sum_select(float rect[4]; int lo, hi; varying float X, Y; inout varying fixed<32,32> Z)
+{{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    if (lo < 0 || hi > {len})
+        return;
+    float a[{len}] = {{{init}}};
+    float s = 0;
+    for (int i = lo; i <= hi; i++)
+        s = s + (i < hi ? a[i] : 0);
+    Z = s;
 }}
 "#
     )
@@ -157,6 +171,14 @@ fn index_proofs_cover_bounded_loops_and_guards_but_not_free_ones() {
         "a[i] after `if (lo < 0 || hi > 4) return;`"
     );
     assert!(sites("sum_free").is_empty(), "a[i] with i < hi unchecked");
+    let select: Vec<String> = proven("sum_select")
+        .into_iter()
+        .filter(|s| s.starts_with("52:"))
+        .collect();
+    assert!(
+        select.is_empty(),
+        "a[i] in an arm of ?: runs whatever the condition: {select:?}"
+    );
     // The NURB surface's setup: its validation bounds the orders and counts, so many of
     // the tessellation's accesses are proven (de Boor's `d[j]`, `w[j]`, the ring arrays).
     let mut sources = SourceMap::new();
@@ -200,12 +222,14 @@ fn loops_at_the_edges_of_their_arrays_read_clamped_values_and_report_errors() {
                 assert_eq!((got, errors.len()), (want_min, 0), "sum_min {case}");
 
                 // The guarded loop draws only when its guard passes.
-                let (got, errors) = run(&program, &sources, &scene(&program, "sum_guarded", &params), tier);
-                assert!(errors.is_empty(), "sum_guarded {case}: {errors:?}");
-                if lo < 0 || hi > l {
-                    assert_eq!(got, 0, "sum_guarded {case}: returned before drawing");
-                } else {
-                    assert_eq!(got, want, "sum_guarded {case}");
+                for prim in ["sum_guarded", "sum_select"] {
+                    let (got, errors) = run(&program, &sources, &scene(&program, prim, &params), tier);
+                    assert!(errors.is_empty(), "{prim} {case}: {errors:?}");
+                    if lo < 0 || hi > l {
+                        assert_eq!(got, 0, "{prim} {case}: returned before drawing");
+                    } else {
+                        assert_eq!(got, want, "{prim} {case}");
+                    }
                 }
             }
         }

@@ -4,18 +4,21 @@
 //! An abstract interpretation over the structured IR with one interval `[lo, hi]` per
 //! uniform scalar `int` local (parameters included: they are never assigned, so a test on
 //! them holds for the rest of the run). Declared locals start at 0 (storage is zeroed);
-//! anything else starts unknown (the whole i32 range). Assignments evaluate the interval of
-//! the value (`+ - *` exactly in i64, giving up when a result could leave i32, where the
-//! JIT's arithmetic wraps; `/ %` for non-negative operands; `min max clamp abs`; `?:` with
-//! each arm under its condition); conditions refine the intervals of locals they compare
-//! (`l < e`, `l + c >= e`, `!`, `&&`, `||`), so `if (n > 12) return;` bounds `n` after it
-//! and `for (i = 0; i < n; i++)` bounds `i` in the body. A branch whose refinement is empty
-//! is not taken; `return`, `break` and `continue` carry their state to where they go. Loops
+//! parameters start unknown (the whole i32 range). Assignments evaluate the interval of the
+//! value: `+ - *` exactly in i64, giving up when a result could leave i32 (the JIT's
+//! arithmetic wraps); `/ %` for non-negative operands; `min max clamp abs`; `?:` as the join
+//! of each arm under its condition. Conditions refine the locals they compare (`l < e`,
+//! `l + c >= e`, `!`, `&&`, `||`), so `if (n > 12) return;` bounds `n` after it and
+//! `for (i = 0; i < n; i++)` bounds `i` in the body. A branch whose refinement is empty is
+//! not taken; `return`, `break` and `continue` carry their state to where they go. Loops
 //! iterate to a fixpoint, widening a bound that still moves to the end of the i32 range
-//! after two rounds, then are walked once more to judge their index sites.
+//! from the third round on; index sites are judged in every round (states only grow, so
+//! the last round, at the fixpoint, decides).
 //!
 //! A site is proven when, at every occurrence (the checker's inlining can copy one site),
-//! the index is uniform and its interval lies in `[0, len)` of a fixed-size array. Only the
+//! the index is uniform and its interval lies in `[0, len)` of a fixed-size array. An index
+//! inside an arm of `?:` is judged without that arm's condition: the JIT evaluates both
+//! arms and selects (the language reports errors of the taken arm only). Only the
 //! setup part is analysed: pixel-part sites are never proven. The result is a claim code
 //! generation relies on for memory safety, so every rule above errs towards "unknown".
 
@@ -279,20 +282,11 @@ impl Analysis<'_> {
                 self.visit(rhs, env);
             }
             ExprKind::Select { cond, then, otherwise } => {
+                // The JIT evaluates both arms whatever the condition (and selects), so an
+                // index in either arm runs under the unrefined state: judged there.
                 self.visit(cond, env);
-                // Only the arm taken is the language's; the JIT evaluates both, so both
-                // are judged, each under its own condition.
-                let st = Some(env.to_vec());
-                if let Some(t) = self.refine(st.clone(), cond, true) {
-                    self.visit(then, &t);
-                } else {
-                    self.visit(then, env);
-                }
-                if let Some(o) = self.refine(st, cond, false) {
-                    self.visit(otherwise, &o);
-                } else {
-                    self.visit(otherwise, env);
-                }
+                self.visit(then, env);
+                self.visit(otherwise, env);
             }
             ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| self.visit(a, env)),
         }

@@ -32,8 +32,10 @@
 //! `interpolator_return;` as a one-trip masked loop whose `return` is a break.
 //!
 //! Safety invariants the code keeps: every index is clamped into its array (and the error
-//! recorded), every G-buffer store goes to a plane below `ctx.num_planes` (stores to other
-//! planes are skipped), and every loop spends `ctx.fuel`. Nothing here panics on a checked
+//! recorded, in tier 1 from a cold block) unless [`crate::ir::range`] proved it in range,
+//! every G-buffer store goes to a plane below `ctx.num_planes` (stores to other
+//! planes are skipped), and every loop trip spends fuel (kept in a variable, `ctx.fuel`
+//! at the exit and around primitive calls). Nothing here panics on a checked
 //! program; an IR shape the checker should have excluded gives a [`JitError`].
 
 use cranelift_codegen::ir::{
