@@ -3076,6 +3076,25 @@ impl<'a, 'b> Lower<'a, 'b> {
             Storage::Stack(slot) => {
                 let base_addr = self.b.ins().stack_addr(types::I64, slot, 0);
                 let bytes = comp_bytes(varying) as i64;
+                // A uniform array set to all zeros (a declaration without initialiser, or
+                // `{0, ...}`): 16 bytes per store instead of 4, since all-zero bits are zero
+                // in every scalar type (the NURB tessellation zeroes ~480 words per vertex).
+                let whole = matches!(acc.dyn_off, Dyn::None) && matches!(acc.ty.elem, Elem::Scalar(_));
+                if !varying && whole && offs.len() >= 8 && all_zero_bits(value) {
+                    let (start, end) = (acc.base * 4, (acc.base + offs.len() as u32) * 4);
+                    let zero_vec = mask_const(&mut self.b, false);
+                    let mut at = start;
+                    while at + 16 <= end {
+                        self.b.ins().store(mem_flags(), zero_vec, base_addr, at as i32);
+                        at += 16;
+                    }
+                    let zero_word = self.b.ins().iconst(types::I32, 0);
+                    while at < end {
+                        self.b.ins().store(mem_flags(), zero_word, base_addr, at as i32);
+                        at += 4;
+                    }
+                    return Ok(());
+                }
                 for (o, c) in offs.iter().zip(comps) {
                     let off = ((acc.base + o) as i64 * bytes) as i32;
                     if !varying {
@@ -3573,6 +3592,18 @@ fn speculable_expr(e: &Expr) -> bool {
         }
         ExprKind::Builtin { args, .. } => args.iter().all(speculable_expr),
         ExprKind::List(items) => items.iter().all(speculable_expr),
+    }
+}
+
+/// Whether `e` is a constant (or a literal of constants) whose every component has all bits
+/// zero (so `-0.0` is not).
+fn all_zero_bits(e: &Expr) -> bool {
+    match &e.kind {
+        ExprKind::Const(ConstValue::Float(f)) => f.to_bits() == 0,
+        ExprKind::Const(ConstValue::Int(v) | ConstValue::Fixed(v)) => *v == 0,
+        ExprKind::Const(ConstValue::Bool(b)) => !b,
+        ExprKind::List(items) => items.iter().all(all_zero_bits),
+        _ => false,
     }
 }
 
