@@ -19,9 +19,12 @@
 //!   instance per tile) and `pixel` (run once per pixel group, varying values as vectors,
 //!   uniform values as scalars); see [`split`].
 //! - Indexing carries a [`SiteId`]: codegen clamps the index into range and records a
-//!   runtime error at that site, so no program reads or writes outside its storage.
+//!   runtime error at that site, so no program reads or writes outside its storage (an
+//!   index [`range`] proves in range at every occurrence of its site needs neither).
 
+pub mod forward;
 pub mod print;
+pub mod range;
 pub mod split;
 
 use crate::diag::Span;

@@ -32,8 +32,10 @@
 //! `interpolator_return;` as a one-trip masked loop whose `return` is a break.
 //!
 //! Safety invariants the code keeps: every index is clamped into its array (and the error
-//! recorded), every G-buffer store goes to a plane below `ctx.num_planes` (stores to other
-//! planes are skipped), and every loop spends `ctx.fuel`. Nothing here panics on a checked
+//! recorded, in tier 1 from a cold block) unless [`crate::ir::range`] proved it in range,
+//! every G-buffer store goes to a plane below `ctx.num_planes` (stores to other
+//! planes are skipped), and every loop trip spends fuel (kept in a variable, `ctx.fuel`
+//! at the exit and around primitive calls). Nothing here panics on a checked
 //! program; an IR shape the checker should have excluded gives a [`JitError`].
 
 use cranelift_codegen::ir::{
@@ -207,6 +209,9 @@ pub(crate) struct Lower<'a, 'b> {
     arm: Option<ArmInfo>,
     bound_vars: [Variable; 4],
     has_bound: Variable,
+    /// The fuel left (`ctx.fuel` while the kernel runs, kept in a register: loaded at entry,
+    /// stored at the exit and around direct primitive calls, whose callees spend it too).
+    fuel: Variable,
     /// The uniform frame's slot and the slot holding its address (see `spill_uniforms`).
     uniform_frame: Option<(StackSlot, StackSlot)>,
     /// Byte offset of the uniform frame's vector section (word `w` splatted at
@@ -232,6 +237,9 @@ pub(crate) struct Lower<'a, 'b> {
     /// Tier 0: argument-block words already loaded, by (byte offset, scalar, word bools), with
     /// the block that loaded them (see `load_uniform`).
     arg_loads: std::collections::HashMap<(i32, Scalar, bool), (Block, ir::Value)>,
+    /// Index sites of the primitive's setup whose uniform index is proven in range at every
+    /// occurrence ([`crate::ir::range`]): indexed without clamp or error record.
+    proven_sites: std::collections::HashSet<SiteId>,
     pub(crate) warnings: Vec<String>,
 }
 
@@ -275,6 +283,7 @@ pub(crate) fn lower_kernel(
         b.declare_var(types::F32),
     ];
     let has_bound = b.declare_var(types::I8);
+    let fuel = b.declare_var(types::I64);
     let scratch = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 4));
     let mut l = Lower {
         b,
@@ -293,6 +302,7 @@ pub(crate) fn lower_kernel(
         arm: None,
         bound_vars,
         has_bound,
+        fuel,
         uniform_frame: None,
         vec_section: 0,
         hoists: vec![],
@@ -303,6 +313,7 @@ pub(crate) fn lower_kernel(
         block_culling,
         error_guard: None,
         arg_loads: std::collections::HashMap::new(),
+        proven_sites: crate::ir::range::proven_index_sites(body),
         warnings: vec![],
     };
     l.body(f)?;
@@ -326,6 +337,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     // ---------------------------------------------------------------- kernel shape
 
     fn body(&mut self, f: &'a Function) -> Res<()> {
+        let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
+        self.b.def_var(self.fuel, fuel);
         // The pass rectangle defaults to everything; `bound` narrows it.
         let ninf = self.b.ins().f32const(f32::NEG_INFINITY);
         let pinf = self.b.ins().f32const(f32::INFINITY);
@@ -354,6 +367,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         self.b.ins().jump(self.exit, &[]);
         self.b.switch_to_block(self.exit);
+        let fuel = self.b.use_var(self.fuel);
+        self.store_ctx(fuel, ctx_off::FUEL);
         self.b.ins().return_(&[]);
         Ok(())
     }
@@ -1754,7 +1769,7 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// Spend one unit of fuel; out of fuel records ERR_FUEL and jumps to `exit`.
     fn spend_fuel(&mut self, site: SiteId, exit: Block) {
-        let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
+        let fuel = self.b.use_var(self.fuel);
         let empty = self.b.ins().icmp_imm_s(IntCC::Equal, fuel, 0);
         let out_blk = self.b.create_block();
         let ok_blk = self.b.create_block();
@@ -1765,7 +1780,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().jump(exit, &[]);
         self.b.switch_to_block(ok_blk);
         let less = self.b.ins().iadd_imm_s(fuel, -1);
-        self.store_ctx(less, ctx_off::FUEL);
+        self.b.def_var(self.fuel, less);
     }
 
     fn uniform_loop(
@@ -2564,7 +2579,12 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.record_call(callee, fref, base, words)?;
         self.b.ins().jump(after, &[]);
         self.b.switch_to_block(run_blk);
+        // The callee spends the same fuel: hand it over in `ctx.fuel` and take back the rest.
+        let fuel = self.b.use_var(self.fuel);
+        self.store_ctx(fuel, ctx_off::FUEL);
         self.b.ins().call(fref, &[self.ctx, base]);
+        let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
+        self.b.def_var(self.fuel, fuel);
         self.b.ins().jump(after, &[]);
         self.b.switch_to_block(after);
         let d = self.load_ctx(types::I32, ctx_off::CALL_DEPTH);
@@ -2722,11 +2742,14 @@ impl<'a, 'b> Lower<'a, 'b> {
                 Dyn::Varying(v) => Dyn::Varying(self.b.ins().iadd(v, c)),
             }
         } else {
-            let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx_comp, len);
-            self.record_error(ERR_INDEX, site.0, Some(bad));
-            let zero_s = self.b.ins().iconst(types::I32, 0);
-            let c = self.b.ins().smax(idx_comp, zero_s);
-            let c = self.b.ins().smin(c, last);
+            // Proven in range for this frame's function (the primitive's own body only:
+            // inlined interpolators have sites of their own, never in the set).
+            let proven = self.frames.len() == 1 && self.proven_sites.contains(&site);
+            let c = if proven {
+                idx_comp
+            } else {
+                self.checked_uniform_index(idx_comp, len, last, site)
+            };
             let c = self.b.ins().imul_imm_s(c, stride as i64);
             match acc.dyn_off {
                 Dyn::None => Dyn::Uniform(c),
@@ -2740,6 +2763,36 @@ impl<'a, 'b> Lower<'a, 'b> {
         acc.dyn_off = off;
         acc.ty = elem_ty;
         Ok(acc)
+    }
+
+    /// A uniform index `idx` into `len` elements (`last` = `len - 1`), clamped, with
+    /// ERR_INDEX recorded at `site` when it is out of range. The in-range path is one
+    /// unsigned compare and a branch; the clamp and the error record sit in a cold block.
+    /// (Recorded inline with selects, the check was two loads, two stores and ten more
+    /// instructions on every access: most of the NURB tessellation's time.)
+    /// Tier 0 records inline with selects instead (same results): two blocks per access
+    /// doubled the NURB kernel's tier-0 compile time.
+    fn checked_uniform_index(&mut self, idx: ir::Value, len: ir::Value, last: ir::Value, site: SiteId) -> ir::Value {
+        let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
+        if self.tier0() {
+            self.record_error(ERR_INDEX, site.0, Some(bad));
+            let zero_s = self.b.ins().iconst(types::I32, 0);
+            let c = self.b.ins().smax(idx, zero_s);
+            return self.b.ins().smin(c, last);
+        }
+        let cold = self.b.create_block();
+        let in_range = self.b.create_block();
+        let checked = self.b.append_block_param(in_range, types::I32);
+        self.b.ins().brif(bad, cold, &[], in_range, &[idx.into()]);
+        self.b.set_cold_block(cold);
+        self.b.switch_to_block(cold);
+        self.record_error(ERR_INDEX, site.0, None);
+        let zero_s = self.b.ins().iconst(types::I32, 0);
+        let c = self.b.ins().smax(idx, zero_s);
+        let c = self.b.ins().smin(c, last);
+        self.b.ins().jump(in_range, &[c.into()]);
+        self.b.switch_to_block(in_range);
+        checked
     }
 
     fn resolve(&mut self, e: &'a Expr) -> Res<Access> {
@@ -2807,6 +2860,9 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// Read `count` uniform components laid out `bytes` apart from `base_addr` starting at
     /// component `first` (+ dynamic offset). A varying offset gathers lane by lane.
+    /// Dynamic offsets are clamped indices times strides, never negative, so they widen
+    /// to addresses by zero extension (free on x86_64 after a 32-bit operation; a sign
+    /// extension was one `movslq` per indexed access).
     #[allow(clippy::too_many_arguments)]
     fn read_memory(
         &mut self,
@@ -2828,7 +2884,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 Dyn::None | Dyn::Uniform(_) => {
                     let addr = match dyn_off {
                         Dyn::Uniform(d) => {
-                            let d64 = self.b.ins().sextend(types::I64, d);
+                            let d64 = self.b.ins().uextend(types::I64, d);
                             let db = self.b.ins().imul_imm_s(d64, bytes);
                             self.b.ins().iadd(base_addr, db)
                         }
@@ -2845,7 +2901,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                     let mut acc: Option<ir::Value> = None;
                     for lane in 0..4u8 {
                         let d = self.b.ins().extractlane(dv, lane);
-                        let d64 = self.b.ins().sextend(types::I64, d);
+                        let d64 = self.b.ins().uextend(types::I64, d);
                         let db = self.b.ins().imul_imm_s(d64, bytes);
                         let addr = self.b.ins().iadd(base_addr, db);
                         let lane_off = off + if varying_storage { 4 * lane as i32 } else { 0 };
@@ -3056,6 +3112,25 @@ impl<'a, 'b> Lower<'a, 'b> {
             Storage::Stack(slot) => {
                 let base_addr = self.b.ins().stack_addr(types::I64, slot, 0);
                 let bytes = comp_bytes(varying) as i64;
+                // A uniform array set to all zeros (a declaration without initialiser, or
+                // `{0, ...}`): 16 bytes per store instead of 4, since all-zero bits are zero
+                // in every scalar type (the NURB tessellation zeroes ~480 words per vertex).
+                let whole = matches!(acc.dyn_off, Dyn::None) && matches!(acc.ty.elem, Elem::Scalar(_));
+                if !varying && whole && offs.len() >= 8 && all_zero_bits(value) {
+                    let (start, end) = (acc.base * 4, (acc.base + offs.len() as u32) * 4);
+                    let zero_vec = mask_const(&mut self.b, false);
+                    let mut at = start;
+                    while at + 16 <= end {
+                        self.b.ins().store(mem_flags(), zero_vec, base_addr, at as i32);
+                        at += 16;
+                    }
+                    let zero_word = self.b.ins().iconst(types::I32, 0);
+                    while at < end {
+                        self.b.ins().store(mem_flags(), zero_word, base_addr, at as i32);
+                        at += 4;
+                    }
+                    return Ok(());
+                }
                 for (o, c) in offs.iter().zip(comps) {
                     let off = ((acc.base + o) as i64 * bytes) as i32;
                     if !varying {
@@ -3073,7 +3148,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                             let exec = self.exec();
                             for lane in 0..4u8 {
                                 let d = self.b.ins().extractlane(dv, lane);
-                                let d64 = self.b.ins().sextend(types::I64, d);
+                                let d64 = self.b.ins().uextend(types::I64, d);
                                 let db = self.b.ins().imul_imm_s(d64, bytes);
                                 let addr = self.b.ins().iadd(base_addr, db);
                                 let lt = if target == Scalar::Float {
@@ -3118,7 +3193,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         match d {
             Dyn::None => Ok(base),
             Dyn::Uniform(u) => {
-                let d64 = self.b.ins().sextend(types::I64, u);
+                let d64 = self.b.ins().uextend(types::I64, u);
                 let db = self.b.ins().imul_imm_s(d64, bytes);
                 Ok(self.b.ins().iadd(base, db))
             }
@@ -3580,6 +3655,18 @@ fn quiet_stmt(f: &Function, s: &Stmt) -> bool {
             speculable_expr(cond) && then.iter().chain(otherwise).all(|t| quiet_stmt(f, t))
         }
         StmtKind::Return => true,
+        _ => false,
+    }
+}
+
+/// Whether `e` is a constant (or a literal of constants) whose every component has all bits
+/// zero (so `-0.0` is not).
+fn all_zero_bits(e: &Expr) -> bool {
+    match &e.kind {
+        ExprKind::Const(ConstValue::Float(f)) => f.to_bits() == 0,
+        ExprKind::Const(ConstValue::Int(v) | ConstValue::Fixed(v)) => *v == 0,
+        ExprKind::Const(ConstValue::Bool(b)) => !b,
+        ExprKind::List(items) => items.iter().all(all_zero_bits),
         _ => false,
     }
 }

@@ -516,11 +516,12 @@ impl Jit {
         bodies
             .entry(func)
             .or_insert_with(|| {
-                let f = self.program.func(func);
+                // Whole-array copies forwarded first (`crate::ir::forward`), then unrolled.
+                let f = crate::ir::forward::forward_copies(self.program.func(func));
                 Arc::new(if self.options.unroll_loops {
-                    unroll::unroll_function(f)
+                    unroll::unroll_function(&f)
                 } else {
-                    f.clone()
+                    f
                 })
             })
             .clone()

@@ -1,0 +1,286 @@
+//! IR -> IR before code generation: forwards whole-array copies, so `d = s` followed by
+//! reads of `d` reads `s` instead and the copy disappears.
+//!
+//! Why: the checker inlines helper calls and passes every argument by value, so a call
+//! `nurb_de_boor(u_knots, ..., row_points, ...)` starts with `knots = u_knots` (16 floats)
+//! and `points = row_points` (64 floats): a load and a store per component, per call. In the
+//! NURB tessellation these copies were a fifth of the JIT's setup instructions
+//! (docs/performance.md, `nurbjit`). Scalar copies are not touched (they are SSA moves).
+//!
+//! The rule (sound without any alias analysis, because the IR has no references: a local
+//! changes only by an assignment naming it): in a statement list, `d = s` (both whole
+//! locals, same type, both uniform, `d` not a parameter, `d` an array) is forwarded when
+//! - it is the only assignment to `d` anywhere in the function (setup and pixel part),
+//! - every read of `d` in the function is in a later statement of the same list, and
+//! - `s` is not assigned in the statements from that one through the last that reads `d`.
+//! Then each read of `d` would see exactly the value `s` has at that read, so reads of `d`
+//! become reads of `s` and the assignment is dropped. Nothing observable changes: values,
+//! run-time error sites and index lengths are the same (same type, same `SiteId`s).
+//! Lists are visited outside-in, so chains (`knots = u_knots; ... k2 = knots`) collapse.
+//!
+//! Invariants kept: the output is a checked program in the sense of [`crate::ir`] (same
+//! locals, sites, loops, parameters); only `Assign` statements are removed and only
+//! `Local` expressions renamed.
+
+use super::{Expr, ExprKind, Function, LocalId, LocalKind, Place, Stmt, StmtKind};
+
+/// `f` with whole-array copies forwarded (see the module comment).
+pub fn forward_copies(f: &Function) -> Function {
+    let mut out = f.clone();
+    let mut counts = Counts::new(out.locals.len());
+    for s in out.setup.iter().chain(out.pixel.iter()) {
+        counts.stmt(s);
+    }
+    let mut fw = Forwarder { f, counts };
+    fw.list(&mut out.setup);
+    fw.list(&mut out.pixel);
+    out
+}
+
+/// Reads and assignments of each local.
+struct Counts {
+    reads: Vec<u32>,
+    writes: Vec<u32>,
+}
+
+impl Counts {
+    fn new(n: usize) -> Counts {
+        Counts {
+            reads: vec![0; n],
+            writes: vec![0; n],
+        }
+    }
+
+    fn stmt(&mut self, s: &Stmt) {
+        visit_stmt(s, &mut |l| bump(&mut self.reads, l), &mut |l| bump(&mut self.writes, l));
+    }
+}
+
+fn bump(v: &mut [u32], l: LocalId) {
+    if let Some(c) = v.get_mut(l.0 as usize) {
+        *c += 1;
+    }
+}
+
+struct Forwarder<'a> {
+    f: &'a Function,
+    counts: Counts,
+}
+
+impl Forwarder<'_> {
+    fn list(&mut self, list: &mut Vec<Stmt>) {
+        let mut k = 0;
+        while k < list.len() {
+            if let Some((d, s)) = self.candidate(&list[k]) {
+                if self.forward(list, k, d, s) {
+                    continue; // list[k] is now the next statement
+                }
+            }
+            match &mut list[k].kind {
+                StmtKind::If { then, otherwise, .. } => {
+                    self.list(then);
+                    self.list(otherwise);
+                }
+                StmtKind::Loop { body, step, .. } => {
+                    self.list(body);
+                    self.list(step);
+                }
+                StmtKind::Interpolation { arms } => {
+                    for arm in arms {
+                        self.list(&mut arm.body);
+                    }
+                }
+                _ => {}
+            }
+            k += 1;
+        }
+    }
+
+    /// `d = s` of the shape the rule asks for (without the flow conditions).
+    fn candidate(&self, st: &Stmt) -> Option<(LocalId, LocalId)> {
+        let StmtKind::Assign { place, value } = &st.kind else {
+            return None;
+        };
+        let ExprKind::Local(s) = value.kind else {
+            return None;
+        };
+        if !place.indices.is_empty() || place.local == s {
+            return None;
+        }
+        let (dl, sl) = (
+            self.f.locals.get(place.local.0 as usize)?,
+            self.f.locals.get(s.0 as usize)?,
+        );
+        let array = !dl.ty.dims.is_empty() && !dl.ty.per_seq;
+        let uniform = !dl.var.is_varying() && !sl.var.is_varying();
+        let ok = array && uniform && dl.ty == sl.ty && !matches!(dl.kind, LocalKind::Param(_));
+        ok.then_some((place.local, s))
+    }
+
+    /// Forward `list[k]` (`d = s`) if the flow conditions hold; true if it was removed.
+    fn forward(&mut self, list: &mut Vec<Stmt>, k: usize, d: LocalId, s: LocalId) -> bool {
+        if self.counts.writes[d.0 as usize] != 1 {
+            return false;
+        }
+        let total_reads = self.counts.reads[d.0 as usize];
+        let mut seen = 0;
+        let mut last = k;
+        let mut s_written = false;
+        for (j, st) in list.iter().enumerate().skip(k + 1) {
+            if seen == total_reads {
+                break;
+            }
+            let mut reads_d = 0;
+            let mut writes_s = false;
+            visit_stmt(
+                st,
+                &mut |l| {
+                    if l == d {
+                        reads_d += 1
+                    }
+                },
+                &mut |l| writes_s |= l == s,
+            );
+            s_written |= writes_s;
+            if reads_d > 0 {
+                seen += reads_d;
+                last = j;
+                if s_written {
+                    return false;
+                }
+            }
+        }
+        if seen != total_reads {
+            return false; // some read of `d` is elsewhere
+        }
+        for st in &mut list[k + 1..=last] {
+            rename_stmt(st, d, s);
+        }
+        self.counts.reads[s.0 as usize] += total_reads;
+        // The copy itself read `s` once.
+        self.counts.reads[s.0 as usize] -= 1;
+        self.counts.reads[d.0 as usize] = 0;
+        self.counts.writes[d.0 as usize] = 0;
+        list.remove(k);
+        true
+    }
+}
+
+/// Calls `read` for every `Local` expression and `write` for every assigned place's local in
+/// `s` (nested statements included).
+fn visit_stmt(s: &Stmt, read: &mut dyn FnMut(LocalId), write: &mut dyn FnMut(LocalId)) {
+    match &s.kind {
+        StmtKind::Assign { place, value } => {
+            write(place.local);
+            for (i, _) in &place.indices {
+                visit_expr(i, read);
+            }
+            visit_expr(value, read);
+        }
+        StmtKind::If { cond, then, otherwise } => {
+            visit_expr(cond, read);
+            then.iter().chain(otherwise).for_each(|s| visit_stmt(s, read, write));
+        }
+        StmtKind::Loop { cond, body, step, .. } => {
+            if let Some(c) = cond {
+                visit_expr(c, read);
+            }
+            body.iter().chain(step).for_each(|s| visit_stmt(s, read, write));
+        }
+        StmtKind::Interpolation { arms } => arms
+            .iter()
+            .flat_map(|a| a.body.iter())
+            .for_each(|s| visit_stmt(s, read, write)),
+        StmtKind::InterpolatorReturn(Some(e)) => visit_expr(e, read),
+        StmtKind::Bound(es) => es.iter().for_each(|e| visit_expr(e, read)),
+        StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| visit_expr(e, read)),
+        StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
+    }
+}
+
+fn visit_expr(e: &Expr, read: &mut dyn FnMut(LocalId)) {
+    match &e.kind {
+        ExprKind::Local(l) => read(*l),
+        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
+        ExprKind::Index { base, index, .. } => {
+            visit_expr(base, read);
+            visit_expr(index, read);
+        }
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => visit_expr(expr, read),
+        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
+            visit_expr(lhs, read);
+            visit_expr(rhs, read);
+        }
+        ExprKind::Select { cond, then, otherwise } => {
+            visit_expr(cond, read);
+            visit_expr(then, read);
+            visit_expr(otherwise, read);
+        }
+        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| visit_expr(a, read)),
+    }
+}
+
+/// Every read of `from` in `s` becomes a read of `to` (assignments to `from` stay: the rule
+/// only renames where `from` is never assigned).
+fn rename_stmt(s: &mut Stmt, from: LocalId, to: LocalId) {
+    match &mut s.kind {
+        StmtKind::Assign { place, value } => {
+            rename_place(place, from, to);
+            rename_expr(value, from, to);
+        }
+        StmtKind::If { cond, then, otherwise } => {
+            rename_expr(cond, from, to);
+            then.iter_mut()
+                .chain(otherwise.iter_mut())
+                .for_each(|s| rename_stmt(s, from, to));
+        }
+        StmtKind::Loop { cond, body, step, .. } => {
+            if let Some(c) = cond {
+                rename_expr(c, from, to);
+            }
+            body.iter_mut()
+                .chain(step.iter_mut())
+                .for_each(|s| rename_stmt(s, from, to));
+        }
+        StmtKind::Interpolation { arms } => arms
+            .iter_mut()
+            .flat_map(|a| a.body.iter_mut())
+            .for_each(|s| rename_stmt(s, from, to)),
+        StmtKind::InterpolatorReturn(Some(e)) => rename_expr(e, from, to),
+        StmtKind::Bound(es) => es.iter_mut().for_each(|e| rename_expr(e, from, to)),
+        StmtKind::CallPrimitive { args, .. } => args.iter_mut().for_each(|e| rename_expr(e, from, to)),
+        StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
+    }
+}
+
+fn rename_place(p: &mut Place, from: LocalId, to: LocalId) {
+    for (i, _) in &mut p.indices {
+        rename_expr(i, from, to);
+    }
+}
+
+fn rename_expr(e: &mut Expr, from: LocalId, to: LocalId) {
+    match &mut e.kind {
+        ExprKind::Local(l) => {
+            if *l == from {
+                *l = to;
+            }
+        }
+        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
+        ExprKind::Index { base, index, .. } => {
+            rename_expr(base, from, to);
+            rename_expr(index, from, to);
+        }
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => rename_expr(expr, from, to),
+        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
+            rename_expr(lhs, from, to);
+            rename_expr(rhs, from, to);
+        }
+        ExprKind::Select { cond, then, otherwise } => {
+            rename_expr(cond, from, to);
+            rename_expr(then, from, to);
+            rename_expr(otherwise, from, to);
+        }
+        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter_mut().for_each(|a| rename_expr(a, from, to)),
+    }
+}

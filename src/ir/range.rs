@@ -1,0 +1,478 @@
+//! Range analysis of uniform `int` values: which index sites of a function's setup provably
+//! index inside their array, so code generation may drop their clamp and error record.
+//!
+//! An abstract interpretation over the structured IR with one interval `[lo, hi]` per
+//! uniform scalar `int` local (parameters included: they are never assigned, so a test on
+//! them holds for the rest of the run). Declared locals start at 0 (storage is zeroed);
+//! parameters start unknown (the whole i32 range). Assignments evaluate the interval of the
+//! value: `+ - *` exactly in i64, giving up when a result could leave i32 (the JIT's
+//! arithmetic wraps); `/ %` for non-negative operands; `min max clamp abs`; `?:` as the join
+//! of each arm under its condition. Conditions refine the locals they compare (`l < e`,
+//! `l + c >= e`, `!`, `&&`, `||`), so `if (n > 12) return;` bounds `n` after it and
+//! `for (i = 0; i < n; i++)` bounds `i` in the body. A branch whose refinement is empty is
+//! not taken; `return`, `break` and `continue` carry their state to where they go. Loops
+//! iterate to a fixpoint, widening a bound that still moves to the end of the i32 range
+//! from the third round on; index sites are judged in every round (states only grow, so
+//! the last round, at the fixpoint, decides).
+//!
+//! A site is proven when, at every occurrence (the checker's inlining can copy one site),
+//! the index is uniform and its interval lies in `[0, len)` of a fixed-size array. An index
+//! inside an arm of `?:` is judged without that arm's condition: the JIT evaluates both
+//! arms and selects (the language reports errors of the taken arm only). Only the
+//! setup part is analysed: pixel-part sites are never proven. The result is a claim code
+//! generation relies on for memory safety, so every rule above errs towards "unknown".
+
+use std::collections::HashSet;
+
+use super::{BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, Function, LocalId, LoopId, Scalar, SiteId, Stmt};
+use super::{LocalKind, StmtKind, UnaryOp};
+
+/// An interval of i32 values, `lo <= hi`.
+type Range = (i64, i64);
+/// Per local; `None`: this point is not reached.
+type State = Option<Vec<Range>>;
+
+const TOP: Range = (i32::MIN as i64, i32::MAX as i64);
+
+/// Index sites of `f`'s setup whose index is proven inside its array at every occurrence.
+pub fn proven_index_sites(f: &Function) -> HashSet<SiteId> {
+    // Uniform scalar int locals get a position in the state; nothing else is tracked.
+    let mut slots = Vec::with_capacity(f.locals.len());
+    let mut start = vec![];
+    for l in &f.locals {
+        let int = !l.var.is_varying() && l.ty.is_scalar() && l.ty.elem == Elem::Scalar(Scalar::Int);
+        slots.push(int.then_some(start.len()));
+        if int {
+            start.push(if matches!(l.kind, LocalKind::Param(_)) {
+                TOP
+            } else {
+                (0, 0)
+            });
+        }
+    }
+    let mut a = Analysis {
+        f,
+        slots,
+        loops: vec![],
+        proven: HashSet::new(),
+        unproven: HashSet::new(),
+    };
+    a.stmts(&f.setup, Some(start));
+    a.proven.retain(|s| !a.unproven.contains(s));
+    a.proven
+}
+
+struct LoopFrame {
+    id: LoopId,
+    breaks: State,
+    continues: State,
+}
+
+struct Analysis<'a> {
+    f: &'a Function,
+    /// Per local: its position in a state, if tracked.
+    slots: Vec<Option<usize>>,
+    loops: Vec<LoopFrame>,
+    proven: HashSet<SiteId>,
+    unproven: HashSet<SiteId>,
+}
+
+fn join(a: State, b: State) -> State {
+    match (a, b) {
+        (None, x) | (x, None) => x,
+        (Some(a), Some(b)) => Some(a.iter().zip(&b).map(|(x, y)| (x.0.min(y.0), x.1.max(y.1))).collect()),
+    }
+}
+
+/// Every state `a` allows, `b` allows too.
+fn included(a: &State, b: &State) -> bool {
+    match (a, b) {
+        (None, _) => true,
+        (Some(_), None) => false,
+        (Some(a), Some(b)) => a.iter().zip(b).all(|(x, y)| y.0 <= x.0 && x.1 <= y.1),
+    }
+}
+
+fn fits(lo: i64, hi: i64) -> Range {
+    if lo < TOP.0 || hi > TOP.1 {
+        TOP
+    } else {
+        (lo, hi)
+    }
+}
+
+impl Analysis<'_> {
+    /// A uniform scalar int local: the ones with an interval.
+    fn tracked(&self, l: LocalId) -> bool {
+        self.slot(l).is_some()
+    }
+
+    /// The position of a tracked local in a state.
+    fn slot(&self, l: LocalId) -> Option<usize> {
+        self.slots.get(l.0 as usize).copied().flatten()
+    }
+
+    fn stmts(&mut self, list: &[Stmt], mut st: State) -> State {
+        for s in list {
+            st.as_ref()?;
+            st = self.stmt(s, st);
+        }
+        st
+    }
+
+    fn stmt(&mut self, s: &Stmt, st: State) -> State {
+        if let StmtKind::Assign { place, value } = &s.kind {
+            let mut env = st?;
+            let local_ty = self.f.locals.get(place.local.0 as usize).map(|l| l.ty.clone());
+            if let Some(mut ty) = local_ty {
+                for (index, site) in &place.indices {
+                    self.judge(&ty, index, *site, &env);
+                    ty = ty.element();
+                }
+            }
+            for (index, _) in &place.indices {
+                self.visit(index, &env);
+            }
+            self.visit(value, &env);
+            if place.indices.is_empty() && self.tracked(place.local) {
+                let v = self.eval(value, &env);
+                if let Some(at) = self.slot(place.local) {
+                    env[at] = v;
+                }
+            }
+            return Some(env);
+        }
+        let env = st.as_ref()?;
+        match &s.kind {
+            // Handled above (it takes the state by value).
+            StmtKind::Assign { .. } => st,
+            StmtKind::If { cond, then, otherwise } => {
+                self.visit(cond, env);
+                let t = self.refine(st.clone(), cond, true);
+                let e = self.refine(st, cond, false);
+                let t = self.stmts(then, t);
+                let e = self.stmts(otherwise, e);
+                join(t, e)
+            }
+            StmtKind::Loop {
+                id, cond, body, step, ..
+            } => self.lower_loop(*id, cond.as_ref(), body, step, st),
+            StmtKind::Break(id) | StmtKind::Continue(id) => {
+                let is_break = matches!(s.kind, StmtKind::Break(_));
+                if let Some(frame) = self.loops.iter_mut().rev().find(|l| l.id == *id) {
+                    let slot = if is_break {
+                        &mut frame.breaks
+                    } else {
+                        &mut frame.continues
+                    };
+                    *slot = join(slot.take(), st);
+                }
+                None
+            }
+            StmtKind::Return => None,
+            StmtKind::Interpolation { arms } => {
+                // Any subset of the arms may run (none, in a variant without their kinds).
+                let mut out = st.clone();
+                for arm in arms {
+                    let after = self.stmts(&arm.body, st.clone());
+                    out = join(out, after);
+                }
+                out
+            }
+            StmtKind::InterpolatorReturn(e) => {
+                if let Some(e) = e {
+                    self.visit(e, env);
+                }
+                st
+            }
+            StmtKind::Bound(es) => {
+                es.iter().for_each(|e| self.visit(e, env));
+                st
+            }
+            StmtKind::CallPrimitive { args, .. } => {
+                args.iter().for_each(|e| self.visit(e, env));
+                st
+            }
+        }
+    }
+
+    fn lower_loop(&mut self, id: LoopId, cond: Option<&Expr>, body: &[Stmt], step: &[Stmt], entry: State) -> State {
+        // Sites are judged in every round: states only grow from round to round, so a site
+        // unproven in any round is unproven in the last (whose head is the fixpoint), and
+        // "unproven" wins. The last round's exit state is the loop's.
+        let mut head = entry.clone();
+        let mut round = 0;
+        loop {
+            let (back, exit) = self.loop_round(id, cond, body, step, head.clone());
+            let next = join(entry.clone(), back);
+            if included(&next, &head) {
+                return exit;
+            }
+            round += 1;
+            head = if round >= 2 {
+                // Widen: a bound still moving goes to the end of the range.
+                match (head, next) {
+                    (Some(h), Some(n)) => Some(
+                        h.iter()
+                            .zip(&n)
+                            .map(|(o, n)| (if n.0 < o.0 { TOP.0 } else { n.0 }, if n.1 > o.1 { TOP.1 } else { n.1 }))
+                            .collect(),
+                    ),
+                    (_, n) => n,
+                }
+            } else {
+                next
+            };
+            if round > 8 {
+                // Cannot happen after widening; give up on the loop's facts all the same.
+                head = head.map(|h| h.iter().map(|_| TOP).collect());
+            }
+        }
+    }
+
+    /// One trip from the loop head: the state back at the head, and the state at the exit.
+    fn loop_round(
+        &mut self,
+        id: LoopId,
+        cond: Option<&Expr>,
+        body: &[Stmt],
+        step: &[Stmt],
+        head: State,
+    ) -> (State, State) {
+        let (into, out) = match cond {
+            Some(c) => {
+                if let Some(h) = &head {
+                    self.visit(c, h);
+                }
+                (self.refine(head.clone(), c, true), self.refine(head, c, false))
+            }
+            None => (head, None),
+        };
+        self.loops.push(LoopFrame {
+            id,
+            breaks: None,
+            continues: None,
+        });
+        let after_body = self.stmts(body, into);
+        let frame = self.loops.pop().expect("pushed above");
+        let before_step = join(after_body, frame.continues);
+        self.loops.push(LoopFrame {
+            id,
+            breaks: None,
+            continues: None,
+        });
+        let back = self.stmts(step, before_step);
+        let step_frame = self.loops.pop().expect("pushed above");
+        let exit = join(join(out, frame.breaks), step_frame.breaks);
+        (back, exit)
+    }
+
+    /// Judge every index site in `e` under `env`.
+    fn visit(&mut self, e: &Expr, env: &[Range]) {
+        match &e.kind {
+            ExprKind::Index { base, index, site } => {
+                self.judge(&base.ty, index, *site, env);
+                self.visit(base, env);
+                self.visit(index, env);
+            }
+            ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
+            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => self.visit(expr, env),
+            ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
+                self.visit(lhs, env);
+                self.visit(rhs, env);
+            }
+            ExprKind::Select { cond, then, otherwise } => {
+                // The JIT evaluates both arms whatever the condition (and selects), so an
+                // index in either arm runs under the unrefined state: judged there.
+                self.visit(cond, env);
+                self.visit(then, env);
+                self.visit(otherwise, env);
+            }
+            ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| self.visit(a, env)),
+        }
+    }
+
+    fn judge(&mut self, base_ty: &super::Type, index: &Expr, site: SiteId, env: &[Range]) {
+        let len = if base_ty.per_seq {
+            None
+        } else {
+            base_ty.dims.first().copied()
+        };
+        let (lo, hi) = self.eval(index, env);
+        let ok = !index.var.is_varying() && len.is_some_and(|n| lo >= 0 && hi < n as i64);
+        if ok {
+            self.proven.insert(site);
+        } else {
+            self.unproven.insert(site);
+        }
+    }
+
+    /// The interval of a uniform int expression (TOP for anything else).
+    fn eval(&self, e: &Expr, env: &[Range]) -> Range {
+        if e.var.is_varying() || !e.ty.is_scalar() || e.ty.elem != Elem::Scalar(Scalar::Int) {
+            return TOP;
+        }
+        match &e.kind {
+            ExprKind::Const(ConstValue::Int(v)) => (*v as i64, *v as i64),
+            ExprKind::Local(l) => self.slot(*l).and_then(|at| env.get(at).copied()).unwrap_or(TOP),
+            ExprKind::Unary { op: UnaryOp::Neg, expr } => {
+                let (lo, hi) = self.eval(expr, env);
+                fits(-hi, -lo)
+            }
+            ExprKind::Binary { op, lhs, rhs } => {
+                let (a, b) = (self.eval(lhs, env), self.eval(rhs, env));
+                match op {
+                    BinOp::Add => fits(a.0 + b.0, a.1 + b.1),
+                    BinOp::Sub => fits(a.0 - b.1, a.1 - b.0),
+                    BinOp::Mul => {
+                        let p = [a.0 * b.0, a.0 * b.1, a.1 * b.0, a.1 * b.1];
+                        fits(*p.iter().min().expect("4"), *p.iter().max().expect("4"))
+                    }
+                    BinOp::Div if a.0 >= 0 && b.0 >= 1 => (a.0 / b.1, a.1 / b.0),
+                    BinOp::Rem if a.0 >= 0 && b.0 >= 1 => (0, a.1.min(b.1 - 1)),
+                    _ => TOP,
+                }
+            }
+            ExprKind::Select { cond, then, otherwise } => {
+                let st = Some(env.to_vec());
+                let t = self.refine(st.clone(), cond, true).map(|t| self.eval(then, &t));
+                let o = self.refine(st, cond, false).map(|o| self.eval(otherwise, &o));
+                match (t, o) {
+                    (Some(t), Some(o)) => (t.0.min(o.0), t.1.max(o.1)),
+                    (Some(x), None) | (None, Some(x)) => x,
+                    (None, None) => TOP,
+                }
+            }
+            ExprKind::Builtin { func, args } => {
+                let r: Vec<Range> = args.iter().map(|a| self.eval(a, env)).collect();
+                match (func, r.as_slice()) {
+                    (Builtin::Min, [a, b]) => (a.0.min(b.0), a.1.min(b.1)),
+                    (Builtin::Max, [a, b]) => (a.0.max(b.0), a.1.max(b.1)),
+                    (Builtin::Clamp, [x, lo, hi]) if lo.1 <= hi.0 => (x.0.max(lo.0).min(hi.0), x.1.max(lo.1).min(hi.1)),
+                    (Builtin::Abs, [a]) if a.0 > TOP.0 => {
+                        if a.0 >= 0 {
+                            *a
+                        } else if a.1 <= 0 {
+                            (-a.1, -a.0)
+                        } else {
+                            (0, a.1.max(-a.0))
+                        }
+                    }
+                    _ => TOP,
+                }
+            }
+            _ => TOP,
+        }
+    }
+
+    /// `st` where `cond` evaluates to `truth` (None: it cannot).
+    fn refine(&self, st: State, cond: &Expr, truth: bool) -> State {
+        let env = st.as_ref()?;
+        if let ExprKind::Const(ConstValue::Bool(b)) = cond.kind {
+            return if b == truth { st } else { None };
+        }
+        match &cond.kind {
+            ExprKind::Unary { op: UnaryOp::Not, expr } => self.refine(st, expr, !truth),
+            ExprKind::Binary {
+                op: BinOp::And,
+                lhs,
+                rhs,
+            } if truth => {
+                let st = self.refine(st, lhs, true);
+                self.refine(st, rhs, true)
+            }
+            ExprKind::Binary {
+                op: BinOp::Or,
+                lhs,
+                rhs,
+            } if !truth => {
+                let st = self.refine(st, lhs, false);
+                self.refine(st, rhs, false)
+            }
+            ExprKind::Binary {
+                op: BinOp::And | BinOp::Or,
+                lhs,
+                rhs,
+            } => join(self.refine(st.clone(), lhs, truth), self.refine(st, rhs, truth)),
+            ExprKind::Binary { op, lhs, rhs } if is_int(lhs) && is_int(rhs) && !cond.var.is_varying() => {
+                // As `lhs OP rhs` holding: `lt` with `lhs < rhs`, `le` with `<=`, `eq`, `ne`.
+                let op = match (op, truth) {
+                    (BinOp::Lt, true) | (BinOp::Ge, false) => Cmp::Lt,
+                    (BinOp::Le, true) | (BinOp::Gt, false) => Cmp::Le,
+                    (BinOp::Gt, true) | (BinOp::Le, false) => Cmp::Gt,
+                    (BinOp::Ge, true) | (BinOp::Lt, false) => Cmp::Ge,
+                    (BinOp::Eq, true) | (BinOp::Ne, false) => Cmp::Eq,
+                    _ => return st,
+                };
+                let mut next = env.clone();
+                let (a, b) = (self.eval(lhs, env), self.eval(rhs, env));
+                // lhs OP b, and rhs OP' a (the mirrored comparison).
+                let mirrored = match op {
+                    Cmp::Lt => Cmp::Gt,
+                    Cmp::Le => Cmp::Ge,
+                    Cmp::Gt => Cmp::Lt,
+                    Cmp::Ge => Cmp::Le,
+                    Cmp::Eq => Cmp::Eq,
+                };
+                let ok = self.narrow(&mut next, lhs, op, b) && self.narrow(&mut next, rhs, mirrored, a);
+                ok.then_some(next)
+            }
+            _ => st,
+        }
+    }
+
+    /// Narrow the local in `e` (`l`, `l + c` or `l - c`) so that `e OP other` can hold;
+    /// false if it cannot.
+    fn narrow(&self, env: &mut [Range], e: &Expr, op: Cmp, other: Range) -> bool {
+        let (l, offset) = match &e.kind {
+            ExprKind::Local(l) => (*l, 0),
+            ExprKind::Binary {
+                op: bop @ (BinOp::Add | BinOp::Sub),
+                lhs,
+                rhs,
+            } => match (&lhs.kind, &rhs.kind) {
+                (ExprKind::Local(l), ExprKind::Const(ConstValue::Int(c))) => {
+                    (*l, if *bop == BinOp::Add { *c as i64 } else { -(*c as i64) })
+                }
+                _ => return true,
+            },
+            _ => return true,
+        };
+        let Some(at) = self.slot(l) else {
+            return true;
+        };
+        let Some(cur) = env.get(at).copied() else {
+            return true;
+        };
+        // `l + offset` must not wrap for the shift to be exact.
+        if cur.0 + offset < TOP.0 || cur.1 + offset > TOP.1 {
+            return true;
+        }
+        let (lo, hi) = (cur.0 + offset, cur.1 + offset);
+        let (lo, hi) = match op {
+            Cmp::Lt => (lo, hi.min(other.1 - 1)),
+            Cmp::Le => (lo, hi.min(other.1)),
+            Cmp::Gt => (lo.max(other.0 + 1), hi),
+            Cmp::Ge => (lo.max(other.0), hi),
+            Cmp::Eq => (lo.max(other.0), hi.min(other.1)),
+        };
+        if lo > hi {
+            return false;
+        }
+        env[at] = (lo - offset, hi - offset);
+        true
+    }
+}
+
+#[derive(Clone, Copy)]
+enum Cmp {
+    Lt,
+    Le,
+    Gt,
+    Ge,
+    Eq,
+}
+
+fn is_int(e: &Expr) -> bool {
+    e.ty.is_scalar() && e.ty.elem == Elem::Scalar(Scalar::Int)
+}
