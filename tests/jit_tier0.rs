@@ -121,6 +121,23 @@ primitive deadly(
 }
 "#;
 
+/// A varying local with a uniform first value: flat pixel code starts the varying locals
+/// the pixel code assigns at zero in each group, which must not replace that value
+/// (today the checker leaves `v = 0.25` in the pixel code; were it moved to the setup,
+/// `Lower::flat_group_locals` leaves locals the setup assigns alone).
+const SEEDED: &str = r#"
+primitive seeded(
+    float rect[4];
+    varying float X, Y;
+    inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    float v = 0.25;
+    if (X > 10) v = X * 0.01;
+    Z = v + Y * 0.0001;
+}
+"#;
+
 fn library(sources: &mut SourceMap) -> Arc<Program> {
     let mut diags = Diagnostics::new();
     let (mut files, _) = Registry::load_sources(sources, &[], &[], &mut diags);
@@ -128,6 +145,7 @@ fn library(sources: &mut SourceMap) -> Arc<Program> {
     files.push(sources.add("flatty.prim", FLATTY));
     files.push(sources.add("loopy.prim", LOOPY));
     files.push(sources.add("deadly.prim", DEADLY));
+    files.push(sources.add("seeded.prim", SEEDED));
     let reg = Registry::compile(sources, files, &mut diags);
     assert!(!diags.has_errors(), "{}", diags.render(sources));
     reg.expect("compiles").program
@@ -393,4 +411,17 @@ fn tier_0_skips_dead_setup_code_but_keeps_its_errors_and_deferred_returns() {
     assert!(!clif.contains("f32const 0x1.c00000p1"), "{clif}");
     let clif1 = jit(&program, Tier::Optimised).clif(inst.func, &inst.key).unwrap();
     assert!(clif1.contains("f32const 0x1.c00000p1"), "{clif1}");
+}
+
+#[test]
+fn flat_pixel_code_keeps_a_varying_local_set_in_the_setup() {
+    let mut sources = SourceMap::new();
+    let program = library(&mut sources);
+    let r = one_prim(&program, "seeded", [2.3, 3.0, 37.0, 21.0], &[]);
+    let (frame, codes) = both_tiers(&sources, &program, &r, "seeded");
+    assert!(codes.is_empty(), "{codes:?}");
+    assert_eq!(written(&frame), 35 * 18);
+    // X <= 10 keeps 0.25 (+ Y * 0.0001), in fixed<32,32>: the pixel (5, 7).
+    let z = frame.depth[7 * 40 + 5] as f64 / 4294967296.0;
+    assert!((z - (0.25 + 7.5 * 0.0001)).abs() < 1e-6, "{z}");
 }

@@ -1380,9 +1380,15 @@ impl<'a, 'b> Lower<'a, 'b> {
     fn flat_group_locals(&mut self, f: &'a Function) {
         let mut assigned = std::collections::HashSet::new();
         block::assigned_locals(&f.pixel, &mut assigned);
+        // A local the setup assigns keeps the setup's value until the pixel code assigns it.
+        let mut in_setup = std::collections::HashSet::new();
+        block::assigned_locals(&f.setup, &mut in_setup);
         let mut zeros: std::collections::HashMap<Scalar, ir::Value> = std::collections::HashMap::new();
         for (i, local) in f.locals.iter().enumerate() {
-            if !local.var.is_varying() || !assigned.contains(&LocalId(i as u32)) {
+            if !local.var.is_varying()
+                || !assigned.contains(&LocalId(i as u32))
+                || in_setup.contains(&LocalId(i as u32))
+            {
                 continue;
             }
             if f.params.iter().any(|p| p.local.0 as usize == i) {
