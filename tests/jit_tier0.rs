@@ -47,10 +47,105 @@ primitive branchy(
 }
 "#;
 
+/// Pixel code tier 0 lowers *flat* (src/jit/lower/flat.rs: no early exit when a group's
+/// last lane retires, uniform `if`s run as masked ones): a varying guard, a uniform `if`
+/// with a guard and a uniform-indexed read that may fail on one side and a varying `if` on
+/// the other. The failing read must report an error exactly when tier 1 runs it for some
+/// lane.
+const FLATTY: &str = r#"
+primitive flatty(
+    float rect[4];
+    float mode;
+    int k;
+    varying float X, Y;
+    inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    float tab[3];
+    tab[0] = 0.125;
+    tab[1] = 0.25;
+    tab[2] = 0.375;
+    if (X + Y < mode) return;
+    float v = 0;
+    if (mode > 5) {
+        if (X > 20) return;
+        v = tab[k] + X * 0.001;
+    } else {
+        v = X * 0.01;
+        if (Y > 15) v = v + 0.5;
+    }
+    Z = v * 0.5 + Y * 0.001;
+}
+"#;
+
+/// Not flattenable: a uniform loop in the pixel code (it spends fuel whether or not a
+/// lane runs it), so tier 0 keeps the early exits: with every lane retired by the guard,
+/// the loop of `n` trips must not run (it would run out of fuel).
+const LOOPY: &str = r#"
+primitive loopy(
+    float rect[4];
+    float cut;
+    int n;
+    varying float X, Y;
+    inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    if (X > cut) return;
+    float acc = 0;
+    for (int i = 0; i < n; i++)
+        acc = acc + X * 0.001;
+    Z = acc;
+}
+"#;
+
+/// Setup code tier 0 does not lower (src/jit/lower/dead.rs) next to code it must keep: a
+/// chain of values nothing reads, and a store into an array nothing reads whose index may
+/// fail (its run-time error is an effect). Also a guard tier 0 defers past speculative
+/// setup code (`Lower::setup_stmts`).
+const DEADLY: &str = r#"
+primitive deadly(
+    float rect[4];
+    int k;
+    varying float X, Y;
+    inout varying fixed<32,32> Z)
+{
+    if (rect[0] > 100) return;
+    float half = rect[0] * 0.5;
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    float unused = half * 3.5;
+    float never[2];
+    never[k] = 1;
+    float slope = rect[3] * 0.0001;
+    if (slope > 1) return;
+    Z = X * 0.001 + Y * slope;
+}
+"#;
+
+/// A varying local with a uniform first value: flat pixel code starts the varying locals
+/// the pixel code assigns at zero in each group, which must not replace that value
+/// (today the checker leaves `v = 0.25` in the pixel code; were it moved to the setup,
+/// `Lower::flat_group_locals` leaves locals the setup assigns alone).
+const SEEDED: &str = r#"
+primitive seeded(
+    float rect[4];
+    varying float X, Y;
+    inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    float v = 0.25;
+    if (X > 10) v = X * 0.01;
+    Z = v + Y * 0.0001;
+}
+"#;
+
 fn library(sources: &mut SourceMap) -> Arc<Program> {
     let mut diags = Diagnostics::new();
     let (mut files, _) = Registry::load_sources(sources, &[], &[], &mut diags);
     files.push(sources.add("branchy.prim", BRANCHY));
+    files.push(sources.add("flatty.prim", FLATTY));
+    files.push(sources.add("loopy.prim", LOOPY));
+    files.push(sources.add("deadly.prim", DEADLY));
+    files.push(sources.add("seeded.prim", SEEDED));
     let reg = Registry::compile(sources, files, &mut diags);
     assert!(!diags.has_errors(), "{}", diags.render(sources));
     reg.expect("compiles").program
@@ -198,4 +293,135 @@ fn the_jit_reports_compile_cost_in_thread_cpu_time() {
             assert!(c.cpu_micros > 0, "{name}: thread CPU time is measured: {c:?}");
         }
     }
+}
+
+/// One `prim` over `rect` with scalar parameters `params` on a 40 x 24 image in 16-pixel
+/// tiles (so passes end mid-tile and mid-group).
+fn one_prim(program: &Arc<Program>, prim: &str, rect: [f32; 4], params: &[(&str, f32)]) -> Renderer {
+    let mut r = Renderer::new(program.clone());
+    r.set_image_size(40, 24).unwrap();
+    r.set_tile_size(16).unwrap();
+    r.begin(prim).unwrap();
+    r.rast_param("rect", &Value(rect.to_vec())).unwrap();
+    for (name, v) in params {
+        r.rast_param(name, &Value(vec![*v])).unwrap();
+    }
+    r.end().unwrap();
+    r
+}
+
+#[test]
+fn flat_tier_0_pixel_code_gives_the_same_pixels_and_errors_as_early_exits() {
+    let mut sources = SourceMap::new();
+    let program = library(&mut sources);
+    let rect = [2.3, 3.0, 37.0, 21.0];
+    // (rect, mode, k, an error expected)
+    let cases: [([f32; 4], f32, f32, bool); 7] = [
+        // The uniform `if`'s else side, every pixel of the rectangle.
+        (rect, 0.0, 7.0, false),
+        // Its then side: the guards retire X + Y < 6 and X > 20; `tab[1]`.
+        (rect, 6.0, 1.0, false),
+        // The same with k out of range: an error, the read clamped (same pixels).
+        (rect, 6.0, 7.0, true),
+        // The then side not taken: its failing read runs for no lane, so no error.
+        (rect, 4.0, 7.0, false),
+        // Every lane retired by the first guard before the failing read: no error.
+        (rect, 100.0, 7.0, false),
+        // A pass empty in x (centres 5.5 and 6.5 lie outside [5.6, 5.9]): nothing, no
+        // error, although tier 0 runs the group at x = 4 with no lane.
+        ([5.6, 3.0, 5.9, 21.0], 6.0, 7.0, false),
+        // One column (x = 5.5) ending mid-group, in two tiles.
+        ([5.2, 3.0, 5.9, 21.0], 6.0, 2.0, false),
+    ];
+    // The pixels `flatty` writes, from its source: centres in the rectangle, X + Y >= mode,
+    // and X <= 20 on the then side.
+    let expected = |rect: [f32; 4], mode: f32| {
+        (0..24)
+            .flat_map(|y| (0..40).map(move |x| (x as f32 + 0.5, y as f32 + 0.5)))
+            .filter(|&(x, y)| x >= rect[0] && x <= rect[2] && y >= rect[1] && y <= rect[3])
+            .filter(|&(x, y)| x + y >= mode && (mode <= 5.0 || x <= 20.0))
+            .count()
+    };
+    assert_eq!(expected(rect, 0.0), 35 * 18);
+    assert_eq!(expected([5.6, 3.0, 5.9, 21.0], 6.0), 0);
+    let mut frames = vec![];
+    for (rect, mode, k, error) in cases {
+        let r = one_prim(&program, "flatty", rect, &[("mode", mode), ("k", k)]);
+        let what = format!("flatty {rect:?} mode {mode} k {k}");
+        let (frame, codes) = both_tiers(&sources, &program, &r, &what);
+        assert_eq!(!codes.is_empty(), error, "{what}: errors {codes:?}");
+        assert_eq!(written(&frame), expected(rect, mode), "{what}: pixels");
+        frames.push(frame);
+    }
+    // k out of range clamps to tab[2]: not the pixels of k = 1.
+    assert!(!same_frame(&frames[1], &frames[2]));
+    // A uniform-if side and the early exits are really gone from tier 0's pixel code.
+    let inst = &one_prim(&program, "flatty", rect, &[("mode", 0.0), ("k", 0.0)]).instances()[0].clone();
+    let blocks = |tier| {
+        jit(&program, tier)
+            .clif(inst.func, &inst.key)
+            .unwrap()
+            .lines()
+            .filter(|l| l.starts_with("block"))
+            .count()
+    };
+    let (fast, optimised) = (blocks(Tier::Fast), blocks(Tier::Optimised));
+    assert!(fast * 3 < optimised, "tier 0 {fast} blocks, tier 1 {optimised}");
+}
+
+#[test]
+fn tier_0_keeps_early_exits_before_a_uniform_loop_in_pixel_code() {
+    let mut sources = SourceMap::new();
+    let program = library(&mut sources);
+    let rect = [2.3, 3.0, 37.0, 21.0];
+    // Every pixel retires before the 2^30-trip loop: nothing written, no fuel error.
+    let r = one_prim(&program, "loopy", rect, &[("cut", -1.0), ("n", 1073741824.0)]);
+    let (frame, codes) = both_tiers(&sources, &program, &r, "loopy, all retired");
+    assert!(codes.is_empty(), "{codes:?}");
+    assert_eq!(written(&frame), 0);
+    // (No case with live lanes: the checker hoists the loop's `i = 0` into the setup, so
+    // only a tile's first group runs the loop, in both tiers alike; reported separately.)
+}
+
+#[test]
+fn tier_0_skips_dead_setup_code_but_keeps_its_errors_and_deferred_returns() {
+    let mut sources = SourceMap::new();
+    let program = library(&mut sources);
+    // (rect, k, an error expected, pixels written)
+    let cases: [([f32; 4], f32, bool, usize); 4] = [
+        ([2.3, 3.0, 37.0, 21.0], 1.0, false, 35 * 18),
+        // `never[5]`: nothing reads `never`, but the failed index is an error.
+        ([2.3, 3.0, 37.0, 21.0], 5.0, true, 35 * 18),
+        // The first guard returns before `bound`: nothing drawn.
+        ([120.0, 3.0, 137.0, 21.0], 1.0, false, 0),
+        // The second one, deferred by tier 0 past the speculative code around it.
+        ([2.3, 3.0, 37.0, 20000.0], 1.0, false, 0),
+    ];
+    for (rect, k, error, pixels) in cases {
+        let r = one_prim(&program, "deadly", rect, &[("k", k)]);
+        let what = format!("deadly {rect:?} k {k}");
+        let (frame, codes) = both_tiers(&sources, &program, &r, &what);
+        assert_eq!(!codes.is_empty(), error, "{what}: errors {codes:?}");
+        assert_eq!(written(&frame), pixels, "{what}: pixels");
+    }
+    // The dead chain is not in tier 0's CLIF (`half * 3.5`: the constant 3.5); tier 1
+    // lowers it (and Cranelift drops it later).
+    let inst = one_prim(&program, "deadly", [2.3, 3.0, 37.0, 21.0], &[("k", 1.0)]).instances()[0].clone();
+    let clif = jit(&program, Tier::Fast).clif(inst.func, &inst.key).unwrap();
+    assert!(!clif.contains("f32const 0x1.c00000p1"), "{clif}");
+    let clif1 = jit(&program, Tier::Optimised).clif(inst.func, &inst.key).unwrap();
+    assert!(clif1.contains("f32const 0x1.c00000p1"), "{clif1}");
+}
+
+#[test]
+fn flat_pixel_code_keeps_a_varying_local_set_in_the_setup() {
+    let mut sources = SourceMap::new();
+    let program = library(&mut sources);
+    let r = one_prim(&program, "seeded", [2.3, 3.0, 37.0, 21.0], &[]);
+    let (frame, codes) = both_tiers(&sources, &program, &r, "seeded");
+    assert!(codes.is_empty(), "{codes:?}");
+    assert_eq!(written(&frame), 35 * 18);
+    // X <= 10 keeps 0.25 (+ Y * 0.0001), in fixed<32,32>: the pixel (5, 7).
+    let z = frame.depth[7 * 40 + 5] as f64 / 4294967296.0;
+    assert!((z - (0.25 + 7.5 * 0.0001)).abs() < 1e-6, "{z}");
 }

@@ -98,6 +98,11 @@ pub struct CompileTiming {
     pub tier1_cpu_micros: u64,
     /// Tier 1, the whole batch, thread CPU time, microseconds.
     pub tier1_batch_cpu_micros: u64,
+    /// Tier 0 again, right after the first compile, in another fresh JIT (thread CPU of
+    /// the kernel, microseconds): the compiler's code and data are then in the caches, as
+    /// in `examples/compile_probe.rs`, while `cpu_micros` follows rendering (caches
+    /// evicted), which on the development machine costs up to twice as much.
+    pub warm_cpu_micros: u64,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -483,6 +488,17 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
         let mut fresh = Jit::tiered(program.clone()).map_err(|e| e.to_string())?;
         for inst in r.instances().iter().take(1) {
             let kernel = fresh.kernel(inst.func, &inst.key).map_err(|e| e.to_string())?;
+            // The same variant again at once, caches warm (see `CompileTiming::warm_cpu_micros`).
+            let mut warm = Jit::with_options(
+                program.clone(),
+                crate::jit::JitOptions {
+                    tier: crate::jit::Tier::Fast,
+                    ..crate::jit::JitOptions::default()
+                },
+            )
+            .map_err(|e| e.to_string())?;
+            warm.kernel(inst.func, &inst.key).map_err(|e| e.to_string())?;
+            let warm_cost = warm.compile_cost(inst.func, &inst.key).unwrap_or_default();
             fresh.wait_for_tier_up();
             let tier1 = fresh.tier_up_kernel(inst.func, &inst.key);
             let cost = fresh.compile_cost(inst.func, &inst.key).unwrap_or_default();
@@ -496,6 +512,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
                 batch_cpu_micros: cost.batch_cpu_micros,
                 tier1_cpu_micros: tier1_cost.cpu_micros,
                 tier1_batch_cpu_micros: tier1_cost.batch_cpu_micros,
+                warm_cpu_micros: warm_cost.cpu_micros,
             });
         }
 
@@ -731,17 +748,19 @@ pub fn format_table(report: &BenchReport) -> String {
     s.push_str(
         "JIT compile time per variant, microseconds: thread CPU of the kernel (of its whole batch:\n\
          callees, linking) and wall time of the kernel; tier 0 is what the first frame waits for,\n\
-         tier 1 compiles in the background (its wall time includes waiting for a core)\n",
+         tier 1 compiles in the background (its wall time includes waiting for a core); warm:\n\
+         tier 0 compiled again at once in a fresh JIT (caches warm, as in compile_probe)\n",
     );
     s.push_str(&format!(
-        "  {:>22} {:>8} | {:>22} {:>8}\n",
-        "tier 0 CPU (batch)", "wall", "tier 1 CPU (batch)", "wall"
+        "  {:>22} {:>8} {:>6} | {:>22} {:>8}\n",
+        "tier 0 CPU (batch)", "wall", "warm", "tier 1 CPU (batch)", "wall"
     ));
     for c in &report.compile {
         s.push_str(&format!(
-            "  {:>22} {:>8} | {:>22} {:>8}  {}: {}\n",
+            "  {:>22} {:>8} {:>6} | {:>22} {:>8}  {}: {}\n",
             format!("{} ({})", c.cpu_micros, c.batch_cpu_micros),
             c.micros,
+            c.warm_cpu_micros,
             format!("{} ({})", c.tier1_cpu_micros, c.tier1_batch_cpu_micros),
             c.tier1_micros,
             c.workload,

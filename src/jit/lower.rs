@@ -60,6 +60,8 @@ use crate::ir::{
 };
 
 mod block;
+mod dead;
+mod flat;
 mod hoist;
 
 pub(crate) type Res<T> = Result<T, JitError>;
@@ -240,6 +242,12 @@ pub(crate) struct Lower<'a, 'b> {
     /// Index sites of the primitive's setup whose uniform index is proven in range at every
     /// occurrence ([`crate::ir::range`]): indexed without clamp or error record.
     proven_sites: std::collections::HashSet<SiteId>,
+    /// Tier 0: the pixel code is lowered *flat*, without a group's early exits (see
+    /// [`flat`]).
+    flat: bool,
+    /// Tier 0: the locals live code reads; setup assignments to others are not lowered
+    /// (see [`dead`]). `None`: every assignment is lowered.
+    setup_live: Option<Vec<bool>>,
     pub(crate) warnings: Vec<String>,
 }
 
@@ -314,6 +322,8 @@ pub(crate) fn lower_kernel(
         error_guard: None,
         arg_loads: std::collections::HashMap::new(),
         proven_sites: crate::ir::range::proven_index_sites(body),
+        flat: false,
+        setup_live: None,
         warnings: vec![],
     };
     l.body(f)?;
@@ -351,19 +361,24 @@ impl<'a, 'b> Lower<'a, 'b> {
 
         let frame = self.make_frame(f, self.layout.params.clone(), self.layout.fixed_words, None)?;
         self.frames.push(frame);
-        for (i, s) in f.setup.iter().enumerate() {
-            if let StmtKind::Bound(es) = &s.kind {
-                // A bound run wants nothing but the bound: when the rest of the setup can
-                // neither widen it (another `bound`, a call) nor record an error, it ends
-                // here (the rest is the render run's work: edge and plane equations...).
-                let last_effect = f.setup[i + 1..].iter().all(|t| quiet_stmt(f, t));
-                self.lower_bound(es, last_effect)?;
-            } else {
-                self.stmt(s)?;
+        if self.tier0() {
+            let mut pixel = std::collections::HashSet::new();
+            self.live_pixel_locals(&f.pixel, &mut pixel);
+            let mut live = vec![false; f.locals.len()];
+            for l in pixel {
+                if let Some(x) = live.get_mut(l.0 as usize) {
+                    *x = true;
+                }
             }
+            let removable = |s: &Stmt| self.speculable_stmts(std::slice::from_ref(s), &mut usize::MAX.clone());
+            self.setup_live = Some(dead::live_setup_locals(&f.setup, live, &removable));
         }
+        let pending_return = self.setup_stmts(f)?;
         if !f.pixel.is_empty() {
-            self.pixel_passes(f)?;
+            self.flat = self.tier0() && flat::pixel_code_is_flattenable(self.program, f, self.key);
+            self.pixel_passes(f, pending_return)?;
+        } else if let Some(p) = pending_return {
+            self.return_if(p);
         }
         self.b.ins().jump(self.exit, &[]);
         self.b.switch_to_block(self.exit);
@@ -374,9 +389,10 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// Compiling for tier 0 (`Tier::Fast`): besides skipping block culling, the lowering
-    /// then emits less CLIF where that costs run time only in the one frame tier 0 serves
-    /// (each use says what it skips). Results are bit-identical either way
-    /// (`tests/jit_tiers.rs`).
+    /// then emits less CLIF and fewer blocks where that costs run time only in the one
+    /// frame tier 0 serves (each use says what it skips; the larger ones are [`flat`]
+    /// pixel code, [`dead`] setup code and [`Self::setup_stmts`]). Results are
+    /// bit-identical either way (`tests/jit_tiers.rs`, `tests/jit_tier0.rs`).
     fn tier0(&self) -> bool {
         !self.block_culling
     }
@@ -435,6 +451,14 @@ impl<'a, 'b> Lower<'a, 'b> {
         for c in cond.into_iter().chain(self.error_guard) {
             first = self.b.ins().band(first, c);
         }
+        // Flat pixel code also runs statements no lane executes (see [`flat`]); tier 1
+        // runs them only when some lane does, and only then can they fail.
+        if self.flat {
+            if let Some(e) = self.exec() {
+                let any = self.b.ins().vany_true(e);
+                first = self.b.ins().band(first, any);
+            }
+        }
         let code_v = self.b.ins().iconst(types::I32, code as i64);
         let new = self.b.ins().select(first, code_v, old);
         self.store_ctx(new, ctx_off::ERROR);
@@ -445,7 +469,9 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// Union a rectangle into `ctx.bound` (bound mode only; the caller checks for NaN).
-    fn union_bound(&mut self, r: [ir::Value; 4]) {
+    /// `go`: only if this holds; the fields are then rewritten with their own values
+    /// otherwise (branch-free, for tier 0's setup: one block fewer).
+    fn union_bound(&mut self, r: [ir::Value; 4], go: Option<ir::Value>) {
         let set = self.load_ctx(types::I32, ctx_off::BOUND_SET);
         let has = self.b.ins().icmp_imm_s(IntCC::NotEqual, set, 0);
         for (i, &v) in r.iter().enumerate() {
@@ -457,9 +483,17 @@ impl<'a, 'b> Lower<'a, 'b> {
                 self.b.ins().fmax(cur, v)
             };
             let new = self.b.ins().select(has, merged, v);
+            let new = match go {
+                Some(go) => self.b.ins().select(go, new, cur),
+                None => new,
+            };
             self.store_ctx(new, off);
         }
         let one = self.b.ins().iconst(types::I32, 1);
+        let one = match go {
+            Some(go) => self.b.ins().select(go, one, set),
+            None => one,
+        };
         self.store_ctx(one, ctx_off::BOUND_SET);
     }
 
@@ -478,21 +512,27 @@ impl<'a, 'b> Lower<'a, 'b> {
         let is_bound = self.b.ins().icmp_imm_s(IntCC::Equal, mode, MODE_BOUND as i64);
         let skip = self.b.ins().bnot(nan);
         let go = self.b.ins().band(is_bound, skip);
-        let union_blk = self.b.create_block();
-        let after = self.b.create_block();
-        self.b.ins().brif(go, union_blk, &[], after, &[]);
-        self.b.switch_to_block(union_blk);
-        self.union_bound(r);
-        if then_done {
-            self.b.ins().jump(self.exit, &[]);
-            // The NaN bound of a bound run is not recorded, and nothing else is either.
-            let render = self.b.create_block();
-            self.b.switch_to_block(after);
-            self.b.ins().brif(is_bound, self.exit, &[], render, &[]);
-            self.b.switch_to_block(render);
+        if self.tier0() {
+            // Tier 0: no block for the union (see `union_bound`) and no early end of a
+            // bound run (blocks cost tier 0 more compile time than the bound run saves).
+            self.union_bound(r, Some(go));
         } else {
-            self.b.ins().jump(after, &[]);
-            self.b.switch_to_block(after);
+            let union_blk = self.b.create_block();
+            let after = self.b.create_block();
+            self.b.ins().brif(go, union_blk, &[], after, &[]);
+            self.b.switch_to_block(union_blk);
+            self.union_bound(r, None);
+            if then_done {
+                self.b.ins().jump(self.exit, &[]);
+                // The NaN bound of a bound run is not recorded, and nothing else is either.
+                let render = self.b.create_block();
+                self.b.switch_to_block(after);
+                self.b.ins().brif(is_bound, self.exit, &[], render, &[]);
+                self.b.switch_to_block(render);
+            } else {
+                self.b.ins().jump(after, &[]);
+                self.b.switch_to_block(after);
+            }
         }
         for (i, &v) in r.iter().enumerate() {
             self.b.def_var(self.bound_vars[i], v);
@@ -503,7 +543,22 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// The pixel loops (render mode) or the viewport bound (bound mode).
-    fn pixel_passes(&mut self, f: &'a Function) -> Res<()> {
+    /// `pending_return`: a condition on which the kernel ends, left by [`Self::setup_stmts`].
+    fn pixel_passes(&mut self, f: &'a Function, pending_return: Option<ir::Value>) -> Res<()> {
+        // Tier 0 stores the uniform frame here, before the bound/render branch, in the
+        // block that computed its values: they then die in that block instead of living
+        // into the render block, where the single-pass allocator would reload each one
+        // after spilling it at the block's end. (Bound mode stores a frame it does not
+        // read: a few dozen stores, once per primitive.)
+        let early_frame = self.tier0();
+        if early_frame {
+            self.spill_uniforms(f);
+        }
+        // After the frame stores (stores to the kernel's own stack only), so the values
+        // they store die in the block that computed them.
+        if let Some(p) = pending_return {
+            self.return_if(p);
+        }
         let mode = self.load_ctx(types::I32, ctx_off::MODE);
         let is_bound = self.b.ins().icmp_imm_s(IntCC::Equal, mode, MODE_BOUND as i64);
         let bound_blk = self.b.create_block();
@@ -513,19 +568,28 @@ impl<'a, 'b> Lower<'a, 'b> {
         // Bound mode: no `bound` ran, so the primitive may cover the whole viewport.
         self.b.switch_to_block(bound_blk);
         let has = self.b.use_var(self.has_bound);
-        let vp_blk = self.b.create_block();
-        self.b.ins().brif(has, self.exit, &[], vp_blk, &[]);
-        self.b.switch_to_block(vp_blk);
-        let w = self.load_ctx(types::I32, ctx_off::WIDTH);
-        let h = self.load_ctx(types::I32, ctx_off::HEIGHT);
-        let wf = self.b.ins().fcvt_from_uint(types::F32, w);
-        let hf = self.b.ins().fcvt_from_uint(types::F32, h);
-        let z = self.b.ins().f32const(0.0);
-        self.union_bound([z, z, wf, hf]);
-        self.b.ins().jump(self.exit, &[]);
+        // Tier 0: a `bound` among the setup's top-level statements runs on every path
+        // that gets here (`has` is 1), so the viewport union is not emitted.
+        let always_bound = f.setup.iter().any(|s| matches!(s.kind, StmtKind::Bound(_)));
+        if self.tier0() && always_bound {
+            self.b.ins().jump(self.exit, &[]);
+        } else {
+            let vp_blk = self.b.create_block();
+            self.b.ins().brif(has, self.exit, &[], vp_blk, &[]);
+            self.b.switch_to_block(vp_blk);
+            let w = self.load_ctx(types::I32, ctx_off::WIDTH);
+            let h = self.load_ctx(types::I32, ctx_off::HEIGHT);
+            let wf = self.b.ins().fcvt_from_uint(types::F32, w);
+            let hf = self.b.ins().fcvt_from_uint(types::F32, h);
+            let z = self.b.ins().f32const(0.0);
+            self.union_bound([z, z, wf, hf], None);
+            self.b.ins().jump(self.exit, &[]);
+        }
 
         self.b.switch_to_block(render_blk);
-        self.spill_uniforms(f);
+        if !early_frame {
+            self.spill_uniforms(f);
+        }
         self.plane_table();
         let x0 = self.load_ctx(types::I32, ctx_off::X0);
         let y0 = self.load_ctx(types::I32, ctx_off::Y0);
@@ -1154,37 +1218,48 @@ impl<'a, 'b> Lower<'a, 'b> {
         next: Block,
     ) -> Res<()> {
         let [x_f, y_f] = xy_f;
-        let grp_run = self.b.create_block();
-        let mask = self.b.append_block_param(grp_run, I32X4);
         let group_end = self.b.create_block();
-        let edge = self.b.create_block();
         let g64 = self.b.ins().sextend(types::I64, g);
         let tile_idx = self.b.ins().iadd(row_base, g64);
-        // Lanes outside [lo_x, hi_x) start dead. Only a group at either end of the
-        // rectangle has such lanes: one unsigned compare tells the others apart.
-        let d = self.b.ins().isub(g, rect.lo_x);
-        let interior = self.b.ins().icmp(IntCC::UnsignedLessThan, d, rect.interior_lim);
-        let all = mask_const(&mut self.b, true);
-        self.b.ins().brif(interior, grp_run, &[all.into()], edge, &[]);
-
-        self.b.switch_to_block(edge);
         // Lane i is live when lo_x - g <= i < hi_x - g. Splatting the group-relative bounds
         // (not lo_x and hi_x themselves) keeps loop-invariant vectors out of the group loop:
         // hoisted, they were spilled, reloaded at the top of every group and stored back
         // at the bottom.
-        let iota = self.iota();
-        let lo_rel = self.b.ins().isub(rect.lo_x, g);
-        let hi_rel = self.b.ins().isub(rect.hi_x, g);
-        let lo_s = self.b.ins().splat(I32X4, lo_rel);
-        let hi_s = self.b.ins().splat(I32X4, hi_rel);
-        let ge = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, iota, lo_s);
-        let lt = self.b.ins().icmp(IntCC::SignedLessThan, iota, hi_s);
-        let edge_mask = self.b.ins().band(ge, lt);
-        let any = self.b.ins().vany_true(edge_mask);
-        let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
-        self.b.ins().brif(none, next, &[], grp_run, &[edge_mask.into()]);
+        let edge_mask = |l: &mut Self| {
+            let iota = l.iota();
+            let lo_rel = l.b.ins().isub(rect.lo_x, g);
+            let hi_rel = l.b.ins().isub(rect.hi_x, g);
+            let lo_s = l.b.ins().splat(I32X4, lo_rel);
+            let hi_s = l.b.ins().splat(I32X4, hi_rel);
+            let ge = l.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, iota, lo_s);
+            let lt = l.b.ins().icmp(IntCC::SignedLessThan, iota, hi_s);
+            l.b.ins().band(ge, lt)
+        };
+        let mask = if self.flat {
+            // Flat pixel code: every group computes its lane mask, in the block it starts
+            // in (no branch, so no block boundary). A group with no live lane (only when
+            // the pass is empty in x) then runs for no lane, which changes nothing there.
+            edge_mask(self)
+        } else {
+            let grp_run = self.b.create_block();
+            let mask = self.b.append_block_param(grp_run, I32X4);
+            let edge = self.b.create_block();
+            // Lanes outside [lo_x, hi_x) start dead. Only a group at either end of the
+            // rectangle has such lanes: one unsigned compare tells the others apart.
+            let d = self.b.ins().isub(g, rect.lo_x);
+            let interior = self.b.ins().icmp(IntCC::UnsignedLessThan, d, rect.interior_lim);
+            let all = mask_const(&mut self.b, true);
+            self.b.ins().brif(interior, grp_run, &[all.into()], edge, &[]);
 
-        self.b.switch_to_block(grp_run);
+            self.b.switch_to_block(edge);
+            let edge_mask = edge_mask(self);
+            let any = self.b.ins().vany_true(edge_mask);
+            let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
+            self.b.ins().brif(none, next, &[], grp_run, &[edge_mask.into()]);
+
+            self.b.switch_to_block(grp_run);
+            mask
+        };
         let alive = self.b.declare_var(I32X4);
         let exec = self.b.declare_var(I32X4);
         let z_written = self.b.declare_var(I32X4);
@@ -1246,6 +1321,9 @@ impl<'a, 'b> Lower<'a, 'b> {
                 _ => {}
             }
         }
+        if self.flat {
+            self.flat_group_locals(f);
+        }
         match pass {
             None => self.stmts(&f.pixel)?,
             Some((prefix, decidable)) => {
@@ -1272,6 +1350,26 @@ impl<'a, 'b> Lower<'a, 'b> {
                 _ => return err("Z parameter without storage"),
             };
             let written = self.b.use_var(z_written);
+            if self.tier0() {
+                // Tier 0: one blended store, whatever the lanes (no blocks for the all and
+                // none cases). The depth loaded at the group's start is still the buffer's
+                // value, so unwritten lanes store back what they hold.
+                let zval = self.b.use_var(zvar);
+                let raw = fixed::convert(&mut self.b, zsc, Scalar::Fixed(DEPTH_FORMAT), zval);
+                let addr = self.tile_addr(ctx_off::DEPTH, tile_idx);
+                let new = self.b.ins().blendv(written, raw, z_old);
+                self.b.ins().store(mem_flags(), new, addr, 0);
+                if self.key.count_writes {
+                    let caddr = self.tile_addr(ctx_off::WRITE_COUNT, tile_idx);
+                    let old = self.b.ins().load(I32X4, mem_flags(), caddr, 0);
+                    // Written lanes are -1: subtracting adds one.
+                    let new = self.b.ins().isub(old, written);
+                    self.b.ins().store(mem_flags(), new, caddr, 0);
+                }
+                self.b.ins().jump(next, &[]);
+                self.pix = None;
+                return Ok(());
+            }
             let all = self.b.ins().vall_true(written);
             let full_blk = self.b.create_block();
             let part_blk = self.b.create_block();
@@ -1310,6 +1408,44 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().jump(next, &[]);
         self.pix = None;
         Ok(())
+    }
+
+    /// Flat pixel code, at the start of a group: every varying local the pixel code
+    /// assigns starts the group as zero.
+    ///
+    /// Why: flat code assigns such locals under masks (a declaration inside a uniform `if`
+    /// run as a masked one blends), which reads the old value: left undefined, that is the
+    /// previous group's, carried through the group and row loops as block parameters the
+    /// single-pass allocator moves and spills at every loop edge. No lane reads what an
+    /// earlier group left (a local is declared, so assigned, before any read of it in the
+    /// same group), so the values the pixels see are the same.
+    fn flat_group_locals(&mut self, f: &'a Function) {
+        let mut assigned = std::collections::HashSet::new();
+        block::assigned_locals(&f.pixel, &mut assigned);
+        // A local the setup assigns keeps the setup's value until the pixel code assigns it.
+        let mut in_setup = std::collections::HashSet::new();
+        block::assigned_locals(&f.setup, &mut in_setup);
+        let mut zeros: std::collections::HashMap<Scalar, ir::Value> = std::collections::HashMap::new();
+        for (i, local) in f.locals.iter().enumerate() {
+            if !local.var.is_varying()
+                || !assigned.contains(&LocalId(i as u32))
+                || in_setup.contains(&LocalId(i as u32))
+            {
+                continue;
+            }
+            if f.params.iter().any(|p| p.local.0 as usize == i) {
+                continue;
+            }
+            let Storage::Vars(vars) = &self.frames[0].storage[i] else {
+                continue;
+            };
+            let vars = vars.clone();
+            let sc = elem_scalar(&local.ty);
+            let z = *zeros.entry(sc).or_insert_with(|| zero(&mut self.b, sc, true));
+            for v in vars {
+                self.b.def_var(v, z);
+            }
+        }
     }
 
     /// Pixels [lo, hi) of the tile range [t0, t1) whose centres lie in [bmin, bmax].
@@ -1501,7 +1637,12 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     fn stmt(&mut self, s: &'a Stmt) -> Res<()> {
         match &s.kind {
-            StmtKind::Assign { place, value } => self.assign(place, value),
+            StmtKind::Assign { place, value } => {
+                if self.dead_setup_assign(s, place.local) {
+                    return Ok(());
+                }
+                self.assign(place, value)
+            }
             StmtKind::If { cond, then, otherwise } => self.lower_if(cond, then, otherwise),
             StmtKind::Loop {
                 id,
@@ -1539,6 +1680,19 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
+    /// Tier 0: `s`, an assignment to `local` in the primitive's setup, computes a value no
+    /// live code reads and has no other effect (see [`dead`]).
+    fn dead_setup_assign(&self, s: &Stmt, local: LocalId) -> bool {
+        let Some(live) = &self.setup_live else {
+            return false;
+        };
+        let mut budget = usize::MAX;
+        self.pix.is_none()
+            && self.frames.len() == 1
+            && !live.get(local.0 as usize).copied().unwrap_or(true)
+            && self.speculable_stmts(std::slice::from_ref(s), &mut budget)
+    }
+
     fn lower_if(&mut self, cond: &'a Expr, then: &'a [Stmt], otherwise: &'a [Stmt]) -> Res<()> {
         // `clipping()` (possibly negated) is a constant of the key: lower only the branch it
         // selects, so a trivially accepted variant contains no clipping code at all.
@@ -1552,6 +1706,19 @@ impl<'a, 'b> Lower<'a, 'b> {
         let c = self.eval(cond)?;
         if !c.varying {
             let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
+            // Tier 0, flat pixel code: a uniform `if` whose sides run under masks as well
+            // as after a branch is lowered like a varying one, with the condition splatted
+            // to every lane: no blocks for its sides (see [`flat`]).
+            if self.flat
+                && self.frames.len() == 1
+                && flat::maskable_stmts(self.frames[0].func, then)
+                && flat::maskable_stmts(self.frames[0].func, otherwise)
+            {
+                if let Some(entry) = self.exec() {
+                    let m = splat(&mut self.b, Scalar::Bool, c);
+                    return self.masked_if(entry, m, then, otherwise);
+                }
+            }
             // Tier 0: fewer blocks (see `if_converted`).
             if self.tier0() && self.pix.is_none() && self.if_convertible(then, otherwise) {
                 return self.if_converted(c, then, otherwise);
@@ -1586,6 +1753,13 @@ impl<'a, 'b> Lower<'a, 'b> {
             return err("varying condition outside per-pixel code");
         };
         let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
+        self.masked_if(entry, c, then, otherwise)
+    }
+
+    /// `if (c) then else otherwise` for the lanes of `entry`, with `c` a lane mask: each
+    /// side runs under its mask and is skipped when no lane takes it (flat pixel code runs
+    /// both sides whatever the masks: see [`flat`]).
+    fn masked_if(&mut self, entry: ir::Value, c: ir::Value, then: &'a [Stmt], otherwise: &'a [Stmt]) -> Res<()> {
         if otherwise.is_empty()
             && matches!(then, [s] if matches!(s.kind, StmtKind::Return))
             && self.frame().interp_binding.is_none()
@@ -1597,33 +1771,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         let then_out = self.b.declare_var(I32X4);
         self.b.def_var(then_out, then_mask);
         self.depth_add(1);
-        let then_blk = self.b.create_block();
-        let join1 = self.b.create_block();
-        let any = self.b.ins().vany_true(then_mask);
-        let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
-        self.b.ins().brif(none, join1, &[], then_blk, &[]);
-        self.b.switch_to_block(then_blk);
-        self.set_exec(then_mask);
-        self.stmts(then)?;
-        let out = self.exec().expect("pixel context");
-        self.b.def_var(then_out, out);
-        self.b.ins().jump(join1, &[]);
-        self.b.switch_to_block(join1);
+        self.masked_side(then_mask, then, then_out)?;
         let else_out = self.b.declare_var(I32X4);
         self.b.def_var(else_out, else_mask);
         if !otherwise.is_empty() {
-            let else_blk = self.b.create_block();
-            let join2 = self.b.create_block();
-            let any = self.b.ins().vany_true(else_mask);
-            let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
-            self.b.ins().brif(none, join2, &[], else_blk, &[]);
-            self.b.switch_to_block(else_blk);
-            self.set_exec(else_mask);
-            self.stmts(otherwise)?;
-            let out = self.exec().expect("pixel context");
-            self.b.def_var(else_out, out);
-            self.b.ins().jump(join2, &[]);
-            self.b.switch_to_block(join2);
+            self.masked_side(else_mask, otherwise, else_out)?;
         }
         self.depth_add(-1);
         let t = self.b.use_var(then_out);
@@ -1631,6 +1783,102 @@ impl<'a, 'b> Lower<'a, 'b> {
         let m = self.b.ins().bor(t, e);
         self.set_exec(m);
         Ok(())
+    }
+
+    /// One side of [`Self::masked_if`]: `stmts` with `exec = mask`, skipped when `mask` is
+    /// empty unless the pixel code is flat; `out` gets the lanes still executing after it.
+    fn masked_side(&mut self, mask: ir::Value, stmts: &'a [Stmt], out: Variable) -> Res<()> {
+        if self.flat {
+            self.set_exec(mask);
+            self.stmts(stmts)?;
+            let x = self.exec().expect("pixel context");
+            self.b.def_var(out, x);
+            return Ok(());
+        }
+        let side = self.b.create_block();
+        let join = self.b.create_block();
+        let any = self.b.ins().vany_true(mask);
+        let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
+        self.b.ins().brif(none, join, &[], side, &[]);
+        self.b.switch_to_block(side);
+        self.set_exec(mask);
+        self.stmts(stmts)?;
+        let x = self.exec().expect("pixel context");
+        self.b.def_var(out, x);
+        self.b.ins().jump(join, &[]);
+        self.b.switch_to_block(join);
+        Ok(())
+    }
+
+    // ------------------------------------------------ tier 0: deferred setup returns
+
+    /// The primitive's setup statements. Tier 1 ends a bound run right after a `bound` that
+    /// nothing after it can widen (see [`quiet_stmt`]). Tier 0 defers each `if (c) return;` among them to
+    /// the end of the run of statements that can run speculatively around it: the
+    /// statements after the guard run whether or not it returns (they compute values
+    /// only), and one branch at the run's end returns if any of its guards held.
+    ///
+    /// Why: a guard splits the setup into blocks, and the single-pass allocator spills
+    /// every value that lives across the split (screen_triangle's edge and plane
+    /// computations around its area test: 20 values) and reloads it after. The statements
+    /// run are those tier 1 runs plus ones whose results nothing reads when a guard holds
+    /// (no stores, no possible run-time error, no loop), so results are the same.
+    ///
+    /// Returns the condition of the guards deferred to the end of the setup: the caller
+    /// returns on it (after storing the uniform frame, see [`Self::pixel_passes`]).
+    fn setup_stmts(&mut self, f: &'a Function) -> Res<Option<ir::Value>> {
+        let setup = &f.setup;
+        if !self.tier0() {
+            for (i, s) in setup.iter().enumerate() {
+                if let StmtKind::Bound(es) = &s.kind {
+                    // A bound run wants nothing but the bound: when the rest of the setup can
+                    // neither widen it (another `bound`, a call) nor record an error, it ends
+                    // here (the rest is the render run's work: edge and plane equations...).
+                    let last_effect = setup[i + 1..].iter().all(|t| quiet_stmt(f, t));
+                    self.lower_bound(es, last_effect)?;
+                } else {
+                    self.stmt(s)?;
+                }
+            }
+            return Ok(None);
+        }
+        // The OR of the guards deferred so far in this run.
+        let mut pending: Option<ir::Value> = None;
+        for s in setup {
+            if let Some(cond) = self.deferrable_guard(s) {
+                let c = self.eval_uniform(cond)?;
+                let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
+                pending = Some(match pending {
+                    Some(p) => self.b.ins().bor(p, c),
+                    None => c,
+                });
+                continue;
+            }
+            let mut budget = usize::MAX;
+            if !self.speculable_stmts(std::slice::from_ref(s), &mut budget) {
+                if let Some(p) = pending.take() {
+                    self.return_if(p);
+                }
+            }
+            self.stmt(s)?;
+        }
+        Ok(pending)
+    }
+
+    /// `c` of a setup statement `if (c) return;` whose condition cannot fail.
+    fn deferrable_guard(&self, s: &'a Stmt) -> Option<&'a Expr> {
+        let StmtKind::If { cond, then, otherwise } = &s.kind else {
+            return None;
+        };
+        let is_return = otherwise.is_empty() && matches!(then.as_slice(), [t] if matches!(t.kind, StmtKind::Return));
+        (is_return && key_constant(cond, self.key).is_none() && speculable_expr(cond)).then_some(cond)
+    }
+
+    /// End the kernel if `c` (i8) holds; code goes on in a new block.
+    fn return_if(&mut self, c: ir::Value) {
+        let cont = self.b.create_block();
+        self.b.ins().brif(c, self.exit, &[], cont, &[]);
+        self.b.switch_to_block(cont);
     }
 
     // ------------------------------------------------ tier 0: if-conversion in setup
@@ -1659,12 +1907,14 @@ impl<'a, 'b> Lower<'a, 'b> {
                     let Some(local) = fr.func.locals.get(place.local.0 as usize) else {
                         return false;
                     };
-                    let mut ty = local.ty.clone();
-                    for (idx, _) in &place.indices {
-                        if !const_index_in_range(&ty, idx) {
-                            return false;
+                    if !place.indices.is_empty() {
+                        let mut ty = local.ty.clone();
+                        for (idx, _) in &place.indices {
+                            if !const_index_in_range(&ty, idx) {
+                                return false;
+                            }
+                            ty = ty.element();
                         }
-                        ty = ty.element();
                     }
                     matches!(fr.storage.get(place.local.0 as usize), Some(Storage::Vars(_)))
                         && !local.var.is_varying()
@@ -1739,6 +1989,10 @@ impl<'a, 'b> Lower<'a, 'b> {
         };
         self.b.def_var(alive_var, alive);
         self.set_exec(stay);
+        // Flat pixel code goes on with no lane left (see [`flat`]).
+        if self.flat {
+            return Ok(());
+        }
         let any = self.b.ins().vany_true(alive);
         let all_gone = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
         let cont = self.b.create_block();
@@ -1978,6 +2232,10 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.def_var(alive_var, alive);
         let none = mask_const(&mut self.b, false);
         self.set_exec(none);
+        // Flat pixel code goes on with no lane left (see [`flat`]).
+        if self.flat {
+            return Ok(());
+        }
         let any = self.b.ins().vany_true(alive);
         let all_gone = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
         let cont = self.b.create_block();

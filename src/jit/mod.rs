@@ -43,7 +43,7 @@ mod value;
 
 use std::cell::RefCell;
 use std::collections::{HashMap, HashSet};
-use std::sync::{mpsc, Arc, Condvar, Mutex};
+use std::sync::{mpsc, Arc, Condvar, Mutex, Weak};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
@@ -167,12 +167,39 @@ impl Default for JitOptions {
     }
 }
 
+/// Kernel bodies as lowered, by function: each after [`unroll::unroll_function`] (when
+/// unrolling), made on first use.
+type Bodies = Arc<Mutex<HashMap<FuncId, Arc<Function>>>>;
+
+/// The bodies of every live program, per unrolling setting, shared by all the JITs of that
+/// program in the process: a body does not depend on the variant key or the tier, so a
+/// fresh JIT (the bench makes one per workload, a renderer one per scene) and the tier-1
+/// worker reuse what an earlier one unrolled (~9% of a tier-0 compile of screen_triangle).
+/// Entries of dropped programs are removed on the next lookup; an entry is only matched
+/// while its program is alive, so a new program at a freed address cannot see it.
+static SHARED_BODIES: Mutex<Vec<(Weak<Program>, bool, Bodies)>> = Mutex::new(Vec::new());
+
+/// `program`'s shared bodies for the unrolling setting `unroll` (see [`SHARED_BODIES`]).
+fn shared_bodies(program: &Arc<Program>, unroll: bool) -> Bodies {
+    let mut all = SHARED_BODIES.lock().unwrap_or_else(|e| e.into_inner());
+    all.retain(|(p, _, _)| p.strong_count() > 0);
+    if let Some((_, _, bodies)) = all
+        .iter()
+        .find(|(p, u, _)| *u == unroll && std::ptr::eq(p.as_ptr(), Arc::as_ptr(program)))
+    {
+        return bodies.clone();
+    }
+    let bodies = Bodies::default();
+    all.push((Arc::downgrade(program), unroll, bodies.clone()));
+    bodies
+}
+
 /// Owns the JIT module (the code memory) and the kernel cache for one program.
 pub struct Jit {
     program: Arc<Program>,
-    /// Kernel bodies as lowered: each function after [`unroll::unroll_function`] (when
-    /// `options.unroll_loops`), made on first use and shared with the tier-1 worker.
-    bodies: Arc<Mutex<HashMap<FuncId, Arc<Function>>>>,
+    /// Kernel bodies as lowered, shared with the tier-1 worker and every other JIT of the
+    /// program (see [`SHARED_BODIES`]).
+    bodies: Bodies,
     options: JitOptions,
     /// The background tier-1 compiler of a tiered JIT.
     tier_up: Option<TierUp>,
@@ -358,11 +385,7 @@ struct TierUp {
 
 impl TierUp {
     /// `bodies`: the feeding JIT's kernel bodies, shared.
-    fn start(
-        program: Arc<Program>,
-        bodies: Arc<Mutex<HashMap<FuncId, Arc<Function>>>>,
-        unroll_loops: bool,
-    ) -> Result<TierUp, JitError> {
+    fn start(program: Arc<Program>, bodies: Bodies, unroll_loops: bool) -> Result<TierUp, JitError> {
         let options = JitOptions {
             tier: Tier::Optimised,
             unroll_loops,
@@ -507,7 +530,8 @@ impl Jit {
     }
 
     pub fn with_options(program: Arc<Program>, options: JitOptions) -> Result<Jit, JitError> {
-        Jit::build(program, Arc::default(), options)
+        let bodies = shared_bodies(&program, options.unroll_loops);
+        Jit::build(program, bodies, options)
     }
 
     /// `func`'s body as lowered (see `bodies`).
@@ -527,11 +551,7 @@ impl Jit {
             .clone()
     }
 
-    fn build(
-        program: Arc<Program>,
-        bodies: Arc<Mutex<HashMap<FuncId, Arc<Function>>>>,
-        options: JitOptions,
-    ) -> Result<Jit, JitError> {
+    fn build(program: Arc<Program>, bodies: Bodies, options: JitOptions) -> Result<Jit, JitError> {
         let isa = host_isa(options.tier)?;
         let mut builder = JITBuilder::with_isa(isa.clone(), default_libcall_names());
         for f in LibmFn::ALL {

@@ -1,0 +1,96 @@
+//! Tier 0: which setup assignments no code of the variant reads (they are not lowered).
+//!
+//! A primitive's setup computes values for every variant: screen_triangle's `linear`
+//! planes, say, which a variant binding only `perspective_linear` parameters never reads,
+//! or the counters of unrolled loops. Cranelift drops such dead code, but only after our
+//! lowering built it and its own passes walked it (~17% of screen_triangle's tier-0 CLIF).
+//! [`live_setup_locals`] finds, per variant, the locals something live reads: the pixel
+//! code as this key lowers it, conditions, `bound`, primitive calls, and transitively the
+//! assignments to live locals and every assignment that is kept for its side effect (one
+//! that may record a run-time error, i.e. not speculable). The lowering then skips a setup
+//! assignment whose local is not live and that could have no effect but its value.
+
+use crate::ir::{Expr, ExprKind, LocalId, Stmt, StmtKind};
+
+/// The locals read by live code (indexed by local), given `live`, the locals the pixel
+/// code reads or assigns as lowered, and `removable` (whether an assignment statement may
+/// be skipped when its local is dead).
+pub(super) fn live_setup_locals(setup: &[Stmt], mut live: Vec<bool>, removable: &dyn Fn(&Stmt) -> bool) -> Vec<bool> {
+    // Statements are walked last to first, so in straight-line code an assignment is met
+    // after the reads that make its local live: one round finds everything, a second
+    // confirms (loops, whose later statements feed earlier ones, may take more).
+    loop {
+        let mut changed = false;
+        walk(setup, &mut live, &mut changed, removable);
+        if !changed {
+            return live;
+        }
+    }
+}
+
+fn mark(l: LocalId, live: &mut [bool], changed: &mut bool) {
+    if let Some(x) = live.get_mut(l.0 as usize) {
+        if !*x {
+            *x = true;
+            *changed = true;
+        }
+    }
+}
+
+fn reads(e: &Expr, live: &mut [bool], changed: &mut bool) {
+    match &e.kind {
+        ExprKind::Local(l) => mark(*l, live, changed),
+        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
+        ExprKind::Index { base, index, .. } => {
+            reads(base, live, changed);
+            reads(index, live, changed);
+        }
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => reads(expr, live, changed),
+        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
+            reads(lhs, live, changed);
+            reads(rhs, live, changed);
+        }
+        ExprKind::Select { cond, then, otherwise } => {
+            reads(cond, live, changed);
+            reads(then, live, changed);
+            reads(otherwise, live, changed);
+        }
+        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| reads(a, live, changed)),
+    }
+}
+
+fn walk(stmts: &[Stmt], live: &mut [bool], changed: &mut bool, removable: &dyn Fn(&Stmt) -> bool) {
+    for s in stmts.iter().rev() {
+        match &s.kind {
+            StmtKind::Assign { place, value } => {
+                let is_live = live.get(place.local.0 as usize).copied().unwrap_or(true);
+                if is_live || !removable(s) {
+                    mark(place.local, live, changed);
+                    place.indices.iter().for_each(|(i, _)| reads(i, live, changed));
+                    reads(value, live, changed);
+                }
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                reads(cond, live, changed);
+                walk(then, live, changed, removable);
+                walk(otherwise, live, changed, removable);
+            }
+            StmtKind::Loop { cond, body, step, .. } => {
+                if let Some(c) = cond {
+                    reads(c, live, changed);
+                }
+                walk(step, live, changed, removable);
+                walk(body, live, changed, removable);
+            }
+            StmtKind::Interpolation { arms } => {
+                for a in arms {
+                    walk(&a.body, live, changed, removable);
+                }
+            }
+            StmtKind::InterpolatorReturn(Some(e)) => reads(e, live, changed),
+            StmtKind::Bound(es) => es.iter().for_each(|e| reads(e, live, changed)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| reads(e, live, changed)),
+            StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::InterpolatorReturn(None) => {}
+        }
+    }
+}
