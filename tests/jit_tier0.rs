@@ -379,8 +379,7 @@ fn tier_0_keeps_early_exits_before_a_uniform_loop_in_pixel_code() {
     let (frame, codes) = both_tiers(&sources, &program, &r, "loopy, all retired");
     assert!(codes.is_empty(), "{codes:?}");
     assert_eq!(written(&frame), 0);
-    // (No case with live lanes: the checker hoists the loop's `i = 0` into the setup, so
-    // only a tile's first group runs the loop, in both tiers alike; reported separately.)
+    // Live lanes running the loop, group after group: tests/jit_group_state.rs.
 }
 
 #[test]

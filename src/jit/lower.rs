@@ -216,6 +216,10 @@ pub(crate) struct Lower<'a, 'b> {
     fuel: Variable,
     /// The uniform frame's slot and the slot holding its address (see `spill_uniforms`).
     uniform_frame: Option<(StackSlot, StackSlot)>,
+    /// Uniform locals the pixel part assigns: (slot holding the setup's final value, the
+    /// slot pixel code reads and writes, bytes). Every pixel group starts by copying the
+    /// first into the second (see `spill_uniforms`).
+    group_resets: Vec<(StackSlot, StackSlot, u32)>,
     /// Byte offset of the uniform frame's vector section (word `w` splatted at
     /// `vec_section + 16 * w`; see [`hoist`]).
     vec_section: u32,
@@ -312,6 +316,7 @@ pub(crate) fn lower_kernel(
         has_bound,
         fuel,
         uniform_frame: None,
+        group_resets: vec![],
         vec_section: 0,
         hoists: vec![],
         splat_src: std::collections::HashMap::new(),
@@ -967,6 +972,26 @@ impl<'a, 'b> Lower<'a, 'b> {
                 }
             }
         }
+        // Per-pixel semantics: every pixel runs the pixel part from the setup's final state.
+        // A uniform local the pixel part assigns (a loop counter, say) would otherwise
+        // carry one group's last value into the next group, so its setup value is kept
+        // aside here and every group starts from it (`reset_group_locals`).
+        for (i, st) in self.frames[0].storage.iter().enumerate() {
+            let Storage::Stack(slot) = *st else { continue };
+            if f.locals[i].var.is_varying() || !pixel_assigned.contains(&LocalId(i as u32)) {
+                continue;
+            }
+            let bytes = self.b.func.sized_stack_slots[slot].size;
+            self.group_resets.push((slot, slot, bytes));
+        }
+        for r in 0..self.group_resets.len() {
+            let (work, _, bytes) = self.group_resets[r];
+            let init = self
+                .b
+                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, bytes, 4));
+            copy_slot(&mut self.b, work, init, bytes);
+            self.group_resets[r] = (init, work, bytes);
+        }
         if let Some(fs) = frame_slot {
             // The frame's address, reloaded per group through this slot (see above).
             let ptr_slot = self
@@ -1320,6 +1345,9 @@ impl<'a, 'b> Lower<'a, 'b> {
                 }
                 _ => {}
             }
+        }
+        for &(init, work, bytes) in &self.group_resets {
+            copy_slot(&mut self.b, init, work, bytes);
         }
         if self.flat {
             self.flat_group_locals(f);
@@ -3914,6 +3942,20 @@ fn quiet_stmt(f: &Function, s: &Stmt) -> bool {
         }
         StmtKind::Return => true,
         _ => false,
+    }
+}
+
+/// Copy `bytes` (a multiple of 4) from stack slot `from` to `to`, 16 bytes per load where
+/// they fit.
+fn copy_slot(b: &mut FunctionBuilder, from: StackSlot, to: StackSlot, bytes: u32) {
+    let src = b.ins().stack_addr(types::I64, from, 0);
+    let dst = b.ins().stack_addr(types::I64, to, 0);
+    let mut off = 0;
+    while off + 4 <= bytes {
+        let ty = if bytes - off >= 16 { I32X4 } else { types::I32 };
+        let v = b.ins().load(ty, mem_flags(), src, off as i32);
+        b.ins().store(mem_flags(), v, dst, off as i32);
+        off += ty.bytes();
     }
 }
 
