@@ -8,7 +8,7 @@ use std::sync::Arc;
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::ir::forward::forward_copies;
 use primflow::ir::{ExprKind, Program, Stmt, StmtKind};
-use primflow::jit::{Jit, JitOptions, Tier};
+use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Registry, Renderer, Value};
 
 const COPIES: &str = r#"
@@ -69,14 +69,7 @@ fn depth(program: &Arc<Program>, prim: &str, param: (&str, f32), tier: Tier) -> 
     r.rast_param("rect", &Value(vec![1.0, 1.0, 15.0, 15.0])).unwrap();
     r.rast_param(param.0, &Value(vec![param.1])).unwrap();
     r.end().unwrap();
-    let mut jit = Jit::with_options(
-        program.clone(),
-        JitOptions {
-            tier,
-            ..JitOptions::default()
-        },
-    )
-    .unwrap();
+    let mut jit = Jit::at_tier(program.clone(), tier).unwrap();
     let out = r.render(&mut jit);
     assert!(
         !out.diags.has_errors() && out.diags.items.is_empty(),

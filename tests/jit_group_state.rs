@@ -10,7 +10,7 @@ use std::sync::Arc;
 use primflow::bench::same_frame;
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::ir::Program;
-use primflow::jit::{Jit, JitOptions, Tier};
+use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Frame, Registry, Renderer, Value};
 
 /// Three ways a uniform local is assigned in the pixel part: a top-level `for` whose
@@ -68,14 +68,7 @@ fn render(program: &Arc<Program>, tier: Tier, rect: [f32; 4], form: i32, n: i32,
         r.rast_param(name, &Value(vec![v as f32])).unwrap();
     }
     r.end().unwrap();
-    let mut jit = Jit::with_options(
-        program.clone(),
-        JitOptions {
-            tier,
-            ..JitOptions::default()
-        },
-    )
-    .unwrap();
+    let mut jit = Jit::at_tier(program.clone(), tier).unwrap();
     let out = r.render(&mut jit);
     assert!(!out.diags.has_errors(), "{:?}", out.diags.items);
     out.frame

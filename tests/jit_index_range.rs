@@ -10,7 +10,7 @@ use std::sync::Arc;
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::ir::range::proven_index_sites;
 use primflow::ir::Program;
-use primflow::jit::{Jit, JitOptions, Tier};
+use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Registry, Renderer, Value};
 
 /// The elements of every test array: a[i] = (i + 1) / 64, exact in f32 and in Z's fixed point.
@@ -113,14 +113,7 @@ fn scene(program: &Arc<Program>, prim: &str, params: &[(&str, f32)]) -> Renderer
 
 /// Depth at a pixel inside the rectangle, and the run-time diagnostics (code@line:col).
 fn run(program: &Arc<Program>, sources: &SourceMap, r: &Renderer, tier: Tier) -> (u32, Vec<String>) {
-    let mut jit = Jit::with_options(
-        program.clone(),
-        JitOptions {
-            tier,
-            ..JitOptions::default()
-        },
-    )
-    .unwrap();
+    let mut jit = Jit::at_tier(program.clone(), tier).unwrap();
     let out = r.render(&mut jit);
     assert!(!out.diags.has_errors(), "{:?}", out.diags.items);
     let mut codes = out.diags.codes_at(sources);

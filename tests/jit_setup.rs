@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::ir::Program;
-use primflow::jit::{Jit, JitOptions, Tier};
+use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Frame, Registry, Renderer, Value};
 
 const USER_PRIMS: &str = r#"
@@ -90,13 +90,9 @@ fn library_with_user_prims() -> Arc<Program> {
 }
 
 fn jits(program: &Arc<Program>) -> Vec<(&'static str, Jit)> {
-    let tier0 = JitOptions {
-        tier: Tier::Fast,
-        ..JitOptions::default()
-    };
     vec![
         ("tier 1", Jit::new(program.clone()).unwrap()),
-        ("tier 0", Jit::with_options(program.clone(), tier0).unwrap()),
+        ("tier 0", Jit::at_tier(program.clone(), Tier::Fast).unwrap()),
     ]
 }
 

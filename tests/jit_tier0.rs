@@ -11,7 +11,7 @@ use std::sync::Arc;
 use primflow::bench::same_frame;
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::ir::Program;
-use primflow::jit::{Jit, JitOptions, Tier};
+use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Frame, Registry, Renderer, Value};
 
 /// Setup code with nested uniform `if`s that only assign (if-converted by tier 0), a local
@@ -164,14 +164,7 @@ fn branchy_scene(program: &Arc<Program>, mode: f32, k: i32) -> Renderer {
 }
 
 fn jit(program: &Arc<Program>, tier: Tier) -> Jit {
-    Jit::with_options(
-        program.clone(),
-        JitOptions {
-            tier,
-            ..JitOptions::default()
-        },
-    )
-    .unwrap()
+    Jit::at_tier(program.clone(), tier).unwrap()
 }
 
 fn written(f: &Frame) -> usize {

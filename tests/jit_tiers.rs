@@ -10,7 +10,7 @@ use std::sync::Arc;
 use primflow::bench::{fill_scene, same_frame, small_scene};
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::ir::Program;
-use primflow::jit::{Jit, JitOptions, Tier};
+use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Frame, KernelSource, Registry, Renderer};
 
 fn library() -> (SourceMap, Arc<Program>) {
@@ -64,14 +64,7 @@ fn scenes(sources: &mut SourceMap, program: &Arc<Program>) -> Vec<(String, Rende
 fn tier_0_and_tier_1_kernels_write_identical_frames() {
     let (mut sources, program) = library();
     for (name, r) in scenes(&mut sources, &program) {
-        let mut fast = Jit::with_options(
-            program.clone(),
-            JitOptions {
-                tier: Tier::Fast,
-                ..JitOptions::default()
-            },
-        )
-        .unwrap();
+        let mut fast = Jit::at_tier(program.clone(), Tier::Fast).unwrap();
         let mut optimised = Jit::new(program.clone()).unwrap();
         let a = render(&r, &mut fast);
         let b = render(&r, &mut optimised);
@@ -118,14 +111,7 @@ fn tier_0_compiles_a_different_kernel_than_tier_1() {
     let (_sources, program) = library();
     let r = fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
     let inst = &r.instances()[0];
-    let fast = Jit::with_options(
-        program.clone(),
-        JitOptions {
-            tier: Tier::Fast,
-            ..JitOptions::default()
-        },
-    )
-    .unwrap();
+    let fast = Jit::at_tier(program.clone(), Tier::Fast).unwrap();
     let optimised = Jit::new(program.clone()).unwrap();
     let a = fast.clif(inst.func, &inst.key).unwrap();
     let b = optimised.clif(inst.func, &inst.key).unwrap();

@@ -489,14 +489,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
         for inst in r.instances().iter().take(1) {
             let kernel = fresh.kernel(inst.func, &inst.key).map_err(|e| e.to_string())?;
             // The same variant again at once, caches warm (see `CompileTiming::warm_cpu_micros`).
-            let mut warm = Jit::with_options(
-                program.clone(),
-                crate::jit::JitOptions {
-                    tier: crate::jit::Tier::Fast,
-                    ..crate::jit::JitOptions::default()
-                },
-            )
-            .map_err(|e| e.to_string())?;
+            let mut warm = Jit::at_tier(program.clone(), crate::jit::Tier::Fast).map_err(|e| e.to_string())?;
             warm.kernel(inst.func, &inst.key).map_err(|e| e.to_string())?;
             let warm_cost = warm.compile_cost(inst.func, &inst.key).unwrap_or_default();
             fresh.wait_for_tier_up();

@@ -488,6 +488,18 @@ impl Jit {
         Jit::with_options(program, JitOptions::default())
     }
 
+    /// A JIT that compiles every kernel at `tier` (no tiering up): the tests comparing
+    /// tiers use it.
+    pub fn at_tier(program: Arc<Program>, tier: Tier) -> Result<Jit, JitError> {
+        Jit::with_options(
+            program,
+            JitOptions {
+                tier,
+                ..JitOptions::default()
+            },
+        )
+    }
+
     /// A tiered JIT: tier-0 kernels at once, tier-1 kernels compiled in the background and
     /// handed out once ready (see the module doc).
     pub fn tiered(program: Arc<Program>) -> Result<Jit, JitError> {
