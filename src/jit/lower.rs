@@ -1382,18 +1382,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                 // Tier 0: one blended store, whatever the lanes (no blocks for the all and
                 // none cases). The depth loaded at the group's start is still the buffer's
                 // value, so unwritten lanes store back what they hold.
-                let zval = self.b.use_var(zvar);
-                let raw = fixed::convert(&mut self.b, zsc, Scalar::Fixed(DEPTH_FORMAT), zval);
-                let addr = self.tile_addr(ctx_off::DEPTH, tile_idx);
-                let new = self.b.ins().blendv(written, raw, z_old);
-                self.b.ins().store(mem_flags(), new, addr, 0);
-                if self.key.count_writes {
-                    let caddr = self.tile_addr(ctx_off::WRITE_COUNT, tile_idx);
-                    let old = self.b.ins().load(I32X4, mem_flags(), caddr, 0);
-                    // Written lanes are -1: subtracting adds one.
-                    let new = self.b.ins().isub(old, written);
-                    self.b.ins().store(mem_flags(), new, caddr, 0);
-                }
+                self.store_depth(zvar, zsc, Some((written, z_old)), tile_idx);
+                self.count_writes(written, tile_idx);
                 self.b.ins().jump(next, &[]);
                 self.pix = None;
                 return Ok(());
@@ -1406,10 +1396,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.b.ins().brif(all, full_blk, &[], part_blk, &[]);
 
             self.b.switch_to_block(full_blk);
-            let zval = self.b.use_var(zvar);
-            let raw = fixed::convert(&mut self.b, zsc, Scalar::Fixed(DEPTH_FORMAT), zval);
-            let addr = self.tile_addr(ctx_off::DEPTH, tile_idx);
-            self.b.ins().store(mem_flags(), raw, addr, 0);
+            self.store_depth(zvar, zsc, None, tile_idx);
             self.b.ins().jump(stored, &[]);
 
             self.b.switch_to_block(part_blk);
@@ -1417,25 +1404,41 @@ impl<'a, 'b> Lower<'a, 'b> {
             let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
             self.b.ins().brif(none, next, &[], blend_blk, &[]);
             self.b.switch_to_block(blend_blk);
-            let zval = self.b.use_var(zvar);
-            let raw = fixed::convert(&mut self.b, zsc, Scalar::Fixed(DEPTH_FORMAT), zval);
-            let addr = self.tile_addr(ctx_off::DEPTH, tile_idx);
-            let new = self.b.ins().blendv(written, raw, z_old);
-            self.b.ins().store(mem_flags(), new, addr, 0);
+            self.store_depth(zvar, zsc, Some((written, z_old)), tile_idx);
             self.b.ins().jump(stored, &[]);
 
             self.b.switch_to_block(stored);
-            if self.key.count_writes {
-                let caddr = self.tile_addr(ctx_off::WRITE_COUNT, tile_idx);
-                let old = self.b.ins().load(I32X4, mem_flags(), caddr, 0);
-                // Written lanes are -1: subtracting adds one.
-                let new = self.b.ins().isub(old, written);
-                self.b.ins().store(mem_flags(), new, caddr, 0);
-            }
+            self.count_writes(written, tile_idx);
         }
         self.b.ins().jump(next, &[]);
         self.pix = None;
         Ok(())
+    }
+
+    /// Store the group's Z (`zvar`, of scalar type `zsc`) to the depth buffer as
+    /// `fixed<32,32>` raw: in every lane, or with `blend = (written, old)` only in the
+    /// `written` lanes, the others keeping `old`.
+    fn store_depth(&mut self, zvar: Variable, zsc: Scalar, blend: Option<(ir::Value, ir::Value)>, tile_idx: ir::Value) {
+        let zval = self.b.use_var(zvar);
+        let raw = fixed::convert(&mut self.b, zsc, Scalar::Fixed(DEPTH_FORMAT), zval);
+        let addr = self.tile_addr(ctx_off::DEPTH, tile_idx);
+        let new = match blend {
+            Some((written, old)) => self.b.ins().blendv(written, raw, old),
+            None => raw,
+        };
+        self.b.ins().store(mem_flags(), new, addr, 0);
+    }
+
+    /// Add one to the write count of the `written` lanes (when the key counts writes).
+    fn count_writes(&mut self, written: ir::Value, tile_idx: ir::Value) {
+        if !self.key.count_writes {
+            return;
+        }
+        let caddr = self.tile_addr(ctx_off::WRITE_COUNT, tile_idx);
+        let old = self.b.ins().load(I32X4, mem_flags(), caddr, 0);
+        // Written lanes are -1: subtracting adds one.
+        let new = self.b.ins().isub(old, written);
+        self.b.ins().store(mem_flags(), new, caddr, 0);
     }
 
     /// Flat pixel code, at the start of a group: every varying local the pixel code
