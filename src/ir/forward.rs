@@ -199,25 +199,7 @@ fn visit_stmt(s: &Stmt, read: &mut dyn FnMut(LocalId), write: &mut dyn FnMut(Loc
 }
 
 fn visit_expr(e: &Expr, read: &mut dyn FnMut(LocalId)) {
-    match &e.kind {
-        ExprKind::Local(l) => read(*l),
-        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
-        ExprKind::Index { base, index, .. } => {
-            visit_expr(base, read);
-            visit_expr(index, read);
-        }
-        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => visit_expr(expr, read),
-        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
-            visit_expr(lhs, read);
-            visit_expr(rhs, read);
-        }
-        ExprKind::Select { cond, then, otherwise } => {
-            visit_expr(cond, read);
-            visit_expr(then, read);
-            visit_expr(otherwise, read);
-        }
-        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| visit_expr(a, read)),
-    }
+    e.for_each_local(read);
 }
 
 /// Every read of `from` in `s` becomes a read of `to` (assignments to `from` stay: the rule
@@ -260,27 +242,10 @@ fn rename_place(p: &mut Place, from: LocalId, to: LocalId) {
 }
 
 fn rename_expr(e: &mut Expr, from: LocalId, to: LocalId) {
-    match &mut e.kind {
-        ExprKind::Local(l) => {
-            if *l == from {
-                *l = to;
-            }
+    if let ExprKind::Local(l) = &mut e.kind {
+        if *l == from {
+            *l = to;
         }
-        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
-        ExprKind::Index { base, index, .. } => {
-            rename_expr(base, from, to);
-            rename_expr(index, from, to);
-        }
-        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => rename_expr(expr, from, to),
-        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
-            rename_expr(lhs, from, to);
-            rename_expr(rhs, from, to);
-        }
-        ExprKind::Select { cond, then, otherwise } => {
-            rename_expr(cond, from, to);
-            rename_expr(then, from, to);
-            rename_expr(otherwise, from, to);
-        }
-        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter_mut().for_each(|a| rename_expr(a, from, to)),
     }
+    e.for_each_child_mut(|c| rename_expr(c, from, to));
 }

@@ -295,6 +295,69 @@ pub struct Expr {
     pub span: Span,
 }
 
+impl Expr {
+    /// Call `f` on each direct sub-expression, in evaluation order. The one place that
+    /// knows the shape of every `ExprKind`; walks that treat all children alike recurse
+    /// through it.
+    pub fn for_each_child<'e>(&'e self, mut f: impl FnMut(&'e Expr)) {
+        match &self.kind {
+            ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
+            ExprKind::Index { base, index, .. } => {
+                f(base);
+                f(index);
+            }
+            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => f(expr),
+            ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
+                f(lhs);
+                f(rhs);
+            }
+            ExprKind::Select { cond, then, otherwise } => {
+                f(cond);
+                f(then);
+                f(otherwise);
+            }
+            ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(f),
+        }
+    }
+
+    /// [`Expr::for_each_child`] for rewriting.
+    pub fn for_each_child_mut(&mut self, mut f: impl FnMut(&mut Expr)) {
+        match &mut self.kind {
+            ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
+            ExprKind::Index { base, index, .. } => {
+                f(base);
+                f(index);
+            }
+            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => f(expr),
+            ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
+                f(lhs);
+                f(rhs);
+            }
+            ExprKind::Select { cond, then, otherwise } => {
+                f(cond);
+                f(then);
+                f(otherwise);
+            }
+            ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter_mut().for_each(f),
+        }
+    }
+
+    /// Call `f` on every local `self` reads, anywhere inside it (once per occurrence).
+    pub fn for_each_local(&self, f: &mut dyn FnMut(LocalId)) {
+        if let ExprKind::Local(l) = self.kind {
+            f(l);
+        }
+        self.for_each_child(|c| c.for_each_local(f));
+    }
+
+    /// Whether `self` reads a local for which `pred` holds.
+    pub fn reads_any(&self, pred: &dyn Fn(LocalId) -> bool) -> bool {
+        let mut found = false;
+        self.for_each_local(&mut |l| found |= pred(l));
+        found
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum UnaryOp {
     Neg,

@@ -236,25 +236,7 @@ pub(crate) fn reads_writes(s: &Stmt, r: &mut HashSet<LocalId>, w: &mut HashSet<L
 
 /// Every local `e` reads.
 pub(crate) fn expr_reads(e: &Expr, r: &mut HashSet<LocalId>) {
-    match &e.kind {
-        ExprKind::Local(l) => {
-            r.insert(*l);
-        }
-        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
-        ExprKind::Index { base, index, .. } => {
-            expr_reads(base, r);
-            expr_reads(index, r);
-        }
-        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => expr_reads(expr, r),
-        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
-            expr_reads(lhs, r);
-            expr_reads(rhs, r);
-        }
-        ExprKind::Select { cond, then, otherwise } => {
-            expr_reads(cond, r);
-            expr_reads(then, r);
-            expr_reads(otherwise, r);
-        }
-        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| expr_reads(a, r)),
-    }
+    e.for_each_local(&mut |l| {
+        r.insert(l);
+    });
 }

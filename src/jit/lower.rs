@@ -4019,33 +4019,14 @@ fn mark_dynamic_stmt(s: &Stmt, dynamic: &mut [bool]) {
 }
 
 fn mark_dynamic_expr(e: &Expr, dynamic: &mut [bool]) {
-    match &e.kind {
-        ExprKind::Index { base, index, .. } => {
-            if const_int(index).is_none() {
-                if let Some(l) = root_local(base) {
-                    if let Some(d) = dynamic.get_mut(l.0 as usize) {
-                        *d = true;
-                    }
-                }
+    if let ExprKind::Index { base, index, .. } = &e.kind {
+        if const_int(index).is_none() {
+            if let Some(d) = root_local(base).and_then(|l| dynamic.get_mut(l.0 as usize)) {
+                *d = true;
             }
-            mark_dynamic_expr(base, dynamic);
-            mark_dynamic_expr(index, dynamic);
         }
-        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => mark_dynamic_expr(expr, dynamic),
-        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
-            mark_dynamic_expr(lhs, dynamic);
-            mark_dynamic_expr(rhs, dynamic);
-        }
-        ExprKind::Select { cond, then, otherwise } => {
-            mark_dynamic_expr(cond, dynamic);
-            mark_dynamic_expr(then, dynamic);
-            mark_dynamic_expr(otherwise, dynamic);
-        }
-        ExprKind::Builtin { args, .. } | ExprKind::List(args) => {
-            args.iter().for_each(|a| mark_dynamic_expr(a, dynamic))
-        }
-        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
     }
+    e.for_each_child(|c| mark_dynamic_expr(c, dynamic));
 }
 
 fn root_local(e: &Expr) -> Option<LocalId> {

@@ -173,17 +173,7 @@ pub(super) fn assigned_locals(stmts: &[Stmt], out: &mut HashSet<LocalId>) {
 }
 
 fn reads_any(e: &Expr, set: &HashSet<LocalId>) -> bool {
-    match &e.kind {
-        ExprKind::Local(l) => set.contains(l),
-        ExprKind::Index { base, index, .. } => reads_any(base, set) || reads_any(index, set),
-        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => reads_any(expr, set),
-        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => reads_any(lhs, set) || reads_any(rhs, set),
-        ExprKind::Select { cond, then, otherwise } => {
-            reads_any(cond, set) || reads_any(then, set) || reads_any(otherwise, set)
-        }
-        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().any(|a| reads_any(a, set)),
-        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => false,
-    }
+    e.reads_any(&|l| set.contains(&l))
 }
 
 /// The abstract value of a scalar expression over a block (run-time values, all scalar).
@@ -1079,24 +1069,7 @@ pub(super) fn pass_exprs(
 /// Addresses of `e` and all its subexpressions.
 fn expr_keys(e: &Expr, out: &mut HashSet<usize>) {
     out.insert(key(e));
-    match &e.kind {
-        ExprKind::Index { base, index, .. } => {
-            expr_keys(base, out);
-            expr_keys(index, out);
-        }
-        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => expr_keys(expr, out),
-        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
-            expr_keys(lhs, out);
-            expr_keys(rhs, out);
-        }
-        ExprKind::Select { cond, then, otherwise } => {
-            expr_keys(cond, out);
-            expr_keys(then, out);
-            expr_keys(otherwise, out);
-        }
-        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| expr_keys(a, out)),
-        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
-    }
+    e.for_each_child(|c| expr_keys(c, out));
 }
 
 /// Addresses of every expression in `stmts`.

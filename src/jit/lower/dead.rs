@@ -10,7 +10,7 @@
 //! that may record a run-time error, i.e. not speculable). The lowering then skips a setup
 //! assignment whose local is not live and that could have no effect but its value.
 
-use crate::ir::{Expr, ExprKind, LocalId, Stmt, StmtKind};
+use crate::ir::{Expr, LocalId, Stmt, StmtKind};
 
 /// The locals read by live code (indexed by local), given `live`, the locals the pixel
 /// code reads or assigns as lowered, and `removable` (whether an assignment statement may
@@ -38,25 +38,7 @@ fn mark(l: LocalId, live: &mut [bool], changed: &mut bool) {
 }
 
 fn reads(e: &Expr, live: &mut [bool], changed: &mut bool) {
-    match &e.kind {
-        ExprKind::Local(l) => mark(*l, live, changed),
-        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
-        ExprKind::Index { base, index, .. } => {
-            reads(base, live, changed);
-            reads(index, live, changed);
-        }
-        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => reads(expr, live, changed),
-        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
-            reads(lhs, live, changed);
-            reads(rhs, live, changed);
-        }
-        ExprKind::Select { cond, then, otherwise } => {
-            reads(cond, live, changed);
-            reads(then, live, changed);
-            reads(otherwise, live, changed);
-        }
-        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| reads(a, live, changed)),
-    }
+    e.for_each_local(&mut |l| mark(l, live, changed));
 }
 
 fn walk(stmts: &[Stmt], live: &mut [bool], changed: &mut bool, removable: &dyn Fn(&Stmt) -> bool) {
