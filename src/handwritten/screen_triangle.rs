@@ -244,6 +244,42 @@ pub(crate) fn depth_raw8(z: std::arch::x86_64::__m256) -> std::arch::x86_64::__m
     _mm256_or_si256(tz, _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(scaled, two32)))
 }
 
+/// The AVX2 kernels' Z test and write for the 8 pixels at `base` of the tile's rows: of the
+/// lanes in `mask`, those whose depth `tz` is not farther than the buffer's (unsigned
+/// `tz >= old`, the JIT's `Z` test) get `tz` stored and, with `COUNT`, their write count
+/// bumped. Returns the lanes written (all zero when none).
+///
+/// # Safety
+/// `live` holds the lanes whose pixels lie in the tile's row (a superset of `mask`): only
+/// those are read, and only `mask`'s lanes written (maskload/maskstore touch no other lane).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(crate) unsafe fn depth_test8<const COUNT: bool>(
+    ctx: &TileCtx,
+    base: usize,
+    live: std::arch::x86_64::__m256i,
+    mask: std::arch::x86_64::__m256i,
+    tz: std::arch::x86_64::__m256i,
+) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::*;
+    let sign = _mm256_set1_epi32(i32::MIN);
+    let zptr = ctx.depth.add(base) as *mut i32;
+    let old = _mm256_maskload_epi32(zptr, live);
+    // Unsigned old > tz, by flipping the sign bits.
+    let farther = _mm256_cmpgt_epi32(_mm256_xor_si256(old, sign), _mm256_xor_si256(tz, sign));
+    let mask = _mm256_andnot_si256(farther, mask);
+    if _mm256_testz_si256(mask, mask) == 0 {
+        _mm256_maskstore_epi32(zptr, mask, tz);
+        if COUNT {
+            let cptr = ctx.write_count.add(base) as *mut i32;
+            let counts = _mm256_maskload_epi32(cptr, mask);
+            _mm256_maskstore_epi32(cptr, mask, _mm256_sub_epi32(counts, mask));
+        }
+    }
+    mask
+}
+
 /// Portable scalar kernel.
 ///
 /// # Safety
@@ -335,7 +371,6 @@ pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, co
     let planes = s.planes;
     let lane_offsets = _mm256_setr_ps(0.5, 1.5, 2.5, 3.5, 4.5, 5.5, 6.5, 7.5);
     let lane_index = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-    let sign = _mm256_set1_epi32(i32::MIN);
     let zero_i = _mm256_setzero_si256();
     let (one, zero) = (_mm256_set1_ps(1.0), _mm256_setzero_ps());
     let sixteen = _mm256_set1_ps(16.0);
@@ -392,21 +427,10 @@ pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, co
             // SAFETY: lanes beyond `n` are masked off, and maskload/maskstore never touch
             // memory of masked-off lanes; the first `n` pixels of the row lie in the tile.
             unsafe {
-                let zptr = ctx.depth.add(base) as *mut i32;
-                let old = _mm256_maskload_epi32(zptr, live_lanes);
-                // Unsigned tz >= old, by flipping the sign bits.
-                let nearer = _mm256_cmpgt_epi32(_mm256_xor_si256(old, sign), _mm256_xor_si256(tz, sign));
-                mask = _mm256_andnot_si256(nearer, mask);
+                mask = depth_test8::<COUNT>(ctx, base, live_lanes, mask, tz);
                 if _mm256_testz_si256(mask, mask) != 0 {
                     px += 8;
                     continue;
-                }
-                // Pixel values larger than 2^31 came out of the signed conversion offset.
-                _mm256_maskstore_epi32(zptr, mask, tz);
-                if COUNT {
-                    let cptr = ctx.write_count.add(base) as *mut i32;
-                    let counts = _mm256_maskload_epi32(cptr, mask);
-                    _mm256_maskstore_epi32(cptr, mask, _mm256_sub_epi32(counts, mask));
                 }
                 let qw = _mm256_add_ps(
                     _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(s.q[0]), x), _mm256_set1_ps(s.q[1] * y)),

@@ -18,9 +18,9 @@
 
 // `!(a < b)` is the prims' NaN-rejecting test, kept as written (a NaN fails it).
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
-#[cfg(target_arch = "x86_64")]
-use super::screen_triangle::depth_raw8;
 use super::screen_triangle::{bound_or_rect, depth_raw};
+#[cfg(target_arch = "x86_64")]
+use super::screen_triangle::{depth_raw8, depth_test8};
 use crate::abi::{ArgLayout, Binding, BindingKind, KernelFn, ParamSlot, TileCtx, VariantKey, MODE_BOUND};
 
 /// Word offset of the space matrices for `t` plane-table entries.
@@ -414,20 +414,11 @@ pub unsafe extern "C" fn avx2<const T: usize, const COUNT: bool>(ctx: *mut TileC
             // SAFETY: lanes beyond `n` are masked off, and maskload/maskstore never touch
             // memory of masked-off lanes; the first `n` pixels of the row lie in the tile.
             unsafe {
-                let zptr = ctx.depth.add(base) as *mut i32;
-                let old = _mm256_maskload_epi32(zptr, live);
-                // Unsigned tz < old: the JIT's `sphere_z < Z` return.
-                let farther = _mm256_cmpgt_epi32(_mm256_xor_si256(old, sign), _mm256_xor_si256(tz, sign));
-                mask = _mm256_andnot_si256(farther, mask);
+                // The JIT's `sphere_z < Z` return.
+                mask = depth_test8::<COUNT>(ctx, base, live, mask, tz);
                 if _mm256_testz_si256(mask, mask) != 0 {
                     px += 8;
                     continue;
-                }
-                _mm256_maskstore_epi32(zptr, mask, tz);
-                if COUNT {
-                    let cptr = ctx.write_count.add(base) as *mut i32;
-                    let counts = _mm256_maskload_epi32(cptr, mask);
-                    _mm256_maskstore_epi32(cptr, mask, _mm256_sub_epi32(counts, mask));
                 }
                 if T == 3 {
                     let w = add(delta_w, mul(t, gamma_w));
