@@ -78,6 +78,21 @@ fn err(code: &'static str, msg: impl Into<String>, span: Span, label: impl Into<
     Diagnostic::error(code, msg).primary(span, label)
 }
 
+/// E0215: a call to `what` (primitive or helper) `callee` with `given` arguments.
+fn arity_error(what: &str, callee: &ast::Ident, sig: &Signature, given: usize, span: Span, label: &str) -> Diagnostic {
+    err(
+        "E0215",
+        format!(
+            "{what} `{}` takes {} arguments, found {given}",
+            callee.name,
+            sig.params.len()
+        ),
+        span,
+        label,
+    )
+    .secondary(sig.item.name.span, "declared here")
+}
+
 fn mk(kind: ExprKind, ty: Type, span: Span) -> Expr {
     Expr {
         kind,
@@ -1008,20 +1023,14 @@ impl<'g, 'a> FnLower<'g, 'a> {
             return None;
         }
         if args.len() > sig.params.len() {
-            self.sink.push(
-                err(
-                    "E0215",
-                    format!(
-                        "primitive `{}` takes {} arguments, found {}",
-                        callee.name,
-                        sig.params.len(),
-                        args.len()
-                    ),
-                    span,
-                    "too many arguments",
-                )
-                .secondary(sig.item.name.span, "declared here"),
-            );
+            self.sink.push(arity_error(
+                "primitive",
+                callee,
+                sig,
+                args.len(),
+                span,
+                "too many arguments",
+            ));
             return None;
         }
         let mut out = vec![];
@@ -1192,20 +1201,14 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
         if args.len() > sig.params.len() || (args.len() < sig.params.len() && sig.params[args.len()].default.is_none())
         {
-            self.sink.push(
-                err(
-                    "E0215",
-                    format!(
-                        "helper `{}` takes {} arguments, found {}",
-                        callee.name,
-                        sig.params.len(),
-                        args.len()
-                    ),
-                    span,
-                    "wrong number of arguments",
-                )
-                .secondary(sig.item.name.span, "declared here"),
-            );
+            self.sink.push(arity_error(
+                "helper",
+                callee,
+                sig,
+                args.len(),
+                span,
+                "wrong number of arguments",
+            ));
             return None;
         }
         // Arguments, by value into fresh temporaries; inout ones remember their place.
