@@ -148,23 +148,6 @@ fn nurb_patch(r: &mut Renderer, net: &[[f64; 3]], tolerance: f32, with_data: boo
     r.end().unwrap();
 }
 
-/// Two patches side by side sharing their curved middle column (same control points,
-/// same weights along it, different interiors and tolerances).
-fn two_patches() -> [Vec<[f64; 3]>; 2] {
-    let shared = [(0.1, 0.0), (-0.3, 0.4), (0.4, -0.2), (0.0, 0.1)];
-    let (mut left, mut right) = (vec![], vec![]);
-    for (j, &(dx, dz)) in shared.iter().enumerate() {
-        let y = -1.5 + j as f64;
-        for i in 0..4 {
-            let t = i as f64 / 3.0;
-            let bump = if i == 1 || i == 2 { 0.6 * (j as f64 - 1.5) } else { 0.0 };
-            left.push([-3.0 + (3.0 + dx) * t, y, -8.0 + dz * t + bump]);
-            right.push([dx + (3.0 - dx) * t, y, -8.0 + dz * (1.0 - t) - 0.5 * bump]);
-        }
-    }
-    [left, right]
-}
-
 #[test]
 fn nurb_patches_sharing_an_edge_agree_bit_for_bit() {
     let program = library();
@@ -178,7 +161,7 @@ fn nurb_patches_sharing_an_edge_agree_bit_for_bit() {
         if data {
             r.material_interp("s", "linear", &[]).unwrap();
         }
-        let [left, right] = two_patches();
+        let [left, right] = shared_column_patches();
         // Crack-free needs the same tolerance on both sides of the shared edge.
         nurb_patch(&mut r, &left, 0.25, data);
         nurb_patch(&mut r, &right, 0.25, data);

@@ -3,6 +3,8 @@
 //! is read must stay a copy; the inlined helpers' by-value array parameters (the NURB
 //! surface's `points`, `knots`) must go.
 
+mod common;
+
 use std::sync::Arc;
 
 use primflow::diag::{Diagnostics, SourceMap};
@@ -49,17 +51,9 @@ fn expected(n: usize) -> f32 {
 }
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    let mut diags = Diagnostics::new();
-    let (mut files, _) = Registry::load_sources(sources, &[], &[], &mut diags);
-    files.push(sources.add("copies.prim", COPIES));
-    files.push(sources.add(
-        "flat.prim",
-        "primitive flat(float rect[4]; float z; varying float X, Y; inout varying fixed<32,32> Z)\n\
-         { bound(rect[0], rect[1], rect[2], rect[3]); Z = z; }\n",
-    ));
-    let reg = Registry::compile(sources, files, &mut diags);
-    assert!(!diags.has_errors(), "{}", diags.render(sources));
-    reg.expect("compiles").program
+    let flat = "primitive flat(float rect[4]; float z; varying float X, Y; inout varying fixed<32,32> Z)\n\
+                { bound(rect[0], rect[1], rect[2], rect[3]); Z = z; }\n";
+    common::library_with(sources, &[("copies.prim", COPIES), ("flat.prim", flat)])
 }
 
 fn depth(program: &Arc<Program>, prim: &str, param: (&str, f32), tier: Tier) -> u32 {

@@ -5,13 +5,15 @@
 //! group's last value into the next. Every case renders with both tiers, checks every pixel
 //! of the rectangle against the value one pixel computes alone, and compares the tiers.
 
+mod common;
+
 use std::sync::Arc;
 
 use primflow::bench::same_frame;
-use primflow::diag::{Diagnostics, SourceMap};
+use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
-use primflow::runtime::{Frame, Registry, Renderer, Value};
+use primflow::runtime::{Frame, Renderer, Value};
 
 /// Three ways a uniform local is assigned in the pixel part: a top-level `for` whose
 /// `i = 0` the split hoists into the setup (it is uniform and nothing before it in the
@@ -49,12 +51,7 @@ primitive counters(
 "#;
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    let mut diags = Diagnostics::new();
-    let (mut files, _) = Registry::load_sources(sources, &[], &[], &mut diags);
-    files.push(sources.add("counters.prim", COUNTERS));
-    let reg = Registry::compile(sources, files, &mut diags);
-    assert!(!diags.has_errors(), "{}", diags.render(sources));
-    reg.expect("compiles").program
+    common::library_with(sources, &[("counters.prim", COUNTERS)])
 }
 
 fn render(program: &Arc<Program>, tier: Tier, rect: [f32; 4], form: i32, n: i32, k: i32) -> Frame {

@@ -10,10 +10,10 @@ use common::*;
 
 use std::sync::Arc;
 
-use primflow::diag::{Diagnostics, SourceMap};
+use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
-use primflow::runtime::{Frame, Registry, Renderer, Value};
+use primflow::runtime::{Frame, Renderer, Value};
 
 const USER_PRIMS: &str = r#"
 // A rectangle `r2` of depth `depth`, bound by `r1` first and then, when `widen` is set,
@@ -79,14 +79,7 @@ primitive corner(int axis; float k; float k2; float depth;
 "#;
 
 fn library_with_user_prims() -> Arc<Program> {
-    let mut sources = SourceMap::new();
-    let mut diags = Diagnostics::new();
-    let (mut files, _) = Registry::load_sources(&mut sources, &[], &[], &mut diags);
-    files.push(sources.add("user.prim", USER_PRIMS));
-    match Registry::compile(&sources, files, &mut diags) {
-        Some(reg) => reg.program,
-        None => panic!("user prims do not compile:\n{}", diags.render(&sources)),
-    }
+    library_with(&mut SourceMap::new(), &[("user.prim", USER_PRIMS)])
 }
 
 fn jits(program: &Arc<Program>) -> Vec<(&'static str, Jit)> {

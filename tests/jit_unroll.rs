@@ -4,13 +4,15 @@
 //! source sites) with unrolling on and off, and unrolling must actually remove the loops'
 //! code.
 
+mod common;
+
 use std::sync::Arc;
 
 use primflow::bench::same_frame;
-use primflow::diag::{Diagnostics, SourceMap};
+use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, JitOptions, Tier};
-use primflow::runtime::{Registry, Renderer, Value};
+use primflow::runtime::{Renderer, Value};
 
 const LOOPS: &str = r#"
 primitive loops(
@@ -50,12 +52,7 @@ primitive loops(
 "#;
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    let mut diags = Diagnostics::new();
-    let (mut files, _) = Registry::load_sources(sources, &[], &[], &mut diags);
-    files.push(sources.add("loops.prim", LOOPS));
-    let reg = Registry::compile(sources, files, &mut diags);
-    assert!(!diags.has_errors(), "{}", diags.render(sources));
-    reg.expect("compiles").program
+    common::library_with(sources, &[("loops.prim", LOOPS)])
 }
 
 fn scene(program: &Arc<Program>, n: i32, spin: i32, over: i32) -> Renderer {

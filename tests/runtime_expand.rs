@@ -12,11 +12,11 @@ use common::*;
 
 use std::sync::Arc;
 
-use primflow::diag::{Diagnostics, SourceMap};
+use primflow::diag::SourceMap;
 use primflow::handwritten::{Flavor, Handwritten};
 use primflow::ir::Program;
 use primflow::jit::Jit;
-use primflow::runtime::{KernelSource, Registry, RenderOutput, Renderer, Value};
+use primflow::runtime::{KernelSource, RenderOutput, Renderer, Value};
 
 /// User primitives (drawn through screen_triangle calls).
 const USER_PRIMS: &str = r#"
@@ -88,14 +88,7 @@ primitive tri_and_rect(float rect[4]; float depth;
 
 /// The library plus [`USER_PRIMS`].
 fn library_with_user_prims() -> Arc<Program> {
-    let mut sources = SourceMap::new();
-    let mut diags = Diagnostics::new();
-    let (mut files, _) = Registry::load_sources(&mut sources, &[], &[], &mut diags);
-    files.push(sources.add("user.prim", USER_PRIMS));
-    match Registry::compile(&sources, files, &mut diags) {
-        Some(reg) => reg.program,
-        None => panic!("user prims do not compile:\n{}", diags.render(&sources)),
-    }
+    library_with(&mut SourceMap::new(), &[("user.prim", USER_PRIMS)])
 }
 
 /// Render `r` with `source` on `threads` threads, expansion on or off.
@@ -217,19 +210,9 @@ fn polygons_through_the_hither_plane_are_bit_identical_expanded() {
     }
 }
 
-/// Two 4 x 4 bicubic patches sharing their middle column (as in tests/handwritten_shapes.rs).
+/// Two 4 x 4 bicubic patches sharing their middle column ([`shared_column_patches`]).
 fn shared_edge_patches(r: &mut Renderer) {
-    let shared = [(0.1, 0.0), (-0.3, 0.4), (0.4, -0.2), (0.0, 0.1)];
-    let (mut left, mut right) = (vec![], vec![]);
-    for (j, &(dx, dz)) in shared.iter().enumerate() {
-        let y = -1.5 + j as f64;
-        for i in 0..4 {
-            let t = i as f64 / 3.0;
-            let bump = if i == 1 || i == 2 { 0.6 * (j as f64 - 1.5) } else { 0.0 };
-            left.push([-3.0 + (3.0 + dx) * t, y, -8.0 + dz * t + bump]);
-            right.push([dx + (3.0 - dx) * t, y, -8.0 + dz * (1.0 - t) - 0.5 * bump]);
-        }
-    }
+    let [left, right] = shared_column_patches();
     for net in [left, right] {
         r.begin("nurb_surface").unwrap();
         r.rast_param("tolerance", &Value(vec![0.5])).unwrap();

@@ -19,6 +19,19 @@ pub fn library() -> Arc<Program> {
     }
 }
 
+/// The built-in library plus the user primitive sources `(file name, text)`, compiled into
+/// one program (panics with the rendered diagnostics if it does not compile). The sources
+/// land in `sources`, so a test can render warnings against them.
+pub fn library_with(sources: &mut SourceMap, user: &[(&str, &str)]) -> Arc<Program> {
+    let mut diags = Diagnostics::new();
+    let (mut files, _) = Registry::load_sources(sources, &[], &[], &mut diags);
+    files.extend(user.iter().map(|&(name, text)| sources.add(name, text)));
+    match Registry::compile(sources, files, &mut diags) {
+        Some(reg) if !diags.has_errors() => reg.program,
+        _ => panic!("user prims do not compile:\n{}", diags.render(sources)),
+    }
+}
+
 pub fn renderer(program: &Arc<Program>, width: u32, height: u32, count_writes: bool) -> Renderer {
     let mut r = Renderer::new(program.clone());
     r.set_image_size(width, height).unwrap();
@@ -111,4 +124,21 @@ impl Lcg {
     pub fn grid(&mut self, lo: f64, hi: f64) -> f64 {
         (self.range(lo, hi) * 16.0).floor() / 16.0
     }
+}
+
+/// The control points of two 4 x 4 bicubic patches side by side sharing their curved middle
+/// column (the same points along it; different interiors).
+pub fn shared_column_patches() -> [Vec<[f64; 3]>; 2] {
+    let shared = [(0.1, 0.0), (-0.3, 0.4), (0.4, -0.2), (0.0, 0.1)];
+    let (mut left, mut right) = (vec![], vec![]);
+    for (j, &(dx, dz)) in shared.iter().enumerate() {
+        let y = -1.5 + j as f64;
+        for i in 0..4 {
+            let t = i as f64 / 3.0;
+            let bump = if i == 1 || i == 2 { 0.6 * (j as f64 - 1.5) } else { 0.0 };
+            left.push([-3.0 + (3.0 + dx) * t, y, -8.0 + dz * t + bump]);
+            right.push([dx + (3.0 - dx) * t, y, -8.0 + dz * (1.0 - t) - 0.5 * bump]);
+        }
+    }
+    [left, right]
 }
