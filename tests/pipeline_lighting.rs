@@ -159,41 +159,7 @@ fn lighting_in_lc_equals_wc_and_lighting_in_dc_does_not() {
     );
     // The same in f32, in LC.
     let to32 = |v: [f64; 3]| v.map(|c| c as f32);
-    let lc32 = LightingSetup::<f32> {
-        front: Material {
-            ambient: to32(lc.front.ambient),
-            diffuse: to32(lc.front.diffuse),
-            specular: to32(lc.front.specular),
-            shininess: lc.front.shininess as f32,
-        },
-        back: Material {
-            ambient: to32(lc.back.ambient),
-            diffuse: to32(lc.back.diffuse),
-            specular: to32(lc.back.specular),
-            shininess: lc.back.shininess as f32,
-        },
-        ambient_light: to32(lc.ambient_light),
-        lights: lc
-            .lights
-            .iter()
-            .map(|l| Light {
-                kind: match l.kind {
-                    LightKind::Positional { position, attenuation } => LightKind::Positional {
-                        position: to32(position),
-                        attenuation: to32(attenuation),
-                    },
-                    LightKind::Directional { towards_light } => LightKind::Directional {
-                        towards_light: to32(towards_light),
-                    },
-                },
-                colour: to32(l.colour),
-            })
-            .collect(),
-        eye: match lc.eye {
-            Eye::Point(p) => Eye::Point(to32(p)),
-            Eye::Direction(d) => Eye::Direction(to32(d)),
-        },
-    };
+    let lc32 = lc.to_f32();
     let (mut worst_lc, mut worst_lc32) = (0.0f64, 0.0f64);
     for &(p, n) in &ex.samples {
         let c_wc = wc.shade(&Sample {

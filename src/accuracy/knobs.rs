@@ -850,41 +850,6 @@ fn lighting_setup(eye: Eye<f64>, light: [f64; 3]) -> LightingSetup<f64> {
     }
 }
 
-fn to_f32(s: &LightingSetup<f64>) -> LightingSetup<f32> {
-    let v = |a: [f64; 3]| a.map(|c| c as f32);
-    let m = |m: &Material<f64>| Material {
-        ambient: v(m.ambient),
-        diffuse: v(m.diffuse),
-        specular: v(m.specular),
-        shininess: m.shininess as f32,
-    };
-    LightingSetup {
-        front: m(&s.front),
-        back: m(&s.back),
-        ambient_light: v(s.ambient_light),
-        lights: s
-            .lights
-            .iter()
-            .map(|l| Light {
-                kind: match l.kind {
-                    LightKind::Positional { position, attenuation } => LightKind::Positional {
-                        position: v(position),
-                        attenuation: v(attenuation),
-                    },
-                    LightKind::Directional { towards_light } => LightKind::Directional {
-                        towards_light: v(towards_light),
-                    },
-                },
-                colour: v(l.colour),
-            })
-            .collect(),
-        eye: match s.eye {
-            Eye::Point(p) => Eye::Point(v(p)),
-            Eye::Direction(d) => Eye::Direction(v(d)),
-        },
-    }
-}
-
 /// Where per-vertex lighting happens.
 #[derive(Clone, Copy, Debug)]
 enum LightSpace {
@@ -944,14 +909,14 @@ fn lighting_knob<'a>(quick: bool) -> Knob<'a> {
         // state change); the per-vertex work happens per frame, in f32.
         let (setup, point_from_world, normal_from_world, divide): (LightingSetup<f32>, DMat4, DMat4, bool) = match space
         {
-            LightSpace::World => (to_f32(&wc64), DMat4::IDENTITY, DMat4::IDENTITY, false),
+            LightSpace::World => (wc64.to_f32(), DMat4::IDENTITY, DMat4::IDENTITY, false),
             LightSpace::Lighting => {
                 let e = lighting_from_world;
                 let s = lighting_setup(
                     Eye::Point(e.transform_point3(eye).to_array()),
                     e.transform_point3(light).to_array(),
                 );
-                (to_f32(&s), e, e.inverse().transpose(), false)
+                (s.to_f32(), e, e.inverse().transpose(), false)
             }
             LightSpace::Device => {
                 // Points through V and the divide; normals as tangent planes through V^-T;
@@ -959,7 +924,7 @@ fn lighting_knob<'a>(quick: bool) -> Knob<'a> {
                 let v = clip_from_world;
                 let h = v * light.extend(1.0);
                 let s = lighting_setup(Eye::Direction([0.0, 0.0, 1.0]), (h.truncate() / h.w).to_array());
-                (to_f32(&s), v, v.inverse().transpose(), true)
+                (s.to_f32(), v, v.inverse().transpose(), true)
             }
         };
         let point_m = point_from_world.as_mat4();

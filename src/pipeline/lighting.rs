@@ -145,6 +145,44 @@ impl<T: Real> LightingSetup<T> {
     }
 }
 
+impl LightingSetup<f64> {
+    /// The same setup rounded to f32 (what an f32 shading path is handed).
+    pub fn to_f32(&self) -> LightingSetup<f32> {
+        let v = |a: [f64; 3]| a.map(|c| c as f32);
+        let m = |m: &Material<f64>| Material {
+            ambient: v(m.ambient),
+            diffuse: v(m.diffuse),
+            specular: v(m.specular),
+            shininess: m.shininess as f32,
+        };
+        LightingSetup {
+            front: m(&self.front),
+            back: m(&self.back),
+            ambient_light: v(self.ambient_light),
+            lights: self
+                .lights
+                .iter()
+                .map(|l| Light {
+                    kind: match l.kind {
+                        LightKind::Positional { position, attenuation } => LightKind::Positional {
+                            position: v(position),
+                            attenuation: v(attenuation),
+                        },
+                        LightKind::Directional { towards_light } => LightKind::Directional {
+                            towards_light: v(towards_light),
+                        },
+                    },
+                    colour: v(l.colour),
+                })
+                .collect(),
+            eye: match self.eye {
+                Eye::Point(p) => Eye::Point(v(p)),
+                Eye::Direction(d) => Eye::Direction(v(d)),
+            },
+        }
+    }
+}
+
 #[inline]
 fn mul3<T: Real>(a: V3<T>, b: V3<T>) -> V3<T> {
     [a[0] * b[0], a[1] * b[1], a[2] * b[2]]
