@@ -82,12 +82,27 @@ primitive sum_select(float rect[4]; int lo, hi; varying float X, Y; inout varyin
         s = s + (i < hi ? a[i] : 0);
     Z = s;
 }}
+
+primitive sum_window(float rect[4]; int k, p; varying float X, Y; inout varying fixed<32,32> Z)
+{{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    if (p < 0 || p >= {len} || k >= {len})
+        return;
+    float a[{len}] = {{{init}}};
+    float s = 0;
+    for (int j = 0; j <= p; j++)
+        s = s + a[k - p + j];
+    Z = s;
+}}
 "#
     )
 }
 
 /// Line and column of the index in `s = s + a[i]` in `sum_free` (the site its error names).
 const FREE_SITE: &str = "W0801@32:19";
+/// The index `k - p + j` in `sum_window`: in range exactly when `k >= p` (a relation
+/// between two variables, which the interval analysis cannot prove).
+const WINDOW_SITE: &str = "W0801@64:19";
 
 fn library(sources: &mut SourceMap, len: usize) -> Arc<Program> {
     let mut diags = Diagnostics::new();
@@ -223,6 +238,30 @@ fn loops_at_the_edges_of_their_arrays_read_clamped_values_and_report_errors() {
                     } else {
                         assert_eq!(got, want, "{prim} {case}");
                     }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn a_window_below_the_array_reads_clamped_values_and_reports_its_index_site() {
+    for len in [2usize, 4] {
+        let mut sources = SourceMap::new();
+        let program = library(&mut sources, len);
+        let l = len as i64;
+        for k in -1..l {
+            for p in 0..l {
+                // a[k - p + j] for j in 0..=p: the window [k - p, k], clamped.
+                let (sum, bad) = reference(len, k - p, k + 1);
+                let params = [("k", k as f32), ("p", p as f32)];
+                for tier in [Tier::Fast, Tier::Optimised] {
+                    let case = format!("len={len} k={k} p={p} {tier:?}");
+                    let (want, _) = run(&program, &sources, &scene(&program, "flat", &[("z", sum)]), tier);
+                    let (got, errors) = run(&program, &sources, &scene(&program, "sum_window", &params), tier);
+                    assert_eq!(got, want, "{case}");
+                    let expected: Vec<&str> = if bad { vec![WINDOW_SITE] } else { vec![] };
+                    assert_eq!(errors, expected, "{case}");
                 }
             }
         }
