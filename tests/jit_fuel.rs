@@ -6,13 +6,15 @@
 //! out depends on the trip counts), and a loop whose bound is an argument. A frame that does
 //! not run out must show the exact trip count.
 
+mod common;
+
 use std::sync::Arc;
 
 use primflow::abi::DEFAULT_FUEL;
-use primflow::diag::{Diagnostics, SourceMap};
+use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
-use primflow::runtime::{Registry, Renderer, Value};
+use primflow::runtime::{Renderer, Value};
 
 const LOOPS: &str = r#"
 primitive nested(float rect[4]; int n, m; varying float X, Y; inout varying fixed<32,32> Z)
@@ -44,12 +46,7 @@ const INNER: &str = "W0801@9:9";
 const FREE: &str = "W0801@19:5";
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    let mut diags = Diagnostics::new();
-    let (mut files, _) = Registry::load_sources(sources, &[], &[], &mut diags);
-    files.push(sources.add("fuel.prim", LOOPS));
-    let reg = Registry::compile(sources, files, &mut diags);
-    assert!(!diags.has_errors(), "{}", diags.render(sources));
-    reg.expect("compiles").program
+    common::library_with(sources, &[("fuel.prim", LOOPS)])
 }
 
 /// Depth at a pixel inside the rectangle and the run-time diagnostics, for each tier.
