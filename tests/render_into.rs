@@ -18,19 +18,19 @@ use primflow::runtime::{Frame, Renderer};
 fn assert_same(a: &Frame, b: &Frame, what: &str) {
     assert_eq!((a.width, a.height), (b.width, b.height), "{what}: size");
     assert_eq!(a.background, b.background, "{what}: background");
-    assert_eq!(a.depth, b.depth, "{what}: depth");
-    assert_eq!(a.planes.len(), b.planes.len(), "{what}: plane count");
-    for (p, (x, y)) in a.planes.iter().zip(&b.planes).enumerate() {
+    assert_eq!(a.depth_values(), b.depth_values(), "{what}: depth");
+    assert_eq!(a.num_planes(), b.num_planes(), "{what}: plane count");
+    for (p, (x, y)) in a.all_plane_values().iter().zip(&b.all_plane_values()).enumerate() {
         let bits = |v: &Vec<f32>| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(x), bits(y), "{what}: plane {p}");
     }
-    assert_eq!(a.write_counts, b.write_counts, "{what}: write counts");
+    assert_eq!(a.write_count_values(), b.write_count_values(), "{what}: write counts");
     assert_eq!(a.params, b.params, "{what}: parameters");
     let bits = |c: &Option<Vec<[f32; 3]>>| {
         c.as_ref()
             .map(|c| c.iter().map(|p| p.map(f32::to_bits)).collect::<Vec<_>>())
     };
-    assert_eq!(bits(&a.colors), bits(&b.colors), "{what}: colours");
+    assert_eq!(bits(&a.color_values()), bits(&b.color_values()), "{what}: colours");
 }
 
 /// 100 x 70 in 16 px tiles (edge tiles cut, widths not a multiple of the group), two
@@ -106,11 +106,11 @@ fn rendering_twice_into_one_frame_gives_the_fresh_frame() {
     let mut frame = Frame::empty();
     into(&r, &mut jit, &one, &mut frame);
     assert_same(&frame, &reference, "first render into an empty frame");
-    let depth_ptr = frame.depth.as_ptr();
+    let depth_ptr = frame.depth_buffer().as_ptr();
     into(&r, &mut jit, &one, &mut frame);
     assert_same(&frame, &reference, "second render into the same frame");
     assert_eq!(
-        frame.depth.as_ptr(),
+        frame.depth_buffer().as_ptr(),
         depth_ptr,
         "the depth buffer was reused, not reallocated"
     );
@@ -126,8 +126,8 @@ fn a_frame_left_by_another_scene_is_reshaped_and_fully_overwritten() {
         let lit = lit_scene(&program, kernel);
         let sparse_ref = fresh(&sparse, &mut jit, &one);
         let lit_ref = fresh(&lit, &mut jit, &one);
-        assert!(lit_ref.colors.is_some() && lit_ref.write_counts.is_some());
-        assert_eq!(lit_ref.planes.len(), 8);
+        assert!(lit_ref.is_shaded() && lit_ref.write_count_values().is_some());
+        assert_eq!(lit_ref.num_planes(), 8);
         assert_eq!(lit_ref.write_count_at(5, 5), Some(3), "three layers over every pixel");
         let mut frame = Frame::empty();
         // Bigger, more planes, counts and colours -> smaller, fewer, none -> back.
@@ -147,7 +147,7 @@ fn a_frame_left_by_another_scene_is_reshaped_and_fully_overwritten() {
         let mut sparse_lit = sparse_scene(&program);
         sparse_lit.shading_setup = lit.shading_setup.clone();
         let sparse_lit_ref = fresh(&sparse_lit, &mut jit, &one);
-        assert!(sparse_lit_ref.colors.is_some());
+        assert!(sparse_lit_ref.is_shaded());
         into(&sparse_lit, &mut jit, &one, &mut frame);
         assert_same(&frame, &sparse_lit_ref, "sparse lit scene after the lit one");
         assert_eq!(frame.shaded_at(90, 60), Some([0.0; 3]));
