@@ -1188,7 +1188,7 @@ fn spheres_lit() -> Workload {
 /// Per workload: JIT one thread, all threads, and the ratio; then llvmpipe's figures.
 fn format_scaling_and_llvmpipe(report: &BenchReport) -> String {
     let mut s = format!(
-        "thread scaling (JIT, median ms per whole frame: bound pass, tile kernels, copy into the frame, and the \
+        "thread scaling (JIT, median ms per whole frame: bound pass, tile clears and kernels, and the \
          deferred shading pass where the scene has effects, as in `sphere lit`): 1 thread vs {} threads\n",
         report.threads
     );
