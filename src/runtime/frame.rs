@@ -22,7 +22,7 @@
 //!    tile task first zeroes its own rectangle of every buffer (cache-hot for its draws),
 //!    then runs its draws in order in `MODE_RENDER` with fresh fuel each; a tile no draw
 //!    touches is zeroed only. Tiles are disjoint, including the padding columns the rightmost
-//!    tiles' last groups reach into, so tasks write disjoint memory ([`FrameTarget`]). Every
+//!    tiles' last groups reach into, so tasks write disjoint memory (`FrameTarget`). Every
 //!    pixel is computed by one tile from the same zeroed start whatever the schedule, so the
 //!    result is bit-identical whatever the number of threads, no serial pass gathers the
 //!    tiles, and the frame's earlier contents never matter: [`Renderer::render_into`] reuses
@@ -86,7 +86,7 @@ pub struct ParamPlanes {
 ///
 /// Layout (private; the kernels render into it): every buffer is row-major from the
 /// top-left pixel with a row stride of [`row_stride`]`(width)` pixels, so a pixel group never
-/// straddles a row; pixel (x, y) is element `y * stride + x` ([`Frame::index`], the one place
+/// straddles a row; pixel (x, y) is element `y * stride + x` (`Frame::index`, the one place
 /// that says so) of the depth, write-count and colour buffers and of each plane, and the
 /// planes follow each other `stride * height` elements apart in one buffer. The padding
 /// columns (`width..stride`) hold nothing anyone reads.
