@@ -54,7 +54,7 @@ fn main() -> Result<(), String> {
                 let out = pool.install(|| scene.render(&mut jit));
                 if round == 0 {
                     // Warm-up (compiles the kernel); keep the colours to compare.
-                    colours[i] = out.frame.colors.clone().unwrap_or_default();
+                    colours[i] = out.frame.color_values().unwrap_or_default();
                 } else {
                     times[i].push(out.stats.shade_micros as f64 / 1e3);
                 }

@@ -10,7 +10,7 @@
 //! pays for allocating and faulting in fresh buffers (what `primflow bench` times); `fresh`
 //! calls `Renderer::render`, which returns a new frame every time. Prints, per way and
 //! thread count, the median and minimum frame time and the median setup (compile lookup,
-//! bound pass, binning: serial), tiles (tile kernels and the copy into the frame: parallel)
+//! bound pass, binning: serial), tiles (tile clears and kernels, straight into the frame: parallel)
 //! and shading times, then the 2-thread / 1-thread ratios. Run it when the machine is idle:
 //! on a shared 2-core machine any other process takes one of the two cores.
 

@@ -3,9 +3,15 @@
 //!
 //! A kernel is `extern "C" fn(ctx: *mut TileCtx, args: *const u32)`. It touches only the
 //! memory these two point at: the argument block (read-only, `ArgLayout::words` long for the
-//! instance's sequence-point count) and the tile buffers the context names (each
-//! `stride * rows` long). Pixel groups are `GROUP` pixels of one row, and `stride` is a
-//! multiple of `GROUP`, so a group never straddles a row or the end of a buffer.
+//! instance's sequence-point count) and the tile's part of the buffers the context names.
+//! Pixel (x, y) of the tile is element `(y - y0) * stride + (x - x0)` from a buffer pointer
+//! (and from each plane's start, `plane_stride` elements apart); pixel groups are `GROUP`
+//! pixels of one row starting at `x0`, so the addressable elements are, for every row
+//! `y0..y1`, the columns from `x0` to `x1` rounded up to whole groups. The runtime points
+//! the buffers at the frame's own, at the tile's origin, with the frame's row stride: it
+//! keeps `x0` and `stride` multiples of `GROUP` and pads the frame's rows, so a group never
+//! straddles a row, two tiles never share a group, and a tile's last group (at a ragged
+//! right edge) stays inside the padded row (`runtime::frame`).
 //!
 //! A third mode, `MODE_EXPAND`, serves primitives that only call other primitives (no pixel
 //! code of their own, [`expands`]): the runtime runs such an instance once, its calls are
@@ -43,15 +49,18 @@ pub struct TileCtx {
     pub y1: i32,
     /// `MODE_BOUND` or `MODE_RENDER`.
     pub mode: u32,
-    /// Row stride of every tile buffer, in pixels (a multiple of `GROUP`).
+    /// Row stride of every buffer, in pixels (a multiple of `GROUP`).
     pub stride: u32,
-    /// Depth buffer, `fixed<32,32>` raw (unsigned fraction, larger is nearer), row-major.
+    /// Depth buffer at pixel (x0, y0), `fixed<32,32>` raw (unsigned fraction, larger is
+    /// nearer), row-major.
     pub depth: *mut u32,
-    /// Shading-parameter planes, `num_planes` of `stride * rows` floats each.
+    /// Shading-parameter plane 0 at pixel (x0, y0); plane `p` starts `p * plane_stride`
+    /// floats further, `num_planes` planes, each laid out like `depth`.
     pub gbuf: *mut f32,
     pub plane_stride: u32,
     pub num_planes: u32,
-    /// Per-pixel count of depth writes (only written by kernels whose key counts writes).
+    /// Per-pixel count of depth writes at pixel (x0, y0), laid out like `depth` (only
+    /// touched by kernels whose key counts writes; may be null otherwise).
     pub write_count: *mut u32,
     /// In bound mode: union of the bounds recorded so far (xmin, ymin, xmax, ymax).
     pub bound: [f32; 4],

@@ -11,13 +11,13 @@ const W: u32 = 64;
 const H: u32 = 48;
 
 fn no_nan_or_inf(frame: &Frame) {
-    for (p, plane) in frame.planes.iter().enumerate() {
+    for (p, plane) in frame.all_plane_values().iter().enumerate() {
         assert!(plane.iter().all(|v| v.is_finite()), "plane {p} has a NaN or inf");
     }
 }
 
 fn covered(frame: &Frame) -> usize {
-    frame.depth.iter().filter(|&&d| d != 0).count()
+    frame.depth_values().iter().filter(|&&d| d != 0).count()
 }
 
 /// Camera at the origin looking down -z, 90 degree fov, near 1, far 100.
@@ -408,7 +408,7 @@ fn projective_model_non_factorizable_view_and_double_pyramid_are_named_and_survi
         let frame = common::render(&r, 1);
         no_nan_or_inf(&frame);
         assert!(
-            frame.write_counts.as_ref().unwrap().iter().all(|&c| c <= 1),
+            frame.write_count_values().unwrap().iter().all(|&c| c <= 1),
             "{expected}: a pixel written twice"
         );
     }

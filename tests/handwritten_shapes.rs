@@ -16,11 +16,20 @@ use primflow::jit::Jit;
 use primflow::runtime::{Frame, Renderer, Value};
 
 fn frames_equal(a: &Frame, b: &Frame, what: &str) {
-    let depth_diff = a.depth.iter().zip(&b.depth).filter(|(x, y)| x != y).count();
+    let depth_diff = a
+        .depth_values()
+        .iter()
+        .zip(&b.depth_values())
+        .filter(|(x, y)| x != y)
+        .count();
     assert_eq!(depth_diff, 0, "{what}: depth differs in {depth_diff} pixels");
-    assert_eq!(a.write_counts, b.write_counts, "{what}: write counts differ");
-    assert_eq!(a.planes.len(), b.planes.len());
-    for (p, (pa, pb)) in a.planes.iter().zip(&b.planes).enumerate() {
+    assert_eq!(
+        a.write_count_values(),
+        b.write_count_values(),
+        "{what}: write counts differ"
+    );
+    assert_eq!(a.num_planes(), b.num_planes());
+    for (p, (pa, pb)) in a.all_plane_values().iter().zip(&b.all_plane_values()).enumerate() {
         let differing = pa.iter().zip(pb).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
         assert_eq!(differing, 0, "{what}: plane {p} differs in {differing} pixels");
     }
@@ -45,7 +54,7 @@ fn jit_and_handwritten_agree(program: &Arc<Program>, r: &Renderer, what: &str) -
 }
 
 fn written(frame: &Frame) -> usize {
-    frame.write_counts.as_ref().unwrap().iter().filter(|&&c| c > 0).count()
+    frame.write_count_values().unwrap().iter().filter(|&&c| c > 0).count()
 }
 
 fn sphere(r: &mut Renderer, center: [f32; 3], radius: f32) {
@@ -97,7 +106,7 @@ fn sphere_jit_and_handwritten_agree_bit_for_bit() {
         assert!(covered > 3000, "only {covered} pixels covered");
         // The sphere around the eye plane covers part of the view near the centre, in front
         // of everything else; the hither-cut one shows its far side elsewhere.
-        assert!(frame.write_counts.as_ref().unwrap().iter().any(|&c| c >= 2));
+        assert!(frame.write_count_values().unwrap().iter().any(|&c| c >= 2));
         // Pixels on the right and left columns come from the grazing spheres.
         assert!((0..72).any(|y| frame.written(95, y)));
         assert!((0..72).any(|y| frame.written(0, y)));
@@ -167,7 +176,7 @@ fn nurb_patches_sharing_an_edge_agree_bit_for_bit() {
         nurb_patch(&mut r, &right, 0.25, data);
         assert!(r.take_warnings().is_empty());
         let frame = jit_and_handwritten_agree(&program, &r, &format!("two patches, normal {normal}, data {data}"));
-        let counts = frame.write_counts.as_ref().unwrap();
+        let counts = frame.write_count_values().unwrap();
         assert!(written(&frame) > 1500, "only {} pixels", written(&frame));
         // The shared edge is crack-free and written once (the patches do not overlap).
         assert!(counts.iter().all(|&c| c <= 1), "a pixel written twice");
@@ -210,5 +219,5 @@ fn unsupported_keys_are_refused_not_guessed() {
     let mut hand = Handwritten::new(program.clone(), Flavor::Scalar);
     let out = r.render(&mut hand);
     assert!(out.diags.has_errors(), "a sphere key with two bindings must be refused");
-    assert!(out.frame.depth.iter().all(|&d| d == 0));
+    assert!(out.frame.depth_values().iter().all(|&d| d == 0));
 }

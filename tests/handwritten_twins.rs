@@ -7,9 +7,13 @@ use primflow::handwritten::{Flavor, Handwritten};
 use primflow::runtime::{Frame, Renderer, Value};
 
 fn frames_equal(a: &Frame, b: &Frame, what: &str) {
-    assert_eq!(a.depth, b.depth, "{what}: depth differs");
-    assert_eq!(a.write_counts, b.write_counts, "{what}: write counts differ");
-    for (p, (pa, pb)) in a.planes.iter().zip(&b.planes).enumerate() {
+    assert_eq!(a.depth_values(), b.depth_values(), "{what}: depth differs");
+    assert_eq!(
+        a.write_count_values(),
+        b.write_count_values(),
+        "{what}: write counts differ"
+    );
+    for (p, (pa, pb)) in a.all_plane_values().iter().zip(&b.all_plane_values()).enumerate() {
         let differing = pa.iter().zip(pb).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
         assert_eq!(differing, 0, "{what}: plane {p} differs in {differing} pixels");
     }
@@ -63,7 +67,7 @@ fn screen_triangle_jit_and_handwritten_agree_bit_for_bit() {
             screen_triangle(&mut r, v, &params);
         }
         let jit = render(&r, 2);
-        assert!(jit.depth.iter().filter(|&&d| d != 0).count() > 5000);
+        assert!(jit.depth_values().iter().filter(|&&d| d != 0).count() > 5000);
         for flavor in [Flavor::Scalar, Flavor::Sse, Flavor::Avx2] {
             let mut hand = Handwritten::new(program.clone(), flavor);
             let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
@@ -183,7 +187,7 @@ fn sse_screen_triangle_matches_jit_bit_for_bit() {
         // conversion), over everything.
         quad(&mut r, &mut rng, (fw / 3.0).floor(), 1.0, &mut submit);
         let jit = render(&r, 2);
-        let saturated = jit.depth.iter().filter(|&&d| d == u32::MAX).count();
+        let saturated = jit.depth_values().iter().filter(|&&d| d == u32::MAX).count();
         assert_eq!(saturated as u32, (w / 3) * h, "the depth-1 strip covers the left third");
         let hand = render_handwritten(&r, Flavor::Sse, 2);
         frames_equal(
@@ -192,7 +196,7 @@ fn sse_screen_triangle_matches_jit_bit_for_bit() {
             &format!("{persp}+{lin}, counts {count_writes}, {}", Flavor::Sse.describe()),
         );
         if count_writes {
-            let writes: u64 = hand.write_counts.as_ref().unwrap().iter().map(|&c| u64::from(c)).sum();
+            let writes: u64 = hand.write_count_values().unwrap().iter().map(|&c| u64::from(c)).sum();
             assert!(writes > 3 * u64::from(w * h), "{writes} depth writes");
         }
     }
@@ -293,7 +297,7 @@ fn handwritten_polygon_matches_jit_bit_for_bit() {
             "{trivially_accepted} accepted, {clipped} with clipping"
         );
         let jit = render(&r, 2);
-        let covered = jit.depth.iter().filter(|&&d| d != 0).count();
+        let covered = jit.depth_values().iter().filter(|&&d| d != 0).count();
         assert!(covered > 3000, "{covered} pixels covered");
         for flavor in [Flavor::Scalar, Flavor::Sse, Flavor::Avx2] {
             let hand = render_handwritten(&r, flavor, 2);

@@ -70,7 +70,7 @@ fn depth(program: &Arc<Program>, prim: &str, param: (&str, f32), tier: Tier) -> 
         "{:?}",
         out.diags.items
     );
-    out.frame.depth[8 * 16 + 8]
+    out.frame.depth_at(8, 8).unwrap()
 }
 
 #[test]

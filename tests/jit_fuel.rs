@@ -70,7 +70,7 @@ fn run(prim: &str, params: &[(&str, f32)]) -> Vec<(u32, Vec<String>)> {
             assert!(!out.diags.has_errors(), "{:?}", out.diags.items);
             let mut codes = out.diags.codes_at(&sources);
             codes.dedup();
-            (out.frame.depth[3 * 8 + 3], codes)
+            (out.frame.depth_at(3, 3).unwrap(), codes)
         })
         .collect()
 }

@@ -133,7 +133,7 @@ fn run(program: &Arc<Program>, sources: &SourceMap, r: &Renderer, tier: Tier) ->
     assert!(!out.diags.has_errors(), "{:?}", out.diags.items);
     let mut codes = out.diags.codes_at(sources);
     codes.dedup();
-    (out.frame.depth[5 * 24 + 8], codes)
+    (out.frame.depth_at(8, 5).unwrap(), codes)
 }
 
 /// What the language says a loop over [lo, hi) reads: each index clamped into the array,

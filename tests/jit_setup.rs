@@ -130,7 +130,7 @@ fn a_bound_after_the_first_still_widens_the_primitive() {
         two_bounds(&mut r, r1, r2, true, false, 0.5);
         let frame = render_with(&r, &mut jit, 1);
         assert_eq!(written_pixels(&frame, w, h), centres_in(r2, w, h), "{name}: widened");
-        let counts = frame.write_counts.as_ref().expect("counted");
+        let counts = frame.write_count_values().expect("counted");
         assert!(counts.iter().all(|&c| c <= 1), "{name}: a pixel written twice");
 
         // Not widened: only what r1 and r2 share (the pass rectangle is r1's).
@@ -220,7 +220,7 @@ fn block_facts_take_one_side_of_a_uniform_if_and_match_every_pixel() {
                     expected,
                     "{name}: axis {axis}, k {k}, k2 {k2}"
                 );
-                let counts = frame.write_counts.as_ref().expect("counted");
+                let counts = frame.write_count_values().expect("counted");
                 assert!(counts.iter().all(|&c| c <= 1), "{name}: a pixel written twice");
             }
         }

@@ -168,7 +168,7 @@ fn jit(program: &Arc<Program>, tier: Tier) -> Jit {
 }
 
 fn written(f: &Frame) -> usize {
-    f.depth.iter().filter(|&&d| d != 0).count()
+    f.depth_values().iter().filter(|&&d| d != 0).count()
 }
 
 /// Render `r` with both tiers: the frame and the run-time error codes must agree.
@@ -414,6 +414,6 @@ fn flat_pixel_code_keeps_a_varying_local_set_in_the_setup() {
     assert!(codes.is_empty(), "{codes:?}");
     assert_eq!(written(&frame), 35 * 18);
     // X <= 10 keeps 0.25 (+ Y * 0.0001), in fixed<32,32>: the pixel (5, 7).
-    let z = frame.depth[7 * 40 + 5] as f64 / 4294967296.0;
+    let z = f64::from(frame.depth_at(5, 7).unwrap()) / 4294967296.0;
     assert!((z - (0.25 + 7.5 * 0.0001)).abs() < 1e-6, "{z}");
 }

@@ -39,7 +39,7 @@ fn render(r: &Renderer, source: &mut dyn KernelSource) -> Frame {
 }
 
 fn written_depths(f: &Frame) -> usize {
-    f.depth.iter().filter(|&&d| d != 0).count()
+    f.depth_values().iter().filter(|&&d| d != 0).count()
 }
 
 fn scenes(sources: &mut SourceMap, program: &Arc<Program>) -> Vec<(String, Renderer)> {
@@ -70,8 +70,8 @@ fn tier_0_and_tier_1_kernels_write_identical_frames() {
         let b = render(&r, &mut optimised);
         assert!(written_depths(&b) > 0, "{name}: the scene draws something");
         assert!(same_frame(&a, &b), "{name}: tier 0 and tier 1 frames differ");
-        assert_eq!(a.colors.is_some(), b.colors.is_some());
-        if let (Some(x), Some(y)) = (&a.colors, &b.colors) {
+        assert_eq!(a.is_shaded(), b.is_shaded());
+        if let (Some(x), Some(y)) = (a.color_values(), b.color_values()) {
             assert!(
                 x.iter()
                     .flatten()

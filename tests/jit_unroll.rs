@@ -98,7 +98,10 @@ fn unrolled_and_kept_loops_give_the_same_pixels_and_errors() {
                 frames.push(out.frame);
             }
         }
-        assert!(frames[0].depth.iter().filter(|&&d| d != 0).count() > 100, "draws");
+        assert!(
+            frames[0].depth_values().iter().filter(|&&d| d != 0).count() > 100,
+            "draws"
+        );
         for f in &frames[1..] {
             assert!(same_frame(&frames[0], f), "n={n} spin={spin}: frames differ");
         }

@@ -560,15 +560,25 @@ fn handwritten_kernels_map_the_normal_like_the_prim_bit_for_bit() {
             flavor.describe(),
             out.diags.items
         );
-        let depth_diff = jit.depth.iter().zip(&out.frame.depth).filter(|(a, b)| a != b).count();
+        let depth_diff = jit
+            .depth_values()
+            .iter()
+            .zip(&out.frame.depth_values())
+            .filter(|(a, b)| a != b)
+            .count();
         assert_eq!(
             depth_diff,
             0,
             "{}: depth differs in {depth_diff} pixels",
             flavor.describe()
         );
-        assert_eq!(jit.planes.len(), out.frame.planes.len());
-        for (p, (a, b)) in jit.planes.iter().zip(&out.frame.planes).enumerate() {
+        assert_eq!(jit.num_planes(), out.frame.num_planes());
+        for (p, (a, b)) in jit
+            .all_plane_values()
+            .iter()
+            .zip(&out.frame.all_plane_values())
+            .enumerate()
+        {
             let differing = a.iter().zip(b).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
             assert_eq!(
                 differing,

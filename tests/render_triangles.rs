@@ -211,11 +211,11 @@ fn same_scene_same_bytes_whatever_the_thread_count() {
     let one = render(&r, 1);
     let two = render(&r, 2);
     let four = render(&r, 4);
-    assert!(one.depth.iter().filter(|&&d| d != 0).count() > 10_000);
+    assert!(one.depth_values().iter().filter(|&&d| d != 0).count() > 10_000);
     for other in [&two, &four] {
-        assert_eq!(one.depth, other.depth);
-        assert_eq!(one.planes, other.planes);
-        assert_eq!(one.write_counts, other.write_counts);
+        assert_eq!(one.depth_values(), other.depth_values());
+        assert_eq!(one.all_plane_values(), other.all_plane_values());
+        assert_eq!(one.write_count_values(), other.write_count_values());
         assert_eq!(one.to_rgb8().into_raw(), other.to_rgb8().into_raw());
     }
 }

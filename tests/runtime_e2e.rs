@@ -89,7 +89,7 @@ fn the_example_scene_renders_identically_on_one_and_two_threads() {
     let (one, codes) = render_scene(&text, 1, false);
     assert!(codes.is_empty(), "{codes:?}");
     let (two, _) = render_scene(&text, 2, false);
-    assert_eq!(one.depth, two.depth);
+    assert_eq!(one.depth_values(), two.depth_values());
     assert_eq!(one.to_rgb8().into_raw(), two.to_rgb8().into_raw());
     // The near yellow triangle covers the far one; the constant one shows in its corner.
     assert!((one.depth_f32_at(250, 110).unwrap() - 0.6).abs() < 1e-6);
@@ -170,7 +170,7 @@ end
             renderer.options.height = renderer.options.height.min(32);
             let mut jit = Jit::new(registry.program.clone()).unwrap();
             let out = renderer.render(&mut jit);
-            prop_assert_eq!(out.frame.depth.len(), (out.frame.width * out.frame.height) as usize);
+            prop_assert_eq!(out.frame.depth_values().len(), (out.frame.width * out.frame.height) as usize);
             let _ = out.diags.render(&sources);
         }
     }

@@ -51,7 +51,9 @@ fn nearer_rect_wins_whatever_the_submission_order() {
 
 #[test]
 fn a_rect_across_tiles_covers_exactly_its_pixels() {
-    // Tile 5 is not a multiple of the group width: strides round up, edge tiles are cut.
+    // Tile 5 is not a multiple of the group width: the renderer rounds it up to 8 (tiles
+    // start on pixel groups of the frame's rows); 43 is not one either: the right edge tiles
+    // are cut, their last group reaching into the frame's padding.
     let (_s, mut r) = setup(43, 32, 5);
     rect(&mut r, [7.0, 8.0, 23.0, 19.0], 0.5, [1.0, 1.0, 1.0]);
     let out = render(&r);
@@ -65,8 +67,9 @@ fn a_rect_across_tiles_covers_exactly_its_pixels() {
         }
     }
     assert_eq!(covered, 16 * 11);
-    // Binned into the 4x4 tiles its pixels plus a one-pixel margin touch, of the 9x7.
-    assert_eq!(out.stats.tile_invocations, 16);
+    // Binned into the 4x3 tiles its pixels plus a one-pixel margin (x 5..=24, y 6..=20)
+    // touch, of the 6x4 8-pixel tiles.
+    assert_eq!(out.stats.tile_invocations, 12);
 }
 
 #[test]
@@ -89,9 +92,9 @@ fn output_is_bit_identical_for_one_and_two_threads() {
         pool.install(|| render(&r)).frame
     };
     let (one, two) = (run(1), run(2));
-    assert_eq!(one.depth, two.depth);
+    assert_eq!(one.depth_values(), two.depth_values());
     let bits = |f: &primflow::runtime::Frame| -> Vec<Vec<u32>> {
-        f.planes
+        f.all_plane_values()
             .iter()
             .map(|p| p.iter().map(|v| v.to_bits()).collect())
             .collect()
@@ -99,7 +102,7 @@ fn output_is_bit_identical_for_one_and_two_threads() {
     assert_eq!(bits(&one), bits(&two));
     assert_eq!(one.to_rgb8().into_raw(), two.to_rgb8().into_raw());
     assert!(
-        one.depth.iter().filter(|&&d| d != 0).count() > 1000,
+        one.depth_values().iter().filter(|&&d| d != 0).count() > 1000,
         "the scene covers pixels"
     );
 }
@@ -213,7 +216,7 @@ fn out_of_range_options_set_directly_are_clamped_not_panics() {
     r.options.tile_size = 0;
     r.options.width = 0;
     let out = render(&r);
-    assert_eq!((out.frame.width, out.frame.depth.len()), (0, 0));
+    assert_eq!((out.frame.width, out.frame.depth_values().len()), (0, 0));
     r.options.width = 8;
     let out = render(&r);
     assert_eq!(out.frame.color_at(3, 3), [1.0, 0.0, 0.0], "tile side 0 is taken as 1");

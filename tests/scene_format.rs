@@ -225,7 +225,7 @@ proptest! {
         r.options.height = r.options.height.min(24);
         let mut kernels = TestKernels::new(r.program().clone());
         let out = r.render(&mut kernels);
-        prop_assert_eq!(out.frame.depth.len(), (r.options.width * r.options.height) as usize);
+        prop_assert_eq!(out.frame.depth_values().len(), (r.options.width * r.options.height) as usize);
         // Every diagnostic renders (spans inside the text).
         let _ = diags.render(&sources);
     }

@@ -206,7 +206,7 @@ fn a_scene_without_effects_runs_no_shading_and_shows_cs() {
     let mut jit = primflow::jit::Jit::new(r.program().clone()).unwrap();
     let out = r.render(&mut jit);
     assert!(!out.effects.any());
-    assert!(out.frame.colors.is_none(), "no shading pass ran");
+    assert!(!out.frame.is_shaded(), "no shading pass ran");
     assert_eq!(out.frame.color_at(W / 2, H / 2), [0.25, 0.5, 0.75]);
 }
 

@@ -36,26 +36,34 @@ pub trait Buffers {
     fn value(&self, name: &str, c: usize, i: usize) -> f64;
 }
 
+/// Pixel `i` (row-major, `width` per row) as the frame's (x, y).
+fn pixel_of(frame: &Frame, i: usize) -> (u32, u32) {
+    let width = frame.width.max(1) as usize;
+    ((i % width) as u32, (i / width) as u32)
+}
+
 impl Buffers for Frame {
     fn size(&self) -> (u32, u32) {
         (self.width, self.height)
     }
     fn count(&self, i: usize) -> u32 {
-        match &self.write_counts {
-            Some(c) => c[i],
-            None => u32::from(self.depth[i] != 0),
-        }
+        let (x, y) = pixel_of(self, i);
+        self.write_count_at(x, y)
+            .unwrap_or_else(|| u32::from(self.written(x, y)))
     }
     fn covered(&self, i: usize) -> bool {
-        self.depth[i] != 0
+        let (x, y) = pixel_of(self, i);
+        self.written(x, y)
     }
     fn depth(&self, i: usize) -> f64 {
-        f64::from(self.depth[i]) / 4294967296.0
+        let (x, y) = pixel_of(self, i);
+        f64::from(self.depth_at(x, y).unwrap_or(0)) / 4294967296.0
     }
     fn value(&self, name: &str, c: usize, i: usize) -> f64 {
+        let (x, y) = pixel_of(self, i);
         self.param(name)
-            .and_then(|p| self.planes.get(p.first_plane as usize + c))
-            .map_or(0.0, |plane| f64::from(plane[i]))
+            .and_then(|p| self.plane_at(p.first_plane + c as u32, x, y))
+            .map_or(0.0, f64::from)
     }
 }
 

@@ -440,12 +440,7 @@ pub fn shape_scenes(
 
 /// Bit-for-bit equal depth and shading-parameter planes.
 pub fn same_frame(a: &Frame, b: &Frame) -> bool {
-    a.depth == b.depth
-        && a.planes.len() == b.planes.len()
-        && a.planes
-            .iter()
-            .zip(&b.planes)
-            .all(|(x, y)| x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits()))
+    a.same_buffers(b)
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -562,8 +557,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
         let counted = scene(&program, SIZE, w, true);
         let (frame, _) = render(&counted, &mut jit, &one)?;
         let pixels: u64 = frame
-            .write_counts
-            .as_ref()
+            .write_count_values()
             .map_or(0, |c| c.iter().map(|&x| x as u64).sum());
         bar.inc(2);
 
@@ -588,7 +582,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
             }
             bar.inc(5);
         }
-        if !frames.iter().all(|f| f.depth.is_empty() || same_frame(&reference, f)) {
+        if !frames.iter().all(|f| f.width == 0 || same_frame(&reference, f)) {
             return Err(format!("{}: a frame rendered into reused buffers differs", w.name));
         }
         let names = [
@@ -1007,7 +1001,7 @@ pub fn effects_series(
     for ((name, set), r) in EFFECT_SETS.iter().zip(&scenes) {
         let (single, _) = render_timed(r, &mut jit, one)?;
         let (multi, _) = render_timed(r, &mut jit, all)?;
-        if !same_frame(&single.frame, &multi.frame) || single.frame.colors != multi.frame.colors {
+        if !same_frame(&single.frame, &multi.frame) || single.frame.color_values() != multi.frame.color_values() {
             return Err(format!("effects {name}: the frame depends on the thread count"));
         }
         let colours = rendered_colours(&single.frame);
@@ -1215,7 +1209,7 @@ fn spheres_lit() -> Workload {
 fn format_scaling_and_llvmpipe(report: &BenchReport) -> String {
     let n = report.threads;
     let mut s = format!(
-        "thread scaling (JIT, ms per whole frame: bound pass, tile kernels, copy into the frame, and the \
+        "thread scaling (JIT, ms per whole frame: bound pass, tile clears and kernels, and the \
          deferred shading pass where the scene has effects, as in `sphere lit`): 1 thread vs {n} threads, \
          medians and fastest runs (on a shared machine, load on one core inflates the {n}-thread median most)\n\
          {:<36} {:>9} {:>9} {:>7}   {:>9} {:>9} {:>7}\n",

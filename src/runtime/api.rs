@@ -109,7 +109,10 @@ impl std::fmt::Display for ApiIssue {
 pub struct RenderOptions {
     pub width: u32,
     pub height: u32,
-    /// Tile side in pixels (tiles are square; edge tiles are cut by the image).
+    /// Tile side in pixels (tiles are square; edge tiles are cut by the image). A render
+    /// rounds it up to whole pixel groups (`frame::tile_side`: 5 renders as 8), because
+    /// kernels render straight into the frame, a group at a time, and tiles must not share
+    /// a group.
     pub tile_size: u32,
     /// Compile kernels that count depth writes per pixel (`Frame::write_count_at`).
     pub count_writes: bool,

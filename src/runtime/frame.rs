@@ -14,16 +14,20 @@
 //!    list of draw copies grouped by tile (a counting sort), so a tile task reads its draws
 //!    front to back and prefetches the next draw's arguments while a kernel runs.
 //! 3. Tiles render in parallel with rayon, one job per tile (so that the tiles spread evenly
-//!    over the threads). A tile task renders into its thread's scratch buffers (depth u32
-//!    with 0 = farthest, G-buffer planes f32, write counts; zeroed per tile, reused from tile
-//!    to tile and frame to frame), running its draws in order in `MODE_RENDER` with fresh
-//!    fuel each, then copies the tile into the frame through row slices it alone owns
-//!    (tiles are disjoint); a tile no draw touches zeroes its part of the frame instead,
-//!    which is what it would copy. Every pixel is computed by one tile from the same zeroed
-//!    start whatever the schedule, so the result is bit-identical whatever the number of
-//!    threads, no serial pass gathers the tiles, and the frame's earlier contents never
-//!    matter: [`Renderer::render_into`] reuses a caller's [`Frame`] (no allocation, no page
-//!    faults on fresh buffers) and [`Renderer::render`] is it on an empty frame.
+//!    over the threads), straight into the frame: the frame's buffers (depth u32 with 0 =
+//!    farthest, G-buffer planes f32 in one buffer, write counts) have a row stride of whole
+//!    pixel groups ([`row_stride`]), tiles start on group boundaries (the tile side is
+//!    rounded up to whole groups), and a tile's kernels get a context whose buffer pointers
+//!    point into the frame at the tile's origin, with the frame's row and plane strides. A
+//!    tile task first zeroes its own rectangle of every buffer (cache-hot for its draws),
+//!    then runs its draws in order in `MODE_RENDER` with fresh fuel each; a tile no draw
+//!    touches is zeroed only. Tiles are disjoint, including the padding columns the rightmost
+//!    tiles' last groups reach into, so tasks write disjoint memory (`FrameTarget`). Every
+//!    pixel is computed by one tile from the same zeroed start whatever the schedule, so the
+//!    result is bit-identical whatever the number of threads, no serial pass gathers the
+//!    tiles, and the frame's earlier contents never matter: [`Renderer::render_into`] reuses
+//!    a caller's [`Frame`] (no allocation, no page faults on fresh buffers) and
+//!    [`Renderer::render`] is it on an empty frame.
 //! 4. Kernel run-time errors become warnings at the failing site of the primitive source,
 //!    once per (site, error), in tile order.
 //!
@@ -54,9 +58,18 @@ use super::shading::{Effects, PixelInputs, RowInputs, Shader, ShadingKernel, Sha
 /// wide) that rayon's scheduling is noise, and still dozens of tasks per frame for two cores.
 const SHADE_BAND_ROWS: usize = 8;
 
-/// Tile buffer row stride for a tile `width` pixels wide: whole pixel groups.
-pub fn tile_stride(width: u32) -> u32 {
+/// Row stride, in pixels, of buffers `width` pixels wide: whole pixel groups. The frame's
+/// buffers use it (a tile's last group may run past the viewport's right edge, into the
+/// padding), and so does a tile's column range (its groups from `x0`).
+pub fn row_stride(width: u32) -> u32 {
     width.div_ceil(GROUP) * GROUP
+}
+
+/// The tile side a render uses for a requested `tile_size`: clamped to `1..=MAX_TILE_SIDE`
+/// and rounded up to whole pixel groups, so that every tile starts on a group of the
+/// frame's rows (its kernels write whole groups) and no two tiles share a group.
+pub fn tile_side(tile_size: u32) -> u32 {
+    row_stride(tile_size.clamp(1, MAX_TILE_SIDE))
 }
 
 /// A shading parameter's place in the frame's planes.
@@ -67,20 +80,33 @@ pub struct ParamPlanes {
     pub components: u32,
 }
 
-/// The rendered frame: depth, G-buffer planes and (when counted) depth-write counts, each
-/// `width * height`, row-major from the top-left pixel.
+/// The rendered frame: depth, G-buffer planes, (when counted) depth-write counts and (when
+/// shaded) colours, read through the accessors (`depth_at`, `plane_at`, `param_at`,
+/// `write_count_at`, `color_at`, the `*_values` copies and the images).
+///
+/// Layout (private; the kernels render into it): every buffer is row-major from the
+/// top-left pixel with a row stride of [`row_stride`]`(width)` pixels, so a pixel group never
+/// straddles a row; pixel (x, y) is element `y * stride + x` (`Frame::index`, the one place
+/// that says so) of the depth, write-count and colour buffers and of each plane, and the
+/// planes follow each other `stride * height` elements apart in one buffer. The padding
+/// columns (`width..stride`) hold nothing anyone reads.
 #[derive(Clone, Debug)]
 pub struct Frame {
     pub width: u32,
     pub height: u32,
     pub background: [f32; 3],
-    pub depth: Vec<u32>,
-    pub planes: Vec<Vec<f32>>,
-    pub write_counts: Option<Vec<u32>>,
     pub params: Vec<ParamPlanes>,
-    /// The deferred shading pass's colours (`None` when the scene turns no effect on and
-    /// covered pixels show `Cs`).
-    pub colors: Option<Vec<[f32; 3]>>,
+    /// Row stride of every buffer, in pixels (`row_stride(width)`).
+    stride: u32,
+    num_planes: u32,
+    /// `stride * height`.
+    depth: Vec<u32>,
+    /// `num_planes` planes of `stride * height`, one after the other.
+    planes: Vec<f32>,
+    write_counts: Option<Vec<u32>>,
+    /// The deferred shading pass's colours, `stride * height` (`None` when the scene turns
+    /// no effect on and covered pixels show `Cs`).
+    colors: Option<Vec<[f32; 3]>>,
 }
 
 /// What a render measured.
@@ -149,58 +175,66 @@ struct Tile {
     y1: u32,
 }
 
-/// A rayon worker's tile buffers, reused from tile to tile (cleared, not reallocated):
-/// depth (u32, 0 = farthest), G-buffer planes and write counts, each `stride * rows`.
-#[derive(Default)]
-struct TileScratch {
-    depth: Vec<u32>,
-    gbuf: Vec<f32>,
-    counts: Vec<u32>,
-}
-
-thread_local! {
-    /// This thread's tile buffers. Rayon's worker threads live as long as their pool, so a
-    /// worker reuses its buffers for every tile of every frame it renders: no allocation and
-    /// no fresh (page-faulting) memory per tile or per frame, and the buffers stay in the
-    /// core's cache. (`map_init` would not do this: with one job per tile it builds a new
-    /// scratch per tile.) A tile task borrows it for the whole tile and makes no rayon call
-    /// meanwhile, so no other task can run on this thread while it is borrowed.
-    static TILE_SCRATCH: std::cell::RefCell<TileScratch> = std::cell::RefCell::default();
-}
-
-/// Scratch capacity (elements per buffer) a thread keeps after a tile: a huge tile's buffers
-/// are given back rather than held for the thread's lifetime. 64 planes of a 128 x 128 tile.
-const SCRATCH_KEEP: usize = 128 * 128 * 64;
-
-/// Where one tile's pixels go in the frame: for every frame buffer, one mutable slice per
-/// tile row (`tile.x1 - tile.x0` long). Tiles are disjoint, so every tile task owns its
-/// slices and writes them while the others run.
-struct TileTarget<'f> {
-    depth: Vec<&'f mut [u32]>,
-    /// `[plane][row]`.
-    planes: Vec<Vec<&'f mut [f32]>>,
-    /// Empty when writes are not counted.
-    counts: Vec<&'f mut [u32]>,
-}
-
-/// Cut a `width`-wide row-major buffer into each tile's row slices, tiles in
-/// [`tile_grid`] order (row-major, `tile_size` square, cut at the right and bottom edges).
-fn tile_rows<T>(buf: &mut [T], width: usize, tile_size: usize, tiles: usize) -> Vec<Vec<&mut [T]>> {
-    let mut out: Vec<Vec<&mut [T]>> = (0..tiles).map(|_| Vec::with_capacity(tile_size)).collect();
-    if width == 0 || tile_size == 0 {
-        return out;
+impl Tile {
+    /// Columns of the tile's rectangle in every buffer, from `x0`: its pixels rounded up to
+    /// whole groups, which is what its kernels address. `x1 - x0` is a multiple of `GROUP`
+    /// except at the viewport's right edge, where the rounding reaches into the padding.
+    fn group_columns(&self) -> u32 {
+        row_stride(self.x1 - self.x0)
     }
-    let tiles_x = width.div_ceil(tile_size);
-    for (y, mut row) in buf.chunks_mut(width).enumerate() {
-        let first = (y / tile_size) * tiles_x;
-        for slot in out.iter_mut().skip(first).take(tiles_x) {
-            let len = tile_size.min(row.len());
-            let (piece, rest) = std::mem::take(&mut row).split_at_mut(len);
-            slot.push(piece);
-            row = rest;
+}
+
+/// The frame's buffers as the tile tasks write them: raw pointers taken from one `&mut`
+/// borrow of the frame (`'f`), held by no one else while the tiles render.
+///
+/// Invariant that makes the parallel writes sound: the task of tile `t` reads and writes
+/// only `t`'s rectangle of each buffer, rows `y0..y1` and columns `x0..x0 +
+/// group_columns()`; the tile grid cuts the padded frame into disjoint such rectangles
+/// (`x0` is a multiple of the tile side, itself a multiple of `GROUP`; only the rightmost
+/// tiles are rounded up, into padding no other tile has), so no element is touched by two
+/// tasks, and no `&mut` slice of a buffer exists while the tiles render. Every rectangle
+/// lies inside its buffer: `(y1 - 1) * stride + x0 + group_columns() <= height * stride`.
+#[derive(Clone, Copy)]
+struct FrameTarget<'f> {
+    depth: *mut u32,
+    planes: *mut f32,
+    /// Null when writes are not counted.
+    counts: *mut u32,
+    stride: usize,
+    /// Elements per plane (`stride * height`).
+    plane_len: usize,
+    num_planes: usize,
+    _frame: std::marker::PhantomData<&'f mut Frame>,
+}
+
+// SAFETY: the pointers are only dereferenced by tile tasks, each within its own tile's
+// rectangle (the invariant above), while the `&mut Frame` they come from is borrowed.
+unsafe impl Send for FrameTarget<'_> {}
+// SAFETY: as above: sharing the target between tasks shares no element.
+unsafe impl Sync for FrameTarget<'_> {}
+
+impl FrameTarget<'_> {
+    /// Zero `tile`'s rectangle of every buffer: what the tile's draws start from.
+    ///
+    /// # Safety
+    /// The caller is the task that owns `tile` (see the type's invariant).
+    unsafe fn clear(&self, tile: &Tile) {
+        let cols = tile.group_columns() as usize;
+        for y in tile.y0 as usize..tile.y1 as usize {
+            let at = y * self.stride + tile.x0 as usize;
+            // SAFETY: `at .. at + cols` is one row of the tile's rectangle, inside every
+            // buffer and owned by this task; all-zero bytes are 0 and +0.0.
+            unsafe {
+                std::ptr::write_bytes(self.depth.add(at), 0, cols);
+                if !self.counts.is_null() {
+                    std::ptr::write_bytes(self.counts.add(at), 0, cols);
+                }
+                for p in 0..self.num_planes {
+                    std::ptr::write_bytes(self.planes.add(p * self.plane_len + at), 0, cols);
+                }
+            }
         }
     }
-    out
 }
 
 impl Renderer {
@@ -226,9 +260,8 @@ impl Renderer {
 
     /// Render every instance submitted so far into `frame`, reusing its buffers: an
     /// application that renders frame after frame into the same `Frame` pays for no
-    /// allocation, no page fault and no clearing of the whole frame (every pixel is written
-    /// once, by the tile it lies in: rendered and copied, or zeroed when no draw touches the
-    /// tile). Whatever `frame` held before (another size, other planes, colours), the result
+    /// allocation, no page fault and no clearing of the whole frame (every tile zeroes its
+    /// own part of the frame right before its draws render into it). Whatever `frame` held before (another size, other planes, colours), the result
     /// is bit for bit the frame [`Renderer::render`] returns.
     pub fn render_into(&self, source: &mut dyn KernelSource, frame: &mut Frame) -> RenderReport {
         let started = Instant::now();
@@ -237,7 +270,7 @@ impl Renderer {
         let opts = &RenderOptions {
             width: self.options.width.min(MAX_IMAGE_SIDE),
             height: self.options.height.min(MAX_IMAGE_SIDE),
-            tile_size: self.options.tile_size.clamp(1, MAX_TILE_SIDE),
+            tile_size: tile_side(self.options.tile_size),
             ..self.options.clone()
         };
         let program = self.program().clone();
@@ -318,7 +351,8 @@ impl Renderer {
         let tiles_started = Instant::now();
         stats.setup_micros = micros_between(started, tiles_started);
 
-        // 3. Tiles in parallel, each copying itself into the frame; errors kept in tile order.
+        // 3. Tiles in parallel, each rendering into its own part of the frame; errors kept in
+        // tile order.
         let num_planes = self.num_planes();
         frame.reset(
             opts,
@@ -329,14 +363,15 @@ impl Renderer {
                 components: p.components,
             }),
         );
-        let targets = frame.tile_targets(tiles.len(), opts.tile_size);
+        let target = frame.target();
         let tile_errors: Vec<Vec<(usize, u32, u32)>> = tiles
             .par_iter()
             .zip(bins.slices().into_par_iter())
-            .zip(targets.into_par_iter())
             .with_max_len(1)
-            .map(|((tile, bin), target)| {
-                TILE_SCRATCH.with(|scratch| render_tile(tile, bin, num_planes, opts, &mut scratch.borrow_mut(), target))
+            .map(|(tile, bin)| {
+                // SAFETY: each tile is rendered by this one task (`tiles` holds each tile
+                // once), and `target` is the frame reset for this grid.
+                unsafe { render_tile(tile, bin, opts, target) }
             })
             .collect();
         errors.extend(tile_errors.into_iter().flatten());
@@ -579,50 +614,43 @@ impl<'a> Bins<'a> {
     }
 }
 
-/// Render one tile's draws into `scratch`, then copy the tile into the frame through
-/// `target`; returns the tile's run-time errors (instance, code, site) in order.
-fn render_tile(
+/// Zero `tile`'s part of the frame and render its draws into it; returns the tile's run-time
+/// errors (instance, code, site) in order.
+///
+/// # Safety
+/// `target` names the buffers of a frame reset for `opts`'s tile grid, `tile` is a tile of
+/// that grid, and no other task renders `tile` meanwhile ([`FrameTarget`]'s invariant).
+unsafe fn render_tile(
     tile: &Tile,
     bin: &[Draw],
-    num_planes: u32,
     opts: &RenderOptions,
-    scratch: &mut TileScratch,
-    mut target: TileTarget<'_>,
+    target: FrameTarget<'_>,
 ) -> Vec<(usize, u32, u32)> {
-    let stride = tile_stride(tile.x1 - tile.x0);
-    let rows = tile.y1 - tile.y0;
-    let plane_len = (stride * rows) as usize;
-    // Every tile starts from zeroed buffers of its own size, exactly as if freshly allocated.
-    fn reset<T: Copy + Default>(buf: &mut Vec<T>, len: usize) {
-        buf.clear();
-        buf.resize(len, T::default());
-    }
+    // Every tile starts from zeroed buffers, exactly as if freshly allocated; a tile no draw
+    // touches is just that. Cleared here, right before the draws, the rectangle is in cache
+    // when they run.
+    // SAFETY: the caller's contract.
+    unsafe { target.clear(tile) };
     if bin.is_empty() {
-        // Nothing draws here: the tile would hold zeros, so its part of the frame (which may
-        // hold an earlier frame) is zeroed directly, without the scratch.
-        target.depth.iter_mut().for_each(|row| row.fill(0));
-        target.counts.iter_mut().for_each(|row| row.fill(0));
-        target.planes.iter_mut().flatten().for_each(|row| row.fill(0.0));
         return vec![];
     }
-    reset(&mut scratch.depth, plane_len);
-    reset(&mut scratch.gbuf, plane_len * num_planes as usize);
-    reset(&mut scratch.counts, if opts.count_writes { plane_len } else { 0 });
-    let (depth, gbuf, counts) = (&mut scratch.depth, &mut scratch.gbuf, &mut scratch.counts);
+    let origin = tile.y0 as usize * target.stride + tile.x0 as usize;
     let mut errors = vec![];
     // Every draw starts from this context (a copy: a kernel may change any field of its
-    // own, e.g. fuel, the error or the call depth).
+    // own, e.g. fuel, the error or the call depth). The buffer pointers are the frame's at
+    // the tile's origin (`wrapping_add`: a frame without planes or counts has empty
+    // buffers, and the kernel never dereferences those).
     let mut start = TileCtx::new(MODE_RENDER, opts.width, opts.height);
     start.x0 = tile.x0 as i32;
     start.y0 = tile.y0 as i32;
     start.x1 = tile.x1 as i32;
     start.y1 = tile.y1 as i32;
-    start.stride = stride;
-    start.depth = depth.as_mut_ptr();
-    start.gbuf = gbuf.as_mut_ptr();
-    start.plane_stride = plane_len as u32;
-    start.num_planes = num_planes;
-    start.write_count = counts.as_mut_ptr();
+    start.stride = target.stride as u32;
+    start.depth = target.depth.wrapping_add(origin);
+    start.gbuf = target.planes.wrapping_add(origin);
+    start.plane_stride = target.plane_len as u32;
+    start.num_planes = target.num_planes as u32;
+    start.write_count = target.counts.wrapping_add(origin);
     for (j, draw) in bin.iter().enumerate() {
         if let Some(next) = bin.get(j + 1) {
             prefetch(next.args);
@@ -631,34 +659,17 @@ fn render_tile(
             call_depth: draw.call_depth,
             ..start
         };
-        // SAFETY: the context names this tile's own buffers: depth and (when counting)
-        // write_count are `stride * rows` long, gbuf `num_planes * plane_stride`; the kernel
-        // was compiled with count_writes == opts.count_writes, so it touches write_count
-        // only when that buffer is full size. The argument block is long enough for the
-        // kernel's layout (checked in `render` and when calls were recorded). Nothing else
-        // aliases these buffers while the kernel runs: the scratch belongs to this rayon task.
+        // SAFETY: the context names the tile's rectangle of the frame's buffers, which this
+        // task alone owns ([`FrameTarget`]): the kernel addresses `(y - y0) * stride + (x -
+        // x0)` for y in `y0..y1` and x in whole groups from `x0` up to `x1`, i.e. inside the
+        // rectangle, in the depth buffer, in each of the `num_planes` planes `plane_stride`
+        // apart, and (only when compiled with count_writes == opts.count_writes, i.e. when
+        // the frame has them) in the write counts. The argument block is long enough for the
+        // kernel's layout (checked in `render_into` and when calls were recorded).
         unsafe { (draw.entry)(&mut ctx, draw.args.as_ptr()) };
         if ctx.error != 0 {
             errors.push((draw.instance, ctx.error, ctx.error_site));
         }
-    }
-    // Into the frame, row by row (the tile's stride may exceed its width).
-    let stride = stride as usize;
-    let copy_rows = |dst: &mut [&mut [u32]], src: &[u32]| {
-        for (row, d) in dst.iter_mut().enumerate() {
-            d.copy_from_slice(&src[row * stride..row * stride + d.len()]);
-        }
-    };
-    copy_rows(&mut target.depth, depth);
-    copy_rows(&mut target.counts, counts);
-    for (p, dst) in target.planes.iter_mut().enumerate() {
-        let plane = &gbuf[p * plane_len..(p + 1) * plane_len];
-        for (row, d) in dst.iter_mut().enumerate() {
-            d.copy_from_slice(&plane[row * stride..row * stride + d.len()]);
-        }
-    }
-    if scratch.gbuf.capacity() > SCRATCH_KEEP {
-        *scratch = TileScratch::default();
     }
     errors
 }
@@ -718,30 +729,30 @@ impl Frame {
             width: 0,
             height: 0,
             background: [0.0; 3],
+            params: vec![],
+            stride: 0,
+            num_planes: 0,
             depth: vec![],
             planes: vec![],
             write_counts: None,
-            params: vec![],
             colors: None,
         }
     }
 
     /// Shape the frame for a render with `opts` and `num_planes` planes, keeping the buffers
-    /// it already has (same size: nothing allocated). Contents are left as they are: the
-    /// tile tasks write every pixel.
+    /// it already has (room enough: nothing allocated). Contents are left as they are: the
+    /// tile tasks zero and write every tile's part, padding included.
     fn reset(&mut self, opts: &RenderOptions, num_planes: u32, params: impl Iterator<Item = ParamPlanes>) {
-        let pixels = (opts.width * opts.height) as usize;
         self.width = opts.width;
         self.height = opts.height;
+        self.stride = row_stride(opts.width);
+        self.num_planes = num_planes;
         self.background = opts.background;
-        self.depth = fit(std::mem::take(&mut self.depth), pixels, 0);
-        self.planes.truncate(num_planes as usize);
-        self.planes.resize_with(num_planes as usize, Vec::new);
-        for plane in &mut self.planes {
-            *plane = fit(std::mem::take(plane), pixels, 0.0);
-        }
+        let plane_len = self.plane_len();
+        self.depth = fit(std::mem::take(&mut self.depth), plane_len, 0);
+        self.planes = fit(std::mem::take(&mut self.planes), plane_len * num_planes as usize, 0.0);
         if opts.count_writes {
-            self.write_counts = Some(fit(self.write_counts.take().unwrap_or_default(), pixels, 0));
+            self.write_counts = Some(fit(self.write_counts.take().unwrap_or_default(), plane_len, 0));
         } else {
             self.write_counts = None;
         }
@@ -749,35 +760,74 @@ impl Frame {
         self.params.extend(params);
     }
 
-    /// Every tile's [`TileTarget`] into this frame's buffers, in [`tile_grid`] order.
-    fn tile_targets(&mut self, tiles: usize, tile_size: u32) -> Vec<TileTarget<'_>> {
-        let (width, ts) = (self.width as usize, tile_size as usize);
-        let mut depth = tile_rows(&mut self.depth, width, ts, tiles).into_iter();
-        let mut counts = self
-            .write_counts
-            .as_mut()
-            .map(|c| tile_rows(c, width, ts, tiles).into_iter());
-        let mut planes: Vec<_> = self
-            .planes
-            .iter_mut()
-            .map(|p| tile_rows(p, width, ts, tiles).into_iter())
-            .collect();
-        (0..tiles)
-            .map(|_| TileTarget {
-                depth: depth.next().unwrap_or_default(),
-                planes: planes.iter_mut().map(|p| p.next().unwrap_or_default()).collect(),
-                counts: counts.as_mut().and_then(|c| c.next()).unwrap_or_default(),
-            })
+    /// Elements of one buffer (and of each plane): `stride * height`.
+    fn plane_len(&self) -> usize {
+        self.stride as usize * self.height as usize
+    }
+
+    /// The frame's buffers for the tile tasks (see [`FrameTarget`]), borrowing the frame
+    /// until the tiles are done.
+    fn target(&mut self) -> FrameTarget<'_> {
+        FrameTarget {
+            depth: self.depth.as_mut_ptr(),
+            planes: self.planes.as_mut_ptr(),
+            counts: self
+                .write_counts
+                .as_mut()
+                .map_or(std::ptr::null_mut(), |c| c.as_mut_ptr()),
+            stride: self.stride as usize,
+            plane_len: self.plane_len(),
+            num_planes: self.num_planes as usize,
+            _frame: std::marker::PhantomData,
+        }
+    }
+
+    /// Where pixel (x, y) is in every buffer and plane: `y * stride + x`, `None` outside the
+    /// viewport. Every read of a pixel goes through here.
+    fn index(&self, x: u32, y: u32) -> Option<usize> {
+        (x < self.width && y < self.height).then(|| y as usize * self.stride as usize + x as usize)
+    }
+
+    /// Elements `index(0, y) .. index(0, y) + width` of a buffer: row `y`'s pixels.
+    fn row<T>(&self, buf: &'_ [T], y: u32) -> Option<std::ops::Range<usize>> {
+        let start = self.index(0, y)?;
+        let end = start + self.width as usize;
+        (end <= buf.len()).then_some(start..end)
+    }
+
+    /// Plane `plane`'s elements (`None` for a plane the frame does not have).
+    fn plane(&self, plane: u32) -> Option<&[f32]> {
+        let len = self.plane_len();
+        (plane < self.num_planes).then(|| self.planes.get(plane as usize * len..(plane as usize + 1) * len))?
+    }
+
+    /// `buf`'s pixels (not its padding) in row-major order, `width * height` of them.
+    fn values<T: Copy>(&self, buf: &[T]) -> Vec<T> {
+        (0..self.height)
+            .filter_map(|y| self.row(buf, y))
+            .flat_map(|r| buf[r].iter().copied())
             .collect()
     }
 
-    fn index(&self, x: u32, y: u32) -> Option<usize> {
-        (x < self.width && y < self.height).then(|| (y * self.width + x) as usize)
+    /// Shading-parameter planes the frame holds.
+    pub fn num_planes(&self) -> u32 {
+        self.num_planes
+    }
+
+    /// Row stride of the buffers, in pixels: [`row_stride`]`(width)`.
+    pub fn stride(&self) -> u32 {
+        self.stride
+    }
+
+    /// The depth buffer as the kernels wrote it: `stride * height` elements, pixel (x, y) at
+    /// `y * stride + x`, the padding columns unspecified.
+    pub fn depth_buffer(&self) -> &[u32] {
+        &self.depth
     }
 
     /// Raw depth (`fixed<32,32>`, larger is nearer, 0 = nothing written).
     pub fn depth_at(&self, x: u32, y: u32) -> Option<u32> {
-        self.index(x, y).map(|i| self.depth[i])
+        self.index(x, y).and_then(|i| self.depth.get(i).copied())
     }
 
     /// Depth as a float in [0, 1).
@@ -792,7 +842,55 @@ impl Frame {
 
     pub fn plane_at(&self, plane: u32, x: u32, y: u32) -> Option<f32> {
         let i = self.index(x, y)?;
-        self.planes.get(plane as usize).map(|p| p[i])
+        self.plane(plane)?.get(i).copied()
+    }
+
+    /// Every pixel's raw depth, row-major, `width * height` values.
+    pub fn depth_values(&self) -> Vec<u32> {
+        self.values(&self.depth)
+    }
+
+    /// Every pixel's value of plane `plane`, row-major (`None` for a plane the frame does
+    /// not have).
+    pub fn plane_values(&self, plane: u32) -> Option<Vec<f32>> {
+        self.plane(plane).map(|p| self.values(p))
+    }
+
+    /// Every plane's [`Frame::plane_values`], in plane order.
+    pub fn all_plane_values(&self) -> Vec<Vec<f32>> {
+        (0..self.num_planes).filter_map(|p| self.plane_values(p)).collect()
+    }
+
+    /// Every pixel's depth-write count, row-major (when rendered with `count_writes`).
+    pub fn write_count_values(&self) -> Option<Vec<u32>> {
+        self.write_counts.as_ref().map(|c| self.values(c))
+    }
+
+    /// Every pixel's shaded colour before clamping, row-major (when the shading pass ran).
+    pub fn color_values(&self) -> Option<Vec<[f32; 3]>> {
+        self.colors.as_ref().map(|c| self.values(c))
+    }
+
+    /// Whether the deferred shading pass ran (the scene turned an effect on).
+    pub fn is_shaded(&self) -> bool {
+        self.colors.is_some()
+    }
+
+    /// Pixels whose depth was written.
+    pub fn covered_pixels(&self) -> usize {
+        (0..self.height)
+            .filter_map(|y| self.row(&self.depth, y))
+            .map(|r| self.depth[r].iter().filter(|&&d| d != 0).count())
+            .sum()
+    }
+
+    /// Whether `self` and `other` have the same size and bit for bit the same depth and
+    /// shading-parameter planes at every pixel (write counts and colours not compared).
+    pub fn same_buffers(&self, other: &Frame) -> bool {
+        let bits = |v: Vec<f32>| v.into_iter().map(f32::to_bits).collect::<Vec<_>>();
+        (self.width, self.height, self.num_planes) == (other.width, other.height, other.num_planes)
+            && self.depth_values() == other.depth_values()
+            && (0..self.num_planes).all(|p| self.plane_values(p).map(bits) == other.plane_values(p).map(bits))
     }
 
     pub fn param(&self, name: &str) -> Option<&ParamPlanes> {
@@ -810,7 +908,7 @@ impl Frame {
     /// Depth writes at a pixel (only when the frame was rendered with `count_writes`).
     pub fn write_count_at(&self, x: u32, y: u32) -> Option<u32> {
         let i = self.index(x, y)?;
-        self.write_counts.as_ref().map(|c| c[i])
+        self.write_counts.as_ref()?.get(i).copied()
     }
 
     /// The shaded colour: where depth was written, `Cs` clamped to [0, 1] (a 1-component
@@ -820,8 +918,8 @@ impl Frame {
         if !self.written(x, y) {
             return self.background.map(clamp01);
         }
-        if let (Some(colors), Some(i)) = (&self.colors, self.index(x, y)) {
-            return colors[i].map(clamp01);
+        if let Some(c) = self.shaded_at(x, y) {
+            return c.map(clamp01);
         }
         let Some(cs) = self.param("Cs") else {
             return [1.0; 3];
@@ -837,7 +935,7 @@ impl Frame {
     /// The shaded colour before clamping (tests compare lighting spaces with it).
     pub fn shaded_at(&self, x: u32, y: u32) -> Option<[f32; 3]> {
         let i = self.index(x, y)?;
-        self.colors.as_ref().map(|c| c[i])
+        self.colors.as_ref()?.get(i).copied()
     }
 
     /// Run `shader` over every written pixel into `colors` (resized to the frame; its old
@@ -848,9 +946,9 @@ impl Frame {
     /// kernels read each row's planes as contiguous slices ([`RowInputs`]) in one fused pass;
     /// the f64 reference takes the written pixels one by one.
     fn shade(&self, shader: &Shader, texture_param: Option<&str>, colors: &mut Vec<[f32; 3]>) {
-        *colors = fit(std::mem::take(colors), self.depth.len(), [0.0; 3]);
-        let width = self.width as usize;
-        if width == 0 {
+        *colors = fit(std::mem::take(colors), self.plane_len(), [0.0; 3]);
+        let (width, stride) = (self.width as usize, self.stride as usize);
+        if width == 0 || self.height == 0 {
             return;
         }
         if shader.kernel() == ShadingKernel::ReferenceF64 {
@@ -866,21 +964,29 @@ impl Frame {
         let st = texture_param
             .and_then(get)
             .filter(|p| effects.texture && p.components >= 2);
-        let plane = |p: &ParamPlanes, k: u32, row: usize| {
-            let start = row * width;
-            &self.planes[(p.first_plane + k) as usize][start..start + width]
+        // Row `y` of a parameter's component `k` (a plane the frame lacks reads as zeros,
+        // as an unwritten plane would; `reset` makes every parameter's planes exist).
+        let zeros = vec![0.0f32; width];
+        let plane = |p: &ParamPlanes, k: u32, y: usize| -> &[f32] {
+            let row = self.row(&self.depth, y as u32);
+            match (self.plane(p.first_plane + k), row) {
+                (Some(plane), Some(row)) => &plane[row],
+                _ => &zeros,
+            }
         };
         colors
-            .par_chunks_mut(width * SHADE_BAND_ROWS)
+            .par_chunks_mut(stride * SHADE_BAND_ROWS)
             .enumerate()
             .for_each(|(band, band_colors)| {
-                // `shade_row` skips chunks with no written pixel: they must read zero.
+                // `shade_row` skips chunks with no written pixel: they must read zero (and
+                // the padding is zero too, so frames compare equal whatever they held).
                 band_colors.fill([0.0; 3]);
-                for (i, row_colors) in band_colors.chunks_mut(width).enumerate() {
+                for (i, row_colors) in band_colors.chunks_mut(stride).enumerate() {
                     let y = band * SHADE_BAND_ROWS + i;
+                    let at = y * stride;
                     let row = RowInputs {
                         y: y as u32,
-                        depth: &self.depth[y * width..(y + 1) * width],
+                        depth: &self.depth[at..at + width],
                         cs: cs.as_ref().map(|p| {
                             let k = |c: u32| if p.components == 1 { 0 } else { c };
                             [plane(p, k(0), y), plane(p, k(1), y), plane(p, k(2), y)]
@@ -891,7 +997,7 @@ impl Frame {
                         facing: facing.as_ref().map(|p| plane(p, 0, y)),
                         st: st.as_ref().map(|p| [plane(p, 0, y), plane(p, 1, y)]),
                     };
-                    shader.shade_row(&row, row_colors);
+                    shader.shade_row(&row, &mut row_colors[..width]);
                 }
             });
     }
@@ -902,28 +1008,30 @@ impl Frame {
         let get = |name: &str| self.param(name).cloned();
         let (cs, normal, facing) = (get("Cs"), get(super::api::NORMAL_PARAM), get(super::api::FACING_PARAM));
         let st = texture_param.and_then(get);
-        let width = self.width as usize;
-        colors.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
-            // Unwritten pixels are zero (the buffer may hold an earlier frame's colours).
+        let (width, stride) = (self.width as usize, self.stride as usize);
+        colors.par_chunks_mut(stride).enumerate().for_each(|(y, row)| {
+            // Unwritten pixels (and the padding) are zero (the buffer may hold an earlier
+            // frame's colours).
             row.fill([0.0; 3]);
             // Per row: bounded memory for the inputs.
             let mut inputs = Vec::with_capacity(width);
             let mut slots = Vec::with_capacity(width);
-            for (x, _) in row.iter().enumerate() {
-                let i = y * width + x;
-                if self.depth[i] == 0 {
+            for x in 0..width {
+                let (x, y) = (x as u32, y as u32);
+                let depth = self.depth_at(x, y).unwrap_or(0);
+                if depth == 0 {
                     continue;
                 }
-                let plane = |p: &ParamPlanes, k: u32| f64::from(self.planes[(p.first_plane + k) as usize][i]);
+                let plane = |p: &ParamPlanes, k: u32| f64::from(self.plane_at(p.first_plane + k, x, y).unwrap_or(0.0));
                 let cs = match &cs {
                     Some(p) if p.components >= 3 => [plane(p, 0), plane(p, 1), plane(p, 2)],
                     Some(p) if p.components == 1 => [plane(p, 0); 3],
                     _ => [1.0; 3],
                 };
                 inputs.push(PixelInputs {
-                    x: x as u32,
-                    y: y as u32,
-                    depth: f64::from(self.depth[i]) / 4294967296.0,
+                    x,
+                    y,
+                    depth: f64::from(depth) / 4294967296.0,
                     cs,
                     normal: normal
                         .as_ref()
@@ -941,7 +1049,7 @@ impl Frame {
                         .filter(|p| p.components >= 2)
                         .map(|p| [plane(p, 0), plane(p, 1)]),
                 });
-                slots.push(x);
+                slots.push(x as usize);
             }
             let mut out = vec![[0f32; 3]; inputs.len()];
             shader.shade(&inputs, &mut out);
@@ -970,23 +1078,22 @@ impl Frame {
             .ok_or_else(|| format!("the scene has no shading parameter `{name}`"))?;
         match p.components {
             1 => {
-                let plane = &self.planes[p.first_plane as usize];
+                let value = |x: u32, y: u32| {
+                    let v = self.plane_at(p.first_plane, x, y).unwrap_or(0.0);
+                    (self.written(x, y) && v.is_finite()).then_some(v)
+                };
                 let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-                for (i, &v) in plane.iter().enumerate() {
-                    if self.depth[i] != 0 && v.is_finite() {
+                for y in 0..self.height {
+                    for v in (0..self.width).filter_map(|x| value(x, y)) {
                         lo = lo.min(v);
                         hi = hi.max(v);
                     }
                 }
                 Ok(ImageBuffer::from_fn(self.width, self.height, |x, y| {
-                    let i = (y * self.width + x) as usize;
-                    let v = plane[i];
-                    let g = if self.depth[i] == 0 || !v.is_finite() {
-                        0.0
-                    } else if hi > lo {
-                        (v - lo) / (hi - lo)
-                    } else {
-                        0.5
+                    let g = match value(x, y) {
+                        None => 0.0,
+                        Some(v) if hi > lo => (v - lo) / (hi - lo),
+                        Some(_) => 0.5,
                     };
                     Rgb([to_u8(g); 3])
                 }))
@@ -1040,10 +1147,15 @@ mod tests {
     }
 
     #[test]
-    fn stride_is_whole_groups() {
-        assert_eq!(tile_stride(64), 64);
-        assert_eq!(tile_stride(13), 16);
-        assert_eq!(tile_stride(1), 4);
+    fn strides_and_tile_sides_are_whole_groups() {
+        assert_eq!(row_stride(64), 64);
+        assert_eq!(row_stride(13), 16);
+        assert_eq!(row_stride(1), 4);
+        assert_eq!(row_stride(0), 0);
+        assert_eq!(
+            [0, 1, 4, 5, 16, 63, 4096, 5000].map(tile_side),
+            [4, 4, 4, 8, 16, 64, 4096, 4096]
+        );
     }
 
     #[test]
@@ -1056,27 +1168,39 @@ mod tests {
         );
     }
 
+    /// [`FrameTarget`]'s invariant: the tiles' rectangles (rows `y0..y1`, columns `x0 ..
+    /// x0 + group_columns()`) start on groups, lie inside the padded buffer and cover each
+    /// of its elements exactly once.
     #[test]
-    fn tile_rows_cut_the_frame_like_the_tile_grid() {
-        for (w, h, ts) in [(100, 70, 64), (9, 7, 5), (64, 64, 64), (5, 3, 8)] {
-            let tiles = tile_grid(&opts(w, h, ts));
-            let mut buf: Vec<usize> = (0..(w * h) as usize).collect();
-            let rows = tile_rows(&mut buf, w as usize, ts as usize, tiles.len());
-            assert_eq!(rows.len(), tiles.len());
-            for (tile, rows) in tiles.iter().zip(&rows) {
-                assert_eq!(rows.len(), (tile.y1 - tile.y0) as usize, "{w}x{h}/{ts}");
-                for (r, row) in rows.iter().enumerate() {
-                    let y = tile.y0 as usize + r;
-                    let expected: Vec<usize> = (tile.x0..tile.x1).map(|x| y * w as usize + x as usize).collect();
-                    assert_eq!(
-                        &row[..],
-                        &expected[..],
-                        "{w}x{h}/{ts} tile at ({}, {})",
-                        tile.x0,
-                        tile.y0
+    fn tile_rectangles_cut_the_padded_frame_into_disjoint_groups() {
+        for (w, h, requested) in [
+            (100, 70, 64),
+            (9, 7, 5),
+            (64, 64, 64),
+            (5, 3, 8),
+            (37, 23, 16),
+            (130, 67, 16),
+            (1, 1, 1),
+        ] {
+            let o = opts(w, h, tile_side(requested));
+            let stride = row_stride(w) as usize;
+            let mut owners = vec![0u32; stride * h as usize];
+            for tile in tile_grid(&o) {
+                assert_eq!(tile.x0 % GROUP, 0, "{w}x{h}/{requested}");
+                let cols = tile.group_columns() as usize;
+                assert_eq!(cols % GROUP as usize, 0);
+                for y in tile.y0 as usize..tile.y1 as usize {
+                    let at = y * stride + tile.x0 as usize;
+                    assert!(
+                        at + cols <= owners.len(),
+                        "{w}x{h}/{requested}: row {y} leaves the buffer"
                     );
+                    // A group never straddles two rows.
+                    assert!(tile.x0 as usize + cols <= stride);
+                    owners[at..at + cols].iter_mut().for_each(|n| *n += 1);
                 }
             }
+            assert!(owners.iter().all(|&n| n == 1), "{w}x{h}/{requested}: {owners:?}");
         }
     }
 
