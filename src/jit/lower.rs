@@ -244,8 +244,11 @@ pub(crate) struct Lower<'a, 'b> {
     /// the block that loaded them (see `load_uniform`).
     arg_loads: std::collections::HashMap<(i32, Scalar, bool), (Block, ir::Value)>,
     /// Index sites of the primitive's setup whose uniform index is proven in range at every
-    /// occurrence ([`crate::ir::range`]): indexed without clamp or error record.
-    proven_sites: std::collections::HashSet<SiteId>,
+    /// occurrence ([`crate::ir::range`]): indexed without clamp or error record. Computed
+    /// when the first index that is not a constant is lowered (`None` before): most
+    /// kernels, their loops unrolled, have none, and the analysis was ~2% of a tier-0
+    /// compile of screen_triangle.
+    proven_sites: Option<std::collections::HashSet<SiteId>>,
     /// Tier 0: the pixel code is lowered *flat*, without a group's early exits (see
     /// [`flat`]).
     flat: bool,
@@ -326,7 +329,7 @@ pub(crate) fn lower_kernel(
         block_culling,
         error_guard: None,
         arg_loads: std::collections::HashMap::new(),
-        proven_sites: crate::ir::range::proven_index_sites(body),
+        proven_sites: None,
         flat: false,
         setup_live: None,
         warnings: vec![],
@@ -1873,9 +1876,17 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             return Ok(None);
         }
+        // Per local, the first top-level statement that assigns it (see `zero_declaration`).
+        let mut first = vec![None; f.locals.len()];
+        for (k, s) in setup.iter().enumerate() {
+            first_assignments(std::slice::from_ref(s), k, &mut first);
+        }
         // The OR of the guards deferred so far in this run.
         let mut pending: Option<ir::Value> = None;
-        for s in setup {
+        for (k, s) in setup.iter().enumerate() {
+            if self.zero_declaration(f, s, k, &first) {
+                continue;
+            }
             if let Some(cond) = self.deferrable_guard(s) {
                 let c = self.eval_uniform(cond)?;
                 let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
@@ -1894,6 +1905,23 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.stmt(s)?;
         }
         Ok(pending)
+    }
+
+    /// Tier 0: is `s`, the setup's top-level statement `k`, a uniform local's first
+    /// assignment and all zero (a declaration without initialiser: `int v[3];`)? It is then
+    /// not lowered: the reads it would reach see no assignment, and the SSA builder reads
+    /// a variable no assignment reaches as zero (see `make_frame`). The values are the
+    /// same without the constants (~40 in screen_triangle) and the work of lowering them.
+    fn zero_declaration(&self, f: &Function, s: &Stmt, k: usize, first: &[Option<usize>]) -> bool {
+        let StmtKind::Assign { place, value } = &s.kind else {
+            return false;
+        };
+        let l = place.local.0 as usize;
+        first.get(l).copied().flatten() == Some(k)
+            && place.indices.is_empty()
+            && all_zero_bits(value)
+            && f.locals.get(l).is_some_and(|local| !local.var.is_varying())
+            && matches!(self.frames[0].storage.get(l), Some(Storage::Vars(_)))
     }
 
     /// `c` of a setup statement `if (c) return;` whose condition cannot fail.
@@ -3033,7 +3061,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         } else {
             // Proven in range for this frame's function (the primitive's own body only:
             // inlined interpolators have sites of their own, never in the set).
-            let proven = self.frames.len() == 1 && self.proven_sites.contains(&site);
+            let proven = self.frames.len() == 1 && self.site_proven(site);
             let c = if proven {
                 idx_comp
             } else {
@@ -3061,6 +3089,14 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// instructions on every access: most of the NURB tessellation's time.)
     /// Tier 0 records inline with selects instead (same results): two blocks per access
     /// doubled the NURB kernel's tier-0 compile time.
+    /// Is `site` of the primitive's own body proven in range (see `proven_sites`)?
+    fn site_proven(&mut self, site: SiteId) -> bool {
+        let body = self.frames[0].func;
+        self.proven_sites
+            .get_or_insert_with(|| crate::ir::range::proven_index_sites(body))
+            .contains(&site)
+    }
+
     fn checked_uniform_index(&mut self, idx: ir::Value, len: ir::Value, last: ir::Value, site: SiteId) -> ir::Value {
         let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
         if self.tier0() {
@@ -3945,6 +3981,34 @@ fn quiet_stmt(f: &Function, s: &Stmt) -> bool {
         }
         StmtKind::Return => true,
         _ => false,
+    }
+}
+
+/// Record `k` as the first top-level setup statement assigning each local that `stmts` (the
+/// statement `k` or its parts) assign, at any depth, unless an earlier one did.
+fn first_assignments(stmts: &[Stmt], k: usize, first: &mut [Option<usize>]) {
+    for s in stmts {
+        match &s.kind {
+            StmtKind::Assign { place, .. } => {
+                if let Some(a) = first.get_mut(place.local.0 as usize) {
+                    a.get_or_insert(k);
+                }
+            }
+            StmtKind::If { then, otherwise, .. } => {
+                first_assignments(then, k, first);
+                first_assignments(otherwise, k, first);
+            }
+            StmtKind::Loop { body, step, .. } => {
+                first_assignments(body, k, first);
+                first_assignments(step, k, first);
+            }
+            StmtKind::Interpolation { arms } => {
+                for a in arms {
+                    first_assignments(&a.body, k, first);
+                }
+            }
+            _ => {}
+        }
     }
 }
 
