@@ -141,9 +141,9 @@ primitive seeded(
 /// A uniform `if` of the pixel code picking between two coverage forms, as screen_triangle
 /// does: integer edge functions (at doubled coordinates, so pixel centres are integers) or
 /// float ones, both computed by the setup from arrays declared without initialiser (tier 0
-/// does not lower those zeros: `Lower::zero_declaration`). `unset` is never assigned and
-/// `s` only when `mode > 5`: both read as zero otherwise; `t`'s zero is not its first
-/// assignment, so it is lowered. The depth says which form ran.
+/// gives locals no explicit zero). `unset` is never assigned and `s` only when `mode > 5`:
+/// both read as zero otherwise; `t` is zeroed after a first value. The depth says which
+/// form ran.
 const TWO_FORMS: &str = r#"
 primitive two_forms(
     float rect[4];

@@ -1876,17 +1876,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             return Ok(None);
         }
-        // Per local, the first top-level statement that assigns it (see `zero_declaration`).
-        let mut first = vec![None; f.locals.len()];
-        for (k, s) in setup.iter().enumerate() {
-            first_assignments(std::slice::from_ref(s), k, &mut first);
-        }
         // The OR of the guards deferred so far in this run.
         let mut pending: Option<ir::Value> = None;
-        for (k, s) in setup.iter().enumerate() {
-            if self.zero_declaration(f, s, k, &first) {
-                continue;
-            }
+        for s in setup {
             if let Some(cond) = self.deferrable_guard(s) {
                 let c = self.eval_uniform(cond)?;
                 let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
@@ -1905,23 +1897,6 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.stmt(s)?;
         }
         Ok(pending)
-    }
-
-    /// Tier 0: is `s`, the setup's top-level statement `k`, a uniform local's first
-    /// assignment and all zero (a declaration without initialiser: `int v[3];`)? It is then
-    /// not lowered: the reads it would reach see no assignment, and the SSA builder reads
-    /// a variable no assignment reaches as zero (see `make_frame`). The values are the
-    /// same without the constants (~40 in screen_triangle) and the work of lowering them.
-    fn zero_declaration(&self, f: &Function, s: &Stmt, k: usize, first: &[Option<usize>]) -> bool {
-        let StmtKind::Assign { place, value } = &s.kind else {
-            return false;
-        };
-        let l = place.local.0 as usize;
-        first.get(l).copied().flatten() == Some(k)
-            && place.indices.is_empty()
-            && all_zero_bits(value)
-            && f.locals.get(l).is_some_and(|local| !local.var.is_varying())
-            && matches!(self.frames[0].storage.get(l), Some(Storage::Vars(_)))
     }
 
     /// `c` of a setup statement `if (c) return;` whose condition cannot fail.
@@ -3981,34 +3956,6 @@ fn quiet_stmt(f: &Function, s: &Stmt) -> bool {
         }
         StmtKind::Return => true,
         _ => false,
-    }
-}
-
-/// Record `k` as the first top-level setup statement assigning each local that `stmts` (the
-/// statement `k` or its parts) assign, at any depth, unless an earlier one did.
-fn first_assignments(stmts: &[Stmt], k: usize, first: &mut [Option<usize>]) {
-    for s in stmts {
-        match &s.kind {
-            StmtKind::Assign { place, .. } => {
-                if let Some(a) = first.get_mut(place.local.0 as usize) {
-                    a.get_or_insert(k);
-                }
-            }
-            StmtKind::If { then, otherwise, .. } => {
-                first_assignments(then, k, first);
-                first_assignments(otherwise, k, first);
-            }
-            StmtKind::Loop { body, step, .. } => {
-                first_assignments(body, k, first);
-                first_assignments(step, k, first);
-            }
-            StmtKind::Interpolation { arms } => {
-                for a in arms {
-                    first_assignments(&a.body, k, first);
-                }
-            }
-            _ => {}
-        }
     }
 }
 
