@@ -3057,13 +3057,6 @@ impl<'a, 'b> Lower<'a, 'b> {
         Ok(acc)
     }
 
-    /// A uniform index `idx` into `len` elements (`last` = `len - 1`), clamped, with
-    /// ERR_INDEX recorded at `site` when it is out of range. The in-range path is one
-    /// unsigned compare and a branch; the clamp and the error record sit in a cold block.
-    /// (Recorded inline with selects, the check was two loads, two stores and ten more
-    /// instructions on every access: most of the NURB tessellation's time.)
-    /// Tier 0 records inline with selects instead (same results): two blocks per access
-    /// doubled the NURB kernel's tier-0 compile time.
     /// Is `site` of the primitive's own body proven in range (see `proven_sites`)?
     fn site_proven(&mut self, site: SiteId) -> bool {
         let body = self.frames[0].func;
@@ -3072,6 +3065,13 @@ impl<'a, 'b> Lower<'a, 'b> {
             .contains(&site)
     }
 
+    /// A uniform index `idx` into `len` elements (`last` = `len - 1`), clamped, with
+    /// ERR_INDEX recorded at `site` when it is out of range. The in-range path is one
+    /// unsigned compare and a branch; the clamp and the error record sit in a cold block.
+    /// (Recorded inline with selects, the check was two loads, two stores and ten more
+    /// instructions on every access: most of the NURB tessellation's time.)
+    /// Tier 0 records inline with selects instead (same results): two blocks per access
+    /// doubled the NURB kernel's tier-0 compile time.
     fn checked_uniform_index(&mut self, idx: ir::Value, len: ir::Value, last: ir::Value, site: SiteId) -> ir::Value {
         let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
         if self.tier0() {
