@@ -138,6 +138,55 @@ primitive seeded(
 }
 "#;
 
+/// A uniform `if` of the pixel code picking between two coverage forms, as screen_triangle
+/// does: integer edge functions (at doubled coordinates, so pixel centres are integers) or
+/// float ones, both computed by the setup from arrays declared without initialiser (tier 0
+/// gives locals no explicit zero). `unset` is never assigned and `s` only when `mode > 5`:
+/// both read as zero otherwise; `t` is zeroed after a first value. The depth says which
+/// form ran.
+const TWO_FORMS: &str = r#"
+primitive two_forms(
+    float rect[4];
+    float vert[6];
+    float mode;
+    varying float X, Y;
+    inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    bool exact = mode > 0;
+    int ea[3], eb[3], ec[3];
+    float fa[3], fb[3], fc[3];
+    int unset[2];
+    float s;
+    if (mode > 5)
+        s = 1;
+    float t = mode;
+    t = 0;
+    for (int i = 0; i < 3; i++) {
+        int j = (i + 1) % 3;
+        int xi = int(vert[2 * i]), yi = int(vert[2 * i + 1]);
+        int xj = int(vert[2 * j]), yj = int(vert[2 * j + 1]);
+        ea[i] = yi - yj;
+        eb[i] = xj - xi;
+        ec[i] = -2 * (ea[i] * xi + eb[i] * yi);
+        fa[i] = ea[i];
+        fb[i] = eb[i];
+        fc[i] = ec[i] / 2;
+    }
+    if (exact) {
+        int sx = int(X * 2), sy = int(Y * 2);
+        if (ea[0] * sx + eb[0] * sy + ec[0] <= 0) return;
+        if (ea[1] * sx + eb[1] * sy + ec[1] <= 0) return;
+        if (ea[2] * sx + eb[2] * sy + ec[2] <= 0) return;
+    } else {
+        if (fa[0] * X + fb[0] * Y + fc[0] <= 0) return;
+        if (fa[1] * X + fb[1] * Y + fc[1] <= 0) return;
+        if (fa[2] * X + fb[2] * Y + fc[2] <= 0) return;
+    }
+    Z = (exact ? 0.25 : 0.5) + s * 0.125 + unset[1] * 0.0625 + t + X * 0.001;
+}
+"#;
+
 fn library(sources: &mut SourceMap) -> Arc<Program> {
     let mut diags = Diagnostics::new();
     let (mut files, _) = Registry::load_sources(sources, &[], &[], &mut diags);
@@ -146,6 +195,7 @@ fn library(sources: &mut SourceMap) -> Arc<Program> {
     files.push(sources.add("loopy.prim", LOOPY));
     files.push(sources.add("deadly.prim", DEADLY));
     files.push(sources.add("seeded.prim", SEEDED));
+    files.push(sources.add("two_forms.prim", TWO_FORMS));
     let reg = Registry::compile(sources, files, &mut diags);
     assert!(!diags.has_errors(), "{}", diags.render(sources));
     reg.expect("compiles").program
@@ -416,4 +466,67 @@ fn flat_pixel_code_keeps_a_varying_local_set_in_the_setup() {
     // X <= 10 keeps 0.25 (+ Y * 0.0001), in fixed<32,32>: the pixel (5, 7).
     let z = f64::from(frame.depth_at(5, 7).unwrap()) / 4294967296.0;
     assert!((z - (0.25 + 7.5 * 0.0001)).abs() < 1e-6, "{z}");
+}
+
+#[test]
+fn a_uniform_if_between_two_coverage_forms_renders_both_sides_at_tier_0() {
+    let mut sources = SourceMap::new();
+    let program = library(&mut sources);
+    let vert = [4.0f32, 3.0, 35.0, 8.0, 12.0, 22.0];
+    // The covered pixel centres, from the same edge functions in f64.
+    let mut inside = 0;
+    for y in 0..24 {
+        for x in 0..40 {
+            let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+            let covered = (0..3).all(|i| {
+                let j = (i + 1) % 3;
+                let (xi, yi) = (vert[2 * i] as f64, vert[2 * i + 1] as f64);
+                let (xj, yj) = (vert[2 * j] as f64, vert[2 * j + 1] as f64);
+                let (a, b) = (yi - yj, xj - xi);
+                a * px + b * py - (a * xi + b * yi) > 0.0
+            });
+            inside += covered as usize;
+        }
+    }
+    assert!(inside > 100, "the triangle covers pixels: {inside}");
+    let scene = |mode: f32| {
+        let mut r = Renderer::new(program.clone());
+        r.set_image_size(40, 24).unwrap();
+        r.set_tile_size(16).unwrap();
+        r.begin("two_forms").unwrap();
+        r.rast_param("rect", &Value(vec![0.0, 0.0, 40.0, 24.0])).unwrap();
+        r.rast_param("vert", &Value(vert.to_vec())).unwrap();
+        r.rast_param("mode", &Value(vec![mode])).unwrap();
+        r.end().unwrap();
+        r
+    };
+    // Integer edges, float edges, and integer edges with `s` assigned.
+    let mut frames = vec![];
+    for mode in [1.0f32, -1.0, 6.0] {
+        let r = scene(mode);
+        let (frame, codes) = both_tiers(&sources, &program, &r, &format!("mode {mode}"));
+        assert!(codes.is_empty(), "mode {mode}: {codes:?}");
+        assert_eq!(written(&frame), inside, "mode {mode}: covered pixels");
+        // Loops kept (not unrolled): the edge arrays are indexed by the loop counter,
+        // so tier 0 runs the range analysis it otherwise skips; same frame.
+        let mut kept = Jit::with_options(
+            program.clone(),
+            primflow::jit::JitOptions {
+                tier: Tier::Fast,
+                unroll_loops: false,
+            },
+        )
+        .unwrap();
+        let out = r.render(&mut kept);
+        assert!(!out.diags.has_errors(), "mode {mode}: {:?}", out.diags.items);
+        assert!(same_frame(&frame, &out.frame), "mode {mode}: loops kept differ");
+        frames.push(frame);
+    }
+    // Each side ran where it should: the depths tell the modes apart, the pixels do not.
+    let depth_of = |f: &Frame| f.depth_values().into_iter().find(|&d| d != 0).unwrap();
+    let depths: Vec<u32> = frames.iter().map(depth_of).collect();
+    assert!(
+        depths[0] != depths[1] && depths[0] != depths[2] && depths[1] != depths[2],
+        "{depths:?}"
+    );
 }

@@ -244,8 +244,11 @@ pub(crate) struct Lower<'a, 'b> {
     /// the block that loaded them (see `load_uniform`).
     arg_loads: std::collections::HashMap<(i32, Scalar, bool), (Block, ir::Value)>,
     /// Index sites of the primitive's setup whose uniform index is proven in range at every
-    /// occurrence ([`crate::ir::range`]): indexed without clamp or error record.
-    proven_sites: std::collections::HashSet<SiteId>,
+    /// occurrence ([`crate::ir::range`]): indexed without clamp or error record. Computed
+    /// when the first index that is not a constant is lowered (`None` before): most
+    /// kernels, their loops unrolled, have none, and the analysis was ~2% of a tier-0
+    /// compile of screen_triangle.
+    proven_sites: Option<std::collections::HashSet<SiteId>>,
     /// Tier 0: the pixel code is lowered *flat*, without a group's early exits (see
     /// [`flat`]).
     flat: bool,
@@ -326,7 +329,7 @@ pub(crate) fn lower_kernel(
         block_culling,
         error_guard: None,
         arg_loads: std::collections::HashMap::new(),
-        proven_sites: crate::ir::range::proven_index_sites(body),
+        proven_sites: None,
         flat: false,
         setup_live: None,
         warnings: vec![],
@@ -3033,7 +3036,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         } else {
             // Proven in range for this frame's function (the primitive's own body only:
             // inlined interpolators have sites of their own, never in the set).
-            let proven = self.frames.len() == 1 && self.proven_sites.contains(&site);
+            let proven = self.frames.len() == 1 && self.site_proven(site);
             let c = if proven {
                 idx_comp
             } else {
@@ -3052,6 +3055,14 @@ impl<'a, 'b> Lower<'a, 'b> {
         acc.dyn_off = off;
         acc.ty = elem_ty;
         Ok(acc)
+    }
+
+    /// Is `site` of the primitive's own body proven in range (see `proven_sites`)?
+    fn site_proven(&mut self, site: SiteId) -> bool {
+        let body = self.frames[0].func;
+        self.proven_sites
+            .get_or_insert_with(|| crate::ir::range::proven_index_sites(body))
+            .contains(&site)
     }
 
     /// A uniform index `idx` into `len` elements (`last` = `len - 1`), clamped, with

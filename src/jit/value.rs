@@ -130,8 +130,41 @@ pub fn splat(b: &mut FunctionBuilder, scalar: Scalar, v: ir::Value) -> ir::Value
             b.ins().splat(I32X4, mask)
         }
         Scalar::Float => b.ins().splat(F32X4, v),
-        _ => b.ins().splat(I32X4, v),
+        _ => match iconst_i32(b, v) {
+            // A constant: one vector constant (zero and all-ones need no memory) instead
+            // of materialising the scalar and broadcasting it at run time.
+            Some(c) => i32x4_const(b, c),
+            None => b.ins().splat(I32X4, v),
+        },
     }
+}
+
+/// The value of `v` if an `iconst.i32` defines it.
+fn iconst_i32(b: &FunctionBuilder, v: ir::Value) -> Option<i32> {
+    let v = b.func.dfg.resolve_aliases(v);
+    if b.func.dfg.value_type(v) != types::I32 {
+        return None;
+    }
+    match b.func.dfg.value_def(v) {
+        ir::ValueDef::Result(inst, 0) => match b.func.dfg.insts[inst] {
+            ir::InstructionData::UnaryImm {
+                opcode: ir::Opcode::Iconst,
+                imm,
+            } => Some(imm.bits() as i32),
+            _ => None,
+        },
+        _ => None,
+    }
+}
+
+/// `c` in every lane of an i32x4, as a vector constant.
+pub fn i32x4_const(b: &mut FunctionBuilder, c: i32) -> ir::Value {
+    let mut bytes = Vec::with_capacity(16);
+    for _ in 0..4 {
+        bytes.extend_from_slice(&c.to_le_bytes());
+    }
+    let handle = b.func.dfg.constants.insert(bytes.into());
+    b.ins().vconst(I32X4, handle)
 }
 
 /// Make `v` varying if it is not already.
@@ -183,8 +216,7 @@ pub fn zero(b: &mut FunctionBuilder, scalar: Scalar, varying: bool) -> ir::Value
 
 /// An i32x4 mask with every lane set to `on`.
 pub fn mask_const(b: &mut FunctionBuilder, on: bool) -> ir::Value {
-    let v = b.ins().iconst(types::I32, if on { -1 } else { 0 });
-    b.ins().splat(I32X4, v)
+    i32x4_const(b, if on { -1 } else { 0 })
 }
 
 /// Apply a scalar operation lane by lane to vectors (`f` gets the lanes of each operand).
