@@ -5,6 +5,8 @@
 //! the nearest end of the array, and the run-time error at the indexing site exactly when
 //! some index leaves the array.
 
+mod common;
+
 use std::sync::Arc;
 
 use primflow::diag::{Diagnostics, SourceMap};
@@ -105,12 +107,7 @@ const FREE_SITE: &str = "W0801@32:19";
 const WINDOW_SITE: &str = "W0801@64:19";
 
 fn library(sources: &mut SourceMap, len: usize) -> Arc<Program> {
-    let mut diags = Diagnostics::new();
-    let (mut files, _) = Registry::load_sources(sources, &[], &[], &mut diags);
-    files.push(sources.add("ranged.prim", &source(len)));
-    let reg = Registry::compile(sources, files, &mut diags);
-    assert!(!diags.has_errors(), "{}", diags.render(sources));
-    reg.expect("compiles").program
+    common::library_with(sources, &[("ranged.prim", &source(len))])
 }
 
 fn scene(program: &Arc<Program>, prim: &str, params: &[(&str, f32)]) -> Renderer {

@@ -6,13 +6,15 @@
 //! compares the frames bit for bit and the errors code for code. Also: the JIT reports what
 //! a compile cost in thread CPU time (`Jit::compile_cost`).
 
+mod common;
+
 use std::sync::Arc;
 
 use primflow::bench::same_frame;
-use primflow::diag::{Diagnostics, SourceMap};
+use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
-use primflow::runtime::{Frame, Registry, Renderer, Value};
+use primflow::runtime::{Frame, Renderer, Value};
 
 /// Setup code with nested uniform `if`s that only assign (if-converted by tier 0), a local
 /// read on a path where nothing assigned it (zero), a dynamically indexed store inside an
@@ -188,17 +190,17 @@ primitive two_forms(
 "#;
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    let mut diags = Diagnostics::new();
-    let (mut files, _) = Registry::load_sources(sources, &[], &[], &mut diags);
-    files.push(sources.add("branchy.prim", BRANCHY));
-    files.push(sources.add("flatty.prim", FLATTY));
-    files.push(sources.add("loopy.prim", LOOPY));
-    files.push(sources.add("deadly.prim", DEADLY));
-    files.push(sources.add("seeded.prim", SEEDED));
-    files.push(sources.add("two_forms.prim", TWO_FORMS));
-    let reg = Registry::compile(sources, files, &mut diags);
-    assert!(!diags.has_errors(), "{}", diags.render(sources));
-    reg.expect("compiles").program
+    common::library_with(
+        sources,
+        &[
+            ("branchy.prim", BRANCHY),
+            ("flatty.prim", FLATTY),
+            ("loopy.prim", LOOPY),
+            ("deadly.prim", DEADLY),
+            ("seeded.prim", SEEDED),
+            ("two_forms.prim", TWO_FORMS),
+        ],
+    )
 }
 
 fn branchy_scene(program: &Arc<Program>, mode: f32, k: i32) -> Renderer {
