@@ -15,7 +15,6 @@ use std::sync::Arc;
 use primflow::diag::SourceMap;
 use primflow::handwritten::{Flavor, Handwritten};
 use primflow::ir::Program;
-use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Frame, Renderer, Value};
 
 const USER_PRIMS: &str = r#"
@@ -69,13 +68,6 @@ primitive astrip(float a, b, c, w; float r[4]; float depth;
 
 fn library_with_user_prims() -> Arc<Program> {
     library_with(&mut SourceMap::new(), &[("user.prim", USER_PRIMS)])
-}
-
-fn jits(program: &Arc<Program>) -> Vec<(&'static str, Jit)> {
-    vec![
-        ("tier 1", Jit::new(program.clone()).unwrap()),
-        ("tier 0", Jit::at_tier(program.clone(), Tier::Fast).unwrap()),
-    ]
 }
 
 fn written(frame: &Frame, w: u32, h: u32) -> Vec<bool> {

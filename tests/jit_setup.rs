@@ -12,7 +12,6 @@ use std::sync::Arc;
 
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
-use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Frame, Renderer, Value};
 
 const USER_PRIMS: &str = r#"
@@ -80,13 +79,6 @@ primitive corner(int axis; float k; float k2; float depth;
 
 fn library_with_user_prims() -> Arc<Program> {
     library_with(&mut SourceMap::new(), &[("user.prim", USER_PRIMS)])
-}
-
-fn jits(program: &Arc<Program>) -> Vec<(&'static str, Jit)> {
-    vec![
-        ("tier 1", Jit::new(program.clone()).unwrap()),
-        ("tier 0", Jit::at_tier(program.clone(), Tier::Fast).unwrap()),
-    ]
 }
 
 fn written_pixels(frame: &Frame, width: u32, height: u32) -> Vec<(u32, u32)> {

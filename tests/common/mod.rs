@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::ir::Program;
-use primflow::jit::Jit;
+use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Frame, Registry, Renderer, Value};
 
 /// The built-in primitive library, compiled (panics with the rendered diagnostics if not).
@@ -30,6 +30,14 @@ pub fn library_with(sources: &mut SourceMap, user: &[(&str, &str)]) -> Arc<Progr
         Some(reg) if !diags.has_errors() => reg.program,
         _ => panic!("user prims do not compile:\n{}", diags.render(sources)),
     }
+}
+
+/// A JIT of each tier, named, for tests that render the same scene through both.
+pub fn jits(program: &Arc<Program>) -> Vec<(&'static str, Jit)> {
+    vec![
+        ("tier 1", Jit::new(program.clone()).unwrap()),
+        ("tier 0", Jit::at_tier(program.clone(), Tier::Fast).unwrap()),
+    ]
 }
 
 pub fn renderer(program: &Arc<Program>, width: u32, height: u32, count_writes: bool) -> Renderer {
