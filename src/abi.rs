@@ -60,7 +60,7 @@ pub struct TileCtx {
     pub plane_stride: u32,
     pub num_planes: u32,
     /// Per-pixel count of depth writes at pixel (x0, y0), laid out like `depth` (only
-    /// touched by kernels whose key counts writes; may be null otherwise).
+    /// touched by kernels whose key counts writes; otherwise it points at nothing valid).
     pub write_count: *mut u32,
     /// In bound mode: union of the bounds recorded so far (xmin, ymin, xmax, ymax).
     pub bound: [f32; 4],
