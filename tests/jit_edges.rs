@@ -52,7 +52,7 @@ primitive istrip(int a, b, c, w; float r[4]; float depth;
     Z = depth;
 }
 
-// A guard the row spans cannot model (abs): the whole row runs.
+// The same band through `abs`: one guard, not affine in X.
 primitive astrip(float a, b, c, w; float r[4]; float depth;
                  varying float X, Y;
                  inout varying fixed<32,32> Z)
@@ -270,7 +270,7 @@ fn int_strips_match_a_per_pixel_reference_even_when_products_wrap() {
             [-1, 6, -500, 9],
             [1, 0, -100, 0],
             [0, 1, -140, 7],
-            // a * sx wraps for sx >= 108: the row span must not trust the model.
+            // a * sx wraps for sx >= 108: nothing may assume the product is affine.
             [20_000_000, 1, 0, 1_000_000_000],
             [-3, 2, 2_000_000_000, 2_000_000_000],
         ] {
