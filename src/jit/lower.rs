@@ -20,6 +20,8 @@
 //!    pass blocks of a block row run as one span, the others run the full code. Per row, the pixel terms that
 //!    depend on Y alone are evaluated once ([`hoist`]); X steps by 4.0 per group; only the
 //!    groups at the rectangle's ends build a lane mask (the others start all ones).
+//!    Tier 1 first decides up to two uniform `if`s of the pixel code whose conditions no
+//!    group can change, once per draw, and lowers the loops once per side ([`unswitch`]).
 //! 3. Per group the pixel statements run on vectors under masks: `alive` (lanes not yet
 //!    retired) and `exec` (the lanes the current statement runs for, always a subset of
 //!    `alive`). Varying `if` runs both sides under their masks, skipping a side with no lane;
