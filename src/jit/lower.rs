@@ -20,6 +20,8 @@
 //!    pass blocks of a block row run as one span, the others run the full code. Per row, the pixel terms that
 //!    depend on Y alone are evaluated once ([`hoist`]); X steps by 4.0 per group; only the
 //!    groups at the rectangle's ends build a lane mask (the others start all ones).
+//!    Tier 1 first decides up to two uniform `if`s of the pixel code whose conditions no
+//!    group can change, once per draw, and lowers the loops once per side ([`unswitch`]).
 //! 3. Per group the pixel statements run on vectors under masks: `alive` (lanes not yet
 //!    retired) and `exec` (the lanes the current statement runs for, always a subset of
 //!    `alive`). Varying `if` runs both sides under their masks, skipping a side with no lane;
@@ -63,6 +65,7 @@ mod block;
 mod dead;
 mod flat;
 mod hoist;
+mod unswitch;
 
 pub(crate) type Res<T> = Result<T, JitError>;
 
@@ -255,6 +258,9 @@ pub(crate) struct Lower<'a, 'b> {
     /// Tier 0: the locals live code reads; setup assignments to others are not lowered
     /// (see [`dead`]). `None`: every assignment is lowered.
     setup_live: Option<Vec<bool>>,
+    /// Uniform conditions of the pixel code decided for the copy of the pixel loops being
+    /// lowered, by address (see [`unswitch`]); empty outside the pixel loops and in tier 0.
+    unswitched: std::collections::HashMap<usize, bool>,
     pub(crate) warnings: Vec<String>,
 }
 
@@ -332,6 +338,7 @@ pub(crate) fn lower_kernel(
         proven_sites: None,
         flat: false,
         setup_live: None,
+        unswitched: std::collections::HashMap::new(),
         warnings: vec![],
     };
     l.body(f)?;
@@ -636,12 +643,32 @@ impl<'a, 'b> Lower<'a, 'b> {
             interior_lim,
         };
         let loops_done = self.b.create_block();
+        // One copy of the loops per combination of the uniform conditions decided before
+        // them (tier 1; see [`unswitch`]).
+        self.unswitched_loops(f, 0, &mut |l: &mut Self| {
+            l.pixel_loops(f, &rect, [lo_y, hi_y], [gx_start, hi_x], loops_done)
+        })?;
+        self.b.switch_to_block(loops_done);
+        Ok(())
+    }
 
-        let prefix = block::prefix(f);
+    /// The pixel loops over the pass rectangle (rows `ys`, groups from `gs[0]`, tile-aligned,
+    /// to `gs[1]`): plain rows, or the block walk when the pixel code opens with guards.
+    /// Ends by jumping to `loops_done`; lowered under the conditions in `self.unswitched`.
+    fn pixel_loops(
+        &mut self,
+        f: &'a Function,
+        rect: &PassRect,
+        ys: [ir::Value; 2],
+        gs: [ir::Value; 2],
+        loops_done: Block,
+    ) -> Res<()> {
+        let [lo_y, hi_y] = ys;
+        let [gx_start, hi_x] = gs;
+        let lo_x = rect.lo_x;
+        let prefix = block::prefix(f, &self.unswitched);
         if prefix.guards == 0 || !self.block_culling {
-            self.pixel_rows(f, &rect, [lo_y, hi_y], [gx_start, hi_x], None, loops_done)?;
-            self.b.switch_to_block(loops_done);
-            return Ok(());
+            return self.pixel_rows(f, rect, [lo_y, hi_y], [gx_start, hi_x], None, loops_done);
         }
 
         // Blocks of BLOCK_W x BLOCK_H pixels; per block, interval facts choose: skip, the
@@ -817,7 +844,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.switch_to_block(flush_run);
         self.pixel_rows(
             f,
-            &rect,
+            rect,
             [y, y_end],
             [lo, hi],
             Some((&prefix, &facts.decidable)),
@@ -860,7 +887,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.switch_to_block(full_entry);
         let fys = [self.b.use_var(full_ys[0]), self.b.use_var(full_ys[1])];
         let fgs = [self.b.use_var(full_gs[0]), self.b.use_var(full_gs[1])];
-        self.pixel_rows(f, &rect, fys, fgs, None, full_done)?;
+        self.pixel_rows(f, rect, fys, fgs, None, full_done)?;
 
         self.b.switch_to_block(full_done);
         let then = self.b.use_var(full_then);
@@ -878,8 +905,6 @@ impl<'a, 'b> Lower<'a, 'b> {
         let y = self.b.ins().iadd(y, h);
         self.b.def_var(by, y);
         self.b.ins().jump(brow_hdr, &[]);
-
-        self.b.switch_to_block(loops_done);
         Ok(())
     }
 
@@ -1115,11 +1140,22 @@ impl<'a, 'b> Lower<'a, 'b> {
     ) -> Res<()> {
         let first_block = self.b.func.dfg.num_blocks();
         // The row terms this variant reads (a pass span drops guards, and their terms).
-        let used_exprs = pass.map(|(prefix, decidable)| {
-            let mut live = std::collections::HashSet::new();
-            self.live_pixel_locals(&f.pixel[prefix.len..], &mut live);
-            block::pass_exprs(&prefix.stmts, &f.pixel[prefix.len..], decidable, &live)
-        });
+        // So does a copy of the loops for decided conditions (their untaken sides).
+        let used_exprs = match pass {
+            Some((prefix, decidable)) => {
+                let mut live = std::collections::HashSet::new();
+                self.live_pixel_locals(&f.pixel[prefix.len..], &mut live);
+                Some(block::pass_exprs(
+                    &prefix.stmts,
+                    &f.pixel[prefix.len..],
+                    decidable,
+                    &live,
+                    &self.unswitched,
+                ))
+            }
+            None if !self.unswitched.is_empty() => Some(unswitch::full_code_exprs(f, &self.unswitched)),
+            None => None,
+        };
         let py = self.b.declare_var(types::I32);
         let gx = self.b.declare_var(types::I32);
         let xv = self.b.declare_var(F32X4);
@@ -1736,6 +1772,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                 self.stmt(s)?;
             }
             return Ok(());
+        }
+        // A condition decided before the pixel loops (tier 1, see [`unswitch`]): this copy
+        // of the loops holds the side it takes only.
+        if let Some(&on) = self.unswitched.get(&unswitch::cond_key(cond)) {
+            return self.stmts(if on { then } else { otherwise });
         }
         let c = self.eval(cond)?;
         if !c.varying {

@@ -66,28 +66,51 @@ pub(super) struct Prefix<'a> {
     pub guards: usize,
 }
 
-/// Find the guard prefix of `f`'s pixel statements (see the module comment).
-pub(super) fn prefix(f: &Function) -> Prefix<'_> {
+/// Find the guard prefix of `f`'s pixel statements (see the module comment). A uniform `if`
+/// whose condition `decided` fixes (see [`super::unswitch`]) contributes the statements of
+/// the side it takes, inline.
+pub(super) fn prefix<'a>(f: &'a Function, decided: &HashMap<usize, bool>) -> Prefix<'a> {
     let mut stmts = vec![];
     let mut guards = 0;
+    let mut len = 0;
     for s in &f.pixel {
         let mut n = guards;
-        match classify(f, s, &mut n) {
-            Some(p) => {
-                guards = n;
-                stmts.push(p);
-            }
-            None => break,
+        let mut out = vec![];
+        if !classify_into(f, s, &mut n, decided, &mut out) {
+            break;
+        }
+        guards = n;
+        stmts.append(&mut out);
+        len += 1;
+    }
+    Prefix { len, stmts, guards }
+}
+
+/// Append `s`'s prefix statements to `out` (several when `s` is a decided `if`); false
+/// when `s` is not a prefix statement.
+fn classify_into<'a>(
+    f: &'a Function,
+    s: &'a Stmt,
+    guards: &mut usize,
+    decided: &HashMap<usize, bool>,
+    out: &mut Vec<PStmt<'a>>,
+) -> bool {
+    if let StmtKind::If { cond, then, otherwise } = &s.kind {
+        if let Some(&on) = decided.get(&key(cond)) {
+            let taken = if on { then } else { otherwise };
+            return taken.iter().all(|t| classify_into(f, t, guards, decided, out));
         }
     }
-    Prefix {
-        len: stmts.len(),
-        stmts,
-        guards,
+    match classify(f, s, guards, decided) {
+        Some(p) => {
+            out.push(p);
+            true
+        }
+        None => false,
     }
 }
 
-fn classify<'a>(f: &'a Function, s: &'a Stmt, guards: &mut usize) -> Option<PStmt<'a>> {
+fn classify<'a>(f: &'a Function, s: &'a Stmt, guards: &mut usize, decided: &HashMap<usize, bool>) -> Option<PStmt<'a>> {
     match &s.kind {
         StmtKind::Assign { place, value } => {
             let local = f.locals.get(place.local.0 as usize)?;
@@ -114,15 +137,17 @@ fn classify<'a>(f: &'a Function, s: &'a Stmt, guards: &mut usize) -> Option<PStm
                 *guards += 1;
                 return Some(PStmt::Guard { stmt: s, cond, id });
             }
-            let then = then
-                .iter()
-                .map(|t| classify(f, t, guards))
-                .collect::<Option<Vec<_>>>()?;
-            let otherwise = otherwise
-                .iter()
-                .map(|t| classify(f, t, guards))
-                .collect::<Option<Vec<_>>>()?;
-            Some(PStmt::UniformIf { cond, then, otherwise })
+            let mut then_p = vec![];
+            let mut otherwise_p = vec![];
+            let ok = then.iter().all(|t| classify_into(f, t, guards, decided, &mut then_p))
+                && otherwise
+                    .iter()
+                    .all(|t| classify_into(f, t, guards, decided, &mut otherwise_p));
+            ok.then_some(PStmt::UniformIf {
+                cond,
+                then: then_p,
+                otherwise: otherwise_p,
+            })
         }
         StmtKind::Return => Some(PStmt::Kill(s)),
         _ => None,
@@ -130,7 +155,7 @@ fn classify<'a>(f: &'a Function, s: &'a Stmt, guards: &mut usize) -> Option<PStm
 }
 
 /// No effect when evaluated: no index that may be out of range (which records an error).
-fn pure(e: &Expr) -> bool {
+pub(super) fn pure(e: &Expr) -> bool {
     match &e.kind {
         ExprKind::Index { base, index, .. } => {
             let in_range = match (&index.kind, base.ty.per_seq, base.ty.dims.first()) {
@@ -1033,6 +1058,7 @@ pub(super) fn pass_exprs(
     rest: &[Stmt],
     decidable: &[bool],
     live: &HashSet<LocalId>,
+    decided: &HashMap<usize, bool>,
 ) -> HashSet<usize> {
     fn prefix(
         all: &[PStmt<'_>],
@@ -1062,7 +1088,7 @@ pub(super) fn pass_exprs(
     }
     let mut out = HashSet::new();
     prefix(all, all, decidable, live, &mut out);
-    stmt_keys(rest, &mut out);
+    stmt_keys(rest, decided, &mut out);
     out
 }
 
@@ -1072,25 +1098,29 @@ fn expr_keys(e: &Expr, out: &mut HashSet<usize>) {
     e.for_each_child(|c| expr_keys(c, out));
 }
 
-/// Addresses of every expression in `stmts`.
-fn stmt_keys(stmts: &[Stmt], out: &mut HashSet<usize>) {
+/// Addresses of every expression in `stmts`, but for the untaken side (and the condition)
+/// of each `if` that `decided` fixes (see [`super::unswitch`]).
+pub(super) fn stmt_keys(stmts: &[Stmt], decided: &HashMap<usize, bool>, out: &mut HashSet<usize>) {
     for s in stmts {
         match &s.kind {
             StmtKind::Assign { place, value } => {
                 place.indices.iter().for_each(|(i, _)| expr_keys(i, out));
                 expr_keys(value, out);
             }
-            StmtKind::If { cond, then, otherwise } => {
-                expr_keys(cond, out);
-                stmt_keys(then, out);
-                stmt_keys(otherwise, out);
-            }
+            StmtKind::If { cond, then, otherwise } => match decided.get(&key(cond)) {
+                Some(&on) => stmt_keys(if on { then } else { otherwise }, decided, out),
+                None => {
+                    expr_keys(cond, out);
+                    stmt_keys(then, decided, out);
+                    stmt_keys(otherwise, decided, out);
+                }
+            },
             StmtKind::Loop { cond, body, step, .. } => {
                 cond.iter().for_each(|c| expr_keys(c, out));
-                stmt_keys(body, out);
-                stmt_keys(step, out);
+                stmt_keys(body, decided, out);
+                stmt_keys(step, decided, out);
             }
-            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| stmt_keys(&a.body, out)),
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| stmt_keys(&a.body, decided, out)),
             StmtKind::InterpolatorReturn(e) => e.iter().for_each(|e| expr_keys(e, out)),
             StmtKind::Bound(es) => es.iter().for_each(|e| expr_keys(e, out)),
             StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr_keys(a, out)),
