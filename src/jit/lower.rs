@@ -46,14 +46,14 @@ use cranelift_frontend::{FunctionBuilder, Variable};
 use super::fixed;
 use super::libm::LibmFn;
 use super::value::{
-    args_flags, blend, cl_type, comp_bytes, ctx_off, mask_const, mem_flags, splat, to_varying, zero, Val, F32X4, I32X4,
+    args_flags, blend, cl_type, comp_bytes, ctx_off, mask_const, mem_flags, splat, to_varying, zero, Val, VnKey,
+    VnTable, F32X4, I32X4, VN_NEG, VN_NOT,
 };
 use super::JitError;
 use crate::abi::{
     interpolator_arg_words, type_words, ArgLayout, BindingKind, ParamSlot, VariantKey, ERR_CALL_DEPTH, ERR_FUEL,
     ERR_INDEX, MAX_CALL_DEPTH, MODE_BOUND, MODE_EXPAND,
 };
-use crate::ir::split::expr_reads;
 use crate::ir::{
     ArmKind, BinOp, ConstValue, Elem, Expr, ExprKind, FixedFormat, FuncId, FuncKind, Function, LocalId, LoopId,
     ParamRole, Place, Program, Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp,
@@ -243,6 +243,9 @@ pub(crate) struct Lower<'a, 'b> {
     /// Tier 0: argument-block words already loaded, by (byte offset, scalar, word bools), with
     /// the block that loaded them (see `load_uniform`).
     arg_loads: std::collections::HashMap<(i32, Scalar, bool), (Block, ir::Value)>,
+    /// Tier 0: constants and pure operations already lowered in a block (value numbering
+    /// while lowering, see [`Self::numbered`]); tier 1 leaves this to Cranelift's e-graph.
+    vn: VnTable,
     /// Index sites of the primitive's setup whose uniform index is proven in range at every
     /// occurrence ([`crate::ir::range`]): indexed without clamp or error record. Computed
     /// when the first index that is not a constant is lowered (`None` before): most
@@ -329,6 +332,7 @@ pub(crate) fn lower_kernel(
         block_culling,
         error_guard: None,
         arg_loads: std::collections::HashMap::new(),
+        vn: VnTable::default(),
         proven_sites: None,
         flat: false,
         setup_live: None,
@@ -370,14 +374,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         let frame = self.make_frame(f, self.layout.params.clone(), self.layout.fixed_words, None)?;
         self.frames.push(frame);
         if self.tier0() {
-            let mut pixel = std::collections::HashSet::new();
-            self.live_pixel_locals(&f.pixel, &mut pixel);
             let mut live = vec![false; f.locals.len()];
-            for l in pixel {
-                if let Some(x) = live.get_mut(l.0 as usize) {
-                    *x = true;
-                }
-            }
+            self.live_pixel_flags(&f.pixel, &mut live);
             let removable = |s: &Stmt| self.speculable_stmts(std::slice::from_ref(s), &mut usize::MAX.clone());
             self.setup_live = Some(dead::live_setup_locals(&f.setup, live, &removable));
         }
@@ -903,8 +901,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         // Uniform locals the variant's pixel code never touches (e.g. the `linear` planes
         // when only perspective_linear parameters are bound) are not stored: their setup
         // computations are then dead and Cranelift drops them.
-        let mut pixel_used = std::collections::HashSet::new();
-        self.live_pixel_locals(&f.pixel, &mut pixel_used);
+        let mut pixel_used = vec![false; f.locals.len()];
+        self.live_pixel_flags(&f.pixel, &mut pixel_used);
         let frame = &self.frames[0];
         let mut moves = vec![];
         for (i, st) in frame.storage.iter().enumerate() {
@@ -914,7 +912,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 .params
                 .iter()
                 .any(|p| p.local.0 as usize == i && matches!(p.role, ParamRole::X | ParamRole::Y | ParamRole::Z));
-            if local.var.is_varying() || is_pixel_param || vars.is_empty() || !pixel_used.contains(&LocalId(i as u32)) {
+            if local.var.is_varying() || is_pixel_param || vars.is_empty() || !pixel_used[i] {
                 continue;
             }
             moves.push((i, vars.clone(), pixel_assigned.contains(&LocalId(i as u32))));
@@ -940,11 +938,15 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.b
                 .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, frame_bytes, 4))
         });
+        // One frame address for all the stores below (they are consecutive, so it is live
+        // only across them): a `stack_addr` per local was 36 of K=4's CLIF instructions.
+        let frame_addr = frame_slot
+            .filter(|_| placed.iter().any(|(_, _, at)| at.is_some()))
+            .map(|fs| self.b.ins().stack_addr(types::I64, fs, 0));
         for (i, vars, at) in placed {
             let sc = elem_scalar(&f.locals[i].ty);
-            match (at, frame_slot) {
-                (Some(first), Some(fs)) => {
-                    let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+            match (at, frame_addr) {
+                (Some(first), Some(addr)) => {
                     for (c, v) in vars.iter().enumerate() {
                         let x = self.b.use_var(*v);
                         let w = first + c as u32;
@@ -2358,24 +2360,36 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// Every local read or assigned by `stmts` as this key lowers them (arms the key gives
     /// nothing to do are skipped, like [`Self::interpolation`] skips them).
     fn live_pixel_locals(&self, stmts: &[Stmt], out: &mut std::collections::HashSet<LocalId>) {
+        self.visit_live_pixel_locals(stmts, &mut |l| {
+            out.insert(l);
+        });
+    }
+
+    /// [`Self::live_pixel_locals`] as a flag per local (tier 0's analyses: a HashSet cost
+    /// more than the walk itself).
+    fn live_pixel_flags(&self, stmts: &[Stmt], out: &mut [bool]) {
+        self.visit_live_pixel_locals(stmts, &mut |l| mark_local(out, l));
+    }
+
+    fn visit_live_pixel_locals(&self, stmts: &[Stmt], out: &mut dyn FnMut(LocalId)) {
         for s in stmts {
             match &s.kind {
                 StmtKind::Assign { place, value } => {
-                    out.insert(place.local);
-                    place.indices.iter().for_each(|(i, _)| expr_reads(i, out));
-                    expr_reads(value, out);
+                    out(place.local);
+                    place.indices.iter().for_each(|(i, _)| i.for_each_local(out));
+                    value.for_each_local(out);
                 }
                 StmtKind::If { cond, then, otherwise } => {
-                    expr_reads(cond, out);
-                    self.live_pixel_locals(then, out);
-                    self.live_pixel_locals(otherwise, out);
+                    cond.for_each_local(out);
+                    self.visit_live_pixel_locals(then, out);
+                    self.visit_live_pixel_locals(otherwise, out);
                 }
                 StmtKind::Loop { cond, body, step, .. } => {
                     if let Some(c) = cond {
-                        expr_reads(c, out);
+                        c.for_each_local(out);
                     }
-                    self.live_pixel_locals(body, out);
-                    self.live_pixel_locals(step, out);
+                    self.visit_live_pixel_locals(body, out);
+                    self.visit_live_pixel_locals(step, out);
                 }
                 StmtKind::Interpolation { arms } => {
                     let named: Vec<&str> = arms
@@ -2387,13 +2401,13 @@ impl<'a, 'b> Lower<'a, 'b> {
                         .collect();
                     for arm in arms {
                         if self.arm_view(arms, &named, arm).is_some() {
-                            self.live_pixel_locals(&arm.body, out);
+                            self.visit_live_pixel_locals(&arm.body, out);
                         }
                     }
                 }
-                StmtKind::InterpolatorReturn(Some(e)) => expr_reads(e, out),
-                StmtKind::Bound(es) => es.iter().for_each(|e| expr_reads(e, out)),
-                StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| expr_reads(e, out)),
+                StmtKind::InterpolatorReturn(Some(e)) => e.for_each_local(out),
+                StmtKind::Bound(es) => es.iter().for_each(|e| e.for_each_local(out)),
+                StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| e.for_each_local(out)),
                 StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::InterpolatorReturn(None) => {}
             }
         }
@@ -3518,6 +3532,15 @@ impl<'a, 'b> Lower<'a, 'b> {
         let sc = elem_scalar(&e.ty);
         match &e.kind {
             ExprKind::Const(c) => {
+                let key = match *c {
+                    ConstValue::Float(x) => VnKey::Const(0, x.to_bits(), sc),
+                    ConstValue::Int(i) => VnKey::Const(1, i as u32, sc),
+                    ConstValue::Bool(x) => VnKey::Const(2, x as u32, sc),
+                    ConstValue::Fixed(i) => VnKey::Const(3, i as u32, sc),
+                };
+                if let Some(v) = self.numbered(key) {
+                    return Ok(Val::one(v, sc, false));
+                }
                 let v = match *c {
                     ConstValue::Float(x) => self.b.ins().f32const(x),
                     ConstValue::Int(i) | ConstValue::Fixed(i) => self.b.ins().iconst(types::I32, i as i64),
@@ -3531,6 +3554,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                     ConstValue::Fixed(_) => sc,
                 };
                 let v = fixed::convert(&mut self.b, from, sc, v);
+                self.number(key, v);
                 Ok(Val::one(v, sc, false))
             }
             ExprKind::Local(_) | ExprKind::Index { .. } => {
@@ -3539,21 +3563,30 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             ExprKind::Unary { op, expr } => {
                 let v = self.eval(expr)?;
+                let code = if *op == UnaryOp::Neg { VN_NEG } else { VN_NOT };
                 let comps = v
                     .comps
                     .iter()
-                    .map(|&c| match (op, v.scalar) {
-                        (UnaryOp::Neg, Scalar::Float) => self.b.ins().fneg(c),
-                        (UnaryOp::Neg, Scalar::Fixed(f)) => fixed::neg(&mut self.b, f, c),
-                        (UnaryOp::Neg, _) => self.b.ins().ineg(c),
-                        (UnaryOp::Not, _) => {
-                            let c = fixed::convert(&mut self.b, v.scalar, Scalar::Bool, c);
-                            if v.varying {
-                                self.b.ins().bnot(c)
-                            } else {
-                                self.b.ins().bxor_imm_s(c, 1)
-                            }
+                    .map(|&c| {
+                        let key = VnKey::Op(code, v.scalar, c, c);
+                        if let Some(r) = self.numbered(key) {
+                            return r;
                         }
+                        let r = match (op, v.scalar) {
+                            (UnaryOp::Neg, Scalar::Float) => self.b.ins().fneg(c),
+                            (UnaryOp::Neg, Scalar::Fixed(f)) => fixed::neg(&mut self.b, f, c),
+                            (UnaryOp::Neg, _) => self.b.ins().ineg(c),
+                            (UnaryOp::Not, _) => {
+                                let c = fixed::convert(&mut self.b, v.scalar, Scalar::Bool, c);
+                                if v.varying {
+                                    self.b.ins().bnot(c)
+                                } else {
+                                    self.b.ins().bxor_imm_s(c, 1)
+                                }
+                            }
+                        };
+                        self.number(key, r);
+                        r
                     })
                     .collect();
                 let scalar = if *op == UnaryOp::Not { Scalar::Bool } else { v.scalar };
@@ -3772,7 +3805,16 @@ impl<'a, 'b> Lower<'a, 'b> {
         );
         let mut comps = vec![];
         for (&x, &y) in a.comps.iter().zip(&c.comps) {
-            comps.push(self.binop(op, sc, x, y)?);
+            let key = VnKey::Op(op as u8, sc, x, y);
+            let v = match self.numbered(key) {
+                Some(v) => v,
+                None => {
+                    let v = self.binop(op, sc, x, y)?;
+                    self.number(key, v);
+                    v
+                }
+            };
+            comps.push(v);
         }
         let scalar = if is_cmp || matches!(op, BinOp::And | BinOp::Or) {
             Scalar::Bool
@@ -3784,6 +3826,27 @@ impl<'a, 'b> Lower<'a, 'b> {
             scalar,
             varying: a.varying,
         })
+    }
+
+    /// Tier 0: the value `key` already has in the current block, if it was lowered there.
+    /// Every key is a pure function of SSA values (or a constant), so an earlier result in
+    /// the same block is the same value and dominates the use: an assignment to a local
+    /// gives the local a new SSA value, and so a new key. Sharing shortens the CLIF (a
+    /// triangle repeats `-orient`, `interp_data[0] * q0`, many constants) without a pass over
+    /// the finished function.
+    fn numbered(&self, key: VnKey) -> Option<ir::Value> {
+        if !self.tier0() {
+            return None;
+        }
+        let block = self.b.current_block()?;
+        self.vn.get(block, key)
+    }
+
+    /// Record `v` as the value of `key` in the current block (tier 0; see [`Self::numbered`]).
+    fn number(&mut self, key: VnKey, v: ir::Value) {
+        if let (true, Some(block)) = (self.tier0(), self.b.current_block()) {
+            self.vn.insert(block, key, v);
+        }
     }
 
     fn binop(&mut self, op: BinOp, sc: Scalar, x: ir::Value, y: ir::Value) -> Res<ir::Value> {
@@ -3879,6 +3942,13 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     pub(crate) fn args_ptr(&self) -> ir::Value {
         self.args
+    }
+}
+
+/// Flag `l` in a per-local table.
+fn mark_local(out: &mut [bool], l: LocalId) {
+    if let Some(x) = out.get_mut(l.0 as usize) {
+        *x = true;
     }
 }
 
