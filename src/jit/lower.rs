@@ -896,8 +896,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// loop (their address is defined in it). Locals the pixel part assigns get a stack
     /// slot of their own with ordinary loads and stores.
     fn spill_uniforms(&mut self, f: &'a Function) {
-        let mut pixel_assigned = std::collections::HashSet::new();
-        block::assigned_locals(&f.pixel, &mut pixel_assigned);
+        let pixel_assigned = dead::assigned_flags(&f.pixel, f.locals.len());
         // Uniform locals the variant's pixel code never touches (e.g. the `linear` planes
         // when only perspective_linear parameters are bound) are not stored: their setup
         // computations are then dead and Cranelift drops them.
@@ -915,7 +914,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             if local.var.is_varying() || is_pixel_param || vars.is_empty() || !pixel_used[i] {
                 continue;
             }
-            moves.push((i, vars.clone(), pixel_assigned.contains(&LocalId(i as u32))));
+            moves.push((i, vars.clone(), pixel_assigned[i]));
         }
         let frozen_words: u32 = moves.iter().filter(|m| !m.2).map(|m| m.1.len() as u32).sum();
         // Words first, so the hoisting analysis sees which locals live in the frame.
@@ -983,7 +982,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         // aside here and every group starts from it (`reset_group_locals`).
         for (i, st) in self.frames[0].storage.iter().enumerate() {
             let Storage::Stack(slot) = *st else { continue };
-            if f.locals[i].var.is_varying() || !pixel_assigned.contains(&LocalId(i as u32)) {
+            if f.locals[i].var.is_varying() || !pixel_assigned[i] {
                 continue;
             }
             let bytes = self.b.func.sized_stack_slots[slot].size;
@@ -1456,17 +1455,12 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// earlier group left (a local is declared, so assigned, before any read of it in the
     /// same group), so the values the pixels see are the same.
     fn flat_group_locals(&mut self, f: &'a Function) {
-        let mut assigned = std::collections::HashSet::new();
-        block::assigned_locals(&f.pixel, &mut assigned);
+        let assigned = dead::assigned_flags(&f.pixel, f.locals.len());
         // A local the setup assigns keeps the setup's value until the pixel code assigns it.
-        let mut in_setup = std::collections::HashSet::new();
-        block::assigned_locals(&f.setup, &mut in_setup);
+        let in_setup = dead::assigned_flags(&f.setup, f.locals.len());
         let mut zeros: std::collections::HashMap<Scalar, ir::Value> = std::collections::HashMap::new();
         for (i, local) in f.locals.iter().enumerate() {
-            if !local.var.is_varying()
-                || !assigned.contains(&LocalId(i as u32))
-                || in_setup.contains(&LocalId(i as u32))
-            {
+            if !local.var.is_varying() || !assigned[i] || in_setup[i] {
                 continue;
             }
             if f.params.iter().any(|p| p.local.0 as usize == i) {
@@ -1971,11 +1965,11 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// branches: `then` from the entry values, `otherwise` from the entry values, then each
     /// assigned variable selects its `then` or `otherwise` value by `c`.
     fn if_converted(&mut self, c: ir::Value, then: &'a [Stmt], otherwise: &'a [Stmt]) -> Res<()> {
-        let mut locals = std::collections::HashSet::new();
-        block::assigned_locals(then, &mut locals);
-        block::assigned_locals(otherwise, &mut locals);
-        let mut locals: Vec<LocalId> = locals.into_iter().collect();
-        locals.sort_by_key(|l| l.0);
+        let mut locals = vec![];
+        dead::visit_assigned(then, &mut |l| locals.push(l));
+        dead::visit_assigned(otherwise, &mut |l| locals.push(l));
+        locals.sort_unstable_by_key(|l| l.0);
+        locals.dedup();
         let mut vars = vec![];
         for l in locals {
             if let Some(Storage::Vars(vs)) = self.frame().storage.get(l.0 as usize) {
