@@ -85,15 +85,14 @@ fn jit(program: &Arc<Program>, unroll_loops: bool, tier: Tier) -> Jit {
 /// The exact depth of pixel column `x` (every term is a multiple of 1/2 below 256, so the
 /// sum over 256 is exact in f32 and in fixed<32,32>).
 fn reference_depth(d: [f32; 3], x: u32) -> u32 {
-    let X = f64::from(x) + 0.5;
+    let centre = f64::from(x) + 0.5;
     let s: f64 = d.iter().map(|&v| 2.0 * f64::from(v) * f64::from(v)).sum();
     let p = f64::from(d[0]).max(0.0);
-    let z = (s + p + 2.0 * X + (X - 10.0).max(0.0)) / 256.0;
+    let z = (s + p + 2.0 * centre + (centre - 10.0).max(0.0)) / 256.0;
     (z * 4294967296.0) as u32
 }
 
 #[test]
-#[allow(non_snake_case)]
 fn inlined_helpers_give_the_same_pixels_and_errors_flat_or_as_loops() {
     let mut sources = SourceMap::new();
     let program = library(&mut sources);

@@ -3126,7 +3126,14 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// Load a scalar of `sc` from `addr + off` bytes in uniform form (bools stored as bytes
     /// or words: any non-zero is true).
-    fn load_uniform(&mut self, sc: Scalar, addr: ir::Value, off: i32, word_bools: bool, ro: bool) -> ir::Value {
+    pub(crate) fn load_uniform(
+        &mut self,
+        sc: Scalar,
+        addr: ir::Value,
+        off: i32,
+        word_bools: bool,
+        ro: bool,
+    ) -> ir::Value {
         // Tier 0 has no e-graph pass to merge repeated loads of the same argument word (the
         // argument block is read-only while the kernel runs): within one block, reuse the
         // first load.
@@ -3606,7 +3613,21 @@ impl<'a, 'b> Lower<'a, 'b> {
                 let mut comps: Vec<ir::Value> = v
                     .comps
                     .iter()
-                    .map(|&c| fixed::convert(&mut self.b, v.scalar, sc, c))
+                    .map(|&c| match (v.scalar, sc, super::value::iconst_i32(&self.b, c)) {
+                        // An int constant as a float (`float({1, 0, 0, 0})`): the constant
+                        // itself (`as` rounds to nearest like `fcvt_from_sint`), shared like
+                        // any other constant at tier 0, instead of a conversion at run time.
+                        (Scalar::Int, Scalar::Float, Some(i)) => {
+                            let x = i as f32;
+                            let key = VnKey::Const(0, x.to_bits(), Scalar::Float);
+                            self.numbered(key).unwrap_or_else(|| {
+                                let f = self.b.ins().f32const(x);
+                                self.number(key, f);
+                                f
+                            })
+                        }
+                        _ => fixed::convert(&mut self.b, v.scalar, sc, c),
+                    })
                     .collect();
                 // A number converted to interpolation data stands for that number in every
                 // component of the current view (the checker's zero-initialisation and

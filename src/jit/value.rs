@@ -212,7 +212,7 @@ pub fn splat(b: &mut FunctionBuilder, scalar: Scalar, v: ir::Value) -> ir::Value
 }
 
 /// The value of `v` if an `iconst.i32` defines it.
-fn iconst_i32(b: &FunctionBuilder, v: ir::Value) -> Option<i32> {
+pub fn iconst_i32(b: &FunctionBuilder, v: ir::Value) -> Option<i32> {
     let v = b.func.dfg.resolve_aliases(v);
     if b.func.dfg.value_type(v) != types::I32 {
         return None;
