@@ -29,8 +29,8 @@ primitive cse(float rect[4]; float x, y; varying float X, Y; inout varying fixed
     int i1 = 1;
     float f1 = 1;
     bool t1 = true;
-    fixed<16,16> h1 = 1;
-    fixed<8,24> g1 = 1;
+    fixed<16,0> h1 = 1;                // raw bits 1, like i1, t1 and g1
+    fixed<32,0> g1 = 1;
     float ones = i1 + f1 + (t1 ? 1 : 0) + float(h1) + float(g1);
     float v = X;
     float p = v * y;
