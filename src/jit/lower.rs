@@ -3626,7 +3626,15 @@ impl<'a, 'b> Lower<'a, 'b> {
                                 f
                             })
                         }
-                        _ => fixed::convert(&mut self.b, v.scalar, sc, c),
+                        _ if v.scalar == sc => c,
+                        _ => {
+                            let key = VnKey::Convert(v.scalar, sc, c);
+                            self.numbered(key).unwrap_or_else(|| {
+                                let r = fixed::convert(&mut self.b, v.scalar, sc, c);
+                                self.number(key, r);
+                                r
+                            })
+                        }
                     })
                     .collect();
                 // A number converted to interpolation data stands for that number in every

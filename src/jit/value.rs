@@ -48,6 +48,8 @@ pub enum VnKey {
     Op(u8, Scalar, ir::Value, ir::Value),
     /// Kind (0 float, 1 int, 2 bool, 3 fixed), raw bits, the scalar type it is used as.
     Const(u8, u32, Scalar),
+    /// A conversion of the value from the first scalar type to the second.
+    Convert(Scalar, Scalar, ir::Value),
 }
 
 /// [`VnKey::Op`] codes of the unary operations (above every `BinOp`).
