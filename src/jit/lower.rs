@@ -242,7 +242,11 @@ pub(crate) struct Lower<'a, 'b> {
     error_guard: Option<ir::Value>,
     /// Tier 0: argument-block words already loaded, by (byte offset, scalar, word bools), with
     /// the block that loaded them (see `load_uniform`).
-    arg_loads: std::collections::HashMap<(i32, Scalar, bool), (Block, ir::Value)>,
+    arg_loads: std::collections::HashMap<
+        (i32, Scalar, bool),
+        (Block, ir::Value),
+        std::hash::BuildHasherDefault<super::value::WordHasher>,
+    >,
     /// Tier 0: constants and pure operations already lowered in a block (value numbering
     /// while lowering, see [`Self::numbered`]); tier 1 leaves this to Cranelift's e-graph.
     vn: VnTable,
@@ -331,7 +335,7 @@ pub(crate) fn lower_kernel(
         written: vec![false; key.bindings.len()],
         block_culling,
         error_guard: None,
-        arg_loads: std::collections::HashMap::new(),
+        arg_loads: Default::default(),
         vn: VnTable::default(),
         proven_sites: None,
         flat: false,
