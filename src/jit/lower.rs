@@ -401,7 +401,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// Compiling for tier 0 (`Tier::Fast`): besides skipping block culling, the lowering
     /// then emits less CLIF and fewer blocks where that costs run time only in the one
     /// frame tier 0 serves (each use says what it skips; the larger ones are [`flat`]
-    /// pixel code, [`dead`] setup code and [`Self::setup_stmts`]). Results are
+    /// pixel code, [`dead`] setup code and [`Self::setup_stmts`]), and numbers values while
+    /// lowering ([`Self::numbered`]) where tier 1 leaves that to Cranelift's e-graph. Results are
     /// bit-identical either way (`tests/jit_tiers.rs`, `tests/jit_tier0.rs`).
     fn tier0(&self) -> bool {
         !self.block_culling

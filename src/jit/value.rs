@@ -9,6 +9,9 @@
 //! An aggregate value is a [`Val`] with its components in row-major order; an
 //! interpolation_data value holds only the components of the current view. Invariant: every
 //! component of a `Val` has the form its `varying` flag and `scalar` say.
+//!
+//! Also here: [`VnTable`], tier 0's table of the values already computed in the block being
+//! filled (value numbering while lowering; `Lower::numbered` in lower.rs).
 
 use std::hash::{BuildHasherDefault, Hasher};
 
