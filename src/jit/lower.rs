@@ -429,6 +429,11 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// masks) the executing lanes narrow to those where `cb == taken`, and uniform errors
     /// inside count if some such lane exists.
     fn eval_guarded(&mut self, e: &'a Expr, varying: bool, cb: ir::Value, taken: bool) -> Res<Val> {
+        // Tier 0: a uniform guard is only read by an error record, so an expression that
+        // cannot record one needs none (Cranelift would drop it, after we built it).
+        if !varying && self.tier0() && speculable_expr(e) {
+            return self.eval(e);
+        }
         let outer_guard = self.error_guard;
         let outer_exec = self.exec();
         let guard = if varying {
