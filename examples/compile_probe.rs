@@ -8,7 +8,8 @@
 //! configuration (tier 0, tier 1, unrolling off), prints the minimum of each and the
 //! bench's time to first pixel. Options: `timings [fast]` adds Cranelift's pass timings
 //! summed over `rounds` compiles (tier 1, or tier 0 with `fast`); `clif=FILE [fast]` writes
-//! the CLIF; `profile` only compiles tier 0 `rounds` times (for `perf record`); `speed`
+//! the CLIF; `shape=sphere_implicit|sphere_lit|polygon|nurb` compiles the first instance of
+//! that bench workload instead (`scene=FILE`: of a scene file); `profile` only compiles tier 0 `rounds` times (for `perf record`); `speed`
 //! times tier 1, tier 1 without unrolling, tier 0 and the hand-written kernels on the
 //! bench's fill and small scenes instead; `cold` compares a tier-0 compile right after
 //! another one (warm caches) with one after evicting the caches and with one in a fresh
@@ -75,6 +76,16 @@ fn main() {
         scene = primflow::runtime::Renderer::new(program.clone());
         let mut diags = Diagnostics::new();
         primflow::scene::load_into(&sources, file, &mut scene, &mut diags);
+    }
+    // `shape=NAME`: the first instance of the bench workload whose name contains NAME
+    // (`sphere implicit`, `sphere lit`, `polygon`, `nurb`).
+    if let Some(name) = args.iter().find_map(|a| a.strip_prefix("shape=")) {
+        let name = name.replace('_', " ");
+        scene = primflow::bench::shape_scenes(&program, 64, 4, 1)
+            .into_iter()
+            .find(|(n, _, _)| n.contains(name.as_str()))
+            .map(|(_, r, _)| r)
+            .expect("a bench workload of that name");
     }
     let inst = &scene.instances()[0];
     println!(

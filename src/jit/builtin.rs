@@ -7,11 +7,11 @@
 //! Component-wise built-ins broadcast a single-component argument over the others (the
 //! checker allows `mix(a, b, t)` with a scalar `t` over colours).
 
-use cranelift_codegen::ir::{self, condcodes::FloatCC, types, InstBuilder};
+use cranelift_codegen::ir::{self, condcodes::FloatCC, InstBuilder};
 
 use super::libm::LibmFn;
 use super::lower::{err, Lower, Res};
-use super::value::{args_flags, blend, to_varying, Val, F32X4};
+use super::value::{blend, to_varying, Val, F32X4};
 use crate::ir::{Builtin, Expr, Scalar, Space};
 
 /// A 4x4 row-major matrix of uniform f32 values; `None` is the identity.
@@ -315,13 +315,11 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     // ---------------------------------------------------------------- spaces
 
+    /// A matrix of the argument block (through `load_uniform`: at tier 0 a matrix several
+    /// transforms use is loaded once per block).
     fn load_matrix(&mut self, word: u32) -> [ir::Value; 16] {
         let args = self.args_ptr();
-        std::array::from_fn(|k| {
-            self.b
-                .ins()
-                .load(types::F32, args_flags(), args, ((word + k as u32) * 4) as i32)
-        })
+        std::array::from_fn(|k| self.load_uniform(Scalar::Float, args, ((word + k as u32) * 4) as i32, false, true))
     }
 
     fn device_from_space(&mut self, s: Space) -> Mat {

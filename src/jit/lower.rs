@@ -48,14 +48,14 @@ use cranelift_frontend::{FunctionBuilder, Variable};
 use super::fixed;
 use super::libm::LibmFn;
 use super::value::{
-    args_flags, blend, cl_type, comp_bytes, ctx_off, mask_const, mem_flags, splat, to_varying, zero, Val, F32X4, I32X4,
+    args_flags, blend, cl_type, comp_bytes, ctx_off, mask_const, mem_flags, splat, to_varying, zero, Val, VnKey,
+    VnTable, F32X4, I32X4, VN_NEG, VN_NOT,
 };
 use super::JitError;
 use crate::abi::{
     interpolator_arg_words, type_words, ArgLayout, BindingKind, ParamSlot, VariantKey, ERR_CALL_DEPTH, ERR_FUEL,
     ERR_INDEX, MAX_CALL_DEPTH, MODE_BOUND, MODE_EXPAND,
 };
-use crate::ir::split::expr_reads;
 use crate::ir::{
     ArmKind, BinOp, ConstValue, Elem, Expr, ExprKind, FixedFormat, FuncId, FuncKind, Function, LocalId, LoopId,
     ParamRole, Place, Program, Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp,
@@ -245,7 +245,14 @@ pub(crate) struct Lower<'a, 'b> {
     error_guard: Option<ir::Value>,
     /// Tier 0: argument-block words already loaded, by (byte offset, scalar, word bools), with
     /// the block that loaded them (see `load_uniform`).
-    arg_loads: std::collections::HashMap<(i32, Scalar, bool), (Block, ir::Value)>,
+    arg_loads: std::collections::HashMap<
+        (i32, Scalar, bool),
+        (Block, ir::Value),
+        std::hash::BuildHasherDefault<super::value::WordHasher>,
+    >,
+    /// Tier 0: constants and pure operations already lowered in a block (value numbering
+    /// while lowering, see [`Self::numbered`]); tier 1 leaves this to Cranelift's e-graph.
+    vn: VnTable,
     /// Index sites of the primitive's setup whose uniform index is proven in range at every
     /// occurrence ([`crate::ir::range`]): indexed without clamp or error record. Computed
     /// when the first index that is not a constant is lowered (`None` before): most
@@ -334,7 +341,8 @@ pub(crate) fn lower_kernel(
         written: vec![false; key.bindings.len()],
         block_culling,
         error_guard: None,
-        arg_loads: std::collections::HashMap::new(),
+        arg_loads: Default::default(),
+        vn: VnTable::default(),
         proven_sites: None,
         flat: false,
         setup_live: None,
@@ -377,14 +385,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         let frame = self.make_frame(f, self.layout.params.clone(), self.layout.fixed_words, None)?;
         self.frames.push(frame);
         if self.tier0() {
-            let mut pixel = std::collections::HashSet::new();
-            self.live_pixel_locals(&f.pixel, &mut pixel);
             let mut live = vec![false; f.locals.len()];
-            for l in pixel {
-                if let Some(x) = live.get_mut(l.0 as usize) {
-                    *x = true;
-                }
-            }
+            self.live_pixel_flags(&f.pixel, &mut live);
             let removable = |s: &Stmt| self.speculable_stmts(std::slice::from_ref(s), &mut usize::MAX.clone());
             self.setup_live = Some(dead::live_setup_locals(&f.setup, live, &removable));
         }
@@ -406,7 +408,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// Compiling for tier 0 (`Tier::Fast`): besides skipping block culling, the lowering
     /// then emits less CLIF and fewer blocks where that costs run time only in the one
     /// frame tier 0 serves (each use says what it skips; the larger ones are [`flat`]
-    /// pixel code, [`dead`] setup code and [`Self::setup_stmts`]). Results are
+    /// pixel code, [`dead`] setup code and [`Self::setup_stmts`]), and numbers values while
+    /// lowering ([`Self::numbered`]) where tier 1 leaves that to Cranelift's e-graph. Results are
     /// bit-identical either way (`tests/jit_tiers.rs`, `tests/jit_tier0.rs`).
     fn tier0(&self) -> bool {
         !self.block_culling
@@ -433,6 +436,11 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// masks) the executing lanes narrow to those where `cb == taken`, and uniform errors
     /// inside count if some such lane exists.
     fn eval_guarded(&mut self, e: &'a Expr, varying: bool, cb: ir::Value, taken: bool) -> Res<Val> {
+        // Tier 0: a uniform guard is only read by an error record, so an expression that
+        // cannot record one needs none (Cranelift would drop it, after we built it).
+        if !varying && self.tier0() && speculable_expr(e) {
+            return self.eval(e);
+        }
         let outer_guard = self.error_guard;
         let outer_exec = self.exec();
         let guard = if varying {
@@ -923,13 +931,12 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// loop (their address is defined in it). Locals the pixel part assigns get a stack
     /// slot of their own with ordinary loads and stores.
     fn spill_uniforms(&mut self, f: &'a Function) {
-        let mut pixel_assigned = std::collections::HashSet::new();
-        block::assigned_locals(&f.pixel, &mut pixel_assigned);
+        let pixel_assigned = dead::assigned_flags(&f.pixel, f.locals.len());
         // Uniform locals the variant's pixel code never touches (e.g. the `linear` planes
         // when only perspective_linear parameters are bound) are not stored: their setup
         // computations are then dead and Cranelift drops them.
-        let mut pixel_used = std::collections::HashSet::new();
-        self.live_pixel_locals(&f.pixel, &mut pixel_used);
+        let mut pixel_used = vec![false; f.locals.len()];
+        self.live_pixel_flags(&f.pixel, &mut pixel_used);
         let frame = &self.frames[0];
         let mut moves = vec![];
         for (i, st) in frame.storage.iter().enumerate() {
@@ -939,10 +946,10 @@ impl<'a, 'b> Lower<'a, 'b> {
                 .params
                 .iter()
                 .any(|p| p.local.0 as usize == i && matches!(p.role, ParamRole::X | ParamRole::Y | ParamRole::Z));
-            if local.var.is_varying() || is_pixel_param || vars.is_empty() || !pixel_used.contains(&LocalId(i as u32)) {
+            if local.var.is_varying() || is_pixel_param || vars.is_empty() || !pixel_used[i] {
                 continue;
             }
-            moves.push((i, vars.clone(), pixel_assigned.contains(&LocalId(i as u32))));
+            moves.push((i, vars.clone(), pixel_assigned[i]));
         }
         let frozen_words: u32 = moves.iter().filter(|m| !m.2).map(|m| m.1.len() as u32).sum();
         // Words first, so the hoisting analysis sees which locals live in the frame.
@@ -965,11 +972,15 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.b
                 .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, frame_bytes, 4))
         });
+        // One frame address for all the stores below (they are consecutive, so it is live
+        // only across them): a `stack_addr` per local was 36 of K=4's CLIF instructions.
+        let frame_addr = frame_slot
+            .filter(|_| placed.iter().any(|(_, _, at)| at.is_some()))
+            .map(|fs| self.b.ins().stack_addr(types::I64, fs, 0));
         for (i, vars, at) in placed {
             let sc = elem_scalar(&f.locals[i].ty);
-            match (at, frame_slot) {
-                (Some(first), Some(fs)) => {
-                    let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+            match (at, frame_addr) {
+                (Some(first), Some(addr)) => {
                     for (c, v) in vars.iter().enumerate() {
                         let x = self.b.use_var(*v);
                         let w = first + c as u32;
@@ -1006,7 +1017,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         // aside here and every group starts from it (`reset_group_locals`).
         for (i, st) in self.frames[0].storage.iter().enumerate() {
             let Storage::Stack(slot) = *st else { continue };
-            if f.locals[i].var.is_varying() || !pixel_assigned.contains(&LocalId(i as u32)) {
+            if f.locals[i].var.is_varying() || !pixel_assigned[i] {
                 continue;
             }
             let bytes = self.b.func.sized_stack_slots[slot].size;
@@ -1490,17 +1501,12 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// earlier group left (a local is declared, so assigned, before any read of it in the
     /// same group), so the values the pixels see are the same.
     fn flat_group_locals(&mut self, f: &'a Function) {
-        let mut assigned = std::collections::HashSet::new();
-        block::assigned_locals(&f.pixel, &mut assigned);
+        let assigned = dead::assigned_flags(&f.pixel, f.locals.len());
         // A local the setup assigns keeps the setup's value until the pixel code assigns it.
-        let mut in_setup = std::collections::HashSet::new();
-        block::assigned_locals(&f.setup, &mut in_setup);
+        let in_setup = dead::assigned_flags(&f.setup, f.locals.len());
         let mut zeros: std::collections::HashMap<Scalar, ir::Value> = std::collections::HashMap::new();
         for (i, local) in f.locals.iter().enumerate() {
-            if !local.var.is_varying()
-                || !assigned.contains(&LocalId(i as u32))
-                || in_setup.contains(&LocalId(i as u32))
-            {
+            if !local.var.is_varying() || !assigned[i] || in_setup[i] {
                 continue;
             }
             if f.params.iter().any(|p| p.local.0 as usize == i) {
@@ -2010,11 +2016,11 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// branches: `then` from the entry values, `otherwise` from the entry values, then each
     /// assigned variable selects its `then` or `otherwise` value by `c`.
     fn if_converted(&mut self, c: ir::Value, then: &'a [Stmt], otherwise: &'a [Stmt]) -> Res<()> {
-        let mut locals = std::collections::HashSet::new();
-        block::assigned_locals(then, &mut locals);
-        block::assigned_locals(otherwise, &mut locals);
-        let mut locals: Vec<LocalId> = locals.into_iter().collect();
-        locals.sort_by_key(|l| l.0);
+        let mut locals = vec![];
+        dead::visit_assigned(then, &mut |l| locals.push(l));
+        dead::visit_assigned(otherwise, &mut |l| locals.push(l));
+        locals.sort_unstable_by_key(|l| l.0);
+        locals.dedup();
         let mut vars = vec![];
         for l in locals {
             if let Some(Storage::Vars(vs)) = self.frame().storage.get(l.0 as usize) {
@@ -2399,24 +2405,36 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// Every local read or assigned by `stmts` as this key lowers them (arms the key gives
     /// nothing to do are skipped, like [`Self::interpolation`] skips them).
     fn live_pixel_locals(&self, stmts: &[Stmt], out: &mut std::collections::HashSet<LocalId>) {
+        self.visit_live_pixel_locals(stmts, &mut |l| {
+            out.insert(l);
+        });
+    }
+
+    /// [`Self::live_pixel_locals`] as a flag per local (tier 0's analyses: a HashSet cost
+    /// more than the walk itself).
+    fn live_pixel_flags(&self, stmts: &[Stmt], out: &mut [bool]) {
+        self.visit_live_pixel_locals(stmts, &mut |l| mark_local(out, l));
+    }
+
+    fn visit_live_pixel_locals(&self, stmts: &[Stmt], out: &mut dyn FnMut(LocalId)) {
         for s in stmts {
             match &s.kind {
                 StmtKind::Assign { place, value } => {
-                    out.insert(place.local);
-                    place.indices.iter().for_each(|(i, _)| expr_reads(i, out));
-                    expr_reads(value, out);
+                    out(place.local);
+                    place.indices.iter().for_each(|(i, _)| i.for_each_local(out));
+                    value.for_each_local(out);
                 }
                 StmtKind::If { cond, then, otherwise } => {
-                    expr_reads(cond, out);
-                    self.live_pixel_locals(then, out);
-                    self.live_pixel_locals(otherwise, out);
+                    cond.for_each_local(out);
+                    self.visit_live_pixel_locals(then, out);
+                    self.visit_live_pixel_locals(otherwise, out);
                 }
                 StmtKind::Loop { cond, body, step, .. } => {
                     if let Some(c) = cond {
-                        expr_reads(c, out);
+                        c.for_each_local(out);
                     }
-                    self.live_pixel_locals(body, out);
-                    self.live_pixel_locals(step, out);
+                    self.visit_live_pixel_locals(body, out);
+                    self.visit_live_pixel_locals(step, out);
                 }
                 StmtKind::Interpolation { arms } => {
                     let named: Vec<&str> = arms
@@ -2428,13 +2446,13 @@ impl<'a, 'b> Lower<'a, 'b> {
                         .collect();
                     for arm in arms {
                         if self.arm_view(arms, &named, arm).is_some() {
-                            self.live_pixel_locals(&arm.body, out);
+                            self.visit_live_pixel_locals(&arm.body, out);
                         }
                     }
                 }
-                StmtKind::InterpolatorReturn(Some(e)) => expr_reads(e, out),
-                StmtKind::Bound(es) => es.iter().for_each(|e| expr_reads(e, out)),
-                StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| expr_reads(e, out)),
+                StmtKind::InterpolatorReturn(Some(e)) => e.for_each_local(out),
+                StmtKind::Bound(es) => es.iter().for_each(|e| e.for_each_local(out)),
+                StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| e.for_each_local(out)),
                 StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::InterpolatorReturn(None) => {}
             }
         }
@@ -3159,7 +3177,14 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// Load a scalar of `sc` from `addr + off` bytes in uniform form (bools stored as bytes
     /// or words: any non-zero is true).
-    fn load_uniform(&mut self, sc: Scalar, addr: ir::Value, off: i32, word_bools: bool, ro: bool) -> ir::Value {
+    pub(crate) fn load_uniform(
+        &mut self,
+        sc: Scalar,
+        addr: ir::Value,
+        off: i32,
+        word_bools: bool,
+        ro: bool,
+    ) -> ir::Value {
         // Tier 0 has no e-graph pass to merge repeated loads of the same argument word (the
         // argument block is read-only while the kernel runs): within one block, reuse the
         // first load.
@@ -3559,6 +3584,15 @@ impl<'a, 'b> Lower<'a, 'b> {
         let sc = elem_scalar(&e.ty);
         match &e.kind {
             ExprKind::Const(c) => {
+                let key = match *c {
+                    ConstValue::Float(x) => VnKey::Const(0, x.to_bits(), sc),
+                    ConstValue::Int(i) => VnKey::Const(1, i as u32, sc),
+                    ConstValue::Bool(x) => VnKey::Const(2, x as u32, sc),
+                    ConstValue::Fixed(i) => VnKey::Const(3, i as u32, sc),
+                };
+                if let Some(v) = self.numbered(key) {
+                    return Ok(Val::one(v, sc, false));
+                }
                 let v = match *c {
                     ConstValue::Float(x) => self.b.ins().f32const(x),
                     ConstValue::Int(i) | ConstValue::Fixed(i) => self.b.ins().iconst(types::I32, i as i64),
@@ -3572,6 +3606,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                     ConstValue::Fixed(_) => sc,
                 };
                 let v = fixed::convert(&mut self.b, from, sc, v);
+                self.number(key, v);
                 Ok(Val::one(v, sc, false))
             }
             ExprKind::Local(_) | ExprKind::Index { .. } => {
@@ -3580,21 +3615,30 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             ExprKind::Unary { op, expr } => {
                 let v = self.eval(expr)?;
+                let code = if *op == UnaryOp::Neg { VN_NEG } else { VN_NOT };
                 let comps = v
                     .comps
                     .iter()
-                    .map(|&c| match (op, v.scalar) {
-                        (UnaryOp::Neg, Scalar::Float) => self.b.ins().fneg(c),
-                        (UnaryOp::Neg, Scalar::Fixed(f)) => fixed::neg(&mut self.b, f, c),
-                        (UnaryOp::Neg, _) => self.b.ins().ineg(c),
-                        (UnaryOp::Not, _) => {
-                            let c = fixed::convert(&mut self.b, v.scalar, Scalar::Bool, c);
-                            if v.varying {
-                                self.b.ins().bnot(c)
-                            } else {
-                                self.b.ins().bxor_imm_s(c, 1)
-                            }
+                    .map(|&c| {
+                        let key = VnKey::Op(code, v.scalar, c, c);
+                        if let Some(r) = self.numbered(key) {
+                            return r;
                         }
+                        let r = match (op, v.scalar) {
+                            (UnaryOp::Neg, Scalar::Float) => self.b.ins().fneg(c),
+                            (UnaryOp::Neg, Scalar::Fixed(f)) => fixed::neg(&mut self.b, f, c),
+                            (UnaryOp::Neg, _) => self.b.ins().ineg(c),
+                            (UnaryOp::Not, _) => {
+                                let c = fixed::convert(&mut self.b, v.scalar, Scalar::Bool, c);
+                                if v.varying {
+                                    self.b.ins().bnot(c)
+                                } else {
+                                    self.b.ins().bxor_imm_s(c, 1)
+                                }
+                            }
+                        };
+                        self.number(key, r);
+                        r
                     })
                     .collect();
                 let scalar = if *op == UnaryOp::Not { Scalar::Bool } else { v.scalar };
@@ -3620,7 +3664,29 @@ impl<'a, 'b> Lower<'a, 'b> {
                 let mut comps: Vec<ir::Value> = v
                     .comps
                     .iter()
-                    .map(|&c| fixed::convert(&mut self.b, v.scalar, sc, c))
+                    .map(|&c| match (v.scalar, sc, super::value::iconst_i32(&self.b, c)) {
+                        // An int constant as a float (`float({1, 0, 0, 0})`): the constant
+                        // itself (`as` rounds to nearest like `fcvt_from_sint`), shared like
+                        // any other constant at tier 0, instead of a conversion at run time.
+                        (Scalar::Int, Scalar::Float, Some(i)) => {
+                            let x = i as f32;
+                            let key = VnKey::Const(0, x.to_bits(), Scalar::Float);
+                            self.numbered(key).unwrap_or_else(|| {
+                                let f = self.b.ins().f32const(x);
+                                self.number(key, f);
+                                f
+                            })
+                        }
+                        _ if v.scalar == sc => c,
+                        _ => {
+                            let key = VnKey::Convert(v.scalar, sc, c);
+                            self.numbered(key).unwrap_or_else(|| {
+                                let r = fixed::convert(&mut self.b, v.scalar, sc, c);
+                                self.number(key, r);
+                                r
+                            })
+                        }
+                    })
                     .collect();
                 // A number converted to interpolation data stands for that number in every
                 // component of the current view (the checker's zero-initialisation and
@@ -3813,7 +3879,16 @@ impl<'a, 'b> Lower<'a, 'b> {
         );
         let mut comps = vec![];
         for (&x, &y) in a.comps.iter().zip(&c.comps) {
-            comps.push(self.binop(op, sc, x, y)?);
+            let key = VnKey::Op(op as u8, sc, x, y);
+            let v = match self.numbered(key) {
+                Some(v) => v,
+                None => {
+                    let v = self.binop(op, sc, x, y)?;
+                    self.number(key, v);
+                    v
+                }
+            };
+            comps.push(v);
         }
         let scalar = if is_cmp || matches!(op, BinOp::And | BinOp::Or) {
             Scalar::Bool
@@ -3825,6 +3900,27 @@ impl<'a, 'b> Lower<'a, 'b> {
             scalar,
             varying: a.varying,
         })
+    }
+
+    /// Tier 0: the value `key` already has in the current block, if it was lowered there.
+    /// Every key is a pure function of SSA values (or a constant), so an earlier result in
+    /// the same block is the same value and dominates the use: an assignment to a local
+    /// gives the local a new SSA value, and so a new key. Sharing shortens the CLIF (a
+    /// triangle repeats `-orient`, `interp_data[0] * q0`, many constants) without a pass over
+    /// the finished function.
+    fn numbered(&self, key: VnKey) -> Option<ir::Value> {
+        if !self.tier0() {
+            return None;
+        }
+        let block = self.b.current_block()?;
+        self.vn.get(block, key)
+    }
+
+    /// Record `v` as the value of `key` in the current block (tier 0; see [`Self::numbered`]).
+    fn number(&mut self, key: VnKey, v: ir::Value) {
+        if let (true, Some(block)) = (self.tier0(), self.b.current_block()) {
+            self.vn.insert(block, key, v);
+        }
     }
 
     fn binop(&mut self, op: BinOp, sc: Scalar, x: ir::Value, y: ir::Value) -> Res<ir::Value> {
@@ -3920,6 +4016,13 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     pub(crate) fn args_ptr(&self) -> ir::Value {
         self.args
+    }
+}
+
+/// Flag `l` in a per-local table.
+fn mark_local(out: &mut [bool], l: LocalId) {
+    if let Some(x) = out.get_mut(l.0 as usize) {
+        *x = true;
     }
 }
 

@@ -9,8 +9,13 @@
 //! An aggregate value is a [`Val`] with its components in row-major order; an
 //! interpolation_data value holds only the components of the current view. Invariant: every
 //! component of a `Val` has the form its `varying` flag and `scalar` say.
+//!
+//! Also here: [`VnTable`], tier 0's table of the values already computed in the block being
+//! filled (value numbering while lowering; `Lower::numbered` in lower.rs).
 
-use cranelift_codegen::ir::{self, types, InstBuilder, MemFlagsData, Type};
+use std::hash::{BuildHasherDefault, Hasher};
+
+use cranelift_codegen::ir::{self, types, Block, InstBuilder, MemFlagsData, Type};
 use cranelift_frontend::FunctionBuilder;
 
 use crate::abi::TileCtx;
@@ -35,6 +40,78 @@ impl Val {
             scalar,
             varying,
         }
+    }
+}
+
+/// What a pure value computed while lowering is, for value numbering at tier 0 (see
+/// `Lower::numbered`): an operation on its operands, or a constant of a scalar type.
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
+pub enum VnKey {
+    /// `BinOp as u8` (or [`VN_NEG`], [`VN_NOT`]), the operands' scalar type, the operands.
+    Op(u8, Scalar, ir::Value, ir::Value),
+    /// Kind (0 float, 1 int, 2 bool, 3 fixed), raw bits, the scalar type it is used as.
+    Const(u8, u32, Scalar),
+    /// A conversion of the value from the first scalar type to the second.
+    Convert(Scalar, Scalar, ir::Value),
+}
+
+/// [`VnKey::Op`] codes of the unary operations (above every `BinOp`).
+pub const VN_NEG: u8 = 200;
+pub const VN_NOT: u8 = 201;
+
+/// Values already computed in one block (the one being filled), by what they are.
+#[derive(Default)]
+pub struct VnTable {
+    block: Option<Block>,
+    values: std::collections::HashMap<VnKey, ir::Value, BuildHasherDefault<WordHasher>>,
+}
+
+impl VnTable {
+    /// The value of `key` computed earlier in `block`.
+    pub fn get(&self, block: Block, key: VnKey) -> Option<ir::Value> {
+        if self.block != Some(block) {
+            return None;
+        }
+        self.values.get(&key).copied()
+    }
+
+    /// Record `v` as `key`'s value in `block`. Lowering fills one block at a time, so a
+    /// new block forgets the previous one's values (the table stays small and its capacity
+    /// is reused; a block lowered again later only finds nothing).
+    pub fn insert(&mut self, block: Block, key: VnKey, v: ir::Value) {
+        if self.block != Some(block) {
+            self.block = Some(block);
+            self.values.clear();
+        }
+        self.values.insert(key, v);
+    }
+}
+
+/// A multiply-rotate hasher for small keys of integers (the value-numbering table is
+/// probed for every constant and operation lowered; SipHash cost more than it saved).
+#[derive(Default)]
+pub struct WordHasher(u64);
+
+impl Hasher for WordHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+    fn write_u8(&mut self, i: u8) {
+        self.write_u64(u64::from(i));
+    }
+    fn write_u32(&mut self, i: u32) {
+        self.write_u64(u64::from(i));
+    }
+    fn write_usize(&mut self, i: usize) {
+        self.write_u64(i as u64);
+    }
+    fn write_u64(&mut self, i: u64) {
+        self.0 = (self.0.rotate_left(5) ^ i).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
     }
 }
 
@@ -140,7 +217,7 @@ pub fn splat(b: &mut FunctionBuilder, scalar: Scalar, v: ir::Value) -> ir::Value
 }
 
 /// The value of `v` if an `iconst.i32` defines it.
-fn iconst_i32(b: &FunctionBuilder, v: ir::Value) -> Option<i32> {
+pub fn iconst_i32(b: &FunctionBuilder, v: ir::Value) -> Option<i32> {
     let v = b.func.dfg.resolve_aliases(v);
     if b.func.dfg.value_type(v) != types::I32 {
         return None;

@@ -76,3 +76,35 @@ fn walk(stmts: &[Stmt], live: &mut [bool], changed: &mut bool, removable: &dyn F
         }
     }
 }
+
+/// Calls `f` for each assignment in `stmts` (nested ones too) with the local it assigns
+/// (whole or in part); a local assigned twice is passed twice. Tier 0's per-kernel walks
+/// collect into flags or a sorted list with it: a HashSet per walk cost more than the walk.
+pub(super) fn visit_assigned(stmts: &[Stmt], f: &mut dyn FnMut(LocalId)) {
+    for s in stmts {
+        match &s.kind {
+            StmtKind::Assign { place, .. } => f(place.local),
+            StmtKind::If { then, otherwise, .. } => {
+                visit_assigned(then, f);
+                visit_assigned(otherwise, f);
+            }
+            StmtKind::Loop { body, step, .. } => {
+                visit_assigned(body, f);
+                visit_assigned(step, f);
+            }
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| visit_assigned(&a.body, f)),
+            _ => {}
+        }
+    }
+}
+
+/// The locals `stmts` assigns, as a flag per local (`locals` of them).
+pub(super) fn assigned_flags(stmts: &[Stmt], locals: usize) -> Vec<bool> {
+    let mut out = vec![false; locals];
+    visit_assigned(stmts, &mut |l| {
+        if let Some(x) = out.get_mut(l.0 as usize) {
+            *x = true;
+        }
+    });
+    out
+}
