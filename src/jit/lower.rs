@@ -3480,9 +3480,13 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// component (5700 of the NURB kernel's 32000 tier-0 CLIF lines) for Cranelift to
     /// process. False (nothing emitted) when the assignment is not such a clear.
     fn zero_uniform_array(&mut self, local: LocalId, acc: &Access, value: &Expr) -> bool {
+        // Cheap tests first: this runs for every assignment.
+        if !all_zero_bits(value) {
+            return false;
+        }
         let fr = &self.frames[self.frames.len() - 1];
         let varying = fr.func.local(local).var.is_varying();
-        let Some(Storage::Stack(slot)) = fr.storage.get(local.0 as usize).cloned() else {
+        let Some(&Storage::Stack(slot)) = fr.storage.get(local.0 as usize) else {
             return false;
         };
         let whole = matches!(acc.dyn_off, Dyn::None) && matches!(acc.ty.elem, Elem::Scalar(_));
@@ -3490,7 +3494,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         // The value must cover the place exactly (or be one scalar, broadcast), as the
         // general path checks.
         let fits = value.ty.is_scalar() || value.ty.fixed_len() == words;
-        if varying || !whole || words < 8 || !fits || !all_zero_bits(value) {
+        if varying || !whole || words < 8 || !fits {
             return false;
         }
         let base_addr = self.b.ins().stack_addr(types::I64, slot, 0);
