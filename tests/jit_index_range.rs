@@ -96,12 +96,30 @@ primitive sum_window(float rect[4]; int k, p; varying float X, Y; inout varying 
         s = s + a[k - p + j];
     Z = s;
 }}
+
+primitive last_rise(float rect[4]; int n; varying float X, Y; inout varying fixed<32,32> Z)
+{{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    if (n < 1 || n > {len})
+        return;
+    float a[{len}] = {{{init}}};
+    int k = 0;
+    for (int i = 0; i + 1 < n; i++) {{
+        if (a[i] <= a[i + 1])
+            k = i;
+    }}
+    float s = a[k + 1];
+    Z = s;
+}}
 "#
     )
 }
 
 /// Line and column of the index in `s = s + a[i]` in `sum_free` (the site its error names).
 const FREE_SITE: &str = "W0801@32:19";
+/// The index `k + 1` in `last_rise`: `k` is 0 or a copy of the counter `i` under
+/// `i + 1 < n <= len`, so in range for every `len` but 1 (and there only when `n == 1`).
+const RISE_SITE: &str = "W0801@79:17";
 /// The index `k - p + j` in `sum_window`: in range exactly when `k >= p` (a relation
 /// between two variables, which the interval analysis cannot prove).
 const WINDOW_SITE: &str = "W0801@64:19";
@@ -260,6 +278,52 @@ fn a_window_below_the_array_reads_clamped_values_and_reports_its_index_site() {
                     let expected: Vec<&str> = if bad { vec![WINDOW_SITE] } else { vec![] };
                     assert_eq!(errors, expected, "{case}");
                 }
+            }
+        }
+    }
+}
+
+/// `last_rise` needs the analysis' loop rules: `i + 1 < n` narrows the counter only while
+/// `i + 1` cannot wrap (widening stops at 2^30 first), and `k = i` keeps `i`'s bound only
+/// when the counter is widened before the copy and the head is narrowed after. Proven for
+/// len 4; for len 1 the `a[k + 1]` site is out of range at `n == 1` and must stay checked,
+/// clamped, and reported at its line:col in both tiers.
+#[test]
+fn copies_of_bounded_counters_are_proven_and_the_edge_case_still_reports() {
+    let mut sources = SourceMap::new();
+    let program = library(&mut sources, 4);
+    let mut proven: Vec<String> = proven_index_sites(program.func(program.find("last_rise").unwrap()))
+        .into_iter()
+        .map(|site| {
+            let span = program.sites[site.0 as usize];
+            let (l, c) = sources.line_col(span.file, span.start);
+            format!("{l}:{c}")
+        })
+        .filter(|at| at.starts_with("76:") || at.starts_with("79:"))
+        .collect();
+    proven.sort();
+    assert_eq!(proven, ["76:15", "76:23", "79:17"], "a[i], a[i + 1], a[k + 1]");
+    for len in [1usize, 2, 4] {
+        let mut sources = SourceMap::new();
+        let program = library(&mut sources, len);
+        let l = len as i64;
+        for n in 1..=l {
+            // k = n - 2 for n >= 2 (the elements rise), else 0: a[k + 1] clamped.
+            let index = if n >= 2 { n - 1 } else { 1 };
+            let want_z = element(index.min(l - 1));
+            let bad = index >= l;
+            for tier in [Tier::Fast, Tier::Optimised] {
+                let case = format!("len={len} n={n} {tier:?}");
+                let (want, _) = run(&program, &sources, &scene(&program, "flat", &[("z", want_z)]), tier);
+                let (got, errors) = run(
+                    &program,
+                    &sources,
+                    &scene(&program, "last_rise", &[("n", n as f32)]),
+                    tier,
+                );
+                assert_eq!(got, want, "{case}");
+                let expected: Vec<&str> = if bad { vec![RISE_SITE] } else { vec![] };
+                assert_eq!(errors, expected, "{case}");
             }
         }
     }
