@@ -358,6 +358,27 @@ impl Expr {
     }
 }
 
+/// Call `f` on every assignment in `stmts`, nested ones too (through `if` sides, loop
+/// bodies and steps, interpolation arms), with its place and value. The one place that
+/// knows which statements assign; the walks that collect assigned locals go through it.
+pub fn for_each_assign(stmts: &[Stmt], f: &mut dyn FnMut(&Place, &Expr)) {
+    for s in stmts {
+        match &s.kind {
+            StmtKind::Assign { place, value } => f(place, value),
+            StmtKind::If { then, otherwise, .. } => {
+                for_each_assign(then, f);
+                for_each_assign(otherwise, f);
+            }
+            StmtKind::Loop { body, step, .. } => {
+                for_each_assign(body, f);
+                for_each_assign(step, f);
+            }
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| for_each_assign(&a.body, f)),
+            _ => {}
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum UnaryOp {
     Neg,

@@ -563,40 +563,13 @@ impl Analysis<'_> {
 /// Mark (by local) the locals that `list` assigns whole from a value that reads them
 /// (`i = i + 1`, `n = max(n, m)`): the loop counters, widened before other locals.
 fn counters_in(list: &[Stmt], out: &mut [bool]) {
-    for s in list {
-        match &s.kind {
-            StmtKind::Assign { place, value } => {
-                if place.indices.is_empty() && reads(value, place.local) {
-                    if let Some(c) = out.get_mut(place.local.0 as usize) {
-                        *c = true;
-                    }
-                }
+    super::for_each_assign(list, &mut |place, value| {
+        if place.indices.is_empty() && value.reads_any(&|l| l == place.local) {
+            if let Some(c) = out.get_mut(place.local.0 as usize) {
+                *c = true;
             }
-            StmtKind::If { then, otherwise, .. } => {
-                counters_in(then, out);
-                counters_in(otherwise, out);
-            }
-            StmtKind::Loop { body, step, .. } => {
-                counters_in(body, out);
-                counters_in(step, out);
-            }
-            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| counters_in(&a.body, out)),
-            _ => {}
         }
-    }
-}
-
-/// Does `e` read local `l`?
-fn reads(e: &Expr, l: LocalId) -> bool {
-    match &e.kind {
-        ExprKind::Local(x) => *x == l,
-        ExprKind::Index { base, index, .. } => reads(base, l) || reads(index, l),
-        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => false,
-        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => reads(expr, l),
-        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => reads(lhs, l) || reads(rhs, l),
-        ExprKind::Select { cond, then, otherwise } => reads(cond, l) || reads(then, l) || reads(otherwise, l),
-        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().any(|a| reads(a, l)),
-    }
+    });
 }
 
 #[derive(Clone, Copy)]

@@ -269,21 +269,7 @@ fn count_stmts(list: &[Stmt]) -> usize {
 
 /// Every local assigned (whole or in part) anywhere in `list`.
 fn assigned_locals(list: &[Stmt], out: &mut Vec<LocalId>) {
-    for s in list {
-        match &s.kind {
-            StmtKind::Assign { place, .. } => out.push(place.local),
-            StmtKind::If { then, otherwise, .. } => {
-                assigned_locals(then, out);
-                assigned_locals(otherwise, out);
-            }
-            StmtKind::Loop { body, step, .. } => {
-                assigned_locals(body, out);
-                assigned_locals(step, out);
-            }
-            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| assigned_locals(&a.body, out)),
-            _ => {}
-        }
-    }
+    crate::ir::for_each_assign(list, &mut |place, _| out.push(place.local));
 }
 
 fn is_scalar_of(e: &Expr, s: Scalar) -> bool {

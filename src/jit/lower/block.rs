@@ -174,27 +174,9 @@ pub(super) fn pure(e: &Expr) -> bool {
 
 /// Locals assigned anywhere in `stmts` (their values change between pixel groups).
 pub(super) fn assigned_locals(stmts: &[Stmt], out: &mut HashSet<LocalId>) {
-    for s in stmts {
-        match &s.kind {
-            StmtKind::Assign { place, .. } => {
-                out.insert(place.local);
-            }
-            StmtKind::If { then, otherwise, .. } => {
-                assigned_locals(then, out);
-                assigned_locals(otherwise, out);
-            }
-            StmtKind::Loop { body, step, .. } => {
-                assigned_locals(body, out);
-                assigned_locals(step, out);
-            }
-            StmtKind::Interpolation { arms } => {
-                for a in arms {
-                    assigned_locals(&a.body, out);
-                }
-            }
-            _ => {}
-        }
-    }
+    crate::ir::for_each_assign(stmts, &mut |place, _| {
+        out.insert(place.local);
+    });
 }
 
 fn reads_any(e: &Expr, set: &HashSet<LocalId>) -> bool {

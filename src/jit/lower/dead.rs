@@ -81,21 +81,7 @@ fn walk(stmts: &[Stmt], live: &mut [bool], changed: &mut bool, removable: &dyn F
 /// (whole or in part); a local assigned twice is passed twice. Tier 0's per-kernel walks
 /// collect into flags or a sorted list with it: a HashSet per walk cost more than the walk.
 pub(super) fn visit_assigned(stmts: &[Stmt], f: &mut dyn FnMut(LocalId)) {
-    for s in stmts {
-        match &s.kind {
-            StmtKind::Assign { place, .. } => f(place.local),
-            StmtKind::If { then, otherwise, .. } => {
-                visit_assigned(then, f);
-                visit_assigned(otherwise, f);
-            }
-            StmtKind::Loop { body, step, .. } => {
-                visit_assigned(body, f);
-                visit_assigned(step, f);
-            }
-            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| visit_assigned(&a.body, f)),
-            _ => {}
-        }
-    }
+    crate::ir::for_each_assign(stmts, &mut |place, _| f(place.local));
 }
 
 /// The locals `stmts` assigns, as a flag per local (`locals` of them).
