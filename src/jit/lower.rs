@@ -62,6 +62,7 @@ use crate::ir::{
 };
 
 mod block;
+mod bounds;
 mod dead;
 mod flat;
 mod hoist;
@@ -268,6 +269,9 @@ pub(crate) struct Lower<'a, 'b> {
     /// Uniform conditions of the pixel code decided for the copy of the pixel loops being
     /// lowered, by address (see [`unswitch`]); empty outside the pixel loops and in tier 0.
     unswitched: std::collections::HashMap<usize, bool>,
+    /// Bounds of float locals per function being lowered (by address), computed when its
+    /// first varying float -> int or fixed conversion is lowered (see [`bounds`]).
+    local_bounds: std::collections::HashMap<usize, bounds::LocalBounds>,
     pub(crate) warnings: Vec<String>,
 }
 
@@ -347,6 +351,7 @@ pub(crate) fn lower_kernel(
         flat: false,
         setup_live: None,
         unswitched: std::collections::HashMap::new(),
+        local_bounds: std::collections::HashMap::new(),
         warnings: vec![],
     };
     l.body(f)?;
@@ -3595,6 +3600,17 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     // ---------------------------------------------------------------- expressions
 
+    /// The bound of float expression `e` of the function being lowered (see [`bounds`]),
+    /// as (lo, hi).
+    fn float_bound(&mut self, e: &Expr) -> Option<(f64, f64)> {
+        let f = self.frames.last()?.func;
+        let table = self
+            .local_bounds
+            .entry(f as *const Function as usize)
+            .or_insert_with(|| bounds::LocalBounds::of_function(f));
+        table.expr(e).map(|b| (b.lo, b.hi))
+    }
+
     pub(crate) fn eval_uniform(&mut self, e: &'a Expr) -> Res<Val> {
         let v = self.eval(e)?;
         if v.varying {
@@ -3687,6 +3703,14 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             ExprKind::Convert(inner) => {
                 let v = self.eval(inner)?;
+                // A varying float whose lanes are proven finite and in the target's range
+                // converts without the saturation fix-ups (`fixed::convert_bounded`).
+                let source_bound =
+                    if v.varying && v.scalar == Scalar::Float && matches!(sc, Scalar::Int | Scalar::Fixed(_)) {
+                        self.float_bound(inner)
+                    } else {
+                        None
+                    };
                 let mut comps: Vec<ir::Value> = v
                     .comps
                     .iter()
@@ -3705,9 +3729,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                         }
                         _ if v.scalar == sc => c,
                         _ => {
+                            // Shared with an unbounded conversion of the same value: the
+                            // value is in the bound, where both forms agree.
                             let key = VnKey::Convert(v.scalar, sc, c);
                             self.numbered(key).unwrap_or_else(|| {
-                                let r = fixed::convert(&mut self.b, v.scalar, sc, c);
+                                let r = fixed::convert_bounded(&mut self.b, v.scalar, sc, c, source_bound);
                                 self.number(key, r);
                                 r
                             })
