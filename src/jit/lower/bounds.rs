@@ -96,7 +96,7 @@ impl LocalBounds {
     pub(crate) fn of_function(f: &Function) -> LocalBounds {
         let is_float = |i: usize| f.locals[i].ty.elem == Elem::Scalar(Scalar::Float);
         let mut locals: Vec<Option<Interval>> = (0..f.locals.len())
-            .map(|i| is_float(i).then(|| Interval { lo: 0.0, hi: 0.0 }))
+            .map(|i| is_float(i).then_some(Interval { lo: 0.0, hi: 0.0 }))
             .collect();
         for p in &f.params {
             let i = p.local.0 as usize;
