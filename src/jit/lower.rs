@@ -62,6 +62,7 @@ use crate::ir::{
 };
 
 mod block;
+mod bounds;
 mod dead;
 mod flat;
 mod hoist;
@@ -268,6 +269,12 @@ pub(crate) struct Lower<'a, 'b> {
     /// Uniform conditions of the pixel code decided for the copy of the pixel loops being
     /// lowered, by address (see [`unswitch`]); empty outside the pixel loops and in tier 0.
     unswitched: std::collections::HashMap<usize, bool>,
+    /// Bounds of float locals per function being lowered (by address), computed when its
+    /// first varying float -> int or fixed conversion is lowered (see [`bounds`]).
+    local_bounds: std::collections::HashMap<usize, bounds::LocalBounds>,
+    /// Blocks sealed as soon as they were created (a guard's continuation, see
+    /// `varying_guard_return`); `seal_blocks_from` skips them.
+    sealed_early: std::collections::HashSet<Block>,
     pub(crate) warnings: Vec<String>,
 }
 
@@ -347,6 +354,8 @@ pub(crate) fn lower_kernel(
         flat: false,
         setup_live: None,
         unswitched: std::collections::HashMap::new(),
+        local_bounds: std::collections::HashMap::new(),
+        sealed_early: std::collections::HashSet::new(),
         warnings: vec![],
     };
     l.body(f)?;
@@ -1274,7 +1283,10 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// pixel group. Sealed, the lookup sees all predecessors and drops the parameter.
     fn seal_blocks_from(&mut self, first: usize) {
         for i in first..self.b.func.dfg.num_blocks() {
-            self.b.seal_block(Block::from_u32(i as u32));
+            let block = Block::from_u32(i as u32);
+            if !self.sealed_early.contains(&block) {
+                self.b.seal_block(block);
+            }
         }
     }
 
@@ -2079,6 +2091,13 @@ impl<'a, 'b> Lower<'a, 'b> {
         let cont = self.b.create_block();
         self.b.ins().brif(all_gone, group_end, &[], cont, &[]);
         self.b.switch_to_block(cont);
+        // This branch is `cont`'s only predecessor. Sealed now, the next guard's reads of
+        // `alive` and `exec` are this block's values themselves, equal, so it takes the
+        // `stay` path above; unsealed, each read got a block parameter of its own (merged
+        // only when the function is sealed) and every guard after the first recomputed
+        // `alive & !(entry & c)`: five instructions instead of two per integer edge test.
+        self.b.seal_block(cont);
+        self.sealed_early.insert(cont);
         Ok(())
     }
 
@@ -3595,6 +3614,17 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     // ---------------------------------------------------------------- expressions
 
+    /// The bound of float expression `e` of the function being lowered (see [`bounds`]),
+    /// as (lo, hi).
+    fn float_bound(&mut self, e: &Expr) -> Option<(f64, f64)> {
+        let f = self.frames.last()?.func;
+        let table = self
+            .local_bounds
+            .entry(f as *const Function as usize)
+            .or_insert_with(|| bounds::LocalBounds::of_function(f));
+        table.expr(e).map(|b| (b.lo, b.hi))
+    }
+
     pub(crate) fn eval_uniform(&mut self, e: &'a Expr) -> Res<Val> {
         let v = self.eval(e)?;
         if v.varying {
@@ -3687,6 +3717,14 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             ExprKind::Convert(inner) => {
                 let v = self.eval(inner)?;
+                // A varying float whose lanes are proven finite and in the target's range
+                // converts without the saturation fix-ups (`fixed::convert_bounded`).
+                let source_bound =
+                    if v.varying && v.scalar == Scalar::Float && matches!(sc, Scalar::Int | Scalar::Fixed(_)) {
+                        self.float_bound(inner)
+                    } else {
+                        None
+                    };
                 let mut comps: Vec<ir::Value> = v
                     .comps
                     .iter()
@@ -3705,9 +3743,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                         }
                         _ if v.scalar == sc => c,
                         _ => {
+                            // Shared with an unbounded conversion of the same value: the
+                            // value is in the bound, where both forms agree.
                             let key = VnKey::Convert(v.scalar, sc, c);
                             self.numbered(key).unwrap_or_else(|| {
-                                let r = fixed::convert(&mut self.b, v.scalar, sc, c);
+                                let r = fixed::convert_bounded(&mut self.b, v.scalar, sc, c, source_bound);
                                 self.number(key, r);
                                 r
                             })

@@ -1,0 +1,273 @@
+//! Value bounds of float expressions, so a float -> int conversion that cannot see NaN or a
+//! value outside i32 needs none of its saturation fix-ups (one `cvttps2dq` instead of eight
+//! instructions on x86_64; see `fixed::convert_bounded`).
+//!
+//! What is bounded: the pixel centre `X`, `Y` parameters (the runtime renders into frames of
+//! at most `MAX_IMAGE_SIDE` pixels a side, and lanes past a rectangle's end stay within a
+//! group of it), float and int constants, and what `+ - * /`, negation, `?:`, and the
+//! built-ins `abs min max clamp floor ceil round sqrt sign step mix sin cos` make of bounded
+//! operands. Everything else (other parameters, loads of anything not a float local, int
+//! arithmetic, libm calls that can overflow) is unbounded.
+//!
+//! Locals are bounded flow-insensitively: a float local's bound is the union over *every*
+//! assignment to it anywhere in the function (setup and pixel code, every `if` side and loop
+//! body), plus zero (a declaration without an initialiser assigns zero; a read before any
+//! assignment sees zero). So a pixel-code assignment of something unbounded to a local that
+//! first held `X` makes it unbounded, and helper parameters (the checker's temporaries,
+//! assigned from the arguments) carry the arguments' bounds. Assignments are joined until
+//! nothing changes; a local still growing after `WIDEN_AFTER` rounds (`x = x + 1` in a
+//! loop) becomes unbounded, so the walk ends.
+//!
+//! Invariant the users rely on: if `expr` gives `Some(b)`, every lane value the JIT can
+//! compute for that expression is a finite, non-NaN `f32` in `[b.lo, b.hi]`. Interval
+//! ends are kept in f64 and every rounded operation widens them outward by more than one
+//! f32 rounding step; a bound past `MAX_FINITE` is dropped (the f32 operation could
+//! overflow to infinity, and infinity minus infinity is NaN).
+
+use crate::ir::{
+    for_each_assign, BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, Function, ParamRole, Scalar, UnaryOp,
+};
+
+/// Pixel centres the runtime can hand to pixel code, with a wide margin: frames are at most
+/// `runtime::MAX_IMAGE_SIDE` (16384) pixels a side and a group's lanes past the rectangle
+/// are at most three pixels further (tile-aligned groups of 4).
+pub(crate) const PIXEL_CENTRE_LIMIT: f64 = 65536.0;
+
+/// Bounds larger than this are dropped: an f32 operation on values within it cannot
+/// overflow to infinity after one rounding.
+const MAX_FINITE: f64 = 1e37;
+
+/// Rounds of joining before a still-growing local is made unbounded.
+const WIDEN_AFTER: usize = 8;
+
+/// A closed range holding every value an expression can take; never NaN, never infinite.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Interval {
+    pub lo: f64,
+    pub hi: f64,
+}
+
+impl Interval {
+    fn point(x: f64) -> Option<Interval> {
+        Interval::new(x, x)
+    }
+
+    /// `None` unless both ends are finite, ordered and within `MAX_FINITE`.
+    fn new(lo: f64, hi: f64) -> Option<Interval> {
+        (lo <= hi && lo >= -MAX_FINITE && hi <= MAX_FINITE).then_some(Interval { lo, hi })
+    }
+
+    fn join(self, other: Interval) -> Interval {
+        Interval {
+            lo: self.lo.min(other.lo),
+            hi: self.hi.max(other.hi),
+        }
+    }
+
+    /// Outward by more than the rounding of one f32 operation (2^-24 relative, plus the
+    /// smallest subnormal step), and of the f64 arithmetic that computed the ends.
+    fn rounded(lo: f64, hi: f64) -> Option<Interval> {
+        let slack = |x: f64| x.abs() * (1.0 / (1u64 << 20) as f64) + 1e-40;
+        Interval::new(lo - slack(lo), hi + slack(hi))
+    }
+
+    /// Apply a monotone non-decreasing exact function (floor, ceil, round) to both ends.
+    fn monotone(self, f: impl Fn(f64) -> f64) -> Option<Interval> {
+        Interval::new(f(self.lo), f(self.hi))
+    }
+}
+
+/// The hull of `f` applied to every pair of ends (for `*` and `/`, whose extremes are at
+/// the corners), rounded outward.
+fn corners(a: Interval, b: Interval, f: impl Fn(f64, f64) -> f64) -> Option<Interval> {
+    let c = [f(a.lo, b.lo), f(a.lo, b.hi), f(a.hi, b.lo), f(a.hi, b.hi)];
+    let lo = c.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = c.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    Interval::rounded(lo, hi)
+}
+
+/// Bounds of every float local of one function (see the module doc).
+pub(crate) struct LocalBounds {
+    /// Per local: `None` for unbounded (and for every local that is not a float).
+    locals: Vec<Option<Interval>>,
+}
+
+impl LocalBounds {
+    pub(crate) fn of_function(f: &Function) -> LocalBounds {
+        let is_float = |i: usize| f.locals[i].ty.elem == Elem::Scalar(Scalar::Float);
+        let mut locals: Vec<Option<Interval>> = (0..f.locals.len())
+            .map(|i| is_float(i).then_some(Interval { lo: 0.0, hi: 0.0 }))
+            .collect();
+        for p in &f.params {
+            let i = p.local.0 as usize;
+            if i < locals.len() {
+                locals[i] = match p.role {
+                    ParamRole::X | ParamRole::Y if is_float(i) => Some(Interval {
+                        lo: -PIXEL_CENTRE_LIMIT,
+                        hi: PIXEL_CENTRE_LIMIT,
+                    }),
+                    // The runtime fills these: anything at all.
+                    _ => None,
+                };
+            }
+        }
+        let mut table = LocalBounds { locals };
+        let mut rounds = 0;
+        loop {
+            let mut changed = vec![false; table.locals.len()];
+            for stmts in [&f.setup, &f.pixel] {
+                for_each_assign(stmts, &mut |place, value| {
+                    let i = place.local.0 as usize;
+                    let Some(Some(old)) = table.locals.get(i).copied() else {
+                        return;
+                    };
+                    let new = table.expr(value).map(|v| old.join(v));
+                    if new != Some(old) {
+                        table.locals[i] = new;
+                        changed[i] = true;
+                    }
+                });
+            }
+            if !changed.contains(&true) {
+                return table;
+            }
+            rounds += 1;
+            if rounds >= WIDEN_AFTER {
+                for (i, c) in changed.iter().enumerate() {
+                    if *c {
+                        table.locals[i] = None;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The bound of `e`'s every component, or `None` if unbounded or not a float.
+    pub(crate) fn expr(&self, e: &Expr) -> Option<Interval> {
+        match e.ty.elem {
+            Elem::Scalar(Scalar::Float) => {}
+            // An int constant converted to float (`X * 16`).
+            Elem::Scalar(Scalar::Int) => {
+                return match e.kind {
+                    ExprKind::Const(ConstValue::Int(i)) => Interval::point(i as f64),
+                    _ => None,
+                }
+            }
+            _ => return None,
+        }
+        match &e.kind {
+            ExprKind::Const(ConstValue::Float(x)) => Interval::point(*x as f64),
+            ExprKind::Const(_) => None,
+            ExprKind::Local(l) => self.locals.get(l.0 as usize).copied().flatten(),
+            ExprKind::Index { base, .. } => {
+                // Every element of a local shares its bound.
+                let mut root = &**base;
+                while let ExprKind::Index { base, .. } = &root.kind {
+                    root = base;
+                }
+                match root.kind {
+                    ExprKind::Local(l) => self.locals.get(l.0 as usize).copied().flatten(),
+                    _ => None,
+                }
+            }
+            ExprKind::Unary { op: UnaryOp::Neg, expr } => self.expr(expr).and_then(|a| Interval::new(-a.hi, -a.lo)),
+            ExprKind::Unary { .. } => None,
+            ExprKind::Binary { op, lhs, rhs } => {
+                let (a, b) = (self.expr(lhs)?, self.expr(rhs)?);
+                match op {
+                    BinOp::Add => Interval::rounded(a.lo + b.lo, a.hi + b.hi),
+                    BinOp::Sub => Interval::rounded(a.lo - b.hi, a.hi - b.lo),
+                    BinOp::Mul => corners(a, b, |x, y| x * y),
+                    // A divisor interval holding zero could give infinity or 0/0.
+                    BinOp::Div if b.lo > 0.0 || b.hi < 0.0 => corners(a, b, |x, y| x / y),
+                    _ => None,
+                }
+            }
+            // Int -> float rounds to nearest (only int constants are bounded, above).
+            ExprKind::Convert(inner) => self.expr(inner).and_then(|a| Interval::rounded(a.lo, a.hi)),
+            ExprKind::Select { then, otherwise, .. } => Some(self.expr(then)?.join(self.expr(otherwise)?)),
+            ExprKind::Builtin { func, args } => self.builtin(*func, args),
+            ExprKind::List(items) => {
+                let mut all: Option<Interval> = None;
+                for it in items {
+                    let b = self.expr(it)?;
+                    all = Some(all.map_or(b, |a| a.join(b)));
+                }
+                all
+            }
+            ExprKind::MatMul { .. } | ExprKind::SeqCount | ExprKind::ClipFlag => None,
+        }
+    }
+
+    fn builtin(&self, func: Builtin, args: &[Expr]) -> Option<Interval> {
+        let arg = |i: usize| args.get(i).and_then(|a| self.expr(a));
+        let unit = Interval { lo: -1.0, hi: 1.0 };
+        match func {
+            Builtin::Abs => {
+                let a = arg(0)?;
+                let hi = a.lo.abs().max(a.hi.abs());
+                let lo = if a.lo <= 0.0 && a.hi >= 0.0 {
+                    0.0
+                } else {
+                    a.lo.abs().min(a.hi.abs())
+                };
+                Interval::new(lo, hi)
+            }
+            Builtin::Floor => arg(0)?.monotone(f64::floor),
+            Builtin::Ceil => arg(0)?.monotone(f64::ceil),
+            // Ties to even or away: both within [floor, ceil].
+            Builtin::Round => Interval::new(arg(0)?.lo.floor(), arg(0)?.hi.ceil()),
+            Builtin::Min => {
+                let (a, b) = (arg(0)?, arg(1)?);
+                Interval::new(a.lo.min(b.lo), a.hi.min(b.hi))
+            }
+            Builtin::Max => {
+                let (a, b) = (arg(0)?, arg(1)?);
+                Interval::new(a.lo.max(b.lo), a.hi.max(b.hi))
+            }
+            // min(max(x, lo), hi), monotone in each argument.
+            Builtin::Clamp => {
+                let (x, lo, hi) = (arg(0)?, arg(1)?, arg(2)?);
+                Interval::new(x.lo.max(lo.lo).min(hi.lo), x.hi.max(lo.hi).min(hi.hi))
+            }
+            Builtin::Sqrt => {
+                let a = arg(0)?;
+                (a.lo >= 0.0).then(|| Interval::rounded(a.lo.sqrt(), a.hi.sqrt()))?
+            }
+            // Comparisons select between constants: NaN in gives one of them too.
+            Builtin::Sign => Some(unit),
+            Builtin::Step => Some(Interval { lo: 0.0, hi: 1.0 }),
+            // Finite in, within [-1, 1] out (libm's sin and cos of infinity are NaN).
+            Builtin::Sin | Builtin::Cos => arg(0).map(|_| unit),
+            Builtin::Mix => {
+                // a + (b - a) * t, as the JIT computes it.
+                let (a, b, t) = (arg(0)?, arg(1)?, arg(2)?);
+                let d = Interval::rounded(b.lo - a.hi, b.hi - a.lo)?;
+                let p = corners(d, t, |x, y| x * y)?;
+                Interval::rounded(a.lo + p.lo, a.hi + p.hi)
+            }
+            _ => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn interval_products_take_the_corners_and_round_outward() {
+        let a = Interval { lo: -2.0, hi: 3.0 };
+        let b = Interval { lo: 16.0, hi: 16.0 };
+        let p = corners(a, b, |x, y| x * y).unwrap();
+        assert!(p.lo < -32.0 && p.lo > -32.001, "{p:?}");
+        assert!(p.hi > 48.0 && p.hi < 48.001, "{p:?}");
+    }
+
+    #[test]
+    fn bounds_past_f32_range_are_dropped() {
+        let a = Interval { lo: 0.0, hi: 1e30 };
+        assert!(corners(a, a, |x, y| x * y).is_none());
+        assert!(Interval::new(f64::NAN, 0.0).is_none());
+    }
+}
