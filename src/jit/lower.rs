@@ -78,6 +78,8 @@ const UNROLL: u32 = 1;
 /// Block size of block-level culling, in pixels (BLOCK_W a multiple of `4 * UNROLL`).
 const BLOCK_W: u32 = 16;
 const BLOCK_H: u32 = 8;
+/// `vhigh_bits` of a lane mask with every lane of a group set.
+const ALL_LANE_BITS: i64 = (1 << 4) - 1;
 /// Pass rectangles smaller than this many pixels skip the block evaluation.
 const SMALL_RECT: i64 = 128;
 
@@ -1450,7 +1452,10 @@ impl<'a, 'b> Lower<'a, 'b> {
                 self.pix = None;
                 return Ok(());
             }
-            let all = self.b.ins().vall_true(written);
+            // The written lanes' bits (`vmovmskps`): all four and none are compares of one
+            // integer, cheaper than `vall_true` and `vany_true` on the vector.
+            let bits = self.b.ins().vhigh_bits(types::I32, written);
+            let all = self.b.ins().icmp_imm_s(IntCC::Equal, bits, ALL_LANE_BITS);
             let full_blk = self.b.create_block();
             let part_blk = self.b.create_block();
             let blend_blk = self.b.create_block();
@@ -1462,8 +1467,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.b.ins().jump(stored, &[]);
 
             self.b.switch_to_block(part_blk);
-            let any = self.b.ins().vany_true(written);
-            let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
+            let none = self.b.ins().icmp_imm_s(IntCC::Equal, bits, 0);
             self.b.ins().brif(none, next, &[], blend_blk, &[]);
             self.b.switch_to_block(blend_blk);
             self.store_depth(zvar, zsc, Some((written, z_old)), tile_idx);
@@ -2507,10 +2511,14 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.blended_plane_stores(stores, slot_addr, bytes, exec);
             return;
         }
-        let all_lanes = self.b.ins().vall_true(exec);
+        // One lane bit each (`vmovmskps`), masked by the table's all-planes word (0b1111
+        // or 0): full iff the result is 0b1111. Three instructions fewer per group than
+        // `vall_true` (a compare with zero, a test and a setcc) and a band with the flag.
+        let lane_bits = self.b.ins().vhigh_bits(types::I32, exec);
         let n = self.key.total_components();
-        let all_planes = self.b.ins().load(types::I8, mem_flags(), slot_addr, (8 * n) as i32);
-        let full = self.b.ins().band(all_lanes, all_planes);
+        let all_planes = self.b.ins().load(types::I32, mem_flags(), slot_addr, (8 * n) as i32);
+        let both = self.b.ins().band(lane_bits, all_planes);
+        let full = self.b.ins().icmp_imm_s(IntCC::Equal, both, ALL_LANE_BITS);
         let full_blk = self.b.create_block();
         let part_blk = self.b.create_block();
         let join = self.b.create_block();
@@ -2553,7 +2561,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// Once per kernel run, before the pixel loops: the base address of every binding
     /// component's G-buffer plane (null when its plane index is not below
     /// `ctx.num_planes`), so a store costs a load and an add instead of recomputing it.
-    /// After the `n` addresses, one byte: 1 when every plane exists (the stores' fast path).
+    /// After the `n` addresses, one i32: [`ALL_LANE_BITS`] when every plane exists, else 0
+    /// (the stores' fast path masks the lane bits with it).
     fn plane_table(&mut self) {
         let n = self.key.total_components();
         if n == 0 {
@@ -2585,7 +2594,10 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.b.ins().store(mem_flags(), base, addr, (8 * g) as i32);
             all_valid = self.b.ins().band(all_valid, valid);
         }
-        self.b.ins().store(mem_flags(), all_valid, addr, (8 * n) as i32);
+        let all_bits = self.b.ins().iconst(types::I32, ALL_LANE_BITS);
+        let none_bits = self.b.ins().iconst(types::I32, 0);
+        let word = self.b.ins().select(all_valid, all_bits, none_bits);
+        self.b.ins().store(mem_flags(), word, addr, (8 * n) as i32);
         self.plane_ptrs = Some(slot);
     }
 

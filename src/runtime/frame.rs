@@ -65,6 +65,26 @@ pub fn row_stride(width: u32) -> u32 {
     width.div_ceil(GROUP) * GROUP
 }
 
+/// Elements from one G-buffer plane's start to the next for planes of `plane_len` elements:
+/// `plane_len` rounded up to whole 64-byte cache lines, then up to a line count of 17 modulo
+/// 64.
+///
+/// Why: a kernel's pixel group stores to the same pixel of every plane, and on a frame
+/// whose `stride * height * 4` is a multiple of 4 KiB (any 512 x 512 one: planes exactly
+/// 1 MiB apart) those stores all fall in one set of the L1 and L2 caches (sets are indexed
+/// by address bits below 4 KiB and 128 KiB). Sixteen planes plus the depth buffer are more
+/// lines than a set has ways, so every group evicted the lines the next group of the row
+/// writes: 2.7x the frame time at K = 16 (docs/performance.md, `k16`). An odd line count
+/// between planes puts plane `p`'s lines `17 p` sets further on in any power-of-two set
+/// count, so up to 64 planes' row segments (4 lines each at the default tile side) sit in
+/// different L1 sets; at most 63 lines (~4 KiB) of padding per plane.
+pub fn plane_pitch(plane_len: usize) -> usize {
+    const LINE: usize = 16; // f32 elements per 64-byte line
+    let lines = plane_len.div_ceil(LINE);
+    let lines = lines + (17 + 64 - lines % 64) % 64;
+    lines * LINE
+}
+
 /// The tile side a render uses for a requested `tile_size`: clamped to `1..=MAX_TILE_SIDE`
 /// and rounded up to whole pixel groups, so that every tile starts on a group of the
 /// frame's rows (its kernels write whole groups) and no two tiles share a group.
@@ -88,8 +108,10 @@ pub struct ParamPlanes {
 /// top-left pixel with a row stride of [`row_stride`]`(width)` pixels, so a pixel group never
 /// straddles a row; pixel (x, y) is element `y * stride + x` (`Frame::index`, the one place
 /// that says so) of the depth, write-count and colour buffers and of each plane, and the
-/// planes follow each other `stride * height` elements apart in one buffer. The padding
-/// columns (`width..stride`) hold nothing anyone reads.
+/// planes follow each other [`plane_pitch`]`(stride * height)` elements apart in one buffer
+/// (a few cache lines more than a plane, so that the planes' pixels do not share cache
+/// sets). The padding columns (`width..stride`) and the gaps between planes hold nothing
+/// anyone reads.
 #[derive(Clone, Debug)]
 pub struct Frame {
     pub width: u32,
@@ -101,7 +123,7 @@ pub struct Frame {
     num_planes: u32,
     /// `stride * height`.
     depth: Vec<u32>,
-    /// `num_planes` planes of `stride * height`, one after the other.
+    /// `num_planes` planes of `stride * height`, [`plane_pitch`] elements apart.
     planes: Vec<f32>,
     write_counts: Option<Vec<u32>>,
     /// The deferred shading pass's colours, `stride * height` (`None` when the scene turns
@@ -201,8 +223,8 @@ struct FrameTarget<'f> {
     /// Null when writes are not counted.
     counts: *mut u32,
     stride: usize,
-    /// Elements per plane (`stride * height`).
-    plane_len: usize,
+    /// Elements from one plane's start to the next ([`plane_pitch`]).
+    plane_pitch: usize,
     num_planes: usize,
     _frame: std::marker::PhantomData<&'f mut Frame>,
 }
@@ -230,7 +252,7 @@ impl FrameTarget<'_> {
                     std::ptr::write_bytes(self.counts.add(at), 0, cols);
                 }
                 for p in 0..self.num_planes {
-                    std::ptr::write_bytes(self.planes.add(p * self.plane_len + at), 0, cols);
+                    std::ptr::write_bytes(self.planes.add(p * self.plane_pitch + at), 0, cols);
                 }
             }
         }
@@ -648,7 +670,7 @@ unsafe fn render_tile(
     start.stride = target.stride as u32;
     start.depth = target.depth.wrapping_add(origin);
     start.gbuf = target.planes.wrapping_add(origin);
-    start.plane_stride = target.plane_len as u32;
+    start.plane_stride = target.plane_pitch as u32;
     start.num_planes = target.num_planes as u32;
     start.write_count = target.counts.wrapping_add(origin);
     for (j, draw) in bin.iter().enumerate() {
@@ -750,7 +772,11 @@ impl Frame {
         self.background = opts.background;
         let plane_len = self.plane_len();
         self.depth = fit(std::mem::take(&mut self.depth), plane_len, 0);
-        self.planes = fit(std::mem::take(&mut self.planes), plane_len * num_planes as usize, 0.0);
+        self.planes = fit(
+            std::mem::take(&mut self.planes),
+            plane_pitch(plane_len) * num_planes as usize,
+            0.0,
+        );
         if opts.count_writes {
             self.write_counts = Some(fit(self.write_counts.take().unwrap_or_default(), plane_len, 0));
         } else {
@@ -776,7 +802,7 @@ impl Frame {
                 .as_mut()
                 .map_or(std::ptr::null_mut(), |c| c.as_mut_ptr()),
             stride: self.stride as usize,
-            plane_len: self.plane_len(),
+            plane_pitch: plane_pitch(self.plane_len()),
             num_planes: self.num_planes as usize,
             _frame: std::marker::PhantomData,
         }
@@ -798,7 +824,8 @@ impl Frame {
     /// Plane `plane`'s elements (`None` for a plane the frame does not have).
     fn plane(&self, plane: u32) -> Option<&[f32]> {
         let len = self.plane_len();
-        (plane < self.num_planes).then(|| self.planes.get(plane as usize * len..(plane as usize + 1) * len))?
+        let start = plane as usize * plane_pitch(len);
+        (plane < self.num_planes).then(|| self.planes.get(start..start + len))?
     }
 
     /// `buf`'s pixels (not its padding) in row-major order, `width * height` of them.
@@ -1156,6 +1183,38 @@ mod tests {
             [0, 1, 4, 5, 16, 63, 4096, 5000].map(tile_side),
             [4, 4, 4, 8, 16, 64, 4096, 4096]
         );
+    }
+
+    /// Planes are whole lines apart, 17 lines modulo 64 (so plane `p` starts `17 p` cache
+    /// sets after plane 0 in any power-of-two set count up to 64 sets per 4 KiB), with
+    /// less than 64 lines of padding.
+    #[test]
+    fn plane_pitch_spreads_planes_over_cache_sets() {
+        for len in [
+            0usize,
+            1,
+            15,
+            16,
+            17,
+            4096,
+            64 * 64,
+            500 * 500,
+            512 * 512,
+            520 * 517,
+            16384 * 16384,
+        ] {
+            let pitch = plane_pitch(len);
+            assert!(pitch >= len, "{len}");
+            assert_eq!(pitch % 16, 0, "{len}");
+            assert_eq!((pitch / 16) % 64, 17, "{len}");
+            assert!(pitch - len < 64 * 16, "{len}");
+            // The first 64 planes' starts fall in 64 different 4 KiB-cache sets.
+            let mut sets: Vec<usize> = (0..64).map(|p| (p * pitch * 4 / 64) % 64).collect();
+            sets.sort_unstable();
+            sets.dedup();
+            assert_eq!(sets.len(), 64, "{len}");
+        }
+        assert_eq!(plane_pitch(512 * 512), 512 * 512 + 17 * 16);
     }
 
     #[test]
