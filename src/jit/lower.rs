@@ -624,6 +624,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         if !early_frame {
             self.spill_uniforms(f);
         }
+        self.run_hoists()?;
         self.plane_table();
         let x0 = self.load_ctx(types::I32, ctx_off::X0);
         let y0 = self.load_ctx(types::I32, ctx_off::Y0);
@@ -1077,27 +1078,49 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
         }
         for k in 0..self.hoists.len() {
-            let (expr, view, offset, comps) = {
-                let h = &self.hoists[k];
-                (h.expr, h.view.clone(), h.offset, h.comps)
-            };
-            if only.is_some_and(|set| !set.contains(&(expr as *const Expr as usize))) {
-                continue;
+            let h = &self.hoists[k];
+            let skip = h.per_run || only.is_some_and(|set| !set.contains(&(h.expr as *const Expr as usize)));
+            if !skip {
+                self.store_hoist(fs, k)?;
             }
-            let saved = std::mem::replace(&mut self.view, view);
-            let v = self.eval(expr);
-            self.view = saved;
-            let v = v?;
-            if v.comps.len() != comps as usize {
-                return err("hoisted row term has an unexpected number of components");
+        }
+        Ok(())
+    }
+
+    /// Once per kernel run, after setup (render mode): the hoisted uniform operations
+    /// (`Hoist::per_run`; pure, so evaluating one a pass does not use changes nothing).
+    fn run_hoists(&mut self) -> Res<()> {
+        let Some((fs, _)) = self.uniform_frame else {
+            return Ok(());
+        };
+        for k in 0..self.hoists.len() {
+            if self.hoists[k].per_run {
+                self.store_hoist(fs, k)?;
             }
-            let addr = self.b.ins().stack_addr(types::I64, fs, 0);
-            for (c, &x) in v.comps.iter().enumerate() {
-                let x = splat(&mut self.b, v.scalar, x);
-                self.b
-                    .ins()
-                    .store(mem_flags(), x, addr, (offset + 16 * c as u32) as i32);
-            }
+        }
+        Ok(())
+    }
+
+    /// Evaluate hoist `k` and store its splatted components in the row section of the
+    /// uniform frame `fs`.
+    fn store_hoist(&mut self, fs: StackSlot, k: usize) -> Res<()> {
+        let (expr, view, offset, comps) = {
+            let h = &self.hoists[k];
+            (h.expr, h.view.clone(), h.offset, h.comps)
+        };
+        let saved = std::mem::replace(&mut self.view, view);
+        let v = self.eval(expr);
+        self.view = saved;
+        let v = v?;
+        if v.comps.len() != comps as usize {
+            return err("hoisted row term has an unexpected number of components");
+        }
+        let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+        for (c, &x) in v.comps.iter().enumerate() {
+            let x = splat(&mut self.b, v.scalar, x);
+            self.b
+                .ins()
+                .store(mem_flags(), x, addr, (offset + 16 * c as u32) as i32);
         }
         Ok(())
     }

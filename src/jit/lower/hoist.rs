@@ -7,7 +7,8 @@
 //! such subexpressions of the pixel code that contain an operation; the row prologue of
 //! every pixel loop evaluates each once per row with the same operations the group would
 //! use and stores it in the *row section* of the uniform frame; the group reads it back
-//! instead of computing it. Only the hoisted subterm moves: the sums around it stay in
+//! instead of computing it. A uniform operation feeding a varying one (`int(oy * 16)`)
+//! goes to the row section too, but is evaluated once per kernel run, after setup. Only the hoisted subterm moves: the sums around it stay in
 //! source order, so results are bit-identical (no re-association).
 //!
 //! Invariants of a hoisted expression: pure (no index that may fail, no call, no division
@@ -37,6 +38,9 @@ pub(super) struct Hoist<'a> {
     pub offset: u32,
     pub comps: u32,
     pub scalar: Scalar,
+    /// A uniform operation (no Y in it): evaluated once per kernel run, after setup
+    /// (`Lower::run_hoists`), rather than in every row prologue.
+    pub per_run: bool,
 }
 
 impl<'a, 'b> Lower<'a, 'b> {
@@ -122,6 +126,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                     offset: *next,
                     comps,
                     scalar,
+                    per_run: false,
                 });
                 *next += 16 * comps;
                 return;
@@ -134,7 +139,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             ExprKind::Binary { op, lhs, rhs } => {
                 // A uniform operand of a varying operation is splatted in every group; when
                 // it is itself an operation (`int(ox * 16)` in `int(X * 16) - int(ox * 16)`)
-                // it is also recomputed there. Evaluate it in the row prologue instead (the
+                // it is also recomputed there. Evaluate it once per kernel run instead (the
                 // same scalar operations, then the splat the group would make).
                 let splats_operand = e.var.is_varying()
                     && matches!(
@@ -150,6 +155,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                             offset: *next,
                             comps: 1,
                             scalar,
+                            per_run: true,
                         });
                         *next += 16;
                     } else {
