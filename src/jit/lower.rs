@@ -3043,7 +3043,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         })
     }
 
-    /// Components of one value of `ty` in storage (`compact`: Interp holds only the view).
+    /// Components in storage of one value of `fixed_len` elements of `elem` (`compact`:
+    /// Interp holds only the view).
     fn value_comps(&self, elem: Elem, fixed_len: u32, compact: bool) -> u32 {
         match elem {
             Elem::Scalar(_) => fixed_len,
@@ -3051,8 +3052,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
-    /// Offsets of the components a value of `ty` shows (Interp: only the view's).
-    /// The list comes from `offs_spare` when it has one: give it back when done
+    /// Offsets of the components a value of `fixed_len` elements of `elem` shows (Interp:
+    /// only the view's). The list comes from `offs_spare` when it has one: give it back when done
     /// ([`Self::give_back_offsets`]), so an access allocates no list.
     fn comp_offsets(&mut self, elem: Elem, fixed_len: u32, compact: bool) -> Vec<u32> {
         let mut out = self.offs_spare.pop().unwrap_or_default();
