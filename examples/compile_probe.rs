@@ -8,7 +8,8 @@
 //! configuration (tier 0, tier 1, unrolling off), prints the minimum of each and the
 //! bench's time to first pixel. Options: `timings [fast]` adds Cranelift's pass timings
 //! summed over `rounds` compiles (tier 1, or tier 0 with `fast`); `clif=FILE [fast]` writes
-//! the CLIF; `shape=sphere_implicit|sphere_lit|polygon|nurb` compiles the first instance of
+//! the CLIF; `disasm=FILE [fast]` writes the machine code after register allocation and
+//! prints its instruction and spill/reload counts; `shape=sphere_implicit|sphere_lit|polygon|nurb` compiles the first instance of
 //! that bench workload instead (`scene=FILE`: of a scene file); `profile` only compiles tier 0 `rounds` times (for `perf record`); `speed`
 //! times tier 1, tier 1 without unrolling, tier 0 and the hand-written kernels on the
 //! bench's fill and small scenes instead; `cold` compares a tier-0 compile right after
@@ -214,6 +215,27 @@ fn main() {
         )
         .expect("host ISA");
         std::fs::write(path, jit.clif(inst.func, &inst.key).expect("lowers")).expect("writes the CLIF");
+    }
+    if let Some(path) = args.iter().find_map(|a| a.strip_prefix("disasm=")) {
+        let tier = if args.iter().any(|a| a == "fast") {
+            Tier::Fast
+        } else {
+            Tier::Optimised
+        };
+        let jit = Jit::with_options(
+            program.clone(),
+            JitOptions {
+                tier,
+                ..JitOptions::default()
+            },
+        )
+        .expect("host ISA");
+        let d = jit.disassembly(inst.func, &inst.key).expect("compiles");
+        println!(
+            "machine code ({tier:?}): {} instructions, {} of them spills or reloads",
+            d.inst_lines, d.spill_lines
+        );
+        std::fs::write(path, d.text).expect("writes the disassembly");
     }
     if timings {
         let tier = if args.iter().any(|a| a == "fast") {

@@ -182,14 +182,60 @@ enum Root {
 }
 
 /// A (possibly indexed) value not yet loaded.
-struct Access {
+struct Access<'a> {
     root: Root,
-    ty: Type,
+    ty: AccessTy<'a>,
     scalar: Scalar,
     base: u32,
     dyn_off: Dyn,
     /// Interp elements hold only the view's components (temporaries), not all of them.
     compact: bool,
+}
+
+/// The type of an [`Access`]: a local's or an expression's type with the dimensions already
+/// indexed away (without building a `Type` per index: its dimension vector was two
+/// allocations per indexed access).
+#[derive(Clone, Copy)]
+struct AccessTy<'a> {
+    base: &'a Type,
+    /// The run-time dimension is still there (`Type::per_seq`).
+    per_seq: bool,
+    /// Fixed dimensions indexed away.
+    skip: usize,
+}
+
+impl<'a> AccessTy<'a> {
+    fn of(base: &'a Type) -> AccessTy<'a> {
+        AccessTy {
+            base,
+            per_seq: base.per_seq,
+            skip: 0,
+        }
+    }
+
+    fn dims(&self) -> &'a [u32] {
+        self.base.dims.get(self.skip..).unwrap_or(&[])
+    }
+
+    fn elem(&self) -> Elem {
+        self.base.elem
+    }
+
+    fn fixed_len(&self) -> u32 {
+        self.dims().iter().product()
+    }
+
+    /// The type of `self[i]` (see `Type::element`).
+    fn element(self) -> AccessTy<'a> {
+        if self.per_seq {
+            AccessTy { per_seq: false, ..self }
+        } else {
+            AccessTy {
+                skip: self.skip + 1,
+                ..self
+            }
+        }
+    }
 }
 
 /// What an `interpolation` arm serves.
@@ -277,6 +323,8 @@ pub(crate) struct Lower<'a, 'b> {
     /// Blocks sealed as soon as they were created (a guard's continuation, see
     /// `varying_guard_return`); `seal_blocks_from` skips them.
     sealed_early: std::collections::HashSet<Block>,
+    /// Spare component-offset lists (see [`Self::comp_offsets`]).
+    offs_spare: Vec<Vec<u32>>,
     pub(crate) warnings: Vec<String>,
 }
 
@@ -358,6 +406,7 @@ pub(crate) fn lower_kernel(
         unswitched: std::collections::HashMap::new(),
         local_bounds: std::collections::HashMap::new(),
         sealed_early: std::collections::HashSet::new(),
+        offs_spare: vec![],
         warnings: vec![],
     };
     l.body(f)?;
@@ -3030,7 +3079,7 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     // ---------------------------------------------------------------- places and accesses
 
-    fn local_access(&self, local: LocalId) -> Res<Access> {
+    fn local_access(&self, local: LocalId) -> Res<Access<'a>> {
         let f = self.frame().func;
         let Some(l) = f.locals.get(local.0 as usize) else {
             return err(format!("unknown local {}", local.0));
@@ -3040,7 +3089,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 frame: self.frames.len() - 1,
                 local,
             },
-            ty: l.ty.clone(),
+            ty: AccessTy::of(&l.ty),
             scalar: elem_scalar(&l.ty),
             base: 0,
             dyn_off: Dyn::None,
@@ -3048,28 +3097,38 @@ impl<'a, 'b> Lower<'a, 'b> {
         })
     }
 
-    /// Components of one value of `ty` in storage (`compact`: Interp holds only the view).
-    fn value_comps(&self, ty: &Type, compact: bool) -> u32 {
-        match ty.elem {
-            Elem::Scalar(_) => ty.fixed_len(),
-            Elem::Interp => ty.fixed_len() * if compact { self.view.len() as u32 } else { self.n_interp },
+    /// Components in storage of one value of `fixed_len` elements of `elem` (`compact`:
+    /// Interp holds only the view).
+    fn value_comps(&self, elem: Elem, fixed_len: u32, compact: bool) -> u32 {
+        match elem {
+            Elem::Scalar(_) => fixed_len,
+            Elem::Interp => fixed_len * if compact { self.view.len() as u32 } else { self.n_interp },
         }
     }
 
-    /// Offsets of the components a value of `ty` shows (Interp: only the view's).
-    fn comp_offsets(&self, ty: &Type, compact: bool) -> Vec<u32> {
-        match ty.elem {
-            Elem::Scalar(_) => (0..ty.fixed_len()).collect(),
+    /// Offsets of the components a value of `fixed_len` elements of `elem` shows (Interp:
+    /// only the view's). The list comes from `offs_spare` when it has one: give it back when done
+    /// ([`Self::give_back_offsets`]), so an access allocates no list.
+    fn comp_offsets(&mut self, elem: Elem, fixed_len: u32, compact: bool) -> Vec<u32> {
+        let mut out = self.offs_spare.pop().unwrap_or_default();
+        out.clear();
+        match elem {
+            Elem::Scalar(_) => out.extend(0..fixed_len),
             Elem::Interp => {
                 let per = if compact { self.view.len() as u32 } else { self.n_interp };
-                let mut out = vec![];
-                for e in 0..ty.fixed_len() {
+                for e in 0..fixed_len {
                     for (j, &v) in self.view.iter().enumerate() {
                         out.push(e * per + if compact { j as u32 } else { v });
                     }
                 }
-                out
             }
+        }
+        out
+    }
+
+    fn give_back_offsets(&mut self, offs: Vec<u32>) {
+        if self.offs_spare.len() < 4 {
+            self.offs_spare.push(offs);
         }
     }
 
@@ -3080,14 +3139,14 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// Apply one index to an access (clamping it, recording ERR_INDEX when out of range).
-    fn index_access(&mut self, mut acc: Access, index: &'a Expr, site: SiteId) -> Res<Access> {
-        let base_ty = acc.ty.clone();
-        if base_ty.dims.is_empty() && !base_ty.per_seq {
+    fn index_access(&mut self, mut acc: Access<'a>, index: &'a Expr, site: SiteId) -> Res<Access<'a>> {
+        let base_ty = acc.ty;
+        if base_ty.dims().is_empty() && !base_ty.per_seq {
             return err("indexing a scalar");
         }
         let elem_ty = base_ty.element();
-        let stride = self.value_comps(&elem_ty, acc.compact);
-        let static_len = if base_ty.per_seq { None } else { Some(base_ty.dims[0]) };
+        let stride = self.value_comps(elem_ty.elem(), elem_ty.fixed_len(), acc.compact);
+        let static_len = if base_ty.per_seq { None } else { Some(base_ty.dims()[0]) };
         if let (Some(len), Some(k)) = (static_len, const_int(index)) {
             let clamped = k.clamp(0, len as i64 - 1) as u32;
             if k < 0 || k >= len as i64 {
@@ -3208,7 +3267,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         checked
     }
 
-    fn resolve(&mut self, e: &'a Expr) -> Res<Access> {
+    fn resolve(&mut self, e: &'a Expr) -> Res<Access<'a>> {
         match &e.kind {
             ExprKind::Local(l) => self.local_access(*l),
             ExprKind::Index { base, index, site } => {
@@ -3219,7 +3278,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 let v = self.eval(e)?;
                 Ok(Access {
                     root: Root::Temp(v.clone()),
-                    ty: e.ty.clone(),
+                    ty: AccessTy::of(&e.ty),
                     scalar: v.scalar,
                     base: 0,
                     dyn_off: Dyn::None,
@@ -3296,7 +3355,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         ro: bool,
     ) -> Val {
         let bytes = comp_bytes(varying_storage) as i64;
-        let mut comps = vec![];
+        let mut comps = Vec::with_capacity(offs.len());
         let out_varying = varying_storage || matches!(dyn_off, Dyn::Varying(_));
         for &o in offs {
             let off = ((first + o) as i64 * bytes) as i32;
@@ -3355,11 +3414,18 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
-    fn read(&mut self, acc: Access) -> Res<Val> {
+    fn read(&mut self, acc: Access<'a>) -> Res<Val> {
         if acc.ty.per_seq {
             return err("a whole per-sequence-point array used as a value");
         }
-        let offs = self.comp_offsets(&acc.ty, acc.compact);
+        let offs = self.comp_offsets(acc.ty.elem(), acc.ty.fixed_len(), acc.compact);
+        let v = self.read_at(acc, &offs);
+        self.give_back_offsets(offs);
+        v
+    }
+
+    /// [`Self::read`] of the components at `offs`.
+    fn read_at(&mut self, acc: Access<'a>, offs: &[u32]) -> Res<Val> {
         let sc = acc.scalar;
         match acc.root {
             Root::Temp(v) => {
@@ -3378,33 +3444,41 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             Root::Stack { slot, varying } => {
                 let addr = self.b.ins().stack_addr(types::I64, slot, 0);
-                Ok(self.read_memory(addr, sc, varying, &offs, acc.base, acc.dyn_off, false, false))
+                Ok(self.read_memory(addr, sc, varying, offs, acc.base, acc.dyn_off, false, false))
             }
             Root::Local { frame, local } => {
                 let fr = &self.frames[frame];
                 let varying = fr.func.local(local).var.is_varying();
-                match fr.storage[local.0 as usize].clone() {
-                    Storage::Vars(vars) => {
-                        if !matches!(acc.dyn_off, Dyn::None) {
-                            return err("dynamic index into a register local");
-                        }
-                        let mut comps = vec![];
-                        for o in offs {
-                            let Some(&v) = vars.get((acc.base + o) as usize) else {
-                                return err("component out of range");
-                            };
-                            comps.push(self.b.use_var(v));
-                        }
-                        Ok(Val {
-                            comps,
-                            scalar: sc,
-                            varying,
-                        })
+                let at = local.0 as usize;
+                if let Storage::Vars(_) = &fr.storage[at] {
+                    if !matches!(acc.dyn_off, Dyn::None) {
+                        return err("dynamic index into a register local");
                     }
+                    // Each variable is looked up where it is read: cloning the local's
+                    // variable list was an allocation per read.
+                    let mut comps = Vec::with_capacity(offs.len());
+                    for &o in offs {
+                        let var = match &self.frames[frame].storage[at] {
+                            Storage::Vars(vars) => vars.get((acc.base + o) as usize).copied(),
+                            _ => None,
+                        };
+                        let Some(v) = var else {
+                            return err("component out of range");
+                        };
+                        comps.push(self.b.use_var(v));
+                    }
+                    return Ok(Val {
+                        comps,
+                        scalar: sc,
+                        varying,
+                    });
+                }
+                match fr.storage[at].clone() {
+                    Storage::Vars(_) => err("register local read as memory"),
                     Storage::Z(v) => Ok(Val::one(self.b.use_var(v), sc, true)),
                     Storage::Stack(slot) => {
                         let addr = self.b.ins().stack_addr(types::I64, slot, 0);
-                        Ok(self.read_memory(addr, sc, varying, &offs, acc.base, acc.dyn_off, false, false))
+                        Ok(self.read_memory(addr, sc, varying, offs, acc.base, acc.dyn_off, false, false))
                     }
                     Storage::Frame(word) => {
                         let in_group = self.pix.as_ref().and_then(|p| p.frame_base);
@@ -3413,10 +3487,10 @@ impl<'a, 'b> Lower<'a, 'b> {
                             (None, Some((fs, _))) => (self.b.ins().stack_addr(types::I64, fs, 0), false),
                             (None, None) => return err("uniform frame missing"),
                         };
-                        let v = self.read_memory(addr, sc, false, &offs, word + acc.base, acc.dyn_off, false, pure);
+                        let v = self.read_memory(addr, sc, false, offs, word + acc.base, acc.dyn_off, false, pure);
                         // Tier 0 keeps no splatted copies (see `spill_uniforms`).
                         if pure && sc != Scalar::Bool && matches!(acc.dyn_off, Dyn::None) && !self.tier0() {
-                            for (&c, &o) in v.comps.iter().zip(&offs) {
+                            for (&c, &o) in v.comps.iter().zip(offs) {
                                 let w = word + acc.base + o;
                                 self.splat_src.insert(c, self.vec_section + 16 * w);
                             }
@@ -3447,7 +3521,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                             }
                             ParamSlot::Pixel => return err("pixel parameter read from the argument block"),
                         };
-                        Ok(self.read_memory(addr, sc, false, &offs, first, acc.dyn_off, true, true))
+                        Ok(self.read_memory(addr, sc, false, offs, first, acc.dyn_off, true, true))
                     }
                 }
             }
@@ -3469,7 +3543,16 @@ impl<'a, 'b> Lower<'a, 'b> {
             .iter()
             .map(|&c| fixed::convert(&mut self.b, v.scalar, target, c))
             .collect();
-        let offs = self.comp_offsets(&acc.ty, false);
+        let offs = self.comp_offsets(acc.ty.elem(), acc.ty.fixed_len(), false);
+        let done = self.assign_at(place, acc, comps, &offs);
+        self.give_back_offsets(offs);
+        done
+    }
+
+    /// [`Self::assign`] of `comps` (converted to the place's scalar type) to the components
+    /// of `acc` at `offs`.
+    fn assign_at(&mut self, place: &'a Place, acc: Access<'a>, comps: Vec<ir::Value>, offs: &[u32]) -> Res<()> {
+        let target = acc.scalar;
         let comps = if comps.len() == 1 && offs.len() != 1 {
             vec![comps[0]; offs.len()]
         } else {
@@ -3486,7 +3569,13 @@ impl<'a, 'b> Lower<'a, 'b> {
         let fr = &self.frames[frame_i];
         let local = fr.func.local(place.local);
         let varying = local.var.is_varying();
-        let storage = fr.storage[place.local.0 as usize].clone();
+        // A register local's variables are looked up per component below (no clone of
+        // its variable list per assignment).
+        let at = place.local.0 as usize;
+        let storage = match &fr.storage[at] {
+            Storage::Vars(_) => Storage::Vars(vec![]),
+            other => other.clone(),
+        };
         let masked = self.masked();
         match storage {
             Storage::Args => err(format!("assignment to parameter `{}`", local.name)),
@@ -3494,9 +3583,13 @@ impl<'a, 'b> Lower<'a, 'b> {
                 "assignment to `{}`, which the pixel part never assigns",
                 local.name
             )),
-            Storage::Vars(vars) => {
+            Storage::Vars(_) => {
                 for (o, c) in offs.iter().zip(comps) {
-                    let Some(&var) = vars.get((acc.base + o) as usize) else {
+                    let var = match &self.frames[frame_i].storage[at] {
+                        Storage::Vars(vars) => vars.get((acc.base + o) as usize).copied(),
+                        _ => None,
+                    };
+                    let Some(var) = var else {
                         return err("component out of range");
                     };
                     let new = if varying {
@@ -3599,7 +3692,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// before the value is evaluated: evaluating it first left one dead constant per
     /// component (5700 of the NURB kernel's 32000 tier-0 CLIF lines) for Cranelift to
     /// process. False (nothing emitted) when the assignment is not such a clear.
-    fn zero_uniform_array(&mut self, local: LocalId, acc: &Access, value: &Expr) -> bool {
+    fn zero_uniform_array(&mut self, local: LocalId, acc: &Access<'a>, value: &Expr) -> bool {
         // Cheap tests first: this runs for every assignment.
         if !all_zero_bits(value) {
             return false;
@@ -3609,7 +3702,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let Some(&Storage::Stack(slot)) = fr.storage.get(local.0 as usize) else {
             return false;
         };
-        let whole = matches!(acc.dyn_off, Dyn::None) && matches!(acc.ty.elem, Elem::Scalar(_));
+        let whole = matches!(acc.dyn_off, Dyn::None) && matches!(acc.ty.elem(), Elem::Scalar(_));
         let words = acc.ty.fixed_len();
         // The value must cover the place exactly (or be one scalar, broadcast), as the
         // general path checks.
@@ -3793,7 +3886,9 @@ impl<'a, 'b> Lower<'a, 'b> {
                 // component of the current view (the checker's zero-initialisation and
                 // broadcasts).
                 if e.ty.elem == Elem::Interp && inner.ty.elem != Elem::Interp && comps.len() == 1 {
-                    let n = self.comp_offsets(&e.ty, true).len();
+                    let offs = self.comp_offsets(e.ty.elem, e.ty.fixed_len(), true);
+                    let n = offs.len();
+                    self.give_back_offsets(offs);
                     comps = vec![comps[0]; n];
                 }
                 Ok(Val {
@@ -3978,7 +4073,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             op,
             BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne
         );
-        let mut comps = vec![];
+        let mut comps = Vec::with_capacity(a.comps.len());
         for (&x, &y) in a.comps.iter().zip(&c.comps) {
             let key = VnKey::Op(op as u8, sc, x, y);
             let v = match self.numbered(key) {

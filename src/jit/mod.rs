@@ -29,7 +29,9 @@
 //! ([`JitOptions::unroll_loops`]).
 //!
 //! Compiles reuse per-thread Cranelift contexts, and each kernel's cost is recorded in wall
-//! and thread CPU time ([`Jit::compile_cost`], [`CompileCost`]).
+//! and thread CPU time ([`Jit::compile_cost`], [`CompileCost`]); [`Jit::clif`] and
+//! [`Jit::disassembly`] show what a kernel is made of before and after Cranelift (the
+//! latter with its count of register-allocator spills, see [`Disassembly`]).
 //!
 //! Run-time errors a kernel records carry a `SiteId` in `TileCtx::error_site`, except
 //! `ERR_CALL_DEPTH`, which has no site and records `u32::MAX`.
@@ -228,6 +230,44 @@ thread_local! {
 
 /// Spare contexts kept per thread (a batch rarely compiles more functions at once).
 const MAX_SPARE_CONTEXTS: usize = 4;
+
+/// A kernel's machine code after register allocation (see [`Jit::disassembly`]).
+#[derive(Clone, Debug)]
+pub struct Disassembly {
+    /// Cranelift's listing: one line per machine instruction, labels per block.
+    pub text: String,
+    /// Lines that store a value to a register-allocator spill slot or load one back.
+    pub spill_lines: usize,
+    /// Machine instruction lines (labels and unwind directives not counted).
+    pub inst_lines: usize,
+}
+
+impl Disassembly {
+    /// Count `text`'s instructions and spill moves. Stack addresses print as
+    /// `<offset:1>+0xN(%rsp)` from the start of the frame's slot area, where the function's
+    /// own stack slots come first (`explicit_bytes`) and the allocator's spill slots after.
+    fn new(text: String, explicit_bytes: u32) -> Disassembly {
+        let mut spill_lines = 0;
+        let mut inst_lines = 0;
+        for line in text.lines() {
+            let l = line.trim_start();
+            if l.is_empty() || l.ends_with(':') || l.starts_with("unwind ") {
+                continue;
+            }
+            inst_lines += 1;
+            let spill = line.split("<offset:1>+0x").skip(1).any(|rest| {
+                let hex: String = rest.chars().take_while(|c| c.is_ascii_hexdigit()).collect();
+                u32::from_str_radix(&hex, 16).is_ok_and(|off| off >= explicit_bytes)
+            });
+            spill_lines += spill as usize;
+        }
+        Disassembly {
+            text,
+            spill_lines,
+            inst_lines,
+        }
+    }
+}
 
 /// A cleared Cranelift context, reused if this thread has one.
 fn take_context() -> Context {
@@ -780,6 +820,44 @@ impl Jit {
             self.options.tier == Tier::Optimised,
         )?;
         Ok(f.display().to_string())
+    }
+
+    /// The machine code of `func` specialised for `key` as Cranelift prints it after register
+    /// allocation (this JIT's tier and flags; the kernel is compiled but not installed).
+    /// With it, the count of the register allocator's spill and reload instructions (tier 0's
+    /// single-pass allocator spills much; see `examples/compile_probe.rs`'s `disasm=FILE`).
+    pub fn disassembly(&self, func: FuncId, key: &VariantKey) -> Result<Disassembly, JitError> {
+        self.check_func(func)?;
+        let layout = ArgLayout::new(&self.program, func, key);
+        let mut ctx = Context::new();
+        ctx.func = ir::Function::with_name_signature(UserFuncName::user(0, func.0), kernel_signature(&self.isa));
+        let mut fctx = FunctionBuilderContext::new();
+        let mut linker = PrintLinker { isa: &self.isa };
+        let body = self.body(func);
+        lower::lower_kernel(
+            &self.program,
+            func,
+            &body,
+            key,
+            &layout,
+            &mut ctx.func,
+            &mut fctx,
+            &mut linker,
+            self.isa.frontend_config(),
+            self.options.tier == Tier::Optimised,
+        )?;
+        // The slot area's layout as Cranelift computes it (`FrameLayout`): each explicit slot
+        // aligned to max(its alignment, a word), then the spill slots.
+        let explicit_bytes = ctx.func.sized_stack_slots.values().fold(0u32, |end, slot| {
+            let align = (1u32 << slot.align_shift).max(8);
+            end.next_multiple_of(align) + slot.size
+        });
+        let explicit_bytes = explicit_bytes.next_multiple_of(8);
+        ctx.set_disasm(true);
+        let code = ctx.compile(&*self.isa, &mut Default::default()).map_err(|e| JitError {
+            message: format!("compiling `{}`: {:?}", self.program.func(func).name, e.inner),
+        })?;
+        Ok(Disassembly::new(code.vcode.clone().unwrap_or_default(), explicit_bytes))
     }
 
     /// The target ISA, the flags it was built with and the vector width kernels use.

@@ -17,61 +17,68 @@ use crate::ir::{Expr, LocalId, Stmt, StmtKind};
 /// be skipped when its local is dead).
 pub(super) fn live_setup_locals(setup: &[Stmt], mut live: Vec<bool>, removable: &dyn Fn(&Stmt) -> bool) -> Vec<bool> {
     // Statements are walked last to first, so in straight-line code an assignment is met
-    // after the reads that make its local live: one round finds everything, a second
-    // confirms (loops, whose later statements feed earlier ones, may take more).
+    // after the reads that make its local live, and one round finds everything unless an
+    // assignment skipped as dead has its local read above it (a reused local, a loop whose
+    // later statements feed earlier ones): only then is another round needed. A confirming
+    // round when nothing was skipped that way was half of this walk's cost.
+    let mut skipped = Vec::new();
     loop {
-        let mut changed = false;
-        walk(setup, &mut live, &mut changed, removable);
-        if !changed {
+        skipped.clear();
+        walk(setup, &mut live, &mut skipped, removable);
+        if !skipped
+            .iter()
+            .any(|l: &LocalId| live.get(l.0 as usize).copied().unwrap_or(true))
+        {
             return live;
         }
     }
 }
 
-fn mark(l: LocalId, live: &mut [bool], changed: &mut bool) {
+fn mark(l: LocalId, live: &mut [bool]) {
     if let Some(x) = live.get_mut(l.0 as usize) {
-        if !*x {
-            *x = true;
-            *changed = true;
-        }
+        *x = true;
     }
 }
 
-fn reads(e: &Expr, live: &mut [bool], changed: &mut bool) {
-    e.for_each_local(&mut |l| mark(l, live, changed));
+fn reads(e: &Expr, live: &mut [bool]) {
+    e.for_each_local(&mut |l| mark(l, live));
 }
 
-fn walk(stmts: &[Stmt], live: &mut [bool], changed: &mut bool, removable: &dyn Fn(&Stmt) -> bool) {
+/// One round: marks what live statements read; `skipped` gets the locals of the assignments
+/// left out as dead.
+fn walk(stmts: &[Stmt], live: &mut [bool], skipped: &mut Vec<LocalId>, removable: &dyn Fn(&Stmt) -> bool) {
     for s in stmts.iter().rev() {
         match &s.kind {
             StmtKind::Assign { place, value } => {
                 let is_live = live.get(place.local.0 as usize).copied().unwrap_or(true);
                 if is_live || !removable(s) {
-                    mark(place.local, live, changed);
-                    place.indices.iter().for_each(|(i, _)| reads(i, live, changed));
-                    reads(value, live, changed);
+                    mark(place.local, live);
+                    place.indices.iter().for_each(|(i, _)| reads(i, live));
+                    reads(value, live);
+                } else {
+                    skipped.push(place.local);
                 }
             }
             StmtKind::If { cond, then, otherwise } => {
-                reads(cond, live, changed);
-                walk(then, live, changed, removable);
-                walk(otherwise, live, changed, removable);
+                reads(cond, live);
+                walk(then, live, skipped, removable);
+                walk(otherwise, live, skipped, removable);
             }
             StmtKind::Loop { cond, body, step, .. } => {
                 if let Some(c) = cond {
-                    reads(c, live, changed);
+                    reads(c, live);
                 }
-                walk(step, live, changed, removable);
-                walk(body, live, changed, removable);
+                walk(step, live, skipped, removable);
+                walk(body, live, skipped, removable);
             }
             StmtKind::Interpolation { arms } => {
                 for a in arms {
-                    walk(&a.body, live, changed, removable);
+                    walk(&a.body, live, skipped, removable);
                 }
             }
-            StmtKind::InterpolatorReturn(Some(e)) => reads(e, live, changed),
-            StmtKind::Bound(es) => es.iter().for_each(|e| reads(e, live, changed)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| reads(e, live, changed)),
+            StmtKind::InterpolatorReturn(Some(e)) => reads(e, live),
+            StmtKind::Bound(es) => es.iter().for_each(|e| reads(e, live)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| reads(e, live)),
             StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::InterpolatorReturn(None) => {}
         }
     }
