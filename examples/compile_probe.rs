@@ -200,37 +200,27 @@ fn main() {
         ttfp[ttfp.len() / 2],
         ttfp.len()
     );
-    if let Some(path) = args.iter().find_map(|a| a.strip_prefix("clif=")) {
-        let tier = if args.iter().any(|a| a == "fast") {
-            Tier::Fast
-        } else {
-            Tier::Optimised
-        };
-        let jit = Jit::with_options(
+    // `clif=`, `disasm=` and `timings` use this tier (`fast`: tier 0).
+    let tier = if args.iter().any(|a| a == "fast") {
+        Tier::Fast
+    } else {
+        Tier::Optimised
+    };
+    let print_jit = || {
+        Jit::with_options(
             program.clone(),
             JitOptions {
                 tier,
                 ..JitOptions::default()
             },
         )
-        .expect("host ISA");
-        std::fs::write(path, jit.clif(inst.func, &inst.key).expect("lowers")).expect("writes the CLIF");
+        .expect("host ISA")
+    };
+    if let Some(path) = args.iter().find_map(|a| a.strip_prefix("clif=")) {
+        std::fs::write(path, print_jit().clif(inst.func, &inst.key).expect("lowers")).expect("writes the CLIF");
     }
     if let Some(path) = args.iter().find_map(|a| a.strip_prefix("disasm=")) {
-        let tier = if args.iter().any(|a| a == "fast") {
-            Tier::Fast
-        } else {
-            Tier::Optimised
-        };
-        let jit = Jit::with_options(
-            program.clone(),
-            JitOptions {
-                tier,
-                ..JitOptions::default()
-            },
-        )
-        .expect("host ISA");
-        let d = jit.disassembly(inst.func, &inst.key).expect("compiles");
+        let d = print_jit().disassembly(inst.func, &inst.key).expect("compiles");
         println!(
             "machine code ({tier:?}): {} instructions, {} of them spills or reloads",
             d.inst_lines, d.spill_lines
@@ -238,22 +228,9 @@ fn main() {
         std::fs::write(path, d.text).expect("writes the disassembly");
     }
     if timings {
-        let tier = if args.iter().any(|a| a == "fast") {
-            Tier::Fast
-        } else {
-            Tier::Optimised
-        };
         let _ = cranelift_codegen::timing::take_current();
         for _ in 0..rounds {
-            let mut jit = Jit::with_options(
-                program.clone(),
-                JitOptions {
-                    tier,
-                    ..JitOptions::default()
-                },
-            )
-            .expect("host ISA");
-            jit.kernel(inst.func, &inst.key).expect("compiles");
+            print_jit().kernel(inst.func, &inst.key).expect("compiles");
         }
         println!("Cranelift pass timings, total of {rounds} compiles ({tier:?}):");
         println!("{}", cranelift_codegen::timing::take_current());

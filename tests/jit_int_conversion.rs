@@ -13,11 +13,10 @@ mod common;
 
 use std::sync::Arc;
 
-use primflow::bench::same_frame;
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
-use primflow::jit::{Jit, JitOptions, Tier};
-use primflow::runtime::{Frame, Renderer, Value};
+use primflow::jit::{Jit, Tier};
+use primflow::runtime::{Renderer, Value};
 
 /// `int n` is chosen by `mode`; the depth encodes it exactly: 0.875 for i32::MAX, 0.125 for
 /// i32::MIN, else 0.5 + n / 2^24 (exact in f32 and in fixed<32,32> for |n| < 2^22).
@@ -81,21 +80,6 @@ fn scene(program: &Arc<Program>, mode: u32) -> Renderer {
     r
 }
 
-/// Tier 0, tier 1 and tier 1 with loops kept: frames bit-identical, no diagnostics.
-fn all_tiers(program: &Arc<Program>, r: &Renderer, what: &str) -> Frame {
-    let mut frames = vec![];
-    for (tier, unroll_loops) in [(Tier::Fast, true), (Tier::Optimised, true), (Tier::Optimised, false)] {
-        let mut jit = Jit::with_options(program.clone(), JitOptions { tier, unroll_loops }).unwrap();
-        let out = r.render(&mut jit);
-        assert!(out.diags.items.is_empty(), "{what}: {:?}", out.diags.items);
-        frames.push(out.frame);
-    }
-    for f in &frames[1..] {
-        assert!(same_frame(&frames[0], f), "{what}: tiers differ");
-    }
-    frames.swap_remove(0)
-}
-
 /// The language's float -> fixed conversion read back as the fixed value's float: round
 /// to nearest (ties to even, as the JIT's `nearest`), saturate to the raw range.
 fn fixed_value(x: f32, bits: u32, frac: u32) -> f32 {
@@ -141,7 +125,7 @@ fn conversions_match_the_saturating_reference_in_every_tier() {
     let mut saturated = [0usize; MODES as usize];
     for mode in 0..MODES {
         let what = format!("mode {mode}");
-        let frame = all_tiers(&program, &scene(&program, mode), &what);
+        let frame = common::all_tiers(&program, &scene(&program, mode), &what);
         for py in 0..H {
             for px in 0..W {
                 let (x, y) = (px as f32 + 0.5, py as f32 + 0.5);

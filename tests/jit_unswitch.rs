@@ -11,8 +11,7 @@ use std::sync::Arc;
 use primflow::bench::same_frame;
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
-use primflow::jit::{Jit, Tier};
-use primflow::runtime::{Frame, Renderer, Value};
+use primflow::runtime::{Renderer, Value};
 
 /// Two coverage forms chosen by a uniform `if` on an expression of arguments (no local),
 /// the block walk's guard prefix under it; after the guards, nested uniform `if`s, a
@@ -92,22 +91,6 @@ fn scene(program: &Arc<Program>, mode: f32, shade: f32) -> Renderer {
     r
 }
 
-/// Render `r` with tier 0 and tier 1 (loops unrolled and kept): frames bit-identical, no
-/// diagnostics.
-fn all_tiers(program: &Arc<Program>, r: &Renderer, what: &str) -> Frame {
-    let mut frames = vec![];
-    for (tier, unroll_loops) in [(Tier::Fast, true), (Tier::Optimised, true), (Tier::Optimised, false)] {
-        let mut jit = Jit::with_options(program.clone(), primflow::jit::JitOptions { tier, unroll_loops }).unwrap();
-        let out = r.render(&mut jit);
-        assert!(out.diags.items.is_empty(), "{what}: {:?}", out.diags.items);
-        frames.push(out.frame);
-    }
-    for f in &frames[1..] {
-        assert!(same_frame(&frames[0], f), "{what}: tiers differ");
-    }
-    frames.swap_remove(0)
-}
-
 /// The covered pixel centres (strictly inside all three edges; f64 is exact here: integer
 /// vertices, half-integer centres).
 fn covered(x: u32, y: u32) -> bool {
@@ -151,7 +134,7 @@ fn each_side_of_unswitched_uniform_ifs_renders_as_the_reference() {
     for mode in [1.0f32, -1.0] {
         for shade in [0.5f32, 1.5, 3.5] {
             let what = format!("mode {mode} shade {shade}");
-            let frame = all_tiers(&program, &scene(&program, mode, shade), &what);
+            let frame = common::all_tiers(&program, &scene(&program, mode, shade), &what);
             let mut written = 0;
             for y in 0..H {
                 for x in 0..W {
@@ -188,7 +171,7 @@ fn draws_taking_different_sides_share_one_kernel() {
         r.rast_param("shade", &Value(vec![3.5])).unwrap();
         r.end().unwrap();
     }
-    let frame = all_tiers(&program, &r, "two draws");
+    let frame = common::all_tiers(&program, &r, "two draws");
     for y in 0..H {
         for x in 0..W {
             assert_eq!(frame.written(x, y), covered(x, y), "pixel ({x}, {y})");

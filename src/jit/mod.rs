@@ -801,6 +801,12 @@ impl Jit {
 
     /// The Cranelift IR text of `func` specialised for `key` (for `check --emit clif`).
     pub fn clif(&self, func: FuncId, key: &VariantKey) -> Result<String, JitError> {
+        Ok(self.lower_for_print(func, key)?.display().to_string())
+    }
+
+    /// `func` lowered for `key` into a CLIF function of its own, calls to other primitives
+    /// left as declarations (for [`Jit::clif`] and [`Jit::disassembly`]).
+    fn lower_for_print(&self, func: FuncId, key: &VariantKey) -> Result<ir::Function, JitError> {
         self.check_func(func)?;
         let layout = ArgLayout::new(&self.program, func, key);
         let mut f = ir::Function::with_name_signature(UserFuncName::user(0, func.0), kernel_signature(&self.isa));
@@ -819,7 +825,7 @@ impl Jit {
             self.isa.frontend_config(),
             self.options.tier == Tier::Optimised,
         )?;
-        Ok(f.display().to_string())
+        Ok(f)
     }
 
     /// The machine code of `func` specialised for `key` as Cranelift prints it after register
@@ -827,25 +833,7 @@ impl Jit {
     /// With it, the count of the register allocator's spill and reload instructions (tier 0's
     /// single-pass allocator spills much; see `examples/compile_probe.rs`'s `disasm=FILE`).
     pub fn disassembly(&self, func: FuncId, key: &VariantKey) -> Result<Disassembly, JitError> {
-        self.check_func(func)?;
-        let layout = ArgLayout::new(&self.program, func, key);
-        let mut ctx = Context::new();
-        ctx.func = ir::Function::with_name_signature(UserFuncName::user(0, func.0), kernel_signature(&self.isa));
-        let mut fctx = FunctionBuilderContext::new();
-        let mut linker = PrintLinker { isa: &self.isa };
-        let body = self.body(func);
-        lower::lower_kernel(
-            &self.program,
-            func,
-            &body,
-            key,
-            &layout,
-            &mut ctx.func,
-            &mut fctx,
-            &mut linker,
-            self.isa.frontend_config(),
-            self.options.tier == Tier::Optimised,
-        )?;
+        let mut ctx = Context::for_function(self.lower_for_print(func, key)?);
         // The slot area's layout as Cranelift computes it (`FrameLayout`): each explicit slot
         // aligned to max(its alignment, a word), then the spill slots.
         let explicit_bytes = ctx.func.sized_stack_slots.values().fold(0u32, |end, slot| {

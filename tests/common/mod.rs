@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::ir::Program;
-use primflow::jit::{Jit, Tier};
+use primflow::jit::{Jit, JitOptions, Tier};
 use primflow::runtime::{Frame, Registry, Renderer, Value};
 
 /// The built-in primitive library, compiled (panics with the rendered diagnostics if not).
@@ -149,4 +149,20 @@ pub fn shared_column_patches() -> [Vec<[f64; 3]>; 2] {
         }
     }
     [left, right]
+}
+
+/// Render `r` with tier 0, tier 1 and tier 1 with loops kept (not unrolled): frames
+/// bit-identical, no diagnostics; the tier-0 frame.
+pub fn all_tiers(program: &Arc<Program>, r: &Renderer, what: &str) -> Frame {
+    let mut frames = vec![];
+    for (tier, unroll_loops) in [(Tier::Fast, true), (Tier::Optimised, true), (Tier::Optimised, false)] {
+        let mut jit = Jit::with_options(program.clone(), JitOptions { tier, unroll_loops }).unwrap();
+        let out = r.render(&mut jit);
+        assert!(out.diags.items.is_empty(), "{what}: {:?}", out.diags.items);
+        frames.push(out.frame);
+    }
+    for f in &frames[1..] {
+        assert!(primflow::bench::same_frame(&frames[0], f), "{what}: tiers differ");
+    }
+    frames.swap_remove(0)
 }
