@@ -53,6 +53,11 @@ pub const NORMAL_PARAM: &str = "N";
 pub const MAX_IMAGE_SIDE: u32 = 16384;
 /// Largest tile side accepted.
 pub const MAX_TILE_SIDE: u32 = 4096;
+/// Largest frame a render allocates: depth, write counts, colours (counted whether or not
+/// the scene shades) and every G-buffer plane. A 16384 x 16384 frame takes 1 GiB per plane,
+/// so a scene with many or wide shading parameters at that size would otherwise abort the
+/// process when the allocation fails; above this the render is refused with E0803.
+pub const MAX_FRAME_BYTES: u64 = 16 << 30;
 /// Largest number of components of one shading parameter.
 pub const MAX_COMPONENTS: usize = 64;
 

@@ -49,7 +49,7 @@ use crate::diag::{Diagnostic, Diagnostics};
 use crate::ir::{FuncId, Program};
 use crate::jit::Kernel;
 
-use super::api::{Instance, RenderOptions, Renderer, MAX_IMAGE_SIDE, MAX_TILE_SIDE};
+use super::api::{Instance, RenderOptions, Renderer, MAX_FRAME_BYTES, MAX_IMAGE_SIDE, MAX_TILE_SIDE};
 use super::expand::{expand_instance, Budget, Draw, Expanded};
 use super::kernels::KernelSource;
 use super::shading::{Effects, PixelInputs, RowInputs, Shader, ShadingKernel, ShadingSpaces};
@@ -301,6 +301,30 @@ impl Renderer {
             instances: self.instances().len(),
             ..RenderStats::default()
         };
+        // Refused before any work: a frame this large would abort the process when its
+        // allocation fails.
+        let num_planes = self.num_planes();
+        let frame_bytes = frame_bytes(opts, num_planes);
+        if frame_bytes > MAX_FRAME_BYTES {
+            diags.push(Diagnostic::error(
+                "E0803",
+                format!(
+                    "a {}x{} frame with {num_planes} shading-parameter planes needs {:.1} GiB, more than the {} GiB a frame may take; nothing is rendered",
+                    opts.width,
+                    opts.height,
+                    frame_bytes as f64 / (1u64 << 30) as f64,
+                    MAX_FRAME_BYTES >> 30
+                ),
+            ));
+            *frame = Frame::empty();
+            stats.render_micros = started.elapsed().as_micros() as u64;
+            return RenderReport {
+                stats,
+                diags,
+                kernels: vec![],
+                effects: self.shading_setup.effects(),
+            };
+        }
 
         // 1. Compile each (func, key) once, in first-use order.
         let (variants, variant_of) = self.variants();
@@ -375,7 +399,6 @@ impl Renderer {
 
         // 3. Tiles in parallel, each rendering into its own part of the frame; errors kept in
         // tile order.
-        let num_planes = self.num_planes();
         frame.reset(
             opts,
             num_planes,
@@ -432,6 +455,14 @@ impl Renderer {
             effects,
         }
     }
+}
+
+/// Bytes of a frame for `opts` with `num_planes` planes (see [`MAX_FRAME_BYTES`]): depth,
+/// write counts when counted, colours, and the planes [`plane_pitch`] apart.
+fn frame_bytes(opts: &RenderOptions, num_planes: u32) -> u64 {
+    let len = u64::from(row_stride(opts.width)) * u64::from(opts.height);
+    let per_pixel = 4 + 12 + if opts.count_writes { 4 } else { 0 };
+    len * per_pixel + plane_pitch(len as usize) as u64 * u64::from(num_planes) * 4
 }
 
 /// Most instances one job of the parallel expansion and bound pass takes: small enough that

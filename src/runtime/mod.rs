@@ -29,7 +29,10 @@ pub mod shading;
 pub mod transform;
 pub mod value;
 
-pub use api::{ApiIssue, Instance, RenderOptions, Renderer, ShadingParam, Target, EXPAND_BUDGET_WORDS};
+pub use api::{
+    ApiIssue, Instance, RenderOptions, Renderer, ShadingParam, Target, EXPAND_BUDGET_WORDS, MAX_FRAME_BYTES,
+    MAX_IMAGE_SIDE,
+};
 pub use frame::{describe_key, Frame, KernelReport, ParamPlanes, RenderOutput, RenderReport, RenderStats};
 pub use kernels::KernelSource;
 pub use registry::Registry;
