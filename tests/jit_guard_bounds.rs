@@ -8,7 +8,8 @@
 //! rounding step, 0.5 -+ one step around 2^31, 1 - 2^-24 and 1.0 at the saturation), lanes
 //! the guard retires next to lanes it keeps in one group, NaN, guards with `||`, a local
 //! reassigned after the guard (plainly, under a varying `if`, in a loop), a guard under a
-//! varying `if`; and screen_triangle itself, whose depth guard the block walk's pass variant
+//! varying `if`, an `int(...)` after the guard (one `cvttps2dq` once the guard bounds its
+//! operand); and screen_triangle itself, whose depth guard the block walk's pass variant
 //! drops. Every frame renders with tier 0, tier 1 and tier 1 without unrolling, bit-identical
 //! (`common::all_tiers`), and each pixel's depth is checked against a reference computed
 //! here: the saturating conversion in f64 (round half to even, NaN -> 0, clamp to u32).
@@ -119,6 +120,11 @@ const CASES: &[(&str, &str, Expected)] = &[
     ("equality", "if (z != 0.5) return; Z = z;", |z, _| {
         (z == 0.5).then(|| sat(z))
     }),
+    (
+        "an int conversion after the guard",
+        "if (!(z >= 0 && z <= 1)) return; int n = int(z * 1000000000); Z = float(n) / 2000000000 + 0.5;",
+        |z, _| (z >= 0.0 && z <= 1.0).then(|| sat(((z * 1e9) as i32) as f32 / 2e9 + 0.5)),
+    ),
 ];
 
 fn sources() -> Vec<(String, String)> {
