@@ -217,14 +217,29 @@ pub fn int_cc(scalar: Scalar, signed_cc: IntCC) -> IntCC {
 /// Used for `fixed<32,32>` and for storing depth.
 pub fn f32x4_to_u32_sat(b: &mut FunctionBuilder, scaled: ir::Value) -> ir::Value {
     let r = b.ins().nearest(scaled);
-    if cfg!(target_arch = "x86_64") {
-        // Six instructions after the rounding: `maxps(r, 0)` gives 0 for NaN (its second
-        // operand) and for r < 0, and keeps every other r; the rest is exact for that.
-        let zero = f32_like(b, r, 0.0);
-        let r = max_ps(b, r, zero);
-        return rounded_nonneg_to_u32_sat(b, r);
-    }
     let two31 = f32_like(b, r, 2147483648.0);
+    if cfg!(target_arch = "x86_64") {
+        // Eight instructions after the rounding, as the hand-written kernel's `depth_raw4`
+        // but saturating below 0 and for NaN too. `cvttps2dq` gives i32::MIN for NaN and
+        // lanes >= 2^31; `maxps(x, 0)` gives 0 for NaN (its second operand) and x < 0.
+        // low: r in [0, 2^31) exactly, i32::MIN (the top bit) for r >= 2^31, 0 otherwise.
+        //
+        // `maxps(r, 0)` and then [`rounded_nonneg_to_u32_sat`] is six and gives the same
+        // values, but measured worse: with `0.0` used once instead of twice, regalloc2
+        // spilled it in sphere's pixel loop and reloaded it at its four other uses there
+        // (sphere +1.1 % JIT instructions per frame; branch zbound, docs/performance.md).
+        let zero = f32_like(b, r, 0.0);
+        let low = max_ps(b, r, zero);
+        let low = b.ins().x86_cvtt2dq(I32X4, low);
+        // high: r - 2^31 (exact) for r in [2^31, 2^32), i32::MIN for r >= 2^32 (and +inf),
+        // 0 otherwise; the arithmetic shift turns i32::MIN into all ones (u32::MAX).
+        let shifted = b.ins().fsub(r, two31);
+        let high = max_ps(b, shifted, zero);
+        let high = b.ins().x86_cvtt2dq(I32X4, high);
+        let high_sign = b.ins().sshr_imm_u(high, 31);
+        let high = b.ins().bor(high, high_sign);
+        return b.ins().bor(low, high);
+    }
     let big = b.ins().fcmp(FloatCC::GreaterThanOrEqual, r, two31);
     let lo = b.ins().fcvt_to_sint_sat(I32X4, r);
     let zero = i32_like(b, lo, 0);
@@ -239,7 +254,8 @@ pub fn f32x4_to_u32_sat(b: &mut FunctionBuilder, scaled: ir::Value) -> ir::Value
 
 /// x86_64: `r`, rounded to an integer (`nearest`), not NaN and not below -0.0, to raw u32
 /// lanes saturated at u32::MAX, in five instructions. For every such r this equals
-/// [`f32x4_to_u32_sat`]'s result (which is `maxps(r, 0)` and then this).
+/// [`f32x4_to_u32_sat`]'s result (checked for every f32 input, scratch model of the x86
+/// instructions, branch zbound).
 ///
 /// Why it is exact, with `low = cvttps2dq(r)` and
 /// `high = cvttps2dq(minps(r - 2^32, -1.0))`, the result `pmaxsd(low, high)` (signed):
@@ -253,7 +269,7 @@ pub fn f32x4_to_u32_sat(b: &mut FunctionBuilder, scaled: ir::Value) -> ir::Value
 ///   u32::MAX; `low` = i32::MIN; the max is u32::MAX, the saturation.
 /// - r = -0.0: `low` = 0, `high` = i32::MIN: 0.
 /// NaN would give u32::MAX (minps returns its second operand) and r <= -1 a negative `low`:
-/// callers exclude both (a bound, or `maxps(r, 0)` first).
+/// callers exclude both by a bound (`maxps(r, 0)` first would too).
 fn rounded_nonneg_to_u32_sat(b: &mut FunctionBuilder, r: ir::Value) -> ir::Value {
     let two32 = f32_like(b, r, 4294967296.0);
     let minus_one = f32_like(b, r, -1.0);
@@ -323,7 +339,7 @@ pub fn convert(b: &mut FunctionBuilder, from: Scalar, to: Scalar, v: ir::Value) 
 /// target's range, the result is one `cvttps2dq` (after the scaling and rounding) instead
 /// of the saturating sequence, whose NaN and overflow fix-ups cost seven more instructions
 /// on x86_64; to `fixed<32,32>`, a value not below 0 needs five instructions after the
-/// rounding instead of six (see [`rounded_nonneg_to_u32_sat`]). Same values as [`convert`]
+/// rounding instead of eight (see [`rounded_nonneg_to_u32_sat`]). Same values as [`convert`]
 /// for every lane in the bound; anything else, or no bound, is [`convert`].
 pub fn convert_bounded(
     b: &mut FunctionBuilder,
