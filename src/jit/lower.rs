@@ -1838,9 +1838,12 @@ impl<'a, 'b> Lower<'a, 'b> {
             } => {
                 // The body runs again after its assignments: no fact about what it assigns
                 // holds in it (or after it).
-                let frame = self.frames.len() - 1;
-                for_each_assign(body, &mut |p, _| self.guard_facts.kill(frame, p.local));
-                for_each_assign(step, &mut |p, _| self.guard_facts.kill(frame, p.local));
+                // (Setup code has none: no walk there.)
+                if !self.guard_facts.is_empty() {
+                    let frame = self.frames.len() - 1;
+                    for_each_assign(body, &mut |p, _| self.guard_facts.kill(frame, p.local));
+                    for_each_assign(step, &mut |p, _| self.guard_facts.kill(frame, p.local));
+                }
                 if *varying && self.in_pixel() {
                     self.varying_loop(*id, cond.as_ref(), body, step, *site)
                 } else {

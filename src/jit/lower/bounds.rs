@@ -358,6 +358,11 @@ impl GuardFacts {
         self.facts.truncate(mark);
     }
 
+    /// No fact recorded (always so outside a group body): nothing to end.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.facts.is_empty()
+    }
+
     pub(crate) fn clear(&mut self) {
         self.facts.clear();
     }
