@@ -121,6 +121,11 @@ const CASES: &[(&str, &str, Expected)] = &[
         (z == 0.5).then(|| sat(z))
     }),
     (
+        "bounded below 2^-1: one cvttps2dq",
+        "if (!(z >= 0 && z <= 0.4375)) return; Z = z;",
+        |z, _| (z >= 0.0 && z <= 0.4375).then(|| sat(z)),
+    ),
+    (
         "an int conversion after the guard",
         "if (!(z >= 0 && z <= 1)) return; int n = int(z * 1000000000); Z = float(n) / 2000000000 + 0.5;",
         |z, _| (z >= 0.0 && z <= 1.0).then(|| sat(((z * 1e9) as i32) as f32 / 2e9 + 0.5)),

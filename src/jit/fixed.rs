@@ -339,7 +339,8 @@ pub fn convert(b: &mut FunctionBuilder, from: Scalar, to: Scalar, v: ir::Value) 
 /// target's range, the result is one `cvttps2dq` (after the scaling and rounding) instead
 /// of the saturating sequence, whose NaN and overflow fix-ups cost seven more instructions
 /// on x86_64; to `fixed<32,32>`, a value not below 0 needs five instructions after the
-/// rounding instead of eight (see [`rounded_nonneg_to_u32_sat`]). Same values as [`convert`]
+/// rounding instead of eight (see [`rounded_nonneg_to_u32_sat`]), and one below 2^-1
+/// (scaled: below 2^31 - 1/2) one `cvttps2dq`. Same values as [`convert`]
 /// for every lane in the bound; anything else, or no bound, is [`convert`].
 pub fn convert_bounded(
     b: &mut FunctionBuilder,
@@ -364,7 +365,12 @@ pub fn convert_bounded(
             let s = f32_like(b, v, fmt.scale() as f32);
             let scaled = b.ins().fmul(v, s);
             let r = b.ins().nearest(scaled);
-            rounded_nonneg_to_u32_sat(b, r)
+            if hi * fmt.scale() < 2147483647.5 {
+                // Rounded, in [-0, 2^31 - 1]: `cvttps2dq` alone is exact (-0 gives 0).
+                b.ins().x86_cvtt2dq(I32X4, r)
+            } else {
+                rounded_nonneg_to_u32_sat(b, r)
+            }
         }
         Scalar::Fixed(fmt) if !fmt.is_unsigned() => {
             // Rounded to nearest, the scaled value must land in the raw range: then the
