@@ -268,6 +268,7 @@ pub fn f32x4_to_u32_sat(b: &mut FunctionBuilder, scaled: ir::Value) -> ir::Value
 /// - r >= 2^32, +inf included: r - 2^32 >= 0 (or +inf), `minps` gives -1.0, `high` = -1 =
 ///   u32::MAX; `low` = i32::MIN; the max is u32::MAX, the saturation.
 /// - r = -0.0: `low` = 0, `high` = i32::MIN: 0.
+///
 /// NaN would give u32::MAX (minps returns its second operand) and r <= -1 a negative `low`:
 /// callers exclude both by a bound (`maxps(r, 0)` first would too).
 fn rounded_nonneg_to_u32_sat(b: &mut FunctionBuilder, r: ir::Value) -> ir::Value {
