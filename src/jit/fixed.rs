@@ -51,6 +51,14 @@ fn max_ps(b: &mut FunctionBuilder, x: ir::Value, y: ir::Value) -> ir::Value {
     b.ins().bitselect(mask, x, y)
 }
 
+/// x86 `minps x, y` on `f32x4`: `x < y ? x : y`, so NaN in either gives `y` (the select
+/// Cranelift's x64 backend matches to one `minps`, as [`max_ps`]).
+fn min_ps(b: &mut FunctionBuilder, x: ir::Value, y: ir::Value) -> ir::Value {
+    let less = b.ins().fcmp(FloatCC::LessThan, x, y);
+    let mask = super::value::to_f32x4(b, less);
+    b.ins().bitselect(mask, x, y)
+}
+
 /// Run a scalar i32 -> i32 computation on a scalar or on each lane of a vector.
 fn per_lane(
     b: &mut FunctionBuilder,
@@ -211,10 +219,15 @@ pub fn f32x4_to_u32_sat(b: &mut FunctionBuilder, scaled: ir::Value) -> ir::Value
     let r = b.ins().nearest(scaled);
     let two31 = f32_like(b, r, 2147483648.0);
     if cfg!(target_arch = "x86_64") {
-        // Nine instructions after the rounding, as the hand-written kernel's `depth_raw4`
+        // Eight instructions after the rounding, as the hand-written kernel's `depth_raw4`
         // but saturating below 0 and for NaN too. `cvttps2dq` gives i32::MIN for NaN and
         // lanes >= 2^31; `maxps(x, 0)` gives 0 for NaN (its second operand) and x < 0.
         // low: r in [0, 2^31) exactly, i32::MIN (the top bit) for r >= 2^31, 0 otherwise.
+        //
+        // `maxps(r, 0)` and then [`rounded_nonneg_to_u32_sat`] is six and gives the same
+        // values, but measured worse: with `0.0` used once instead of twice, regalloc2
+        // spilled it in sphere's pixel loop and reloaded it at its four other uses there
+        // (sphere +1.1 % JIT instructions per frame; branch zbound, docs/performance.md).
         let zero = f32_like(b, r, 0.0);
         let low = max_ps(b, r, zero);
         let low = b.ins().x86_cvtt2dq(I32X4, low);
@@ -237,6 +250,35 @@ pub fn f32x4_to_u32_sat(b: &mut FunctionBuilder, scaled: ir::Value) -> ir::Value
     let sign = i32_like(b, hi, i32::MIN as i64);
     let hi = b.ins().bxor(hi, sign);
     b.ins().bitselect(big, hi, lo)
+}
+
+/// x86_64: `r`, rounded to an integer (`nearest`), not NaN and not below -0.0, to raw u32
+/// lanes saturated at u32::MAX, in five instructions. For every such r this equals
+/// [`f32x4_to_u32_sat`]'s result (checked for every f32 input, scratch model of the x86
+/// instructions, branch zbound).
+///
+/// Why it is exact, with `low = cvttps2dq(r)` and
+/// `high = cvttps2dq(minps(r - 2^32, -1.0))`, the result `pmaxsd(low, high)` (signed):
+/// - r in [0, 2^31): `low` = r exactly (>= 0). r - 2^32 is below -2^31 before rounding, so
+///   rounded it is <= -2^31 (rounding is monotone, -2^31 is an f32) and `high` is i32::MIN
+///   (exact or out of range); the max is r.
+/// - r in [2^31, 2^32): `low` = i32::MIN (out of range). r - 2^32 is exact (Sterbenz: r is
+///   within a factor two of 2^32) and in [-2^31, -256] (the f32 below 2^32 is 2^32 - 256),
+///   so `minps` keeps it and `high` = r - 2^32, which is r as a u32; it is >= i32::MIN.
+/// - r >= 2^32, +inf included: r - 2^32 >= 0 (or +inf), `minps` gives -1.0, `high` = -1 =
+///   u32::MAX; `low` = i32::MIN; the max is u32::MAX, the saturation.
+/// - r = -0.0: `low` = 0, `high` = i32::MIN: 0.
+///
+/// NaN would give u32::MAX (minps returns its second operand) and r <= -1 a negative `low`:
+/// callers exclude both by a bound (`maxps(r, 0)` first would too).
+fn rounded_nonneg_to_u32_sat(b: &mut FunctionBuilder, r: ir::Value) -> ir::Value {
+    let two32 = f32_like(b, r, 4294967296.0);
+    let minus_one = f32_like(b, r, -1.0);
+    let low = b.ins().x86_cvtt2dq(I32X4, r);
+    let below = b.ins().fsub(r, two32);
+    let below = min_ps(b, below, minus_one);
+    let high = b.ins().x86_cvtt2dq(I32X4, below);
+    b.ins().smax(low, high)
 }
 
 /// Convert one component from `from` to `to` (scalar or vector form preserved).
@@ -292,12 +334,15 @@ pub fn convert(b: &mut FunctionBuilder, from: Scalar, to: Scalar, v: ir::Value) 
     }
 }
 
-/// [`convert`] of a float vector whose every lane is known to lie in `[lo, hi]` (finite,
-/// not NaN; `source_bound`, from `lower::bounds`): when truncating (to int) or rounding and
-/// scaling (to a signed fixed format) cannot leave the target's range, the result is one
-/// `cvttps2dq` (after the scaling and rounding) instead of the saturating sequence, whose
-/// NaN and overflow fix-ups cost seven more instructions on x86_64. Same values as
-/// [`convert`] for every lane in the bound; anything else, or no bound, is [`convert`].
+/// [`convert`] of a float vector whose every lane is known to be a non-NaN value in
+/// `[lo, hi]` (`source_bound`, from `lower::bounds`; an end may be infinite): when
+/// truncating (to int) or rounding and scaling (to a signed fixed format) cannot leave the
+/// target's range, the result is one `cvttps2dq` (after the scaling and rounding) instead
+/// of the saturating sequence, whose NaN and overflow fix-ups cost seven more instructions
+/// on x86_64; to `fixed<32,32>`, a value not below 0 needs five instructions after the
+/// rounding instead of eight (see [`rounded_nonneg_to_u32_sat`]), and one below 2^-1
+/// (scaled: below 2^31 - 1/2) one `cvttps2dq`. Same values as [`convert`]
+/// for every lane in the bound; anything else, or no bound, is [`convert`].
 pub fn convert_bounded(
     b: &mut FunctionBuilder,
     from: Scalar,
@@ -314,6 +359,20 @@ pub fn convert_bounded(
     match to {
         // Truncation toward zero of a value in (-2^31 - 1, 2^31) is an i32.
         Scalar::Int if lo > -2147483649.0 && hi < 2147483648.0 => b.ins().x86_cvtt2dq(I32X4, v),
+        // Scaled by 2^32 (exact, or +inf) and rounded to nearest, a value >= -2^-33 is not
+        // below -0.0 (ties go to even: -0.5 rounds to -0.0): the saturating form's
+        // `maxps(r, 0)` changes nothing, and the upper end needs no bound at all.
+        Scalar::Fixed(fmt) if fmt.is_unsigned() && fmt.bits == 32 && lo * fmt.scale() >= -0.5 => {
+            let s = f32_like(b, v, fmt.scale() as f32);
+            let scaled = b.ins().fmul(v, s);
+            let r = b.ins().nearest(scaled);
+            if hi * fmt.scale() < 2147483647.5 {
+                // Rounded, in [-0, 2^31 - 1]: `cvttps2dq` alone is exact (-0 gives 0).
+                b.ins().x86_cvtt2dq(I32X4, r)
+            } else {
+                rounded_nonneg_to_u32_sat(b, r)
+            }
+        }
         Scalar::Fixed(fmt) if !fmt.is_unsigned() => {
             // Rounded to nearest, the scaled value must land in the raw range: then the
             // saturating form's clamps (to i32, then to B bits) change nothing.

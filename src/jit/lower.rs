@@ -57,8 +57,8 @@ use crate::abi::{
     ERR_INDEX, MAX_CALL_DEPTH, MODE_BOUND, MODE_EXPAND,
 };
 use crate::ir::{
-    ArmKind, BinOp, ConstValue, Elem, Expr, ExprKind, FixedFormat, FuncId, FuncKind, Function, LocalId, LoopId,
-    ParamRole, Place, Program, Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp,
+    for_each_assign, ArmKind, BinOp, ConstValue, Elem, Expr, ExprKind, FixedFormat, FuncId, FuncKind, Function,
+    LocalId, LoopId, ParamRole, Place, Program, Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp,
 };
 
 mod block;
@@ -320,6 +320,9 @@ pub(crate) struct Lower<'a, 'b> {
     /// Bounds of float locals per function being lowered (by address), computed when its
     /// first varying float -> int or fixed conversion is lowered (see [`bounds`]).
     local_bounds: std::collections::HashMap<usize, bounds::LocalBounds>,
+    /// What the pixel code's guards say about float locals at the statement being lowered
+    /// (see [`bounds`]); empty outside a group body.
+    guard_facts: bounds::GuardFacts,
     /// Blocks sealed as soon as they were created (a guard's continuation, see
     /// `varying_guard_return`); `seal_blocks_from` skips them.
     sealed_early: std::collections::HashSet<Block>,
@@ -405,6 +408,7 @@ pub(crate) fn lower_kernel(
         setup_live: None,
         unswitched: std::collections::HashMap::new(),
         local_bounds: std::collections::HashMap::new(),
+        guard_facts: bounds::GuardFacts::default(),
         sealed_early: std::collections::HashSet::new(),
         offs_spare: vec![],
         warnings: vec![],
@@ -1488,6 +1492,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         if self.flat {
             self.flat_group_locals(f);
         }
+        // Guard facts hold within one group body only (not in row prologues).
+        self.guard_facts.clear();
         match pass {
             None => self.stmts(&f.pixel)?,
             Some((prefix, decidable)) => {
@@ -1497,6 +1503,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 self.stmts(&f.pixel[prefix.len..])?;
             }
         }
+        self.guard_facts.clear();
         self.b.ins().jump(group_end, &[]);
 
         // End of group: write Z back for the lanes that assigned it. Nothing else writes
@@ -1793,9 +1800,12 @@ impl<'a, 'b> Lower<'a, 'b> {
     // ---------------------------------------------------------------- statements
 
     fn stmts(&mut self, stmts: &'a [Stmt]) -> Res<()> {
+        // A guard's facts hold to the end of the statement list it is in.
+        let mark = self.guard_facts.mark();
         for s in stmts {
             self.stmt(s)?;
         }
+        self.guard_facts.truncate(mark);
         Ok(())
     }
 
@@ -1807,7 +1817,17 @@ impl<'a, 'b> Lower<'a, 'b> {
                 }
                 self.assign(place, value)
             }
-            StmtKind::If { cond, then, otherwise } => self.lower_if(cond, then, otherwise),
+            StmtKind::If { cond, then, otherwise } => {
+                self.lower_if(cond, then, otherwise)?;
+                // `if (c) return;`: every lane still executing has `c` false.
+                if self.in_pixel()
+                    && otherwise.is_empty()
+                    && matches!(then.as_slice(), [t] if matches!(t.kind, StmtKind::Return))
+                {
+                    self.assume_guard(cond);
+                }
+                Ok(())
+            }
             StmtKind::Loop {
                 id,
                 cond,
@@ -1816,6 +1836,14 @@ impl<'a, 'b> Lower<'a, 'b> {
                 varying,
                 site,
             } => {
+                // The body runs again after its assignments: no fact about what it assigns
+                // holds in it (or after it).
+                // (Setup code has none: no walk there.)
+                if !self.guard_facts.is_empty() {
+                    let frame = self.frames.len() - 1;
+                    for_each_assign(body, &mut |p, _| self.guard_facts.kill(frame, p.local));
+                    for_each_assign(step, &mut |p, _| self.guard_facts.kill(frame, p.local));
+                }
                 if *varying && self.in_pixel() {
                     self.varying_loop(*id, cond.as_ref(), body, step, *site)
                 } else {
@@ -2175,6 +2203,14 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.seal_block(cont);
         self.sealed_early.insert(cont);
         Ok(())
+    }
+
+    /// After `if (cond) return;` in pixel code (lowered, or dropped by a block variant that
+    /// proved it fires for no lane): record what `cond` being false says about float
+    /// locals for the rest of the statement list (see [`bounds::GuardFacts`]).
+    pub(super) fn assume_guard(&mut self, cond: &Expr) {
+        let frame = self.frames.len() - 1;
+        self.guard_facts.assume(frame, cond, false);
     }
 
     /// `m & !c` for a lane mask `m` and a varying condition `c`. When `c` is a vector
@@ -2899,6 +2935,8 @@ impl<'a, 'b> Lower<'a, 'b> {
             mask: Some(mask),
             cont: Some(cont),
         });
+        // The callee's locals are other variables than any earlier frame at this depth.
+        self.guard_facts.kill_frames_from(self.frames.len());
         self.frames.push(frame);
         self.vloops.push((mask, cont));
         self.depth_add(1);
@@ -2908,6 +2946,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.depth_add(-1);
         self.vloops.pop();
         self.frames.pop();
+        self.guard_facts.kill_frames_from(self.frames.len());
         r?;
         self.b.ins().jump(end, &[]);
         self.b.switch_to_block(end);
@@ -3544,6 +3583,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     fn assign(&mut self, place: &'a Place, value: &'a Expr) -> Res<()> {
+        let frame = self.frames.len() - 1;
+        self.guard_facts.kill(frame, place.local);
         let mut acc = self.local_access(place.local)?;
         for (idx, site) in &place.indices {
             acc = self.index_access(acc, idx, *site)?;
@@ -3567,6 +3608,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// [`Self::assign`] of `comps` (converted to the place's scalar type) to the components
     /// of `acc` at `offs`.
     fn assign_at(&mut self, place: &'a Place, acc: Access<'a>, comps: Vec<ir::Value>, offs: &[u32]) -> Res<()> {
+        let frame = self.frames.len() - 1;
+        self.guard_facts.kill(frame, place.local);
         let target = acc.scalar;
         let comps = if comps.len() == 1 && offs.len() != 1 {
             vec![comps[0]; offs.len()]
@@ -3758,14 +3801,46 @@ impl<'a, 'b> Lower<'a, 'b> {
     // ---------------------------------------------------------------- expressions
 
     /// The bound of float expression `e` of the function being lowered (see [`bounds`]),
-    /// as (lo, hi).
-    fn float_bound(&mut self, e: &Expr) -> Option<(f64, f64)> {
-        let f = self.frames.last()?.func;
+    /// as (lo, hi), at the statement being lowered: every executing lane's value is a
+    /// non-NaN f32 within it (an end may be infinite). The flag is true when the guards
+    /// before this statement narrowed it: such a bound holds here only, not wherever the
+    /// same value is computed (see [`Self::convert_here`]).
+    fn float_bound_here(&mut self, e: &Expr) -> (Option<(f64, f64)>, bool) {
+        let Some(frame) = self.frames.last() else {
+            return (None, false);
+        };
+        let f = frame.func;
+        let depth = self.frames.len() - 1;
         let table = self
             .local_bounds
             .entry(f as *const Function as usize)
             .or_insert_with(|| bounds::LocalBounds::of_function(f));
-        table.expr(e).map(|b| (b.lo, b.hi))
+        let whole = table.expr(e).map(|b| (b.lo, b.hi));
+        let here = table.expr_here(e, &self.guard_facts, depth);
+        (here, here != whole)
+    }
+
+    /// Convert `c`, one component of a value of `e` (a `from` value), to `to`; with the
+    /// bound `e` has here when it is a varying float going to int or fixed. Value numbered
+    /// (tier 0) by `c` and the types; a conversion made with a bound the guards narrowed
+    /// is not recorded (it is right only where the guards' facts hold: a varying `if`'s
+    /// other side, in the same block in flat code, must not reuse it), but may reuse one
+    /// that was (right for every lane, so for these).
+    fn convert_here(&mut self, e: &Expr, from: Scalar, to: Scalar, c: ir::Value, varying: bool) -> ir::Value {
+        let (bound, narrowed) = if varying && from == Scalar::Float && matches!(to, Scalar::Int | Scalar::Fixed(_)) {
+            self.float_bound_here(e)
+        } else {
+            (None, false)
+        };
+        let key = VnKey::Convert(from, to, c);
+        if let Some(r) = self.numbered(key) {
+            return r;
+        }
+        let r = fixed::convert_bounded(&mut self.b, from, to, c, bound);
+        if !narrowed {
+            self.number(key, r);
+        }
+        r
     }
 
     pub(crate) fn eval_uniform(&mut self, e: &'a Expr) -> Res<Val> {
@@ -3860,14 +3935,6 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             ExprKind::Convert(inner) => {
                 let v = self.eval(inner)?;
-                // A varying float whose lanes are proven finite and in the target's range
-                // converts without the saturation fix-ups (`fixed::convert_bounded`).
-                let source_bound =
-                    if v.varying && v.scalar == Scalar::Float && matches!(sc, Scalar::Int | Scalar::Fixed(_)) {
-                        self.float_bound(inner)
-                    } else {
-                        None
-                    };
                 let mut comps: Vec<ir::Value> = v
                     .comps
                     .iter()
@@ -3885,16 +3952,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                             })
                         }
                         _ if v.scalar == sc => c,
-                        _ => {
-                            // Shared with an unbounded conversion of the same value: the
-                            // value is in the bound, where both forms agree.
-                            let key = VnKey::Convert(v.scalar, sc, c);
-                            self.numbered(key).unwrap_or_else(|| {
-                                let r = fixed::convert_bounded(&mut self.b, v.scalar, sc, c, source_bound);
-                                self.number(key, r);
-                                r
-                            })
-                        }
+                        // A varying float whose lanes are proven finite and in the target's
+                        // range converts without the saturation fix-ups
+                        // (`fixed::convert_bounded`). Shared with an unbounded conversion
+                        // of the same value: the value is in the bound, where both agree.
+                        _ => self.convert_here(inner, v.scalar, sc, c, v.varying),
                     })
                     .collect();
                 // A number converted to interpolation data stands for that number in every

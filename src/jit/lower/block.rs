@@ -997,9 +997,13 @@ impl<'a> Lower<'a, '_> {
         for s in stmts {
             match s {
                 PStmt::Assign { stmt, .. } | PStmt::Kill(stmt) => self.stmt(stmt)?,
-                PStmt::Guard { stmt, id, .. } => {
+                PStmt::Guard { stmt, id, cond } => {
                     if !decidable[*id] {
                         self.stmt(stmt)?;
+                    } else {
+                        // Dropped: the block facts proved it fires for no lane of the
+                        // block, so every lane has `cond` false here, as after the guard.
+                        self.assume_guard(cond);
                     }
                 }
                 PStmt::UniformIf { cond, then, otherwise } => {
@@ -1016,11 +1020,15 @@ impl<'a> Lower<'a, '_> {
                     let else_blk = self.b.create_block();
                     let join = self.b.create_block();
                     self.b.ins().brif(c, then_blk, &[], else_blk, &[]);
+                    // A side's guard facts end with it (as a statement list's do).
+                    let mark = self.guard_facts.mark();
                     self.b.switch_to_block(then_blk);
                     self.prefix_without_guards(all, then, decidable, live)?;
+                    self.guard_facts.truncate(mark);
                     self.b.ins().jump(join, &[]);
                     self.b.switch_to_block(else_blk);
                     self.prefix_without_guards(all, otherwise, decidable, live)?;
+                    self.guard_facts.truncate(mark);
                     self.b.ins().jump(join, &[]);
                     self.b.switch_to_block(join);
                 }

@@ -23,9 +23,38 @@
 //! ends are kept in f64 and every rounded operation widens them outward by more than one
 //! f32 rounding step; a bound past `MAX_FINITE` is dropped (the f32 operation could
 //! overflow to infinity, and infinity minus infinity is NaN).
+//!
+//! Guards refine this flow-sensitively ([`GuardFacts`], asked through
+//! [`LocalBounds::expr_here`]): after `if (c) return;` in pixel code every lane still
+//! executing has `c` false, so comparisons of a scalar float local with constants that `c`
+//! being false makes true (`!(z >= 0 && z <= 1)` gives z in [0, 1]; `||` that is false and
+//! `&&` that is true give both sides; a comparison that is false gives nothing, since NaN
+//! fails every ordered comparison) bound that local, not NaN, one end possibly infinite.
+//! A fact lasts until the statement list holding the guard ends (a varying or uniform
+//! `if`'s side, a loop body, the group body) or the local is assigned; a loop first ends
+//! the facts about every local its body or step assigns (the body runs again after them).
+//! Facts belong to the frame (inlined interpolator) they were made in. A guard the block
+//! walk's pass variant drops (see `block`) gives the same facts: the block facts proved it
+//! fires for no lane of the block, which is what a lowered guard ensures for the lanes that
+//! go on.
+//!
+//! Why this is sound although the facts hold for executing lanes only: a conversion
+//! narrowed by them computes, in a lane that is retired or outside the current `if` side,
+//! some value other than the saturating one. Such lanes' values never matter, as already
+//! for every other operation there (a retired lane's `z` may be NaN or anything; so its
+//! converted value was already arbitrary): the depth test and every guard combine their
+//! condition with the executing mask (`alive & !(entry & c)`), Z is written back only for
+//! lanes that assigned it while executing, G-buffer stores and `interpolator_return`
+//! blend under the mask, any/all-lane tests read masks, not values, and an index computed
+//! from such a value is clamped into its array (only `ir::range`'s proofs skip the clamp,
+//! and they know nothing of guards). Tier 0 numbers conversions by value: one narrowed by
+//! facts is not recorded, so a later one of the same value where the facts do not hold
+//! (the other side of a varying `if` in the same block, flat code) computes its own.
+//! Tier 1's e-graph may move or merge the narrowed conversion, but only its users that
+//! run where the facts hold read it.
 
 use crate::ir::{
-    for_each_assign, BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, Function, ParamRole, Scalar, UnaryOp,
+    for_each_assign, BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, Function, LocalId, ParamRole, Scalar, UnaryOp,
 };
 
 /// Pixel centres the runtime can hand to pixel code, with a wide margin: frames are at most
@@ -144,6 +173,47 @@ impl LocalBounds {
 
     /// The bound of `e`'s every component, or `None` if unbounded or not a float.
     pub(crate) fn expr(&self, e: &Expr) -> Option<Interval> {
+        self.expr_with(e, &|_| None)
+    }
+
+    /// The bound of float expression `e` at a point of the pixel code where `facts` holds
+    /// (see [`GuardFacts`]), as `(lo, hi)`: every executing lane's value is a non-NaN `f32`
+    /// in `[lo, hi]`. An end may be infinite when `e` is a local bounded on one side only
+    /// by a guard (`z >= 0`); inside arithmetic only finite bounds are used.
+    pub(crate) fn expr_here(&self, e: &Expr, facts: &GuardFacts, frame: usize) -> Option<(f64, f64)> {
+        if e.ty.elem != Elem::Scalar(Scalar::Float) {
+            return self.expr(e).map(|b| (b.lo, b.hi));
+        }
+        if let ExprKind::Local(l) = e.kind {
+            let whole = self.locals.get(l.0 as usize).copied().flatten();
+            return match (facts.range(frame, l), whole) {
+                (Some((lo, hi)), Some(w)) => {
+                    let (lo, hi) = (lo.max(w.lo), hi.min(w.hi));
+                    // An empty intersection: no executing lane reaches here; any bound is
+                    // true of none of them, and the local's own bound is the safe choice.
+                    if lo <= hi {
+                        Some((lo, hi))
+                    } else {
+                        Some((w.lo, w.hi))
+                    }
+                }
+                (Some(r), None) => Some(r),
+                (None, w) => w.map(|w| (w.lo, w.hi)),
+            };
+        }
+        let refined = |l: LocalId| {
+            let (lo, hi) = facts.range(frame, l)?;
+            let (lo, hi) = match self.locals.get(l.0 as usize).copied().flatten() {
+                Some(w) => (lo.max(w.lo), hi.min(w.hi)),
+                None => (lo, hi),
+            };
+            Interval::new(lo, hi)
+        };
+        self.expr_with(e, &refined).map(|b| (b.lo, b.hi))
+    }
+
+    /// [`Self::expr`] with `refined` answering first for scalar locals it knows.
+    fn expr_with(&self, e: &Expr, refined: &dyn Fn(LocalId) -> Option<Interval>) -> Option<Interval> {
         match e.ty.elem {
             Elem::Scalar(Scalar::Float) => {}
             // An int constant converted to float (`X * 16`).
@@ -158,7 +228,7 @@ impl LocalBounds {
         match &e.kind {
             ExprKind::Const(ConstValue::Float(x)) => Interval::point(*x as f64),
             ExprKind::Const(_) => None,
-            ExprKind::Local(l) => self.locals.get(l.0 as usize).copied().flatten(),
+            ExprKind::Local(l) => refined(*l).or_else(|| self.locals.get(l.0 as usize).copied().flatten()),
             ExprKind::Index { base, .. } => {
                 // Every element of a local shares its bound.
                 let mut root = &**base;
@@ -170,10 +240,12 @@ impl LocalBounds {
                     _ => None,
                 }
             }
-            ExprKind::Unary { op: UnaryOp::Neg, expr } => self.expr(expr).and_then(|a| Interval::new(-a.hi, -a.lo)),
+            ExprKind::Unary { op: UnaryOp::Neg, expr } => {
+                self.expr_with(expr, refined).and_then(|a| Interval::new(-a.hi, -a.lo))
+            }
             ExprKind::Unary { .. } => None,
             ExprKind::Binary { op, lhs, rhs } => {
-                let (a, b) = (self.expr(lhs)?, self.expr(rhs)?);
+                let (a, b) = (self.expr_with(lhs, refined)?, self.expr_with(rhs, refined)?);
                 match op {
                     BinOp::Add => Interval::rounded(a.lo + b.lo, a.hi + b.hi),
                     BinOp::Sub => Interval::rounded(a.lo - b.hi, a.hi - b.lo),
@@ -184,13 +256,17 @@ impl LocalBounds {
                 }
             }
             // Int -> float rounds to nearest (only int constants are bounded, above).
-            ExprKind::Convert(inner) => self.expr(inner).and_then(|a| Interval::rounded(a.lo, a.hi)),
-            ExprKind::Select { then, otherwise, .. } => Some(self.expr(then)?.join(self.expr(otherwise)?)),
-            ExprKind::Builtin { func, args } => self.builtin(*func, args),
+            ExprKind::Convert(inner) => self
+                .expr_with(inner, refined)
+                .and_then(|a| Interval::rounded(a.lo, a.hi)),
+            ExprKind::Select { then, otherwise, .. } => {
+                Some(self.expr_with(then, refined)?.join(self.expr_with(otherwise, refined)?))
+            }
+            ExprKind::Builtin { func, args } => self.builtin(*func, args, refined),
             ExprKind::List(items) => {
                 let mut all: Option<Interval> = None;
                 for it in items {
-                    let b = self.expr(it)?;
+                    let b = self.expr_with(it, refined)?;
                     all = Some(all.map_or(b, |a| a.join(b)));
                 }
                 all
@@ -199,8 +275,8 @@ impl LocalBounds {
         }
     }
 
-    fn builtin(&self, func: Builtin, args: &[Expr]) -> Option<Interval> {
-        let arg = |i: usize| args.get(i).and_then(|a| self.expr(a));
+    fn builtin(&self, func: Builtin, args: &[Expr], refined: &dyn Fn(LocalId) -> Option<Interval>) -> Option<Interval> {
+        let arg = |i: usize| args.get(i).and_then(|a| self.expr_with(a, refined));
         let unit = Interval { lo: -1.0, hi: 1.0 };
         match func {
             Builtin::Abs => {
@@ -249,6 +325,168 @@ impl LocalBounds {
             _ => None,
         }
     }
+}
+
+/// One fact a guard established: every executing lane's value of scalar float local
+/// `local` (of the frame at depth `frame`) is a non-NaN `f32` in `[lo, hi]` (ends may be
+/// infinite). `live` turns false when the local is assigned again.
+#[derive(Clone, Copy, Debug)]
+struct Fact {
+    frame: usize,
+    local: LocalId,
+    lo: f64,
+    hi: f64,
+    live: bool,
+}
+
+/// Flow-sensitive bounds from the pixel code's guards (see the module doc): facts about
+/// float locals that hold at the statement being lowered. Facts only ever get added at the
+/// end and are cut back to a mark when the statement list that established them ends, and
+/// an assignment only turns facts off: so a fact a nested list killed stays killed after it.
+#[derive(Default)]
+pub(crate) struct GuardFacts {
+    facts: Vec<Fact>,
+}
+
+impl GuardFacts {
+    /// How many facts there are, to [`Self::truncate`] back to when a statement list ends.
+    pub(crate) fn mark(&self) -> usize {
+        self.facts.len()
+    }
+
+    pub(crate) fn truncate(&mut self, mark: usize) {
+        self.facts.truncate(mark);
+    }
+
+    /// No fact recorded (always so outside a group body): nothing to end.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.facts.is_empty()
+    }
+
+    pub(crate) fn clear(&mut self) {
+        self.facts.clear();
+    }
+
+    /// `local` of frame `frame` is assigned: nothing known about it holds any more.
+    pub(crate) fn kill(&mut self, frame: usize, local: LocalId) {
+        for f in &mut self.facts {
+            if f.frame == frame && f.local == local {
+                f.live = false;
+            }
+        }
+    }
+
+    /// Frames from depth `frame` on are gone (or new): their locals are other variables.
+    pub(crate) fn kill_frames_from(&mut self, frame: usize) {
+        for f in &mut self.facts {
+            if f.frame >= frame {
+                f.live = false;
+            }
+        }
+    }
+
+    /// The intersection of the live facts about `local`, if any.
+    pub(crate) fn range(&self, frame: usize, local: LocalId) -> Option<(f64, f64)> {
+        let mut out: Option<(f64, f64)> = None;
+        for f in &self.facts {
+            if f.live && f.frame == frame && f.local == local {
+                out = Some(match out {
+                    Some((lo, hi)) => (lo.max(f.lo), hi.min(f.hi)),
+                    None => (f.lo, f.hi),
+                });
+            }
+        }
+        out
+    }
+
+    /// Every lane executing from here on has `cond` equal to `holds`: record what that says
+    /// about float locals. Only comparisons that exclude NaN give a fact: a comparison
+    /// other than `!=` that holds, or a `!=` that does not (NaN compares unordered, so
+    /// `!(z < 0)` lets NaN through and says nothing); `&&` that holds and `||` that does not
+    /// give both sides' facts, `!` flips. Anything else says nothing.
+    pub(crate) fn assume(&mut self, frame: usize, cond: &Expr, holds: bool) {
+        match &cond.kind {
+            ExprKind::Unary { op: UnaryOp::Not, expr } => self.assume(frame, expr, !holds),
+            ExprKind::Binary {
+                op: BinOp::And,
+                lhs,
+                rhs,
+            } if holds => {
+                self.assume(frame, lhs, true);
+                self.assume(frame, rhs, true);
+            }
+            ExprKind::Binary {
+                op: BinOp::Or,
+                lhs,
+                rhs,
+            } if !holds => {
+                self.assume(frame, lhs, false);
+                self.assume(frame, rhs, false);
+            }
+            ExprKind::Binary { op, lhs, rhs } => {
+                // `local op c` or `c op local`, the latter read as `local op' c`.
+                let (local, c, op) = match (scalar_float_local(lhs), float_const(rhs)) {
+                    (Some(l), Some(c)) => (l, c, *op),
+                    _ => match (float_const(lhs), scalar_float_local(rhs)) {
+                        (Some(c), Some(l)) => (l, c, mirrored(*op)),
+                        _ => return,
+                    },
+                };
+                let inf = f64::INFINITY;
+                let range = match (op, holds) {
+                    // z < c holds: z <= c (closed ends are the bound's form; still true).
+                    (BinOp::Lt | BinOp::Le, true) => (-inf, c),
+                    (BinOp::Gt | BinOp::Ge, true) => (c, inf),
+                    (BinOp::Eq, true) | (BinOp::Ne, false) => (c, c),
+                    _ => return,
+                };
+                self.facts.push(Fact {
+                    frame,
+                    local,
+                    lo: range.0,
+                    hi: range.1,
+                    live: true,
+                });
+            }
+            _ => {}
+        }
+    }
+}
+
+/// `c op x` as `x op' c`.
+fn mirrored(op: BinOp) -> BinOp {
+    match op {
+        BinOp::Lt => BinOp::Gt,
+        BinOp::Le => BinOp::Ge,
+        BinOp::Gt => BinOp::Lt,
+        BinOp::Ge => BinOp::Le,
+        other => other,
+    }
+}
+
+/// A plain scalar float local (not an element, not a vector).
+fn scalar_float_local(e: &Expr) -> Option<LocalId> {
+    match e.kind {
+        ExprKind::Local(l) if e.ty.elem == Elem::Scalar(Scalar::Float) && e.ty.is_scalar() => Some(l),
+        _ => None,
+    }
+}
+
+/// A float-typed constant (a float literal, or an int literal compared as a float) whose
+/// value is exact in f32; `None` for anything else.
+fn float_const(e: &Expr) -> Option<f64> {
+    let x = match &e.kind {
+        ExprKind::Const(ConstValue::Float(x)) => *x as f64,
+        ExprKind::Const(ConstValue::Int(i)) if e.ty.elem == Elem::Scalar(Scalar::Float) => *i as f64,
+        ExprKind::Convert(inner) if e.ty.elem == Elem::Scalar(Scalar::Float) => match inner.kind {
+            ExprKind::Const(ConstValue::Int(i)) => i as f64,
+            _ => return None,
+        },
+        ExprKind::Unary { op: UnaryOp::Neg, expr } => -float_const(expr)?,
+        _ => return None,
+    };
+    // The comparison is made in f32: the constant must be the value the lanes compare with.
+    (e.ty.elem == Elem::Scalar(Scalar::Float) && (x as f32) as f64 == x && x.is_finite()).then_some(x)
 }
 
 #[cfg(test)]
