@@ -4,7 +4,8 @@
 //! expression where it stands). Cases: the exact conversions `int(X * c)` for c = 16, 2, 3,
 //! 512, 4096 and negative c, conversions that are not carried (c = 257, 0.5, a float local
 //! holding X), products by uniform ints near i32::MAX (wrapping coefficients), a local
-//! reassigned later, X under a varying `if`, a local read by itself, and screen triangles'
+//! reassigned later, X under a varying `if`, a local read by itself, a local read both in a
+//! carried expression and in a loop (its assignment must stay), and screen triangles'
 //! exact edge tests with 0, 4 and 16 shading parameters against the 64-bit reference
 //! rasterizer. Images have odd sizes and tiles of several sizes, so groups are ragged and
 //! rows start at several offsets.
@@ -68,11 +69,18 @@ primitive affine(float rect[4]; float mode; float u, v; int big, m, ea, eb, ec;
             t = t + int(X * 2) * i;
         n = t - int(X * 8) * eb;
     }
+    if (mode == 12) {
+        // sx is read in a carried expression and in a loop: its assignment stays.
+        int sx = int(X * 16) - int(u * 16);
+        n = sx * 5 - 2;
+        for (int i = 0; i < 2; i++)
+            n = n + sx;
+    }
     Z = 0.5 + float(n % 1024) / 16777216;
 }
 "#;
 
-const MODES: u32 = 12;
+const MODES: u32 = 13;
 const U: f32 = 3.7;
 const V: f32 = -1.3;
 /// Exactly representable in f32 (the int parameters arrive as floats).
@@ -132,6 +140,7 @@ fn expected_n(mode: u32, px: u32, py: u32) -> Option<i32> {
             }
             n
         }
+        12 => sx.wrapping_mul(5).wrapping_sub(2).wrapping_add(sx).wrapping_add(sx),
         _ => {
             let t = (0..3).fold(0i32, |t, i| t.wrapping_add(conv(x * 2.0).wrapping_mul(i)));
             t.wrapping_sub(conv(x * 8.0).wrapping_mul(EB))

@@ -289,6 +289,12 @@ pub(crate) struct Lower<'a, 'b> {
     /// Outside the groups, while carried terms are evaluated (see [`affine`]): the uniform
     /// frame's address, and whether the row section holds the current row's terms.
     prologue_frame: Option<(ir::Value, bool)>,
+    /// Pixel locals only carried terms read: their assignment is not lowered in a group
+    /// (see [`affine`]).
+    affine_dead: std::collections::HashSet<LocalId>,
+    /// Addresses of the expressions in those locals' values (their row terms are not
+    /// stored per row).
+    affine_dead_exprs: std::collections::HashSet<usize>,
     /// In the group being lowered: each carried term's value (by address).
     carry_now: Vec<(usize, ir::Value)>,
     /// Scalar frame reads of the current group -> the byte offset of their splat.
@@ -412,6 +418,8 @@ pub(crate) fn lower_kernel(
         affine_y: None,
         prologue_frame: None,
         carry_now: vec![],
+        affine_dead: std::collections::HashSet::new(),
+        affine_dead_exprs: std::collections::HashSet::new(),
         splat_src: std::collections::HashMap::new(),
         scratch,
         plane_ptrs: None,
@@ -1133,6 +1141,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         } else {
             self.hoists.clear();
             self.carried.clear();
+            self.affine_dead.clear();
+            self.affine_dead_exprs.clear();
         }
     }
 
@@ -1163,7 +1173,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         let mut stored = Ok(());
         for k in 0..self.hoists.len() {
             let h = &self.hoists[k];
-            let skip = h.per_run || only.is_some_and(|set| !set.contains(&(h.expr as *const Expr as usize)));
+            let key = h.expr as *const Expr as usize;
+            let skip =
+                h.per_run || only.is_some_and(|set| !set.contains(&key)) || self.affine_dead_exprs.contains(&key);
             if !skip {
                 stored = self.store_hoist(fs, k);
                 if stored.is_err() {
@@ -1868,6 +1880,14 @@ impl<'a, 'b> Lower<'a, 'b> {
         match &s.kind {
             StmtKind::Assign { place, value } => {
                 if self.dead_setup_assign(s, place.local) {
+                    return Ok(());
+                }
+                // Only carried terms read it: nothing in the group does (see [`affine`]).
+                if self.pix.is_some()
+                    && self.frames.len() == 1
+                    && place.indices.is_empty()
+                    && self.affine_dead.contains(&place.local)
+                {
                     return Ok(());
                 }
                 self.assign(place, value)

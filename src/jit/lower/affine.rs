@@ -33,6 +33,10 @@
 //!   form of its value, computed where it is assigned (so the locals that value reads are
 //!   the ones already defined there, and keep their values: they are assigned once too).
 //!
+//! A substitutable local that only carried expressions read (`sx`, `sy` of
+//! screen_triangle) is not assigned in the groups at all, and the row terms of its value
+//! are not stored per row (`Lower::affine_dead`).
+//!
 //! X must never be assigned in the pixel code, and pixel code that calls a primitive
 //! carries nothing. Tier 0 evaluates every expression as written (it serves one frame;
 //! tier 1 must be bit-identical to it, which the exactness above guarantees).
@@ -222,7 +226,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.affine_x = Some(x);
         self.affine_y = y_float;
         let mut next = first_offset;
-        let carried = found
+        let carried: Vec<Carried<'a>> = found
             .into_iter()
             .map(|(expr, rows)| {
                 let step_offset = next;
@@ -239,6 +243,23 @@ impl<'a, 'b> Lower<'a, 'b> {
             })
             .collect();
         self.affine_defs = w.defs.iter().map(|(l, (e, _, _))| (*l, *e)).collect();
+        // A substitutable local every read of which is inside a carried expression is never
+        // read by a group: its assignment is not lowered there, and the row terms only its
+        // value uses are not stored per row (`sy` of screen_triangle).
+        let mut all_reads = HashMap::new();
+        count_stmt_reads(&f.pixel, &mut all_reads);
+        let mut carried_reads = HashMap::new();
+        for c in &carried {
+            count_reads(c.expr, &mut carried_reads);
+        }
+        self.affine_dead.clear();
+        self.affine_dead_exprs.clear();
+        for l in &w.def_order {
+            if all_reads.get(l) == carried_reads.get(l) {
+                self.affine_dead.insert(*l);
+                collect_keys(w.defs[l].0, &mut self.affine_dead_exprs);
+            }
+        }
         carried
     }
 
@@ -704,4 +725,49 @@ fn calls_primitive(stmts: &[Stmt]) -> bool {
         StmtKind::Interpolation { arms } => arms.iter().any(|a| calls_primitive(&a.body)),
         _ => false,
     })
+}
+
+/// Count the reads of each local in `e` (every `Local` node).
+fn count_reads(e: &Expr, out: &mut HashMap<LocalId, u32>) {
+    if let ExprKind::Local(l) = e.kind {
+        *out.entry(l).or_insert(0) += 1;
+    }
+    e.for_each_child(|c| count_reads(c, out));
+}
+
+/// Count the reads of each local in every expression of `stmts`.
+fn count_stmt_reads(stmts: &[Stmt], out: &mut HashMap<LocalId, u32>) {
+    for s in stmts {
+        match &s.kind {
+            StmtKind::Assign { place, value } => {
+                for (i, _) in &place.indices {
+                    count_reads(i, out);
+                }
+                count_reads(value, out);
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                count_reads(cond, out);
+                count_stmt_reads(then, out);
+                count_stmt_reads(otherwise, out);
+            }
+            StmtKind::Loop { cond, body, step, .. } => {
+                if let Some(c) = cond {
+                    count_reads(c, out);
+                }
+                count_stmt_reads(body, out);
+                count_stmt_reads(step, out);
+            }
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| count_stmt_reads(&a.body, out)),
+            StmtKind::InterpolatorReturn(Some(e)) => count_reads(e, out),
+            StmtKind::Bound(es) => es.iter().for_each(|e| count_reads(e, out)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| count_reads(e, out)),
+            StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
+        }
+    }
+}
+
+/// The addresses of `e` and every subexpression.
+fn collect_keys(e: &Expr, out: &mut HashSet<usize>) {
+    out.insert(e as *const Expr as usize);
+    e.for_each_child(|c| collect_keys(c, out));
 }
