@@ -11,6 +11,9 @@
 //! once after setup ([`Lower::carry_steps`], into the uniform frame), each row prologue its
 //! value at the first group ([`Lower::carry_prologue`]), and the group loop carries it
 //! as a loop variable like X (`Lower::pixel_rows`); a group reads it instead of evaluating.
+//! An expression affine in the row as well (`A*xi + B*yi + C`: `int(Y * c)` leaves, with
+//! the same exactness as X's) is evaluated once per pixel loop, at its first row, and its
+//! value at a row's first group advanced by `B` per row ([`Carried::row_step_offset`]).
 //!
 //! The forms, and why each is exact:
 //! - `int(X * c)` (or `int(c * X)`) with an integer constant `c`, `1 <= |c| <= 2^15`, whose
@@ -215,7 +218,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         // An affine local read by itself (`v` in `v <= w`) is carried as its value: the
         // group's assignment then reads the carried value.
         for l in &w.def_order {
-            let (value, form, plane) = w.defs[l];
+            let Some(&(value, form, plane)) = w.defs.get(l) else {
+                continue;
+            };
             if form == Form::Affine
                 && w.bare.contains(l)
                 && !matches!(value.kind, ExprKind::Local(_) | ExprKind::Const(_))
@@ -257,7 +262,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         for l in &w.def_order {
             if all_reads.get(l) == carried_reads.get(l) {
                 self.affine_dead.insert(*l);
-                collect_keys(w.defs[l].0, &mut self.affine_dead_exprs);
+                if let Some(&(value, _, _)) = w.defs.get(l) {
+                    collect_keys(value, &mut self.affine_dead_exprs);
+                }
             }
         }
         carried
