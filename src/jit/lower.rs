@@ -61,6 +61,7 @@ use crate::ir::{
     LocalId, LoopId, ParamRole, Place, Program, Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp,
 };
 
+mod affine;
 mod block;
 mod bounds;
 mod dead;
@@ -277,6 +278,25 @@ pub(crate) struct Lower<'a, 'b> {
     vec_section: u32,
     /// Row-invariant pixel terms evaluated once per row into the frame's row section.
     hoists: Vec<hoist::Hoist<'a>>,
+    /// Int terms affine in the pixel column, carried along the row (see [`affine`]).
+    carried: Vec<affine::Carried<'a>>,
+    /// Pixel locals the carried terms read, by their single defining value (see [`affine`]).
+    affine_defs: std::collections::HashMap<LocalId, &'a Expr>,
+    /// The primitive's X while `carried` is not empty.
+    affine_x: Option<LocalId>,
+    /// The primitive's Y when carried terms may be affine in the row too.
+    affine_y: Option<LocalId>,
+    /// Outside the groups, while carried terms are evaluated (see [`affine`]): the uniform
+    /// frame's address, and whether the row section holds the current row's terms.
+    prologue_frame: Option<(ir::Value, bool)>,
+    /// Pixel locals only carried terms read: their assignment is not lowered in a group
+    /// (see [`affine`]).
+    affine_dead: std::collections::HashSet<LocalId>,
+    /// Addresses of the expressions in those locals' values (their row terms are not
+    /// stored per row).
+    affine_dead_exprs: std::collections::HashSet<usize>,
+    /// In the group being lowered: each carried term's value (by address).
+    carry_now: Vec<(usize, ir::Value)>,
     /// Scalar frame reads of the current group -> the byte offset of their splat.
     splat_src: std::collections::HashMap<ir::Value, u32>,
     /// A 16-byte slot that stores to planes the frame does not have go to.
@@ -395,6 +415,14 @@ pub(crate) fn lower_kernel(
         group_resets: vec![],
         vec_section: 0,
         hoists: vec![],
+        carried: vec![],
+        affine_defs: std::collections::HashMap::new(),
+        affine_x: None,
+        affine_y: None,
+        prologue_frame: None,
+        carry_now: vec![],
+        affine_dead: std::collections::HashSet::new(),
+        affine_dead_exprs: std::collections::HashSet::new(),
         splat_src: std::collections::HashMap::new(),
         scratch,
         plane_ptrs: None,
@@ -678,6 +706,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.spill_uniforms(f);
         }
         self.run_hoists()?;
+        self.carry_steps()?;
         self.plane_table();
         let x0 = self.load_ctx(types::I32, ctx_off::X0);
         let y0 = self.load_ctx(types::I32, ctx_off::Y0);
@@ -1032,7 +1061,15 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.vec_section = (4 * frozen_words).div_ceil(16) * 16;
         let row_section = self.vec_section + 16 * frozen_words;
         self.hoists = self.collect_hoists(f, row_section);
-        let frame_bytes = row_section + self.hoists.iter().map(|h| 16 * h.comps).sum::<u32>();
+        let carry_section = row_section + self.hoists.iter().map(|h| 16 * h.comps).sum::<u32>();
+        if !self.tier0() {
+            self.carried = self.collect_carried(f, carry_section);
+        }
+        let frame_bytes = self
+            .carried
+            .iter()
+            .map(|c| c.row_step_offset.unwrap_or(c.step_offset) + 16)
+            .fold(carry_section, u32::max);
         let frame_slot = (frame_bytes > 0).then(|| {
             self.b
                 .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, frame_bytes, 4))
@@ -1107,6 +1144,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.uniform_frame = Some((fs, ptr_slot));
         } else {
             self.hoists.clear();
+            self.carried.clear();
+            self.affine_dead.clear();
+            self.affine_dead_exprs.clear();
         }
     }
 
@@ -1130,14 +1170,25 @@ impl<'a, 'b> Lower<'a, 'b> {
                 self.b.def_var(var, v);
             }
         }
+        // A row term's uniform operations hoisted once per run (`int(oy * 16)` in
+        // `int(Y * 16) - int(oy * 16)`) are read back from the frame, not recomputed per row.
+        let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+        self.prologue_frame = Some((addr, false));
+        let mut stored = Ok(());
         for k in 0..self.hoists.len() {
             let h = &self.hoists[k];
-            let skip = h.per_run || only.is_some_and(|set| !set.contains(&(h.expr as *const Expr as usize)));
+            let key = h.expr as *const Expr as usize;
+            let skip =
+                h.per_run || only.is_some_and(|set| !set.contains(&key)) || self.affine_dead_exprs.contains(&key);
             if !skip {
-                self.store_hoist(fs, k)?;
+                stored = self.store_hoist(fs, k);
+                if stored.is_err() {
+                    break;
+                }
             }
         }
-        Ok(())
+        self.prologue_frame = None;
+        stored
     }
 
     /// Once per kernel run, after setup (render mode): the hoisted uniform operations
@@ -1179,15 +1230,20 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// In a group: the value of a hoisted row term, read from the frame's row section.
+    /// Also in a pixel loop's prologue while carried terms are evaluated (`prologue_frame`).
     fn hoisted(&mut self, e: &'a Expr) -> Option<Val> {
-        let base = self.pix.as_ref()?.frame_base?;
+        let (base, rows_ready) = match (&self.pix, self.prologue_frame) {
+            (Some(p), _) => (p.frame_base?, true),
+            (None, Some(pf)) => pf,
+            (None, None) => return None,
+        };
         if self.frames.len() != 1 {
             return None;
         }
         let h = self
             .hoists
             .iter()
-            .find(|h| std::ptr::eq(h.expr, e) && h.view == self.view)?;
+            .find(|h| std::ptr::eq(h.expr, e) && h.view == self.view && (rows_ready || h.per_run))?;
         let (offset, comps, scalar) = (h.offset, h.comps, h.scalar);
         let ty = cl_type(scalar, true);
         let comps = (0..comps)
@@ -1258,6 +1314,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let gx = self.b.declare_var(types::I32);
         let xv = self.b.declare_var(F32X4);
         self.b.def_var(py, ys[0]);
+        let row_carry = self.carry_rows_start(f, gs[0], ys[0], used_exprs.as_ref())?;
         let row_hdr = self.b.create_block();
         let row_body = self.b.create_block();
         let row_next = self.b.create_block();
@@ -1291,14 +1348,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         // lanes (int -> float, + 0.5, as the pixel's X is defined), then + 4.0 per group.
         // Exact, so bit-identical to converting each group's lane indices: every value is
         // a multiple of 0.5 below 2^22 in magnitude (images are at most 16384 pixels wide).
-        let g0 = self.b.ins().splat(I32X4, gs[0]);
-        let iota = self.iota();
-        let px0 = self.b.ins().iadd(g0, iota);
-        let pxf = self.b.ins().fcvt_from_sint(F32X4, px0);
-        let half = self.b.ins().f32const(0.5);
-        let halfv = self.b.ins().splat(F32X4, half);
-        let x0_f = self.b.ins().fadd(pxf, halfv);
+        let x0_f = self.lane_centres(gs[0]);
         self.b.def_var(xv, x0_f);
+        // Int terms affine in the column: their value at the first group, carried (see
+        // [`affine`]); after the row hoists, which define Y's variable the same way.
+        let carry = self.carry_prologue(f, x0_f, y_f, used_exprs.as_ref(), &row_carry)?;
         self.b.ins().jump(grp_hdr, &[]);
 
         self.b.switch_to_block(grp_hdr);
@@ -1324,7 +1378,12 @@ impl<'a, 'b> Lower<'a, 'b> {
                 let step = self.b.ins().splat(F32X4, step);
                 self.b.ins().fadd(x_f, step)
             };
-            self.pixel_group(f, rect, g, row_base, [x_f, y_f], pass, next)?;
+            let mut vals: Vec<ir::Value> = carry.group.iter().map(|c| self.b.use_var(c.1)).collect();
+            self.carry_advance(&mut vals, &carry, k);
+            self.carry_now = carry.group.iter().zip(&vals).map(|(c, &v)| (c.0, v)).collect();
+            let lowered = self.pixel_group(f, rect, g, row_base, [x_f, y_f], pass, next);
+            self.carry_now.clear();
+            lowered?;
             if k + 1 != unroll {
                 self.b.switch_to_block(next);
             }
@@ -1339,6 +1398,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         let step = self.b.ins().splat(F32X4, step);
         let x_f = self.b.ins().fadd(x_f, step);
         self.b.def_var(xv, x_f);
+        let mut vals: Vec<ir::Value> = carry.group.iter().map(|c| self.b.use_var(c.1)).collect();
+        self.carry_advance(&mut vals, &carry, unroll);
+        for (c, v) in carry.group.iter().zip(vals) {
+            self.b.def_var(c.1, v);
+        }
         self.b.ins().jump(grp_hdr, &[]);
 
         // The row's y as read in `row_body` (dominates this block), not `use_var`: a read
@@ -1346,6 +1410,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.switch_to_block(row_next);
         let y = self.b.ins().iadd_imm_s(row_y, 1);
         self.b.def_var(py, y);
+        self.carry_next_row(&carry);
         self.b.ins().jump(row_hdr, &[]);
         self.seal_blocks_from(first_block);
         Ok(())
@@ -1642,6 +1707,18 @@ impl<'a, 'b> Lower<'a, 'b> {
         (lo_i, hi_i)
     }
 
+    /// X of the lanes of the group starting at `g`: the pixel centres (int -> float, + 0.5,
+    /// as the pixel's X is defined).
+    fn lane_centres(&mut self, g: ir::Value) -> ir::Value {
+        let g0 = self.b.ins().splat(I32X4, g);
+        let iota = self.iota();
+        let px0 = self.b.ins().iadd(g0, iota);
+        let pxf = self.b.ins().fcvt_from_sint(F32X4, px0);
+        let half = self.b.ins().f32const(0.5);
+        let halfv = self.b.ins().splat(F32X4, half);
+        self.b.ins().fadd(pxf, halfv)
+    }
+
     fn iota(&mut self) -> ir::Value {
         let mut bytes = vec![];
         for i in 0..4u32 {
@@ -1813,6 +1890,14 @@ impl<'a, 'b> Lower<'a, 'b> {
         match &s.kind {
             StmtKind::Assign { place, value } => {
                 if self.dead_setup_assign(s, place.local) {
+                    return Ok(());
+                }
+                // Only carried terms read it: nothing in the group does (see [`affine`]).
+                if self.pix.is_some()
+                    && self.frames.len() == 1
+                    && place.indices.is_empty()
+                    && self.affine_dead.contains(&place.local)
+                {
                     return Ok(());
                 }
                 self.assign(place, value)
@@ -3853,6 +3938,9 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     pub(crate) fn eval(&mut self, e: &'a Expr) -> Res<Val> {
         if let Some(v) = self.hoisted(e) {
+            return Ok(v);
+        }
+        if let Some(v) = self.carried_value(e) {
             return Ok(v);
         }
         let sc = elem_scalar(&e.ty);

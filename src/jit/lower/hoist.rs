@@ -129,6 +129,9 @@ impl<'a, 'b> Lower<'a, 'b> {
                     per_run: false,
                 });
                 *next += 16 * comps;
+                // Its uniform operations are evaluated once per run too, so the row
+                // prologue reads them (`int(oy * 16)` of `int(Y * 16) - int(oy * 16)`).
+                self.per_run_inside(f, e, view, y, assigned, out, next);
                 return;
             }
         }
@@ -177,6 +180,46 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
+    /// Inside row term `e`: the uniform operations that are operands of its varying
+    /// operations, as per-run hoists (what `hoists_expr` does outside row terms).
+    #[allow(clippy::too_many_arguments)]
+    fn per_run_inside(
+        &self,
+        f: &'a Function,
+        e: &'a Expr,
+        view: &[u32],
+        y: Option<LocalId>,
+        assigned: &HashSet<LocalId>,
+        out: &mut Vec<Hoist<'a>>,
+        next: &mut u32,
+    ) {
+        match &e.kind {
+            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => {
+                self.per_run_inside(f, expr, view, y, assigned, out, next)
+            }
+            ExprKind::Binary { op, lhs, rhs } => {
+                let splats_operand = e.var.is_varying() && matches!(op, BinOp::Add | BinOp::Sub | BinOp::Mul);
+                for side in [lhs, rhs] {
+                    if splats_operand && self.uniform_operation(f, side, y, assigned) {
+                        let Elem::Scalar(scalar) = side.ty.elem else { continue };
+                        out.push(Hoist {
+                            expr: side,
+                            view: view.to_vec(),
+                            offset: *next,
+                            comps: 1,
+                            scalar,
+                            per_run: true,
+                        });
+                        *next += 16;
+                    } else {
+                        self.per_run_inside(f, side, view, y, assigned, out, next);
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+
     /// `e` is a uniform float or int scalar computed by an operation from frame words,
     /// arguments and constants only (hoistable like a row term; no Y in it).
     fn uniform_operation(&self, f: &Function, e: &Expr, y: Option<LocalId>, assigned: &HashSet<LocalId>) -> bool {
@@ -189,7 +232,13 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// `e` has the same value in every group of a row (see the module comment).
-    fn row_invariant(&self, f: &Function, e: &Expr, y: Option<LocalId>, assigned: &HashSet<LocalId>) -> bool {
+    pub(super) fn row_invariant(
+        &self,
+        f: &Function,
+        e: &Expr,
+        y: Option<LocalId>,
+        assigned: &HashSet<LocalId>,
+    ) -> bool {
         let plain = |t: &crate::ir::Type| {
             t.dims.is_empty() && matches!(t.elem, Elem::Interp | Elem::Scalar(Scalar::Float | Scalar::Int))
         };
