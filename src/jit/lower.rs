@@ -2701,7 +2701,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         // Tier 0: only the masked store (the all-lanes fast path is a second copy of every
         // store, which pays only in the long runs of full groups tier 1 serves).
         if self.tier0() {
-            self.blended_plane_stores(stores, slot_addr, bytes, exec);
+            self.blended_plane_stores(stores, slot_addr, bytes, exec, false);
             return;
         }
         // One lane bit each (`vmovmskps`), masked by the table's all-planes word (0b1111
@@ -2732,34 +2732,34 @@ impl<'a, 'b> Lower<'a, 'b> {
         let missing_blk = self.b.create_block();
         self.b.ins().brif(all_planes, present_blk, &[], missing_blk, &[]);
         self.b.switch_to_block(present_blk);
-        for &(g, v) in stores {
-            let base = self.b.ins().load(types::I64, mem_flags(), slot_addr, (8 * g) as i32);
-            let addr = self.b.ins().iadd(base, bytes);
-            let old = self.b.ins().load(F32X4, mem_flags(), addr, 0);
-            let new = blend(&mut self.b, exec, v, old);
-            self.b.ins().store(mem_flags(), new, addr, 0);
-        }
+        self.blended_plane_stores(stores, slot_addr, bytes, exec, true);
         self.b.ins().jump(join, &[]);
         self.b.switch_to_block(missing_blk);
-        self.blended_plane_stores(stores, slot_addr, bytes, exec);
+        self.blended_plane_stores(stores, slot_addr, bytes, exec, false);
         self.b.ins().jump(join, &[]);
         self.b.switch_to_block(join);
     }
 
-    /// Load + blend + store of each `(plane-table index, value)` under the `exec` mask; a
-    /// plane the frame lacks (null table entry) goes to the scratch slot, branch-free.
+    /// Load + blend + store of each `(plane-table index, value)` under the `exec` mask.
+    /// Unless `all_present` (every table entry known non-null), a plane the frame lacks
+    /// (null table entry) goes to the scratch slot, branch-free.
     fn blended_plane_stores(
         &mut self,
         stores: &[(u32, ir::Value)],
         slot_addr: ir::Value,
         bytes: ir::Value,
         exec: ir::Value,
+        all_present: bool,
     ) {
         for &(g, v) in stores {
             let base = self.b.ins().load(types::I64, mem_flags(), slot_addr, (8 * g) as i32);
             let real = self.b.ins().iadd(base, bytes);
-            let dummy = self.b.ins().stack_addr(types::I64, self.scratch, 0);
-            let addr = self.b.ins().select(base, real, dummy);
+            let addr = if all_present {
+                real
+            } else {
+                let dummy = self.b.ins().stack_addr(types::I64, self.scratch, 0);
+                self.b.ins().select(base, real, dummy)
+            };
             let old = self.b.ins().load(F32X4, mem_flags(), addr, 0);
             let new = blend(&mut self.b, exec, v, old);
             self.b.ins().store(mem_flags(), new, addr, 0);

@@ -151,16 +151,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                     );
                 for side in [lhs, rhs] {
                     if splats_operand && self.uniform_operation(f, side, y, assigned) {
-                        let Elem::Scalar(scalar) = side.ty.elem else { continue };
-                        out.push(Hoist {
-                            expr: side,
-                            view: view.to_vec(),
-                            offset: *next,
-                            comps: 1,
-                            scalar,
-                            per_run: true,
-                        });
-                        *next += 16;
+                        push_per_run(side, view, out, next);
                     } else {
                         self.hoists_expr(f, side, view, y, assigned, out, next);
                     }
@@ -201,16 +192,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 let splats_operand = e.var.is_varying() && matches!(op, BinOp::Add | BinOp::Sub | BinOp::Mul);
                 for side in [lhs, rhs] {
                     if splats_operand && self.uniform_operation(f, side, y, assigned) {
-                        let Elem::Scalar(scalar) = side.ty.elem else { continue };
-                        out.push(Hoist {
-                            expr: side,
-                            view: view.to_vec(),
-                            offset: *next,
-                            comps: 1,
-                            scalar,
-                            per_run: true,
-                        });
-                        *next += 16;
+                        push_per_run(side, view, out, next);
                     } else {
                         self.per_run_inside(f, side, view, y, assigned, out, next);
                     }
@@ -281,4 +263,21 @@ impl<'a, 'b> Lower<'a, 'b> {
             _ => false,
         }
     }
+}
+
+/// Record the uniform operation `side` as a per-run hoist at `next` (a scalar one; others
+/// are left where they are).
+fn push_per_run<'a>(side: &'a Expr, view: &[u32], out: &mut Vec<Hoist<'a>>, next: &mut u32) {
+    let Elem::Scalar(scalar) = side.ty.elem else {
+        return;
+    };
+    out.push(Hoist {
+        expr: side,
+        view: view.to_vec(),
+        offset: *next,
+        comps: 1,
+        scalar,
+        per_run: true,
+    });
+    *next += 16;
 }
