@@ -120,3 +120,90 @@ fn tier_0_compiles_a_different_kernel_than_tier_1() {
         "tier 0 has no block-culling variant, so less CLIF"
     );
 }
+
+/// Hands out the kernels it was given: a tiered JIT's tier-0 kernels, kept after their
+/// tier-1 twins exist.
+struct Kernels(
+    std::collections::HashMap<(primflow::ir::FuncId, primflow::abi::VariantKey), Arc<primflow::jit::Kernel>>,
+);
+
+impl KernelSource for Kernels {
+    fn kernel(
+        &mut self,
+        func: primflow::ir::FuncId,
+        key: &primflow::abi::VariantKey,
+    ) -> Result<Arc<primflow::jit::Kernel>, primflow::jit::JitError> {
+        self.0
+            .get(&(func, key.clone()))
+            .cloned()
+            .ok_or_else(|| primflow::jit::JitError {
+                message: "not handed in".into(),
+            })
+    }
+}
+
+#[test]
+fn tier_0_kernels_forward_to_their_tier_1_twins_once_compiled() {
+    // A frame in flight when the worker finishes keeps calling the tier-0 entries it was
+    // given (binned draws, expanded calls, direct calls between primitives); they must run
+    // the tier-1 code from then on and still write the same frame.
+    let (mut sources, program) = library();
+    let func = |name: &str| primflow::ir::FuncId(program.functions.iter().position(|f| f.name == name).unwrap() as u32);
+    for (name, r) in scenes(&mut sources, &program) {
+        let mut jit = Jit::tiered(program.clone()).unwrap();
+        let mut tier0 = Kernels(Default::default());
+        for inst in r.instances() {
+            let ck = (inst.func, inst.key.clone());
+            if !tier0.0.contains_key(&ck) {
+                // The call that compiles a kernel returns its tier-0 build.
+                tier0.0.insert(ck, jit.kernel(inst.func, &inst.key).unwrap());
+            }
+        }
+        jit.wait_for_tier_up();
+        for ((f, key), k) in &tier0.0 {
+            let tier1 = jit.tier_up_kernel(*f, key).unwrap();
+            assert_ne!(k.entry as usize, tier1.entry as usize, "{name}: two builds");
+            assert_eq!(
+                jit.tier0_forwards_to(*f, key).map(|e| e as usize),
+                Some(tier1.entry as usize),
+                "{name}: the tier-0 kernel forwards to the tier-1 one"
+            );
+            // The primitives it calls, compiled in its batch, forward too.
+            if program.func(*f).name == "nurb_surface" {
+                for callee in ["polygon", "screen_triangle"] {
+                    assert!(jit.tier0_forwards_to(func(callee), key).is_some(), "{name}: {callee}");
+                }
+            }
+        }
+        let forwarded = render(&r, &mut tier0);
+        let optimised = render(&r, &mut Jit::new(program.clone()).unwrap());
+        assert!(written_depths(&optimised) > 0, "{name}: the scene draws something");
+        assert!(same_frame(&forwarded, &optimised), "{name}: forwarded frame differs");
+    }
+}
+
+#[test]
+fn only_a_tiered_jits_tier_0_kernels_check_for_a_successor() {
+    let (_sources, program) = library();
+    let r = fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
+    let inst = &r.instances()[0];
+    let tiered = Jit::tiered(program.clone())
+        .unwrap()
+        .clif(inst.func, &inst.key)
+        .unwrap();
+    let fast = Jit::at_tier(program.clone(), Tier::Fast)
+        .unwrap()
+        .clif(inst.func, &inst.key)
+        .unwrap();
+    let optimised = Jit::new(program.clone()).unwrap().clif(inst.func, &inst.key).unwrap();
+    assert!(
+        tiered.contains("atomic_load") && tiered.contains("call_indirect"),
+        "{tiered}"
+    );
+    for clif in [&fast, &optimised] {
+        assert!(!clif.contains("atomic_load") && !clif.contains("call_indirect"));
+    }
+    // The check is all that differs: a few lines, not a second kernel.
+    let extra = tiered.lines().count() as i64 - fast.lines().count() as i64;
+    assert!((6..=16).contains(&extra), "{extra} more lines");
+}

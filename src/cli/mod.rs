@@ -348,7 +348,9 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
         );
         return 1;
     }
-    let mut jit = match Jit::new(registry.program.clone()) {
+    // Tiered: the frame starts on tier-0 kernels (compiled in a millisecond or two) and
+    // switches to tier-1 ones as the background compiler finishes them, mid-frame.
+    let mut jit = match Jit::tiered(registry.program.clone()) {
         Ok(jit) => jit,
         Err(e) => {
             print_diags(&diags, &sources, err);
@@ -368,6 +370,8 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     };
     let threads = pool.current_num_threads();
     let mut result = pool.install(|| renderer.render(&mut jit));
+    // One frame: tier-1 kernels still compiling would only delay the exit.
+    jit.detach_tier_up();
     diags.extend(std::mem::take(&mut result.diags));
     print_diags(&diags, &sources, err);
     if diags.has_errors() {

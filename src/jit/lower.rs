@@ -352,6 +352,13 @@ pub(crate) struct Lower<'a, 'b> {
 }
 
 /// Lower `func_id` for `key` into `func` (whose signature is already the kernel's).
+///
+/// `upgrade`: the address of the word a tiered JIT's worker fills with this kernel's tier-1
+/// entry point once it is compiled (see `super::TierUp`). The kernel then starts by reading
+/// it and, when set, calls that entry with its own arguments and returns: every caller
+/// holding the tier-0 entry (draws already binned, expanded calls, other tier-0 kernels'
+/// direct calls) runs tier-1 code from then on, mid-frame. Both tiers compute the same
+/// buffers bit for bit, so which tier runs which call never shows in a frame.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn lower_kernel(
     program: &Program,
@@ -364,6 +371,7 @@ pub(crate) fn lower_kernel(
     linker: &mut dyn Linker,
     frontend: cranelift_codegen::isa::TargetFrontendConfig,
     block_culling: bool,
+    upgrade: Option<*const std::sync::atomic::AtomicUsize>,
 ) -> Res<Vec<String>> {
     // `body` is `func_id`'s function, possibly rewritten by IR passes (`super::unroll`);
     // callees and interpolators come from `program`.
@@ -383,6 +391,20 @@ pub(crate) fn lower_kernel(
     b.switch_to_block(entry);
     let ctx = b.block_params(entry)[0];
     let args = b.block_params(entry)[1];
+    if let Some(word) = upgrade {
+        let word = b.ins().iconst(types::I64, word as i64);
+        // An acquiring load: the worker publishes the entry after making its code executable.
+        let tier1 = b.ins().atomic_load(types::I64, mem_flags().with_aligned(), word);
+        let run_tier1 = b.create_block();
+        let run_own = b.create_block();
+        b.ins().brif(tier1, run_tier1, &[], run_own, &[]);
+        b.switch_to_block(run_tier1);
+        let sig = b.func.signature.clone();
+        let sig = b.import_signature(sig);
+        b.ins().call_indirect(sig, tier1, &[ctx, args]);
+        b.ins().return_(&[]);
+        b.switch_to_block(run_own);
+    }
     let exit = b.create_block();
     let bound_vars = [
         b.declare_var(types::F32),

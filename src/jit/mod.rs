@@ -17,8 +17,12 @@
 //! starts quickly; tier 1 ([`Tier::Optimised`]) is the full pipeline. A *tiered* JIT
 //! ([`Jit::tiered`]) answers each new (function, key) with a tier-0 kernel at once and asks a
 //! background worker thread, which owns a second JIT module, for the tier-1 kernel; later
-//! requests get the tier-1 kernel once it is ready (the renderer asks once per frame, so the
-//! next frame uses it). Both tiers compute the same buffers bit for bit: they lower the same
+//! requests get the tier-1 kernel once it is ready. The frame in flight switches too: a
+//! tiered JIT's tier-0 kernels start by reading a word the worker fills with their tier-1
+//! entry point and call that when it is set ([`Jit::tier0_forwards_to`]), so draws binned
+//! with tier-0 entries, expanded calls and tier-0 kernels' calls to each other run tier-1
+//! code from the moment it exists — a single long frame (the CLI renders one) gets the
+//! fast start and the fast kernels. Both tiers compute the same buffers bit for bit: they lower the same
 //! IR with the same floating-point operations in the same order, and block culling only
 //! decides which pixels run, never what they compute (`tests/jit_tiers.rs`). Compiled code
 //! is never freed (cranelift-jit leaks a module's memory unless told otherwise), so every
@@ -45,6 +49,7 @@ mod value;
 
 use std::cell::RefCell;
 use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{mpsc, Arc, Condvar, Mutex, Weak};
 use std::thread::JoinHandle;
 use std::time::Instant;
@@ -142,6 +147,11 @@ fn jit_err(what: &str, e: impl std::fmt::Display) -> JitError {
 
 type CacheKey = (FuncId, VariantKey);
 
+/// A tier-0 kernel of a tiered JIT and the word its code reads on entry: 0 until the worker
+/// stores the kernel's tier-1 entry point there (see `lower::lower_kernel`). The words are
+/// leaked on purpose, like the code that reads them (compiled code is never freed).
+type UpgradeWord = (CacheKey, &'static AtomicUsize);
+
 /// How much work the code generator spends on a kernel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Tier {
@@ -215,6 +225,8 @@ pub struct Jit {
     failed: HashMap<CacheKey, JitError>,
     /// What each kernel in `cache` cost to compile.
     costs: HashMap<CacheKey, CompileCost>,
+    /// Tiered JITs: each tier-0 kernel's upgrade word (see [`UpgradeWord`]).
+    upgrade_words: HashMap<CacheKey, &'static AtomicUsize>,
     next_name: u32,
 }
 
@@ -418,7 +430,7 @@ struct TierUpState {
 
 /// The background tier-1 compiler: a thread owning an optimising [`Jit`].
 struct TierUp {
-    requests: Option<mpsc::Sender<CacheKey>>,
+    requests: Option<mpsc::Sender<(CacheKey, Vec<UpgradeWord>)>>,
     state: Arc<(Mutex<TierUpState>, Condvar)>,
     worker: Option<JoinHandle<()>>,
 }
@@ -431,7 +443,7 @@ impl TierUp {
             unroll_loops,
         };
         let state: Arc<(Mutex<TierUpState>, Condvar)> = Arc::default();
-        let (tx, rx) = mpsc::channel::<CacheKey>();
+        let (tx, rx) = mpsc::channel::<(CacheKey, Vec<UpgradeWord>)>();
         let shared = state.clone();
         let worker = std::thread::Builder::new()
             .name("primflow-tier1".into())
@@ -440,11 +452,20 @@ impl TierUp {
                 // Built on the worker so the first frame does not wait for a second ISA.
                 let mut jit = Jit::build(program, bodies, options);
                 // Ends when the feeding JIT drops its sender.
-                while let Ok((func, key)) = rx.recv() {
+                while let Ok(((func, key), words)) = rx.recv() {
                     let result = match &mut jit {
                         Ok(jit) => jit.kernel(func, &key),
                         Err(e) => Err(e.clone()),
                     };
+                    // The tier-0 kernels of the request's batch switch to their tier-1 twins
+                    // (this batch compiled them, or an earlier one did).
+                    if let (Ok(jit), Ok(_)) = (&jit, &result) {
+                        for (ck, word) in &words {
+                            if let Some(k) = jit.cache.get(ck) {
+                                word.store(k.entry as usize, Ordering::Release);
+                            }
+                        }
+                    }
                     let (lock, done) = &*shared;
                     let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
                     match result {
@@ -480,10 +501,10 @@ impl TierUp {
         st.costs.get(ck).copied()
     }
 
-    fn request(&self, ck: CacheKey) {
+    fn request(&self, ck: CacheKey, words: Vec<UpgradeWord>) {
         let Some(tx) = &self.requests else { return };
         let mut st = self.state.0.lock().unwrap_or_else(|e| e.into_inner());
-        if tx.send(ck).is_ok() {
+        if tx.send((ck, words)).is_ok() {
             st.pending += 1;
         }
     }
@@ -552,6 +573,25 @@ impl Jit {
         )?;
         jit.tier_up = Some(TierUp::start(program, jit.bodies.clone(), jit.options.unroll_loops)?);
         Ok(jit)
+    }
+
+    /// The tier-1 entry point the tier-0 kernel for (`func`, `key`) now forwards to, once
+    /// the worker has compiled it (tiered JITs only; see `lower::lower_kernel`).
+    pub fn tier0_forwards_to(&self, func: FuncId, key: &VariantKey) -> Option<KernelFn> {
+        let word = self.upgrade_words.get(&(func, key.clone()))?.load(Ordering::Acquire);
+        // SAFETY: the worker stores only entry points of finalized kernels with the kernel
+        // signature (`KernelFn`); 0 means none yet.
+        (word != 0).then(|| unsafe { std::mem::transmute::<usize, KernelFn>(word) })
+    }
+
+    /// Let the tier-1 worker go without waiting for it, for a process about to exit (dropping
+    /// a tiered JIT waits for the compile in progress, so that it does not run on into what the
+    /// caller does next): the worker ends after its current compile on its own.
+    pub fn detach_tier_up(&mut self) {
+        if let Some(mut t) = self.tier_up.take() {
+            t.requests = None;
+            t.worker = None;
+        }
     }
 
     /// Wait until every tier-1 compile requested so far has finished (no-op if not tiered).
@@ -629,6 +669,7 @@ impl Jit {
             libm,
             failed: HashMap::new(),
             costs: HashMap::new(),
+            upgrade_words: HashMap::new(),
             next_name: 0,
         })
     }
@@ -665,9 +706,9 @@ impl Jit {
             return Err(e.clone());
         }
         match self.compile_batch(func, key) {
-            Ok(()) => {
+            Ok(words) => {
                 if let Some(t) = &self.tier_up {
-                    t.request(ck.clone());
+                    t.request(ck.clone(), words);
                 }
                 self.cache.get(&ck).cloned().ok_or_else(|| JitError {
                     message: "kernel missing after compilation".into(),
@@ -680,8 +721,9 @@ impl Jit {
         }
     }
 
-    /// Compile `root` and every not-yet-compiled primitive it reaches under `key`.
-    fn compile_batch(&mut self, root: FuncId, key: &VariantKey) -> Result<(), JitError> {
+    /// Compile `root` and every not-yet-compiled primitive it reaches under `key`; in a
+    /// tiered JIT, the upgrade words of the kernels compiled.
+    fn compile_batch(&mut self, root: FuncId, key: &VariantKey) -> Result<Vec<UpgradeWord>, JitError> {
         let batch_cpu = thread_cpu_micros();
         let program = self.program.clone();
         let mut pending = vec![];
@@ -698,6 +740,7 @@ impl Jit {
         // Lower everything first: a lowering error must not leave a half-defined batch.
         // (function, its CLIF, layout, warnings, wall and CPU microseconds so far)
         let mut built: Vec<(FuncId, Context, ArgLayout, Vec<String>, u64, u64)> = vec![];
+        let mut words = vec![];
         let mut seen = HashSet::new();
         while let Some(f) = pending.pop() {
             if !seen.insert(f) || self.cache.contains_key(&(f, key.clone())) {
@@ -706,6 +749,10 @@ impl Jit {
             let (started, started_cpu) = (Instant::now(), thread_cpu_micros());
             let layout = ArgLayout::new(&program, f, key);
             let body = self.body(f);
+            let upgrade: Option<&'static AtomicUsize> = self
+                .tier_up
+                .is_some()
+                .then(|| &*Box::leak(Box::new(AtomicUsize::new(0))));
             let mut ctx = take_context();
             ctx.func.signature = kernel_signature(&self.isa);
             ctx.func.name = UserFuncName::user(0, f.0);
@@ -734,6 +781,7 @@ impl Jit {
                     &mut linker,
                     self.isa.frontend_config(),
                     self.options.tier == Tier::Optimised,
+                    upgrade.map(|w| w as *const AtomicUsize),
                 );
                 // A lowering error leaves the builder context mid-function; the next
                 // kernel must not inherit it, so only a clean one is kept.
@@ -744,6 +792,10 @@ impl Jit {
             };
             let micros = started.elapsed().as_micros() as u64;
             let cpu = thread_cpu_micros().saturating_sub(started_cpu);
+            if let Some(w) = upgrade {
+                self.upgrade_words.insert((f, key.clone()), w);
+                words.push(((f, key.clone()), w));
+            }
             built.push((f, ctx, layout, warnings, micros, cpu));
         }
         let mut defined = vec![];
@@ -796,7 +848,7 @@ impl Jit {
                 },
             );
         }
-        Ok(())
+        Ok(words)
     }
 
     /// The Cranelift IR text of `func` specialised for `key` (for `check --emit clif`).
@@ -824,6 +876,11 @@ impl Jit {
             &mut linker,
             self.isa.frontend_config(),
             self.options.tier == Tier::Optimised,
+            // The shape a tiered JIT compiles, with a word no worker ever fills.
+            self.tier_up.as_ref().map(|_| {
+                static PRINTED_ONLY: AtomicUsize = AtomicUsize::new(0);
+                &PRINTED_ONLY as *const AtomicUsize
+            }),
         )?;
         Ok(f)
     }
@@ -888,5 +945,48 @@ mod tests {
         fn send_sync<T: Send + Sync>() {}
         send_sync::<Kernel>();
         send_sync::<Arc<Kernel>>();
+    }
+
+    static FORWARDED_CALLS: AtomicUsize = AtomicUsize::new(0);
+
+    unsafe extern "C" fn count_call(_ctx: *mut crate::abi::TileCtx, _args: *const u32) {
+        FORWARDED_CALLS.fetch_add(1, Ordering::SeqCst);
+    }
+
+    /// The tier-0 code itself reads its upgrade word: with a stand-in entry stored there, a
+    /// call of the tier-0 entry runs the stand-in, and with the word cleared, its own code.
+    #[test]
+    fn a_tiered_jits_tier_0_kernel_calls_the_entry_in_its_word() {
+        let mut sources = crate::diag::SourceMap::new();
+        let mut diags = crate::diag::Diagnostics::new();
+        let program = crate::runtime::Registry::load(&mut sources, &[], &[], &mut diags)
+            .expect("library")
+            .program;
+        let r = crate::bench::fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
+        let inst = &r.instances()[0];
+        let mut jit = Jit::tiered(program.clone()).unwrap();
+        let tier0 = jit.kernel(inst.func, &inst.key).unwrap();
+        // The worker is idle after this and never writes the word again.
+        jit.wait_for_tier_up();
+        let word = jit.upgrade_words[&(inst.func, inst.key.clone())];
+        assert_eq!(
+            word.load(Ordering::SeqCst),
+            jit.tier_up_kernel(inst.func, &inst.key).unwrap().entry as usize
+        );
+        let run = |mode| {
+            let mut ctx = crate::abi::TileCtx::new(mode, 32, 32);
+            let mut no_depth: Vec<u32> = Vec::new();
+            ctx.depth = no_depth.as_mut_ptr();
+            // SAFETY: bound mode with an empty tile touches no buffer (as `run_bound`); the
+            // argument block is the instance's, laid out for this kernel.
+            unsafe { (tier0.entry)(&mut ctx, inst.args.as_ptr()) };
+            ctx.bound_set
+        };
+        word.store(count_call as usize, Ordering::SeqCst);
+        assert_eq!(run(crate::abi::MODE_BOUND), 0, "the stand-in records no bound");
+        assert_eq!(FORWARDED_CALLS.load(Ordering::SeqCst), 1);
+        word.store(0, Ordering::SeqCst);
+        assert_eq!(run(crate::abi::MODE_BOUND), 1, "its own code records the bound");
+        assert_eq!(FORWARDED_CALLS.load(Ordering::SeqCst), 1);
     }
 }

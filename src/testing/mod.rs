@@ -454,7 +454,9 @@ fn render_case(
     if diags.has_errors() {
         return (None, diags, sources);
     }
-    let mut jit = match Jit::new(registry.program.clone()) {
+    // Tiered, as `primflow render`: one frame per test scene, so tier-0 kernels start it and
+    // tier-1 ones take over mid-frame if they are ready in time (the same pixels either way).
+    let mut jit = match Jit::tiered(registry.program.clone()) {
         Ok(j) => j,
         Err(e) => {
             diags.push(crate::diag::Diagnostic::error(
@@ -475,6 +477,7 @@ fn render_case(
         }
     };
     let out = pool.install(|| renderer.render(&mut jit));
+    jit.detach_tier_up();
     diags.extend(out.diags);
     let frame = (!diags.has_errors()).then_some(out.frame);
     (frame, diags, sources)
