@@ -448,7 +448,9 @@ impl TierUp {
         let worker = std::thread::Builder::new()
             .name("primflow-tier1".into())
             .spawn(move || {
-                lower_this_threads_priority();
+                // At the render threads' priority: the frame in flight switches to what this
+                // compiles (a worker at nice 10 starved behind two render threads, so a long
+                // first frame ran on tier-0 code to its end).
                 // Built on the worker so the first frame does not wait for a second ISA.
                 let mut jit = Jit::build(program, bodies, options);
                 // Ends when the feeding JIT drops its sender.
@@ -515,21 +517,6 @@ impl TierUp {
         while st.pending > 0 {
             st = done.wait(st).unwrap_or_else(|e| e.into_inner());
         }
-    }
-}
-
-/// Make the calling thread yield to the render threads: tier-1 compiles are background work
-/// (measured: without this, the time to first pixel doubled on a loaded 2-core machine as
-/// the worker competed with the first frame). Linux `setpriority` on thread 0 = the caller.
-fn lower_this_threads_priority() {
-    #[cfg(target_os = "linux")]
-    {
-        extern "C" {
-            fn setpriority(which: i32, who: u32, prio: i32) -> i32;
-        }
-        const PRIO_PROCESS: i32 = 0;
-        // SAFETY: plain system call with scalar arguments; failure only leaves the priority.
-        unsafe { setpriority(PRIO_PROCESS, 0, 10) };
     }
 }
 
