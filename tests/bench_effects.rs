@@ -223,11 +223,29 @@ fn report_has_effects_thread_figures_and_llvmpipe_rows() {
             .fold(0.0, f64::max);
         assert_eq!(*figure, fastest, "{kernel}");
     }
+    // Every example scene reaches its first pixel, each phase inside the whole.
+    let scenes: Vec<&str> = report.scenes_to_first_pixel.iter().map(|t| t.scene.as_str()).collect();
+    assert_eq!(
+        scenes,
+        [
+            "triangles.scene",
+            "interpolators.scene",
+            "spheres.scene",
+            "geometry.scene",
+            "nurb_surface.scene"
+        ]
+    );
+    for t in &report.scenes_to_first_pixel {
+        assert!(t.compile_ms > 0.0 && t.render_ms > 0.0, "{t:?}");
+        assert!(t.compile_ms + t.render_ms <= t.ms, "{t:?}");
+    }
     let table = format_table(&report);
+    assert!(table.contains("example scenes to first pixel"), "{table}");
     assert!(table.contains("thread scaling"), "{table}");
     assert!(table.contains("x llvmpipe"), "{table}");
     assert!(table.contains("hand-written best"), "{table}");
     let json = serde_json::to_value(&report).unwrap();
     assert!(json["llvmpipe"].as_array().is_some_and(|a| a.len() == 2));
     assert!(json["effects"].is_null());
+    assert_eq!(json["scenes_to_first_pixel"].as_array().map(Vec::len), Some(5));
 }
