@@ -48,8 +48,8 @@ use cranelift_frontend::{FunctionBuilder, Variable};
 use super::fixed;
 use super::libm::LibmFn;
 use super::value::{
-    args_flags, blend, cl_type, comp_bytes, ctx_off, mask_const, mem_flags, splat, to_varying, zero, Val, VnKey,
-    VnTable, F32X4, I32X4, VN_NEG, VN_NOT,
+    args_flags, blend, cl_type, comp_bytes, ctx_off, mask_const, mem_flags, splat, zero, Val, VnKey, VnTable, F32X4,
+    I32X4, VN_NEG, VN_NOT,
 };
 use super::JitError;
 use crate::abi::{
@@ -1268,7 +1268,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         splat(&mut self.b, sc, c)
     }
 
-    fn to_varying_val(&mut self, v: Val) -> Val {
+    pub(crate) fn to_varying_val(&mut self, v: Val) -> Val {
         if v.varying {
             return v;
         }
@@ -2855,14 +2855,11 @@ impl<'a, 'b> Lower<'a, 'b> {
             .iter()
             .map(|&c| fixed::convert(&mut self.b, v.scalar, Scalar::Float, c))
             .collect();
-        to_varying(
-            &mut self.b,
-            Val {
-                comps,
-                scalar: Scalar::Float,
-                varying: v.varying,
-            },
-        )
+        self.to_varying_val(Val {
+            comps,
+            scalar: Scalar::Float,
+            varying: v.varying,
+        })
     }
 
     fn store_kind_bindings(&mut self, e: &'a Expr) -> Res<()> {
@@ -4081,9 +4078,25 @@ impl<'a, 'b> Lower<'a, 'b> {
                         varying: false,
                     });
                 }
+                let t = self.to_varying_val(t);
+                let o = self.to_varying_val(o);
+                if !c.varying {
+                    // A uniform condition picks whole vectors: a scalar `select` (a test
+                    // and a move) instead of splatting the condition to a lane mask and
+                    // blending (eight instructions per group for `a != 0 ? x : y`).
+                    let comps = t
+                        .comps
+                        .iter()
+                        .zip(&o.comps)
+                        .map(|(&x, &y)| self.b.ins().select(cb, x, y))
+                        .collect();
+                    return Ok(Val {
+                        comps,
+                        scalar: t.scalar,
+                        varying: true,
+                    });
+                }
                 let m = splat(&mut self.b, Scalar::Bool, cb);
-                let t = to_varying(&mut self.b, t);
-                let o = to_varying(&mut self.b, o);
                 let comps = t
                     .comps
                     .iter()
@@ -4114,7 +4127,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                         scalar: sc,
                         varying: v.varying,
                     };
-                    let v = if varying { to_varying(&mut self.b, v) } else { v };
+                    let v = if varying { self.to_varying_val(v) } else { v };
                     comps.extend(v.comps);
                 }
                 Ok(Val {
@@ -4138,7 +4151,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 // Only the variability is unified: the operands' lengths differ by design
                 // (n*m and m*k components), which `unify` would reject.
                 let (a, c) = if a.varying != c.varying {
-                    (to_varying(&mut self.b, a), to_varying(&mut self.b, c))
+                    (self.to_varying_val(a), self.to_varying_val(c))
                 } else {
                     (a, c)
                 };
