@@ -278,6 +278,10 @@ pub(crate) struct Lower<'a, 'b> {
     vec_section: u32,
     /// Row-invariant pixel terms evaluated once per row into the frame's row section.
     hoists: Vec<hoist::Hoist<'a>>,
+    /// Pixel locals with a row-invariant value, by their defining expression (see [`hoist`]).
+    row_locals: std::collections::HashMap<LocalId, &'a Expr>,
+    /// While a row term is evaluated in the row prologue: read row locals as their values.
+    substitute_row_locals: bool,
     /// Int terms affine in the pixel column, carried along the row (see [`affine`]).
     carried: Vec<affine::Carried<'a>>,
     /// Pixel locals the carried terms read, by their single defining value (see [`affine`]).
@@ -415,6 +419,8 @@ pub(crate) fn lower_kernel(
         group_resets: vec![],
         vec_section: 0,
         hoists: vec![],
+        row_locals: std::collections::HashMap::new(),
+        substitute_row_locals: false,
         carried: vec![],
         affine_defs: std::collections::HashMap::new(),
         affine_x: None,
@@ -1060,6 +1066,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         self.vec_section = (4 * frozen_words).div_ceil(16) * 16;
         let row_section = self.vec_section + 16 * frozen_words;
+        self.row_locals = self.collect_row_locals(f);
         self.hoists = self.collect_hoists(f, row_section);
         let carry_section = row_section + self.hoists.iter().map(|h| 16 * h.comps).sum::<u32>();
         if !self.tier0() {
@@ -1213,7 +1220,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             (h.expr, h.view.clone(), h.offset, h.comps)
         };
         let saved = std::mem::replace(&mut self.view, view);
+        self.substitute_row_locals = true;
         let v = self.eval(expr);
+        self.substitute_row_locals = false;
         self.view = saved;
         let v = v?;
         if v.comps.len() != comps as usize {
@@ -3936,6 +3945,11 @@ impl<'a, 'b> Lower<'a, 'b> {
     pub(crate) fn eval(&mut self, e: &'a Expr) -> Res<Val> {
         if let Some(v) = self.hoisted(e) {
             return Ok(v);
+        }
+        if let (true, ExprKind::Local(l)) = (self.substitute_row_locals, &e.kind) {
+            if let Some(&value) = self.row_locals.get(l) {
+                return self.eval(value);
+            }
         }
         if let Some(v) = self.carried_value(e) {
             return Ok(v);
