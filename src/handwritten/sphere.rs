@@ -713,11 +713,14 @@ mod tests {
     use crate::jit::{JitError, Kernel};
     use crate::runtime::{KernelSource, Registry, Renderer, Value};
 
+    /// A kernel form by (plane-table entries, write counting).
+    type FormFn = fn(usize, bool) -> KernelFn;
+
     /// The hand-written sphere with every kernel's entry replaced by `form` of its key (the
     /// runtime picks the VEX form on a CPU with AVX; this reaches the legacy one).
     struct Form {
         hand: Handwritten,
-        form: fn(usize, bool) -> KernelFn,
+        form: FormFn,
     }
 
     impl KernelSource for Form {
@@ -771,7 +774,7 @@ mod tests {
         let program = Registry::load(&mut sources, &[], &[], &mut diags)
             .expect("the library loads")
             .program;
-        let mut forms: Vec<(&str, fn(usize, bool) -> KernelFn)> = vec![("sse41", legacy)];
+        let mut forms: Vec<(&str, FormFn)> = vec![("sse41", legacy)];
         if std::arch::is_x86_feature_detected!("avx") {
             forms.push(("sse41_vex", vex));
         }

@@ -43,7 +43,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let mut out = vec![];
         for v in vals {
             // A frame word's splat is loaded from the vector section (see `splat_of`).
-            let mut v = if varying { self.to_varying_val(v) } else { v };
+            let mut v = if varying { self.make_varying(v) } else { v };
             if v.comps.len() != len {
                 if v.comps.len() != 1 {
                     return err(format!("built-in operands of {} and {} components", v.comps.len(), len));

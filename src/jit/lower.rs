@@ -1277,7 +1277,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         splat(&mut self.b, sc, c)
     }
 
-    pub(crate) fn to_varying_val(&mut self, v: Val) -> Val {
+    pub(crate) fn make_varying(&mut self, v: Val) -> Val {
         if v.varying {
             return v;
         }
@@ -2864,7 +2864,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             .iter()
             .map(|&c| fixed::convert(&mut self.b, v.scalar, Scalar::Float, c))
             .collect();
-        self.to_varying_val(Val {
+        self.make_varying(Val {
             comps,
             scalar: Scalar::Float,
             varying: v.varying,
@@ -4092,8 +4092,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                         varying: false,
                     });
                 }
-                let t = self.to_varying_val(t);
-                let o = self.to_varying_val(o);
+                let t = self.make_varying(t);
+                let o = self.make_varying(o);
                 if !c.varying {
                     // A uniform condition picks whole vectors: a scalar `select` (a test
                     // and a move) instead of splatting the condition to a lane mask and
@@ -4141,7 +4141,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                         scalar: sc,
                         varying: v.varying,
                     };
-                    let v = if varying { self.to_varying_val(v) } else { v };
+                    let v = if varying { self.make_varying(v) } else { v };
                     comps.extend(v.comps);
                 }
                 Ok(Val {
@@ -4165,7 +4165,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 // Only the variability is unified: the operands' lengths differ by design
                 // (n*m and m*k components), which `unify` would reject.
                 let (a, c) = if a.varying != c.varying {
-                    (self.to_varying_val(a), self.to_varying_val(c))
+                    (self.make_varying(a), self.make_varying(c))
                 } else {
                     (a, c)
                 };
@@ -4225,8 +4225,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     pub(crate) fn unify(&mut self, a: Val, c: Val) -> Res<(Val, Val)> {
         let (mut a, mut c) = (a, c);
         if a.varying != c.varying {
-            a = self.to_varying_val(a);
-            c = self.to_varying_val(c);
+            a = self.make_varying(a);
+            c = self.make_varying(c);
         }
         if a.comps.len() != c.comps.len() {
             if a.comps.len() == 1 {
