@@ -1,5 +1,6 @@
-//! The hand-written sphere and NURB surface kernels (scalar and AVX2) against their JIT
-//! twins on the same scenes: depth, shading-parameter planes and write counts bit for bit.
+//! The hand-written sphere (scalar, SSE4.1, AVX2) and NURB surface (scalar, AVX2) kernels
+//! against their JIT twins on the same scenes: depth, shading-parameter planes and write
+//! counts bit for bit.
 //! Scenes cover the cases the prims treat specially — a sphere cut by the hither plane, one
 //! grazing the viewport edge, one around the eye plane (no bound: evaluated everywhere), a
 //! turned model matrix; two NURB patches sharing an edge, with a normal and a linear
@@ -35,15 +36,19 @@ fn frames_equal(a: &Frame, b: &Frame, what: &str) {
     }
 }
 
-/// Render `r` with the JIT and both hand-written flavours; assert they agree (and that
-/// neither reports anything) and return the JIT's frame.
-fn jit_and_handwritten_agree(program: &Arc<Program>, r: &Renderer, what: &str) -> Frame {
+/// The hand-written forms of each shape.
+const SPHERE_FLAVORS: [Flavor; 3] = [Flavor::Scalar, Flavor::Sse, Flavor::Avx2];
+const NURB_FLAVORS: [Flavor; 2] = [Flavor::Scalar, Flavor::Avx2];
+
+/// Render `r` with the JIT and the hand-written `flavors`; assert they agree (and that
+/// none reports anything) and return the JIT's frame.
+fn jit_and_handwritten_agree(program: &Arc<Program>, r: &Renderer, flavors: &[Flavor], what: &str) -> Frame {
     let mut jit_source = Jit::new(program.clone()).unwrap();
     let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
     let out = pool.install(|| r.render(&mut jit_source));
     assert!(out.diags.items.is_empty(), "{what}: {:?}", out.diags.items);
     let jit = out.frame;
-    for flavor in [Flavor::Scalar, Flavor::Avx2] {
+    for &flavor in flavors {
         let mut hand = Handwritten::new(program.clone(), flavor);
         let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
         let out = pool.install(|| r.render(&mut hand));
@@ -101,7 +106,7 @@ fn sphere_jit_and_handwritten_agree_bit_for_bit() {
     let program = library();
     for normal in [true, false] {
         let r = sphere_scene(&program, normal);
-        let frame = jit_and_handwritten_agree(&program, &r, &format!("spheres, normal {normal}"));
+        let frame = jit_and_handwritten_agree(&program, &r, &SPHERE_FLAVORS, &format!("spheres, normal {normal}"));
         let covered = written(&frame);
         assert!(covered > 3000, "only {covered} pixels covered");
         // The sphere around the eye plane covers part of the view near the centre, in front
@@ -137,8 +142,58 @@ fn sphere_bench_workload_agrees() {
         let (x, y) = ((i % 5) as f32 * 2.2 - 4.4, (i / 5) as f32 * 2.0 - 3.0);
         sphere(&mut r, [x, y, -8.0 - (i % 3) as f32 * 0.7], 1.2 + 0.015 * i as f32);
     }
-    let frame = jit_and_handwritten_agree(&program, &r, "bench spheres");
+    let frame = jit_and_handwritten_agree(&program, &r, &SPHERE_FLAVORS, "bench spheres");
     assert!(written(&frame) > 128 * 128 / 2);
+}
+
+/// The SSE kernel's own paths (and the other forms beside it): a viewport of several tiles
+/// that is not whole groups wide, so groups are ragged at both ends of a bound and of the
+/// tile; spheres narrower than a group; one whose surface passes through the eye (the
+/// eye's power `a` is zero: the prim's `z_other = -1` arm); small far spheres; hither cuts;
+/// with and without write counts and the normal.
+#[test]
+fn sse_sphere_paths_agree_bit_for_bit() {
+    let program = library();
+    for (normal, count_writes) in [(true, false), (false, true), (true, true)] {
+        let (w, h) = (203u32, 141u32);
+        let mut r = renderer(&program, w, h, count_writes);
+        r.perspective_checked(55.0, 1.0, 60.0).unwrap();
+        if normal {
+            r.material_interp("N", "implicit", &[]).unwrap();
+            r.material("N", &Value(vec![0.0, 0.0, 1.0])).unwrap();
+        }
+        let mut rng = Lcg(if normal { 31 } else { 32 });
+        for k in 0..40 {
+            let radius = match k % 4 {
+                0 => 0.02, // a pixel or two: narrower than a group
+                1 => 0.15,
+                2 => 0.6,
+                _ => 1.5,
+            };
+            let c = [
+                rng.range(-4.0, 4.0) as f32,
+                rng.range(-3.0, 3.0) as f32,
+                rng.range(-14.0, -2.5) as f32,
+            ];
+            sphere(&mut r, c, radius);
+        }
+        sphere(&mut r, [0.0, 0.0, -30.0], 1e-3); // small and far: depths a few ulps apart
+        sphere(&mut r, [0.4, -0.3, -1.1], 0.5); // cut by the hither plane
+        sphere(&mut r, [0.0, 0.0, -2.0], 2.0); // the eye on its surface: a == 0
+        assert!(r.take_warnings().is_empty());
+        let frame = jit_and_handwritten_agree(
+            &program,
+            &r,
+            &SPHERE_FLAVORS,
+            &format!("SSE paths, normal {normal}, counts {count_writes}"),
+        );
+        let covered = frame.depth_values().iter().filter(|&&d| d != 0).count();
+        assert!(covered > (w * h / 2) as usize, "only {covered} pixels drawn");
+        if count_writes {
+            // Overlapping spheres drawn in submission order: some pixels written twice.
+            assert!(frame.write_count_values().unwrap().iter().any(|&c| c >= 2));
+        }
+    }
 }
 
 /// A 4 x 4 bicubic patch with corner (x0, y0) in object space.
@@ -175,7 +230,12 @@ fn nurb_patches_sharing_an_edge_agree_bit_for_bit() {
         nurb_patch(&mut r, &left, 0.25, data);
         nurb_patch(&mut r, &right, 0.25, data);
         assert!(r.take_warnings().is_empty());
-        let frame = jit_and_handwritten_agree(&program, &r, &format!("two patches, normal {normal}, data {data}"));
+        let frame = jit_and_handwritten_agree(
+            &program,
+            &r,
+            &NURB_FLAVORS,
+            &format!("two patches, normal {normal}, data {data}"),
+        );
         let counts = frame.write_count_values().unwrap();
         assert!(written(&frame) > 1500, "only {} pixels", written(&frame));
         // The shared edge is crack-free and written once (the patches do not overlap).
@@ -203,7 +263,7 @@ fn nurb_patches_crossing_the_hither_plane_agree_bit_for_bit() {
         }
         nurb_patch(&mut r, &net, 0.5, false);
     }
-    let frame = jit_and_handwritten_agree(&program, &r, "patches crossing the hither plane");
+    let frame = jit_and_handwritten_agree(&program, &r, &NURB_FLAVORS, "patches crossing the hither plane");
     assert!(written(&frame) > 500, "only {} pixels", written(&frame));
 }
 

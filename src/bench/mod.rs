@@ -137,8 +137,8 @@ struct Workload {
     name: String,
     build: Box<dyn Fn(&mut Renderer)>,
     primitives: usize,
-    /// The hand-written forms that exist for it (screen_triangle and polygon have all three,
-    /// sphere and NURB surface scalar and AVX2); empty: the JIT's figures are shown alone.
+    /// The hand-written forms that exist for it (screen_triangle, polygon and sphere have all
+    /// three, NURB surface scalar and AVX2); empty: the JIT's figures are shown alone.
     handwritten: &'static [Flavor],
 }
 
@@ -227,7 +227,7 @@ fn spheres() -> Workload {
     Workload {
         name: "sphere implicit N".into(),
         primitives: 20,
-        handwritten: &[Flavor::Scalar, Flavor::Avx2],
+        handwritten: &ALL_FLAVORS,
         build: Box::new(|r| {
             r.perspective(50.0, 1.0, 100.0);
             r.material_interp("N", "implicit", &[])

@@ -6,8 +6,8 @@
 //! JIT. It serves screen_triangle and polygon (whose fan calls the hand-written
 //! screen_triangle of the same [`Flavor`]) for keys whose bindings are `perspective_linear`
 //! components followed by `linear` ones (the shapes the benchmark uses), for the shapes in
-//! the table below, and sphere and NURB surface (scalar and AVX2 forms; see their modules
-//! for the keys). Other keys and forms are an error, never a silent fallback.
+//! the table below, sphere (scalar, SSE4.1 and AVX2 forms) and NURB surface (scalar and
+//! AVX2 forms; see their modules for the keys). Other keys and forms are an error, never a silent fallback.
 
 pub mod nurb;
 pub mod polygon;
@@ -228,8 +228,14 @@ impl Handwritten {
         })
     }
 
-    /// A kernel with scalar and AVX2 forms only (sphere, NURB surface); `entry_for` checks
-    /// the layout and the key, and picks the AVX2 form when told to.
+    /// The sphere in this flavour's form (scalar, SSE4.1 legacy or VEX, AVX2); its
+    /// `entry_for` checks the layout and the key.
+    fn sphere(&self, func: FuncId, key: &VariantKey) -> Result<KernelFn, JitError> {
+        sphere::entry_for(&ArgLayout::new(&self.program, func, key), key, self.flavor.isa()).map_err(error)
+    }
+
+    /// A kernel with scalar and AVX2 forms only (NURB surface); `entry_for` checks the
+    /// layout and the key, and picks the AVX2 form when told to.
     fn shape(
         &self,
         entry_for: fn(&ArgLayout, &VariantKey, bool) -> Result<KernelFn, String>,
@@ -301,7 +307,7 @@ impl KernelSource for Handwritten {
         let entry = match f.name.as_str() {
             "screen_triangle" => self.screen_triangle(func, key)?,
             "polygon" => self.polygon(func, key)?,
-            "sphere" => self.shape(sphere::entry_for, func, key)?,
+            "sphere" => self.sphere(func, key)?,
             "nurb_surface" => self.shape(nurb::entry_for, func, key)?,
             other => return Err(error(format!("no hand-written kernel for primitive `{other}`"))),
         };

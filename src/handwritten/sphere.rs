@@ -1,7 +1,10 @@
-//! The sphere written by hand in Rust, in two forms: portable scalar code and AVX2 (8 pixels
-//! per step, per-row terms hoisted, masked stores).
+//! The sphere written by hand in Rust, in three forms: portable scalar code; SSE4.1 (4
+//! pixels per group, the width of the JIT's f32x4 groups, legacy or VEX encoded: what the
+//! JIT's sphere is measured against to separate the compiler from the vector width); and
+//! AVX2 (8 pixels per step, masked stores). The vector forms hoist per-row terms and skip
+//! groups with no pixel left.
 //!
-//! Both mirror `prims/sphere.prim` operation for operation: the same space matrices read
+//! All mirror `prims/sphere.prim` operation for operation: the same space matrices read
 //! from the argument block and applied in the JIT's order (`transform` of a 4-component
 //! point is `((m[i][3] w + m[i][0] x) + m[i][1] y) + m[i][2] z`, literal zeros included),
 //! the same error-free `sphere_power`, the same cancellation-free discriminant and root
@@ -18,6 +21,7 @@
 
 // `!(a < b)` is the prims' NaN-rejecting test, kept as written (a NaN fails it).
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
+use super::isa;
 use super::screen_triangle::{bound_or_rect, depth_raw};
 #[cfg(target_arch = "x86_64")]
 use super::screen_triangle::{depth_raw8, depth_test8};
@@ -449,9 +453,212 @@ pub unsafe extern "C" fn avx2<const T: usize, const COUNT: bool>(ctx: *mut TileC
     }
 }
 
-/// The kernel for `key`, after checking that the key is one this file serves and that the
-/// argument layout has the offsets the kernel reads.
-pub(crate) fn entry_for(layout: &ArgLayout, key: &VariantKey, simd: bool) -> Result<KernelFn, String> {
+/// The SSE4.1 kernel's body, stamped out twice by [`sse_kernel!`]: legacy encoding (any
+/// x86_64 CPU with SSE4.1) and VEX encoding (three-operand forms) for CPUs with AVX, which
+/// is what the JIT emits there. Both are 128-bit, 4 pixels per group: the JIT's width, so
+/// the JIT and this kernel retire the same number of divides and square roots per pixel.
+///
+/// Per row: `dy * g1` and `dy * n1[3]` (the prim adds them last). Per group: the prim's
+/// operations in the AVX2 kernel's order, groups with no pixel left skipped after the
+/// silhouette, depth-range and Z tests; the Z buffer, write counts and normal planes are
+/// stored whole when all four lanes pass and blended with what is there otherwise. Groups
+/// start at tile-aligned x, like the JIT's, so a 4-lane load or store never leaves the row.
+macro_rules! sse_kernel {
+    ($(#[$doc:meta])* $name:ident, $features:literal) => {
+        $(#[$doc])*
+        ///
+        /// # Safety
+        /// As [`scalar`], and the CPU must support the enabled features (the caller checks).
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        pub unsafe extern "C" fn $name<const T: usize, const COUNT: bool>(ctx: *mut TileCtx, args: *const u32) {
+            use std::arch::x86_64::*;
+
+            /// float -> fixed<32,32> raw as the JIT converts (nearest, saturating), for z in
+            /// [0, 1] (other lanes are masked off); the conversion of screen_triangle's SSE
+            /// kernel. Below 2^31 the signed conversion rounds to nearest even and is exact;
+            /// from 2^31 on it gives 0x8000_0000 and z * 2^32 - 2^31 (exact there) supplies
+            /// the low bits; 2^32 itself (z == 1) becomes all ones by the arithmetic shift.
+            #[inline]
+            #[target_feature(enable = $features)]
+            fn depth_raw4(z: __m128) -> __m128i {
+                let scaled = _mm_mul_ps(z, _mm_set1_ps(4294967296.0));
+                let low = _mm_cvtps_epi32(scaled);
+                let above = _mm_max_ps(_mm_sub_ps(scaled, _mm_set1_ps(2147483648.0)), _mm_setzero_ps());
+                let high = _mm_cvtps_epi32(above);
+                let high = _mm_or_si128(high, _mm_srai_epi32::<31>(high));
+                _mm_or_si128(low, high)
+            }
+
+            /// The language's `dot` of two 3-vectors of lanes, in its order.
+            #[inline]
+            #[target_feature(enable = $features)]
+            fn dot(a: [__m128; 3], b: [__m128; 3]) -> __m128 {
+                _mm_add_ps(_mm_add_ps(_mm_mul_ps(a[0], b[0]), _mm_mul_ps(a[1], b[1])), _mm_mul_ps(a[2], b[2]))
+            }
+
+            /// `new` where `pass` is set, `old` elsewhere.
+            #[inline]
+            #[target_feature(enable = $features)]
+            fn blend(old: __m128, new: __m128, pass: __m128) -> __m128 {
+                _mm_blendv_ps(old, new, pass)
+            }
+
+            // SAFETY: as in `scalar`.
+            let ctx = unsafe { &mut *ctx };
+            let Some(s) = (unsafe { setup::<T>(args) }) else { return };
+            let Some([rx0, ry0, rx1, ry1]) = pass_rect(ctx, &s) else {
+                return;
+            };
+            let stride = ctx.stride as usize;
+            // Each normal component's G-buffer plane in this tile, or null for a plane the
+            // frame lacks (its stores are skipped).
+            let plane_base: [*mut f32; T] = std::array::from_fn(|k| {
+                if s.planes[k] < ctx.num_planes {
+                    // SAFETY: plane `planes[k]` of `num_planes` starts inside gbuf.
+                    unsafe { ctx.gbuf.add(s.planes[k] as usize * ctx.plane_stride as usize) }
+                } else {
+                    std::ptr::null_mut()
+                }
+            });
+            let set1 = |v: f32| _mm_set1_ps(v);
+            let lane_offsets = _mm_setr_ps(0.5, 1.5, 2.5, 3.5);
+            let lane_index = _mm_setr_epi32(0, 1, 2, 3);
+            let all_lanes = _mm_set1_epi32(-1);
+            let sign = _mm_castsi128_ps(_mm_set1_epi32(i32::MIN));
+            let (zero, one) = (_mm_setzero_ps(), set1(1.0));
+            let g0 = s.g0.map(set1);
+            let gamma = s.gamma.map(set1);
+            let (gamma_w, r2, zc) = (set1(s.gamma_w), set1(s.r2), set1(s.zc));
+            let (inv_cw, n0w, sx) = (set1(s.inv_cw), set1(s.n0w), set1(s.sx));
+            let (a, a_nonzero) = (set1(s.a), s.a != 0.0);
+            let handed = set1(s.handedness);
+            let normal_rows: [[__m128; 3]; 3] =
+                std::array::from_fn(|k| [set1(s.normal_x[k]), set1(s.normal_y[k]), set1(s.normal_z[k])]);
+            for py in ry0..ry1 {
+                let dy = (py as f32 + 0.5) - s.sy;
+                let row = (py - ctx.y0) as usize * stride;
+                // Per-row terms: dy * g1 and dy * n1[3] (the prim adds them last).
+                let dy_g1: [__m128; 3] = std::array::from_fn(|c| set1(dy * s.g1[c]));
+                let dy_n1w = set1(dy * s.n1w);
+                let mut gx = ctx.x0 + ((rx0 - ctx.x0) & !3);
+                while gx < rx1 {
+                    let live = if gx < rx0 || gx + 4 > rx1 {
+                        let px = _mm_add_epi32(_mm_set1_epi32(gx), lane_index);
+                        _mm_and_si128(
+                            _mm_cmpgt_epi32(px, _mm_set1_epi32(rx0 - 1)),
+                            _mm_cmplt_epi32(px, _mm_set1_epi32(rx1)),
+                        )
+                    } else {
+                        all_lanes
+                    };
+                    let base = row + (gx - ctx.x0) as usize;
+                    gx += 4;
+                    let x = _mm_add_ps(set1((gx - 4) as f32), lane_offsets);
+                    let dx = _mm_sub_ps(x, sx);
+                    let delta: [__m128; 3] = std::array::from_fn(|c| _mm_add_ps(_mm_mul_ps(dx, g0[c]), dy_g1[c]));
+                    let delta_w = _mm_add_ps(_mm_add_ps(inv_cw, _mm_mul_ps(dx, n0w)), dy_n1w);
+                    let across: [__m128; 3] = std::array::from_fn(|c| {
+                        let (i, j) = [(1, 2), (2, 0), (0, 1)][c];
+                        _mm_sub_ps(_mm_mul_ps(gamma[i], delta[j]), _mm_mul_ps(gamma[j], delta[i]))
+                    });
+                    let along: [__m128; 3] = std::array::from_fn(|c| {
+                        _mm_sub_ps(_mm_mul_ps(delta_w, gamma[c]), _mm_mul_ps(gamma_w, delta[c]))
+                    });
+                    let disc = _mm_sub_ps(_mm_mul_ps(r2, dot(along, along)), dot(across, across));
+                    let mut pass = _mm_and_ps(_mm_castsi128_ps(live), _mm_cmpge_ps(disc, zero));
+                    if _mm_movemask_ps(pass) == 0 {
+                        continue;
+                    }
+                    let b = _mm_sub_ps(dot(delta, gamma), _mm_mul_ps(_mm_mul_ps(r2, delta_w), gamma_w));
+                    let c = _mm_sub_ps(dot(delta, delta), _mm_mul_ps(_mm_mul_ps(r2, delta_w), delta_w));
+                    let root = _mm_sqrt_ps(disc);
+                    // -(b + root) by flipping the sign bit, as the JIT's fneg.
+                    let q = blend(_mm_sub_ps(root, b), _mm_xor_ps(_mm_add_ps(b, root), sign), _mm_cmpge_ps(b, zero));
+                    pass = _mm_andnot_ps(_mm_cmpeq_ps(q, zero), pass);
+                    let t_finite = _mm_div_ps(c, q);
+                    let z_finite = _mm_add_ps(zc, t_finite);
+                    let q_over_a = _mm_div_ps(q, a);
+                    let z_other = if a_nonzero { _mm_add_ps(zc, q_over_a) } else { set1(-1.0) };
+                    let finite_ok = _mm_and_ps(_mm_cmpge_ps(z_finite, zero), _mm_cmple_ps(z_finite, one));
+                    let other_ok = _mm_and_ps(_mm_cmpge_ps(z_other, zero), _mm_cmple_ps(z_other, one));
+                    pass = _mm_and_ps(pass, _mm_or_ps(finite_ok, other_ok));
+                    if _mm_movemask_ps(pass) == 0 {
+                        continue;
+                    }
+                    let take_other = _mm_and_ps(
+                        other_ok,
+                        _mm_or_ps(
+                            _mm_andnot_ps(finite_ok, _mm_castsi128_ps(all_lanes)),
+                            _mm_cmpgt_ps(q_over_a, t_finite),
+                        ),
+                    );
+                    let t = blend(t_finite, q_over_a, take_other);
+                    let tz = depth_raw4(_mm_add_ps(zc, t));
+                    // SAFETY: the group lies in one row of the tile buffers (groups start at
+                    // tile-aligned x and the stride is whole groups), so 4 elements from
+                    // `base` are in every `stride * rows` buffer and plane.
+                    unsafe {
+                        let zptr = ctx.depth.add(base) as *mut __m128i;
+                        let old = _mm_loadu_si128(zptr);
+                        // The JIT's `sphere_z < Z` return: unsigned tz >= old passes.
+                        let nearer = _mm_cmpeq_epi32(_mm_max_epu32(tz, old), tz);
+                        pass = _mm_and_ps(pass, _mm_castsi128_ps(nearer));
+                        let bits = _mm_movemask_ps(pass);
+                        if bits == 0 {
+                            continue;
+                        }
+                        let full = bits == 0b1111;
+                        let new_z = if full {
+                            tz
+                        } else {
+                            _mm_castps_si128(blend(_mm_castsi128_ps(old), _mm_castsi128_ps(tz), pass))
+                        };
+                        _mm_storeu_si128(zptr, new_z);
+                        if COUNT {
+                            let cptr = ctx.write_count.add(base) as *mut __m128i;
+                            _mm_storeu_si128(cptr, _mm_sub_epi32(_mm_loadu_si128(cptr), _mm_castps_si128(pass)));
+                        }
+                        if T == 3 {
+                            let w = _mm_add_ps(delta_w, _mm_mul_ps(t, gamma_w));
+                            let outward: [__m128; 3] =
+                                std::array::from_fn(|k| _mm_div_ps(_mm_add_ps(delta[k], _mm_mul_ps(t, gamma[k])), w));
+                            let v: [__m128; 3] = std::array::from_fn(|k| _mm_mul_ps(handed, dot(outward, normal_rows[k])));
+                            let len = _mm_sqrt_ps(dot(v, v));
+                            for (&plane, vk) in plane_base.iter().zip(v) {
+                                if plane.is_null() {
+                                    continue;
+                                }
+                                let dst = plane.add(base);
+                                let mut n = _mm_div_ps(vk, len);
+                                if !full {
+                                    n = blend(_mm_loadu_ps(dst), n, pass);
+                                }
+                                _mm_storeu_ps(dst, n);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    };
+}
+
+sse_kernel!(
+    /// SSE4.1 kernel, legacy (two-operand) encoding.
+    sse41,
+    "sse4.1"
+);
+sse_kernel!(
+    /// SSE4.1 kernel, VEX (three-operand) encoding, for CPUs with AVX; still 128-bit.
+    sse41_vex,
+    "sse4.1,avx"
+);
+
+/// The kernel for `key` in form `isa` (an `isa::*` constant; a form not built for this
+/// architecture is the scalar one), after checking that the key is one this file serves and
+/// that the argument layout has the offsets the kernel reads.
+pub(crate) fn entry_for(layout: &ArgLayout, key: &VariantKey, isa: u8) -> Result<KernelFn, String> {
     let t = match key.bindings.as_slice() {
         [] => 0,
         [Binding {
@@ -472,20 +679,149 @@ pub(crate) fn entry_for(layout: &ArgLayout, key: &VariantKey, simd: bool) -> Res
     if layout.spaces != Some(spaces_at(t) as u32) || layout.params.get(..5) != Some(&expected[..]) {
         return Err("sphere's parameters are not the ones the hand-written kernel reads".into());
     }
-    #[cfg(target_arch = "x86_64")]
-    if simd {
-        return Ok(match (t, key.count_writes) {
-            (0, false) => avx2::<0, false>,
-            (0, true) => avx2::<0, true>,
-            (_, false) => avx2::<3, false>,
-            (_, true) => avx2::<3, true>,
-        });
+    macro_rules! forms {
+        ($($isa:path => $kernel:ident),*) => {
+            match (isa, t, key.count_writes) {
+                $(
+                    ($isa, 0, false) => $kernel::<0, false>,
+                    ($isa, 0, true) => $kernel::<0, true>,
+                    ($isa, _, false) => $kernel::<3, false>,
+                    ($isa, _, true) => $kernel::<3, true>,
+                )*
+                (_, 0, false) => scalar::<0, false>,
+                (_, 0, true) => scalar::<0, true>,
+                (_, _, false) => scalar::<3, false>,
+                (_, _, true) => scalar::<3, true>,
+            }
+        };
     }
-    let _ = simd;
-    Ok(match (t, key.count_writes) {
-        (0, false) => scalar::<0, false>,
-        (0, true) => scalar::<0, true>,
-        (_, false) => scalar::<3, false>,
-        (_, true) => scalar::<3, true>,
-    })
+    #[cfg(target_arch = "x86_64")]
+    let kernel: KernelFn = forms!(isa::SSE41 => sse41, isa::SSE41_VEX => sse41_vex, isa::AVX2 => avx2);
+    #[cfg(not(target_arch = "x86_64"))]
+    let kernel: KernelFn = forms!();
+    Ok(kernel)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::diag::{Diagnostics, SourceMap};
+    use crate::handwritten::{Flavor, Handwritten};
+    use crate::ir::FuncId;
+    use crate::jit::{JitError, Kernel};
+    use crate::runtime::{KernelSource, Registry, Renderer, Value};
+
+    /// A kernel form by (plane-table entries, write counting).
+    type FormFn = fn(usize, bool) -> KernelFn;
+
+    /// The hand-written sphere with every kernel's entry replaced by `form` of its key (the
+    /// runtime picks the VEX form on a CPU with AVX; this reaches the legacy one).
+    struct Form {
+        hand: Handwritten,
+        form: FormFn,
+    }
+
+    impl KernelSource for Form {
+        fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, JitError> {
+            let k = self.hand.kernel(func, key)?;
+            let t = if key.bindings.is_empty() { 0 } else { 3 };
+            Ok(Arc::new(Kernel {
+                func: k.func,
+                key: k.key.clone(),
+                entry: (self.form)(t, key.count_writes),
+                layout: k.layout.clone(),
+                compile_micros: 0,
+                warnings: vec![],
+            }))
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    fn legacy(t: usize, count: bool) -> KernelFn {
+        match (t, count) {
+            (0, false) => sse41::<0, false>,
+            (0, true) => sse41::<0, true>,
+            (_, false) => sse41::<3, false>,
+            (_, true) => sse41::<3, true>,
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    fn vex(t: usize, count: bool) -> KernelFn {
+        match (t, count) {
+            (0, false) => sse41_vex::<0, false>,
+            (0, true) => sse41_vex::<0, true>,
+            (_, false) => sse41_vex::<3, false>,
+            (_, true) => sse41_vex::<3, true>,
+        }
+    }
+
+    /// Both SSE4.1 encodings draw exactly what the scalar kernel does (which
+    /// tests/handwritten_shapes.rs holds to the JIT): a viewport that is not whole groups
+    /// wide with small tiles, overlapping spheres of several sizes (one narrower than a
+    /// group), one cut by the hither plane; with the normal and write counts, and without
+    /// either.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn sse_forms_match_scalar() {
+        if !std::arch::is_x86_feature_detected!("sse4.1") {
+            return;
+        }
+        let mut sources = SourceMap::new();
+        let mut diags = Diagnostics::new();
+        let program = Registry::load(&mut sources, &[], &[], &mut diags)
+            .expect("the library loads")
+            .program;
+        let mut forms: Vec<(&str, FormFn)> = vec![("sse41", legacy)];
+        if std::arch::is_x86_feature_detected!("avx") {
+            forms.push(("sse41_vex", vex));
+        }
+        for (normal, count_writes) in [(true, true), (false, false)] {
+            let mut r = Renderer::new(program.clone());
+            r.set_image_size(45, 37).unwrap();
+            r.set_tile_size(16).unwrap();
+            r.options.count_writes = count_writes;
+            r.perspective(60.0, 1.0, 50.0);
+            if normal {
+                r.material_interp("N", "implicit", &[]).unwrap();
+                r.material("N", &Value(vec![0.0, 0.0, 1.0])).unwrap();
+            }
+            for (c, radius) in [
+                ([0.0, 0.0, -6.0], 1.5),
+                ([1.2, -0.6, -5.0], 0.7),
+                ([-1.5, 1.0, -7.0], 0.05),
+                ([0.3, 0.2, -1.3], 0.6),
+                ([-0.8, -0.9, -4.0], 1.1),
+            ] {
+                r.begin("sphere").unwrap();
+                r.rast_param("center", &Value(c.to_vec())).unwrap();
+                r.rast_param("radius", &Value(vec![radius])).unwrap();
+                r.end().unwrap();
+            }
+            let mut scalar = Handwritten::new(program.clone(), Flavor::Scalar);
+            let reference = r.render(&mut scalar);
+            assert!(reference.diags.items.is_empty(), "{:?}", reference.diags.items);
+            let drawn = reference.frame.depth_values().iter().filter(|&&d| d != 0).count();
+            assert!(drawn > 45 * 37 / 3, "only {drawn} pixels drawn");
+            for (name, form) in &forms {
+                let mut source = Form {
+                    hand: Handwritten::new(program.clone(), Flavor::Scalar),
+                    form: *form,
+                };
+                let out = r.render(&mut source);
+                assert!(out.diags.items.is_empty(), "{name}: {:?}", out.diags.items);
+                assert!(
+                    crate::bench::same_frame(&reference.frame, &out.frame),
+                    "{name}, normal {normal}: the frame differs from the scalar kernel's"
+                );
+                assert_eq!(
+                    reference.frame.write_count_values(),
+                    out.frame.write_count_values(),
+                    "{name}: write counts differ"
+                );
+            }
+        }
+    }
 }

@@ -11,7 +11,7 @@ use cranelift_codegen::ir::{self, condcodes::FloatCC, InstBuilder};
 
 use super::libm::LibmFn;
 use super::lower::{err, Lower, Res};
-use super::value::{blend, to_varying, Val, F32X4};
+use super::value::{blend, Val, F32X4};
 use crate::ir::{Builtin, Expr, Scalar, Space};
 
 /// A 4x4 row-major matrix of uniform f32 values; `None` is the identity.
@@ -42,7 +42,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         let len = vals.iter().map(|v| v.comps.len()).max().unwrap_or(0);
         let mut out = vec![];
         for v in vals {
-            let mut v = if varying { to_varying(&mut self.b, v) } else { v };
+            // A frame word's splat is loaded from the vector section (see `splat_of`).
+            let mut v = if varying { self.make_varying(v) } else { v };
             if v.comps.len() != len {
                 if v.comps.len() != 1 {
                     return err(format!("built-in operands of {} and {} components", v.comps.len(), len));

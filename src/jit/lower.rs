@@ -48,8 +48,8 @@ use cranelift_frontend::{FunctionBuilder, Variable};
 use super::fixed;
 use super::libm::LibmFn;
 use super::value::{
-    args_flags, blend, cl_type, comp_bytes, ctx_off, mask_const, mem_flags, splat, to_varying, zero, Val, VnKey,
-    VnTable, F32X4, I32X4, VN_NEG, VN_NOT,
+    args_flags, blend, cl_type, comp_bytes, ctx_off, mask_const, mem_flags, splat, zero, Val, VnKey, VnTable, F32X4,
+    I32X4, VN_NEG, VN_NOT,
 };
 use super::JitError;
 use crate::abi::{
@@ -278,6 +278,10 @@ pub(crate) struct Lower<'a, 'b> {
     vec_section: u32,
     /// Row-invariant pixel terms evaluated once per row into the frame's row section.
     hoists: Vec<hoist::Hoist<'a>>,
+    /// Pixel locals with a row-invariant value, by their defining expression (see [`hoist`]).
+    row_locals: std::collections::HashMap<LocalId, &'a Expr>,
+    /// While a row term is evaluated in the row prologue: read row locals as their values.
+    substitute_row_locals: bool,
     /// Int terms affine in the pixel column, carried along the row (see [`affine`]).
     carried: Vec<affine::Carried<'a>>,
     /// Pixel locals the carried terms read, by their single defining value (see [`affine`]).
@@ -437,6 +441,8 @@ pub(crate) fn lower_kernel(
         group_resets: vec![],
         vec_section: 0,
         hoists: vec![],
+        row_locals: std::collections::HashMap::new(),
+        substitute_row_locals: false,
         carried: vec![],
         affine_defs: std::collections::HashMap::new(),
         affine_x: None,
@@ -1082,6 +1088,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         self.vec_section = (4 * frozen_words).div_ceil(16) * 16;
         let row_section = self.vec_section + 16 * frozen_words;
+        self.row_locals = self.collect_row_locals(f);
         self.hoists = self.collect_hoists(f, row_section);
         let carry_section = row_section + self.hoists.iter().map(|h| 16 * h.comps).sum::<u32>();
         if !self.tier0() {
@@ -1235,7 +1242,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             (h.expr, h.view.clone(), h.offset, h.comps)
         };
         let saved = std::mem::replace(&mut self.view, view);
+        self.substitute_row_locals = true;
         let v = self.eval(expr);
+        self.substitute_row_locals = false;
         self.view = saved;
         let v = v?;
         if v.comps.len() != comps as usize {
@@ -1290,7 +1299,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         splat(&mut self.b, sc, c)
     }
 
-    fn to_varying_val(&mut self, v: Val) -> Val {
+    pub(crate) fn make_varying(&mut self, v: Val) -> Val {
         if v.varying {
             return v;
         }
@@ -2877,14 +2886,11 @@ impl<'a, 'b> Lower<'a, 'b> {
             .iter()
             .map(|&c| fixed::convert(&mut self.b, v.scalar, Scalar::Float, c))
             .collect();
-        to_varying(
-            &mut self.b,
-            Val {
-                comps,
-                scalar: Scalar::Float,
-                varying: v.varying,
-            },
-        )
+        self.make_varying(Val {
+            comps,
+            scalar: Scalar::Float,
+            varying: v.varying,
+        })
     }
 
     fn store_kind_bindings(&mut self, e: &'a Expr) -> Res<()> {
@@ -3962,6 +3968,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         if let Some(v) = self.hoisted(e) {
             return Ok(v);
         }
+        if let (true, ExprKind::Local(l)) = (self.substitute_row_locals, &e.kind) {
+            if let Some(&value) = self.row_locals.get(l) {
+                return self.eval(value);
+            }
+        }
         if let Some(v) = self.carried_value(e) {
             return Ok(v);
         }
@@ -4103,9 +4114,25 @@ impl<'a, 'b> Lower<'a, 'b> {
                         varying: false,
                     });
                 }
+                let t = self.make_varying(t);
+                let o = self.make_varying(o);
+                if !c.varying {
+                    // A uniform condition picks whole vectors: a scalar `select` (a test
+                    // and a move) instead of splatting the condition to a lane mask and
+                    // blending (eight instructions per group for `a != 0 ? x : y`).
+                    let comps = t
+                        .comps
+                        .iter()
+                        .zip(&o.comps)
+                        .map(|(&x, &y)| self.b.ins().select(cb, x, y))
+                        .collect();
+                    return Ok(Val {
+                        comps,
+                        scalar: t.scalar,
+                        varying: true,
+                    });
+                }
                 let m = splat(&mut self.b, Scalar::Bool, cb);
-                let t = to_varying(&mut self.b, t);
-                let o = to_varying(&mut self.b, o);
                 let comps = t
                     .comps
                     .iter()
@@ -4136,7 +4163,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                         scalar: sc,
                         varying: v.varying,
                     };
-                    let v = if varying { to_varying(&mut self.b, v) } else { v };
+                    let v = if varying { self.make_varying(v) } else { v };
                     comps.extend(v.comps);
                 }
                 Ok(Val {
@@ -4160,7 +4187,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 // Only the variability is unified: the operands' lengths differ by design
                 // (n*m and m*k components), which `unify` would reject.
                 let (a, c) = if a.varying != c.varying {
-                    (to_varying(&mut self.b, a), to_varying(&mut self.b, c))
+                    (self.make_varying(a), self.make_varying(c))
                 } else {
                     (a, c)
                 };
@@ -4220,8 +4247,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     pub(crate) fn unify(&mut self, a: Val, c: Val) -> Res<(Val, Val)> {
         let (mut a, mut c) = (a, c);
         if a.varying != c.varying {
-            a = self.to_varying_val(a);
-            c = self.to_varying_val(c);
+            a = self.make_varying(a);
+            c = self.make_varying(c);
         }
         if a.comps.len() != c.comps.len() {
             if a.comps.len() == 1 {

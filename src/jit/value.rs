@@ -254,19 +254,6 @@ pub fn i32x4_const(b: &mut FunctionBuilder, c: i32) -> ir::Value {
     b.ins().vconst(I32X4, handle)
 }
 
-/// Make `v` varying if it is not already.
-pub fn to_varying(b: &mut FunctionBuilder, v: Val) -> Val {
-    if v.varying {
-        return v;
-    }
-    let comps = v.comps.iter().map(|&c| splat(b, v.scalar, c)).collect();
-    Val {
-        comps,
-        scalar: v.scalar,
-        varying: true,
-    }
-}
-
 /// Lanes of `mask` take `new`, the others keep `old` (both f32x4 or both i32x4).
 pub fn blend(b: &mut FunctionBuilder, mask: ir::Value, new: ir::Value, old: ir::Value) -> ir::Value {
     let ty = b.func.dfg.value_type(new);

@@ -560,7 +560,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// Evaluate carried `expr` outside the groups (X and Y bound), as one i32x4 vector.
     fn eval_carried(&mut self, expr: &'a Expr) -> Res<ir::Value> {
         let v = self.eval_affine(expr)?;
-        let v = self.to_varying_val(v);
+        let v = self.make_varying(v);
         match v.comps.as_slice() {
             [c] => Ok(*c),
             _ => super::err("carried int expression with several components"),

@@ -13,17 +13,25 @@
 //!
 //! Invariants of a hoisted expression: pure (no index that may fail, no call, no division
 //! of integers, no fixed point or bool arithmetic), its leaves are constants, Y (when the
-//! pixel code never assigns Y) and uniform locals in the uniform frame or parameters in the
-//! argument block (neither changes while the pixel loops run), and it is scalar or
+//! pixel code never assigns Y), uniform locals in the uniform frame or parameters in the
+//! argument block (neither changes while the pixel loops run) and *row locals*, and it is
+//! scalar, an array of float or int scalars (one component per element), or
 //! interpolation_data (one component per view component). Expressions are keyed by address
 //! together with the interpolation view they were collected under.
+//!
+//! A row local is a varying local of the pixel code assigned once, whole, by a top-level
+//! statement, from a row-invariant value (`float dy = Y - sy;`): every read sees that value,
+//! so `dy * g1` is a row term too. The row prologue evaluates such a term with the local
+//! replaced by its defining expression (the same operations again, so the same bits); the
+//! group reads the stored term and never the local. Only hoisting sees row locals (the
+//! carried terms of [`super::affine`] keep their own notion of substitutable locals).
 //!
 //! The uniform frame also gets a *vector section*: every non-bool word splatted to 16
 //! bytes, written once per kernel run. A uniform read in a group that feeds a varying
 //! operation then loads the splat (`vmulps xmm, xmm, [base + off]`) instead of
 //! broadcasting the scalar in every group.
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
 use crate::ir::{BinOp, ConstValue, Elem, Expr, ExprKind, Function, LocalId, Scalar, Stmt, StmtKind, UnaryOp};
 
@@ -44,6 +52,45 @@ pub(super) struct Hoist<'a> {
 }
 
 impl<'a, 'b> Lower<'a, 'b> {
+    /// The row locals of `f`'s pixel code (see the module comment), each with its defining
+    /// expression; a row local's value may read earlier ones.
+    pub(super) fn collect_row_locals(&self, f: &'a Function) -> HashMap<LocalId, &'a Expr> {
+        let mut assigned = HashSet::new();
+        super::block::assigned_locals(&f.pixel, &mut assigned);
+        let y = f
+            .param_by_role(crate::ir::ParamRole::Y)
+            .map(|p| p.local)
+            .filter(|l| !assigned.contains(l));
+        let mut pixel_assignments: HashMap<LocalId, u32> = HashMap::new();
+        crate::ir::for_each_assign(&f.pixel, &mut |place, _| {
+            *pixel_assignments.entry(place.local).or_default() += 1;
+        });
+        let mut setup_assigned = HashSet::new();
+        super::block::assigned_locals(&f.setup, &mut setup_assigned);
+        let params: HashSet<LocalId> = f.params.iter().map(|p| p.local).collect();
+        let mut rows = HashMap::new();
+        for s in &f.pixel {
+            let StmtKind::Assign { place, value } = &s.kind else {
+                continue;
+            };
+            let l = place.local;
+            let Some(local) = f.locals.get(l.0 as usize) else {
+                continue;
+            };
+            let candidate = place.indices.is_empty()
+                && local.var.is_varying()
+                && !local.ty.per_seq
+                && matches!(local.ty.elem, Elem::Scalar(Scalar::Float | Scalar::Int))
+                && pixel_assignments.get(&l) == Some(&1)
+                && !setup_assigned.contains(&l)
+                && !params.contains(&l);
+            if candidate && self.row_invariant_in(f, value, y, &assigned, Some(&rows)) {
+                rows.insert(l, value);
+            }
+        }
+        rows
+    }
+
     /// The maximal row-invariant varying subexpressions of `f`'s pixel code, in the order
     /// met, with the view each is lowered under; offsets start at `first_offset`.
     pub(super) fn collect_hoists(&self, f: &'a Function, first_offset: u32) -> Vec<Hoist<'a>> {
@@ -113,10 +160,12 @@ impl<'a, 'b> Lower<'a, 'b> {
         next: &mut u32,
     ) {
         let has_op = !matches!(e.kind, ExprKind::Local(_) | ExprKind::Const(_) | ExprKind::Index { .. });
-        if e.var.is_varying() && has_op && e.ty.dims.is_empty() && self.row_invariant(f, e, y, assigned) {
+        let rows = Some(&self.row_locals);
+        if e.var.is_varying() && has_op && !e.ty.per_seq && self.row_invariant_in(f, e, y, assigned, rows) {
+            let elements: u32 = e.ty.dims.iter().product();
             let (comps, scalar) = match e.ty.elem {
-                Elem::Interp => (view.len() as u32, Scalar::Float),
-                Elem::Scalar(s @ (Scalar::Float | Scalar::Int)) => (1, s),
+                Elem::Interp if e.ty.dims.is_empty() => (view.len() as u32, Scalar::Float),
+                Elem::Scalar(s @ (Scalar::Float | Scalar::Int)) => (elements, s),
                 _ => (0, Scalar::Bool),
             };
             if comps > 0 {
@@ -213,7 +262,8 @@ impl<'a, 'b> Lower<'a, 'b> {
             && self.row_invariant(f, e, y, assigned)
     }
 
-    /// `e` has the same value in every group of a row (see the module comment).
+    /// `e` has the same value in every group of a row (see the module comment), without
+    /// row locals (the carried terms' test).
     pub(super) fn row_invariant(
         &self,
         f: &Function,
@@ -221,13 +271,32 @@ impl<'a, 'b> Lower<'a, 'b> {
         y: Option<LocalId>,
         assigned: &HashSet<LocalId>,
     ) -> bool {
+        self.row_invariant_in(f, e, y, assigned, None)
+    }
+
+    /// [`Self::row_invariant`], reading the row locals in `rows` as row-invariant leaves;
+    /// with them, arrays of float or int scalars count as plain values too (their
+    /// operations are component-wise).
+    fn row_invariant_in(
+        &self,
+        f: &Function,
+        e: &Expr,
+        y: Option<LocalId>,
+        assigned: &HashSet<LocalId>,
+        rows: Option<&HashMap<LocalId, &Expr>>,
+    ) -> bool {
         let plain = |t: &crate::ir::Type| {
-            t.dims.is_empty() && matches!(t.elem, Elem::Interp | Elem::Scalar(Scalar::Float | Scalar::Int))
+            !t.per_seq
+                && if t.dims.is_empty() {
+                    matches!(t.elem, Elem::Interp | Elem::Scalar(Scalar::Float | Scalar::Int))
+                } else {
+                    rows.is_some() && matches!(t.elem, Elem::Scalar(Scalar::Float | Scalar::Int))
+                }
         };
         match &e.kind {
             ExprKind::Const(ConstValue::Float(_) | ConstValue::Int(_)) => true,
             ExprKind::Local(l) => {
-                if Some(*l) == y {
+                if Some(*l) == y || rows.is_some_and(|r| r.contains_key(l)) {
                     return true;
                 }
                 let Some(local) = f.locals.get(l.0 as usize) else {
@@ -246,10 +315,16 @@ impl<'a, 'b> Lower<'a, 'b> {
                     (ExprKind::Const(ConstValue::Int(k)), false, Some(&len)) => *k >= 0 && (*k as i64) < len as i64,
                     _ => false,
                 };
+                // Not an element of a row local: the prologue reads elements from their
+                // storage, which it does not substitute.
                 in_range && matches!(base.kind, ExprKind::Local(_)) && self.row_invariant(f, base, y, assigned)
             }
-            ExprKind::Unary { op: UnaryOp::Neg, expr } => plain(&e.ty) && self.row_invariant(f, expr, y, assigned),
-            ExprKind::Convert(expr) => plain(&e.ty) && plain(&expr.ty) && self.row_invariant(f, expr, y, assigned),
+            ExprKind::Unary { op: UnaryOp::Neg, expr } => {
+                plain(&e.ty) && self.row_invariant_in(f, expr, y, assigned, rows)
+            }
+            ExprKind::Convert(expr) => {
+                plain(&e.ty) && plain(&expr.ty) && self.row_invariant_in(f, expr, y, assigned, rows)
+            }
             ExprKind::Binary { op, lhs, rhs } => {
                 let float = matches!(e.ty.elem, Elem::Interp | Elem::Scalar(Scalar::Float));
                 let op_ok = matches!(op, BinOp::Add | BinOp::Sub | BinOp::Mul) || (*op == BinOp::Div && float);
@@ -257,8 +332,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                     && plain(&e.ty)
                     && plain(&lhs.ty)
                     && plain(&rhs.ty)
-                    && self.row_invariant(f, lhs, y, assigned)
-                    && self.row_invariant(f, rhs, y, assigned)
+                    && self.row_invariant_in(f, lhs, y, assigned, rows)
+                    && self.row_invariant_in(f, rhs, y, assigned, rows)
             }
             _ => false,
         }

@@ -1,0 +1,73 @@
+//! Row terms through pixel locals: a varying local assigned once at the top of the pixel
+//! code from a value that depends on Y alone (`float dy = Y - sy;`) makes the terms that read
+//! it row terms (`dy * g`, scalar and array), evaluated once per row with the local
+//! replaced by its value. The depths must equal a Rust reference with the same f32
+//! operations, bit for bit, on every tier, including locals that must NOT be treated so:
+//! one assigned twice, one assigned inside a branch, and one that reads X.
+
+mod common;
+
+use primflow::diag::SourceMap;
+use primflow::runtime::{Renderer, Value};
+
+const PRIM: &str = r#"
+primitive row_locals(float rect[4]; float sy; float g[3]; varying float X, Y; inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    float dx = X - 10;
+    float dy = Y - sy;                   // a row local
+    float dy2 = dy * 0.5 + g[2];         // a row local reading another
+    float v[3] = dx * g + dy * g;        // dy * g: an array row term
+    float w = dx * g[0] + dy2 * g[1];    // dy2 * g[1]: a scalar row term
+    float twice = Y * 0.25;              // assigned twice: not a row local
+    if (dx > 3)
+        twice = dx * 0.125;
+    float in_branch = 0;
+    if (dx < 0) {
+        float late = Y * 0.0625;         // assigned inside a branch: not a row local
+        in_branch = late * g[0];
+    }
+    float mixed = dx + dy;               // reads X: not a row local
+    Z = 0.5 + (v[0] + v[1] + v[2] + w + twice * g[1] + in_branch + mixed * g[2]) * 0.0009765625;
+}
+"#;
+
+/// The prim's depth at pixel centre (x, y), in its operation order.
+fn expected(sy: f32, g: [f32; 3], x: f32, y: f32) -> u32 {
+    let dx = x - 10.0;
+    let dy = y - sy;
+    let dy2 = dy * 0.5 + g[2];
+    let v: [f32; 3] = std::array::from_fn(|c| dx * g[c] + dy * g[c]);
+    let w = dx * g[0] + dy2 * g[1];
+    let twice = if dx > 3.0 { dx * 0.125 } else { y * 0.25 };
+    let in_branch = if dx < 0.0 { (y * 0.0625) * g[0] } else { 0.0 };
+    let mixed = dx + dy;
+    let sum = (((((v[0] + v[1]) + v[2]) + w) + twice * g[1]) + in_branch) + mixed * g[2];
+    let z = 0.5 + sum * 0.0009765625;
+    (z * 4294967296.0).round_ties_even() as u32
+}
+
+#[test]
+fn row_terms_through_locals_match_a_reference_on_every_tier() {
+    let mut sources = SourceMap::new();
+    let program = common::library_with(&mut sources, &[("row_locals.prim", PRIM)]);
+    let (w, h) = (23u32, 19u32);
+    let g = [0.3f32, -0.7, 0.11];
+    let sy = 7.3f32;
+    let mut r = Renderer::new(program.clone());
+    r.set_image_size(w, h).unwrap();
+    r.set_tile_size(8).unwrap();
+    r.begin("row_locals").unwrap();
+    r.rast_param("rect", &Value(vec![0.0, 0.0, w as f32, h as f32]))
+        .unwrap();
+    r.rast_param("sy", &Value(vec![sy])).unwrap();
+    r.rast_param("g", &Value(g.to_vec())).unwrap();
+    r.end().unwrap();
+    let frame = common::all_tiers(&program, &r, "row locals");
+    for y in 0..h {
+        for x in 0..w {
+            let want = expected(sy, g, x as f32 + 0.5, y as f32 + 0.5);
+            assert_eq!(frame.depth_at(x, y), Some(want), "pixel ({x}, {y})");
+        }
+    }
+}
