@@ -4101,7 +4101,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                 let t = self.eval_guarded(then, c.varying, cb, true)?;
                 let o = self.eval_guarded(otherwise, c.varying, cb, false)?;
                 let (t, o) = self.unify(t, o)?;
-                if !c.varying && !t.varying {
+                if !c.varying {
+                    // A uniform condition picks whole values, vectors too: a scalar `select`
+                    // (a test and a move) instead of splatting the condition to a lane mask
+                    // and blending (eight instructions per group for `a != 0 ? x : y`).
+                    // `unify` left both arms equally varying.
                     let comps = t
                         .comps
                         .iter()
@@ -4111,27 +4115,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                     return Ok(Val {
                         comps,
                         scalar: t.scalar,
-                        varying: false,
+                        varying: t.varying,
                     });
                 }
                 let t = self.make_varying(t);
                 let o = self.make_varying(o);
-                if !c.varying {
-                    // A uniform condition picks whole vectors: a scalar `select` (a test
-                    // and a move) instead of splatting the condition to a lane mask and
-                    // blending (eight instructions per group for `a != 0 ? x : y`).
-                    let comps = t
-                        .comps
-                        .iter()
-                        .zip(&o.comps)
-                        .map(|(&x, &y)| self.b.ins().select(cb, x, y))
-                        .collect();
-                    return Ok(Val {
-                        comps,
-                        scalar: t.scalar,
-                        varying: true,
-                    });
-                }
                 let m = splat(&mut self.b, Scalar::Bool, cb);
                 let comps = t
                     .comps

@@ -51,16 +51,23 @@ pub(super) struct Hoist<'a> {
     pub per_run: bool,
 }
 
+/// The locals `f`'s pixel code assigns, and its Y parameter unless the pixel code assigns it
+/// (then nothing is row-invariant through Y).
+fn pixel_assigned_and_y(f: &Function) -> (HashSet<LocalId>, Option<LocalId>) {
+    let mut assigned = HashSet::new();
+    super::block::assigned_locals(&f.pixel, &mut assigned);
+    let y = f
+        .param_by_role(crate::ir::ParamRole::Y)
+        .map(|p| p.local)
+        .filter(|l| !assigned.contains(l));
+    (assigned, y)
+}
+
 impl<'a, 'b> Lower<'a, 'b> {
     /// The row locals of `f`'s pixel code (see the module comment), each with its defining
     /// expression; a row local's value may read earlier ones.
     pub(super) fn collect_row_locals(&self, f: &'a Function) -> HashMap<LocalId, &'a Expr> {
-        let mut assigned = HashSet::new();
-        super::block::assigned_locals(&f.pixel, &mut assigned);
-        let y = f
-            .param_by_role(crate::ir::ParamRole::Y)
-            .map(|p| p.local)
-            .filter(|l| !assigned.contains(l));
+        let (assigned, y) = pixel_assigned_and_y(f);
         let mut pixel_assignments: HashMap<LocalId, u32> = HashMap::new();
         crate::ir::for_each_assign(&f.pixel, &mut |place, _| {
             *pixel_assignments.entry(place.local).or_default() += 1;
@@ -94,12 +101,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// The maximal row-invariant varying subexpressions of `f`'s pixel code, in the order
     /// met, with the view each is lowered under; offsets start at `first_offset`.
     pub(super) fn collect_hoists(&self, f: &'a Function, first_offset: u32) -> Vec<Hoist<'a>> {
-        let mut assigned = HashSet::new();
-        super::block::assigned_locals(&f.pixel, &mut assigned);
-        let y = f
-            .param_by_role(crate::ir::ParamRole::Y)
-            .map(|p| p.local)
-            .filter(|l| !assigned.contains(l));
+        let (assigned, y) = pixel_assigned_and_y(f);
         let mut out = vec![];
         let view: Vec<u32> = (0..self.n_interp).collect();
         let mut next = first_offset;
