@@ -67,6 +67,7 @@ mod bounds;
 mod dead;
 mod flat;
 mod hoist;
+mod init;
 mod unswitch;
 
 pub(crate) type Res<T> = Result<T, JitError>;
@@ -105,6 +106,11 @@ pub(crate) trait Linker {
     fn kernel_ref(&mut self, func: &mut ir::Function, callee: FuncId) -> Res<ir::FuncRef>;
     fn libm_ref(&mut self, func: &mut ir::Function, f: LibmFn) -> Res<ir::FuncRef>;
 }
+
+/// A setup-code clear of more bytes than this is a loop (see `Lower::zero_stack_bytes`):
+/// above the NURB tessellation's per-vertex arrays (`float row_points[16][4]`, 256 bytes,
+/// cleared per row of every vertex stay straight stores), below its per-patch ones.
+const ZERO_LOOP_BYTES: u32 = 256;
 
 /// The format depth values have in the depth buffer.
 const DEPTH_FORMAT: FixedFormat = FixedFormat { bits: 32, frac: 32 };
@@ -1752,6 +1758,14 @@ impl<'a, 'b> Lower<'a, 'b> {
         for s in f.setup.iter().chain(f.pixel.iter()) {
             mark_dynamic_stmt(s, &mut dynamic);
         }
+        // The primitive's own frame: only arrays some read may reach before a whole
+        // assignment are cleared at entry (see [`init`]); an inlined interpolator's frame
+        // clears all of its arrays.
+        let entry_clear = if interp_binding.is_none() {
+            Some(init::read_before_assigned(f))
+        } else {
+            None
+        };
         let mut storage = Vec::with_capacity(f.locals.len());
         for (i, local) in f.locals.iter().enumerate() {
             let param_role = f.params.iter().find(|p| p.local.0 as usize == i).map(|p| p.role);
@@ -1773,20 +1787,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                         let slot =
                             self.b
                                 .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, bytes, 4));
-                        // Zero it so no run reads stale stack memory: all-zero bits are
-                        // zero in every scalar type, so 16 bytes per store from one
-                        // address (a word per store was a quarter of the NURB kernel's
-                        // CLIF: ~21 KB of arrays).
-                        let addr = self.b.ins().stack_addr(types::I64, slot, 0);
-                        let zero_vec = mask_const(&mut self.b, false);
-                        for at in (0..bytes / 16).map(|k| 16 * k) {
-                            self.b.ins().store(mem_flags(), zero_vec, addr, at as i32);
-                        }
-                        if bytes % 16 != 0 {
-                            let zero_word = self.b.ins().iconst(types::I32, 0);
-                            for at in (bytes / 16 * 16..bytes).step_by(4) {
-                                self.b.ins().store(mem_flags(), zero_word, addr, at as i32);
-                            }
+                        // Zero it so no run reads stale stack memory, unless every read
+                        // comes after a whole assignment.
+                        if entry_clear.as_ref().is_none_or(|c| c.get(i).copied().unwrap_or(true)) {
+                            let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                            self.zero_stack_bytes(addr, 0, bytes);
                         }
                         Storage::Stack(slot)
                     } else {
@@ -3315,12 +3320,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                 varying: v.varying,
             };
         }
-        let len = match static_len {
-            Some(n) => self.b.ins().iconst(types::I32, n as i64),
-            None => self.seq_len(),
-        };
-        let last = self.b.ins().iadd_imm_s(len, -1);
         let off = if idx.varying {
+            let (len, last) = self.len_and_last(static_len);
             let len_v = self.b.ins().splat(I32X4, len);
             let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx_comp, len_v);
             let bad = match self.exec() {
@@ -3351,9 +3352,10 @@ impl<'a, 'b> Lower<'a, 'b> {
             let c = if proven {
                 idx_comp
             } else {
+                let (len, last) = self.len_and_last(static_len);
                 self.checked_uniform_index(idx_comp, len, last, site)
             };
-            let c = self.b.ins().imul_imm_s(c, stride as i64);
+            let c = self.scaled(c, stride);
             match acc.dyn_off {
                 Dyn::None => Dyn::Uniform(c),
                 Dyn::Uniform(u) => Dyn::Uniform(self.b.ins().iadd(u, c)),
@@ -3366,6 +3368,33 @@ impl<'a, 'b> Lower<'a, 'b> {
         acc.dyn_off = off;
         acc.ty = elem_ty;
         Ok(acc)
+    }
+
+    /// The length of an indexed array (`static_len`, or the sequence length) and its last
+    /// index, built only where an index is checked: a proven site needs neither (tier 0
+    /// has no pass that would drop them: they were ~1000 dead instructions of the NURB
+    /// kernel's CLIF).
+    fn len_and_last(&mut self, static_len: Option<u32>) -> (ir::Value, ir::Value) {
+        match static_len {
+            Some(n) => (
+                self.b.ins().iconst(types::I32, n as i64),
+                self.b.ins().iconst(types::I32, n as i64 - 1),
+            ),
+            None => {
+                let len = self.seq_len();
+                (len, self.b.ins().iadd_imm_s(len, -1))
+            }
+        }
+    }
+
+    /// `x * k` for a non-negative `k`: nothing for 1, a shift for a power of two (which
+    /// the x64 backend folds into an address as a scaled index), a multiply otherwise.
+    fn scaled(&mut self, x: ir::Value, k: u32) -> ir::Value {
+        match k {
+            1 => x,
+            k if k.is_power_of_two() => self.b.ins().ishl_imm_u(x, k.trailing_zeros() as i64),
+            k => self.b.ins().imul_imm_s(x, k as i64),
+        }
     }
 
     /// Is `site` of the primitive's own body proven in range (see `proven_sites`)?
@@ -3503,7 +3532,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                     let addr = match dyn_off {
                         Dyn::Uniform(d) => {
                             let d64 = self.b.ins().uextend(types::I64, d);
-                            let db = self.b.ins().imul_imm_s(d64, bytes);
+                            let db = self.scaled(d64, bytes as u32);
                             self.b.ins().iadd(base_addr, db)
                         }
                         _ => base_addr,
@@ -3854,9 +3883,39 @@ impl<'a, 'b> Lower<'a, 'b> {
             return false;
         }
         let base_addr = self.b.ins().stack_addr(types::I64, slot, 0);
-        let (start, end) = (acc.base * 4, (acc.base + words) * 4);
+        self.zero_stack_bytes(base_addr, acc.base * 4, (acc.base + words) * 4);
+        true
+    }
+
+    /// Store zeros to bytes `start..end` (multiples of 4) from `base_addr`, a stack slot's
+    /// address. All-zero bits are zero in every scalar type, so 16 bytes per store (a word
+    /// per store was a quarter of the NURB kernel's CLIF); a clear of more than
+    /// [`ZERO_LOOP_BYTES`] in setup code is a counted loop of four such stores per trip
+    /// (the NURB kernel's 2 KB tessellation arrays were 128 stores each: one CLIF
+    /// instruction per 16 bytes to build, allocate and emit, for a clear that runs once per
+    /// primitive). Pixel code keeps straight stores: its flat tier-0 form has no blocks.
+    fn zero_stack_bytes(&mut self, base_addr: ir::Value, start: u32, end: u32) {
         let zero_vec = mask_const(&mut self.b, false);
         let mut at = start;
+        if end - start > ZERO_LOOP_BYTES && self.pix.is_none() {
+            let trip_bytes = 64;
+            let loop_end = start + (end - start) / trip_bytes * trip_bytes;
+            let first = self.b.ins().iadd_imm_s(base_addr, start as i64);
+            let last = self.b.ins().iadd_imm_s(base_addr, loop_end as i64);
+            let trip = self.b.create_block();
+            let after = self.b.create_block();
+            let p = self.b.append_block_param(trip, types::I64);
+            self.b.ins().jump(trip, &[first.into()]);
+            self.b.switch_to_block(trip);
+            for k in 0..trip_bytes / 16 {
+                self.b.ins().store(mem_flags(), zero_vec, p, (16 * k) as i32);
+            }
+            let next = self.b.ins().iadd_imm_s(p, trip_bytes as i64);
+            let more = self.b.ins().icmp(IntCC::UnsignedLessThan, next, last);
+            self.b.ins().brif(more, trip, &[next.into()], after, &[]);
+            self.b.switch_to_block(after);
+            at = loop_end;
+        }
         while at + 16 <= end {
             self.b.ins().store(mem_flags(), zero_vec, base_addr, at as i32);
             at += 16;
@@ -3868,7 +3927,6 @@ impl<'a, 'b> Lower<'a, 'b> {
                 at += 4;
             }
         }
-        true
     }
 
     fn dyn_addr(&mut self, base: ir::Value, d: Dyn, bytes: i64) -> Res<ir::Value> {
@@ -3876,7 +3934,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             Dyn::None => Ok(base),
             Dyn::Uniform(u) => {
                 let d64 = self.b.ins().uextend(types::I64, u);
-                let db = self.b.ins().imul_imm_s(d64, bytes);
+                let db = self.scaled(d64, bytes as u32);
                 Ok(self.b.ins().iadd(base, db))
             }
             Dyn::Varying(_) => err("varying index into a uniform local"),
