@@ -44,6 +44,7 @@ use cranelift_codegen::ir::{
     self, condcodes::FloatCC, condcodes::IntCC, types, Block, InstBuilder, StackSlot, StackSlotData, StackSlotKind,
 };
 use cranelift_frontend::{FunctionBuilder, Variable};
+use std::sync::Arc;
 
 use super::fixed;
 use super::libm::LibmFn;
@@ -333,7 +334,10 @@ pub(crate) struct Lower<'a, 'b> {
     /// when the first index that is not a constant is lowered (`None` before): most
     /// kernels, their loops unrolled, have none, and the analysis was ~2% of a tier-0
     /// compile of screen_triangle.
-    proven_sites: Option<std::collections::HashSet<SiteId>>,
+    proven_sites: Option<Arc<std::collections::HashSet<SiteId>>>,
+    /// The primitive's body as shared by the JITs of its program (`body` in
+    /// [`lower_kernel`]): the key of [`PROVEN_SITES`].
+    shared_body: Arc<Function>,
     /// Tier 0: the pixel code is lowered *flat*, without a group's early exits (see
     /// [`flat`]).
     flat: bool,
@@ -363,12 +367,38 @@ pub(crate) struct Lower<'a, 'b> {
     pub(crate) warnings: Vec<String>,
 }
 
+/// Proven index sites per shared primitive body ([`crate::ir::range`]): a body does not
+/// depend on the variant key or the tier, and the analysis was ~20 % of a NURB tier-0
+/// compile, so a tier-1 compile or another variant of the same body reuses the first
+/// compile's result. An entry matches only while its body is alive (the weak reference
+/// upgrades), so a new body at a freed address cannot see it; dead entries are dropped on
+/// the next lookup.
+type ProvenEntry = (std::sync::Weak<Function>, Arc<std::collections::HashSet<SiteId>>);
+static PROVEN_SITES: std::sync::Mutex<Vec<ProvenEntry>> = std::sync::Mutex::new(Vec::new());
+
+/// `body`'s proven index sites, from [`PROVEN_SITES`] or computed (outside the lock).
+fn proven_sites_of(body: &Arc<Function>) -> Arc<std::collections::HashSet<SiteId>> {
+    {
+        let mut all = PROVEN_SITES.lock().unwrap_or_else(|e| e.into_inner());
+        all.retain(|(w, _)| w.strong_count() > 0);
+        if let Some((_, sites)) = all.iter().find(|(w, _)| std::ptr::eq(w.as_ptr(), Arc::as_ptr(body))) {
+            return sites.clone();
+        }
+    }
+    let sites = Arc::new(crate::ir::range::proven_index_sites(body));
+    PROVEN_SITES
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push((Arc::downgrade(body), sites.clone()));
+    sites
+}
+
 /// Lower `func_id` for `key` into `func` (whose signature is already the kernel's).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn lower_kernel(
     program: &Program,
     func_id: FuncId,
-    body: &Function,
+    body: &Arc<Function>,
     key: &VariantKey,
     layout: &ArgLayout,
     func: &mut ir::Function,
@@ -382,7 +412,7 @@ pub(crate) fn lower_kernel(
     if program.functions.get(func_id.0 as usize).is_none() {
         return err(format!("no function {}", func_id.0));
     }
-    let f = body;
+    let f: &Function = body;
     if f.kind != FuncKind::Primitive {
         return err(format!(
             "`{}` is an interpolator, not a primitive: it has no kernel",
@@ -444,6 +474,7 @@ pub(crate) fn lower_kernel(
         arg_loads: Default::default(),
         vn: VnTable::default(),
         proven_sites: None,
+        shared_body: body.clone(),
         flat: false,
         setup_live: None,
         unswitched: std::collections::HashMap::new(),
@@ -3471,9 +3502,9 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// Is `site` of the primitive's own body proven in range (see `proven_sites`)?
     fn site_proven(&mut self, site: SiteId) -> bool {
-        let body = self.frames[0].func;
+        let body = &self.shared_body;
         self.proven_sites
-            .get_or_insert_with(|| crate::ir::range::proven_index_sites(body))
+            .get_or_insert_with(|| proven_sites_of(body))
             .contains(&site)
     }
 
