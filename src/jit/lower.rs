@@ -321,6 +321,9 @@ pub(crate) struct Lower<'a, 'b> {
     error_guard: Option<ir::Value>,
     /// Tier 0: argument-block words already loaded, by (byte offset, scalar, word bools), with
     /// the block that loaded them (see `load_uniform`).
+    /// Tier 0: the address of a uniform array's stack slot computed in the current block
+    /// (see [`Self::slot_addr`]).
+    slot_addrs: std::collections::HashMap<StackSlot, (Block, ir::Value)>,
     arg_loads: std::collections::HashMap<
         (i32, Scalar, bool),
         (Block, ir::Value),
@@ -472,6 +475,7 @@ pub(crate) fn lower_kernel(
         block_culling,
         error_guard: None,
         arg_loads: Default::default(),
+        slot_addrs: Default::default(),
         vn: VnTable::default(),
         proven_sites: None,
         shared_body: body.clone(),
@@ -3559,6 +3563,25 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
+    /// The address of stack slot `slot`. Tier 0 has no pass that would merge repeated
+    /// `stack_addr`s (one per array access: ~350 in the NURB kernel), so within one block
+    /// the first is reused.
+    fn slot_addr(&mut self, slot: StackSlot) -> ir::Value {
+        let block = self.b.current_block();
+        if self.tier0() {
+            if let (Some(&(b, v)), Some(cur)) = (self.slot_addrs.get(&slot), block) {
+                if b == cur {
+                    return v;
+                }
+            }
+        }
+        let v = self.b.ins().stack_addr(types::I64, slot, 0);
+        if let (true, Some(b)) = (self.tier0(), block) {
+            self.slot_addrs.insert(slot, (b, v));
+        }
+        v
+    }
+
     /// Load a scalar of `sc` from `addr + off` bytes in uniform form (bools stored as bytes
     /// or words: any non-zero is true).
     pub(crate) fn load_uniform(
@@ -3748,7 +3771,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                     Storage::Vars(_) => err("register local read as memory"),
                     Storage::Z(v) => Ok(Val::one(self.b.use_var(v), sc, true)),
                     Storage::Stack(slot) => {
-                        let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                        let addr = self.slot_addr(slot);
                         Ok(self.read_memory(addr, sc, varying, offs, acc.base, acc.dyn_off, false, false))
                     }
                     Storage::Frame(word) => {
@@ -3901,7 +3924,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 Ok(())
             }
             Storage::Stack(slot) => {
-                let base_addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                let base_addr = self.slot_addr(slot);
                 let bytes = comp_bytes(varying) as i64;
                 for (o, c) in offs.iter().zip(comps) {
                     let off = ((acc.base + o) as i64 * bytes) as i32;
