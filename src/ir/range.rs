@@ -58,15 +58,28 @@ pub fn proven_index_sites(f: &Function) -> HashSet<SiteId> {
         f,
         slots,
         loops: vec![],
-        proven: HashSet::new(),
-        unproven: HashSet::new(),
+        verdicts: vec![],
         quiet: false,
         heads: HashMap::new(),
         counters: HashMap::new(),
     };
     a.stmts(&f.setup, Some(start));
-    a.proven.retain(|s| !a.unproven.contains(s));
-    a.proven
+    a.verdicts
+        .iter()
+        .enumerate()
+        .filter(|(_, &v)| v == Verdict::Proven)
+        .map(|(i, _)| SiteId(i as u32))
+        .collect()
+}
+
+/// What the judging rounds saw of one index site.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Verdict {
+    Unseen,
+    /// In range at every occurrence judged so far.
+    Proven,
+    /// Out of range (or unknown) at some occurrence.
+    Unproven,
 }
 
 struct LoopFrame {
@@ -80,8 +93,9 @@ struct Analysis<'a> {
     /// Per local: its position in a state, if tracked.
     slots: Vec<Option<usize>>,
     loops: Vec<LoopFrame>,
-    proven: HashSet<SiteId>,
-    unproven: HashSet<SiteId>,
+    /// By site id (dense: a flag vector, not two hash sets, since every occurrence of a
+    /// site in every judging round records here).
+    verdicts: Vec<Verdict>,
     /// In a round whose states are not final (a loop's ascending rounds, and everything
     /// nested in them): sites are not judged.
     quiet: bool,
@@ -95,10 +109,18 @@ struct Analysis<'a> {
     counters: HashMap<usize, Vec<bool>>,
 }
 
+/// The smallest state both `a` and `b` are in (in place in `a`'s vector: joins run at
+/// every branch merge and loop round, and a new vector per join was a quarter of the
+/// analysis's instructions).
 fn join(a: State, b: State) -> State {
     match (a, b) {
         (None, x) | (x, None) => x,
-        (Some(a), Some(b)) => Some(a.iter().zip(&b).map(|(x, y)| (x.0.min(y.0), x.1.max(y.1))).collect()),
+        (Some(mut a), Some(b)) => {
+            for (x, y) in a.iter_mut().zip(&b) {
+                *x = (x.0.min(y.0), x.1.max(y.1));
+            }
+            Some(a)
+        }
     }
 }
 
@@ -396,11 +418,15 @@ impl Analysis<'_> {
         };
         let (lo, hi) = self.eval(index, env);
         let ok = !index.var.is_varying() && len.is_some_and(|n| lo >= 0 && hi < n as i64);
-        if ok {
-            self.proven.insert(site);
-        } else {
-            self.unproven.insert(site);
+        let at = site.0 as usize;
+        if self.verdicts.len() <= at {
+            self.verdicts.resize(at + 1, Verdict::Unseen);
         }
+        let v = &mut self.verdicts[at];
+        *v = match (*v, ok) {
+            (Verdict::Unproven, _) | (_, false) => Verdict::Unproven,
+            _ => Verdict::Proven,
+        };
     }
 
     /// The interval of a uniform int expression (TOP for anything else).

@@ -44,6 +44,7 @@ use cranelift_codegen::ir::{
     self, condcodes::FloatCC, condcodes::IntCC, types, Block, InstBuilder, StackSlot, StackSlotData, StackSlotKind,
 };
 use cranelift_frontend::{FunctionBuilder, Variable};
+use std::sync::Arc;
 
 use super::fixed;
 use super::libm::LibmFn;
@@ -67,6 +68,7 @@ mod bounds;
 mod dead;
 mod flat;
 mod hoist;
+mod init;
 mod unswitch;
 
 pub(crate) type Res<T> = Result<T, JitError>;
@@ -105,6 +107,11 @@ pub(crate) trait Linker {
     fn kernel_ref(&mut self, func: &mut ir::Function, callee: FuncId) -> Res<ir::FuncRef>;
     fn libm_ref(&mut self, func: &mut ir::Function, f: LibmFn) -> Res<ir::FuncRef>;
 }
+
+/// A setup-code clear of more bytes than this is a loop (see `Lower::zero_stack_bytes`):
+/// above the NURB tessellation's per-vertex arrays (`float row_points[16][4]`, 256 bytes,
+/// cleared per row of every vertex stay straight stores), below its per-patch ones.
+const ZERO_LOOP_BYTES: u32 = 256;
 
 /// The format depth values have in the depth buffer.
 const DEPTH_FORMAT: FixedFormat = FixedFormat { bits: 32, frac: 32 };
@@ -318,6 +325,9 @@ pub(crate) struct Lower<'a, 'b> {
     error_guard: Option<ir::Value>,
     /// Tier 0: argument-block words already loaded, by (byte offset, scalar, word bools), with
     /// the block that loaded them (see `load_uniform`).
+    /// Tier 0: the address of a uniform array's stack slot computed in the current block
+    /// (see [`Self::slot_addr`]).
+    slot_addrs: std::collections::HashMap<StackSlot, (Block, ir::Value)>,
     arg_loads: std::collections::HashMap<
         (i32, Scalar, bool),
         (Block, ir::Value),
@@ -331,7 +341,10 @@ pub(crate) struct Lower<'a, 'b> {
     /// when the first index that is not a constant is lowered (`None` before): most
     /// kernels, their loops unrolled, have none, and the analysis was ~2% of a tier-0
     /// compile of screen_triangle.
-    proven_sites: Option<std::collections::HashSet<SiteId>>,
+    proven_sites: Option<Arc<std::collections::HashSet<SiteId>>>,
+    /// The primitive's body as shared by the JITs of its program (`body` in
+    /// [`lower_kernel`]): the key of [`PROVEN_SITES`].
+    shared_body: Arc<Function>,
     /// Tier 0: the pixel code is lowered *flat*, without a group's early exits (see
     /// [`flat`]).
     flat: bool,
@@ -350,9 +363,41 @@ pub(crate) struct Lower<'a, 'b> {
     /// Blocks sealed as soon as they were created (a guard's continuation, see
     /// `varying_guard_return`); `seal_blocks_from` skips them.
     sealed_early: std::collections::HashSet<Block>,
+    /// Blocks no path from the entry reaches: the code after an unconditional `break`,
+    /// `continue` or `return`, and the blocks of uniform `if`s and loops inside it (see
+    /// [`Self::jump_live`]).
+    dead_blocks: std::collections::HashSet<Block>,
+    /// Blocks [`Self::jump_live`] has jumped to from live code.
+    live_targets: std::collections::HashSet<Block>,
     /// Spare component-offset lists (see [`Self::comp_offsets`]).
     offs_spare: Vec<Vec<u32>>,
     pub(crate) warnings: Vec<String>,
+}
+
+/// Proven index sites per shared primitive body ([`crate::ir::range`]): a body does not
+/// depend on the variant key or the tier, and the analysis was ~20 % of a NURB tier-0
+/// compile, so a tier-1 compile or another variant of the same body reuses the first
+/// compile's result. An entry matches only while its body is alive (the weak reference
+/// upgrades), so a new body at a freed address cannot see it; dead entries are dropped on
+/// the next lookup.
+type ProvenEntry = (std::sync::Weak<Function>, Arc<std::collections::HashSet<SiteId>>);
+static PROVEN_SITES: std::sync::Mutex<Vec<ProvenEntry>> = std::sync::Mutex::new(Vec::new());
+
+/// `body`'s proven index sites, from [`PROVEN_SITES`] or computed (outside the lock).
+fn proven_sites_of(body: &Arc<Function>) -> Arc<std::collections::HashSet<SiteId>> {
+    {
+        let mut all = PROVEN_SITES.lock().unwrap_or_else(|e| e.into_inner());
+        all.retain(|(w, _)| w.strong_count() > 0);
+        if let Some((_, sites)) = all.iter().find(|(w, _)| std::ptr::eq(w.as_ptr(), Arc::as_ptr(body))) {
+            return sites.clone();
+        }
+    }
+    let sites = Arc::new(crate::ir::range::proven_index_sites(body));
+    PROVEN_SITES
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push((Arc::downgrade(body), sites.clone()));
+    sites
 }
 
 /// Lower `func_id` for `key` into `func` (whose signature is already the kernel's).
@@ -367,7 +412,7 @@ pub(crate) struct Lower<'a, 'b> {
 pub(crate) fn lower_kernel(
     program: &Program,
     func_id: FuncId,
-    body: &Function,
+    body: &Arc<Function>,
     key: &VariantKey,
     layout: &ArgLayout,
     func: &mut ir::Function,
@@ -382,7 +427,7 @@ pub(crate) fn lower_kernel(
     if program.functions.get(func_id.0 as usize).is_none() {
         return err(format!("no function {}", func_id.0));
     }
-    let f = body;
+    let f: &Function = body;
     if f.kind != FuncKind::Primitive {
         return err(format!(
             "`{}` is an interpolator, not a primitive: it has no kernel",
@@ -458,14 +503,18 @@ pub(crate) fn lower_kernel(
         block_culling,
         error_guard: None,
         arg_loads: Default::default(),
+        slot_addrs: Default::default(),
         vn: VnTable::default(),
         proven_sites: None,
+        shared_body: body.clone(),
         flat: false,
         setup_live: None,
         unswitched: std::collections::HashMap::new(),
         local_bounds: std::collections::HashMap::new(),
         guard_facts: bounds::GuardFacts::default(),
         sealed_early: std::collections::HashSet::new(),
+        dead_blocks: std::collections::HashSet::new(),
+        live_targets: std::collections::HashSet::new(),
         offs_spare: vec![],
         warnings: vec![],
     };
@@ -547,7 +596,31 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// block no edge reaches (Cranelift drops it).
     fn continue_unreachable(&mut self) {
         let dead = self.b.create_block();
+        // Nothing jumps here: sealed, its reads need no block parameters.
+        self.seal_now(dead);
+        self.dead_blocks.insert(dead);
         self.b.switch_to_block(dead);
+    }
+
+    /// Is the block being filled one no path from the entry reaches?
+    fn in_dead_block(&self) -> bool {
+        self.b.current_block().is_some_and(|b| self.dead_blocks.contains(&b))
+    }
+
+    /// End the current block with a jump to `dest`, or, in a dead block, with a trap that
+    /// never runs: a jump from dead code would make it a predecessor of `dest` whose
+    /// variables all read as undefined (zero), so every variable live at `dest` needed a
+    /// block parameter merging that zero with its real value (the NURB setup's loops and
+    /// `if`s carried ~40 such parameters each). False if it did not jump.
+    fn jump_live(&mut self, dest: Block) -> bool {
+        if self.in_dead_block() {
+            self.b.ins().trap(ir::TrapCode::unwrap_user(1));
+            false
+        } else {
+            self.b.ins().jump(dest, &[]);
+            self.live_targets.insert(dest);
+            true
+        }
     }
 
     /// Evaluate `e` as the language would only when the bool `cb` is `taken`: the arm of
@@ -1783,6 +1856,14 @@ impl<'a, 'b> Lower<'a, 'b> {
         for s in f.setup.iter().chain(f.pixel.iter()) {
             mark_dynamic_stmt(s, &mut dynamic);
         }
+        // The primitive's own frame: only arrays some read may reach before a whole
+        // assignment are cleared at entry (see [`init`]); an inlined interpolator's frame
+        // clears all of its arrays.
+        let entry_clear = if interp_binding.is_none() {
+            Some(init::read_before_assigned(f))
+        } else {
+            None
+        };
         let mut storage = Vec::with_capacity(f.locals.len());
         for (i, local) in f.locals.iter().enumerate() {
             let param_role = f.params.iter().find(|p| p.local.0 as usize == i).map(|p| p.role);
@@ -1804,20 +1885,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                         let slot =
                             self.b
                                 .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, bytes, 4));
-                        // Zero it so no run reads stale stack memory: all-zero bits are
-                        // zero in every scalar type, so 16 bytes per store from one
-                        // address (a word per store was a quarter of the NURB kernel's
-                        // CLIF: ~21 KB of arrays).
-                        let addr = self.b.ins().stack_addr(types::I64, slot, 0);
-                        let zero_vec = mask_const(&mut self.b, false);
-                        for at in (0..bytes / 16).map(|k| 16 * k) {
-                            self.b.ins().store(mem_flags(), zero_vec, addr, at as i32);
-                        }
-                        if bytes % 16 != 0 {
-                            let zero_word = self.b.ins().iconst(types::I32, 0);
-                            for at in (bytes / 16 * 16..bytes).step_by(4) {
-                                self.b.ins().store(mem_flags(), zero_word, addr, at as i32);
-                            }
+                        // Zero it so no run reads stale stack memory, unless every read
+                        // comes after a whole assignment.
+                        if entry_clear.as_ref().is_none_or(|c| c.get(i).copied().unwrap_or(true)) {
+                            let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                            self.zero_stack_bytes(addr, 0, bytes);
                         }
                         Storage::Stack(slot)
                     } else {
@@ -2046,19 +2118,30 @@ impl<'a, 'b> Lower<'a, 'b> {
             {
                 let cont = self.b.create_block();
                 self.b.ins().brif(c, self.exit, &[], cont, &[]);
+                self.seal_now(cont);
                 self.b.switch_to_block(cont);
                 return Ok(());
             }
             let then_blk = self.b.create_block();
             let else_blk = self.b.create_block();
             let join = self.b.create_block();
+            if self.in_dead_block() {
+                self.dead_blocks.extend([then_blk, else_blk]);
+            }
             self.b.ins().brif(c, then_blk, &[], else_blk, &[]);
+            // Each block sealed once its predecessors are all known (see `seal_now`).
+            self.seal_now(then_blk);
+            self.seal_now(else_blk);
             self.b.switch_to_block(then_blk);
             self.stmts(then)?;
-            self.b.ins().jump(join, &[]);
+            let from_then = self.jump_live(join);
             self.b.switch_to_block(else_blk);
             self.stmts(otherwise)?;
-            self.b.ins().jump(join, &[]);
+            let from_else = self.jump_live(join);
+            if !from_then && !from_else {
+                self.dead_blocks.insert(join);
+            }
+            self.seal_now(join);
             self.b.switch_to_block(join);
             return Ok(());
         }
@@ -2356,6 +2439,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         let out_blk = self.b.create_block();
         let ok_blk = self.b.create_block();
         self.b.ins().brif(empty, out_blk, &[], ok_blk, &[]);
+        self.seal_now(out_blk);
+        self.seal_now(ok_blk);
         self.b.set_cold_block(out_blk);
         self.b.switch_to_block(out_blk);
         self.record_error(ERR_FUEL, site.0, None);
@@ -2377,6 +2462,10 @@ impl<'a, 'b> Lower<'a, 'b> {
         let body_blk = self.b.create_block();
         let step_blk = self.b.create_block();
         let exit = self.b.create_block();
+        if self.in_dead_block() {
+            // Dead code: so is the whole loop (its jumps stay among dead blocks).
+            self.dead_blocks.extend([header, body_blk, step_blk, exit]);
+        }
         self.b.ins().jump(header, &[]);
         self.b.switch_to_block(header);
         self.spend_fuel(site, exit);
@@ -2388,6 +2477,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         } else {
             self.b.ins().jump(body_blk, &[]);
         }
+        self.seal_now(body_blk);
         self.b.switch_to_block(body_blk);
         self.frame_mut().loops.push(LoopCtx {
             id: Some(id),
@@ -2400,12 +2490,34 @@ impl<'a, 'b> Lower<'a, 'b> {
         let r = self.stmts(body);
         self.frame_mut().loops.pop();
         r?;
-        self.b.ins().jump(step_blk, &[]);
+        // A body that always leaves by `break` or `return` (and never `continue`s) leaves
+        // the step dead.
+        if !self.jump_live(step_blk) && !self.live_targets.contains(&step_blk) {
+            self.dead_blocks.insert(step_blk);
+        }
+        // The body's `continue`s are lowered: the step's predecessors are all known; after
+        // the back edge, the header's; after the step (its `break`s, if any), the exit's.
+        self.seal_now(step_blk);
         self.b.switch_to_block(step_blk);
         self.stmts(step)?;
-        self.b.ins().jump(header, &[]);
+        self.jump_live(header);
+        self.seal_now(header);
+        self.seal_now(exit);
         self.b.switch_to_block(exit);
         Ok(())
+    }
+
+    /// Seal `block` now: every jump to it has been emitted. Uniform code seals its blocks
+    /// as soon as their predecessors are known (an `if`'s sides and join, a uniform loop's
+    /// blocks, the fuel check's): a variable read in a sealed block is looked up through
+    /// its predecessors at once, where an unsealed block got a speculative block parameter
+    /// per variable read in it, each resolved (mostly into an alias) only when the function
+    /// was sealed whole. In the NURB kernel's setup those were ~2700 block parameters,
+    /// ~5800 jump arguments and ~6400 aliases, and a quarter of the frontend's time.
+    fn seal_now(&mut self, block: Block) {
+        if self.sealed_early.insert(block) {
+            self.b.seal_block(block);
+        }
     }
 
     fn varying_loop(
@@ -2499,7 +2611,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             frame.loops[pos..].iter().map(|l| (l.mask, l.cont)).collect();
         if !target.varying {
             let dest = if is_break { target.exit } else { target.step };
-            self.b.ins().jump(dest, &[]);
+            self.jump_live(dest);
             self.continue_unreachable();
             return Ok(());
         }
@@ -2543,7 +2655,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         let Some(p) = &self.pix else {
             // Setup: the primitive ends.
-            self.b.ins().jump(self.exit, &[]);
+            self.jump_live(self.exit);
             self.continue_unreachable();
             return Ok(());
         };
@@ -3343,12 +3455,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                 varying: v.varying,
             };
         }
-        let len = match static_len {
-            Some(n) => self.b.ins().iconst(types::I32, n as i64),
-            None => self.seq_len(),
-        };
-        let last = self.b.ins().iadd_imm_s(len, -1);
         let off = if idx.varying {
+            let (len, last) = self.len_and_last(static_len);
             let len_v = self.b.ins().splat(I32X4, len);
             let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx_comp, len_v);
             let bad = match self.exec() {
@@ -3379,9 +3487,10 @@ impl<'a, 'b> Lower<'a, 'b> {
             let c = if proven {
                 idx_comp
             } else {
+                let (len, last) = self.len_and_last(static_len);
                 self.checked_uniform_index(idx_comp, len, last, site)
             };
-            let c = self.b.ins().imul_imm_s(c, stride as i64);
+            let c = self.scaled(c, stride);
             match acc.dyn_off {
                 Dyn::None => Dyn::Uniform(c),
                 Dyn::Uniform(u) => Dyn::Uniform(self.b.ins().iadd(u, c)),
@@ -3396,11 +3505,38 @@ impl<'a, 'b> Lower<'a, 'b> {
         Ok(acc)
     }
 
+    /// The length of an indexed array (`static_len`, or the sequence length) and its last
+    /// index, built only where an index is checked: a proven site needs neither (tier 0
+    /// has no pass that would drop them: they were ~1000 dead instructions of the NURB
+    /// kernel's CLIF).
+    fn len_and_last(&mut self, static_len: Option<u32>) -> (ir::Value, ir::Value) {
+        match static_len {
+            Some(n) => (
+                self.b.ins().iconst(types::I32, n as i64),
+                self.b.ins().iconst(types::I32, n as i64 - 1),
+            ),
+            None => {
+                let len = self.seq_len();
+                (len, self.b.ins().iadd_imm_s(len, -1))
+            }
+        }
+    }
+
+    /// `x * k` for a non-negative `k`: nothing for 1, a shift for a power of two (which
+    /// the x64 backend folds into an address as a scaled index), a multiply otherwise.
+    fn scaled(&mut self, x: ir::Value, k: u32) -> ir::Value {
+        match k {
+            1 => x,
+            k if k.is_power_of_two() => self.b.ins().ishl_imm_u(x, k.trailing_zeros() as i64),
+            k => self.b.ins().imul_imm_s(x, k as i64),
+        }
+    }
+
     /// Is `site` of the primitive's own body proven in range (see `proven_sites`)?
     fn site_proven(&mut self, site: SiteId) -> bool {
-        let body = self.frames[0].func;
+        let body = &self.shared_body;
         self.proven_sites
-            .get_or_insert_with(|| crate::ir::range::proven_index_sites(body))
+            .get_or_insert_with(|| proven_sites_of(body))
             .contains(&site)
     }
 
@@ -3453,6 +3589,25 @@ impl<'a, 'b> Lower<'a, 'b> {
                 })
             }
         }
+    }
+
+    /// The address of stack slot `slot`. Tier 0 has no pass that would merge repeated
+    /// `stack_addr`s (one per array access: ~350 in the NURB kernel), so within one block
+    /// the first is reused.
+    fn slot_addr(&mut self, slot: StackSlot) -> ir::Value {
+        let block = self.b.current_block();
+        if self.tier0() {
+            if let (Some(&(b, v)), Some(cur)) = (self.slot_addrs.get(&slot), block) {
+                if b == cur {
+                    return v;
+                }
+            }
+        }
+        let v = self.b.ins().stack_addr(types::I64, slot, 0);
+        if let (true, Some(b)) = (self.tier0(), block) {
+            self.slot_addrs.insert(slot, (b, v));
+        }
+        v
     }
 
     /// Load a scalar of `sc` from `addr + off` bytes in uniform form (bools stored as bytes
@@ -3531,7 +3686,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                     let addr = match dyn_off {
                         Dyn::Uniform(d) => {
                             let d64 = self.b.ins().uextend(types::I64, d);
-                            let db = self.b.ins().imul_imm_s(d64, bytes);
+                            let db = self.scaled(d64, bytes as u32);
                             self.b.ins().iadd(base_addr, db)
                         }
                         _ => base_addr,
@@ -3644,7 +3799,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                     Storage::Vars(_) => err("register local read as memory"),
                     Storage::Z(v) => Ok(Val::one(self.b.use_var(v), sc, true)),
                     Storage::Stack(slot) => {
-                        let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                        let addr = self.slot_addr(slot);
                         Ok(self.read_memory(addr, sc, varying, offs, acc.base, acc.dyn_off, false, false))
                     }
                     Storage::Frame(word) => {
@@ -3797,7 +3952,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 Ok(())
             }
             Storage::Stack(slot) => {
-                let base_addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                let base_addr = self.slot_addr(slot);
                 let bytes = comp_bytes(varying) as i64;
                 for (o, c) in offs.iter().zip(comps) {
                     let off = ((acc.base + o) as i64 * bytes) as i32;
@@ -3882,9 +4037,41 @@ impl<'a, 'b> Lower<'a, 'b> {
             return false;
         }
         let base_addr = self.b.ins().stack_addr(types::I64, slot, 0);
-        let (start, end) = (acc.base * 4, (acc.base + words) * 4);
+        self.zero_stack_bytes(base_addr, acc.base * 4, (acc.base + words) * 4);
+        true
+    }
+
+    /// Store zeros to bytes `start..end` (multiples of 4) from `base_addr`, a stack slot's
+    /// address. All-zero bits are zero in every scalar type, so 16 bytes per store (a word
+    /// per store was a quarter of the NURB kernel's CLIF); a clear of more than
+    /// [`ZERO_LOOP_BYTES`] in setup code is a counted loop of four such stores per trip
+    /// (the NURB kernel's 2 KB tessellation arrays were 128 stores each: one CLIF
+    /// instruction per 16 bytes to build, allocate and emit, for a clear that runs once per
+    /// primitive). Pixel code keeps straight stores: its flat tier-0 form has no blocks.
+    fn zero_stack_bytes(&mut self, base_addr: ir::Value, start: u32, end: u32) {
         let zero_vec = mask_const(&mut self.b, false);
         let mut at = start;
+        if end - start > ZERO_LOOP_BYTES && self.pix.is_none() {
+            let trip_bytes = 64;
+            let loop_end = start + (end - start) / trip_bytes * trip_bytes;
+            let first = self.b.ins().iadd_imm_s(base_addr, start as i64);
+            let last = self.b.ins().iadd_imm_s(base_addr, loop_end as i64);
+            let trip = self.b.create_block();
+            let after = self.b.create_block();
+            let p = self.b.append_block_param(trip, types::I64);
+            self.b.ins().jump(trip, &[first.into()]);
+            self.b.switch_to_block(trip);
+            for k in 0..trip_bytes / 16 {
+                self.b.ins().store(mem_flags(), zero_vec, p, (16 * k) as i32);
+            }
+            let next = self.b.ins().iadd_imm_s(p, trip_bytes as i64);
+            let more = self.b.ins().icmp(IntCC::UnsignedLessThan, next, last);
+            self.b.ins().brif(more, trip, &[next.into()], after, &[]);
+            self.seal_now(trip);
+            self.seal_now(after);
+            self.b.switch_to_block(after);
+            at = loop_end;
+        }
         while at + 16 <= end {
             self.b.ins().store(mem_flags(), zero_vec, base_addr, at as i32);
             at += 16;
@@ -3896,7 +4083,6 @@ impl<'a, 'b> Lower<'a, 'b> {
                 at += 4;
             }
         }
-        true
     }
 
     fn dyn_addr(&mut self, base: ir::Value, d: Dyn, bytes: i64) -> Res<ir::Value> {
@@ -3904,7 +4090,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             Dyn::None => Ok(base),
             Dyn::Uniform(u) => {
                 let d64 = self.b.ins().uextend(types::I64, u);
-                let db = self.b.ins().imul_imm_s(d64, bytes);
+                let db = self.scaled(d64, bytes as u32);
                 Ok(self.b.ins().iadd(base, db))
             }
             Dyn::Varying(_) => err("varying index into a uniform local"),

@@ -1,0 +1,127 @@
+//! Uniform stack arrays cleared by a loop and without an entry clear (`Lower::zero_stack_bytes`,
+//! `src/jit/lower/init.rs`), and dead code after `break`/`return` ending in a trap
+//! (`Lower::jump_live`): the frame must be what the language says in both tiers.
+//!
+//! `cleared` declares `float a[103]` (412 bytes: a clear loop of 64-byte trips, one 16-byte
+//! store and three words) inside a loop, writes one element per round and reads the one the
+//! previous round wrote (which the declaration must have cleared again), the one it wrote,
+//! and a dynamic index that may leave the array (clamped, W0801 at its line:col). A uniform
+//! `if (r == stop) break;` and an early `return` put dead blocks in the loop.
+
+mod common;
+
+use std::sync::Arc;
+
+use primflow::diag::SourceMap;
+use primflow::ir::Program;
+use primflow::jit::{Jit, Tier};
+use primflow::runtime::{Renderer, Value};
+
+const SOURCE: &str = r#"
+primitive cleared(float rect[4]; int rounds, off, stop; varying float X, Y; inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    if (rounds > 51)
+        return;
+    float s = 0;
+    for (int r = 0; r < rounds; r++) {
+        float a[103];
+        a[r] = r + 1;
+        s = s + a[r] + a[102 - r] * 2 + a[r + off] * 4;
+        if (r == stop)
+            break;
+        a[101 - r] = 7;
+    }
+    Z = s / 16384;
+}
+
+primitive flat(float rect[4]; float z; varying float X, Y; inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    Z = z;
+}
+"#;
+
+/// The index `r + off` (the site its error names).
+const OFF_SITE: &str = "W0801@11:43";
+
+fn library(sources: &mut SourceMap) -> Arc<Program> {
+    common::library_with(sources, &[("cleared.prim", SOURCE)])
+}
+
+fn scene(program: &Arc<Program>, prim: &str, params: &[(&str, f32)]) -> Renderer {
+    let mut r = Renderer::new(program.clone());
+    r.set_image_size(24, 16).unwrap();
+    r.set_tile_size(16).unwrap();
+    r.begin(prim).unwrap();
+    r.rast_param("rect", &Value(vec![2.0, 2.0, 20.0, 12.0])).unwrap();
+    for (name, v) in params {
+        r.rast_param(name, &Value(vec![*v])).unwrap();
+    }
+    r.end().unwrap();
+    r
+}
+
+/// Depth at a pixel inside the rectangle, and the run-time diagnostics (code@line:col).
+fn run(program: &Arc<Program>, sources: &SourceMap, r: &Renderer, tier: Tier) -> (u32, Vec<String>) {
+    let mut jit = Jit::at_tier(program.clone(), tier).unwrap();
+    let out = r.render(&mut jit);
+    assert!(!out.diags.has_errors(), "{:?}", out.diags.items);
+    let mut codes = out.diags.codes_at(sources);
+    codes.dedup();
+    (out.frame.depth_at(8, 5).unwrap(), codes)
+}
+
+/// What the language says `cleared` computes: per round `a` is all zeros but `a[r]`, so
+/// `a[102 - r]` (last round's write) reads 0 and `a[r + off]`, clamped into the array,
+/// reads `r + 1` exactly when it lands on `r`; the loop stops after round `stop`.
+fn reference(rounds: i64, off: i64, stop: i64) -> (f32, bool) {
+    let mut s = 0f32;
+    let mut bad = false;
+    for r in 0..rounds {
+        let at = r + off;
+        bad |= !(0..103).contains(&at);
+        let other = if at.clamp(0, 102) == r { (r + 1) as f32 } else { 0.0 };
+        s += (r + 1) as f32 + 0.0 * 2.0 + other * 4.0;
+        if r == stop {
+            break;
+        }
+    }
+    (s / 16384.0, bad)
+}
+
+#[test]
+fn arrays_cleared_by_a_loop_read_zero_after_partial_writes_in_both_tiers() {
+    let mut sources = SourceMap::new();
+    let program = library(&mut sources);
+    // (rounds, off, stop): in range, past the end, below the start, stopped by `break`,
+    // no rounds, and `rounds > 51` (returns before drawing).
+    let cases = [
+        (10, 0, -1),
+        (10, 200, -1),
+        (3, -5, -1),
+        (51, 0, 20),
+        (0, 0, -1),
+        (52, 0, -1),
+    ];
+    for (rounds, off, stop) in cases {
+        let (z, bad) = reference(rounds, off, stop);
+        let params = [("rounds", rounds as f32), ("off", off as f32), ("stop", stop as f32)];
+        for tier in [Tier::Fast, Tier::Optimised] {
+            let case = format!("rounds={rounds} off={off} stop={stop} {tier:?}");
+            let (got, errors) = run(&program, &sources, &scene(&program, "cleared", &params), tier);
+            if rounds > 51 {
+                assert_eq!((got, errors.len()), (0, 0), "{case}: returned before drawing");
+                continue;
+            }
+            let (want, none) = run(&program, &sources, &scene(&program, "flat", &[("z", z)]), tier);
+            assert!(none.is_empty());
+            if rounds > 0 {
+                assert_ne!(want, 0, "{case}: the reference draws");
+            }
+            assert_eq!(got, want, "{case}");
+            let expected: Vec<&str> = if bad { vec![OFF_SITE] } else { vec![] };
+            assert_eq!(errors, expected, "{case}");
+        }
+    }
+}
