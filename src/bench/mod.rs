@@ -746,7 +746,7 @@ pub fn example_scenes_to_first_pixel() -> Result<Vec<SceneToFirstPixel>, String>
             let file = sources.add(name, text.to_string());
             let mut r = Renderer::new(program.clone());
             let mut diags = Diagnostics::new();
-            crate::scene::load_into(&mut sources, file, &mut r, &mut diags);
+            crate::scene::load_into(&sources, file, &mut r, &mut diags);
             if diags.has_errors() {
                 return Err(format!("{name}: {}", diags.render(&sources)));
             }

@@ -126,8 +126,7 @@ fn polygon_kernel<const P: usize, const L: usize, const T: usize>(count: bool, i
     }
 }
 
-/// A shape file's kernel lookup: the entry for a key under a layout, or why there is none.
-
+/// The hand-written kernels of one [`Flavor`], as a [`KernelSource`].
 pub struct Handwritten {
     program: Arc<Program>,
     flavor: Flavor,

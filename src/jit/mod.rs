@@ -969,7 +969,7 @@ mod tests {
             unsafe { (tier0.entry)(&mut ctx, inst.args.as_ptr()) };
             ctx.bound_set
         };
-        word.store(count_call as usize, Ordering::SeqCst);
+        word.store(count_call as KernelFn as usize, Ordering::SeqCst);
         assert_eq!(run(crate::abi::MODE_BOUND), 0, "the stand-in records no bound");
         assert_eq!(FORWARDED_CALLS.load(Ordering::SeqCst), 1);
         word.store(0, Ordering::SeqCst);
