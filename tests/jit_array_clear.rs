@@ -12,10 +12,10 @@ mod common;
 
 use std::sync::Arc;
 
+use common::{rect_depth_and_codes as run, rect_scene as scene};
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
-use primflow::jit::{Jit, Tier};
-use primflow::runtime::{Renderer, Value};
+use primflow::jit::Tier;
 
 const SOURCE: &str = r#"
 primitive cleared(float rect[4]; int rounds, off, stop; varying float X, Y; inout varying fixed<32,32> Z)
@@ -47,29 +47,6 @@ const OFF_SITE: &str = "W0801@11:43";
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
     common::library_with(sources, &[("cleared.prim", SOURCE)])
-}
-
-fn scene(program: &Arc<Program>, prim: &str, params: &[(&str, f32)]) -> Renderer {
-    let mut r = Renderer::new(program.clone());
-    r.set_image_size(24, 16).unwrap();
-    r.set_tile_size(16).unwrap();
-    r.begin(prim).unwrap();
-    r.rast_param("rect", &Value(vec![2.0, 2.0, 20.0, 12.0])).unwrap();
-    for (name, v) in params {
-        r.rast_param(name, &Value(vec![*v])).unwrap();
-    }
-    r.end().unwrap();
-    r
-}
-
-/// Depth at a pixel inside the rectangle, and the run-time diagnostics (code@line:col).
-fn run(program: &Arc<Program>, sources: &SourceMap, r: &Renderer, tier: Tier) -> (u32, Vec<String>) {
-    let mut jit = Jit::at_tier(program.clone(), tier).unwrap();
-    let out = r.render(&mut jit);
-    assert!(!out.diags.has_errors(), "{:?}", out.diags.items);
-    let mut codes = out.diags.codes_at(sources);
-    codes.dedup();
-    (out.frame.depth_at(8, 5).unwrap(), codes)
 }
 
 /// What the language says `cleared` computes: per round `a` is all zeros but `a[r]`, so

@@ -9,11 +9,12 @@ mod common;
 
 use std::sync::Arc;
 
+use common::{rect_depth_and_codes as run, rect_scene as scene};
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::ir::range::proven_index_sites;
 use primflow::ir::Program;
-use primflow::jit::{Jit, Tier};
-use primflow::runtime::{Registry, Renderer, Value};
+use primflow::jit::Tier;
+use primflow::runtime::Registry;
 
 /// The elements of every test array: a[i] = (i + 1) / 64, exact in f32 and in Z's fixed point.
 fn element(i: i64) -> f32 {
@@ -126,29 +127,6 @@ const WINDOW_SITE: &str = "W0801@64:19";
 
 fn library(sources: &mut SourceMap, len: usize) -> Arc<Program> {
     common::library_with(sources, &[("ranged.prim", &source(len))])
-}
-
-fn scene(program: &Arc<Program>, prim: &str, params: &[(&str, f32)]) -> Renderer {
-    let mut r = Renderer::new(program.clone());
-    r.set_image_size(24, 16).unwrap();
-    r.set_tile_size(16).unwrap();
-    r.begin(prim).unwrap();
-    r.rast_param("rect", &Value(vec![2.0, 2.0, 20.0, 12.0])).unwrap();
-    for (name, v) in params {
-        r.rast_param(name, &Value(vec![*v])).unwrap();
-    }
-    r.end().unwrap();
-    r
-}
-
-/// Depth at a pixel inside the rectangle, and the run-time diagnostics (code@line:col).
-fn run(program: &Arc<Program>, sources: &SourceMap, r: &Renderer, tier: Tier) -> (u32, Vec<String>) {
-    let mut jit = Jit::at_tier(program.clone(), tier).unwrap();
-    let out = r.render(&mut jit);
-    assert!(!out.diags.has_errors(), "{:?}", out.diags.items);
-    let mut codes = out.diags.codes_at(sources);
-    codes.dedup();
-    (out.frame.depth_at(8, 5).unwrap(), codes)
 }
 
 /// What the language says a loop over [lo, hi) reads: each index clamped into the array,

@@ -224,6 +224,25 @@ pub(crate) fn depth_raw(z: f32) -> u32 {
     (z * 4294967296.0).round_ties_even() as u32
 }
 
+/// float -> fixed<32,32> raw for 4 depths in [0, 1], as [`depth_raw`] (nearest, saturating;
+/// the SSE4.1 kernels' conversion, inlined into both encodings). Below 2^31 the signed
+/// conversion rounds to nearest even (the MXCSR default) and is exact; from 2^31 on it gives
+/// 0x8000_0000, and z * 2^32 - 2^31 (exact there, an integer) supplies the low bits; 2^32
+/// itself (z == 1) converts to 0x8000_0000 in the second conversion, which the arithmetic
+/// shift turns into all ones. Lanes outside [0, 1] are the caller's to mask off.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse4.1")]
+#[inline]
+pub(crate) fn depth_raw4(z: std::arch::x86_64::__m128) -> std::arch::x86_64::__m128i {
+    use std::arch::x86_64::*;
+    let scaled = _mm_mul_ps(z, _mm_set1_ps(4294967296.0));
+    let low = _mm_cvtps_epi32(scaled);
+    let above = _mm_max_ps(_mm_sub_ps(scaled, _mm_set1_ps(2147483648.0)), _mm_setzero_ps());
+    let high = _mm_cvtps_epi32(above);
+    let high = _mm_or_si128(high, _mm_srai_epi32::<31>(high));
+    _mm_or_si128(low, high)
+}
+
 /// float -> fixed<32,32> raw for 8 depths in [0, 1], as [`depth_raw`] (nearest, saturating).
 /// Values below 2^31 convert directly; values in [2^31, 2^32) are shifted down by 2^31
 /// first (exact there) and the top bit set back; 2^32 itself (z == 1) saturates.
@@ -538,23 +557,6 @@ macro_rules! sse_kernel {
             args: *const u32,
         ) {
             use std::arch::x86_64::*;
-
-            /// float -> fixed<32,32> raw as the JIT converts (nearest, saturating), for z in
-            /// [0, 1]; lanes outside it are masked off by the caller. Below 2^31 the
-            /// signed conversion rounds to nearest even (the MXCSR default) and is exact;
-            /// from 2^31 on it gives 0x8000_0000, and z * 2^32 - 2^31 (exact there, an
-            /// integer) supplies the low bits; 2^32 itself (z == 1) converts to 0x8000_0000
-            /// in the second conversion, which the arithmetic shift turns into all ones.
-            #[inline]
-            #[target_feature(enable = $features)]
-            fn depth_raw4(z: __m128) -> __m128i {
-                let scaled = _mm_mul_ps(z, _mm_set1_ps(4294967296.0));
-                let low = _mm_cvtps_epi32(scaled);
-                let above = _mm_max_ps(_mm_sub_ps(scaled, _mm_set1_ps(2147483648.0)), _mm_setzero_ps());
-                let high = _mm_cvtps_epi32(above);
-                let high = _mm_or_si128(high, _mm_srai_epi32::<31>(high));
-                _mm_or_si128(low, high)
-            }
 
             /// (a * x + by) + c, the prim's plane expression with b * y hoisted per row.
             #[inline]

@@ -24,7 +24,7 @@
 use super::isa;
 use super::screen_triangle::{bound_or_rect, depth_raw};
 #[cfg(target_arch = "x86_64")]
-use super::screen_triangle::{depth_raw8, depth_test8};
+use super::screen_triangle::{depth_raw4, depth_raw8, depth_test8};
 use crate::abi::{ArgLayout, Binding, BindingKind, KernelFn, ParamSlot, TileCtx, VariantKey, MODE_BOUND};
 
 /// Word offset of the space matrices for `t` plane-table entries.
@@ -473,22 +473,6 @@ macro_rules! sse_kernel {
         #[target_feature(enable = $features)]
         pub unsafe extern "C" fn $name<const T: usize, const COUNT: bool>(ctx: *mut TileCtx, args: *const u32) {
             use std::arch::x86_64::*;
-
-            /// float -> fixed<32,32> raw as the JIT converts (nearest, saturating), for z in
-            /// [0, 1] (other lanes are masked off); the conversion of screen_triangle's SSE
-            /// kernel. Below 2^31 the signed conversion rounds to nearest even and is exact;
-            /// from 2^31 on it gives 0x8000_0000 and z * 2^32 - 2^31 (exact there) supplies
-            /// the low bits; 2^32 itself (z == 1) becomes all ones by the arithmetic shift.
-            #[inline]
-            #[target_feature(enable = $features)]
-            fn depth_raw4(z: __m128) -> __m128i {
-                let scaled = _mm_mul_ps(z, _mm_set1_ps(4294967296.0));
-                let low = _mm_cvtps_epi32(scaled);
-                let above = _mm_max_ps(_mm_sub_ps(scaled, _mm_set1_ps(2147483648.0)), _mm_setzero_ps());
-                let high = _mm_cvtps_epi32(above);
-                let high = _mm_or_si128(high, _mm_srai_epi32::<31>(high));
-                _mm_or_si128(low, high)
-            }
 
             /// The language's `dot` of two 3-vectors of lanes, in its order.
             #[inline]

@@ -166,3 +166,34 @@ pub fn all_tiers(program: &Arc<Program>, r: &Renderer, what: &str) -> Frame {
     }
     frames.swap_remove(0)
 }
+
+/// A 24x16 frame in 16-pixel tiles with one instance of `prim` (a test primitive taking a
+/// `rect` of the pixels it covers, here (2, 2)-(20, 12)) and the float parameters given.
+pub fn rect_scene(program: &Arc<Program>, prim: &str, params: &[(&str, f32)]) -> Renderer {
+    let mut r = Renderer::new(program.clone());
+    r.set_image_size(24, 16).unwrap();
+    r.set_tile_size(16).unwrap();
+    r.begin(prim).unwrap();
+    r.rast_param("rect", &Value(vec![2.0, 2.0, 20.0, 12.0])).unwrap();
+    for (name, v) in params {
+        r.rast_param(name, &Value(vec![*v])).unwrap();
+    }
+    r.end().unwrap();
+    r
+}
+
+/// Render `r` at `tier`: the depth at (8, 5), inside [`rect_scene`]'s rectangle, and the
+/// run-time diagnostics as `code@line:col`.
+pub fn rect_depth_and_codes(
+    program: &Arc<Program>,
+    sources: &SourceMap,
+    r: &Renderer,
+    tier: Tier,
+) -> (u32, Vec<String>) {
+    let mut jit = Jit::at_tier(program.clone(), tier).unwrap();
+    let out = r.render(&mut jit);
+    assert!(!out.diags.has_errors(), "{:?}", out.diags.items);
+    let mut codes = out.diags.codes_at(sources);
+    codes.dedup();
+    (out.frame.depth_at(8, 5).unwrap(), codes)
+}
