@@ -224,6 +224,20 @@ pub(crate) fn depth_raw(z: f32) -> u32 {
     (z * 4294967296.0).round_ties_even() as u32
 }
 
+/// Each of `planes`' G-buffer plane in this tile, or null for a plane the frame lacks (the
+/// SSE kernels skip its stores).
+#[cfg(target_arch = "x86_64")]
+pub(crate) fn tile_plane_bases<const T: usize>(ctx: &TileCtx, planes: &[u32; T]) -> [*mut f32; T] {
+    std::array::from_fn(|c| {
+        if planes[c] < ctx.num_planes {
+            // SAFETY: plane `planes[c]` of `num_planes` starts inside gbuf.
+            unsafe { ctx.gbuf.add(planes[c] as usize * ctx.plane_stride as usize) }
+        } else {
+            std::ptr::null_mut()
+        }
+    })
+}
+
 /// float -> fixed<32,32> raw for 4 depths in [0, 1], as [`depth_raw`] (nearest, saturating;
 /// the SSE4.1 kernels' conversion, inlined into both encodings). Below 2^31 the signed
 /// conversion rounds to nearest even (the MXCSR default) and is exact; from 2^31 on it gives
@@ -572,16 +586,7 @@ macro_rules! sse_kernel {
                 return;
             };
             let stride = ctx.stride as usize;
-            // Each component's G-buffer plane in this tile, or null for a plane the frame
-            // lacks (its stores are skipped).
-            let plane_base: [*mut f32; T] = std::array::from_fn(|c| {
-                if s.planes[c] < ctx.num_planes {
-                    // SAFETY: plane `planes[c]` of `num_planes` starts inside gbuf.
-                    unsafe { ctx.gbuf.add(s.planes[c] as usize * ctx.plane_stride as usize) }
-                } else {
-                    std::ptr::null_mut()
-                }
-            });
+            let plane_base = tile_plane_bases(ctx, &s.planes);
             let splat = |v: f32| _mm_set1_ps(v);
             let (za, zc) = (splat(s.z[0]), splat(s.z[2]));
             let (qa, qc) = (splat(s.q[0]), splat(s.q[2]));

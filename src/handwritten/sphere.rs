@@ -24,7 +24,7 @@
 use super::isa;
 use super::screen_triangle::{bound_or_rect, depth_raw};
 #[cfg(target_arch = "x86_64")]
-use super::screen_triangle::{depth_raw4, depth_raw8, depth_test8};
+use super::screen_triangle::{depth_raw4, depth_raw8, depth_test8, tile_plane_bases};
 use crate::abi::{ArgLayout, Binding, BindingKind, KernelFn, ParamSlot, TileCtx, VariantKey, MODE_BOUND};
 
 /// Word offset of the space matrices for `t` plane-table entries.
@@ -495,16 +495,7 @@ macro_rules! sse_kernel {
                 return;
             };
             let stride = ctx.stride as usize;
-            // Each normal component's G-buffer plane in this tile, or null for a plane the
-            // frame lacks (its stores are skipped).
-            let plane_base: [*mut f32; T] = std::array::from_fn(|k| {
-                if s.planes[k] < ctx.num_planes {
-                    // SAFETY: plane `planes[k]` of `num_planes` starts inside gbuf.
-                    unsafe { ctx.gbuf.add(s.planes[k] as usize * ctx.plane_stride as usize) }
-                } else {
-                    std::ptr::null_mut()
-                }
-            });
+            let plane_base = tile_plane_bases(ctx, &s.planes);
             let set1 = |v: f32| _mm_set1_ps(v);
             let lane_offsets = _mm_setr_ps(0.5, 1.5, 2.5, 3.5);
             let lane_index = _mm_setr_epi32(0, 1, 2, 3);
