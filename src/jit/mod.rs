@@ -22,12 +22,12 @@
 //! entry point and call that when it is set ([`Jit::tier0_forwards_to`]), so draws binned
 //! with tier-0 entries, expanded calls and tier-0 kernels' calls to each other run tier-1
 //! code from the moment it exists — a single long frame (the CLI renders one) gets the
-//! fast start and the fast kernels. Both tiers compute the same buffers bit for bit: they lower the same
-//! IR with the same floating-point operations in the same order, and block culling only
-//! decides which pixels run, never what they compute (`tests/jit_tiers.rs`). Compiled code
-//! is never freed (cranelift-jit leaks a module's memory unless told otherwise), so every
-//! entry point a JIT hands out stays callable for the life of the process, beyond the
-//! `KernelSource` contract.
+//! fast start and the fast kernels. Both tiers compute the same buffers bit for bit: they
+//! lower the same IR with the same floating-point operations in the same order, and block
+//! culling only decides which pixels run, never what they compute (`tests/jit_tiers.rs`).
+//! Compiled code is never freed (cranelift-jit leaks a module's memory unless told
+//! otherwise), so every entry point a JIT hands out stays callable for the life of the
+//! process, beyond the `KernelSource` contract; the worker's too, after it has ended.
 //!
 //! Before lowering, [`unroll`] unrolls uniform loops with a compile-time trip count
 //! ([`JitOptions::unroll_loops`]).
