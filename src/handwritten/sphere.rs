@@ -688,48 +688,25 @@ mod tests {
     use crate::jit::{JitError, Kernel};
     use crate::runtime::{KernelSource, Registry, Renderer, Value};
 
-    /// A kernel form by (plane-table entries, write counting).
-    type FormFn = fn(usize, bool) -> KernelFn;
-
-    /// The hand-written sphere with every kernel's entry replaced by `form` of its key (the
+    /// The hand-written sphere in form `isa` (an `isa::*` constant), whatever the CPU (the
     /// runtime picks the VEX form on a CPU with AVX; this reaches the legacy one).
     struct Form {
         hand: Handwritten,
-        form: FormFn,
+        isa: u8,
     }
 
     impl KernelSource for Form {
         fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, JitError> {
             let k = self.hand.kernel(func, key)?;
-            let t = if key.bindings.is_empty() { 0 } else { 3 };
+            let entry = entry_for(&k.layout, key, self.isa).map_err(|message| JitError { message })?;
             Ok(Arc::new(Kernel {
                 func: k.func,
                 key: k.key.clone(),
-                entry: (self.form)(t, key.count_writes),
+                entry,
                 layout: k.layout.clone(),
                 compile_micros: 0,
                 warnings: vec![],
             }))
-        }
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    fn legacy(t: usize, count: bool) -> KernelFn {
-        match (t, count) {
-            (0, false) => sse41::<0, false>,
-            (0, true) => sse41::<0, true>,
-            (_, false) => sse41::<3, false>,
-            (_, true) => sse41::<3, true>,
-        }
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    fn vex(t: usize, count: bool) -> KernelFn {
-        match (t, count) {
-            (0, false) => sse41_vex::<0, false>,
-            (0, true) => sse41_vex::<0, true>,
-            (_, false) => sse41_vex::<3, false>,
-            (_, true) => sse41_vex::<3, true>,
         }
     }
 
@@ -749,9 +726,9 @@ mod tests {
         let program = Registry::load(&mut sources, &[], &[], &mut diags)
             .expect("the library loads")
             .program;
-        let mut forms: Vec<(&str, FormFn)> = vec![("sse41", legacy)];
+        let mut forms = vec![("sse41", isa::SSE41)];
         if std::arch::is_x86_feature_detected!("avx") {
-            forms.push(("sse41_vex", vex));
+            forms.push(("sse41_vex", isa::SSE41_VEX));
         }
         for (normal, count_writes) in [(true, true), (false, false)] {
             let mut r = Renderer::new(program.clone());
@@ -780,10 +757,10 @@ mod tests {
             assert!(reference.diags.items.is_empty(), "{:?}", reference.diags.items);
             let drawn = reference.frame.depth_values().iter().filter(|&&d| d != 0).count();
             assert!(drawn > 45 * 37 / 3, "only {drawn} pixels drawn");
-            for (name, form) in &forms {
+            for &(name, isa) in &forms {
                 let mut source = Form {
                     hand: Handwritten::new(program.clone(), Flavor::Scalar),
-                    form: *form,
+                    isa,
                 };
                 let out = r.render(&mut source);
                 assert!(out.diags.items.is_empty(), "{name}: {:?}", out.diags.items);
