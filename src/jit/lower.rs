@@ -44,7 +44,6 @@ use cranelift_codegen::ir::{
     self, condcodes::FloatCC, condcodes::IntCC, types, Block, InstBuilder, StackSlot, StackSlotData, StackSlotKind,
 };
 use cranelift_frontend::{FunctionBuilder, Variable};
-use std::sync::Arc;
 
 use super::fixed;
 use super::libm::LibmFn;
@@ -52,7 +51,7 @@ use super::value::{
     args_flags, blend, cl_type, comp_bytes, ctx_off, mask_const, mem_flags, splat, zero, Val, VnKey, VnTable, F32X4,
     I32X4, VN_NEG, VN_NOT,
 };
-use super::JitError;
+use super::{Body, JitError};
 use crate::abi::{
     interpolator_arg_words, type_words, ArgLayout, BindingKind, ParamSlot, VariantKey, ERR_CALL_DEPTH, ERR_FUEL,
     ERR_INDEX, MAX_CALL_DEPTH, MODE_BOUND, MODE_EXPAND,
@@ -336,15 +335,12 @@ pub(crate) struct Lower<'a, 'b> {
     /// Tier 0: constants and pure operations already lowered in a block (value numbering
     /// while lowering, see [`Self::numbered`]); tier 1 leaves this to Cranelift's e-graph.
     vn: VnTable,
-    /// Index sites of the primitive's setup whose uniform index is proven in range at every
-    /// occurrence ([`crate::ir::range`]): indexed without clamp or error record. Computed
-    /// when the first index that is not a constant is lowered (`None` before): most
-    /// kernels, their loops unrolled, have none, and the analysis was ~2% of a tier-0
-    /// compile of screen_triangle.
-    proven_sites: Option<Arc<std::collections::HashSet<SiteId>>>,
     /// The primitive's body as shared by the JITs of its program (`body` in
-    /// [`lower_kernel`]): the key of [`PROVEN_SITES`].
-    shared_body: Arc<Function>,
+    /// [`lower_kernel`]), with its index sites proven in range at every occurrence
+    /// ([`crate::ir::range`]: indexed without clamp or error record). The analysis runs
+    /// when the first index that is not a constant is lowered: most kernels, their loops
+    /// unrolled, have none, and it was ~2% of a tier-0 compile of screen_triangle.
+    shared_body: &'a Body,
     /// Tier 0: the pixel code is lowered *flat*, without a group's early exits (see
     /// [`flat`]).
     flat: bool,
@@ -374,32 +370,6 @@ pub(crate) struct Lower<'a, 'b> {
     pub(crate) warnings: Vec<String>,
 }
 
-/// Proven index sites per shared primitive body ([`crate::ir::range`]): a body does not
-/// depend on the variant key or the tier, and the analysis was ~20 % of a NURB tier-0
-/// compile, so a tier-1 compile or another variant of the same body reuses the first
-/// compile's result. An entry matches only while its body is alive (the weak reference
-/// upgrades), so a new body at a freed address cannot see it; dead entries are dropped on
-/// the next lookup.
-type ProvenEntry = (std::sync::Weak<Function>, Arc<std::collections::HashSet<SiteId>>);
-static PROVEN_SITES: std::sync::Mutex<Vec<ProvenEntry>> = std::sync::Mutex::new(Vec::new());
-
-/// `body`'s proven index sites, from [`PROVEN_SITES`] or computed (outside the lock).
-fn proven_sites_of(body: &Arc<Function>) -> Arc<std::collections::HashSet<SiteId>> {
-    {
-        let mut all = PROVEN_SITES.lock().unwrap_or_else(|e| e.into_inner());
-        all.retain(|(w, _)| w.strong_count() > 0);
-        if let Some((_, sites)) = all.iter().find(|(w, _)| std::ptr::eq(w.as_ptr(), Arc::as_ptr(body))) {
-            return sites.clone();
-        }
-    }
-    let sites = Arc::new(crate::ir::range::proven_index_sites(body));
-    PROVEN_SITES
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .push((Arc::downgrade(body), sites.clone()));
-    sites
-}
-
 /// Lower `func_id` for `key` into `func` (whose signature is already the kernel's).
 ///
 /// `upgrade`: the address of the word a tiered JIT's worker fills with this kernel's tier-1
@@ -412,7 +382,7 @@ fn proven_sites_of(body: &Arc<Function>) -> Arc<std::collections::HashSet<SiteId
 pub(crate) fn lower_kernel(
     program: &Program,
     func_id: FuncId,
-    body: &Arc<Function>,
+    body: &Body,
     key: &VariantKey,
     layout: &ArgLayout,
     func: &mut ir::Function,
@@ -427,7 +397,7 @@ pub(crate) fn lower_kernel(
     if program.functions.get(func_id.0 as usize).is_none() {
         return err(format!("no function {}", func_id.0));
     }
-    let f: &Function = body;
+    let f: &Function = &body.function;
     if f.kind != FuncKind::Primitive {
         return err(format!(
             "`{}` is an interpolator, not a primitive: it has no kernel",
@@ -505,8 +475,7 @@ pub(crate) fn lower_kernel(
         arg_loads: Default::default(),
         slot_addrs: Default::default(),
         vn: VnTable::default(),
-        proven_sites: None,
-        shared_body: body.clone(),
+        shared_body: body,
         flat: false,
         setup_live: None,
         unswitched: std::collections::HashMap::new(),
@@ -3534,10 +3503,7 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// Is `site` of the primitive's own body proven in range (see `proven_sites`)?
     fn site_proven(&mut self, site: SiteId) -> bool {
-        let body = &self.shared_body;
-        self.proven_sites
-            .get_or_insert_with(|| proven_sites_of(body))
-            .contains(&site)
+        self.shared_body.proven_sites().contains(&site)
     }
 
     /// A uniform index `idx` into `len` elements (`last` = `len - 1`), clamped, with
