@@ -37,6 +37,9 @@ pub const ERR_NONE: u32 = 0;
 pub const ERR_INDEX: u32 = 1;
 pub const ERR_FUEL: u32 = 2;
 pub const ERR_CALL_DEPTH: u32 = 3;
+/// The kernel's stack frame reached below `TileCtx::stack_limit`; its `error_site` is the
+/// kernel's `FuncId` (not a `SiteId`), and the kernel returned without running.
+pub const ERR_STACK: u32 = 4;
 
 /// One tile's state, handed to every kernel invocation for that tile.
 #[repr(C)]
@@ -82,6 +85,13 @@ pub struct TileCtx {
     pub expand: Option<ExpandFn>,
     /// The recorder `expand` writes to (opaque to kernels; null outside `MODE_EXPAND`).
     pub expand_state: *mut std::ffi::c_void,
+    /// The lowest address a kernel's stack frame may reach on the thread that runs it
+    /// ([`thread_stack_limit`]). Every compiled kernel compares its stack pointer, after its
+    /// prologue has reserved the frame and before anything is stored in it, with this and
+    /// records `ERR_STACK` instead of running when the frame reaches below: a primitive's
+    /// local arrays (up to 65536 floats each, any number of them, calls nested 16 deep) can
+    /// outgrow any thread's stack, and without the check the frame would overrun it.
+    pub stack_limit: usize,
 }
 
 impl TileCtx {
@@ -112,8 +122,63 @@ impl TileCtx {
             height,
             expand: None,
             expand_state: std::ptr::null_mut(),
+            stack_limit: thread_stack_limit(),
         }
     }
+}
+
+/// Stack left below a kernel's frame for what kernels call that does not check
+/// (libm, the runtime's call recorder) and for signal handlers.
+const STACK_RESERVE: usize = 64 << 10;
+
+/// The calling thread's [`TileCtx::stack_limit`]: the low end of its stack plus
+/// `STACK_RESERVE`. A context must be used on the thread that made it (the runtime makes
+/// one per tile task, bound run and expansion).
+pub fn thread_stack_limit() -> usize {
+    thread_local! {
+        static LIMIT: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+    }
+    LIMIT.with(|limit| {
+        if limit.get() == 0 {
+            limit.set(stack_low_end().saturating_add(STACK_RESERVE));
+        }
+        limit.get()
+    })
+}
+
+/// The lowest address of the calling thread's stack, from pthread (glibc reads the main
+/// thread's from its mapping and its rlimit, a spawned thread's from its attributes).
+#[cfg(target_os = "linux")]
+fn stack_low_end() -> usize {
+    // SAFETY: `attr` is initialised by pthread_getattr_np before it is read and destroyed
+    // once; `addr` and `size` are plain out-parameters.
+    unsafe {
+        let mut attr: libc::pthread_attr_t = std::mem::zeroed();
+        if libc::pthread_getattr_np(libc::pthread_self(), &mut attr) != 0 {
+            return stack_low_end_guess();
+        }
+        let mut addr: *mut libc::c_void = std::ptr::null_mut();
+        let mut size: libc::size_t = 0;
+        let ok = libc::pthread_attr_getstack(&attr, &mut addr, &mut size) == 0;
+        libc::pthread_attr_destroy(&mut attr);
+        if ok && !addr.is_null() {
+            addr as usize
+        } else {
+            stack_low_end_guess()
+        }
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn stack_low_end() -> usize {
+    stack_low_end_guess()
+}
+
+/// Without the thread's attributes: assume 512 KiB below the current frame (a thread's
+/// stack is at least 2 MiB where Rust spawns it, and this runs near its top).
+fn stack_low_end_guess() -> usize {
+    let here = 0u8;
+    (std::ptr::addr_of!(here) as usize).saturating_sub(512 << 10)
 }
 
 pub const MAX_CALL_DEPTH: u32 = 16;

@@ -360,6 +360,7 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     };
     let pool = match rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads.unwrap_or(0))
+        .stack_size(crate::runtime::RENDER_THREAD_STACK)
         .build()
     {
         Ok(pool) => pool,

@@ -54,7 +54,7 @@ use super::value::{
 use super::{Body, JitError};
 use crate::abi::{
     interpolator_arg_words, type_words, ArgLayout, BindingKind, ParamSlot, VariantKey, ERR_CALL_DEPTH, ERR_FUEL,
-    ERR_INDEX, MAX_CALL_DEPTH, MODE_BOUND, MODE_EXPAND,
+    ERR_INDEX, ERR_STACK, MAX_CALL_DEPTH, MODE_BOUND, MODE_EXPAND,
 };
 use crate::ir::{
     for_each_assign, ArmKind, BinOp, ConstValue, Elem, Expr, ExprKind, FixedFormat, FuncId, FuncKind, Function,
@@ -410,6 +410,7 @@ pub(crate) fn lower_kernel(
     b.switch_to_block(entry);
     let ctx = b.block_params(entry)[0];
     let args = b.block_params(entry)[1];
+    stack_check(&mut b, ctx, func_id);
     if let Some(word) = upgrade {
         let word = b.ins().iconst(types::I64, word as i64);
         // An acquiring load: the worker publishes the entry after making its code executable.
@@ -502,6 +503,36 @@ pub(crate) fn lower_kernel(
     let warnings = std::mem::take(&mut l.warnings);
     l.b.finalize(frontend);
     Ok(warnings)
+}
+
+/// The kernel's first instructions: when the frame its prologue reserved reaches below
+/// `ctx.stack_limit`, record `ERR_STACK` (site: the kernel's `FuncId`) if no error came
+/// first and return. Nothing has been stored in the frame's lower part yet (the prologue
+/// saves registers at its top; spill slots lie above the explicit ones), and no call has
+/// pushed a return address at its bottom, so a frame too big for the stack is never
+/// touched. Four instructions on the path that runs.
+fn stack_check(b: &mut FunctionBuilder, ctx: ir::Value, func_id: FuncId) {
+    let sp = b.ins().get_stack_pointer(types::I64);
+    let limit = b.ins().load(types::I64, mem_flags(), ctx, ctx_off::STACK_LIMIT);
+    let short = b.ins().icmp(IntCC::UnsignedLessThan, sp, limit);
+    let no_room = b.create_block();
+    let room = b.create_block();
+    b.ins().brif(short, no_room, &[], room, &[]);
+    b.set_cold_block(no_room);
+    b.switch_to_block(no_room);
+    b.seal_block(no_room);
+    let old = b.ins().load(types::I32, mem_flags(), ctx, ctx_off::ERROR);
+    let old_site = b.ins().load(types::I32, mem_flags(), ctx, ctx_off::ERROR_SITE);
+    let first = b.ins().icmp_imm_s(IntCC::Equal, old, 0);
+    let code = b.ins().iconst(types::I32, ERR_STACK as i64);
+    let code = b.ins().select(first, code, old);
+    let site = b.ins().iconst(types::I32, func_id.0 as i64);
+    let site = b.ins().select(first, site, old_site);
+    b.ins().store(mem_flags(), code, ctx, ctx_off::ERROR);
+    b.ins().store(mem_flags(), site, ctx, ctx_off::ERROR_SITE);
+    b.ins().return_(&[]);
+    b.switch_to_block(room);
+    b.seal_block(room);
 }
 
 impl<'a, 'b> Lower<'a, 'b> {

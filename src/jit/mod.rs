@@ -38,7 +38,9 @@
 //! latter with its count of register-allocator spills, see [`Disassembly`]).
 //!
 //! Run-time errors a kernel records carry a `SiteId` in `TileCtx::error_site`, except
-//! `ERR_CALL_DEPTH`, which has no site and records `u32::MAX`.
+//! `ERR_CALL_DEPTH`, which has no site and records `u32::MAX`, and `ERR_STACK` (every kernel
+//! begins by comparing its stack pointer with `TileCtx::stack_limit`), which records the
+//! kernel's `FuncId`.
 
 mod builtin;
 mod fixed;

@@ -185,6 +185,7 @@ pub mod ctx_off {
     pub const WIDTH: i32 = offset_of!(TileCtx, width) as i32;
     pub const HEIGHT: i32 = offset_of!(TileCtx, height) as i32;
     pub const EXPAND: i32 = offset_of!(TileCtx, expand) as i32;
+    pub const STACK_LIMIT: i32 = offset_of!(TileCtx, stack_limit) as i32;
 }
 
 /// `f32x4` <-> `i32x4` reinterpretation.

@@ -58,6 +58,12 @@ pub const MAX_TILE_SIDE: u32 = 4096;
 /// so a scene with many or wide shading parameters at that size would otherwise abort the
 /// process when the allocation fails; above this the render is refused with E0803.
 pub const MAX_FRAME_BYTES: u64 = 16 << 30;
+
+/// Stack of each render thread `primflow render` and `primflow test` start: room for
+/// primitives with large local arrays nested in calls (a kernel's frame holds its arrays;
+/// one whose frame does not fit records a run-time error instead of running, see
+/// `abi::TileCtx::stack_limit`). Reserved, not committed: pages are used as touched.
+pub const RENDER_THREAD_STACK: usize = 64 << 20;
 /// Largest number of components of one shading parameter.
 pub const MAX_COMPONENTS: usize = 64;
 

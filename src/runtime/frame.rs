@@ -44,7 +44,7 @@ use std::time::Instant;
 use image::{ImageBuffer, Luma, Rgb, RgbImage};
 use rayon::prelude::*;
 
-use crate::abi::{TileCtx, VariantKey, ERR_CALL_DEPTH, ERR_FUEL, ERR_INDEX, GROUP, MODE_BOUND, MODE_RENDER};
+use crate::abi::{TileCtx, VariantKey, ERR_CALL_DEPTH, ERR_FUEL, ERR_INDEX, ERR_STACK, GROUP, MODE_BOUND, MODE_RENDER};
 use crate::diag::{Diagnostic, Diagnostics};
 use crate::ir::{FuncId, Program};
 use crate::jit::Kernel;
@@ -765,11 +765,18 @@ fn report_runtime_errors(
             ERR_INDEX => "an index was out of range (clamped)",
             ERR_FUEL => "a loop ran out of fuel (left early)",
             ERR_CALL_DEPTH => "primitive calls nested too deep (call skipped)",
+            ERR_STACK => "its stack frame (local arrays) did not fit in the rendering thread's stack (not run)",
             _ => "an unknown run-time error",
         };
         let name = &program.func(instances[i].func).name;
         let mut d = Diagnostic::warning("W0801", format!("in `{name}` at run time: {what}"));
-        if let Some(&span) = program.sites.get(site as usize) {
+        // A stack error's site is the primitive whose frame did not fit (a caller's
+        // instance may have called it).
+        let span = match code {
+            ERR_STACK => program.functions.get(site as usize).map(|f| f.span),
+            _ => program.sites.get(site as usize).copied(),
+        };
+        if let Some(span) = span {
             d = d.primary(span, what);
         }
         diags.push(d);

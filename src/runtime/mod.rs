@@ -31,7 +31,7 @@ pub mod value;
 
 pub use api::{
     ApiIssue, Instance, RenderOptions, Renderer, ShadingParam, Target, EXPAND_BUDGET_WORDS, MAX_FRAME_BYTES,
-    MAX_IMAGE_SIDE,
+    MAX_IMAGE_SIDE, RENDER_THREAD_STACK,
 };
 pub use frame::{describe_key, Frame, KernelReport, ParamPlanes, RenderOutput, RenderReport, RenderStats};
 pub use kernels::KernelSource;

@@ -466,7 +466,11 @@ fn render_case(
             return (None, diags, sources);
         }
     };
-    let pool = match rayon::ThreadPoolBuilder::new().num_threads(options.threads).build() {
+    let pool = match rayon::ThreadPoolBuilder::new()
+        .num_threads(options.threads)
+        .stack_size(crate::runtime::RENDER_THREAD_STACK)
+        .build()
+    {
         Ok(p) => p,
         Err(e) => {
             diags.push(crate::diag::Diagnostic::error(
