@@ -11,10 +11,8 @@
 //! it produces the same buffers as the JIT kernel, bit for bit. Bound mode runs the same
 //! code, as the JIT does: the hull bound and every triangle's bound are unioned.
 //!
-//! The two flavours: "scalar" is the prim's algorithm as written (each triangle's three
-//! corners evaluated afresh) with the scalar screen_triangle; "SIMD" is what one would
-//! write by hand for speed — every tessellation point evaluated once and reused (same
-//! inputs, same operations, same bits) — with the AVX2 screen_triangle.
+//! Both flavours evaluate every tessellation point once and reuse it, as the prim does;
+//! "scalar" draws with the scalar screen_triangle, "SIMD" with the AVX2 one.
 //!
 //! In `MODE_EXPAND` the triangles are recorded through `abi::call_primitive` instead of
 //! drawn: the JIT's kernel records `polygon` calls, which the runtime expands in turn into
@@ -430,7 +428,6 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
     args: *const u32,
     triangle: KernelFn,
     clip: bool,
-    memo: bool,
 ) {
     let word = |i: usize| unsafe { *args.add(i) };
     let float = |i: usize| f32::from_bits(word(i));
@@ -699,14 +696,9 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
             )
         }
     };
-    // `memo`: every point is evaluated once (the prim evaluates each triangle's three
-    // corners afresh, about six times per point). Same inputs, same operations, so the
-    // same bits either way.
-    let mut evaluated: Vec<Option<([f32; 4], [f32; T])>> = if memo {
-        vec![None; outer_n + (nu + 1) * (nv + 1)]
-    } else {
-        vec![]
-    };
+    // Every point is evaluated once (each is a corner of up to six triangles), as in the
+    // prim; same inputs, same operations, so the same bits as evaluating afresh.
+    let mut evaluated: Vec<Option<([f32; 4], [f32; T])>> = vec![None; outer_n + (nu + 1) * (nv + 1)];
     let (mut ia, mut ib) = (0usize, 0usize);
     for t in 0..ring + 2 * cells {
         let ids: [usize; 3];
@@ -743,7 +735,7 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
             (corner[q], corner_data[q]) = match evaluated.get_mut(ids[q]) {
                 Some(Some(done)) => *done,
                 Some(slot) => *slot.insert(eval()),
-                None => eval(),
+                None => eval(), // not reached: every id is below the vector's length
             };
         }
         sink.polygon(clip, &corner, &corner_data);
@@ -777,7 +769,7 @@ unsafe extern "C" fn kernel<
     #[cfg(not(target_arch = "x86_64"))]
     let triangle: KernelFn = screen_triangle::scalar::<P, L, T, COUNT>;
     // SAFETY: as this function's contract.
-    unsafe { surface::<T, NORMAL>(ctx, args, triangle, CLIP, SIMD) }
+    unsafe { surface::<T, NORMAL>(ctx, args, triangle, CLIP) }
 }
 
 macro_rules! nurb_table {
