@@ -15,9 +15,10 @@
 //! "scalar" draws with the scalar screen_triangle, "SIMD" with the AVX2 one.
 //!
 //! In `MODE_EXPAND` the triangles are recorded through `abi::call_primitive` instead of
-//! drawn: the JIT's kernel records `polygon` calls, which the runtime expands in turn into
-//! the same screen_triangle calls, so both yield the same triangle instances in the same
-//! order (the hand-written ones one call level shallower, which screen_triangle never reads).
+//! drawn: the JIT's kernel records screen_triangle calls, and `polygon` calls for triangles
+//! it clips, which the runtime expands in turn into the same screen_triangle calls, so both
+//! yield the same triangle instances in the same order (a clipped one from the hand-written
+//! kernel one call level shallower, which screen_triangle never reads).
 //!
 //! A rejected surface draws nothing, as in the prim, but records no W0801 run-time
 //! warning (the prim reports its reason through an out-of-range index at a source site;
