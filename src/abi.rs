@@ -127,8 +127,10 @@ impl TileCtx {
     }
 }
 
-/// Stack left below a kernel's frame for what kernels call that does not check
-/// (libm, the runtime's call recorder) and for signal handlers.
+/// Stack kept below the limit: for what kernels call that does not check (libm, the
+/// runtime's call recorder), signal handlers, and the register spills a kernel may store
+/// before its check (Cranelift places spill slots above the explicit ones, at the top of
+/// the frame, so they land here only if the spill area itself outgrows the reserve).
 const STACK_RESERVE: usize = 64 << 10;
 
 /// The calling thread's [`TileCtx::stack_limit`]: the low end of its stack plus
