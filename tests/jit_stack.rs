@@ -35,8 +35,8 @@ primitive calls_big(float rect[4]; float z; varying float X, Y; inout varying fi
 }
 "#;
 
-/// Where W0801 points for a frame that did not fit: `big`'s declaration.
-const BIG_AT: &str = "W0801@2:1";
+/// Where W0801 points for a frame that did not fit: the name in `big`'s declaration.
+const BIG_AT: &str = "W0801@2:11";
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
     common::library_with(sources, &[("big.prim", SOURCE)])

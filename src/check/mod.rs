@@ -676,7 +676,7 @@ fn lower_function(
     let mut f = ir::Function {
         name: sig.item.name.name.clone(),
         kind,
-        span: sig.item.span,
+        span: sig.item.name.span,
         params,
         locals,
         setup: body,

@@ -242,6 +242,8 @@ pub enum FuncKind {
 pub struct Function {
     pub name: String,
     pub kind: FuncKind,
+    /// The function's name where it is declared (what a diagnostic about the whole
+    /// function underlines).
     pub span: Span,
     pub params: Vec<Param>,
     /// Every variable; parameter i is `LocalId(i)`.
