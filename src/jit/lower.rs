@@ -273,6 +273,17 @@ pub(crate) struct Lower<'a, 'b> {
     /// The fuel left (`ctx.fuel` while the kernel runs, kept in a register: loaded at entry,
     /// stored at the exit and around direct primitive calls, whose callees spend it too).
     fuel: Variable,
+    /// Index errors of the setup code, deferred (see [`Self::record_index_error`]): the site
+    /// of the first uniform index found out of range since the kernel started, plus one
+    /// (0: none). Never reset: once set, a flush has put it (or an earlier error) into
+    /// `ctx.error`, so flushing it again changes nothing.
+    pending_index_site: Variable,
+    /// The kernel defers setup index errors into `pending_index_site` (its setup has index
+    /// sites that may fail; see [`Self::setup_may_fail_index`]), so its error state must be
+    /// flushed wherever it can be observed ([`Self::flush_index_errors`]).
+    defer_index_errors: bool,
+    /// Lowering setup code of such a kernel: index errors go to `pending_index_site`.
+    deferring_index_errors: bool,
     /// The uniform frame's slot and the slot holding its address (see `spill_uniforms`).
     uniform_frame: Option<(StackSlot, StackSlot)>,
     /// Uniform locals the pixel part assigns: (slot holding the setup's final value, the
@@ -433,6 +444,7 @@ pub(crate) fn lower_kernel(
     ];
     let has_bound = b.declare_var(types::I8);
     let fuel = b.declare_var(types::I64);
+    let pending_index_site = b.declare_var(types::I32);
     let scratch = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 4));
     let mut l = Lower {
         b,
@@ -452,6 +464,9 @@ pub(crate) fn lower_kernel(
         bound_vars,
         has_bound,
         fuel,
+        pending_index_site,
+        defer_index_errors: false,
+        deferring_index_errors: false,
         uniform_frame: None,
         group_resets: vec![],
         vec_section: 0,
@@ -528,7 +543,26 @@ impl<'a, 'b> Lower<'a, 'b> {
             let removable = |s: &Stmt| self.speculable_stmts(std::slice::from_ref(s), &mut usize::MAX.clone());
             self.setup_live = Some(dead::live_setup_locals(&f.setup, live, &removable));
         }
+        // Setup index errors are deferred into a variable (see `record_index_error`): the
+        // setup's early exits go through `setup_exit`, which flushes it, and so does the
+        // end of the setup; from there on errors are recorded in `ctx` directly and the
+        // variable is dead (it never lives into the pixel loops).
+        let kernel_exit = self.exit;
+        let setup_exit = self.tier0() && self.setup_may_fail_index(&f.setup);
+        let setup_exit = setup_exit.then(|| {
+            let none = self.b.ins().iconst(types::I32, 0);
+            self.b.def_var(self.pending_index_site, none);
+            self.defer_index_errors = true;
+            self.deferring_index_errors = true;
+            self.exit = self.b.create_block();
+            self.exit
+        });
         let pending_return = self.setup_stmts(f)?;
+        if setup_exit.is_some() {
+            self.flush_index_errors();
+            self.deferring_index_errors = false;
+            self.exit = kernel_exit;
+        }
         if !f.pixel.is_empty() {
             self.flat = self.tier0() && flat::pixel_code_is_flattenable(self.program, f, self.key);
             self.pixel_passes(f, pending_return)?;
@@ -536,6 +570,15 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.return_if(p);
         }
         self.b.ins().jump(self.exit, &[]);
+        if let Some(setup_exit) = setup_exit {
+            // Every jump here was lowered by now: sealed, it knows whether any exists.
+            self.b.switch_to_block(setup_exit);
+            self.seal_now(setup_exit);
+            if !self.b.is_unreachable() {
+                self.flush_index_errors();
+            }
+            self.b.ins().jump(self.exit, &[]);
+        }
         self.b.switch_to_block(self.exit);
         let fuel = self.b.use_var(self.fuel);
         self.store_ctx(fuel, ctx_off::FUEL);
@@ -651,6 +694,68 @@ impl<'a, 'b> Lower<'a, 'b> {
         let site_v = self.b.ins().iconst(types::I32, site as i32 as i64);
         let new_site = self.b.ins().select(first, site_v, old_site);
         self.store_ctx(new_site, ctx_off::ERROR_SITE);
+    }
+
+    /// Record ERR_INDEX at `site` if no error was recorded yet and `cond` (i8) holds. In
+    /// the setup code of a kernel that defers them, only `pending_index_site` changes: a
+    /// select keeps the site of the first error (~4 instructions instead of two loads, two
+    /// stores and ~10 more; ~100 sites of the NURB setup are not proven in range).
+    fn record_index_error(&mut self, site: SiteId, cond: Option<ir::Value>) {
+        let site_plus_one = i64::from(site.0) + 1;
+        if !self.deferring_index_errors || site_plus_one > i64::from(i32::MAX) {
+            return self.record_error(ERR_INDEX, site.0, cond);
+        }
+        let bad = match (cond, self.error_guard) {
+            (Some(c), Some(g)) => Some(self.b.ins().band(c, g)),
+            (c, g) => c.or(g),
+        };
+        let pending = self.b.use_var(self.pending_index_site);
+        let site_v = self.b.ins().iconst(types::I32, site_plus_one);
+        let candidate = match bad {
+            Some(c) => self.b.ins().select(c, site_v, pending),
+            None => site_v,
+        };
+        // An earlier error (pending != 0) stays.
+        let new = self.b.ins().select(pending, pending, candidate);
+        self.b.def_var(self.pending_index_site, new);
+    }
+
+    /// Put the setup's deferred index error into `ctx.error` / `ctx.error_site` unless an
+    /// error is already there (one recorded earlier: by a callee, out of fuel, or before
+    /// the kernel ran). Called wherever the error state can be observed or another error
+    /// be recorded: the setup's exits and its end, before primitive calls (the callee, or
+    /// the expand recorder, runs with `ctx`) and before an out-of-fuel record, so the
+    /// first error of the run wins across kinds.
+    fn flush_index_errors(&mut self) {
+        if !self.defer_index_errors {
+            return;
+        }
+        let pending = self.b.use_var(self.pending_index_site);
+        let old = self.load_ctx(types::I32, ctx_off::ERROR);
+        let zero = self.b.ins().iconst(types::I32, 0);
+        // The site plus one if it is to be recorded now, else 0.
+        let first = self.b.ins().select(old, zero, pending);
+        let code_v = self.b.ins().iconst(types::I32, ERR_INDEX as i64);
+        let new = self.b.ins().select(first, code_v, old);
+        self.store_ctx(new, ctx_off::ERROR);
+        let old_site = self.load_ctx(types::I32, ctx_off::ERROR_SITE);
+        let site = self.b.ins().iadd_imm_s(first, -1);
+        let new_site = self.b.ins().select(first, site, old_site);
+        self.store_ctx(new_site, ctx_off::ERROR_SITE);
+    }
+
+    /// Whether lowering `setup` may record an index error: some index site is neither a
+    /// constant inside a fixed array nor proven in range (mirrors [`Self::index_access`]).
+    /// Kernels without one (screen_triangle, the sphere, ...) keep their code unchanged.
+    fn setup_may_fail_index(&mut self, setup: &'a [Stmt]) -> bool {
+        let mut sites = vec![];
+        collect_setup_index_sites(self.frame().func, setup, &mut sites);
+        sites
+            .into_iter()
+            .any(|(static_len, index, site)| match (static_len, const_int(index)) {
+                (Some(len), Some(k)) => k < 0 || k >= i64::from(len),
+                _ => !self.site_proven(site),
+            })
     }
 
     /// Union a rectangle into `ctx.bound` (bound mode only; the caller checks for NaN).
@@ -2412,6 +2517,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.seal_now(ok_blk);
         self.b.set_cold_block(out_blk);
         self.b.switch_to_block(out_blk);
+        if self.deferring_index_errors {
+            self.flush_index_errors();
+        }
         self.record_error(ERR_FUEL, site.0, None);
         self.b.ins().jump(exit, &[]);
         self.b.switch_to_block(ok_blk);
@@ -3253,6 +3361,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                 store_word(self, comp, start + w);
             }
         }
+        // The callee (or the expand recorder) runs with `ctx`: the index errors before the
+        // call come first.
+        if self.deferring_index_errors {
+            self.flush_index_errors();
+        }
         // Call depth guard.
         let depth = self.load_ctx(types::I32, ctx_off::CALL_DEPTH);
         let deeper = self.b.ins().iadd_imm_s(depth, 1);
@@ -3398,7 +3511,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         if let (Some(len), Some(k)) = (static_len, const_int(index)) {
             let clamped = k.clamp(0, len as i64 - 1) as u32;
             if k < 0 || k >= len as i64 {
-                self.record_error(ERR_INDEX, site.0, None);
+                self.record_index_error(site, None);
             }
             acc.base += clamped * stride;
             acc.ty = elem_ty;
@@ -3516,7 +3629,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     fn checked_uniform_index(&mut self, idx: ir::Value, len: ir::Value, last: ir::Value, site: SiteId) -> ir::Value {
         let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
         if self.tier0() {
-            self.record_error(ERR_INDEX, site.0, Some(bad));
+            self.record_index_error(site, Some(bad));
             let zero_s = self.b.ins().iconst(types::I32, 0);
             let c = self.b.ins().smax(idx, zero_s);
             return self.b.ins().smin(c, last);
@@ -3527,7 +3640,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(bad, cold, &[], in_range, &[idx.into()]);
         self.b.set_cold_block(cold);
         self.b.switch_to_block(cold);
-        self.record_error(ERR_INDEX, site.0, None);
+        self.record_index_error(site, None);
         let zero_s = self.b.ins().iconst(types::I32, 0);
         let c = self.b.ins().smax(idx, zero_s);
         let c = self.b.ins().smin(c, last);
@@ -4699,6 +4812,62 @@ fn const_int(e: &Expr) -> Option<i64> {
         ExprKind::Const(ConstValue::Int(i)) => Some(*i as i64),
         ExprKind::Unary { op: UnaryOp::Neg, expr } => const_int(expr).map(|v| -v),
         _ => None,
+    }
+}
+
+/// An index site: the static length of the array it indexes (`None`: a sequence, or not
+/// an array), its index and its site.
+type IndexSite<'a> = (Option<u32>, &'a Expr, SiteId);
+
+/// The static length [`Lower::index_access`] checks an index of a `ty` value against.
+fn static_len_of(ty: &Type) -> Option<u32> {
+    if ty.per_seq {
+        None
+    } else {
+        ty.dims.first().copied()
+    }
+}
+
+/// Every index site of `stmts` (setup statements of `f`): in places (`a[i] = ...`, the
+/// local's type indexed one dimension per site) and in expressions.
+fn collect_setup_index_sites<'a>(f: &'a Function, stmts: &'a [Stmt], out: &mut Vec<IndexSite<'a>>) {
+    fn expr<'a>(e: &'a Expr, out: &mut Vec<IndexSite<'a>>) {
+        if let ExprKind::Index { base, index, site } = &e.kind {
+            out.push((static_len_of(&base.ty), index, *site));
+        }
+        e.for_each_child(|c| expr(c, out));
+    }
+    for s in stmts {
+        match &s.kind {
+            StmtKind::Assign { place, value } => {
+                if let Some(local) = f.locals.get(place.local.0 as usize) {
+                    let mut ty = local.ty.clone();
+                    for (index, site) in &place.indices {
+                        out.push((static_len_of(&ty), index, *site));
+                        expr(index, out);
+                        ty = ty.element();
+                    }
+                }
+                expr(value, out);
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                expr(cond, out);
+                collect_setup_index_sites(f, then, out);
+                collect_setup_index_sites(f, otherwise, out);
+            }
+            StmtKind::Loop { cond, body, step, .. } => {
+                if let Some(c) = cond {
+                    expr(c, out);
+                }
+                collect_setup_index_sites(f, body, out);
+                collect_setup_index_sites(f, step, out);
+            }
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| collect_setup_index_sites(f, &a.body, out)),
+            StmtKind::InterpolatorReturn(Some(e)) => expr(e, out),
+            StmtKind::Bound(args) => args.iter().for_each(|a| expr(a, out)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr(a, out)),
+            StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
+        }
     }
 }
 
