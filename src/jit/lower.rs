@@ -107,6 +107,9 @@ pub(crate) trait Linker {
     fn libm_ref(&mut self, func: &mut ir::Function, f: LibmFn) -> Res<ir::FuncRef>;
 }
 
+/// Where a deferred error's code starts in `Lower::pending_error` (its site + 1 below).
+const PENDING_CODE_SHIFT: u32 = 28;
+
 /// A setup-code clear of more bytes than this is a loop (see `Lower::zero_stack_bytes`):
 /// above the NURB tessellation's per-vertex arrays (`float row_points[16][4]`, 256 bytes,
 /// cleared per row of every vertex stay straight stores), below its per-patch ones.
@@ -273,17 +276,17 @@ pub(crate) struct Lower<'a, 'b> {
     /// The fuel left (`ctx.fuel` while the kernel runs, kept in a register: loaded at entry,
     /// stored at the exit and around direct primitive calls, whose callees spend it too).
     fuel: Variable,
-    /// Index errors of the setup code, deferred (see [`Self::record_index_error`]): the site
-    /// of the first uniform index found out of range since the kernel started, plus one
-    /// (0: none). Never reset: once set, a flush has put it (or an earlier error) into
-    /// `ctx.error`, so flushing it again changes nothing.
-    pending_index_site: Variable,
-    /// The kernel defers setup index errors into `pending_index_site` (its setup has index
-    /// sites that may fail; see [`Self::setup_may_fail_index`]), so its error state must be
-    /// flushed wherever it can be observed ([`Self::flush_index_errors`]).
-    defer_index_errors: bool,
-    /// Lowering setup code of such a kernel: index errors go to `pending_index_site`.
-    deferring_index_errors: bool,
+    /// The first run-time error of the setup code not yet in `ctx` (see
+    /// [`Self::defer_error`]): `code << PENDING_CODE_SHIFT | (site + 1)`, 0 for none. Never
+    /// reset: once set, a flush has put it (or an earlier error) into `ctx.error`, so
+    /// flushing it again changes nothing.
+    pending_error: Variable,
+    /// The kernel defers its setup's index and fuel errors into `pending_error` (its setup
+    /// has index sites that may fail; see [`Self::setup_may_fail_index`]), so they are
+    /// flushed wherever the error state can be observed ([`Self::flush_errors`]).
+    defer_errors: bool,
+    /// Lowering setup code of such a kernel: errors go to `pending_error`.
+    deferring_errors: bool,
     /// The uniform frame's slot and the slot holding its address (see `spill_uniforms`).
     uniform_frame: Option<(StackSlot, StackSlot)>,
     /// Uniform locals the pixel part assigns: (slot holding the setup's final value, the
@@ -444,7 +447,7 @@ pub(crate) fn lower_kernel(
     ];
     let has_bound = b.declare_var(types::I8);
     let fuel = b.declare_var(types::I64);
-    let pending_index_site = b.declare_var(types::I32);
+    let pending_error = b.declare_var(types::I32);
     let scratch = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 4));
     let mut l = Lower {
         b,
@@ -464,9 +467,9 @@ pub(crate) fn lower_kernel(
         bound_vars,
         has_bound,
         fuel,
-        pending_index_site,
-        defer_index_errors: false,
-        deferring_index_errors: false,
+        pending_error,
+        defer_errors: false,
+        deferring_errors: false,
         uniform_frame: None,
         group_resets: vec![],
         vec_section: 0,
@@ -543,24 +546,24 @@ impl<'a, 'b> Lower<'a, 'b> {
             let removable = |s: &Stmt| self.speculable_stmts(std::slice::from_ref(s), &mut usize::MAX.clone());
             self.setup_live = Some(dead::live_setup_locals(&f.setup, live, &removable));
         }
-        // Setup index errors are deferred into a variable (see `record_index_error`): the
-        // setup's early exits go through `setup_exit`, which flushes it, and so does the
-        // end of the setup; from there on errors are recorded in `ctx` directly and the
-        // variable is dead (it never lives into the pixel loops).
+        // Setup errors are deferred into a variable (see `defer_error`): the setup's early
+        // exits go through `setup_exit`, which flushes it, and so does the end of the
+        // setup; from there on errors are recorded in `ctx` directly and the variable is
+        // dead (it never lives into the pixel loops).
         let kernel_exit = self.exit;
         let setup_exit = self.tier0() && self.setup_may_fail_index(&f.setup);
         let setup_exit = setup_exit.then(|| {
             let none = self.b.ins().iconst(types::I32, 0);
-            self.b.def_var(self.pending_index_site, none);
-            self.defer_index_errors = true;
-            self.deferring_index_errors = true;
+            self.b.def_var(self.pending_error, none);
+            self.defer_errors = true;
+            self.deferring_errors = true;
             self.exit = self.b.create_block();
             self.exit
         });
         let pending_return = self.setup_stmts(f)?;
         if setup_exit.is_some() {
-            self.flush_index_errors();
-            self.deferring_index_errors = false;
+            self.flush_errors();
+            self.deferring_errors = false;
             self.exit = kernel_exit;
         }
         if !f.pixel.is_empty() {
@@ -575,7 +578,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.b.switch_to_block(setup_exit);
             self.seal_now(setup_exit);
             if !self.b.is_unreachable() {
-                self.flush_index_errors();
+                self.flush_errors();
             }
             self.b.ins().jump(self.exit, &[]);
         }
@@ -696,50 +699,60 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.store_ctx(new_site, ctx_off::ERROR_SITE);
     }
 
-    /// Record ERR_INDEX at `site` if no error was recorded yet and `cond` (i8) holds. In
-    /// the setup code of a kernel that defers them, only `pending_index_site` changes: a
-    /// select keeps the site of the first error (~4 instructions instead of two loads, two
-    /// stores and ~10 more; ~100 sites of the NURB setup are not proven in range).
-    fn record_index_error(&mut self, site: SiteId, cond: Option<ir::Value>) {
+    /// Record `code` (ERR_INDEX or ERR_FUEL) at `site` if no error was recorded yet and
+    /// `cond` (i8) holds. In the setup code of a kernel that defers them, only
+    /// `pending_error` changes: a select keeps the first error (~4 instructions instead of
+    /// two loads, two stores and ~10 more; ~60 index sites and ~80 loops of the NURB setup
+    /// record one).
+    fn defer_error(&mut self, code: u32, site: SiteId, cond: Option<ir::Value>) {
         let site_plus_one = i64::from(site.0) + 1;
-        if !self.deferring_index_errors || site_plus_one > i64::from(i32::MAX) {
-            return self.record_error(ERR_INDEX, site.0, cond);
+        if !self.deferring_errors || site_plus_one >= 1 << PENDING_CODE_SHIFT {
+            // Not deferred: after the deferred ones, which came first.
+            if self.deferring_errors {
+                self.flush_errors();
+            }
+            return self.record_error(code, site.0, cond);
         }
         let bad = match (cond, self.error_guard) {
             (Some(c), Some(g)) => Some(self.b.ins().band(c, g)),
             (c, g) => c.or(g),
         };
-        let pending = self.b.use_var(self.pending_index_site);
-        let site_v = self.b.ins().iconst(types::I32, site_plus_one);
+        let pending = self.b.use_var(self.pending_error);
+        let error = self
+            .b
+            .ins()
+            .iconst(types::I32, i64::from(code) << PENDING_CODE_SHIFT | site_plus_one);
         let candidate = match bad {
-            Some(c) => self.b.ins().select(c, site_v, pending),
-            None => site_v,
+            Some(c) => self.b.ins().select(c, error, pending),
+            None => error,
         };
         // An earlier error (pending != 0) stays.
         let new = self.b.ins().select(pending, pending, candidate);
-        self.b.def_var(self.pending_index_site, new);
+        self.b.def_var(self.pending_error, new);
     }
 
-    /// Put the setup's deferred index error into `ctx.error` / `ctx.error_site` unless an
-    /// error is already there (one recorded earlier: by a callee, out of fuel, or before
-    /// the kernel ran). Called wherever the error state can be observed or another error
-    /// be recorded: the setup's exits and its end, before primitive calls (the callee, or
-    /// the expand recorder, runs with `ctx`) and before an out-of-fuel record, so the
-    /// first error of the run wins across kinds.
-    fn flush_index_errors(&mut self) {
-        if !self.defer_index_errors {
+    /// Put the setup's deferred error into `ctx.error` / `ctx.error_site` unless an error
+    /// is already there (one recorded earlier: by a callee, a call too deep, or before the
+    /// kernel ran). Called wherever the error state can be observed or an error that is
+    /// not deferred be recorded: the setup's exits and its end, and before primitive calls
+    /// (the callee, or the expand recorder, runs with `ctx`), so the first error of the run
+    /// wins across kinds.
+    fn flush_errors(&mut self) {
+        if !self.defer_errors {
             return;
         }
-        let pending = self.b.use_var(self.pending_index_site);
+        let pending = self.b.use_var(self.pending_error);
         let old = self.load_ctx(types::I32, ctx_off::ERROR);
         let zero = self.b.ins().iconst(types::I32, 0);
-        // The site plus one if it is to be recorded now, else 0.
+        // The pending error if it is to be recorded now, else 0.
         let first = self.b.ins().select(old, zero, pending);
-        let code_v = self.b.ins().iconst(types::I32, ERR_INDEX as i64);
-        let new = self.b.ins().select(first, code_v, old);
+        // `first` is 0 where `old` is not: the OR keeps `old` then.
+        let code = self.b.ins().ushr_imm_u(first, i64::from(PENDING_CODE_SHIFT));
+        let new = self.b.ins().bor(old, code);
         self.store_ctx(new, ctx_off::ERROR);
         let old_site = self.load_ctx(types::I32, ctx_off::ERROR_SITE);
-        let site = self.b.ins().iadd_imm_s(first, -1);
+        let site = self.b.ins().band_imm_u(first, (1i64 << PENDING_CODE_SHIFT) - 1);
+        let site = self.b.ins().iadd_imm_s(site, -1);
         let new_site = self.b.ins().select(first, site, old_site);
         self.store_ctx(new_site, ctx_off::ERROR_SITE);
     }
@@ -2517,10 +2530,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.seal_now(ok_blk);
         self.b.set_cold_block(out_blk);
         self.b.switch_to_block(out_blk);
-        if self.deferring_index_errors {
-            self.flush_index_errors();
-        }
-        self.record_error(ERR_FUEL, site.0, None);
+        self.defer_error(ERR_FUEL, site, None);
         self.b.ins().jump(exit, &[]);
         self.b.switch_to_block(ok_blk);
         let less = self.b.ins().iadd_imm_s(fuel, -1);
@@ -3363,8 +3373,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         // The callee (or the expand recorder) runs with `ctx`: the index errors before the
         // call come first.
-        if self.deferring_index_errors {
-            self.flush_index_errors();
+        if self.deferring_errors {
+            self.flush_errors();
         }
         // Call depth guard.
         let depth = self.load_ctx(types::I32, ctx_off::CALL_DEPTH);
@@ -3511,7 +3521,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         if let (Some(len), Some(k)) = (static_len, const_int(index)) {
             let clamped = k.clamp(0, len as i64 - 1) as u32;
             if k < 0 || k >= len as i64 {
-                self.record_index_error(site, None);
+                self.defer_error(ERR_INDEX, site, None);
             }
             acc.base += clamped * stride;
             acc.ty = elem_ty;
@@ -3629,7 +3639,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     fn checked_uniform_index(&mut self, idx: ir::Value, len: ir::Value, last: ir::Value, site: SiteId) -> ir::Value {
         let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
         if self.tier0() {
-            self.record_index_error(site, Some(bad));
+            self.defer_error(ERR_INDEX, site, Some(bad));
             let zero_s = self.b.ins().iconst(types::I32, 0);
             let c = self.b.ins().smax(idx, zero_s);
             return self.b.ins().smin(c, last);
@@ -3640,7 +3650,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(bad, cold, &[], in_range, &[idx.into()]);
         self.b.set_cold_block(cold);
         self.b.switch_to_block(cold);
-        self.record_index_error(site, None);
+        self.defer_error(ERR_INDEX, site, None);
         let zero_s = self.b.ins().iconst(types::I32, 0);
         let c = self.b.ins().smax(idx, zero_s);
         let c = self.b.ins().smin(c, last);
