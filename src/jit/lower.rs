@@ -341,6 +341,11 @@ pub(crate) struct Lower<'a, 'b> {
     /// Tier 0: the address of a uniform array's stack slot computed in the current block
     /// (see [`Self::slot_addr`]).
     slot_addrs: std::collections::HashMap<StackSlot, (Block, ir::Value)>,
+    /// Tier 0: addresses `base + offset * bytes` of uniform dynamic offsets computed in the
+    /// current block, by (base, offset, bytes) (see [`Self::dyn_addr`]).
+    dyn_addrs: std::collections::HashMap<(ir::Value, ir::Value, u32), (Block, ir::Value)>,
+    /// Tier 0: the sequence length (at least 1) as loaded in a block (see `seq_len`).
+    seq_len_here: Option<(Block, ir::Value)>,
     arg_loads: std::collections::HashMap<
         (i32, Scalar, bool),
         (Block, ir::Value),
@@ -492,6 +497,8 @@ pub(crate) fn lower_kernel(
         error_guard: None,
         arg_loads: Default::default(),
         slot_addrs: Default::default(),
+        dyn_addrs: Default::default(),
+        seq_len_here: None,
         vn: VnTable::default(),
         shared_body: body,
         flat: false,
@@ -3504,9 +3511,20 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     fn seq_len(&mut self) -> ir::Value {
+        // Tier 0: once per block (the NURB setup read it ~40 times, a load and a umax each).
+        let block = self.b.current_block();
+        if let (true, Some((b, v))) = (self.tier0(), self.seq_len_here) {
+            if Some(b) == block {
+                return v;
+            }
+        }
         let n = self.b.ins().load(types::I32, args_flags(), self.args, 0);
         let one = self.b.ins().iconst(types::I32, 1);
-        self.b.ins().umax(n, one)
+        let v = self.b.ins().umax(n, one);
+        if let (true, Some(b)) = (self.tier0(), block) {
+            self.seq_len_here = Some((b, v));
+        }
+        v
     }
 
     /// Apply one index to an access (clamping it, recording ERR_INDEX when out of range).
@@ -3768,18 +3786,16 @@ impl<'a, 'b> Lower<'a, 'b> {
         let bytes = comp_bytes(varying_storage) as i64;
         let mut comps = Vec::with_capacity(offs.len());
         let out_varying = varying_storage || matches!(dyn_off, Dyn::Varying(_));
+        // One address for every component of a uniform offset.
+        let uniform_addr = match dyn_off {
+            Dyn::Uniform(u) => self.uniform_dyn_addr(base_addr, u, bytes),
+            _ => base_addr,
+        };
         for &o in offs {
             let off = ((first + o) as i64 * bytes) as i32;
             let c = match dyn_off {
                 Dyn::None | Dyn::Uniform(_) => {
-                    let addr = match dyn_off {
-                        Dyn::Uniform(d) => {
-                            let d64 = self.b.ins().uextend(types::I64, d);
-                            let db = self.scaled(d64, bytes as u32);
-                            self.b.ins().iadd(base_addr, db)
-                        }
-                        _ => base_addr,
-                    };
+                    let addr = uniform_addr;
                     if varying_storage {
                         let ty = cl_type(sc, true);
                         self.b.ins().load(ty, mem_flags(), addr, off)
@@ -3921,6 +3937,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                         let fixed_words = fr.fixed_words;
                         let (addr, first) = match slot {
                             ParamSlot::Fixed { offset, .. } => (self.args, offset + acc.base),
+                            // The first sequence array starts right after the fixed words.
+                            ParamSlot::Seq { seq_offset: 0, .. } => (self.args, fixed_words + acc.base),
                             ParamSlot::Seq { seq_offset, .. } => {
                                 // fixed_words + max(n_seq,1) * seq_offset, in words.
                                 let n = self.seq_len();
@@ -4174,16 +4192,35 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
+    /// `base + d * bytes` for a uniform dynamic offset `d` (see [`Self::read_memory`] on
+    /// the zero extension). Tier 0 computes it once per block and offset: an access to
+    /// `float p[4]` at a dynamic row reads or writes four components at one address, and
+    /// the NURB setup reads the same element several times (tier 0 has no pass that would
+    /// merge the copies: ~250 `uextend`s, shifts and adds of its CLIF).
     fn dyn_addr(&mut self, base: ir::Value, d: Dyn, bytes: i64) -> Res<ir::Value> {
         match d {
             Dyn::None => Ok(base),
-            Dyn::Uniform(u) => {
-                let d64 = self.b.ins().uextend(types::I64, u);
-                let db = self.scaled(d64, bytes as u32);
-                Ok(self.b.ins().iadd(base, db))
-            }
+            Dyn::Uniform(u) => Ok(self.uniform_dyn_addr(base, u, bytes)),
             Dyn::Varying(_) => err("varying index into a uniform local"),
         }
+    }
+
+    /// [`Self::dyn_addr`] of a uniform offset `u`.
+    fn uniform_dyn_addr(&mut self, base: ir::Value, u: ir::Value, bytes: i64) -> ir::Value {
+        let key = (base, u, bytes as u32);
+        let block = self.b.current_block();
+        if let (true, Some(&(b, v))) = (self.tier0(), self.dyn_addrs.get(&key)) {
+            if Some(b) == block {
+                return v;
+            }
+        }
+        let d64 = self.b.ins().uextend(types::I64, u);
+        let db = self.scaled(d64, bytes as u32);
+        let v = self.b.ins().iadd(base, db);
+        if let (true, Some(b)) = (self.tier0(), block) {
+            self.dyn_addrs.insert(key, (b, v));
+        }
+        v
     }
 
     // ---------------------------------------------------------------- expressions
