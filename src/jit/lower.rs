@@ -37,7 +37,10 @@
 //! recorded, in tier 1 from a cold block) unless [`crate::ir::range`] proved it in range,
 //! every G-buffer store goes to a plane below `ctx.num_planes` (stores to other
 //! planes are skipped), and every loop trip spends fuel (kept in a variable, `ctx.fuel`
-//! at the exit and around primitive calls). Nothing here panics on a checked
+//! at the exit and around primitive calls). A run-time error of the setup code (an index
+//! out of range, out of fuel) is kept in a variable too and reaches `ctx.error` at the
+//! setup's exits and before primitive calls, so `ctx` holds the invocation's first error
+//! wherever anyone can read it ([`Lower::defer_error`]). Nothing here panics on a checked
 //! program; an IR shape the checker should have excluded gives a [`JitError`].
 
 use cranelift_codegen::ir::{
@@ -558,7 +561,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         // setup; from there on errors are recorded in `ctx` directly and the variable is
         // dead (it never lives into the pixel loops).
         let kernel_exit = self.exit;
-        let setup_exit = self.tier0() && self.setup_may_fail_index(&f.setup);
+        let setup_exit = self.setup_may_fail_index(&f.setup);
         let setup_exit = setup_exit.then(|| {
             let none = self.b.ins().iconst(types::I32, 0);
             self.b.def_var(self.pending_error, none);
@@ -707,10 +710,11 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// Record `code` (ERR_INDEX or ERR_FUEL) at `site` if no error was recorded yet and
-    /// `cond` (i8) holds. In the setup code of a kernel that defers them, only
+    /// `cond` (i8) holds. In the setup code of a kernel that defers them (both tiers), only
     /// `pending_error` changes: a select keeps the first error (~4 instructions instead of
     /// two loads, two stores and ~10 more; ~60 index sites and ~80 loops of the NURB setup
-    /// record one).
+    /// record one; in tier 1 that code sits in the cold blocks, and the variable costs the
+    /// hot path a block parameter at each checked site's join).
     fn defer_error(&mut self, code: u32, site: SiteId, cond: Option<ir::Value>) {
         let site_plus_one = i64::from(site.0) + 1;
         if !self.deferring_errors || site_plus_one >= 1 << PENDING_CODE_SHIFT {
@@ -3653,7 +3657,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// (Recorded inline with selects, the check was two loads, two stores and ten more
     /// instructions on every access: most of the NURB tessellation's time.)
     /// Tier 0 records inline with selects instead (same results): two blocks per access
-    /// doubled the NURB kernel's tier-0 compile time.
+    /// doubled the NURB kernel's tier-0 compile time. In setup code both tiers record into
+    /// the kernel's pending error (see [`Self::defer_error`]), not into `ctx`.
     fn checked_uniform_index(&mut self, idx: ir::Value, len: ir::Value, last: ir::Value, site: SiteId) -> ir::Value {
         let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
         if self.tier0() {
