@@ -1,10 +1,10 @@
 //! Which run-time error a kernel invocation reports: the first one it meets, by execution
-//! order, across error kinds and across primitive calls. Setup index and fuel errors are not
-//! written to `TileCtx::error` where they happen: the kernel keeps the first one in a
-//! variable and flushes it at the setup's exits and end and before primitive calls
-//! (`Lower::defer_error`, `Lower::flush_errors`). Both tiers must report the same site
-//! (W0801 at its line:col) and draw the same depth: each out-of-range index reads the
-//! nearest end of its array.
+//! order, across error kinds and across primitive calls. In tier 0, setup index and fuel
+//! errors are not written to `TileCtx::error` where they happen: the kernel keeps the first
+//! one in a variable and flushes it at the setup's exits and end and before primitive calls
+//! (`Lower::defer_error`, `Lower::flush_errors`); tier 1 records them from cold blocks.
+//! Both tiers must report the same site (W0801 at its line:col) and draw the same depth:
+//! each out-of-range index reads the nearest end of its array.
 //!
 //! - Two failing sites: the one that fails first at run time is reported, also when it is
 //!   the later one in the source (a loop whose second read leaves the array first).

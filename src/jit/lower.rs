@@ -37,10 +37,10 @@
 //! recorded, in tier 1 from a cold block) unless [`crate::ir::range`] proved it in range,
 //! every G-buffer store goes to a plane below `ctx.num_planes` (stores to other
 //! planes are skipped), and every loop trip spends fuel (kept in a variable, `ctx.fuel`
-//! at the exit and around primitive calls). A run-time error of the setup code (an index
-//! out of range, out of fuel) is kept in a variable too and reaches `ctx.error` at the
-//! setup's exits and before primitive calls, so `ctx` holds the invocation's first error
-//! wherever anyone can read it ([`Lower::defer_error`]). Nothing here panics on a checked
+//! at the exit and around primitive calls). In tier 0 a run-time error of the setup code
+//! (an index out of range, out of fuel) is kept in a variable too and reaches `ctx.error`
+//! at the setup's exits and before primitive calls, so `ctx` holds the invocation's first
+//! error wherever anyone can read it ([`Lower::defer_error`]). Nothing here panics on a checked
 //! program; an IR shape the checker should have excluded gives a [`JitError`].
 
 use cranelift_codegen::ir::{
@@ -347,6 +347,12 @@ pub(crate) struct Lower<'a, 'b> {
     /// Tier 0: addresses `base + offset * bytes` of uniform dynamic offsets computed in the
     /// current block, by (base, offset, bytes) (see [`Self::dyn_addr`]).
     dyn_addrs: std::collections::HashMap<(ir::Value, ir::Value, u32), (Block, ir::Value)>,
+    /// Tier 0: byte offsets `offset * bytes` (widened to i64) computed in the current block,
+    /// by (offset, bytes): `a[i]` and `b[i]` share one.
+    byte_offsets: std::collections::HashMap<(ir::Value, u32), (Block, ir::Value)>,
+    /// Tier 0: integer constants of index and address arithmetic (shift amounts, array
+    /// lengths, the clamp's 0) made in the current block, by (type, value).
+    int_consts: std::collections::HashMap<(ir::Type, i64), (Block, ir::Value)>,
     /// Tier 0: the sequence length (at least 1) as loaded in a block (see `seq_len`).
     seq_len_here: Option<(Block, ir::Value)>,
     arg_loads: std::collections::HashMap<
@@ -501,6 +507,8 @@ pub(crate) fn lower_kernel(
         arg_loads: Default::default(),
         slot_addrs: Default::default(),
         dyn_addrs: Default::default(),
+        byte_offsets: Default::default(),
+        int_consts: Default::default(),
         seq_len_here: None,
         vn: VnTable::default(),
         shared_body: body,
@@ -561,7 +569,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         // setup; from there on errors are recorded in `ctx` directly and the variable is
         // dead (it never lives into the pixel loops).
         let kernel_exit = self.exit;
-        let setup_exit = self.setup_may_fail_index(&f.setup);
+        // Tier 0 only: tier 1 keeps its records in cold blocks, where they cost no run time
+        // (deferring there too: CLIF -11 %, NURB frame -0.6 % by instructions, but the
+        // out-of-fuel blocks then store nothing to `ctx`, which `tests/jit_unroll.rs`
+        // counts to see loops).
+        let setup_exit = self.tier0() && self.setup_may_fail_index(&f.setup);
         let setup_exit = setup_exit.then(|| {
             let none = self.b.ins().iconst(types::I32, 0);
             self.b.def_var(self.pending_error, none);
@@ -710,11 +722,10 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// Record `code` (ERR_INDEX or ERR_FUEL) at `site` if no error was recorded yet and
-    /// `cond` (i8) holds. In the setup code of a kernel that defers them (both tiers), only
+    /// `cond` (i8) holds. In the tier-0 setup code of a kernel that defers them, only
     /// `pending_error` changes: a select keeps the first error (~4 instructions instead of
     /// two loads, two stores and ~10 more; ~60 index sites and ~80 loops of the NURB setup
-    /// record one; in tier 1 that code sits in the cold blocks, and the variable costs the
-    /// hot path a block parameter at each checked site's join).
+    /// record one).
     fn defer_error(&mut self, code: u32, site: SiteId, cond: Option<ir::Value>) {
         let site_plus_one = i64::from(site.0) + 1;
         if !self.deferring_errors || site_plus_one >= 1 << PENDING_CODE_SHIFT {
@@ -3626,8 +3637,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     fn len_and_last(&mut self, static_len: Option<u32>) -> (ir::Value, ir::Value) {
         match static_len {
             Some(n) => (
-                self.b.ins().iconst(types::I32, n as i64),
-                self.b.ins().iconst(types::I32, n as i64 - 1),
+                self.iconst_here(types::I32, i64::from(n)),
+                self.iconst_here(types::I32, i64::from(n) - 1),
             ),
             None => {
                 let len = self.seq_len();
@@ -3641,9 +3652,46 @@ impl<'a, 'b> Lower<'a, 'b> {
     fn scaled(&mut self, x: ir::Value, k: u32) -> ir::Value {
         match k {
             1 => x,
-            k if k.is_power_of_two() => self.b.ins().ishl_imm_u(x, k.trailing_zeros() as i64),
+            k if k.is_power_of_two() => {
+                let ty = self.b.func.dfg.value_type(x);
+                let amount = self.iconst_here(ty, i64::from(k.trailing_zeros()));
+                self.b.ins().ishl(x, amount)
+            }
             k => self.b.ins().imul_imm_s(x, k as i64),
         }
+    }
+
+    /// The uniform component offset `u` as a byte offset (`u * bytes`, widened to i64);
+    /// tier 0 computes it once per block.
+    fn byte_offset(&mut self, u: ir::Value, bytes: u32) -> ir::Value {
+        let block = self.b.current_block();
+        if let (true, Some(&(b, v))) = (self.tier0(), self.byte_offsets.get(&(u, bytes))) {
+            if Some(b) == block {
+                return v;
+            }
+        }
+        let u64 = self.b.ins().uextend(types::I64, u);
+        let v = self.scaled(u64, bytes);
+        if let (true, Some(b)) = (self.tier0(), block) {
+            self.byte_offsets.insert((u, bytes), (b, v));
+        }
+        v
+    }
+
+    /// `iconst` of `ty`; tier 0 makes each once per block (it has no pass that would
+    /// merge the copies: the NURB setup's CLIF had ~250 duplicate shift amounts).
+    fn iconst_here(&mut self, ty: ir::Type, v: i64) -> ir::Value {
+        let block = self.b.current_block();
+        if let (true, Some(&(b, c))) = (self.tier0(), self.int_consts.get(&(ty, v))) {
+            if Some(b) == block {
+                return c;
+            }
+        }
+        let c = self.b.ins().iconst(ty, v);
+        if let (true, Some(b)) = (self.tier0(), block) {
+            self.int_consts.insert((ty, v), (b, c));
+        }
+        c
     }
 
     /// Is `site` of the primitive's own body proven in range (see `proven_sites`)?
@@ -3657,13 +3705,13 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// (Recorded inline with selects, the check was two loads, two stores and ten more
     /// instructions on every access: most of the NURB tessellation's time.)
     /// Tier 0 records inline with selects instead (same results): two blocks per access
-    /// doubled the NURB kernel's tier-0 compile time. In setup code both tiers record into
-    /// the kernel's pending error (see [`Self::defer_error`]), not into `ctx`.
+    /// doubled the NURB kernel's tier-0 compile time; in setup code it records into the
+    /// kernel's pending error (see [`Self::defer_error`]), not into `ctx`.
     fn checked_uniform_index(&mut self, idx: ir::Value, len: ir::Value, last: ir::Value, site: SiteId) -> ir::Value {
         let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
         if self.tier0() {
             self.defer_error(ERR_INDEX, site, Some(bad));
-            let zero_s = self.b.ins().iconst(types::I32, 0);
+            let zero_s = self.iconst_here(types::I32, 0);
             let c = self.b.ins().smax(idx, zero_s);
             return self.b.ins().smin(c, last);
         }
@@ -3674,7 +3722,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.set_cold_block(cold);
         self.b.switch_to_block(cold);
         self.defer_error(ERR_INDEX, site, None);
-        let zero_s = self.b.ins().iconst(types::I32, 0);
+        let zero_s = self.iconst_here(types::I32, 0);
         let c = self.b.ins().smax(idx, zero_s);
         let c = self.b.ins().smin(c, last);
         self.b.ins().jump(in_range, &[c.into()]);
@@ -4219,8 +4267,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 return v;
             }
         }
-        let d64 = self.b.ins().uextend(types::I64, u);
-        let db = self.scaled(d64, bytes as u32);
+        let db = self.byte_offset(u, bytes as u32);
         let v = self.b.ins().iadd(base, db);
         if let (true, Some(b)) = (self.tier0(), block) {
             self.dyn_addrs.insert(key, (b, v));
