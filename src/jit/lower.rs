@@ -599,10 +599,14 @@ impl<'a, 'b> Lower<'a, 'b> {
             // Every jump here was lowered by now: sealed, it knows whether any exists.
             self.b.switch_to_block(setup_exit);
             self.seal_now(setup_exit);
-            if !self.b.is_unreachable() {
+            if self.b.is_unreachable() {
+                // No early exit: a jump from here would make this block a predecessor of
+                // the exit whose variables read as undefined (see `jump_live`).
+                self.b.ins().trap(ir::TrapCode::unwrap_user(1));
+            } else {
                 self.flush_errors();
+                self.b.ins().jump(self.exit, &[]);
             }
-            self.b.ins().jump(self.exit, &[]);
         }
         self.b.switch_to_block(self.exit);
         let fuel = self.b.use_var(self.fuel);
