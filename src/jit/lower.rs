@@ -3674,8 +3674,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                 return v;
             }
         }
-        let u64 = self.b.ins().uextend(types::I64, u);
-        let v = self.scaled(u64, bytes);
+        let wide = self.b.ins().uextend(types::I64, u);
+        let v = self.scaled(wide, bytes);
         if let (true, Some(b)) = (self.tier0(), block) {
             self.byte_offsets.insert((u, bytes), (b, v));
         }
