@@ -37,7 +37,10 @@
 //! recorded, in tier 1 from a cold block) unless [`crate::ir::range`] proved it in range,
 //! every G-buffer store goes to a plane below `ctx.num_planes` (stores to other
 //! planes are skipped), and every loop trip spends fuel (kept in a variable, `ctx.fuel`
-//! at the exit and around primitive calls). Nothing here panics on a checked
+//! at the exit and around primitive calls). In tier 0 a run-time error of the setup code
+//! (an index out of range, out of fuel) is kept in a variable too and reaches `ctx.error`
+//! at the setup's exits and before primitive calls, so `ctx` holds the invocation's first
+//! error wherever anyone can read it ([`Lower::defer_error`]). Nothing here panics on a checked
 //! program; an IR shape the checker should have excluded gives a [`JitError`].
 
 use cranelift_codegen::ir::{
@@ -106,6 +109,9 @@ pub(crate) trait Linker {
     fn kernel_ref(&mut self, func: &mut ir::Function, callee: FuncId) -> Res<ir::FuncRef>;
     fn libm_ref(&mut self, func: &mut ir::Function, f: LibmFn) -> Res<ir::FuncRef>;
 }
+
+/// Where a deferred error's code starts in `Lower::pending_error` (its site + 1 below).
+const PENDING_CODE_SHIFT: u32 = 28;
 
 /// A setup-code clear of more bytes than this is a loop (see `Lower::zero_stack_bytes`):
 /// above the NURB tessellation's per-vertex arrays (`float row_points[16][4]`, 256 bytes,
@@ -273,6 +279,17 @@ pub(crate) struct Lower<'a, 'b> {
     /// The fuel left (`ctx.fuel` while the kernel runs, kept in a register: loaded at entry,
     /// stored at the exit and around direct primitive calls, whose callees spend it too).
     fuel: Variable,
+    /// The first run-time error of the setup code not yet in `ctx` (see
+    /// [`Self::defer_error`]): `code << PENDING_CODE_SHIFT | (site + 1)`, 0 for none. Never
+    /// reset: once set, a flush has put it (or an earlier error) into `ctx.error`, so
+    /// flushing it again changes nothing.
+    pending_error: Variable,
+    /// The kernel defers its setup's index and fuel errors into `pending_error` (its setup
+    /// has index sites that may fail; see [`Self::setup_may_fail_index`]), so they are
+    /// flushed wherever the error state can be observed ([`Self::flush_errors`]).
+    defer_errors: bool,
+    /// Lowering setup code of such a kernel: errors go to `pending_error`.
+    deferring_errors: bool,
     /// The uniform frame's slot and the slot holding its address (see `spill_uniforms`).
     uniform_frame: Option<(StackSlot, StackSlot)>,
     /// Uniform locals the pixel part assigns: (slot holding the setup's final value, the
@@ -327,6 +344,17 @@ pub(crate) struct Lower<'a, 'b> {
     /// Tier 0: the address of a uniform array's stack slot computed in the current block
     /// (see [`Self::slot_addr`]).
     slot_addrs: std::collections::HashMap<StackSlot, (Block, ir::Value)>,
+    /// Tier 0: addresses `base + offset * bytes` of uniform dynamic offsets computed in the
+    /// current block, by (base, offset, bytes) (see [`Self::dyn_addr`]).
+    dyn_addrs: std::collections::HashMap<(ir::Value, ir::Value, u32), (Block, ir::Value)>,
+    /// Tier 0: byte offsets `offset * bytes` (widened to i64) computed in the current block,
+    /// by (offset, bytes): `a[i]` and `b[i]` share one.
+    byte_offsets: std::collections::HashMap<(ir::Value, u32), (Block, ir::Value)>,
+    /// Tier 0: integer constants of index and address arithmetic (shift amounts, array
+    /// lengths, the clamp's 0) made in the current block, by (type, value).
+    int_consts: std::collections::HashMap<(ir::Type, i64), (Block, ir::Value)>,
+    /// Tier 0: the sequence length (at least 1) as loaded in a block (see `seq_len`).
+    seq_len_here: Option<(Block, ir::Value)>,
     arg_loads: std::collections::HashMap<
         (i32, Scalar, bool),
         (Block, ir::Value),
@@ -434,6 +462,7 @@ pub(crate) fn lower_kernel(
     ];
     let has_bound = b.declare_var(types::I8);
     let fuel = b.declare_var(types::I64);
+    let pending_error = b.declare_var(types::I32);
     let scratch = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 4));
     let mut l = Lower {
         b,
@@ -453,6 +482,9 @@ pub(crate) fn lower_kernel(
         bound_vars,
         has_bound,
         fuel,
+        pending_error,
+        defer_errors: false,
+        deferring_errors: false,
         uniform_frame: None,
         group_resets: vec![],
         vec_section: 0,
@@ -475,6 +507,10 @@ pub(crate) fn lower_kernel(
         error_guard: None,
         arg_loads: Default::default(),
         slot_addrs: Default::default(),
+        dyn_addrs: Default::default(),
+        byte_offsets: Default::default(),
+        int_consts: Default::default(),
+        seq_len_here: None,
         vn: VnTable::default(),
         shared_body: body,
         flat: false,
@@ -559,7 +595,30 @@ impl<'a, 'b> Lower<'a, 'b> {
             let removable = |s: &Stmt| self.speculable_stmts(std::slice::from_ref(s), &mut usize::MAX.clone());
             self.setup_live = Some(dead::live_setup_locals(&f.setup, live, &removable));
         }
+        // Setup errors are deferred into a variable (see `defer_error`): the setup's early
+        // exits go through `setup_exit`, which flushes it, and so does the end of the
+        // setup; from there on errors are recorded in `ctx` directly and the variable is
+        // dead (it never lives into the pixel loops).
+        let kernel_exit = self.exit;
+        // Tier 0 only: tier 1 keeps its records in cold blocks, where they cost no run time
+        // (deferring there too: CLIF -11 %, NURB frame -0.6 % by instructions, but the
+        // out-of-fuel blocks then store nothing to `ctx`, which `tests/jit_unroll.rs`
+        // counts to see loops).
+        let setup_exit = self.tier0() && self.setup_may_fail_index(&f.setup);
+        let setup_exit = setup_exit.then(|| {
+            let none = self.b.ins().iconst(types::I32, 0);
+            self.b.def_var(self.pending_error, none);
+            self.defer_errors = true;
+            self.deferring_errors = true;
+            self.exit = self.b.create_block();
+            self.exit
+        });
         let pending_return = self.setup_stmts(f)?;
+        if setup_exit.is_some() {
+            self.flush_errors();
+            self.deferring_errors = false;
+            self.exit = kernel_exit;
+        }
         if !f.pixel.is_empty() {
             self.flat = self.tier0() && flat::pixel_code_is_flattenable(self.program, f, self.key);
             self.pixel_passes(f, pending_return)?;
@@ -567,6 +626,19 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.return_if(p);
         }
         self.b.ins().jump(self.exit, &[]);
+        if let Some(setup_exit) = setup_exit {
+            // Every jump here was lowered by now: sealed, it knows whether any exists.
+            self.b.switch_to_block(setup_exit);
+            self.seal_now(setup_exit);
+            if self.b.is_unreachable() {
+                // No early exit: a jump from here would make this block a predecessor of
+                // the exit whose variables read as undefined (see `jump_live`).
+                self.b.ins().trap(ir::TrapCode::unwrap_user(1));
+            } else {
+                self.flush_errors();
+                self.b.ins().jump(self.exit, &[]);
+            }
+        }
         self.b.switch_to_block(self.exit);
         let fuel = self.b.use_var(self.fuel);
         self.store_ctx(fuel, ctx_off::FUEL);
@@ -682,6 +754,78 @@ impl<'a, 'b> Lower<'a, 'b> {
         let site_v = self.b.ins().iconst(types::I32, site as i32 as i64);
         let new_site = self.b.ins().select(first, site_v, old_site);
         self.store_ctx(new_site, ctx_off::ERROR_SITE);
+    }
+
+    /// Record `code` (ERR_INDEX or ERR_FUEL) at `site` if no error was recorded yet and
+    /// `cond` (i8) holds. In the tier-0 setup code of a kernel that defers them, only
+    /// `pending_error` changes: a select keeps the first error (~4 instructions instead of
+    /// two loads, two stores and ~10 more; ~60 index sites and ~80 loops of the NURB setup
+    /// record one).
+    fn defer_error(&mut self, code: u32, site: SiteId, cond: Option<ir::Value>) {
+        let site_plus_one = i64::from(site.0) + 1;
+        if !self.deferring_errors || site_plus_one >= 1 << PENDING_CODE_SHIFT {
+            // Not deferred: after the deferred ones, which came first.
+            if self.deferring_errors {
+                self.flush_errors();
+            }
+            return self.record_error(code, site.0, cond);
+        }
+        let bad = match (cond, self.error_guard) {
+            (Some(c), Some(g)) => Some(self.b.ins().band(c, g)),
+            (c, g) => c.or(g),
+        };
+        let pending = self.b.use_var(self.pending_error);
+        let error = self
+            .b
+            .ins()
+            .iconst(types::I32, i64::from(code) << PENDING_CODE_SHIFT | site_plus_one);
+        let candidate = match bad {
+            Some(c) => self.b.ins().select(c, error, pending),
+            None => error,
+        };
+        // An earlier error (pending != 0) stays.
+        let new = self.b.ins().select(pending, pending, candidate);
+        self.b.def_var(self.pending_error, new);
+    }
+
+    /// Put the setup's deferred error into `ctx.error` / `ctx.error_site` unless an error
+    /// is already there (one recorded earlier: by a callee, a call too deep, or before the
+    /// kernel ran). Called wherever the error state can be observed or an error that is
+    /// not deferred be recorded: the setup's exits and its end, and before primitive calls
+    /// (the callee, or the expand recorder, runs with `ctx`), so the first error of the run
+    /// wins across kinds.
+    fn flush_errors(&mut self) {
+        if !self.defer_errors {
+            return;
+        }
+        let pending = self.b.use_var(self.pending_error);
+        let old = self.load_ctx(types::I32, ctx_off::ERROR);
+        let zero = self.b.ins().iconst(types::I32, 0);
+        // The pending error if it is to be recorded now, else 0.
+        let first = self.b.ins().select(old, zero, pending);
+        // `first` is 0 where `old` is not: the OR keeps `old` then.
+        let code = self.b.ins().ushr_imm_u(first, i64::from(PENDING_CODE_SHIFT));
+        let new = self.b.ins().bor(old, code);
+        self.store_ctx(new, ctx_off::ERROR);
+        let old_site = self.load_ctx(types::I32, ctx_off::ERROR_SITE);
+        let site = self.b.ins().band_imm_u(first, (1i64 << PENDING_CODE_SHIFT) - 1);
+        let site = self.b.ins().iadd_imm_s(site, -1);
+        let new_site = self.b.ins().select(first, site, old_site);
+        self.store_ctx(new_site, ctx_off::ERROR_SITE);
+    }
+
+    /// Whether lowering `setup` may record an index error: some index site is neither a
+    /// constant inside a fixed array nor proven in range (mirrors [`Self::index_access`]).
+    /// Kernels without one (screen_triangle, the sphere, ...) keep their code unchanged.
+    fn setup_may_fail_index(&mut self, setup: &'a [Stmt]) -> bool {
+        let mut sites = vec![];
+        collect_setup_index_sites(self.frame().func, setup, &mut sites);
+        sites
+            .into_iter()
+            .any(|(static_len, index, site)| match (static_len, const_int(index)) {
+                (Some(len), Some(k)) => k < 0 || k >= i64::from(len),
+                _ => !self.site_proven(site),
+            })
     }
 
     /// Union a rectangle into `ctx.bound` (bound mode only; the caller checks for NaN).
@@ -2443,7 +2587,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.seal_now(ok_blk);
         self.b.set_cold_block(out_blk);
         self.b.switch_to_block(out_blk);
-        self.record_error(ERR_FUEL, site.0, None);
+        self.defer_error(ERR_FUEL, site, None);
         self.b.ins().jump(exit, &[]);
         self.b.switch_to_block(ok_blk);
         let less = self.b.ins().iadd_imm_s(fuel, -1);
@@ -3284,6 +3428,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                 store_word(self, comp, start + w);
             }
         }
+        // The callee (or the expand recorder) runs with `ctx`: the index errors before the
+        // call come first.
+        if self.deferring_errors {
+            self.flush_errors();
+        }
         // Call depth guard.
         let depth = self.load_ctx(types::I32, ctx_off::CALL_DEPTH);
         let deeper = self.b.ins().iadd_imm_s(depth, 1);
@@ -3412,9 +3561,20 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     fn seq_len(&mut self) -> ir::Value {
+        // Tier 0: once per block (the NURB setup read it ~40 times, a load and a umax each).
+        let block = self.b.current_block();
+        if let (true, Some((b, v))) = (self.tier0(), self.seq_len_here) {
+            if Some(b) == block {
+                return v;
+            }
+        }
         let n = self.b.ins().load(types::I32, args_flags(), self.args, 0);
         let one = self.b.ins().iconst(types::I32, 1);
-        self.b.ins().umax(n, one)
+        let v = self.b.ins().umax(n, one);
+        if let (true, Some(b)) = (self.tier0(), block) {
+            self.seq_len_here = Some((b, v));
+        }
+        v
     }
 
     /// Apply one index to an access (clamping it, recording ERR_INDEX when out of range).
@@ -3429,7 +3589,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         if let (Some(len), Some(k)) = (static_len, const_int(index)) {
             let clamped = k.clamp(0, len as i64 - 1) as u32;
             if k < 0 || k >= len as i64 {
-                self.record_error(ERR_INDEX, site.0, None);
+                self.defer_error(ERR_INDEX, site, None);
             }
             acc.base += clamped * stride;
             acc.ty = elem_ty;
@@ -3512,8 +3672,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     fn len_and_last(&mut self, static_len: Option<u32>) -> (ir::Value, ir::Value) {
         match static_len {
             Some(n) => (
-                self.b.ins().iconst(types::I32, n as i64),
-                self.b.ins().iconst(types::I32, n as i64 - 1),
+                self.iconst_here(types::I32, i64::from(n)),
+                self.iconst_here(types::I32, i64::from(n) - 1),
             ),
             None => {
                 let len = self.seq_len();
@@ -3527,9 +3687,46 @@ impl<'a, 'b> Lower<'a, 'b> {
     fn scaled(&mut self, x: ir::Value, k: u32) -> ir::Value {
         match k {
             1 => x,
-            k if k.is_power_of_two() => self.b.ins().ishl_imm_u(x, k.trailing_zeros() as i64),
+            k if k.is_power_of_two() => {
+                let ty = self.b.func.dfg.value_type(x);
+                let amount = self.iconst_here(ty, i64::from(k.trailing_zeros()));
+                self.b.ins().ishl(x, amount)
+            }
             k => self.b.ins().imul_imm_s(x, k as i64),
         }
+    }
+
+    /// The uniform component offset `u` as a byte offset (`u * bytes`, widened to i64);
+    /// tier 0 computes it once per block.
+    fn byte_offset(&mut self, u: ir::Value, bytes: u32) -> ir::Value {
+        let block = self.b.current_block();
+        if let (true, Some(&(b, v))) = (self.tier0(), self.byte_offsets.get(&(u, bytes))) {
+            if Some(b) == block {
+                return v;
+            }
+        }
+        let wide = self.b.ins().uextend(types::I64, u);
+        let v = self.scaled(wide, bytes);
+        if let (true, Some(b)) = (self.tier0(), block) {
+            self.byte_offsets.insert((u, bytes), (b, v));
+        }
+        v
+    }
+
+    /// `iconst` of `ty`; tier 0 makes each once per block (it has no pass that would
+    /// merge the copies: the NURB setup's CLIF had ~250 duplicate shift amounts).
+    fn iconst_here(&mut self, ty: ir::Type, v: i64) -> ir::Value {
+        let block = self.b.current_block();
+        if let (true, Some(&(b, c))) = (self.tier0(), self.int_consts.get(&(ty, v))) {
+            if Some(b) == block {
+                return c;
+            }
+        }
+        let c = self.b.ins().iconst(ty, v);
+        if let (true, Some(b)) = (self.tier0(), block) {
+            self.int_consts.insert((ty, v), (b, c));
+        }
+        c
     }
 
     /// Is `site` of the primitive's own body proven in range (see `proven_sites`)?
@@ -3543,12 +3740,13 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// (Recorded inline with selects, the check was two loads, two stores and ten more
     /// instructions on every access: most of the NURB tessellation's time.)
     /// Tier 0 records inline with selects instead (same results): two blocks per access
-    /// doubled the NURB kernel's tier-0 compile time.
+    /// doubled the NURB kernel's tier-0 compile time; in setup code it records into the
+    /// kernel's pending error (see [`Self::defer_error`]), not into `ctx`.
     fn checked_uniform_index(&mut self, idx: ir::Value, len: ir::Value, last: ir::Value, site: SiteId) -> ir::Value {
         let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
         if self.tier0() {
-            self.record_error(ERR_INDEX, site.0, Some(bad));
-            let zero_s = self.b.ins().iconst(types::I32, 0);
+            self.defer_error(ERR_INDEX, site, Some(bad));
+            let zero_s = self.iconst_here(types::I32, 0);
             let c = self.b.ins().smax(idx, zero_s);
             return self.b.ins().smin(c, last);
         }
@@ -3558,8 +3756,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(bad, cold, &[], in_range, &[idx.into()]);
         self.b.set_cold_block(cold);
         self.b.switch_to_block(cold);
-        self.record_error(ERR_INDEX, site.0, None);
-        let zero_s = self.b.ins().iconst(types::I32, 0);
+        self.defer_error(ERR_INDEX, site, None);
+        let zero_s = self.iconst_here(types::I32, 0);
         let c = self.b.ins().smax(idx, zero_s);
         let c = self.b.ins().smin(c, last);
         self.b.ins().jump(in_range, &[c.into()]);
@@ -3676,18 +3874,16 @@ impl<'a, 'b> Lower<'a, 'b> {
         let bytes = comp_bytes(varying_storage) as i64;
         let mut comps = Vec::with_capacity(offs.len());
         let out_varying = varying_storage || matches!(dyn_off, Dyn::Varying(_));
+        // One address for every component of a uniform offset.
+        let uniform_addr = match dyn_off {
+            Dyn::Uniform(u) => self.uniform_dyn_addr(base_addr, u, bytes),
+            _ => base_addr,
+        };
         for &o in offs {
             let off = ((first + o) as i64 * bytes) as i32;
             let c = match dyn_off {
                 Dyn::None | Dyn::Uniform(_) => {
-                    let addr = match dyn_off {
-                        Dyn::Uniform(d) => {
-                            let d64 = self.b.ins().uextend(types::I64, d);
-                            let db = self.scaled(d64, bytes as u32);
-                            self.b.ins().iadd(base_addr, db)
-                        }
-                        _ => base_addr,
-                    };
+                    let addr = uniform_addr;
                     if varying_storage {
                         let ty = cl_type(sc, true);
                         self.b.ins().load(ty, mem_flags(), addr, off)
@@ -3829,6 +4025,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                         let fixed_words = fr.fixed_words;
                         let (addr, first) = match slot {
                             ParamSlot::Fixed { offset, .. } => (self.args, offset + acc.base),
+                            // The first sequence array starts right after the fixed words.
+                            ParamSlot::Seq { seq_offset: 0, .. } => (self.args, fixed_words + acc.base),
                             ParamSlot::Seq { seq_offset, .. } => {
                                 // fixed_words + max(n_seq,1) * seq_offset, in words.
                                 let n = self.seq_len();
@@ -4082,16 +4280,34 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
+    /// `base + d * bytes` for a uniform dynamic offset `d` (see [`Self::read_memory`] on
+    /// the zero extension). Tier 0 computes it once per block and offset: an access to
+    /// `float p[4]` at a dynamic row reads or writes four components at one address, and
+    /// the NURB setup reads the same element several times (tier 0 has no pass that would
+    /// merge the copies: ~250 `uextend`s, shifts and adds of its CLIF).
     fn dyn_addr(&mut self, base: ir::Value, d: Dyn, bytes: i64) -> Res<ir::Value> {
         match d {
             Dyn::None => Ok(base),
-            Dyn::Uniform(u) => {
-                let d64 = self.b.ins().uextend(types::I64, u);
-                let db = self.scaled(d64, bytes as u32);
-                Ok(self.b.ins().iadd(base, db))
-            }
+            Dyn::Uniform(u) => Ok(self.uniform_dyn_addr(base, u, bytes)),
             Dyn::Varying(_) => err("varying index into a uniform local"),
         }
+    }
+
+    /// [`Self::dyn_addr`] of a uniform offset `u`.
+    fn uniform_dyn_addr(&mut self, base: ir::Value, u: ir::Value, bytes: i64) -> ir::Value {
+        let key = (base, u, bytes as u32);
+        let block = self.b.current_block();
+        if let (true, Some(&(b, v))) = (self.tier0(), self.dyn_addrs.get(&key)) {
+            if Some(b) == block {
+                return v;
+            }
+        }
+        let db = self.byte_offset(u, bytes as u32);
+        let v = self.b.ins().iadd(base, db);
+        if let (true, Some(b)) = (self.tier0(), block) {
+            self.dyn_addrs.insert(key, (b, v));
+        }
+        v
     }
 
     // ---------------------------------------------------------------- expressions
@@ -4730,6 +4946,62 @@ fn const_int(e: &Expr) -> Option<i64> {
         ExprKind::Const(ConstValue::Int(i)) => Some(*i as i64),
         ExprKind::Unary { op: UnaryOp::Neg, expr } => const_int(expr).map(|v| -v),
         _ => None,
+    }
+}
+
+/// An index site: the static length of the array it indexes (`None`: a sequence, or not
+/// an array), its index and its site.
+type IndexSite<'a> = (Option<u32>, &'a Expr, SiteId);
+
+/// The static length [`Lower::index_access`] checks an index of a `ty` value against.
+fn static_len_of(ty: &Type) -> Option<u32> {
+    if ty.per_seq {
+        None
+    } else {
+        ty.dims.first().copied()
+    }
+}
+
+/// Every index site of `stmts` (setup statements of `f`): in places (`a[i] = ...`, the
+/// local's type indexed one dimension per site) and in expressions.
+fn collect_setup_index_sites<'a>(f: &'a Function, stmts: &'a [Stmt], out: &mut Vec<IndexSite<'a>>) {
+    fn expr<'a>(e: &'a Expr, out: &mut Vec<IndexSite<'a>>) {
+        if let ExprKind::Index { base, index, site } = &e.kind {
+            out.push((static_len_of(&base.ty), index, *site));
+        }
+        e.for_each_child(|c| expr(c, out));
+    }
+    for s in stmts {
+        match &s.kind {
+            StmtKind::Assign { place, value } => {
+                if let Some(local) = f.locals.get(place.local.0 as usize) {
+                    let mut ty = local.ty.clone();
+                    for (index, site) in &place.indices {
+                        out.push((static_len_of(&ty), index, *site));
+                        expr(index, out);
+                        ty = ty.element();
+                    }
+                }
+                expr(value, out);
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                expr(cond, out);
+                collect_setup_index_sites(f, then, out);
+                collect_setup_index_sites(f, otherwise, out);
+            }
+            StmtKind::Loop { cond, body, step, .. } => {
+                if let Some(c) = cond {
+                    expr(c, out);
+                }
+                collect_setup_index_sites(f, body, out);
+                collect_setup_index_sites(f, step, out);
+            }
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| collect_setup_index_sites(f, &a.body, out)),
+            StmtKind::InterpolatorReturn(Some(e)) => expr(e, out),
+            StmtKind::Bound(args) => args.iter().for_each(|a| expr(a, out)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr(a, out)),
+            StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
+        }
     }
 }
 
