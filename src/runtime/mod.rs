@@ -26,6 +26,7 @@ pub mod geometry;
 pub mod kernels;
 pub mod registry;
 pub mod shading;
+mod tiergate;
 pub mod transform;
 pub mod value;
 
