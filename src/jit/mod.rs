@@ -444,9 +444,9 @@ struct TierUpState {
     /// Live [`TierUpHold`]s: the worker starts no compile while one holds.
     holds: Vec<HoldEntry>,
     next_hold: u64,
-    /// How long a renderer holds the worker back after a frame's kernels are compiled
-    /// ([`Jit::set_tier_up_grace`]).
-    grace: std::time::Duration,
+    /// How long a renderer holds the worker back after a frame's kernels are compiled, per
+    /// unit of time that compiling them took ([`Jit::set_tier_up_grace`]).
+    grace_per_compile: f64,
     /// The feeding JIT is gone: the worker ignores holds and drains its queue.
     closing: bool,
 }
@@ -461,9 +461,8 @@ struct HoldEntry {
     stall: bool,
 }
 
-/// The state's default grace: long enough for the example scenes' frames (their tiles take
-/// 1-6 ms after their kernels), short next to a long frame's tier-0 part.
-const DEFAULT_TIER_UP_GRACE: std::time::Duration = std::time::Duration::from_millis(10);
+/// The default grace per unit of tier-0 compile time (see [`TierUpWatch::grace`]).
+pub const DEFAULT_TIER_UP_GRACE: f64 = 3.0;
 
 impl Default for TierUpState {
     fn default() -> TierUpState {
@@ -474,7 +473,7 @@ impl Default for TierUpState {
             failed: HashMap::new(),
             holds: vec![],
             next_hold: 0,
-            grace: DEFAULT_TIER_UP_GRACE,
+            grace_per_compile: DEFAULT_TIER_UP_GRACE,
             closing: false,
         }
     }
@@ -558,10 +557,22 @@ impl TierUpWatch {
         self.add_hold(false)
     }
 
-    /// How long a renderer holds the worker back after a frame's kernels are compiled
-    /// ([`Jit::set_tier_up_grace`]).
-    pub fn grace(&self) -> std::time::Duration {
-        self.state.0.lock().unwrap_or_else(|e| e.into_inner()).grace
+    /// How long a renderer holds the worker back after a frame whose kernels took
+    /// `tier0_compile` to compile: that times [`Jit::set_tier_up_grace`]'s factor (default
+    /// [`DEFAULT_TIER_UP_GRACE`]).
+    ///
+    /// Why proportional: a tier-1 compile costs about ten times the tier-0 one, and while it
+    /// runs the frame loses a thread to it. Like renting skis until the rent paid equals the
+    /// price, a frame runs on every thread for a time in proportion to what tier 1 will cost
+    /// before it pays for it: a frame shorter than that (the example scenes' tiles take
+    /// 1-6 ms) never has the worker in its way, a longer one gets tier-1 code at most that
+    /// much later. Kernels already compiled (a later frame) give no grace.
+    pub fn grace(&self, tier0_compile: std::time::Duration) -> std::time::Duration {
+        let factor = self.state.0.lock().unwrap_or_else(|e| e.into_inner()).grace_per_compile;
+        // At most an hour: whatever the factor, a deadline that far is "until the frame ends",
+        // and an instant plus it cannot overflow.
+        let most = std::time::Duration::from_secs(3600);
+        std::time::Duration::try_from_secs_f64(tier0_compile.as_secs_f64() * factor).map_or(most, |g| g.min(most))
     }
 
     fn add_hold(&self, stall: bool) -> TierUpHold {
@@ -589,7 +600,7 @@ pub struct TierUpHold {
 }
 
 impl TierUpHold {
-    /// Hold only until `deadline` (or the drop, if sooner).
+    /// Hold only until `deadline`, whether dropped before then or not.
     pub fn release_at(&mut self, deadline: Instant) {
         let (lock, changed) = &*self.state;
         let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
@@ -601,10 +612,19 @@ impl TierUpHold {
 }
 
 impl Drop for TierUpHold {
+    /// A hold without a deadline ends here; one with a deadline keeps it (the renderer's
+    /// hold ends with its frame, and a worker let go right then would compete with the
+    /// thread that waits for the frame to come back, which under load gave that frame's
+    /// caller its result milliseconds late).
     fn drop(&mut self) {
         let (lock, changed) = &*self.state;
         let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
-        st.holds.retain(|h| h.id != self.id);
+        let now = Instant::now();
+        // Expired deadlines go too, whoever's.
+        st.holds.retain(|h| match h.deadline {
+            Some(t) => t > now,
+            None => h.id != self.id,
+        });
         changed.notify_all();
     }
 }
@@ -802,12 +822,15 @@ impl Jit {
     }
 
     /// How long a renderer keeps this tiered JIT's worker from starting a compile after a
-    /// frame's kernels are compiled (default 10 ms): a frame shorter than that runs on every
-    /// thread with the worker out of the way; a longer one then leaves the worker a thread
-    /// (`runtime::tiergate`). No-op if not tiered.
-    pub fn set_tier_up_grace(&mut self, grace: std::time::Duration) {
+    /// frame's kernels are compiled, per unit of time compiling them took (default
+    /// [`DEFAULT_TIER_UP_GRACE`]; see [`TierUpWatch::grace`]): a frame shorter than that
+    /// runs on every thread with the worker out of the way; a longer one then leaves the
+    /// worker a thread (`runtime::tiergate`). A negative or NaN factor counts as 0. No-op if
+    /// not tiered.
+    pub fn set_tier_up_grace(&mut self, per_compile: f64) {
         if let Some(t) = &self.tier_up {
-            t.state.0.lock().unwrap_or_else(|e| e.into_inner()).grace = grace;
+            let factor = if per_compile >= 0.0 { per_compile } else { 0.0 };
+            t.state.0.lock().unwrap_or_else(|e| e.into_inner()).grace_per_compile = factor;
         }
     }
 

@@ -365,7 +365,8 @@ impl Renderer {
             })
             .collect();
         if let (Some(hold), Some(watch)) = (&mut held_compiler, &compiler) {
-            hold.release_at(Instant::now() + watch.grace());
+            let compiled = Instant::now();
+            hold.release_at(compiled + watch.grace(compiled.duration_since(started)));
         }
         // Never hand a kernel an argument block shorter than its layout reads.
         let ready: Vec<Option<&Kernel>> = self
@@ -469,7 +470,8 @@ impl Renderer {
                 .collect(),
         };
         errors.extend(tile_errors.into_iter().flatten());
-        // The kernels have run: the compiler may start at once.
+        // The hold ends with the frame but keeps its deadline (`TierUpHold`'s drop): a
+        // worker let go right here would compete with the caller's thread waking up.
         drop(held_compiler);
 
         let shade_started = Instant::now();
