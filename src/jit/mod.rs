@@ -22,7 +22,13 @@
 //! entry point and call that when it is set ([`Jit::tier0_forwards_to`]), so draws binned
 //! with tier-0 entries, expanded calls and tier-0 kernels' calls to each other run tier-1
 //! code from the moment it exists — a single long frame (the CLI renders one) gets the
-//! fast start and the fast kernels. Both tiers compute the same buffers bit for bit: they
+//! fast start and the fast kernels. The worker does not compete with a frame blindly: a
+//! [`TierUpWatch`] ([`Jit::tier_up_watch`], what `KernelSource::tier_up` hands the renderer)
+//! says whether it is idle, held or compiling, and lets the renderer hold it
+//! ([`TierUpWatch::hold`]) for a grace period in proportion to the frame's tier-0 compile
+//! time ([`TierUpWatch::grace`], [`Jit::set_tier_up_grace`]); after that, while it compiles,
+//! the renderer leaves it a thread (`runtime::tiergate`). [`Jit::stall_tier_up`] holds it
+//! while reporting it compiling, for tests. Both tiers compute the same buffers bit for bit: they
 //! lower the same IR with the same floating-point operations in the same order, and block
 //! culling only decides which pixels run, never what they compute (`tests/jit_tiers.rs`).
 //! Compiled code is never freed (cranelift-jit leaks a module's memory unless told
@@ -592,8 +598,9 @@ impl TierUpWatch {
 }
 
 /// While it holds, the tier-1 worker of the JIT it came from starts no compile (it finishes
-/// the one in progress): [`TierUpWatch::hold`], [`Jit::stall_tier_up`]. Dropping it lets the
-/// worker go on; a JIT being dropped ignores it.
+/// the one in progress): [`TierUpWatch::hold`], [`Jit::stall_tier_up`]. It holds until it
+/// drops or, once given one ([`TierUpHold::release_at`]), until its deadline, dropped or
+/// not; a JIT being dropped ignores it.
 pub struct TierUpHold {
     state: Arc<(Mutex<TierUpState>, Condvar)>,
     id: u64,

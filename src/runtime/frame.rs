@@ -31,6 +31,14 @@
 //! 4. Kernel run-time errors become warnings at the failing site of the primitive source,
 //!    once per (site, error), in tile order.
 //!
+//! With a kernel source that upgrades its kernels in the background (a tiered JIT,
+//! `KernelSource::tier_up`), the frame holds that compiler from before step 1 until a grace
+//! period after it (in proportion to the step's compile time), and from then on, while a
+//! compile is running, step 2's jobs and step 3's tiles run on one thread fewer than the
+//! pool has (`super::tiergate`): a short frame keeps every core, a long one gets the
+//! faster kernels sooner. Which thread runs a job never changes what it computes, so the
+//! frame is the same bit for bit; `RenderStats::gated_jobs` counts the jobs run that way.
+//!
 //! Then the deferred shading pass ([`super::shading`]) when the scene turns an effect on,
 //! bands of rows in parallel. Without one, a pixel whose depth was written (depth != 0; a write of
 //! exactly the far value 0 is indistinguishable from none, and a `Z > depth` test never
@@ -157,7 +165,7 @@ pub struct RenderStats {
     /// Instances whose expansion exceeded `RenderOptions::expand_budget_words` (rendered
     /// per tile instead).
     pub expand_over_budget: usize,
-    /// Jobs of the expansion and bound pass (up to [`BOUND_JOB`] instances each) and tiles
+    /// Jobs of the expansion and bound pass (up to `BOUND_JOB` instances each) and tiles
     /// started while the kernel source's background compiler had a compile pending, on one
     /// thread fewer than the pool has (`super::tiergate`; 0 for a source without one, a
     /// one-thread pool, or once the compile has landed).
