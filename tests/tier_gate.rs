@@ -212,6 +212,15 @@ fn a_hold_with_a_deadline_lets_the_worker_go_at_it() {
         "the default grace: 3x the tier-0 compile"
     );
     assert_eq!(watch.grace(Duration::ZERO), Duration::ZERO, "no compile, no grace");
+    let mut endless = Jit::tiered(program.clone()).unwrap();
+    endless.set_tier_up_grace(f64::INFINITY);
+    let endless = endless.tier_up_watch().unwrap();
+    assert_eq!(endless.grace(Duration::ZERO), Duration::ZERO, "no compile, no grace");
+    assert_eq!(
+        endless.grace(Duration::from_millis(1)),
+        Duration::from_secs(3600),
+        "capped"
+    );
     let mut hold = watch.hold();
     jit.kernel(inst.func, &inst.key).unwrap();
     assert!(

@@ -578,7 +578,12 @@ impl TierUpWatch {
         // At most an hour: whatever the factor, a deadline that far is "until the frame ends",
         // and an instant plus it cannot overflow.
         let most = std::time::Duration::from_secs(3600);
-        std::time::Duration::try_from_secs_f64(tier0_compile.as_secs_f64() * factor).map_or(most, |g| g.min(most))
+        let secs = tier0_compile.as_secs_f64() * factor;
+        if secs.is_nan() {
+            // An infinite factor times no compile: nothing compiled, no grace.
+            return std::time::Duration::ZERO;
+        }
+        std::time::Duration::try_from_secs_f64(secs).map_or(most, |g| g.min(most))
     }
 
     fn add_hold(&self, stall: bool) -> TierUpHold {
@@ -842,6 +847,8 @@ impl Jit {
     }
 
     /// Wait until every tier-1 compile requested so far has finished (no-op if not tiered).
+    /// A hold without a deadline ([`Jit::stall_tier_up`], [`TierUpWatch::hold`]) kept alive
+    /// meanwhile makes this wait until it drops.
     pub fn wait_for_tier_up(&self) {
         if let Some(t) = &self.tier_up {
             t.wait();
