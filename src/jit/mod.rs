@@ -22,7 +22,13 @@
 //! entry point and call that when it is set ([`Jit::tier0_forwards_to`]), so draws binned
 //! with tier-0 entries, expanded calls and tier-0 kernels' calls to each other run tier-1
 //! code from the moment it exists — a single long frame (the CLI renders one) gets the
-//! fast start and the fast kernels. Both tiers compute the same buffers bit for bit: they
+//! fast start and the fast kernels. The worker does not compete with a frame blindly: a
+//! [`TierUpWatch`] ([`Jit::tier_up_watch`], what `KernelSource::tier_up` hands the renderer)
+//! says whether it is idle, held or compiling, and lets the renderer hold it
+//! ([`TierUpWatch::hold`]) for a grace period in proportion to the frame's tier-0 compile
+//! time ([`TierUpWatch::grace`], [`Jit::set_tier_up_grace`]); after that, while it compiles,
+//! the renderer leaves it a thread (`runtime::tiergate`). [`Jit::stall_tier_up`] holds it
+//! while reporting it compiling, for tests. Both tiers compute the same buffers bit for bit: they
 //! lower the same IR with the same floating-point operations in the same order, and block
 //! culling only decides which pixels run, never what they compute (`tests/jit_tiers.rs`).
 //! Compiled code is never freed (cranelift-jit leaks a module's memory unless told
@@ -435,7 +441,6 @@ impl Linker for PrintLinker<'_> {
 }
 
 /// What the tier-1 worker has finished, shared with the JIT that feeds it.
-#[derive(Default)]
 struct TierUpState {
     ready: HashMap<CacheKey, Arc<Kernel>>,
     /// What each kernel in `ready` cost the worker to compile.
@@ -444,6 +449,198 @@ struct TierUpState {
     pending: usize,
     /// Tier-1 compile failures (the tier-0 kernel stays in use).
     failed: HashMap<CacheKey, JitError>,
+    /// Live [`TierUpHold`]s: the worker starts no compile while one holds.
+    holds: Vec<HoldEntry>,
+    next_hold: u64,
+    /// How long a renderer holds the worker back after a frame's kernels are compiled, per
+    /// unit of time that compiling them took ([`Jit::set_tier_up_grace`]).
+    grace_per_compile: f64,
+    /// The feeding JIT is gone: the worker ignores holds and drains its queue.
+    closing: bool,
+}
+
+/// One [`TierUpHold`] as the worker sees it.
+struct HoldEntry {
+    id: u64,
+    /// When it stops holding (None: when it drops).
+    deadline: Option<Instant>,
+    /// A stall ([`Jit::stall_tier_up`]): holds the worker, but [`TierUpWatch::activity`]
+    /// reports the worker compiling, as if its compile took that long.
+    stall: bool,
+}
+
+/// The default grace per unit of tier-0 compile time (see [`TierUpWatch::grace`]).
+pub const DEFAULT_TIER_UP_GRACE: f64 = 3.0;
+
+impl Default for TierUpState {
+    fn default() -> TierUpState {
+        TierUpState {
+            ready: HashMap::new(),
+            costs: HashMap::new(),
+            pending: 0,
+            failed: HashMap::new(),
+            holds: vec![],
+            next_hold: 0,
+            grace_per_compile: DEFAULT_TIER_UP_GRACE,
+            closing: false,
+        }
+    }
+}
+
+impl TierUpState {
+    /// Whether a hold (stalls included when `stalls`) keeps the worker from starting a
+    /// compile at `now`: `None` if not, `Some(None)` until a hold drops, `Some(Some(t))`
+    /// until `t` at the latest.
+    fn held_at(&self, now: Instant, stalls: bool) -> Option<Option<Instant>> {
+        if self.closing {
+            return None;
+        }
+        let mut until: Option<Option<Instant>> = None;
+        for hold in self.holds.iter().filter(|h| stalls || !h.stall) {
+            match hold.deadline {
+                None => return Some(None),
+                Some(t) if t > now => until = Some(Some(until.flatten().map_or(t, |u| u.max(t)))),
+                Some(_) => {}
+            }
+        }
+        until
+    }
+}
+
+/// What a tiered JIT's background compiler is doing, as [`TierUpWatch::activity`] sees it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TierUpActivity {
+    /// Every compile requested so far has finished (or failed).
+    Idle,
+    /// A compile is pending but a [`TierUpHold`] keeps the worker from starting it.
+    Held,
+    /// A compile is pending or in progress and the worker is free to run it.
+    Compiling,
+}
+
+/// What a renderer (or anyone running a tiered JIT's kernels) can ask of its background
+/// tier-1 compiler without borrowing the JIT: what it is doing, a bounded wait for it, and
+/// a hold that keeps it from starting a compile (see `runtime::tiergate`, which holds it for
+/// the start of a frame and then keeps one render thread fewer than the pool has busy while
+/// it compiles). Cloning shares the same state.
+#[derive(Clone)]
+pub struct TierUpWatch {
+    state: Arc<(Mutex<TierUpState>, Condvar)>,
+}
+
+impl TierUpWatch {
+    /// Some tier-1 compile requested so far has not finished (it may be held back). A
+    /// failed compile counts as finished.
+    pub fn pending(&self) -> bool {
+        self.state.0.lock().unwrap_or_else(|e| e.into_inner()).pending > 0
+    }
+
+    /// What the worker is doing now (see [`TierUpActivity`]).
+    pub fn activity(&self) -> TierUpActivity {
+        let st = self.state.0.lock().unwrap_or_else(|e| e.into_inner());
+        if st.pending == 0 {
+            TierUpActivity::Idle
+        } else if st.held_at(Instant::now(), false).is_some() {
+            TierUpActivity::Held
+        } else {
+            TierUpActivity::Compiling
+        }
+    }
+
+    /// Wait until no compile is pending or `timeout` has passed, whichever is first; true
+    /// when one is still pending.
+    pub fn wait(&self, timeout: std::time::Duration) -> bool {
+        let (lock, done) = &*self.state;
+        let st = lock.lock().unwrap_or_else(|e| e.into_inner());
+        let (st, _) = done
+            .wait_timeout_while(st, timeout, |st| st.pending > 0)
+            .unwrap_or_else(|e| e.into_inner());
+        st.pending > 0
+    }
+
+    /// Keep the worker from starting a compile until the returned hold drops or reaches
+    /// the deadline given to [`TierUpHold::release_at`] (the compile in progress, if any,
+    /// finishes).
+    pub fn hold(&self) -> TierUpHold {
+        self.add_hold(false)
+    }
+
+    /// How long a renderer holds the worker back after a frame whose kernels took
+    /// `tier0_compile` to compile: that times [`Jit::set_tier_up_grace`]'s factor (default
+    /// [`DEFAULT_TIER_UP_GRACE`]).
+    ///
+    /// Why proportional: a tier-1 compile costs about ten times the tier-0 one, and while it
+    /// runs the frame loses a thread to it. Like renting skis until the rent paid equals the
+    /// price, a frame runs on every thread for a time in proportion to what tier 1 will cost
+    /// before it pays for it: a frame shorter than that (the example scenes' tiles take
+    /// 1-6 ms) never has the worker in its way, a longer one gets tier-1 code at most that
+    /// much later. Kernels already compiled (a later frame) give no grace.
+    pub fn grace(&self, tier0_compile: std::time::Duration) -> std::time::Duration {
+        let factor = self.state.0.lock().unwrap_or_else(|e| e.into_inner()).grace_per_compile;
+        // At most an hour: whatever the factor, a deadline that far is "until the frame ends",
+        // and an instant plus it cannot overflow.
+        let most = std::time::Duration::from_secs(3600);
+        let secs = tier0_compile.as_secs_f64() * factor;
+        if secs.is_nan() {
+            // An infinite factor times no compile: nothing compiled, no grace.
+            return std::time::Duration::ZERO;
+        }
+        std::time::Duration::try_from_secs_f64(secs).map_or(most, |g| g.min(most))
+    }
+
+    fn add_hold(&self, stall: bool) -> TierUpHold {
+        let mut st = self.state.0.lock().unwrap_or_else(|e| e.into_inner());
+        let id = st.next_hold;
+        st.next_hold += 1;
+        st.holds.push(HoldEntry {
+            id,
+            deadline: None,
+            stall,
+        });
+        TierUpHold {
+            state: self.state.clone(),
+            id,
+        }
+    }
+}
+
+/// While it holds, the tier-1 worker of the JIT it came from starts no compile (it finishes
+/// the one in progress): [`TierUpWatch::hold`], [`Jit::stall_tier_up`]. It holds until it
+/// drops or, once given one ([`TierUpHold::release_at`]), until its deadline, dropped or
+/// not; a JIT being dropped ignores it.
+pub struct TierUpHold {
+    state: Arc<(Mutex<TierUpState>, Condvar)>,
+    id: u64,
+}
+
+impl TierUpHold {
+    /// Hold only until `deadline`, whether dropped before then or not.
+    pub fn release_at(&mut self, deadline: Instant) {
+        let (lock, changed) = &*self.state;
+        let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(h) = st.holds.iter_mut().find(|h| h.id == self.id) {
+            h.deadline = Some(deadline);
+        }
+        changed.notify_all();
+    }
+}
+
+impl Drop for TierUpHold {
+    /// A hold without a deadline ends here; one with a deadline keeps it (the renderer's
+    /// hold ends with its frame, and a worker let go right then would compete with the
+    /// thread that waits for the frame to come back, which under load gave that frame's
+    /// caller its result milliseconds late).
+    fn drop(&mut self) {
+        let (lock, changed) = &*self.state;
+        let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
+        let now = Instant::now();
+        // Expired deadlines go too, whoever's.
+        st.holds.retain(|h| match h.deadline {
+            Some(t) => t > now,
+            None => h.id != self.id,
+        });
+        changed.notify_all();
+    }
 }
 
 /// The background tier-1 compiler: a thread owning an optimising [`Jit`].
@@ -469,11 +666,29 @@ impl TierUp {
                 // At the render threads' priority: the frame in flight switches to what this
                 // compiles (a worker at nice 10 starved behind two render threads, so a long
                 // first frame ran on tier-0 code to its end).
-                // Built on the worker so the first frame does not wait for a second ISA.
-                let mut jit = Jit::build(program, bodies, options);
+                // Built on the worker so the first frame does not wait for a second ISA, and
+                // at the first request the worker may start on, so a frame that holds it
+                // (`TierUpWatch::hold`) has the cores to itself.
+                let mut built: Option<Result<Jit, JitError>> = None;
                 // Ends when the feeding JIT drops its sender.
                 while let Ok(((func, key), words)) = rx.recv() {
-                    let result = match &mut jit {
+                    {
+                        // Held back (a test, or a renderer keeping a short frame's cores):
+                        // wait for the drop or the deadline.
+                        let (lock, changed) = &*shared;
+                        let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
+                        while let Some(until) = st.held_at(Instant::now(), true) {
+                            st = match until {
+                                None => changed.wait(st).unwrap_or_else(|e| e.into_inner()),
+                                Some(t) => {
+                                    let left = t.saturating_duration_since(Instant::now());
+                                    changed.wait_timeout(st, left).unwrap_or_else(|e| e.into_inner()).0
+                                }
+                            };
+                        }
+                    }
+                    let jit = built.get_or_insert_with(|| Jit::build(program.clone(), bodies.clone(), options.clone()));
+                    let result = match jit {
                         Ok(jit) => jit.kernel(func, &key),
                         Err(e) => Err(e.clone()),
                     };
@@ -540,8 +755,14 @@ impl TierUp {
 
 impl Drop for TierUp {
     fn drop(&mut self) {
-        // Closing the channel ends the worker after its current compile.
+        // Closing the channel ends the worker after its current compile; a hold outliving
+        // the JIT must not keep it (and this join) waiting.
         self.requests = None;
+        {
+            let (lock, changed) = &*self.state;
+            lock.lock().unwrap_or_else(|e| e.into_inner()).closing = true;
+            changed.notify_all();
+        }
         if let Some(w) = self.worker.take() {
             let _ = w.join();
         }
@@ -599,7 +820,37 @@ impl Jit {
         }
     }
 
+    /// A watch on the background tier-1 compiler (tiered JITs only): the renderer asks it
+    /// whether a compile is pending, to leave the worker a core meanwhile.
+    pub fn tier_up_watch(&self) -> Option<TierUpWatch> {
+        let t = self.tier_up.as_ref()?;
+        Some(TierUpWatch { state: t.state.clone() })
+    }
+
+    /// Stall the tier-1 worker (tiered JITs only): until the returned guard drops it starts
+    /// no compile, so every compile requested meanwhile stays pending, while
+    /// [`TierUpWatch::activity`] reports it compiling, as a compile that long would. For
+    /// tests and measurements of what runs while tier 1 is on its way.
+    pub fn stall_tier_up(&self) -> Option<TierUpHold> {
+        Some(self.tier_up_watch()?.add_hold(true))
+    }
+
+    /// How long a renderer keeps this tiered JIT's worker from starting a compile after a
+    /// frame's kernels are compiled, per unit of time compiling them took (default
+    /// [`DEFAULT_TIER_UP_GRACE`]; see [`TierUpWatch::grace`]): a frame shorter than that
+    /// runs on every thread with the worker out of the way; a longer one then leaves the
+    /// worker a thread (`runtime::tiergate`). A negative or NaN factor counts as 0. No-op if
+    /// not tiered.
+    pub fn set_tier_up_grace(&mut self, per_compile: f64) {
+        if let Some(t) = &self.tier_up {
+            let factor = if per_compile >= 0.0 { per_compile } else { 0.0 };
+            t.state.0.lock().unwrap_or_else(|e| e.into_inner()).grace_per_compile = factor;
+        }
+    }
+
     /// Wait until every tier-1 compile requested so far has finished (no-op if not tiered).
+    /// A hold without a deadline ([`Jit::stall_tier_up`], [`TierUpWatch::hold`]) kept alive
+    /// meanwhile makes this wait until it drops.
     pub fn wait_for_tier_up(&self) {
         if let Some(t) = &self.tier_up {
             t.wait();

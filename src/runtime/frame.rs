@@ -31,6 +31,14 @@
 //! 4. Kernel run-time errors become warnings at the failing site of the primitive source,
 //!    once per (site, error), in tile order.
 //!
+//! With a kernel source that upgrades its kernels in the background (a tiered JIT,
+//! `KernelSource::tier_up`), the frame holds that compiler from before step 1 until a grace
+//! period after it (in proportion to the step's compile time), and from then on, while a
+//! compile is running, step 2's jobs and step 3's tiles run on one thread fewer than the
+//! pool has (`super::tiergate`): a short frame keeps every core, a long one gets the
+//! faster kernels sooner. Which thread runs a job never changes what it computes, so the
+//! frame is the same bit for bit; `RenderStats::gated_jobs` counts the jobs run that way.
+//!
 //! Then the deferred shading pass ([`super::shading`]) when the scene turns an effect on,
 //! bands of rows in parallel. Without one, a pixel whose depth was written (depth != 0; a write of
 //! exactly the far value 0 is indistinguishable from none, and a `Z > depth` test never
@@ -53,6 +61,7 @@ use super::api::{Instance, RenderOptions, Renderer, MAX_FRAME_BYTES, MAX_IMAGE_S
 use super::expand::{expand_instance, Budget, Draw, Expanded};
 use super::kernels::KernelSource;
 use super::shading::{Effects, PixelInputs, RowInputs, Shader, ShadingKernel, ShadingSpaces};
+use super::tiergate::{Compiler, Gate, GateStats};
 
 /// Rows per parallel task of the shading pass: enough work per task (~4k pixels at 512
 /// wide) that rayon's scheduling is noise, and still dozens of tasks per frame for two cores.
@@ -156,6 +165,13 @@ pub struct RenderStats {
     /// Instances whose expansion exceeded `RenderOptions::expand_budget_words` (rendered
     /// per tile instead).
     pub expand_over_budget: usize,
+    /// Jobs of the expansion and bound pass (up to `BOUND_JOB` instances each) and tiles
+    /// started while the kernel source's background compiler had a compile pending, on one
+    /// thread fewer than the pool has (`super::tiergate`; 0 for a source without one, a
+    /// one-thread pool, or once the compile has landed).
+    pub gated_jobs: usize,
+    /// Most threads that ran those jobs at once (at most the pool's threads less one).
+    pub gated_peak_threads: usize,
 }
 
 /// A render's frame, statistics and diagnostics (compile failures are errors, kernel warnings
@@ -326,6 +342,12 @@ impl Renderer {
             };
         }
 
+        // A background compiler (a tiered JIT's tier 1) starts nothing before the frame has
+        // run for a grace period (`tiergate`): a short frame keeps every core, a long one
+        // gets tier-1 code soon after. Taken before the compiles, which queue its work.
+        let compiler = source.tier_up();
+        let mut held_compiler = compiler.as_ref().map(|w| w.hold());
+
         // 1. Compile each (func, key) once, in first-use order.
         let (variants, variant_of) = self.variants();
         let mut reports: Vec<KernelReport> = vec![];
@@ -350,6 +372,10 @@ impl Renderer {
                 kernel
             })
             .collect();
+        if let (Some(hold), Some(watch)) = (&mut held_compiler, &compiler) {
+            let compiled = Instant::now();
+            hold.release_at(compiled + watch.grace(compiled.duration_since(started)));
+        }
         // Never hand a kernel an argument block shorter than its layout reads.
         let ready: Vec<Option<&Kernel>> = self
             .instances()
@@ -370,20 +396,40 @@ impl Renderer {
         let mut errors: Vec<(usize, u32, u32)> = vec![];
         let instances = self.instances();
         let budget = Budget::new(opts.expand_budget_words);
-        let expanded: Vec<Option<Expanded>> = instances
-            .par_iter()
-            .zip(ready.par_iter())
-            .enumerate()
-            .with_max_len(BOUND_JOB)
-            .map(|(i, (inst, kernel))| {
-                if let Some(next) = instances.get(i + 1) {
-                    prefetch(&next.args);
-                }
-                let kernel = (*kernel)?;
-                let tiles_of = |bound| tiles_overlapped(bound, opts);
-                Some(expand_instance(&program, opts, &budget, inst, kernel, tiles_of))
-            })
-            .collect();
+        // While the source's background compiler (a tiered JIT's tier 1) has a compile
+        // pending, the parallel passes leave it a core (`tiergate`); checked per pass.
+        let compiler = compiler.as_ref().map(|w| w as &dyn Compiler);
+        let expand_one = |i: usize| -> Option<Expanded> {
+            if let Some(next) = instances.get(i + 1) {
+                prefetch(&next.args);
+            }
+            let kernel = ready[i]?;
+            let tiles_of = |bound| tiles_overlapped(bound, opts);
+            Some(expand_instance(
+                &program,
+                opts,
+                &budget,
+                &instances[i],
+                kernel,
+                tiles_of,
+            ))
+        };
+        let expanded: Vec<Option<Expanded>> = match Gate::new(compiler) {
+            Some(gate) => {
+                let job = |j: usize| {
+                    let end = (j * BOUND_JOB + BOUND_JOB).min(instances.len());
+                    (j * BOUND_JOB..end).map(expand_one).collect::<Vec<_>>()
+                };
+                let (jobs, gated) = gate.run(instances.len().div_ceil(BOUND_JOB), job);
+                stats.add_gated(gated);
+                jobs.into_iter().flatten().collect()
+            }
+            None => (0..instances.len())
+                .into_par_iter()
+                .with_max_len(BOUND_JOB)
+                .map(expand_one)
+                .collect(),
+        };
         drop(ready);
         for (i, e) in expanded.iter().enumerate() {
             let Some(e) = e else { continue };
@@ -409,17 +455,32 @@ impl Renderer {
             }),
         );
         let target = frame.target();
-        let tile_errors: Vec<Vec<(usize, u32, u32)>> = tiles
-            .par_iter()
-            .zip(bins.slices().into_par_iter())
-            .with_max_len(1)
-            .map(|(tile, bin)| {
-                // SAFETY: each tile is rendered by this one task (`tiles` holds each tile
-                // once), and `target` is the frame reset for this grid.
-                unsafe { render_tile(tile, bin, opts, target) }
-            })
-            .collect();
+        let slices = bins.slices();
+        let tile_errors: Vec<Vec<(usize, u32, u32)>> = match Gate::new(compiler) {
+            Some(gate) => {
+                let (errors, gated) = gate.run(tiles.len(), |t| {
+                    // SAFETY: the gate runs each job index once, and `target` is the
+                    // frame reset for this grid.
+                    unsafe { render_tile(&tiles[t], slices[t], opts, target) }
+                });
+                stats.add_gated(gated);
+                errors
+            }
+            None => tiles
+                .par_iter()
+                .zip(slices.into_par_iter())
+                .with_max_len(1)
+                .map(|(tile, bin)| {
+                    // SAFETY: each tile is rendered by this one task (`tiles` holds each
+                    // tile once), and `target` is the frame reset for this grid.
+                    unsafe { render_tile(tile, bin, opts, target) }
+                })
+                .collect(),
+        };
         errors.extend(tile_errors.into_iter().flatten());
+        // The hold ends with the frame but keeps its deadline (`TierUpHold`'s drop): a
+        // worker let go right here would compete with the caller's thread waking up.
+        drop(held_compiler);
 
         let shade_started = Instant::now();
         stats.tiles_micros = micros_between(tiles_started, shade_started);
@@ -454,6 +515,13 @@ impl Renderer {
             kernels: reports,
             effects,
         }
+    }
+}
+
+impl RenderStats {
+    fn add_gated(&mut self, gated: GateStats) {
+        self.gated_jobs += gated.gated_jobs;
+        self.gated_peak_threads = self.gated_peak_threads.max(gated.peak_threads);
     }
 }
 

@@ -8,20 +8,33 @@
 //! as the source is alive; the renderer checks the layout and borrows the source for the whole
 //! render. A kernel of a primitive that `abi::expands` must also honour `MODE_EXPAND`: hand
 //! its calls to `TileCtx::expand` instead of making them (`abi::call_primitive` does both).
+//! A source whose kernels get faster code later (a tiered [`Jit`]) says so through
+//! [`KernelSource::tier_up`], so the renderer can leave its background compiler a core.
 
 use std::sync::Arc;
 
 use crate::abi::VariantKey;
 use crate::ir::FuncId;
-use crate::jit::{Jit, JitError, Kernel};
+use crate::jit::{Jit, JitError, Kernel, TierUpWatch};
 
 /// Something that turns (primitive, key) into a callable kernel.
 pub trait KernelSource {
     fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, JitError>;
+
+    /// The background compiler that will upgrade the kernels handed out, if any: while it
+    /// has a compile pending the renderer runs on one thread fewer than its pool has
+    /// (`super::tiergate`). None for a source whose kernels are final.
+    fn tier_up(&self) -> Option<TierUpWatch> {
+        None
+    }
 }
 
 impl KernelSource for Jit {
     fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, JitError> {
         Jit::kernel(self, func, key)
+    }
+
+    fn tier_up(&self) -> Option<TierUpWatch> {
+        self.tier_up_watch()
     }
 }

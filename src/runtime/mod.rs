@@ -11,6 +11,7 @@
 //!   `vertex` / `end`, the current transform, instances and their argument blocks.
 //! - [`frame`]: binning, parallel tile rendering, the [`Frame`] and its images.
 //! - `expand`: runs a primitive that only calls primitives once and bins its calls instead.
+//! - `tiergate`: leaves a tiered JIT's background compiler a thread while it compiles.
 //! - [`geometry`]: the geometry pipeline at `end`: clip codes, trivial reject / accept,
 //!   clipping, culling, points to device and normals to lighting coordinates.
 //! - [`shading`]: the deferred shading pass (Phong, fog, texture), one monomorphised
@@ -26,6 +27,7 @@ pub mod geometry;
 pub mod kernels;
 pub mod registry;
 pub mod shading;
+mod tiergate;
 pub mod transform;
 pub mod value;
 

@@ -1,0 +1,313 @@
+//! The tier-up gate: while a tiered JIT's background compiler has a tier-1 compile pending,
+//! a frame's parallel passes run on one thread fewer than the pool has.
+//!
+//! Why: a tiered JIT's first frame starts on tier-0 kernels and switches to tier-1 code the
+//! moment the worker has compiled it (`jit` module doc). On a machine with as many render
+//! threads as cores the worker competed with every render thread for a core, so its compile
+//! landed late and a long frame ran most of its work on tier-0 code (2-4x slower), and a
+//! short one lost a core to the worker for its whole length anyway. With one render thread
+//! held back the worker gets a whole core and tier 1 lands about twice as soon; from then
+//! on every thread renders.
+//!
+//! How: [`Gate::new`] opens a gate only when the kernel source has a compile pending and the
+//! pool has more than one thread (otherwise the caller runs its usual parallel iterator).
+//! [`Gate::run`] then starts one claiming loop per pool thread; a loop takes the next job
+//! from a shared counter only while it holds one of `threads - 1` permits, or once the
+//! gate is open (no compile pending any more). A loop waiting for a permit holds no job, so
+//! nothing can deadlock: a permit holder always makes progress, the permits are handed out
+//! to whichever loops start first, and a waiting loop leaves as soon as the jobs run out.
+//! The wait is bounded ([`POLL`]): a waiting loop rechecks the compiler at that interval, so
+//! tier 1 landing mid-pass puts every thread to work within it, and a worker that never
+//! finishes (failed, detached) only leaves the pass on `threads - 1` threads.
+//!
+//! Invariant: the gate decides which thread runs a job and when, never what a job computes;
+//! results come back in job order, so a frame is bit for bit the same gated or not.
+//! Where it sits: `frame::Renderer::render_into`, around the expansion and bound pass and
+//! around the tiles.
+
+use std::sync::{Condvar, Mutex};
+use std::time::Duration;
+
+use crate::jit::{TierUpActivity, TierUpWatch};
+
+/// How long a loop waiting for a permit sleeps before it asks the compiler again.
+pub(super) const POLL: Duration = Duration::from_millis(1);
+
+/// What a background compiler is doing; the gate's only question.
+pub(super) trait Compiler: Sync {
+    fn activity(&self) -> TierUpActivity;
+}
+
+impl Compiler for TierUpWatch {
+    fn activity(&self) -> TierUpActivity {
+        TierUpWatch::activity(self)
+    }
+}
+
+/// What one gated pass did, for `RenderStats`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(super) struct GateStats {
+    /// Jobs started while the gate was closed (a compile pending).
+    pub gated_jobs: usize,
+    /// Most loops that held a permit at once (at most `threads - 1`).
+    pub peak_threads: usize,
+}
+
+/// A closed gate for one pass of a frame (see the module doc).
+pub(super) struct Gate<'w> {
+    compiler: &'w dyn Compiler,
+    threads: usize,
+    permits: usize,
+}
+
+struct State {
+    /// The next job to hand out.
+    next: usize,
+    /// Loops holding a permit.
+    active: usize,
+    /// No compile pending any more: every loop takes jobs.
+    open: bool,
+    stats: GateStats,
+}
+
+impl<'w> Gate<'w> {
+    /// A gate for the current rayon pool when `compiler` has a compile pending and the pool
+    /// has threads to spare; `None` when the pass should simply run on every thread.
+    pub fn new(compiler: Option<&'w dyn Compiler>) -> Option<Gate<'w>> {
+        let compiler = compiler?;
+        let threads = rayon::current_num_threads();
+        (threads > 1 && compiler.activity() != TierUpActivity::Idle).then_some(Gate {
+            compiler,
+            threads,
+            permits: threads - 1,
+        })
+    }
+
+    /// Run jobs `0..jobs` on the current pool under the gate; their results in job order.
+    pub fn run<T: Send>(&self, jobs: usize, job: impl Fn(usize) -> T + Sync) -> (Vec<T>, GateStats) {
+        let state = Mutex::new(State {
+            next: 0,
+            active: 0,
+            open: false,
+            stats: GateStats::default(),
+        });
+        let changed = Condvar::new();
+        let done: Mutex<Vec<(usize, T)>> = Mutex::new(Vec::with_capacity(jobs));
+        rayon::scope(|s| {
+            for _ in 0..self.threads {
+                s.spawn(|_| self.claim_loop(jobs, &state, &changed, &done, &job));
+            }
+        });
+        let mut done = done.into_inner().unwrap_or_else(|e| e.into_inner());
+        // Each index was handed out once, so sorting restores job order exactly.
+        done.sort_unstable_by_key(|&(i, _)| i);
+        let stats = state.into_inner().unwrap_or_else(|e| e.into_inner()).stats;
+        (done.into_iter().map(|(_, r)| r).collect(), stats)
+    }
+
+    /// One pool thread's share: claim jobs until none is left, holding a permit (kept until
+    /// the loop ends) while the gate is closed.
+    fn claim_loop<T: Send>(
+        &self,
+        jobs: usize,
+        state: &Mutex<State>,
+        changed: &Condvar,
+        done: &Mutex<Vec<(usize, T)>>,
+        job: &(impl Fn(usize) -> T + Sync),
+    ) {
+        let mut holds_permit = false;
+        loop {
+            let mut st = state.lock().unwrap_or_else(|e| e.into_inner());
+            let claimed = loop {
+                if st.next >= jobs {
+                    break None;
+                }
+                let compiling = !st.open && {
+                    match self.compiler.activity() {
+                        TierUpActivity::Idle => {
+                            st.open = true;
+                            changed.notify_all();
+                            false
+                        }
+                        TierUpActivity::Held => false,
+                        TierUpActivity::Compiling => true,
+                    }
+                };
+                if !compiling || holds_permit {
+                    break Some((st.next, compiling));
+                }
+                if st.active < self.permits {
+                    st.active += 1;
+                    holds_permit = true;
+                    st.stats.peak_threads = st.stats.peak_threads.max(st.active);
+                    break Some((st.next, true));
+                }
+                st = changed.wait_timeout(st, POLL).unwrap_or_else(|e| e.into_inner()).0;
+            };
+            let Some((i, gated)) = claimed else {
+                if holds_permit {
+                    st.active -= 1;
+                }
+                // The waiting loops leave now rather than at their next poll.
+                changed.notify_all();
+                return;
+            };
+            st.next += 1;
+            st.stats.gated_jobs += usize::from(gated);
+            drop(st);
+            let result = job(i);
+            done.lock().unwrap_or_else(|e| e.into_inner()).push((i, result));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
+
+    /// A compiler whose activity the jobs themselves change.
+    struct Fake(AtomicU8);
+
+    const ACTIVITIES: [TierUpActivity; 3] = [TierUpActivity::Idle, TierUpActivity::Held, TierUpActivity::Compiling];
+
+    impl Fake {
+        fn new(a: TierUpActivity) -> Fake {
+            Fake(AtomicU8::new(ACTIVITIES.iter().position(|&b| b == a).unwrap() as u8))
+        }
+        fn set(&self, a: TierUpActivity) {
+            self.0.store(Fake::new(a).0.into_inner(), Ordering::SeqCst);
+        }
+    }
+
+    impl Compiler for Fake {
+        fn activity(&self) -> TierUpActivity {
+            ACTIVITIES[self.0.load(Ordering::SeqCst) as usize]
+        }
+    }
+
+    fn pool(threads: usize) -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap()
+    }
+
+    /// What [`gated`] saw.
+    struct Seen {
+        results: Vec<usize>,
+        stats: GateStats,
+        /// Most jobs that ran at once among those that started while compiling.
+        most_while_compiling: usize,
+        /// Jobs that started before the switch.
+        started_before_switch: usize,
+    }
+
+    /// Run 40 jobs under a gate on a 3-thread pool, the compiler's activity `first` until
+    /// job `switch_at` ends, `then` after it.
+    fn gated(first: TierUpActivity, switch_at: usize, then: TierUpActivity) -> Seen {
+        let compiler = Fake::new(first);
+        let running = AtomicUsize::new(0);
+        let most_while_compiling = AtomicUsize::new(0);
+        let started_before_switch = AtomicUsize::new(0);
+        let switched = std::sync::atomic::AtomicBool::new(false);
+        let (results, stats) = pool(3).install(|| {
+            let gate = Gate::new(Some(&compiler)).expect("a busy compiler on 3 threads closes the gate");
+            gate.run(40, |i| {
+                let now = running.fetch_add(1, Ordering::SeqCst) + 1;
+                if compiler.activity() == TierUpActivity::Compiling {
+                    most_while_compiling.fetch_max(now, Ordering::SeqCst);
+                }
+                if !switched.load(Ordering::SeqCst) {
+                    started_before_switch.fetch_add(1, Ordering::SeqCst);
+                }
+                // Long enough that the other loops are waiting when the next job is claimed.
+                std::thread::sleep(Duration::from_micros(200));
+                if i == switch_at {
+                    // In this order, a job that starts unswitched was claimed before the
+                    // activity changed.
+                    switched.store(true, Ordering::SeqCst);
+                    compiler.set(then);
+                }
+                running.fetch_sub(1, Ordering::SeqCst);
+                i * 10
+            })
+        });
+        Seen {
+            results,
+            stats,
+            most_while_compiling: most_while_compiling.load(Ordering::SeqCst),
+            started_before_switch: started_before_switch.load(Ordering::SeqCst),
+        }
+    }
+
+    fn in_order() -> Vec<usize> {
+        (0..40).map(|i| i * 10).collect()
+    }
+
+    #[test]
+    fn a_gate_that_never_opens_runs_every_job_on_all_threads_but_one() {
+        let seen = gated(TierUpActivity::Compiling, usize::MAX, TierUpActivity::Idle);
+        assert_eq!(seen.results, in_order());
+        assert_eq!(seen.stats.gated_jobs, 40);
+        assert_eq!(seen.stats.peak_threads, 2);
+        assert!(
+            seen.most_while_compiling <= 2,
+            "{} jobs at once on 3 threads",
+            seen.most_while_compiling
+        );
+    }
+
+    #[test]
+    fn a_gate_opens_once_the_compile_lands() {
+        let seen = gated(TierUpActivity::Compiling, 7, TierUpActivity::Idle);
+        assert_eq!(seen.results, in_order());
+        // Every job claimed before the switch was gated; jobs claimed after it were not. A
+        // job is claimed just before it starts, and each of the two permit holders can have
+        // claimed one before the switch that starts after it.
+        let before = seen.started_before_switch;
+        assert!(before >= 8, "{before}");
+        assert!(
+            (before..=before + 2).contains(&seen.stats.gated_jobs),
+            "{:?}, {before}",
+            seen.stats
+        );
+        assert!(seen.most_while_compiling <= 2, "{}", seen.most_while_compiling);
+    }
+
+    #[test]
+    fn a_held_compiler_leaves_every_thread_working_until_it_starts() {
+        let seen = gated(TierUpActivity::Held, 7, TierUpActivity::Compiling);
+        assert_eq!(seen.results, in_order());
+        // Jobs claimed while held were not gated, all those claimed after were; a held
+        // phase's jobs may still run when compiling begins, so no bound on concurrency
+        // for them, but the gate still counts no more permit holders than it has.
+        let before = seen.started_before_switch;
+        assert!(before >= 8, "{before}");
+        let after = 40 - before;
+        assert!(
+            (after.saturating_sub(2)..=after).contains(&seen.stats.gated_jobs),
+            "{:?}, {before} before the switch",
+            seen.stats
+        );
+        assert!(seen.stats.peak_threads <= 2, "{:?}", seen.stats);
+    }
+
+    #[test]
+    fn no_gate_without_a_busy_compiler_or_a_spare_thread() {
+        let idle = Fake::new(TierUpActivity::Idle);
+        let busy = Fake::new(TierUpActivity::Compiling);
+        let held = Fake::new(TierUpActivity::Held);
+        assert!(pool(2).install(|| Gate::new(Some(&idle)).is_none()));
+        assert!(pool(1).install(|| Gate::new(Some(&busy)).is_none()));
+        assert!(pool(2).install(|| Gate::new(None).is_none()));
+        assert!(pool(2).install(|| Gate::new(Some(&busy)).is_some()));
+        // Held now, compiling later in the pass: the gate is needed.
+        assert!(pool(2).install(|| Gate::new(Some(&held)).is_some()));
+    }
+
+    #[test]
+    fn a_gate_with_no_jobs_returns_at_once() {
+        let busy = Fake::new(TierUpActivity::Compiling);
+        let (results, stats) = pool(2).install(|| Gate::new(Some(&busy)).expect("gate").run(0, |i| i));
+        assert!(results.is_empty());
+        assert_eq!(stats, GateStats::default());
+    }
+}
