@@ -5,32 +5,16 @@
 //! spheres, NURB patches, the geometry pipeline) and the benchmark's fill and small-triangle
 //! workloads.
 
+mod common;
+
+use common::{example_scene, library_and_sources};
 use std::sync::Arc;
 
 use primflow::bench::{fill_scene, same_frame, small_scene};
-use primflow::diag::{Diagnostics, SourceMap};
+use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
-use primflow::runtime::{Frame, KernelSource, Registry, Renderer};
-
-fn library() -> (SourceMap, Arc<Program>) {
-    let mut sources = SourceMap::new();
-    let mut diags = Diagnostics::new();
-    let registry = Registry::load(&mut sources, &[], &[], &mut diags)
-        .unwrap_or_else(|| panic!("library does not compile:\n{}", diags.render(&sources)));
-    (sources, registry.program)
-}
-
-fn example_scene(sources: &mut SourceMap, program: &Arc<Program>, name: &str) -> Renderer {
-    let path = format!("{}/examples/{name}", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    let file = sources.add(name, text);
-    let mut r = Renderer::new(program.clone());
-    let mut diags = Diagnostics::new();
-    primflow::scene::load_into(sources, file, &mut r, &mut diags);
-    assert!(!diags.has_errors(), "{name}: {}", diags.render(sources));
-    r
-}
+use primflow::runtime::{Frame, KernelSource, Renderer};
 
 fn render(r: &Renderer, source: &mut dyn KernelSource) -> Frame {
     let out = r.render(source);
@@ -62,7 +46,7 @@ fn scenes(sources: &mut SourceMap, program: &Arc<Program>) -> Vec<(String, Rende
 
 #[test]
 fn tier_0_and_tier_1_kernels_write_identical_frames() {
-    let (mut sources, program) = library();
+    let (mut sources, program) = library_and_sources();
     for (name, r) in scenes(&mut sources, &program) {
         let mut fast = Jit::at_tier(program.clone(), Tier::Fast).unwrap();
         let mut optimised = Jit::new(program.clone()).unwrap();
@@ -85,7 +69,7 @@ fn tier_0_and_tier_1_kernels_write_identical_frames() {
 
 #[test]
 fn a_tiered_jit_hands_out_tier_1_once_its_background_compile_is_done() {
-    let (mut sources, program) = library();
+    let (mut sources, program) = library_and_sources();
     for (name, r) in scenes(&mut sources, &program).into_iter().take(4) {
         let mut jit = Jit::tiered(program.clone()).unwrap();
         let first = render(&r, &mut jit);
@@ -108,7 +92,7 @@ fn a_tiered_jit_hands_out_tier_1_once_its_background_compile_is_done() {
 #[test]
 fn tier_0_compiles_a_different_kernel_than_tier_1() {
     // Guards the test above against both tiers silently being the same configuration.
-    let (_sources, program) = library();
+    let (_sources, program) = library_and_sources();
     let r = fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
     let inst = &r.instances()[0];
     let fast = Jit::at_tier(program.clone(), Tier::Fast).unwrap();
@@ -147,7 +131,7 @@ fn tier_0_kernels_forward_to_their_tier_1_twins_once_compiled() {
     // A frame in flight when the worker finishes keeps calling the tier-0 entries it was
     // given (binned draws, expanded calls, direct calls between primitives); they must run
     // the tier-1 code from then on and still write the same frame.
-    let (mut sources, program) = library();
+    let (mut sources, program) = library_and_sources();
     let func = |name: &str| primflow::ir::FuncId(program.functions.iter().position(|f| f.name == name).unwrap() as u32);
     for (name, r) in scenes(&mut sources, &program) {
         let mut jit = Jit::tiered(program.clone()).unwrap();
@@ -184,7 +168,7 @@ fn tier_0_kernels_forward_to_their_tier_1_twins_once_compiled() {
 
 #[test]
 fn only_a_tiered_jits_tier_0_kernels_check_for_a_successor() {
-    let (_sources, program) = library();
+    let (_sources, program) = library_and_sources();
     let r = fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
     let inst = &r.instances()[0];
     let tiered = Jit::tiered(program.clone())

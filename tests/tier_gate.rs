@@ -7,33 +7,17 @@
 //! thread work once the compile has landed; and nothing waits forever (stalled, held,
 //! detached or dropped worker). Assertions are on frames and counts, never on timings.
 
+mod common;
+
+use common::{example_scene, library_and_sources};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use primflow::bench::{fill_scene, same_frame, small_scene};
-use primflow::diag::{Diagnostics, SourceMap};
+use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier, TierUpActivity};
-use primflow::runtime::{KernelSource, Registry, RenderOutput, Renderer};
-
-fn library() -> (SourceMap, Arc<Program>) {
-    let mut sources = SourceMap::new();
-    let mut diags = Diagnostics::new();
-    let registry = Registry::load(&mut sources, &[], &[], &mut diags)
-        .unwrap_or_else(|| panic!("library does not compile:\n{}", diags.render(&sources)));
-    (sources, registry.program)
-}
-
-fn example_scene(sources: &mut SourceMap, program: &Arc<Program>, name: &str) -> Renderer {
-    let path = format!("{}/examples/{name}", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    let file = sources.add(name, text);
-    let mut r = Renderer::new(program.clone());
-    let mut diags = Diagnostics::new();
-    primflow::scene::load_into(sources, file, &mut r, &mut diags);
-    assert!(!diags.has_errors(), "{name}: {}", diags.render(sources));
-    r
-}
+use primflow::runtime::{KernelSource, RenderOutput, Renderer};
 
 /// Small scenes with many tiles (16 px) and, for `small`, more than one bound-pass job.
 fn scenes(sources: &mut SourceMap, program: &Arc<Program>) -> Vec<(String, Renderer)> {
@@ -72,7 +56,7 @@ fn jobs_of(r: &Renderer) -> usize {
 
 #[test]
 fn a_frame_rendered_while_tier_1_compiles_leaves_it_one_thread_and_matches_tier_1() {
-    let (mut sources, program) = library();
+    let (mut sources, program) = library_and_sources();
     for (name, r) in scenes(&mut sources, &program) {
         let reference = render_on(2, &r, &mut Jit::at_tier(program.clone(), Tier::Optimised).unwrap());
         assert!(
@@ -113,7 +97,7 @@ fn a_frame_rendered_while_tier_1_compiles_leaves_it_one_thread_and_matches_tier_
 
 #[test]
 fn a_frame_within_the_grace_keeps_every_thread_and_the_worker_waits_for_it() {
-    let (mut sources, program) = library();
+    let (mut sources, program) = library_and_sources();
     for (name, r) in scenes(&mut sources, &program) {
         let reference = render_on(2, &r, &mut Jit::at_tier(program.clone(), Tier::Optimised).unwrap());
         let mut jit = Jit::tiered(program.clone()).unwrap();
@@ -138,7 +122,7 @@ fn a_frame_within_the_grace_keeps_every_thread_and_the_worker_waits_for_it() {
 
 #[test]
 fn no_gate_on_one_thread_for_a_detached_worker_or_a_single_tier_jit() {
-    let (_sources, program) = library();
+    let (_sources, program) = library_and_sources();
     let mut r = fill_scene(&program, 96, 4, Some("perspective_linear"), 4);
     r.set_tile_size(16).unwrap();
     let reference = render_on(2, &r, &mut Jit::at_tier(program.clone(), Tier::Optimised).unwrap());
@@ -181,7 +165,7 @@ fn no_gate_on_one_thread_for_a_detached_worker_or_a_single_tier_jit() {
 fn a_hold_outliving_its_jit_does_not_keep_the_drop_waiting() {
     // Dropping a tiered JIT joins its worker; a hold still alive must not stall that join
     // (the worker drains its queue once its JIT is gone, then ends).
-    let (_sources, program) = library();
+    let (_sources, program) = library_and_sources();
     let r = fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
     let inst = &r.instances()[0];
     let mut jit = Jit::tiered(program.clone()).unwrap();
@@ -200,7 +184,7 @@ fn a_hold_outliving_its_jit_does_not_keep_the_drop_waiting() {
 
 #[test]
 fn a_hold_with_a_deadline_lets_the_worker_go_at_it() {
-    let (_sources, program) = library();
+    let (_sources, program) = library_and_sources();
     let r = fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
     let inst = &r.instances()[0];
     let mut jit = Jit::tiered(program.clone()).unwrap();

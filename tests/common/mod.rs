@@ -197,3 +197,24 @@ pub fn rect_depth_and_codes(
     codes.dedup();
     (out.frame.depth_at(8, 5).unwrap(), codes)
 }
+
+/// The built-in library with the sources it was read from (for scenes parsed against it).
+pub fn library_and_sources() -> (SourceMap, Arc<Program>) {
+    let mut sources = SourceMap::new();
+    let mut diags = Diagnostics::new();
+    let registry = Registry::load(&mut sources, &[], &[], &mut diags)
+        .unwrap_or_else(|| panic!("library does not compile:\n{}", diags.render(&sources)));
+    (sources, registry.program)
+}
+
+/// `examples/NAME` loaded into a renderer for `program` (panics on scene errors).
+pub fn example_scene(sources: &mut SourceMap, program: &Arc<Program>, name: &str) -> Renderer {
+    let path = format!("{}/examples/{name}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let file = sources.add(name, text);
+    let mut r = Renderer::new(program.clone());
+    let mut diags = Diagnostics::new();
+    primflow::scene::load_into(sources, file, &mut r, &mut diags);
+    assert!(!diags.has_errors(), "{name}: {}", diags.render(sources));
+    r
+}
