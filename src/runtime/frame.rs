@@ -61,7 +61,7 @@ use super::api::{Instance, RenderOptions, Renderer, MAX_FRAME_BYTES, MAX_IMAGE_S
 use super::expand::{expand_instance, Budget, Draw, Expanded};
 use super::kernels::KernelSource;
 use super::shading::{Effects, PixelInputs, RowInputs, Shader, ShadingKernel, ShadingSpaces};
-use super::tiergate::{Compiler, Gate, GateStats};
+use super::tiergate::{self, Compiler, GateStats};
 
 /// Rows per parallel task of the shading pass: enough work per task (~4k pixels at 512
 /// wide) that rayon's scheduling is noise, and still dozens of tasks per frame for two cores.
@@ -414,22 +414,8 @@ impl Renderer {
                 tiles_of,
             ))
         };
-        let expanded: Vec<Option<Expanded>> = match Gate::new(compiler) {
-            Some(gate) => {
-                let job = |j: usize| {
-                    let end = (j * BOUND_JOB + BOUND_JOB).min(instances.len());
-                    (j * BOUND_JOB..end).map(expand_one).collect::<Vec<_>>()
-                };
-                let (jobs, gated) = gate.run(instances.len().div_ceil(BOUND_JOB), job);
-                stats.add_gated(gated);
-                jobs.into_iter().flatten().collect()
-            }
-            None => (0..instances.len())
-                .into_par_iter()
-                .with_max_len(BOUND_JOB)
-                .map(expand_one)
-                .collect(),
-        };
+        let (expanded, gated) = tiergate::run_items(compiler, instances.len(), BOUND_JOB, expand_one);
+        stats.add_gated(gated);
         drop(ready);
         for (i, e) in expanded.iter().enumerate() {
             let Some(e) = e else { continue };
@@ -456,27 +442,12 @@ impl Renderer {
         );
         let target = frame.target();
         let slices = bins.slices();
-        let tile_errors: Vec<Vec<(usize, u32, u32)>> = match Gate::new(compiler) {
-            Some(gate) => {
-                let (errors, gated) = gate.run(tiles.len(), |t| {
-                    // SAFETY: the gate runs each job index once, and `target` is the
-                    // frame reset for this grid.
-                    unsafe { render_tile(&tiles[t], slices[t], opts, target) }
-                });
-                stats.add_gated(gated);
-                errors
-            }
-            None => tiles
-                .par_iter()
-                .zip(slices.into_par_iter())
-                .with_max_len(1)
-                .map(|(tile, bin)| {
-                    // SAFETY: each tile is rendered by this one task (`tiles` holds each
-                    // tile once), and `target` is the frame reset for this grid.
-                    unsafe { render_tile(tile, bin, opts, target) }
-                })
-                .collect(),
-        };
+        let (tile_errors, gated) = tiergate::run_items(compiler, tiles.len(), 1, |t| {
+            // SAFETY: each tile index is run once (`tiles` holds each tile once), and
+            // `target` is the frame reset for this grid.
+            unsafe { render_tile(&tiles[t], slices[t], opts, target) }
+        });
+        stats.add_gated(gated);
         errors.extend(tile_errors.into_iter().flatten());
         // The hold ends with the frame but keeps its deadline (`TierUpHold`'s drop): a
         // worker let go right here would compete with the caller's thread waking up.

@@ -53,6 +53,34 @@ pub(super) struct GateStats {
     pub peak_threads: usize,
 }
 
+/// Run `f` on items `0..items` on the current pool, at most `per_job` items per job, and
+/// return the results in item order: under a [`Gate`] (jobs of exactly `per_job` items) when
+/// `compiler` has a compile pending and the pool a thread to spare, otherwise as a plain
+/// parallel iterator that splits down to single items as rayon sees fit.
+pub(super) fn run_items<T: Send>(
+    compiler: Option<&dyn Compiler>,
+    items: usize,
+    per_job: usize,
+    f: impl Fn(usize) -> T + Sync,
+) -> (Vec<T>, GateStats) {
+    use rayon::prelude::*;
+    match Gate::new(compiler) {
+        Some(gate) => {
+            let job = |j: usize| {
+                (j * per_job..(j * per_job + per_job).min(items))
+                    .map(&f)
+                    .collect::<Vec<T>>()
+            };
+            let (jobs, stats) = gate.run(items.div_ceil(per_job), job);
+            (jobs.into_iter().flatten().collect(), stats)
+        }
+        None => (
+            (0..items).into_par_iter().with_max_len(per_job).map(&f).collect(),
+            GateStats::default(),
+        ),
+    }
+}
+
 /// A closed gate for one pass of a frame (see the module doc).
 pub(super) struct Gate<'w> {
     compiler: &'w dyn Compiler,
