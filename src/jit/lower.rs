@@ -339,29 +339,9 @@ pub(crate) struct Lower<'a, 'b> {
     /// the one taken. A run-time error in an untaken arm is not an error (the language
     /// evaluates one arm; the JIT evaluates both and selects).
     error_guard: Option<ir::Value>,
-    /// Tier 0: argument-block words already loaded, by (byte offset, scalar, word bools), with
-    /// the block that loaded them (see `load_uniform`).
-    /// Tier 0: the address of a uniform array's stack slot computed in the current block
-    /// (see [`Self::slot_addr`]).
-    slot_addrs: std::collections::HashMap<StackSlot, (Block, ir::Value)>,
-    /// Tier 0: addresses `base + offset * bytes` of uniform dynamic offsets computed in the
-    /// current block, by (base, offset, bytes) (see [`Self::dyn_addr`]).
-    dyn_addrs: std::collections::HashMap<(ir::Value, ir::Value, u32), (Block, ir::Value)>,
-    /// Tier 0: byte offsets `offset * bytes` (widened to i64) computed in the current block,
-    /// by (offset, bytes): `a[i]` and `b[i]` share one.
-    byte_offsets: std::collections::HashMap<(ir::Value, u32), (Block, ir::Value)>,
-    /// Tier 0: integer constants of index and address arithmetic (shift amounts, array
-    /// lengths, the clamp's 0) made in the current block, by (type, value).
-    int_consts: std::collections::HashMap<(ir::Type, i64), (Block, ir::Value)>,
-    /// Tier 0: the sequence length (at least 1) as loaded in a block (see `seq_len`).
-    seq_len_here: Option<(Block, ir::Value)>,
-    arg_loads: std::collections::HashMap<
-        (i32, Scalar, bool),
-        (Block, ir::Value),
-        std::hash::BuildHasherDefault<super::value::WordHasher>,
-    >,
-    /// Tier 0: constants and pure operations already lowered in a block (value numbering
-    /// while lowering, see [`Self::numbered`]); tier 1 leaves this to Cranelift's e-graph.
+    /// Tier 0: constants, pure operations, address arithmetic and argument reads already
+    /// lowered in a block (value numbering while lowering, see [`Self::numbered`]); tier 1
+    /// leaves this to Cranelift's e-graph.
     vn: VnTable,
     /// The primitive's body as shared by the JITs of its program (`body` in
     /// [`lower_kernel`]), with its index sites proven in range at every occurrence
@@ -505,12 +485,6 @@ pub(crate) fn lower_kernel(
         written: vec![false; key.bindings.len()],
         block_culling,
         error_guard: None,
-        arg_loads: Default::default(),
-        slot_addrs: Default::default(),
-        dyn_addrs: Default::default(),
-        byte_offsets: Default::default(),
-        int_consts: Default::default(),
-        seq_len_here: None,
         vn: VnTable::default(),
         shared_body: body,
         flat: false,
@@ -3562,19 +3536,11 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     fn seq_len(&mut self) -> ir::Value {
         // Tier 0: once per block (the NURB setup read it ~40 times, a load and a umax each).
-        let block = self.b.current_block();
-        if let (true, Some((b, v))) = (self.tier0(), self.seq_len_here) {
-            if Some(b) == block {
-                return v;
-            }
-        }
-        let n = self.b.ins().load(types::I32, args_flags(), self.args, 0);
-        let one = self.b.ins().iconst(types::I32, 1);
-        let v = self.b.ins().umax(n, one);
-        if let (true, Some(b)) = (self.tier0(), block) {
-            self.seq_len_here = Some((b, v));
-        }
-        v
+        self.once_per_block(VnKey::SeqLen, |l| {
+            let n = l.b.ins().load(types::I32, args_flags(), l.args, 0);
+            let one = l.b.ins().iconst(types::I32, 1);
+            l.b.ins().umax(n, one)
+        })
     }
 
     /// Apply one index to an access (clamping it, recording ERR_INDEX when out of range).
@@ -3699,34 +3665,27 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// The uniform component offset `u` as a byte offset (`u * bytes`, widened to i64);
     /// tier 0 computes it once per block.
     fn byte_offset(&mut self, u: ir::Value, bytes: u32) -> ir::Value {
-        let block = self.b.current_block();
-        if let (true, Some(&(b, v))) = (self.tier0(), self.byte_offsets.get(&(u, bytes))) {
-            if Some(b) == block {
-                return v;
-            }
-        }
-        let wide = self.b.ins().uextend(types::I64, u);
-        let v = self.scaled(wide, bytes);
-        if let (true, Some(b)) = (self.tier0(), block) {
-            self.byte_offsets.insert((u, bytes), (b, v));
-        }
-        v
+        self.once_per_block(VnKey::ByteOffset(u, bytes), |l| {
+            let wide = l.b.ins().uextend(types::I64, u);
+            l.scaled(wide, bytes)
+        })
     }
 
     /// `iconst` of `ty`; tier 0 makes each once per block (it has no pass that would
     /// merge the copies: the NURB setup's CLIF had ~250 duplicate shift amounts).
     fn iconst_here(&mut self, ty: ir::Type, v: i64) -> ir::Value {
-        let block = self.b.current_block();
-        if let (true, Some(&(b, c))) = (self.tier0(), self.int_consts.get(&(ty, v))) {
-            if Some(b) == block {
-                return c;
-            }
+        self.once_per_block(VnKey::IntConst(ty, v), |l| l.b.ins().iconst(ty, v))
+    }
+
+    /// `make`'s value, or at tier 0 the one it made earlier in the current block for `key`
+    /// (see [`Self::numbered`]).
+    fn once_per_block(&mut self, key: VnKey, make: impl FnOnce(&mut Self) -> ir::Value) -> ir::Value {
+        if let Some(v) = self.numbered(key) {
+            return v;
         }
-        let c = self.b.ins().iconst(ty, v);
-        if let (true, Some(b)) = (self.tier0(), block) {
-            self.int_consts.insert((ty, v), (b, c));
-        }
-        c
+        let v = make(self);
+        self.number(key, v);
+        v
     }
 
     /// Is `site` of the primitive's own body proven in range (see `proven_sites`)?
@@ -3790,19 +3749,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// `stack_addr`s (one per array access: ~350 in the NURB kernel), so within one block
     /// the first is reused.
     fn slot_addr(&mut self, slot: StackSlot) -> ir::Value {
-        let block = self.b.current_block();
-        if self.tier0() {
-            if let (Some(&(b, v)), Some(cur)) = (self.slot_addrs.get(&slot), block) {
-                if b == cur {
-                    return v;
-                }
-            }
-        }
-        let v = self.b.ins().stack_addr(types::I64, slot, 0);
-        if let (true, Some(b)) = (self.tier0(), block) {
-            self.slot_addrs.insert(slot, (b, v));
-        }
-        v
+        self.once_per_block(VnKey::SlotAddr(slot), |l| l.b.ins().stack_addr(types::I64, slot, 0))
     }
 
     /// Load a scalar of `sc` from `addr + off` bytes in uniform form (bools stored as bytes
@@ -3818,20 +3765,12 @@ impl<'a, 'b> Lower<'a, 'b> {
         // Tier 0 has no e-graph pass to merge repeated loads of the same argument word (the
         // argument block is read-only while the kernel runs): within one block, reuse the
         // first load.
-        let cacheable = ro && addr == self.args && self.tier0();
-        let block = self.b.current_block();
-        if cacheable {
-            if let Some(&(b, v)) = self.arg_loads.get(&(off, sc, word_bools)) {
-                if Some(b) == block {
-                    return v;
-                }
-            }
+        if !(ro && addr == self.args) {
+            return self.load_uniform_uncached(sc, addr, off, word_bools, ro);
         }
-        let v = self.load_uniform_uncached(sc, addr, off, word_bools, ro);
-        if let (true, Some(b)) = (cacheable, block) {
-            self.arg_loads.insert((off, sc, word_bools), (b, v));
-        }
-        v
+        self.once_per_block(VnKey::ArgLoad(off, sc, word_bools), |l| {
+            l.load_uniform_uncached(sc, addr, off, word_bools, ro)
+        })
     }
 
     fn load_uniform_uncached(
@@ -4295,19 +4234,10 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// [`Self::dyn_addr`] of a uniform offset `u`.
     fn uniform_dyn_addr(&mut self, base: ir::Value, u: ir::Value, bytes: i64) -> ir::Value {
-        let key = (base, u, bytes as u32);
-        let block = self.b.current_block();
-        if let (true, Some(&(b, v))) = (self.tier0(), self.dyn_addrs.get(&key)) {
-            if Some(b) == block {
-                return v;
-            }
-        }
-        let db = self.byte_offset(u, bytes as u32);
-        let v = self.b.ins().iadd(base, db);
-        if let (true, Some(b)) = (self.tier0(), block) {
-            self.dyn_addrs.insert(key, (b, v));
-        }
-        v
+        self.once_per_block(VnKey::DynAddr(base, u, bytes as u32), |l| {
+            let db = l.byte_offset(u, bytes as u32);
+            l.b.ins().iadd(base, db)
+        })
     }
 
     // ---------------------------------------------------------------- expressions

@@ -44,7 +44,8 @@ impl Val {
 }
 
 /// What a pure value computed while lowering is, for value numbering at tier 0 (see
-/// `Lower::numbered`): an operation on its operands, or a constant of a scalar type.
+/// `Lower::numbered`): an operation on its operands, a constant, or a piece of address
+/// arithmetic or argument read that a block needs once.
 #[derive(Clone, Copy, PartialEq, Eq, Hash)]
 pub enum VnKey {
     /// `BinOp as u8` (or [`VN_NEG`], [`VN_NOT`]), the operands' scalar type, the operands.
@@ -53,6 +54,19 @@ pub enum VnKey {
     Const(u8, u32, Scalar),
     /// A conversion of the value from the first scalar type to the second.
     Convert(Scalar, Scalar, ir::Value),
+    /// An integer constant of index and address arithmetic (shift amounts, array lengths,
+    /// the clamp's 0), by Cranelift type.
+    IntConst(Type, i64),
+    /// A uniform component offset as a byte offset (`offset * bytes`, widened to i64).
+    ByteOffset(ir::Value, u32),
+    /// `base + offset * bytes` for a uniform dynamic offset.
+    DynAddr(ir::Value, ir::Value, u32),
+    /// The address of a stack slot.
+    SlotAddr(ir::StackSlot),
+    /// A read-only argument-block word: byte offset, scalar, bools stored as words.
+    ArgLoad(i32, Scalar, bool),
+    /// The sequence length (at least 1).
+    SeqLen,
 }
 
 /// [`VnKey::Op`] codes of the unary operations (above every `BinOp`).
