@@ -9,6 +9,9 @@
 //! - Two failing sites: the one that fails first at run time is reported, also when it is
 //!   the later one in the source (a loop whose second read leaves the array first).
 //! - An index error and a loop running out of fuel, in both orders.
+//! - One index read several times in a row (tier 0 checks it once per block): the first
+//!   read that may fail is reported, a guarded one (an arm of `?:`) only when its arm is
+//!   taken.
 //! - An index error before a primitive call whose callee records its own, and the reverse:
 //!   the call runs with the caller's context (calls are not expanded here), so whichever
 //!   error came first is the invocation's one error.
@@ -92,6 +95,18 @@ primitive call_then_index(float rect[4]; int i, j; varying float X, Y; inout var
     Z = s;
 }
 
+primitive repeated_index(float rect[4]; int i, c; varying float X, Y; inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    float a[4] = {0.015625, 0.03125, 0.046875, 0.0625};
+    float b[4] = {0.125, 0.25, 0.375, 0.5};
+    float s = c != 0 ? a[i] : 0;
+    s = s + a[i];
+    s = s + b[i];
+    s = s + a[i];
+    Z = s;
+}
+
 primitive flat(float rect[4]; float z; varying float X, Y; inout varying fixed<32,32> Z)
 {
     bound(rect[0], rect[1], rect[2], rect[3]);
@@ -160,6 +175,24 @@ fn of_two_failing_index_sites_the_first_to_fail_is_reported() {
         };
         let params = [("i", i as f32), ("j", j as f32)];
         check("two_sites", &params, a(i) + a(j), &errors);
+    }
+}
+
+#[test]
+fn an_index_read_again_reports_its_first_read_that_can_fail() {
+    let guarded = site("repeated_index", "float s = c != 0 ? a[i] : 0;", "i]");
+    let unguarded = site("repeated_index", "s = s + a[i];", "i]");
+    let b = |i: i64| [0.125f32, 0.25, 0.375, 0.5][i.clamp(0, 3) as usize];
+    for (i, c) in [(2, 1), (2, 0), (6, 1), (6, 0), (-1, 0), (-1, 1)] {
+        let errors: Vec<String> = match ((0..4).contains(&i), c != 0) {
+            (true, _) => vec![],
+            (false, true) => vec![guarded.clone()],
+            // The arm is not taken: its read is no error, the next one is.
+            (false, false) => vec![unguarded.clone()],
+        };
+        let first = if c != 0 { a(i) } else { 0.0 };
+        let z = first + a(i) + b(i) + a(i);
+        check("repeated_index", &[("i", i as f32), ("c", c as f32)], z, &errors);
     }
 }
 

@@ -3613,8 +3613,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             let c = if proven {
                 idx_comp
             } else {
-                let (len, last) = self.len_and_last(static_len);
-                self.checked_uniform_index(idx_comp, len, last, site)
+                self.checked_uniform_index(idx_comp, static_len, site)
             };
             let c = self.scaled(c, stride);
             match acc.dyn_off {
@@ -3700,15 +3699,38 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// instructions on every access: most of the NURB tessellation's time.)
     /// Tier 0 records inline with selects instead (same results): two blocks per access
     /// doubled the NURB kernel's tier-0 compile time; in setup code it records into the
-    /// kernel's pending error (see [`Self::defer_error`]), not into `ctx`.
-    fn checked_uniform_index(&mut self, idx: ir::Value, len: ir::Value, last: ir::Value, site: SiteId) -> ir::Value {
-        let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
+    /// kernel's pending error (see [`Self::defer_error`]), not into `ctx`. And it checks an
+    /// index once per block: checked again against the same length under the same error
+    /// guard (or after an unguarded check), it is the first check's clamped value, since
+    /// that check fails whenever this one would, and first, and the first error is the one
+    /// kept (the NURB tessellation's de Boor loops checked each index up to five times in
+    /// a row; -6 % of its tier-0 instructions). Not in flat pixel code, where a record also
+    /// depends on the lanes executing.
+    fn checked_uniform_index(&mut self, idx: ir::Value, static_len: Option<u32>, site: SiteId) -> ir::Value {
         if self.tier0() {
+            let key = VnKey::CheckedIndex(idx, static_len, self.error_guard);
+            let reusable = !(self.flat && self.pix.is_some());
+            if reusable {
+                let earlier = self
+                    .numbered(key)
+                    .or_else(|| self.numbered(VnKey::CheckedIndex(idx, static_len, None)));
+                if let Some(c) = earlier {
+                    return c;
+                }
+            }
+            let (len, last) = self.len_and_last(static_len);
+            let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
             self.defer_error(ERR_INDEX, site, Some(bad));
             let zero_s = self.iconst_here(types::I32, 0);
             let c = self.b.ins().smax(idx, zero_s);
-            return self.b.ins().smin(c, last);
+            let c = self.b.ins().smin(c, last);
+            if reusable {
+                self.number(key, c);
+            }
+            return c;
         }
+        let (len, last) = self.len_and_last(static_len);
+        let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
         let cold = self.b.create_block();
         let in_range = self.b.create_block();
         let checked = self.b.append_block_param(in_range, types::I32);

@@ -67,6 +67,9 @@ pub enum VnKey {
     ArgLoad(i32, Scalar, bool),
     /// The sequence length (at least 1).
     SeqLen,
+    /// A uniform index checked and clamped: the index, the array's static length (`None`:
+    /// the sequence length), the error guard it was checked under.
+    CheckedIndex(ir::Value, Option<u32>, Option<ir::Value>),
 }
 
 /// [`VnKey::Op`] codes of the unary operations (above every `BinOp`).
