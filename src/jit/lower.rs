@@ -121,6 +121,12 @@ const ZERO_LOOP_BYTES: u32 = 256;
 /// The format depth values have in the depth buffer.
 const DEPTH_FORMAT: FixedFormat = FixedFormat { bits: 32, frac: 32 };
 
+/// Most components a local kept in SSA variables may have, and most such components a
+/// kernel may have in all its frames (see [`Lower::take_var_words`]); the rest live on the
+/// stack. The built-in primitives' largest register local has 64.
+const MAX_LOCAL_VAR_WORDS: u32 = 1024;
+const MAX_VAR_WORDS: u32 = 16384;
+
 /// Where a local lives.
 #[derive(Clone)]
 enum Storage {
@@ -343,6 +349,9 @@ pub(crate) struct Lower<'a, 'b> {
     /// lowered in a block (value numbering while lowering, see [`Self::numbered`]); tier 1
     /// leaves this to Cranelift's e-graph.
     vn: VnTable,
+    /// Local components given SSA variables so far, in all frames (see
+    /// [`Self::take_var_words`]).
+    var_words: u32,
     /// The primitive's body as shared by the JITs of its program (`body` in
     /// [`lower_kernel`]), with its index sites proven in range at every occurrence
     /// ([`crate::ir::range`]: indexed without clamp or error record). The analysis runs
@@ -486,6 +495,7 @@ pub(crate) fn lower_kernel(
         block_culling,
         error_guard: None,
         vn: VnTable::default(),
+        var_words: 0,
         shared_body: body,
         flat: false,
         setup_live: None,
@@ -1963,6 +1973,19 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     // ---------------------------------------------------------------- frames and storage
 
+    /// Whether a local of `words` components may live in SSA variables (one each), counted
+    /// against the kernel's budget of [`MAX_VAR_WORDS`]: otherwise it goes to the stack
+    /// like a dynamically indexed one. Cranelift allows at most 65535 parameters per block,
+    /// and a loop header can carry every variable (a `float a[65535]` read at constant
+    /// indices panicked the SSA builder); SSA over that many values compiles slowly anyway.
+    fn take_var_words(&mut self, words: u32) -> bool {
+        let fits = words <= MAX_LOCAL_VAR_WORDS && self.var_words + words <= MAX_VAR_WORDS;
+        if fits {
+            self.var_words += words;
+        }
+        fits
+    }
+
     fn make_frame(
         &mut self,
         f: &'a Function,
@@ -1998,7 +2021,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                         return err(format!("local `{}` has a per-sequence-point type", local.name));
                     }
                     let n = type_words(&local.ty, self.n_interp);
-                    if dynamic[i] {
+                    if dynamic[i] || !self.take_var_words(n) {
                         let bytes = n.max(1) * comp_bytes(varying);
                         let slot =
                             self.b
