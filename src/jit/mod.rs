@@ -964,7 +964,7 @@ impl Jit {
         if let Some(e) = self.failed.get(&ck) {
             return Err(e.clone());
         }
-        match self.compile_batch(func, key) {
+        match self.compile_batch_caught(func, key) {
             Ok(words) => {
                 if let Some(t) = &self.tier_up {
                     t.request(ck.clone(), words);
@@ -978,6 +978,32 @@ impl Jit {
                 Err(e)
             }
         }
+    }
+
+    /// [`Self::compile_batch`], with a panic turned into an error for `root`. A panic there
+    /// is a bug of ours or of Cranelift's (every program that checks must compile; a
+    /// `float a[65535]` once panicked the SSA builder), but it must not end the render, and
+    /// a tier-1 worker must not die of it: its compile would stay pending for ever, so
+    /// waits for it would hang and every later frame would leave it a core.
+    fn compile_batch_caught(&mut self, root: FuncId, key: &VariantKey) -> Result<Vec<UpgradeWord>, JitError> {
+        let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            #[cfg(test)]
+            tests::panic_if_asked(self, root);
+            self.compile_batch(root, key)
+        }));
+        caught.unwrap_or_else(|payload| {
+            let what = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            Err(JitError {
+                message: format!(
+                    "internal compiler error while compiling `{}`: {what}",
+                    self.program.func(root).name
+                ),
+            })
+        })
     }
 
     /// Compile `root` and every not-yet-compiled primitive it reaches under `key`; in a
@@ -1199,6 +1225,51 @@ mod tests {
     use super::*;
 
     /// Kernels are shared across render threads; the JIT itself moves between threads.
+    /// A primitive whose tier-1 compile panics (see [`panic_if_asked`]).
+    const PANICS_AT_TIER_1: &str = "panics_at_tier_1";
+
+    /// Stands in for a bug of the JIT: compiling `PANICS_AT_TIER_1` at tier 1 panics.
+    pub(super) fn panic_if_asked(jit: &Jit, root: FuncId) {
+        if jit.options.tier == Tier::Optimised && jit.program.func(root).name == PANICS_AT_TIER_1 {
+            panic!("a panic for a test");
+        }
+    }
+
+    #[test]
+    fn a_panic_while_compiling_is_an_error_and_the_tier_1_worker_lives_on() {
+        let source = format!(
+            "primitive {PANICS_AT_TIER_1}(float rect[4]; varying float X, Y; inout varying fixed<32,32> Z)\n\
+             {{\n    bound(rect[0], rect[1], rect[2], rect[3]);\n    Z = 0.5;\n}}\n"
+        );
+        let mut sources = crate::diag::SourceMap::new();
+        let file = sources.add("panics.prim", source);
+        let mut diags = crate::diag::Diagnostics::new();
+        let program = Arc::new(crate::compile(&sources, &[file], &mut diags).expect("checks"));
+        let func = FuncId(0);
+        let key = VariantKey::default();
+
+        let mut tier1 = Jit::at_tier(program.clone(), Tier::Optimised).unwrap();
+        let err = tier1.kernel(func, &key).err().expect("the panic is an error");
+        assert!(
+            err.message.contains("internal compiler error") && err.message.contains(PANICS_AT_TIER_1),
+            "{}",
+            err.message
+        );
+        assert!(tier1.kernel(func, &key).is_err(), "and stays one");
+
+        // Tiered: tier 0 compiles; the worker's compile fails instead of killing it.
+        let mut tiered = Jit::tiered(program).unwrap();
+        let tier0 = tiered.kernel(func, &key).expect("tier 0");
+        let watch = tiered.tier_up_watch().expect("a tiered JIT has a worker");
+        assert!(
+            !watch.wait(std::time::Duration::from_secs(120)),
+            "the failed compile is no longer pending"
+        );
+        assert_eq!(watch.activity(), TierUpActivity::Idle);
+        assert!(tiered.tier_up_kernel(func, &key).is_none());
+        assert_eq!(tiered.kernel(func, &key).unwrap().entry as usize, tier0.entry as usize);
+    }
+
     #[test]
     fn kernels_are_send_and_sync() {
         fn send_sync<T: Send + Sync>() {}
