@@ -1,4 +1,5 @@
-//! Mutated built-in primitives that still check never make the JIT or the renderer panic:
+//! Mutated built-in primitives that still check never make the JIT or the renderer panic
+//! (nor the JIT report a panic it caught as an internal compiler error):
 //! a library primitive with some of its number literals replaced (by 0, -1, array-edge
 //! values, 65536, 3.4e38, 1e-30, ...) or comparison and arithmetic operators swapped
 //! compiles at both tiers and renders every example scene (small), or reports errors. Such
@@ -154,8 +155,12 @@ proptest! {
             for tier in [Tier::Fast, Tier::Optimised] {
                 let mut jit = Jit::at_tier(program.clone(), tier).expect("host ISA");
                 let out = r.render(&mut jit);
-                // Whatever it drew, every diagnostic renders (spans inside their files).
+                // Whatever it drew, every diagnostic renders (spans inside their files), and
+                // none is a panic caught in the JIT (`Jit::compile_batch_caught`).
                 let _ = out.diags.render(&sources);
+                for d in &out.diags.items {
+                    prop_assert!(!d.message.contains("internal compiler error"), "{} {tier:?}: {}", name, d.message);
+                }
             }
         }
     }
