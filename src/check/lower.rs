@@ -15,7 +15,7 @@
 //! it) so that a varying `return` inside the helper, which makes the loop varying, does not
 //! make the parameter copies "assigned under varying control flow".
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 use crate::diag::{Diagnostic, Span};
 use crate::ir::{
@@ -25,7 +25,7 @@ use crate::ir::{
 use crate::syntax::ast;
 
 use super::types::{self, convert, scalar_of, type_name};
-use super::{consts, Globals, LocalInfo, Signature, Sink};
+use super::{consts, Globals, LocalInfo, LocalWhat, Signature, Sink};
 
 /// What an enclosing construct lets `break`/`continue` reach.
 #[derive(Clone, Copy)]
@@ -49,8 +49,8 @@ pub struct FnLower<'g, 'a> {
     sites: &'g mut Vec<Span>,
     pub kind: FuncKind,
     pub locals: Vec<Local>,
-    pub infos: Vec<LocalInfo>,
-    scopes: Vec<HashMap<String, LocalId>>,
+    pub infos: Vec<LocalInfo<'a>>,
+    scopes: Vec<FxHashMap<String, LocalId>>,
     loops: Vec<LoopCtx>,
     inline: Vec<InlineFrame>,
     pub n_loops: u32,
@@ -261,7 +261,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
             kind,
             locals: vec![],
             infos: vec![],
-            scopes: vec![HashMap::new()],
+            scopes: vec![FxHashMap::default()],
             loops: vec![],
             inline: vec![],
             n_loops: 0,
@@ -278,7 +278,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
 
     // ---- locals, scopes, ids ----------------------------------------------------------
 
-    pub fn new_local(&mut self, name: &str, ty: Type, kind: LocalKind, span: Span, info: LocalInfo) -> LocalId {
+    pub fn new_local(&mut self, name: &str, ty: Type, kind: LocalKind, span: Span, info: LocalInfo<'a>) -> LocalId {
         let id = LocalId(self.locals.len() as u32);
         self.locals.push(Local {
             name: name.to_string(),
@@ -352,7 +352,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
     // ---- blocks and statements ---------------------------------------------------------
 
     pub fn block(&mut self, stmts: &[ast::Stmt], out: &mut Vec<Stmt>) {
-        self.scopes.push(HashMap::new());
+        self.scopes.push(FxHashMap::default());
         self.stmts_in_scope(stmts, out);
         self.scopes.pop();
     }
@@ -398,12 +398,12 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 ));
             }
             K::While { cond, body } => {
-                self.scopes.push(HashMap::new());
+                self.scopes.push(FxHashMap::default());
                 self.lower_loop(Some(cond), None, &body.stmts, s.span, out);
                 self.scopes.pop();
             }
             K::For { init, cond, step, body } => {
-                self.scopes.push(HashMap::new());
+                self.scopes.push(FxHashMap::default());
                 if let Some(i) = init {
                     self.stmt(i, out);
                 }
@@ -473,7 +473,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 v.name.span,
                 LocalInfo {
                     declared,
-                    what: format!("variable `{}`", v.name.name),
+                    what: LocalWhat::Variable,
                     read_only: false,
                 },
             );
@@ -811,7 +811,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
             ));
             return;
         }
-        let mut seen: HashMap<String, Span> = HashMap::new();
+        let mut seen: FxHashMap<String, Span> = FxHashMap::default();
         let mut default_seen: Option<Span> = None;
         let mut ir_arms = vec![];
         self.in_interpolation = true;
@@ -1160,6 +1160,8 @@ impl<'g, 'a> FnLower<'g, 'a> {
     ) -> Option<Expr> {
         let g = self.g;
         let sig = &g.sigs[idx];
+        // The callee as it was declared (the same name as `callee`, which found it).
+        let helper_name: &'a str = &sig.item.name.name;
         if g.recursive.contains(&idx) {
             // The cycle was reported once where it is; inlining would not terminate.
             return None;
@@ -1257,7 +1259,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 p.span,
                 LocalInfo {
                     declared: p.declared,
-                    what: format!("parameter `{}` of helper `{}`", p.name, callee.name),
+                    what: LocalWhat::HelperParam(helper_name),
                     read_only: false,
                 },
             );
@@ -1308,7 +1310,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 span,
                 LocalInfo {
                     declared: None,
-                    what: format!("result of `{}`", sig.item.name.name),
+                    what: LocalWhat::Result(&sig.item.name.name),
                     read_only: false,
                 },
             )
@@ -1316,7 +1318,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         let exit = self.new_loop();
         let site = self.new_site(span);
         // The helper sees only its own parameters: a fresh scope stack, no enclosing loops.
-        let saved_scopes = std::mem::replace(&mut self.scopes, vec![HashMap::new()]);
+        let saved_scopes = std::mem::replace(&mut self.scopes, vec![FxHashMap::default()]);
         for (p, &l) in sig.item.params.iter().zip(param_locals) {
             self.declare_param(&p.name.name, l);
         }
@@ -1712,7 +1714,6 @@ impl<'g, 'a> FnLower<'g, 'a> {
     pub fn binary(&mut self, op: ast::BinOp, l: Expr, r: Expr, span: Span) -> Option<Expr> {
         use ast::BinOp as B;
         let iop = bin_op(op);
-        let shapes = |l: &Expr, r: &Expr| format!("{} and {}", type_name(&l.ty), type_name(&r.ty));
         if l.ty.per_seq || r.ty.per_seq {
             self.sink.push(
                 err(
@@ -1780,7 +1781,6 @@ impl<'g, 'a> FnLower<'g, 'a> {
     }
 
     fn arith(&mut self, op: ast::BinOp, iop: BinOp, l: Expr, r: Expr, span: Span) -> Option<Expr> {
-        let shapes = format!("{} and {}", type_name(&l.ty), type_name(&r.ty));
         // Interpolation data: with itself, or with a number (taken as float).
         if l.ty.elem == Elem::Interp || r.ty.elem == Elem::Interp {
             let ok_other = |e: &Expr| {
@@ -1792,7 +1792,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 self.sink.push(
                     err(
                         "E0202",
-                        format!("interpolation data combined with {shapes}"),
+                        format!("interpolation data combined with {}", shapes(&l, &r)),
                         span,
                         "interpolation data only mixes with itself and with numbers",
                     )
@@ -1824,7 +1824,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         let Some(s) = types::arith_scalar(a, b) else {
             self.sink.push(err(
                 "E0203",
-                format!("arithmetic on {shapes}"),
+                format!("arithmetic on {}", shapes(&l, &r)),
                 span,
                 "bools are not numbers",
             ));
@@ -1836,7 +1836,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
             if r.ty.dims[0] != m {
                 self.sink.push(err(
                     "E0202",
-                    format!("matrix product of {shapes}"),
+                    format!("matrix product of {}", shapes(&l, &r)),
                     span,
                     format!("the left side has {m} columns, the right side {} rows", r.ty.dims[0]),
                 ));
@@ -1860,7 +1860,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         } else {
             self.sink.push(err(
                 "E0202",
-                format!("mismatched shapes: {shapes}"),
+                format!("mismatched shapes: {}", shapes(&l, &r)),
                 span,
                 "component-wise operations need equal shapes (or a scalar)",
             ));
@@ -2167,6 +2167,12 @@ pub fn var_of(v: ast::Variability) -> Variability {
         ast::Variability::Uniform => Variability::Uniform,
         ast::Variability::Varying => Variability::Varying,
     }
+}
+
+/// `float and point`: the operand types of a binary operation, for its error messages
+/// (formatted only when there is an error: this is the hot path of lowering).
+fn shapes(l: &Expr, r: &Expr) -> String {
+    format!("{} and {}", type_name(&l.ty), type_name(&r.ty))
 }
 
 fn bin_op(op: ast::BinOp) -> BinOp {

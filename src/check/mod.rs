@@ -27,7 +27,7 @@ mod lower;
 pub mod types;
 mod variability;
 
-use std::collections::{HashMap, HashSet};
+use rustc_hash::{FxHashMap, FxHashSet};
 
 use crate::diag::{Diagnostic, Diagnostics, SourceMap, Span};
 use crate::ir::{self, ConstValue, FuncId, FuncKind, LocalKind, ParamRole, ParamSpace, Type, Variability};
@@ -83,13 +83,37 @@ impl Sink {
 
 /// What the variability pass needs to know about a local beyond its IR form.
 #[derive(Clone, Debug)]
-pub struct LocalInfo {
+pub struct LocalInfo<'a> {
     /// Declared (or fixed, for parameters) variability and where; `None`: inferred.
     pub declared: Option<(Variability, Span)>,
-    /// How to name it in a message: "variable `a`", "parameter `t` of helper `lerp`".
-    pub what: String,
+    /// How to name it in a message.
+    pub what: LocalWhat<'a>,
     /// Parameters other than Z may not be assigned.
     pub read_only: bool,
+}
+
+/// What kind of local a message is about; [`LocalWhat::describe`] words it with the local's
+/// name. Kept unformatted because only a variability error needs the words.
+#[derive(Clone, Copy, Debug)]
+pub enum LocalWhat<'a> {
+    Variable,
+    Param,
+    /// A parameter of the helper named here, inlined.
+    HelperParam(&'a str),
+    /// The result of the helper named here, inlined.
+    Result(&'a str),
+}
+
+impl LocalWhat<'_> {
+    /// "variable `a`", "parameter `t` of helper `lerp`", ...: `name` is the local's name.
+    pub fn describe(self, name: &str) -> String {
+        match self {
+            LocalWhat::Variable => format!("variable `{name}`"),
+            LocalWhat::Param => format!("parameter `{name}`"),
+            LocalWhat::HelperParam(helper) => format!("parameter `{name}` of helper `{helper}`"),
+            LocalWhat::Result(helper) => format!("result of `{helper}`"),
+        }
+    }
 }
 
 /// A parameter of an item, resolved.
@@ -115,13 +139,13 @@ pub struct Signature<'a> {
 
 pub struct Globals<'a> {
     pub sigs: Vec<Signature<'a>>,
-    pub by_name: HashMap<String, usize>,
+    pub by_name: FxHashMap<String, usize>,
     /// Helpers that are part of a call cycle.
-    pub recursive: HashSet<usize>,
+    pub recursive: FxHashSet<usize>,
 }
 
 fn collect_items<'a>(modules: &'a [ast::Module], sink: &mut Sink) -> Vec<&'a ast::Item> {
-    let mut seen: HashMap<&str, Span> = HashMap::new();
+    let mut seen: FxHashMap<&str, Span> = FxHashMap::default();
     let mut out = vec![];
     for m in modules {
         for item in &m.items {
@@ -151,7 +175,7 @@ fn collect_items<'a>(modules: &'a [ast::Module], sink: &mut Sink) -> Vec<&'a ast
 
 fn signatures<'a>(items: &[&'a ast::Item], sink: &mut Sink) -> Globals<'a> {
     let mut sigs = vec![];
-    let mut by_name = HashMap::new();
+    let mut by_name = FxHashMap::default();
     let mut next_func = 0u32;
     for &item in items {
         let func = match item.kind {
@@ -162,7 +186,7 @@ fn signatures<'a>(items: &[&'a ast::Item], sink: &mut Sink) -> Globals<'a> {
             }
         };
         let mut params: Vec<SigParam> = vec![];
-        let mut names: HashMap<&str, Span> = HashMap::new();
+        let mut names: FxHashMap<&str, Span> = FxHashMap::default();
         for p in &item.params {
             if let Some(prev) = names.get(p.name.name.as_str()) {
                 sink.push(
@@ -186,7 +210,7 @@ fn signatures<'a>(items: &[&'a ast::Item], sink: &mut Sink) -> Globals<'a> {
     Globals {
         sigs,
         by_name,
-        recursive: HashSet::new(),
+        recursive: FxHashSet::default(),
     }
 }
 
@@ -387,8 +411,8 @@ fn find_recursion<'a>(mut g: Globals<'a>, sink: &mut Sink) -> Globals<'a> {
         edges: &edges,
         state: vec![0u8; n],
         stack: vec![],
-        recursive: HashSet::new(),
-        reported: HashSet::new(),
+        recursive: FxHashSet::default(),
+        reported: FxHashSet::default(),
     };
     for v in 0..n {
         if dfs.state[v] == 0 && g.sigs[v].item.kind == ast::ItemKind::Function {
@@ -411,9 +435,9 @@ struct CycleSearch<'g, 'a> {
     state: Vec<u8>,
     /// The current call chain: each helper with the span of the call that reached it.
     stack: Vec<(usize, Span)>,
-    recursive: HashSet<usize>,
+    recursive: FxHashSet<usize>,
     /// Cycles already reported, as sorted helper sets.
-    reported: HashSet<Vec<usize>>,
+    reported: FxHashSet<Vec<usize>>,
 }
 
 impl CycleSearch<'_, '_> {
@@ -578,7 +602,7 @@ fn check_helper(g: &Globals, idx: usize, sink: &mut Sink, sites: &mut Vec<Span>)
                 p.span,
                 LocalInfo {
                     declared: p.declared,
-                    what: format!("parameter `{}`", p.name),
+                    what: LocalWhat::Param,
                     read_only: false,
                 },
             ));
@@ -632,7 +656,7 @@ fn lower_function(
             p.span,
             LocalInfo {
                 declared: p.declared,
-                what: format!("parameter `{}`", p.name),
+                what: LocalWhat::Param,
                 read_only: p.role != ParamRole::Z,
             },
         );

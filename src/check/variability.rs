@@ -17,7 +17,7 @@
 //! varying operand or condition), so diagnostics can point at the cause.
 
 use crate::diag::{Diagnostic, Span};
-use crate::ir::{Expr, ExprKind, Function, LocalId, LoopId, ParamRole, Stmt, StmtKind, Variability};
+use crate::ir::{Expr, ExprKind, Function, Local, LocalId, LoopId, ParamRole, Stmt, StmtKind, Variability};
 
 use super::{LocalInfo, Sink};
 
@@ -26,7 +26,9 @@ use super::{LocalInfo, Sink};
 type Cause = Option<(Span, Option<LocalId>)>;
 
 struct State<'i> {
-    infos: &'i [LocalInfo],
+    infos: &'i [LocalInfo<'i>],
+    /// The function's locals (for their names in messages).
+    locals: &'i [Local],
     var: Vec<Variability>,
     cause: Vec<Option<Span>>,
     /// The loop's IR `varying` flag: it must run until no lane is active.
@@ -46,8 +48,10 @@ struct State<'i> {
 /// Infer variabilities in `f.setup` (the whole checked body), set them in the IR and report
 /// the variability errors. `callee_roles[f]` gives each primitive's parameter roles.
 pub fn analyze(f: &mut Function, infos: &[LocalInfo], callee_roles: &[Vec<ParamRole>], sink: &mut Sink) {
+    let mut body = std::mem::take(&mut f.setup);
     let mut st = State {
         infos,
+        locals: &f.locals,
         var: infos
             .iter()
             .map(|i| i.declared.map_or(Variability::Uniform, |d| d.0))
@@ -61,7 +65,6 @@ pub fn analyze(f: &mut Function, infos: &[LocalInfo], callee_roles: &[Vec<ParamR
         loops: vec![],
         report: false,
     };
-    let mut body = std::mem::take(&mut f.setup);
     loop {
         st.changed = false;
         st.block(&mut body, callee_roles, sink);
@@ -71,8 +74,9 @@ pub fn analyze(f: &mut Function, infos: &[LocalInfo], callee_roles: &[Vec<ParamR
     }
     st.report = true;
     st.block(&mut body, callee_roles, sink);
+    let var = st.var;
     f.setup = body;
-    for (l, v) in f.locals.iter_mut().zip(&st.var) {
+    for (l, v) in f.locals.iter_mut().zip(&var) {
         l.var = *v;
     }
 }
@@ -130,6 +134,7 @@ impl State<'_> {
                 }
                 let l = place.local;
                 let info = &self.infos[l.0 as usize];
+                let what = || info.what.describe(&self.locals[l.0 as usize].name);
                 match info.declared {
                     Some((Variability::Uniform, decl)) => {
                         if !self.report {
@@ -137,7 +142,7 @@ impl State<'_> {
                         }
                         if v.is_varying() {
                             let mut d =
-                                Diagnostic::error("E0301", format!("varying value assigned to uniform {}", info.what))
+                                Diagnostic::error("E0301", format!("varying value assigned to uniform {}", what()))
                                     .primary(span, "assigned here")
                                     .secondary(decl, "declared uniform here");
                             d = self.explain(d, cause);
@@ -146,7 +151,7 @@ impl State<'_> {
                             sink.push(
                                 Diagnostic::error(
                                     "E0302",
-                                    format!("uniform {} assigned under varying control flow", info.what),
+                                    format!("uniform {} assigned under varying control flow", what()),
                                 )
                                 .primary(span, "assigned here")
                                 .secondary(c, "this condition is varying")
