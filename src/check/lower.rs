@@ -39,7 +39,6 @@ struct InlineFrame {
     helper: usize,
     exit: LoopId,
     result: Option<LocalId>,
-    ret: Option<Type>,
 }
 
 /// Lowers the bodies of one IR function (and of the helpers inlined into it).
@@ -727,12 +726,13 @@ impl<'g, 'a> FnLower<'g, 'a> {
 
     fn ret(&mut self, value: Option<&ast::Expr>, span: Span, out: &mut Vec<Stmt>) {
         if let Some(frame) = self.inline.last() {
-            let (exit, result, ret, helper) = (frame.exit, frame.result, frame.ret.clone(), frame.helper);
-            let hname = self.g.sigs[helper].item.name.name.clone();
+            let (exit, result, helper) = (frame.exit, frame.result, frame.helper);
+            let g = self.g;
+            let (hname, ret) = (&g.sigs[helper].item.name.name, g.sigs[helper].ret.as_ref());
             match (value, result, ret) {
                 (Some(e), Some(r), Some(rt)) => {
                     let mut pre = vec![];
-                    if let Some(v) = self.expr_to(e, &rt, &mut pre) {
+                    if let Some(v) = self.expr_to(e, rt, &mut pre) {
                         out.extend(pre);
                         out.push(stmt(
                             StmtKind::Assign {
@@ -1327,7 +1327,6 @@ impl<'g, 'a> FnLower<'g, 'a> {
             helper: idx,
             exit,
             result,
-            ret: sig.ret.clone(),
         });
         let saved_arm = self.arm.take();
         let saved_interp = std::mem::replace(&mut self.in_interpolation, false);
