@@ -406,7 +406,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 if let Some(i) = init {
                     self.stmt(i, out);
                 }
-                self.lower_loop(cond.as_ref(), step.as_deref(), &body.stmts, s.span, out);
+                self.lower_loop(cond.as_deref(), step.as_deref(), &body.stmts, s.span, out);
                 self.scopes.pop();
             }
             K::Break | K::Continue => match self.loops.last() {
