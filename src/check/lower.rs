@@ -68,6 +68,9 @@ pub struct FnLower<'g, 'a> {
     /// Report running out of the inlining budget (off when a helper is checked on its own:
     /// only a call from a primitive or interpolator really inlines it).
     pub report_budget: bool,
+    /// Helpers whose body was lowered here without a diagnostic the sink did not already
+    /// hold and within the inlining budget (see [`super::check_helper`]).
+    pub lowered_cleanly: Vec<usize>,
 }
 
 /// Most helper calls inlined into one function.
@@ -272,6 +275,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
             inlined: 0,
             outermost_call: Span::default(),
             report_budget: true,
+            lowered_cleanly: vec![],
         }
     }
 
@@ -1330,8 +1334,12 @@ impl<'g, 'a> FnLower<'g, 'a> {
         });
         let saved_arm = self.arm.take();
         let saved_interp = std::mem::replace(&mut self.in_interpolation, false);
+        let diags_before = self.sink.items.len();
         let mut body = vec![];
         self.stmts_in_scope(&sig.item.body.stmts, &mut body);
+        if self.sink.items.len() == diags_before && self.inlined <= INLINE_BUDGET {
+            self.lowered_cleanly.push(idx);
+        }
         // Falling off the end leaves the helper too (unless it just returned).
         if !matches!(body.last(), Some(Stmt { kind: StmtKind::Break(l), .. }) if *l == exit) {
             body.push(stmt(StmtKind::Break(exit), sig.item.body.span));

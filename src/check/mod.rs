@@ -9,7 +9,8 @@
 //!    the callee's body;
 //! 3. **recursion** — the helper call graph; a cycle is reported once and never inlined;
 //! 4. **bodies** — each helper is lowered once on its own (so an uncalled helper is still
-//!    type-checked), then each primitive and interpolator is lowered ([`lower`]), with
+//!    type-checked; skipped when an earlier inlining already lowered it cleanly, see
+//!    [`check_helper`]), then each primitive and interpolator is lowered ([`lower`]), with
 //!    helpers inlined; after this point every expression has its final type;
 //! 5. **variability** — [`variability::analyze`] infers uniform/varying to a fixpoint and
 //!    reports the variability errors; after this point every expression, loop and local
@@ -52,11 +53,12 @@ pub fn check(modules: &[ast::Module], sources: &SourceMap, diags: &mut Diagnosti
         .collect();
 
     let mut program = ir::Program::default();
+    let mut lowered_cleanly = vec![false; g.sigs.len()];
     for (idx, sig) in g.sigs.iter().enumerate() {
         match sig.item.kind {
-            ast::ItemKind::Function => check_helper(&g, idx, &mut sink, &mut program.sites),
+            ast::ItemKind::Function => check_helper(&g, idx, &mut sink, &mut program.sites, &mut lowered_cleanly),
             ast::ItemKind::Primitive | ast::ItemKind::Interpolator => {
-                let f = lower_function(&g, idx, &roles, &mut sink, &mut program.sites);
+                let f = lower_function(&g, idx, &roles, &mut sink, &mut program.sites, &mut lowered_cleanly);
                 program.functions.push(f);
             }
         }
@@ -564,7 +566,14 @@ fn expr_calls(e: &ast::Expr, out: &mut Vec<(String, Span)>) {
 /// Type-check a helper on its own (its parameters as temporaries) and check that a helper
 /// with a value cannot fall off its end. The IR made here is thrown away: helpers only
 /// exist inlined.
-fn check_helper(g: &Globals, idx: usize, sink: &mut Sink, sites: &mut Vec<Span>) {
+///
+/// Lowering a helper's body reports the same diagnostics wherever it is inlined (its
+/// parameters are typed by the signature, and what depends on the enclosing function is
+/// decided by being in a helper), except when the inlining budget runs out. So when an
+/// earlier inlining (`lowered_cleanly[idx]`) lowered the body within the budget and pushed
+/// nothing the sink did not already hold, lowering it again here could only push
+/// duplicates, which the sink drops: it is skipped.
+fn check_helper(g: &Globals, idx: usize, sink: &mut Sink, sites: &mut Vec<Span>, lowered_cleanly: &mut [bool]) {
     let sig = &g.sigs[idx];
     if sig.ret.is_some() && !block_returns(&sig.item.body.stmts) {
         sink.push(
@@ -585,7 +594,7 @@ fn check_helper(g: &Globals, idx: usize, sink: &mut Sink, sites: &mut Vec<Span>)
             ),
         );
     }
-    if g.recursive.contains(&idx) {
+    if g.recursive.contains(&idx) || lowered_cleanly[idx] {
         return;
     }
     let mut scratch_sites = std::mem::take(sites);
@@ -609,6 +618,9 @@ fn check_helper(g: &Globals, idx: usize, sink: &mut Sink, sites: &mut Vec<Span>)
         }
         let mut pre = vec![];
         fl.inline_body(idx, &params, sig.item.span, &mut pre);
+        for &h in &fl.lowered_cleanly {
+            lowered_cleanly[h] = true;
+        }
     }
     // The standalone IR is discarded, so are its sites.
     scratch_sites.truncate(n_sites);
@@ -640,6 +652,7 @@ fn lower_function(
     roles: &[Vec<ParamRole>],
     sink: &mut Sink,
     sites: &mut Vec<Span>,
+    lowered_cleanly: &mut [bool],
 ) -> ir::Function {
     let sig = &g.sigs[idx];
     let kind = match sig.item.kind {
@@ -695,6 +708,9 @@ fn lower_function(
                 }
             }
         }
+    }
+    for &h in &fl.lowered_cleanly {
+        lowered_cleanly[h] = true;
     }
     let (locals, infos, n_loops, uses_spaces) = (fl.locals, fl.infos, fl.n_loops, fl.uses_spaces);
     let mut f = ir::Function {
