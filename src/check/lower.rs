@@ -15,7 +15,7 @@
 //! it) so that a varying `return` inside the helper, which makes the loop varying, does not
 //! make the parameter copies "assigned under varying control flow".
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 use crate::diag::{Diagnostic, Span};
 use crate::ir::{
@@ -25,7 +25,7 @@ use crate::ir::{
 use crate::syntax::ast;
 
 use super::types::{self, convert, scalar_of, type_name};
-use super::{consts, Globals, LocalInfo, Signature, Sink};
+use super::{consts, Globals, LocalInfo, LocalWhat, Signature, Sink};
 
 /// What an enclosing construct lets `break`/`continue` reach.
 #[derive(Clone, Copy)]
@@ -39,7 +39,6 @@ struct InlineFrame {
     helper: usize,
     exit: LoopId,
     result: Option<LocalId>,
-    ret: Option<Type>,
 }
 
 /// Lowers the bodies of one IR function (and of the helpers inlined into it).
@@ -49,8 +48,8 @@ pub struct FnLower<'g, 'a> {
     sites: &'g mut Vec<Span>,
     pub kind: FuncKind,
     pub locals: Vec<Local>,
-    pub infos: Vec<LocalInfo>,
-    scopes: Vec<HashMap<String, LocalId>>,
+    pub infos: Vec<LocalInfo<'a>>,
+    scopes: Vec<FxHashMap<String, LocalId>>,
     loops: Vec<LoopCtx>,
     inline: Vec<InlineFrame>,
     pub n_loops: u32,
@@ -69,6 +68,9 @@ pub struct FnLower<'g, 'a> {
     /// Report running out of the inlining budget (off when a helper is checked on its own:
     /// only a call from a primitive or interpolator really inlines it).
     pub report_budget: bool,
+    /// Helpers whose body was lowered here without a diagnostic the sink did not already
+    /// hold and within the inlining budget (see [`super::check_helper`]).
+    pub lowered_cleanly: Vec<usize>,
 }
 
 /// Most helper calls inlined into one function.
@@ -261,7 +263,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
             kind,
             locals: vec![],
             infos: vec![],
-            scopes: vec![HashMap::new()],
+            scopes: vec![FxHashMap::default()],
             loops: vec![],
             inline: vec![],
             n_loops: 0,
@@ -273,12 +275,13 @@ impl<'g, 'a> FnLower<'g, 'a> {
             inlined: 0,
             outermost_call: Span::default(),
             report_budget: true,
+            lowered_cleanly: vec![],
         }
     }
 
     // ---- locals, scopes, ids ----------------------------------------------------------
 
-    pub fn new_local(&mut self, name: &str, ty: Type, kind: LocalKind, span: Span, info: LocalInfo) -> LocalId {
+    pub fn new_local(&mut self, name: &str, ty: Type, kind: LocalKind, span: Span, info: LocalInfo<'a>) -> LocalId {
         let id = LocalId(self.locals.len() as u32);
         self.locals.push(Local {
             name: name.to_string(),
@@ -352,7 +355,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
     // ---- blocks and statements ---------------------------------------------------------
 
     pub fn block(&mut self, stmts: &[ast::Stmt], out: &mut Vec<Stmt>) {
-        self.scopes.push(HashMap::new());
+        self.scopes.push(FxHashMap::default());
         self.stmts_in_scope(stmts, out);
         self.scopes.pop();
     }
@@ -398,16 +401,16 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 ));
             }
             K::While { cond, body } => {
-                self.scopes.push(HashMap::new());
+                self.scopes.push(FxHashMap::default());
                 self.lower_loop(Some(cond), None, &body.stmts, s.span, out);
                 self.scopes.pop();
             }
             K::For { init, cond, step, body } => {
-                self.scopes.push(HashMap::new());
+                self.scopes.push(FxHashMap::default());
                 if let Some(i) = init {
                     self.stmt(i, out);
                 }
-                self.lower_loop(cond.as_ref(), step.as_deref(), &body.stmts, s.span, out);
+                self.lower_loop(cond.as_deref(), step.as_deref(), &body.stmts, s.span, out);
                 self.scopes.pop();
             }
             K::Break | K::Continue => match self.loops.last() {
@@ -473,7 +476,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 v.name.span,
                 LocalInfo {
                     declared,
-                    what: format!("variable `{}`", v.name.name),
+                    what: LocalWhat::Variable,
                     read_only: false,
                 },
             );
@@ -727,12 +730,13 @@ impl<'g, 'a> FnLower<'g, 'a> {
 
     fn ret(&mut self, value: Option<&ast::Expr>, span: Span, out: &mut Vec<Stmt>) {
         if let Some(frame) = self.inline.last() {
-            let (exit, result, ret, helper) = (frame.exit, frame.result, frame.ret.clone(), frame.helper);
-            let hname = self.g.sigs[helper].item.name.name.clone();
+            let (exit, result, helper) = (frame.exit, frame.result, frame.helper);
+            let g = self.g;
+            let (hname, ret) = (&g.sigs[helper].item.name.name, g.sigs[helper].ret.as_ref());
             match (value, result, ret) {
                 (Some(e), Some(r), Some(rt)) => {
                     let mut pre = vec![];
-                    if let Some(v) = self.expr_to(e, &rt, &mut pre) {
+                    if let Some(v) = self.expr_to(e, rt, &mut pre) {
                         out.extend(pre);
                         out.push(stmt(
                             StmtKind::Assign {
@@ -811,7 +815,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
             ));
             return;
         }
-        let mut seen: HashMap<String, Span> = HashMap::new();
+        let mut seen: FxHashMap<String, Span> = FxHashMap::default();
         let mut default_seen: Option<Span> = None;
         let mut ir_arms = vec![];
         self.in_interpolation = true;
@@ -1160,6 +1164,8 @@ impl<'g, 'a> FnLower<'g, 'a> {
     ) -> Option<Expr> {
         let g = self.g;
         let sig = &g.sigs[idx];
+        // The callee as it was declared (the same name as `callee`, which found it).
+        let helper_name: &'a str = &sig.item.name.name;
         if g.recursive.contains(&idx) {
             // The cycle was reported once where it is; inlining would not terminate.
             return None;
@@ -1257,7 +1263,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 p.span,
                 LocalInfo {
                     declared: p.declared,
-                    what: format!("parameter `{}` of helper `{}`", p.name, callee.name),
+                    what: LocalWhat::HelperParam(helper_name),
                     read_only: false,
                 },
             );
@@ -1308,7 +1314,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 span,
                 LocalInfo {
                     declared: None,
-                    what: format!("result of `{}`", sig.item.name.name),
+                    what: LocalWhat::Result(&sig.item.name.name),
                     read_only: false,
                 },
             )
@@ -1316,7 +1322,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         let exit = self.new_loop();
         let site = self.new_site(span);
         // The helper sees only its own parameters: a fresh scope stack, no enclosing loops.
-        let saved_scopes = std::mem::replace(&mut self.scopes, vec![HashMap::new()]);
+        let saved_scopes = std::mem::replace(&mut self.scopes, vec![FxHashMap::default()]);
         for (p, &l) in sig.item.params.iter().zip(param_locals) {
             self.declare_param(&p.name.name, l);
         }
@@ -1325,12 +1331,15 @@ impl<'g, 'a> FnLower<'g, 'a> {
             helper: idx,
             exit,
             result,
-            ret: sig.ret.clone(),
         });
         let saved_arm = self.arm.take();
         let saved_interp = std::mem::replace(&mut self.in_interpolation, false);
+        let diags_before = self.sink.items.len();
         let mut body = vec![];
         self.stmts_in_scope(&sig.item.body.stmts, &mut body);
+        if self.sink.items.len() == diags_before && self.inlined <= INLINE_BUDGET {
+            self.lowered_cleanly.push(idx);
+        }
         // Falling off the end leaves the helper too (unless it just returned).
         if !matches!(body.last(), Some(Stmt { kind: StmtKind::Break(l), .. }) if *l == exit) {
             body.push(stmt(StmtKind::Break(exit), sig.item.body.span));
@@ -1712,7 +1721,6 @@ impl<'g, 'a> FnLower<'g, 'a> {
     pub fn binary(&mut self, op: ast::BinOp, l: Expr, r: Expr, span: Span) -> Option<Expr> {
         use ast::BinOp as B;
         let iop = bin_op(op);
-        let shapes = |l: &Expr, r: &Expr| format!("{} and {}", type_name(&l.ty), type_name(&r.ty));
         if l.ty.per_seq || r.ty.per_seq {
             self.sink.push(
                 err(
@@ -1780,7 +1788,6 @@ impl<'g, 'a> FnLower<'g, 'a> {
     }
 
     fn arith(&mut self, op: ast::BinOp, iop: BinOp, l: Expr, r: Expr, span: Span) -> Option<Expr> {
-        let shapes = format!("{} and {}", type_name(&l.ty), type_name(&r.ty));
         // Interpolation data: with itself, or with a number (taken as float).
         if l.ty.elem == Elem::Interp || r.ty.elem == Elem::Interp {
             let ok_other = |e: &Expr| {
@@ -1792,7 +1799,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 self.sink.push(
                     err(
                         "E0202",
-                        format!("interpolation data combined with {shapes}"),
+                        format!("interpolation data combined with {}", shapes(&l, &r)),
                         span,
                         "interpolation data only mixes with itself and with numbers",
                     )
@@ -1824,7 +1831,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         let Some(s) = types::arith_scalar(a, b) else {
             self.sink.push(err(
                 "E0203",
-                format!("arithmetic on {shapes}"),
+                format!("arithmetic on {}", shapes(&l, &r)),
                 span,
                 "bools are not numbers",
             ));
@@ -1836,7 +1843,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
             if r.ty.dims[0] != m {
                 self.sink.push(err(
                     "E0202",
-                    format!("matrix product of {shapes}"),
+                    format!("matrix product of {}", shapes(&l, &r)),
                     span,
                     format!("the left side has {m} columns, the right side {} rows", r.ty.dims[0]),
                 ));
@@ -1860,7 +1867,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         } else {
             self.sink.push(err(
                 "E0202",
-                format!("mismatched shapes: {shapes}"),
+                format!("mismatched shapes: {}", shapes(&l, &r)),
                 span,
                 "component-wise operations need equal shapes (or a scalar)",
             ));
@@ -2167,6 +2174,12 @@ pub fn var_of(v: ast::Variability) -> Variability {
         ast::Variability::Uniform => Variability::Uniform,
         ast::Variability::Varying => Variability::Varying,
     }
+}
+
+/// `float and point`: the operand types of a binary operation, for its error messages
+/// (formatted only when there is an error: this is the hot path of lowering).
+fn shapes(l: &Expr, r: &Expr) -> String {
+    format!("{} and {}", type_name(&l.ty), type_name(&r.ty))
 }
 
 fn bin_op(op: ast::BinOp) -> BinOp {

@@ -9,7 +9,8 @@
 //!    the callee's body;
 //! 3. **recursion** — the helper call graph; a cycle is reported once and never inlined;
 //! 4. **bodies** — each helper is lowered once on its own (so an uncalled helper is still
-//!    type-checked), then each primitive and interpolator is lowered ([`lower`]), with
+//!    type-checked; skipped when an earlier inlining already lowered it cleanly, see
+//!    [`check_helper`]), then each primitive and interpolator is lowered ([`lower`]), with
 //!    helpers inlined; after this point every expression has its final type;
 //! 5. **variability** — [`variability::analyze`] infers uniform/varying to a fixpoint and
 //!    reports the variability errors; after this point every expression, loop and local
@@ -27,7 +28,7 @@ mod lower;
 pub mod types;
 mod variability;
 
-use std::collections::{HashMap, HashSet};
+use rustc_hash::{FxHashMap, FxHashSet};
 
 use crate::diag::{Diagnostic, Diagnostics, SourceMap, Span};
 use crate::ir::{self, ConstValue, FuncId, FuncKind, LocalKind, ParamRole, ParamSpace, Type, Variability};
@@ -52,11 +53,12 @@ pub fn check(modules: &[ast::Module], sources: &SourceMap, diags: &mut Diagnosti
         .collect();
 
     let mut program = ir::Program::default();
+    let mut lowered_cleanly = vec![false; g.sigs.len()];
     for (idx, sig) in g.sigs.iter().enumerate() {
         match sig.item.kind {
-            ast::ItemKind::Function => check_helper(&g, idx, &mut sink, &mut program.sites),
+            ast::ItemKind::Function => check_helper(&g, idx, &mut sink, &mut program.sites, &mut lowered_cleanly),
             ast::ItemKind::Primitive | ast::ItemKind::Interpolator => {
-                let f = lower_function(&g, idx, &roles, &mut sink, &mut program.sites);
+                let f = lower_function(&g, idx, &roles, &mut sink, &mut program.sites, &mut lowered_cleanly);
                 program.functions.push(f);
             }
         }
@@ -83,13 +85,37 @@ impl Sink {
 
 /// What the variability pass needs to know about a local beyond its IR form.
 #[derive(Clone, Debug)]
-pub struct LocalInfo {
+pub struct LocalInfo<'a> {
     /// Declared (or fixed, for parameters) variability and where; `None`: inferred.
     pub declared: Option<(Variability, Span)>,
-    /// How to name it in a message: "variable `a`", "parameter `t` of helper `lerp`".
-    pub what: String,
+    /// How to name it in a message.
+    pub what: LocalWhat<'a>,
     /// Parameters other than Z may not be assigned.
     pub read_only: bool,
+}
+
+/// What kind of local a message is about; [`LocalWhat::describe`] words it with the local's
+/// name. Kept unformatted because only a variability error needs the words.
+#[derive(Clone, Copy, Debug)]
+pub enum LocalWhat<'a> {
+    Variable,
+    Param,
+    /// A parameter of the helper named here, inlined.
+    HelperParam(&'a str),
+    /// The result of the helper named here, inlined.
+    Result(&'a str),
+}
+
+impl LocalWhat<'_> {
+    /// "variable `a`", "parameter `t` of helper `lerp`", ...: `name` is the local's name.
+    pub fn describe(self, name: &str) -> String {
+        match self {
+            LocalWhat::Variable => format!("variable `{name}`"),
+            LocalWhat::Param => format!("parameter `{name}`"),
+            LocalWhat::HelperParam(helper) => format!("parameter `{name}` of helper `{helper}`"),
+            LocalWhat::Result(helper) => format!("result of `{helper}`"),
+        }
+    }
 }
 
 /// A parameter of an item, resolved.
@@ -115,13 +141,13 @@ pub struct Signature<'a> {
 
 pub struct Globals<'a> {
     pub sigs: Vec<Signature<'a>>,
-    pub by_name: HashMap<String, usize>,
+    pub by_name: FxHashMap<String, usize>,
     /// Helpers that are part of a call cycle.
-    pub recursive: HashSet<usize>,
+    pub recursive: FxHashSet<usize>,
 }
 
 fn collect_items<'a>(modules: &'a [ast::Module], sink: &mut Sink) -> Vec<&'a ast::Item> {
-    let mut seen: HashMap<&str, Span> = HashMap::new();
+    let mut seen: FxHashMap<&str, Span> = FxHashMap::default();
     let mut out = vec![];
     for m in modules {
         for item in &m.items {
@@ -151,7 +177,7 @@ fn collect_items<'a>(modules: &'a [ast::Module], sink: &mut Sink) -> Vec<&'a ast
 
 fn signatures<'a>(items: &[&'a ast::Item], sink: &mut Sink) -> Globals<'a> {
     let mut sigs = vec![];
-    let mut by_name = HashMap::new();
+    let mut by_name = FxHashMap::default();
     let mut next_func = 0u32;
     for &item in items {
         let func = match item.kind {
@@ -162,7 +188,7 @@ fn signatures<'a>(items: &[&'a ast::Item], sink: &mut Sink) -> Globals<'a> {
             }
         };
         let mut params: Vec<SigParam> = vec![];
-        let mut names: HashMap<&str, Span> = HashMap::new();
+        let mut names: FxHashMap<&str, Span> = FxHashMap::default();
         for p in &item.params {
             if let Some(prev) = names.get(p.name.name.as_str()) {
                 sink.push(
@@ -186,7 +212,7 @@ fn signatures<'a>(items: &[&'a ast::Item], sink: &mut Sink) -> Globals<'a> {
     Globals {
         sigs,
         by_name,
-        recursive: HashSet::new(),
+        recursive: FxHashSet::default(),
     }
 }
 
@@ -387,8 +413,8 @@ fn find_recursion<'a>(mut g: Globals<'a>, sink: &mut Sink) -> Globals<'a> {
         edges: &edges,
         state: vec![0u8; n],
         stack: vec![],
-        recursive: HashSet::new(),
-        reported: HashSet::new(),
+        recursive: FxHashSet::default(),
+        reported: FxHashSet::default(),
     };
     for v in 0..n {
         if dfs.state[v] == 0 && g.sigs[v].item.kind == ast::ItemKind::Function {
@@ -411,9 +437,9 @@ struct CycleSearch<'g, 'a> {
     state: Vec<u8>,
     /// The current call chain: each helper with the span of the call that reached it.
     stack: Vec<(usize, Span)>,
-    recursive: HashSet<usize>,
+    recursive: FxHashSet<usize>,
     /// Cycles already reported, as sorted helper sets.
-    reported: HashSet<Vec<usize>>,
+    reported: FxHashSet<Vec<usize>>,
 }
 
 impl CycleSearch<'_, '_> {
@@ -540,7 +566,14 @@ fn expr_calls(e: &ast::Expr, out: &mut Vec<(String, Span)>) {
 /// Type-check a helper on its own (its parameters as temporaries) and check that a helper
 /// with a value cannot fall off its end. The IR made here is thrown away: helpers only
 /// exist inlined.
-fn check_helper(g: &Globals, idx: usize, sink: &mut Sink, sites: &mut Vec<Span>) {
+///
+/// Lowering a helper's body reports the same diagnostics wherever it is inlined (its
+/// parameters are typed by the signature, and what depends on the enclosing function is
+/// decided by being in a helper), except when the inlining budget runs out. So when an
+/// earlier inlining (`lowered_cleanly[idx]`) lowered the body within the budget and pushed
+/// nothing the sink did not already hold, lowering it again here could only push
+/// duplicates, which the sink drops: it is skipped.
+fn check_helper(g: &Globals, idx: usize, sink: &mut Sink, sites: &mut Vec<Span>, lowered_cleanly: &mut [bool]) {
     let sig = &g.sigs[idx];
     if sig.ret.is_some() && !block_returns(&sig.item.body.stmts) {
         sink.push(
@@ -561,7 +594,7 @@ fn check_helper(g: &Globals, idx: usize, sink: &mut Sink, sites: &mut Vec<Span>)
             ),
         );
     }
-    if g.recursive.contains(&idx) {
+    if g.recursive.contains(&idx) || lowered_cleanly[idx] {
         return;
     }
     let mut scratch_sites = std::mem::take(sites);
@@ -578,13 +611,16 @@ fn check_helper(g: &Globals, idx: usize, sink: &mut Sink, sites: &mut Vec<Span>)
                 p.span,
                 LocalInfo {
                     declared: p.declared,
-                    what: format!("parameter `{}`", p.name),
+                    what: LocalWhat::Param,
                     read_only: false,
                 },
             ));
         }
         let mut pre = vec![];
         fl.inline_body(idx, &params, sig.item.span, &mut pre);
+        for &h in &fl.lowered_cleanly {
+            lowered_cleanly[h] = true;
+        }
     }
     // The standalone IR is discarded, so are its sites.
     scratch_sites.truncate(n_sites);
@@ -616,6 +652,7 @@ fn lower_function(
     roles: &[Vec<ParamRole>],
     sink: &mut Sink,
     sites: &mut Vec<Span>,
+    lowered_cleanly: &mut [bool],
 ) -> ir::Function {
     let sig = &g.sigs[idx];
     let kind = match sig.item.kind {
@@ -632,7 +669,7 @@ fn lower_function(
             p.span,
             LocalInfo {
                 declared: p.declared,
-                what: format!("parameter `{}`", p.name),
+                what: LocalWhat::Param,
                 read_only: p.role != ParamRole::Z,
             },
         );
@@ -671,6 +708,9 @@ fn lower_function(
                 }
             }
         }
+    }
+    for &h in &fl.lowered_cleanly {
+        lowered_cleanly[h] = true;
     }
     let (locals, infos, n_loops, uses_spaces) = (fl.locals, fl.infos, fl.n_loops, fl.uses_spaces);
     let mut f = ir::Function {

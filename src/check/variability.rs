@@ -10,14 +10,17 @@
 //! lanes that returned simply retired, and the others still agree on uniform values.
 //!
 //! Because a loop's back edge can carry a varying value to an earlier use, the analysis
-//! walks the function until no local and no loop changes (both only ever go from uniform
-//! to varying, so this terminates), then walks once more to write every expression's
-//! variability, every loop's `varying` flag and every local's final variability, and to
-//! report errors. For each inferred-varying local it remembers why (the span of the first
-//! varying operand or condition), so diagnostics can point at the cause.
+//! walks the function until a walk changes no loop and no local that the walk had already
+//! read as uniform (locals and loops only ever go from uniform to varying, so this
+//! terminates). A local that turns varying before any read of it in the walk was seen
+//! varying at every read, so that walk saw what another one would see and is final.
+//! Every walk writes every expression's variability and every loop's `varying` flag and
+//! collects the errors; those of the final walk are reported, and every local gets its
+//! final variability. For each inferred-varying local it remembers why (the span of the
+//! first varying operand or condition), so diagnostics can point at the cause.
 
 use crate::diag::{Diagnostic, Span};
-use crate::ir::{Expr, ExprKind, Function, LocalId, LoopId, ParamRole, Stmt, StmtKind, Variability};
+use crate::ir::{Expr, ExprKind, Function, Local, LocalId, LoopId, ParamRole, Stmt, StmtKind, Variability};
 
 use super::{LocalInfo, Sink};
 
@@ -26,7 +29,9 @@ use super::{LocalInfo, Sink};
 type Cause = Option<(Span, Option<LocalId>)>;
 
 struct State<'i> {
-    infos: &'i [LocalInfo],
+    infos: &'i [LocalInfo<'i>],
+    /// The function's locals (for their names in messages).
+    locals: &'i [Local],
     var: Vec<Variability>,
     cause: Vec<Option<Span>>,
     /// The loop's IR `varying` flag: it must run until no lane is active.
@@ -35,19 +40,22 @@ struct State<'i> {
     /// a varying `return` only retires lanes, the others still agree).
     loop_ctl: Vec<bool>,
     loop_cause: Vec<Option<Span>>,
+    /// Another walk is needed: a loop changed, or a local this walk read as uniform.
     changed: bool,
+    /// Locals read as uniform in this walk.
+    read_uniform: Vec<bool>,
     /// Varying conditions in effect, each with the loop depth it was introduced at.
     conds: Vec<(Span, usize)>,
     loops: Vec<LoopId>,
-    /// Report errors (only in the final walk).
-    report: bool,
 }
 
 /// Infer variabilities in `f.setup` (the whole checked body), set them in the IR and report
 /// the variability errors. `callee_roles[f]` gives each primitive's parameter roles.
 pub fn analyze(f: &mut Function, infos: &[LocalInfo], callee_roles: &[Vec<ParamRole>], sink: &mut Sink) {
+    let mut body = std::mem::take(&mut f.setup);
     let mut st = State {
         infos,
+        locals: &f.locals,
         var: infos
             .iter()
             .map(|i| i.declared.map_or(Variability::Uniform, |d| d.0))
@@ -57,22 +65,25 @@ pub fn analyze(f: &mut Function, infos: &[LocalInfo], callee_roles: &[Vec<ParamR
         loop_ctl: vec![false; f.loops as usize],
         loop_cause: vec![None; f.loops as usize],
         changed: false,
+        read_uniform: vec![false; infos.len()],
         conds: vec![],
         loops: vec![],
-        report: false,
     };
-    let mut body = std::mem::take(&mut f.setup);
-    loop {
+    let errors = loop {
         st.changed = false;
-        st.block(&mut body, callee_roles, sink);
+        st.read_uniform.fill(false);
+        let mut errors = Sink::default();
+        st.block(&mut body, callee_roles, &mut errors);
         if !st.changed {
-            break;
+            break errors;
         }
+    };
+    for d in errors.items {
+        sink.push(d);
     }
-    st.report = true;
-    st.block(&mut body, callee_roles, sink);
+    let var = st.var;
     f.setup = body;
-    for (l, v) in f.locals.iter_mut().zip(&st.var) {
+    for (l, v) in f.locals.iter_mut().zip(&var) {
         l.var = *v;
     }
 }
@@ -87,7 +98,7 @@ impl State<'_> {
         if self.var[i] == Variability::Uniform && self.infos[i].declared.is_none() {
             self.var[i] = Variability::Varying;
             self.cause[i] = why;
-            self.changed = true;
+            self.changed |= self.read_uniform[i];
         }
     }
 
@@ -130,14 +141,12 @@ impl State<'_> {
                 }
                 let l = place.local;
                 let info = &self.infos[l.0 as usize];
+                let what = || info.what.describe(&self.locals[l.0 as usize].name);
                 match info.declared {
                     Some((Variability::Uniform, decl)) => {
-                        if !self.report {
-                            return;
-                        }
                         if v.is_varying() {
                             let mut d =
-                                Diagnostic::error("E0301", format!("varying value assigned to uniform {}", info.what))
+                                Diagnostic::error("E0301", format!("varying value assigned to uniform {}", what()))
                                     .primary(span, "assigned here")
                                     .secondary(decl, "declared uniform here");
                             d = self.explain(d, cause);
@@ -146,7 +155,7 @@ impl State<'_> {
                             sink.push(
                                 Diagnostic::error(
                                     "E0302",
-                                    format!("uniform {} assigned under varying control flow", info.what),
+                                    format!("uniform {} assigned under varying control flow", what()),
                                 )
                                 .primary(span, "assigned here")
                                 .secondary(c, "this condition is varying")
@@ -227,14 +236,14 @@ impl State<'_> {
             StmtKind::Bound(args) => {
                 for a in args.iter_mut() {
                     let (v, cause) = self.expr(a);
-                    if self.report && v.is_varying() {
+                    if v.is_varying() {
                         let d = Diagnostic::error("E0303", "varying argument to `bound`")
                             .primary(a.span, "varies per pixel")
                             .help("a bound is one rectangle per primitive: compute it from uniform values");
                         sink.push(self.explain(d, cause));
                     }
                 }
-                if let (true, Some(c)) = (self.report, self.ctl()) {
+                if let Some(c) = self.ctl() {
                     sink.push(
                         Diagnostic::error("E0305", "`bound` under varying control flow")
                             .primary(span, "bound here")
@@ -249,14 +258,14 @@ impl State<'_> {
                     let pixel = callee_roles
                         .and_then(|r| r.get(k))
                         .is_some_and(|r| matches!(r, ParamRole::X | ParamRole::Y | ParamRole::Z));
-                    if self.report && v.is_varying() && !pixel {
+                    if v.is_varying() && !pixel {
                         let d = Diagnostic::error("E0304", "varying argument to a primitive call")
                             .primary(a.span, "varies per pixel")
                             .help("parameters of a primitive are per-primitive (uniform) values");
                         sink.push(self.explain(d, cause));
                     }
                 }
-                if let (true, Some(c)) = (self.report, self.ctl()) {
+                if let Some(c) = self.ctl() {
                     sink.push(
                         Diagnostic::error("E0306", "primitive call under varying control flow")
                             .primary(span, "called here")
@@ -298,6 +307,8 @@ impl State<'_> {
                 let v = self.var[l.0 as usize];
                 if v.is_varying() {
                     acc = (v, Some((e.span, Some(*l))));
+                } else {
+                    self.read_uniform[l.0 as usize] = true;
                 }
             }
             ExprKind::Index { base, index, .. } => {

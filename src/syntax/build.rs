@@ -89,7 +89,7 @@ pub fn flatten_params(entries: Vec<ParamEntry>) -> Vec<Param> {
             ty,
             name: e.decl.name,
             dims: e.decl.dims,
-            default: e.decl.init,
+            default: e.decl.init.map(|init| *init),
             span,
         });
     }
