@@ -5,10 +5,12 @@
 //! found when its caller's lowering asks for it. So each function is one task that lowers it
 //! and compiles the CLIF to machine code with Cranelift (`Context::compile`), and a lowering
 //! starts the task of each callee the moment it first asks for it ([`BatchWork::start`]).
-//! The root's task starts first and, once lowered, compiles the root on its own thread
-//! (the root is the largest function of every batch in the library: nurb_surface is 90 %
-//! of its batch's CLIF), while idle threads of the pool take the callees. In a one-thread
-//! pool the tasks run one after another.
+//! The calling thread runs the root's task itself: the root is the largest function of
+//! every batch in the library (nurb_surface is 90 % of its batch's CLIF), so it gets a
+//! thread from the start and keeps it from lowering to machine code, while idle threads of
+//! the pool take the callees (the global pool's, when the caller is in none). A batch of
+//! one function never leaves the calling thread, and in a one-thread pool the tasks run one
+//! after another.
 //!
 //! Nothing here touches the JIT module: declaring functions needs it mutably and numbers
 //! them in the order the serial lowering met them, and the machine code must not depend on
@@ -155,11 +157,12 @@ impl<'j> BatchWork<'j> {
         }
     }
 
-    /// Lower and compile `root` and every not-yet-compiled function it reaches, on the
-    /// current rayon pool (the global one outside any); returns each function's outcome and
-    /// the CPU time of every task.
+    /// Lower and compile `root` (on this thread) and every not-yet-compiled function it
+    /// reaches (on the current rayon pool, the global one outside any); returns each
+    /// function's outcome and the CPU time of every task.
     pub fn run(self, root: FuncId) -> (HashMap<FuncId, Outcome>, u64) {
-        rayon::scope(|s| self.start(s, root));
+        self.started.lock().unwrap_or_else(|e| e.into_inner()).insert(root);
+        rayon::in_place_scope(|s| self.lower_and_compile(s, root));
         let outcomes = self.outcomes.into_inner().unwrap_or_else(|e| e.into_inner());
         (outcomes, self.cpu_micros.into_inner())
     }

@@ -4,12 +4,15 @@
 //! speed`, non-PIC) and a cache of kernels keyed by (function, variant key). Asking for a
 //! kernel compiles it and every primitive it calls, for the same key, in one batch: callees
 //! are declared as module functions and called directly, so a call costs no lookup at run
-//! time and recursion between primitives is bounded by `TileCtx::call_depth`.
+//! time and recursion between primitives is bounded by `TileCtx::call_depth`. A batch's
+//! functions are lowered and compiled in parallel on the caller's rayon pool ([`batch`]),
+//! with the same machine code as one after another.
 //!
 //! Files: [`lower`] turns one IR function into CLIF (the execution model is described
-//! there), [`value`] holds the uniform/varying value representation and masks, [`fixed`]
-//! the integer/fixed-point arithmetic and conversions, [`builtin`] the built-in functions,
-//! [`libm`] the `extern "C"` math helpers kernels link against.
+//! there), [`batch`] runs a batch's lowerings and compiles in parallel, [`value`] holds the
+//! uniform/varying value representation and masks, [`fixed`] the integer/fixed-point
+//! arithmetic and conversions, [`builtin`] the built-in functions, [`libm`] the `extern "C"`
+//! math helpers kernels link against.
 //!
 //! Tiers ([`Tier`], [`JitOptions`]): tier 0 ([`Tier::Fast`]) compiles with regalloc2's
 //! single-pass allocator, `opt_level=none`, without block-level culling and with a lighter
