@@ -4,12 +4,14 @@
 //! `Jit::compile_batch`). Which functions those are is only known by lowering: a callee is
 //! found when its caller's lowering asks for it. So each function is one task that lowers it
 //! and compiles the CLIF to machine code with Cranelift (`Context::compile`), and a lowering
-//! starts the task of each callee the moment it first asks for it ([`BatchWork::start`]).
+//! queues the task of each callee the moment it first asks for it ([`BatchWork::start`]).
 //! The calling thread runs the root's task itself: the root is the largest function of
 //! every batch in the library (nurb_surface is 90 % of its batch's CLIF), so it gets a
 //! thread from the start and keeps it from lowering to machine code, while idle threads of
-//! the pool take the callees (the global pool's, when the caller is in none). A batch of
-//! one function never leaves the calling thread, and in a one-thread pool the tasks run one
+//! the pool take the queued callees (the global pool's, when the caller is in none). Then
+//! the calling thread takes whatever no other thread has started: it only ever waits for
+//! work in progress elsewhere, never for a pool too busy to start it. A batch of one
+//! function never leaves the calling thread, and in a one-thread pool the tasks run one
 //! after another.
 //!
 //! Nothing here touches the JIT module: declaring functions needs it mutably and numbers
@@ -22,7 +24,7 @@
 //! on its signature and on whether it is colocated, which the placeholder import shares with
 //! the real one, so every function's bytes are those a serial compile gives.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::{HashMap, HashSet, VecDeque};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -121,8 +123,10 @@ pub(super) struct BatchWork<'j> {
     pub tiered: bool,
     /// Kernels compiled by earlier batches (not compiled again).
     pub compiled: &'j HashMap<CacheKey, Arc<Kernel>>,
-    /// Functions whose task has started.
+    /// Functions whose task has been queued.
     started: Mutex<HashSet<FuncId>>,
+    /// Queued tasks no thread has taken yet, first queued first.
+    queue: Mutex<VecDeque<FuncId>>,
     outcomes: Mutex<HashMap<FuncId, Outcome>>,
     /// Thread CPU time of every task, microseconds.
     cpu_micros: AtomicU64,
@@ -152,29 +156,43 @@ impl<'j> BatchWork<'j> {
             tiered,
             compiled,
             started: Mutex::default(),
+            queue: Mutex::default(),
             outcomes: Mutex::default(),
             cpu_micros: AtomicU64::new(0),
         }
     }
 
     /// Lower and compile `root` (on this thread) and every not-yet-compiled function it
-    /// reaches (on the current rayon pool, the global one outside any); returns each
-    /// function's outcome and the CPU time of every task.
+    /// reaches (on the current rayon pool, the global one outside any, and on this thread);
+    /// returns each function's outcome and the CPU time of every task.
     pub fn run(self, root: FuncId) -> (HashMap<FuncId, Outcome>, u64) {
         self.started.lock().unwrap_or_else(|e| e.into_inner()).insert(root);
-        rayon::in_place_scope(|s| self.lower_and_compile(s, root));
+        rayon::in_place_scope(|s| {
+            self.lower_and_compile(s, root);
+            while self.take_one(s) {}
+        });
         let outcomes = self.outcomes.into_inner().unwrap_or_else(|e| e.into_inner());
         (outcomes, self.cpu_micros.into_inner())
     }
 
-    /// Start `f`'s task unless it has started or `f` is compiled already.
+    /// Queue `f`'s task, and a pool job to take one, unless it has been queued or `f` is
+    /// compiled already.
     fn start<'s>(&'s self, scope: &rayon::Scope<'s>, f: FuncId) {
         if self.compiled.contains_key(&(f, self.key.clone())) {
             return;
         }
         if self.started.lock().unwrap_or_else(|e| e.into_inner()).insert(f) {
-            scope.spawn(move |s| self.lower_and_compile(s, f));
+            self.queue.lock().unwrap_or_else(|e| e.into_inner()).push_back(f);
+            scope.spawn(move |s| {
+                self.take_one(s);
+            });
         }
+    }
+
+    /// Run the first queued task, if any is left; whether there was one.
+    fn take_one<'s>(&'s self, scope: &rayon::Scope<'s>) -> bool {
+        let next = self.queue.lock().unwrap_or_else(|e| e.into_inner()).pop_front();
+        next.map(|f| self.lower_and_compile(scope, f)).is_some()
     }
 
     /// `f`'s task: lower it (starting its callees' tasks), then compile it.
