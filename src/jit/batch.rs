@@ -112,17 +112,17 @@ pub(super) struct Outcome {
 
 /// What a batch's tasks share: what they read from the JIT and what they hand back.
 pub(super) struct BatchWork<'j> {
-    pub program: &'j Program,
-    pub bodies: &'j Bodies,
-    pub unroll_loops: bool,
-    pub isa: &'j OwnedTargetIsa,
-    pub libm: &'j HashMap<LibmFn, ModuleFuncId>,
-    pub key: &'j VariantKey,
-    pub tier: Tier,
+    program: &'j Program,
+    bodies: &'j Bodies,
+    unroll_loops: bool,
+    isa: &'j OwnedTargetIsa,
+    libm: &'j HashMap<LibmFn, ModuleFuncId>,
+    key: &'j VariantKey,
+    tier: Tier,
     /// A tiered JIT: each kernel reads an upgrade word.
-    pub tiered: bool,
+    tiered: bool,
     /// Kernels compiled by earlier batches (not compiled again).
-    pub compiled: &'j HashMap<CacheKey, Arc<Kernel>>,
+    compiled: &'j HashMap<CacheKey, Arc<Kernel>>,
     /// Functions whose task has been queued.
     started: Mutex<HashSet<FuncId>>,
     /// Queued tasks no thread has taken yet, first queued first.
@@ -207,29 +207,22 @@ impl<'j> BatchWork<'j> {
         let mut ctx = take_context();
         let lowered = self.lower(f, &mut ctx.func, &mut linker, upgrade);
         let callees = linker.callees;
-        let result = match lowered {
-            Err(e) => Err(Failure::Lowering(e)),
-            Ok((layout, warnings)) => self
-                .compile(f, &mut ctx)
-                .map(|(code, alignment, relocs)| CompiledFunction {
-                    code,
-                    alignment,
-                    relocs,
-                    layout,
-                    warnings,
-                    upgrade,
-                    wall_micros: 0,
-                    cpu_micros: 0,
-                }),
-        };
+        let result = lowered
+            .map_err(Failure::Lowering)
+            .and_then(|lowered| Ok((lowered, self.compile(f, &mut ctx)?)));
         give_back_context(ctx);
         let cpu = super::thread_cpu_micros().saturating_sub(started_cpu);
-        let result = result.map(|c| CompiledFunction {
+        self.cpu_micros.fetch_add(cpu, Ordering::Relaxed);
+        let result = result.map(|((layout, warnings), (code, alignment, relocs))| CompiledFunction {
+            code,
+            alignment,
+            relocs,
+            layout,
+            warnings,
+            upgrade,
             wall_micros: started.elapsed().as_micros() as u64,
             cpu_micros: cpu,
-            ..c
         });
-        self.cpu_micros.fetch_add(cpu, Ordering::Relaxed);
         let outcome = Outcome { callees, result };
         self.outcomes
             .lock()
