@@ -1013,7 +1013,9 @@ impl Jit {
         for (f, c) in compiled {
             let (started, started_cpu) = (Instant::now(), thread_cpu_micros());
             let ck = (f, key.clone());
-            let id = self.declared[&ck];
+            let id = self.declared.get(&ck).copied().ok_or_else(|| JitError {
+                message: format!("`{}` was not declared with its batch", program.func(f).name),
+            })?;
             let relocs = c.relocs_for(id, |callee| self.declared.get(&(callee, key.clone())).copied())?;
             self.module
                 .define_function_bytes(id, c.alignment, &c.code, &relocs)
