@@ -660,7 +660,12 @@ impl TierUp {
                         }
                     }
                     let jit = built.get_or_insert_with(|| Jit::build(program.clone(), bodies.clone(), options.clone()));
-                    let pool = one_thread.get_or_insert_with(|| rayon::ThreadPoolBuilder::new().num_threads(1).build());
+                    let pool = one_thread.get_or_insert_with(|| {
+                        rayon::ThreadPoolBuilder::new()
+                            .num_threads(1)
+                            .thread_name(|_| "primflow-tier1-compile".into())
+                            .build()
+                    });
                     let result = match (&mut *jit, pool) {
                         (Ok(jit), Ok(pool)) => pool.install(|| jit.kernel(func, &key)),
                         (Err(e), _) => Err(e.clone()),
