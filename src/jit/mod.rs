@@ -4,12 +4,15 @@
 //! speed`, non-PIC) and a cache of kernels keyed by (function, variant key). Asking for a
 //! kernel compiles it and every primitive it calls, for the same key, in one batch: callees
 //! are declared as module functions and called directly, so a call costs no lookup at run
-//! time and recursion between primitives is bounded by `TileCtx::call_depth`.
+//! time and recursion between primitives is bounded by `TileCtx::call_depth`. A batch's
+//! functions are lowered and compiled in parallel on the caller's rayon pool ([`batch`]),
+//! with the same machine code as one after another.
 //!
 //! Files: [`lower`] turns one IR function into CLIF (the execution model is described
-//! there), [`value`] holds the uniform/varying value representation and masks, [`fixed`]
-//! the integer/fixed-point arithmetic and conversions, [`builtin`] the built-in functions,
-//! [`libm`] the `extern "C"` math helpers kernels link against.
+//! there), [`batch`] runs a batch's lowerings and compiles in parallel, [`value`] holds the
+//! uniform/varying value representation and masks, [`fixed`] the integer/fixed-point
+//! arithmetic and conversions, [`builtin`] the built-in functions, [`libm`] the `extern "C"`
+//! math helpers kernels link against.
 //!
 //! Tiers ([`Tier`], [`JitOptions`]): tier 0 ([`Tier::Fast`]) compiles with regalloc2's
 //! single-pass allocator, `opt_level=none`, without block-level culling and with a lighter
@@ -48,6 +51,7 @@
 //! begins by comparing its stack pointer with `TileCtx::stack_limit`), which records the
 //! kernel's `FuncId`.
 
+mod batch;
 mod builtin;
 mod fixed;
 pub mod libm;
@@ -93,17 +97,21 @@ pub struct Kernel {
 ///
 /// Wall time counts whatever else the machine runs meanwhile (on a loaded 2-core machine,
 /// the background tier-1 thread and other processes can double it); thread CPU time counts
-/// only the compiling thread's own work, so it is the figure to compare between runs.
+/// only the compiling threads' own work, so it is the figure to compare between runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CompileCost {
     /// Lowering and compiling this kernel (callees excluded): wall time, microseconds
     /// (the same figure as [`Kernel::compile_micros`]).
     pub wall_micros: u64,
-    /// The same, in this thread's CPU time, microseconds.
+    /// The same, in the CPU time of the threads that did it, microseconds.
     pub cpu_micros: u64,
     /// The whole batch this kernel was compiled in (itself, the callees compiled with it,
-    /// unrolling, linking and making the code executable), thread CPU time, microseconds.
+    /// unrolling, linking and making the code executable): the CPU time of every thread
+    /// that worked on it, summed, microseconds. The functions of a batch are compiled in
+    /// parallel, so this is more than `batch_wall_micros` on a machine with idle cores.
     pub batch_cpu_micros: u64,
+    /// The whole batch, wall time, microseconds: what its caller waited for.
+    pub batch_wall_micros: u64,
 }
 
 /// The calling thread's CPU time in microseconds (Linux `CLOCK_THREAD_CPUTIME_ID`; elsewhere
@@ -205,6 +213,22 @@ impl Body {
         self.proven_sites
             .get_or_init(|| crate::ir::range::proven_index_sites(&self.function))
     }
+}
+
+/// `func`'s body as lowered, from `bodies` (made and kept there on first use).
+fn body_of(bodies: &Bodies, program: &Program, unroll_loops: bool, func: FuncId) -> Arc<Body> {
+    let mut bodies = bodies.lock().unwrap_or_else(|e| e.into_inner());
+    bodies
+        .entry(func)
+        .or_insert_with(|| {
+            // Whole-array copies forwarded first (`crate::ir::forward`), then unrolled.
+            let f = crate::ir::forward::forward_copies(program.func(func));
+            Arc::new(Body {
+                function: if unroll_loops { unroll::unroll_function(&f) } else { f },
+                proven_sites: Default::default(),
+            })
+        })
+        .clone()
 }
 
 /// The bodies of every live program, per unrolling setting, shared by all the JITs of that
@@ -364,54 +388,6 @@ fn libm_signature(isa: &OwnedTargetIsa, f: LibmFn) -> ir::Signature {
     sig
 }
 
-/// Links against the JIT module while compiling a batch of kernels.
-struct ModuleLinker<'j> {
-    module: &'j mut JITModule,
-    isa: &'j OwnedTargetIsa,
-    declared: &'j mut HashMap<CacheKey, cranelift_module::FuncId>,
-    libm: &'j HashMap<LibmFn, cranelift_module::FuncId>,
-    key: &'j VariantKey,
-    /// Callees declared by this batch that still need a body.
-    pending: &'j mut Vec<FuncId>,
-    next_name: &'j mut u32,
-    program: &'j Program,
-}
-
-impl Linker for ModuleLinker<'_> {
-    fn kernel_ref(&mut self, func: &mut ir::Function, callee: FuncId) -> Res<ir::FuncRef> {
-        let ck = (callee, self.key.clone());
-        let id = match self.declared.get(&ck) {
-            Some(&id) => id,
-            None => {
-                let name = format!(
-                    "pf_{}_{}",
-                    self.program
-                        .func(callee)
-                        .name
-                        .replace(|c: char| !c.is_ascii_alphanumeric(), "_"),
-                    *self.next_name
-                );
-                *self.next_name += 1;
-                let id = self
-                    .module
-                    .declare_function(&name, Linkage::Local, &kernel_signature(self.isa))
-                    .map_err(|e| jit_err("declare kernel", e))?;
-                self.declared.insert(ck, id);
-                self.pending.push(callee);
-                id
-            }
-        };
-        Ok(self.module.declare_func_in_func(id, func))
-    }
-
-    fn libm_ref(&mut self, func: &mut ir::Function, f: LibmFn) -> Res<ir::FuncRef> {
-        let id = self.libm.get(&f).ok_or_else(|| JitError {
-            message: format!("libm function {f:?} not declared"),
-        })?;
-        Ok(self.module.declare_func_in_func(*id, func))
-    }
-}
-
 /// Links nothing: imports by placeholder names, for printing CLIF without compiling.
 struct PrintLinker<'j> {
     isa: &'j OwnedTargetIsa,
@@ -419,14 +395,7 @@ struct PrintLinker<'j> {
 
 impl PrintLinker<'_> {
     fn import(&self, func: &mut ir::Function, index: u32, sig: ir::Signature) -> ir::FuncRef {
-        let sig = func.import_signature(sig);
-        let name = func.declare_imported_user_function(ir::UserExternalName { namespace: 0, index });
-        func.import_function(ir::ExtFuncData {
-            name: ir::ExternalName::user(name),
-            signature: sig,
-            colocated: false,
-            patchable: false,
-        })
+        batch::import_function(func, ir::UserExternalName { namespace: 0, index }, sig, false)
     }
 }
 
@@ -670,6 +639,9 @@ impl TierUp {
                 // at the first request the worker may start on, so a frame that holds it
                 // (`TierUpWatch::hold`) has the cores to itself.
                 let mut built: Option<Result<Jit, JitError>> = None;
+                // Its batches compile on one thread, function after function (a one-thread
+                // pool; see `batch`): a frame leaves the worker one core (`runtime::tiergate`).
+                let mut one_thread: Option<Result<rayon::ThreadPool, rayon::ThreadPoolBuildError>> = None;
                 // Ends when the feeding JIT drops its sender.
                 while let Ok(((func, key), words)) = rx.recv() {
                     {
@@ -688,9 +660,16 @@ impl TierUp {
                         }
                     }
                     let jit = built.get_or_insert_with(|| Jit::build(program.clone(), bodies.clone(), options.clone()));
-                    let result = match jit {
-                        Ok(jit) => jit.kernel(func, &key),
-                        Err(e) => Err(e.clone()),
+                    let pool = one_thread.get_or_insert_with(|| {
+                        rayon::ThreadPoolBuilder::new()
+                            .num_threads(1)
+                            .thread_name(|_| "primflow-tier1-compile".into())
+                            .build()
+                    });
+                    let result = match (&mut *jit, pool) {
+                        (Ok(jit), Ok(pool)) => pool.install(|| jit.kernel(func, &key)),
+                        (Err(e), _) => Err(e.clone()),
+                        (_, Err(e)) => Err(jit_err("starting the tier-1 compiler's pool", e)),
                     };
                     // The tier-0 kernels of the request's batch switch to their tier-1 twins
                     // (this batch compiled them, or an earlier one did).
@@ -884,22 +863,7 @@ impl Jit {
 
     /// `func`'s body as lowered (see `bodies`).
     fn body(&self, func: FuncId) -> Arc<Body> {
-        let mut bodies = self.bodies.lock().unwrap_or_else(|e| e.into_inner());
-        bodies
-            .entry(func)
-            .or_insert_with(|| {
-                // Whole-array copies forwarded first (`crate::ir::forward`), then unrolled.
-                let f = crate::ir::forward::forward_copies(self.program.func(func));
-                Arc::new(Body {
-                    function: if self.options.unroll_loops {
-                        unroll::unroll_function(&f)
-                    } else {
-                        f
-                    },
-                    proven_sites: Default::default(),
-                })
-            })
-            .clone()
+        body_of(&self.bodies, &self.program, self.options.unroll_loops, func)
     }
 
     fn build(program: Arc<Program>, bodies: Bodies, options: JitOptions) -> Result<Jit, JitError> {
@@ -1008,106 +972,106 @@ impl Jit {
 
     /// Compile `root` and every not-yet-compiled primitive it reaches under `key`; in a
     /// tiered JIT, the upgrade words of the kernels compiled.
+    ///
+    /// The functions are lowered and compiled in parallel on the caller's rayon pool
+    /// ([`batch`]); then this thread declares and defines them in the order a serial
+    /// lowering meets them (depth first from the root, each callee declared where it is first
+    /// asked for), so names, module ids and the code's layout do not depend on which thread
+    /// finished first. A batch with a function that fails to lower or to compile defines
+    /// nothing and reports the error the serial order meets first: the first lowering error,
+    /// else the first compile error.
     fn compile_batch(&mut self, root: FuncId, key: &VariantKey) -> Result<Vec<UpgradeWord>, JitError> {
-        let batch_cpu = thread_cpu_micros();
+        let (batch_started, batch_cpu) = (Instant::now(), thread_cpu_micros());
         let program = self.program.clone();
-        let mut pending = vec![];
         if !self.declared.contains_key(&(root, key.clone())) {
             let name = format!("pf_root_{}", self.next_name);
-            self.next_name += 1;
-            let id = self
-                .module
-                .declare_function(&name, Linkage::Local, &kernel_signature(&self.isa))
-                .map_err(|e| jit_err("declare kernel", e))?;
-            self.declared.insert((root, key.clone()), id);
+            self.declare_kernel(root, key, name)?;
         }
-        pending.push(root);
-        // Lower everything first: a lowering error must not leave a half-defined batch.
-        // (function, its CLIF, layout, warnings, wall and CPU microseconds so far)
-        let mut built: Vec<(FuncId, Context, ArgLayout, Vec<String>, u64, u64)> = vec![];
-        let mut words = vec![];
-        let mut seen = HashSet::new();
+        let work = batch::BatchWork::new(
+            &program,
+            &self.bodies,
+            self.options.unroll_loops,
+            &self.isa,
+            &self.libm,
+            key,
+            self.options.tier,
+            self.tier_up.is_some(),
+            &self.cache,
+        );
+        let tasks_started_cpu = thread_cpu_micros();
+        let (mut outcomes, tasks_cpu) = work.run(root);
+        // What this thread spent meanwhile is in `tasks_cpu` (the tasks it ran) or waiting.
+        let waiting_cpu = thread_cpu_micros().saturating_sub(tasks_started_cpu);
+        let mut batch = vec![];
+        let mut queued = HashSet::from([root]);
+        let mut pending = vec![root];
         while let Some(f) = pending.pop() {
-            if !seen.insert(f) || self.cache.contains_key(&(f, key.clone())) {
-                continue;
-            }
-            let (started, started_cpu) = (Instant::now(), thread_cpu_micros());
-            let layout = ArgLayout::new(&program, f, key);
-            let body = self.body(f);
-            let upgrade: Option<&'static AtomicUsize> = self
-                .tier_up
-                .is_some()
-                .then(|| &*Box::leak(Box::new(AtomicUsize::new(0))));
-            let mut ctx = take_context();
-            ctx.func.signature = kernel_signature(&self.isa);
-            ctx.func.name = UserFuncName::user(0, f.0);
-            let mut fctx = SPARE_BUILDER_CONTEXT
-                .with(|spare| spare.borrow_mut().take())
-                .unwrap_or_default();
-            let warnings = {
-                let mut linker = ModuleLinker {
-                    module: &mut self.module,
-                    isa: &self.isa,
-                    declared: &mut self.declared,
-                    libm: &self.libm,
-                    key,
-                    pending: &mut pending,
-                    next_name: &mut self.next_name,
-                    program: &program,
-                };
-                let lowered = lower::lower_kernel(
-                    &program,
-                    f,
-                    &body,
-                    key,
-                    &layout,
-                    &mut ctx.func,
-                    &mut fctx,
-                    &mut linker,
-                    self.isa.frontend_config(),
-                    self.options.tier == Tier::Optimised,
-                    upgrade.map(|w| w as *const AtomicUsize),
-                );
-                // A lowering error leaves the builder context mid-function; the next
-                // kernel must not inherit it, so only a clean one is kept.
-                if lowered.is_ok() {
-                    SPARE_BUILDER_CONTEXT.with(|spare| *spare.borrow_mut() = Some(fctx));
+            let outcome = outcomes.remove(&f).ok_or_else(|| JitError {
+                message: format!("`{}` was not lowered with its batch", program.func(f).name),
+            })?;
+            for &callee in &outcome.callees {
+                let ck = (callee, key.clone());
+                if !self.declared.contains_key(&ck) {
+                    let name = format!(
+                        "pf_{}_{}",
+                        program
+                            .func(callee)
+                            .name
+                            .replace(|c: char| !c.is_ascii_alphanumeric(), "_"),
+                        self.next_name
+                    );
+                    self.declare_kernel(callee, key, name)?;
                 }
-                lowered?
-            };
-            let micros = started.elapsed().as_micros() as u64;
-            let cpu = thread_cpu_micros().saturating_sub(started_cpu);
-            if let Some(w) = upgrade {
-                self.upgrade_words.insert((f, key.clone()), w);
-                words.push(((f, key.clone()), w));
+                // Declared by a batch that failed, a callee still needs its body.
+                if !self.cache.contains_key(&ck) && queued.insert(callee) {
+                    pending.push(callee);
+                }
             }
-            built.push((f, ctx, layout, warnings, micros, cpu));
+            match outcome.result {
+                Err(batch::Failure::Lowering(e)) => return Err(e),
+                result => batch.push((f, result)),
+            }
+        }
+        let mut compiled = vec![];
+        for (f, result) in batch {
+            match result {
+                Ok(c) => compiled.push((f, c)),
+                Err(batch::Failure::Compiling(e) | batch::Failure::Lowering(e)) => return Err(e),
+            }
         }
         let mut defined = vec![];
-        for (f, mut ctx, layout, warnings, micros, cpu) in built {
+        let mut words = vec![];
+        for (f, c) in compiled {
             let (started, started_cpu) = (Instant::now(), thread_cpu_micros());
-            let id = self.declared[&(f, key.clone())];
-            self.module.define_function(id, &mut ctx).map_err(|e| {
-                let detail = match &e {
-                    cranelift_module::ModuleError::Compilation(c) => format!("{c:?}"),
-                    other => other.to_string(),
-                };
-                JitError {
-                    message: format!("compiling `{}`: {detail}", program.func(f).name),
-                }
+            let ck = (f, key.clone());
+            let id = self.declared.get(&ck).copied().ok_or_else(|| JitError {
+                message: format!("`{}` was not declared with its batch", program.func(f).name),
             })?;
-            give_back_context(ctx);
+            let relocs = c.relocs_for(id, |callee| self.declared.get(&(callee, key.clone())).copied())?;
+            self.module
+                .define_function_bytes(id, c.alignment, &c.code, &relocs)
+                .map_err(|e| JitError {
+                    message: format!("compiling `{}`: {e}", program.func(f).name),
+                })?;
+            if let Some(w) = c.upgrade {
+                self.upgrade_words.insert(ck.clone(), w);
+                words.push((ck, w));
+            }
             let cost = CompileCost {
-                wall_micros: micros + started.elapsed().as_micros() as u64,
-                cpu_micros: cpu + thread_cpu_micros().saturating_sub(started_cpu),
-                batch_cpu_micros: 0,
+                wall_micros: c.wall_micros + started.elapsed().as_micros() as u64,
+                cpu_micros: c.cpu_micros + thread_cpu_micros().saturating_sub(started_cpu),
+                ..CompileCost::default()
             };
-            defined.push((f, id, layout, warnings, cost));
+            defined.push((f, id, c.layout, c.warnings, cost));
         }
         self.module
             .finalize_definitions()
             .map_err(|e| jit_err("finalize kernels", e))?;
-        let batch_cpu = thread_cpu_micros().saturating_sub(batch_cpu);
+        let own_cpu = thread_cpu_micros()
+            .saturating_sub(batch_cpu)
+            .saturating_sub(waiting_cpu);
+        let batch_cpu = own_cpu + tasks_cpu;
+        let batch_wall = batch_started.elapsed().as_micros() as u64;
         for (f, id, layout, warnings, cost) in defined {
             let ptr = self.module.get_finalized_function(id);
             // SAFETY: the function was defined with the kernel signature
@@ -1129,11 +1093,24 @@ impl Jit {
                 (f, key.clone()),
                 CompileCost {
                     batch_cpu_micros: batch_cpu,
+                    batch_wall_micros: batch_wall,
                     ..cost
                 },
             );
         }
         Ok(words)
+    }
+
+    /// Declare the kernel for (`func`, `key`) in the module under `name` (names are unique
+    /// by the number `next_name` gives them).
+    fn declare_kernel(&mut self, func: FuncId, key: &VariantKey, name: String) -> Result<(), JitError> {
+        self.next_name += 1;
+        let id = self
+            .module
+            .declare_function(&name, Linkage::Local, &kernel_signature(&self.isa))
+            .map_err(|e| jit_err("declare kernel", e))?;
+        self.declared.insert((func, key.clone()), id);
+        Ok(())
     }
 
     /// The Cranelift IR text of `func` specialised for `key` (for `check --emit clif`).

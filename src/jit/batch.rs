@@ -1,0 +1,343 @@
+//! Lowering and compiling a batch's functions in parallel, on the caller's rayon pool.
+//!
+//! A batch is a root kernel and every not-yet-compiled primitive it reaches (see
+//! `Jit::compile_batch`). Which functions those are is only known by lowering: a callee is
+//! found when its caller's lowering asks for it. So each function is one task that lowers it
+//! and compiles the CLIF to machine code with Cranelift (`Context::compile`), and a lowering
+//! queues the task of each callee the moment it first asks for it ([`BatchWork::start`]).
+//! The calling thread runs the root's task itself: the root is the largest function of
+//! every batch in the library (nurb_surface is 90 % of its batch's CLIF), so it gets a
+//! thread from the start and keeps it from lowering to machine code, while idle threads of
+//! the pool take the queued callees (the global pool's, when the caller is in none). Then
+//! the calling thread takes whatever no other thread has started: it only ever waits for
+//! work in progress elsewhere, never for a pool too busy to start it. A batch of one
+//! function never leaves the calling thread, and in a one-thread pool the tasks run one
+//! after another.
+//!
+//! Nothing here touches the JIT module: declaring functions needs it mutably and numbers
+//! them in the order the serial lowering met them, and the machine code must not depend on
+//! which thread finished first. So a lowering refers to a callee by a placeholder name
+//! ([`CALLEE_NAMESPACE`], the callee's `FuncId`) and records the callees in the order it
+//! asked for them; the calling thread then replays the serial order, declaring as the
+//! serial lowering did, and resolves the placeholders in the relocations
+//! ([`CompiledFunction::relocs_for`]). Machine code does not depend on a callee's name, only
+//! on its signature and on whether it is colocated, which the placeholder import shares with
+//! the real one, so every function's bytes are those a serial compile gives.
+
+use std::collections::{HashMap, HashSet, VecDeque};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use cranelift_codegen::ir::{self, UserExternalName, UserFuncName};
+use cranelift_codegen::isa::OwnedTargetIsa;
+use cranelift_codegen::Context;
+use cranelift_module::{FuncId as ModuleFuncId, ModuleReloc, ModuleRelocTarget};
+
+use super::libm::LibmFn;
+use super::lower::{self, Linker, Res};
+use super::{give_back_context, kernel_signature, libm_signature, take_context, Bodies, CacheKey, Kernel, Tier};
+use super::{JitError, SPARE_BUILDER_CONTEXT};
+use crate::abi::{ArgLayout, VariantKey};
+use crate::ir::{FuncId, Program};
+
+/// The namespace of the placeholder names a batch's lowerings give callees (index: the
+/// callee's `FuncId`); the module's own names are namespace 0.
+const CALLEE_NAMESPACE: u32 = 2;
+
+/// Stands for the function's own module `FuncId` in relocations to an offset inside it,
+/// until the function is declared.
+const OWN_ID_PLACEHOLDER: u32 = u32::MAX;
+
+/// One function of a batch, lowered and compiled.
+pub(super) struct CompiledFunction {
+    /// The machine code (its relocations not applied).
+    pub code: Vec<u8>,
+    pub alignment: u64,
+    /// Relocations with placeholder names (see [`CompiledFunction::relocs_for`]).
+    relocs: Vec<ModuleReloc>,
+    pub layout: ArgLayout,
+    pub warnings: Vec<String>,
+    /// A tiered JIT's upgrade word, which the code reads (see `super::UpgradeWord`).
+    pub upgrade: Option<&'static AtomicUsize>,
+    /// Lowering and compiling it: wall time and its thread's CPU time, microseconds.
+    pub wall_micros: u64,
+    pub cpu_micros: u64,
+}
+
+impl CompiledFunction {
+    /// The relocations with names resolved: `own`, this function's module id, and
+    /// `callee`, each callee's (all of them declared by now).
+    pub fn relocs_for(
+        &self,
+        own: ModuleFuncId,
+        callee: impl Fn(FuncId) -> Option<ModuleFuncId>,
+    ) -> Result<Vec<ModuleReloc>, JitError> {
+        self.relocs
+            .iter()
+            .map(|r| {
+                let name = match r.name {
+                    ModuleRelocTarget::User {
+                        namespace: CALLEE_NAMESPACE,
+                        index,
+                    } => {
+                        let id = callee(FuncId(index)).ok_or_else(|| JitError {
+                            message: format!("callee {index} not declared"),
+                        })?;
+                        ModuleRelocTarget::user(0, id.as_u32())
+                    }
+                    ModuleRelocTarget::FunctionOffset(_, offset) => ModuleRelocTarget::FunctionOffset(own, offset),
+                    ref other => other.clone(),
+                };
+                Ok(ModuleReloc { name, ..r.clone() })
+            })
+            .collect()
+    }
+}
+
+/// Why a function of a batch has no machine code. A lowering error ends the serial batch
+/// where it happens; a compile error only after every function is lowered.
+pub(super) enum Failure {
+    Lowering(JitError),
+    Compiling(JitError),
+}
+
+/// What a batch's task made of one function.
+pub(super) struct Outcome {
+    /// The kernels its lowering asked for, in order, repeats included (the serial lowering
+    /// declared them in this order).
+    pub callees: Vec<FuncId>,
+    pub result: Result<CompiledFunction, Failure>,
+}
+
+/// What a batch's tasks share: what they read from the JIT and what they hand back.
+pub(super) struct BatchWork<'j> {
+    program: &'j Program,
+    bodies: &'j Bodies,
+    unroll_loops: bool,
+    isa: &'j OwnedTargetIsa,
+    libm: &'j HashMap<LibmFn, ModuleFuncId>,
+    key: &'j VariantKey,
+    tier: Tier,
+    /// A tiered JIT: each kernel reads an upgrade word.
+    tiered: bool,
+    /// Kernels compiled by earlier batches (not compiled again).
+    compiled: &'j HashMap<CacheKey, Arc<Kernel>>,
+    /// Functions whose task has been queued.
+    started: Mutex<HashSet<FuncId>>,
+    /// Queued tasks no thread has taken yet, first queued first.
+    queue: Mutex<VecDeque<FuncId>>,
+    outcomes: Mutex<HashMap<FuncId, Outcome>>,
+    /// Thread CPU time of every task, microseconds.
+    cpu_micros: AtomicU64,
+}
+
+impl<'j> BatchWork<'j> {
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        program: &'j Program,
+        bodies: &'j Bodies,
+        unroll_loops: bool,
+        isa: &'j OwnedTargetIsa,
+        libm: &'j HashMap<LibmFn, ModuleFuncId>,
+        key: &'j VariantKey,
+        tier: Tier,
+        tiered: bool,
+        compiled: &'j HashMap<CacheKey, Arc<Kernel>>,
+    ) -> BatchWork<'j> {
+        BatchWork {
+            program,
+            bodies,
+            unroll_loops,
+            isa,
+            libm,
+            key,
+            tier,
+            tiered,
+            compiled,
+            started: Mutex::default(),
+            queue: Mutex::default(),
+            outcomes: Mutex::default(),
+            cpu_micros: AtomicU64::new(0),
+        }
+    }
+
+    /// Lower and compile `root` (on this thread) and every not-yet-compiled function it
+    /// reaches (on the current rayon pool, the global one outside any, and on this thread);
+    /// returns each function's outcome and the CPU time of every task.
+    pub fn run(self, root: FuncId) -> (HashMap<FuncId, Outcome>, u64) {
+        self.started.lock().unwrap_or_else(|e| e.into_inner()).insert(root);
+        rayon::in_place_scope(|s| {
+            self.lower_and_compile(s, root);
+            while self.take_one(s) {}
+        });
+        let outcomes = self.outcomes.into_inner().unwrap_or_else(|e| e.into_inner());
+        (outcomes, self.cpu_micros.into_inner())
+    }
+
+    /// Queue `f`'s task, and a pool job to take one, unless it has been queued or `f` is
+    /// compiled already.
+    fn start<'s>(&'s self, scope: &rayon::Scope<'s>, f: FuncId) {
+        if self.compiled.contains_key(&(f, self.key.clone())) {
+            return;
+        }
+        if self.started.lock().unwrap_or_else(|e| e.into_inner()).insert(f) {
+            self.queue.lock().unwrap_or_else(|e| e.into_inner()).push_back(f);
+            scope.spawn(move |s| {
+                self.take_one(s);
+            });
+        }
+    }
+
+    /// Run the first queued task, if any is left; whether there was one.
+    fn take_one<'s>(&'s self, scope: &rayon::Scope<'s>) -> bool {
+        let next = self.queue.lock().unwrap_or_else(|e| e.into_inner()).pop_front();
+        next.map(|f| self.lower_and_compile(scope, f)).is_some()
+    }
+
+    /// `f`'s task: lower it (starting its callees' tasks), then compile it.
+    fn lower_and_compile<'s>(&'s self, scope: &rayon::Scope<'s>, f: FuncId) {
+        let (started, started_cpu) = (Instant::now(), super::thread_cpu_micros());
+        let mut linker = BatchLinker {
+            work: self,
+            scope,
+            callees: vec![],
+        };
+        let upgrade: Option<&'static AtomicUsize> = self.tiered.then(|| &*Box::leak(Box::new(AtomicUsize::new(0))));
+        let mut ctx = take_context();
+        let lowered = self.lower(f, &mut ctx.func, &mut linker, upgrade);
+        let callees = linker.callees;
+        let result = lowered
+            .map_err(Failure::Lowering)
+            .and_then(|lowered| Ok((lowered, self.compile(f, &mut ctx)?)));
+        give_back_context(ctx);
+        let cpu = super::thread_cpu_micros().saturating_sub(started_cpu);
+        self.cpu_micros.fetch_add(cpu, Ordering::Relaxed);
+        let result = result.map(|((layout, warnings), (code, alignment, relocs))| CompiledFunction {
+            code,
+            alignment,
+            relocs,
+            layout,
+            warnings,
+            upgrade,
+            wall_micros: started.elapsed().as_micros() as u64,
+            cpu_micros: cpu,
+        });
+        let outcome = Outcome { callees, result };
+        self.outcomes
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(f, outcome);
+    }
+
+    /// Compile `ctx`'s function (`f` lowered): its machine code, alignment and relocations
+    /// (with placeholder names).
+    fn compile(&self, f: FuncId, ctx: &mut Context) -> Result<(Vec<u8>, u64, Vec<ModuleReloc>), Failure> {
+        let failed = |detail: String| {
+            Failure::Compiling(JitError {
+                message: format!("compiling `{}`: {detail}", self.program.func(f).name),
+            })
+        };
+        if let Err(e) = ctx.compile(&**self.isa, &mut Default::default()) {
+            return Err(failed(format!("{:?}", e.inner)));
+        }
+        let code = ctx
+            .compiled_code()
+            .ok_or_else(|| failed("no code after compiling".into()))?;
+        let placeholder = ModuleFuncId::from_u32(OWN_ID_PLACEHOLDER);
+        let relocs = code
+            .buffer
+            .relocs()
+            .iter()
+            .map(|r| ModuleReloc::from_mach_reloc(r, &ctx.func, placeholder))
+            .collect();
+        Ok((code.code_buffer().to_vec(), code.buffer.alignment as u64, relocs))
+    }
+
+    /// Lower `f` into `func`: its argument layout and the lowering's warnings.
+    fn lower(
+        &self,
+        f: FuncId,
+        func: &mut ir::Function,
+        linker: &mut BatchLinker,
+        upgrade: Option<&'static AtomicUsize>,
+    ) -> Res<(ArgLayout, Vec<String>)> {
+        let layout = ArgLayout::new(self.program, f, self.key);
+        let body = super::body_of(self.bodies, self.program, self.unroll_loops, f);
+        func.signature = kernel_signature(self.isa);
+        func.name = UserFuncName::user(0, f.0);
+        let mut fctx = SPARE_BUILDER_CONTEXT
+            .with(|spare| spare.borrow_mut().take())
+            .unwrap_or_default();
+        let lowered = lower::lower_kernel(
+            self.program,
+            f,
+            &body,
+            self.key,
+            &layout,
+            func,
+            &mut fctx,
+            linker,
+            self.isa.frontend_config(),
+            self.tier == Tier::Optimised,
+            upgrade.map(|w| w as *const AtomicUsize),
+        );
+        // A lowering error leaves the builder context mid-function; the next kernel must
+        // not inherit it, so only a clean one is kept.
+        if lowered.is_ok() {
+            SPARE_BUILDER_CONTEXT.with(|spare| *spare.borrow_mut() = Some(fctx));
+        }
+        Ok((layout, lowered?))
+    }
+}
+
+/// Import `name` into `func` as the module's `declare_func_in_func` does for a function
+/// declared with `sig` (`colocated`: its linkage is local to the module).
+pub(super) fn import_function(
+    func: &mut ir::Function,
+    name: UserExternalName,
+    sig: ir::Signature,
+    colocated: bool,
+) -> ir::FuncRef {
+    let signature = func.import_signature(sig);
+    let name = func.declare_imported_user_function(name);
+    func.import_function(ir::ExtFuncData {
+        name: ir::ExternalName::user(name),
+        signature,
+        colocated,
+        patchable: false,
+    })
+}
+
+/// Links a batch's lowering: callees by placeholder name (their tasks started on first
+/// use), libm helpers by their module ids.
+struct BatchLinker<'s, 'r> {
+    work: &'s BatchWork<'s>,
+    scope: &'r rayon::Scope<'s>,
+    callees: Vec<FuncId>,
+}
+
+impl Linker for BatchLinker<'_, '_> {
+    fn kernel_ref(&mut self, func: &mut ir::Function, callee: FuncId) -> Res<ir::FuncRef> {
+        self.callees.push(callee);
+        self.work.start(self.scope, callee);
+        let name = UserExternalName {
+            namespace: CALLEE_NAMESPACE,
+            index: callee.0,
+        };
+        // Kernels are declared `Linkage::Local`: colocated.
+        Ok(import_function(func, name, kernel_signature(self.work.isa), true))
+    }
+
+    fn libm_ref(&mut self, func: &mut ir::Function, f: LibmFn) -> Res<ir::FuncRef> {
+        let id = self.work.libm.get(&f).ok_or_else(|| JitError {
+            message: format!("libm function {f:?} not declared"),
+        })?;
+        let name = UserExternalName {
+            namespace: 0,
+            index: id.as_u32(),
+        };
+        // Imported (`Linkage::Import`): not colocated.
+        Ok(import_function(func, name, libm_signature(self.work.isa, f), false))
+    }
+}
