@@ -8,7 +8,6 @@
 //! run (`float fa[65535]` in screen_triangle) panicked Cranelift's SSA builder
 //! (`tests/jit_large_locals.rs` keeps that case).
 
-
 use std::path::Path;
 use std::sync::Arc;
 
@@ -18,7 +17,22 @@ use primflow::runtime::Renderer;
 use proptest::prelude::*;
 
 const INTS: &[&str] = &[
-    "0", "1", "-1", "2", "3", "4", "15", "16", "17", "127", "128", "129", "1279", "1280", "65536", "2147483647",
+    "0",
+    "1",
+    "-1",
+    "2",
+    "3",
+    "4",
+    "15",
+    "16",
+    "17",
+    "127",
+    "128",
+    "129",
+    "1279",
+    "1280",
+    "65536",
+    "2147483647",
 ];
 const FLOATS: &[&str] = &["0.0", "-0.0", "1e-30", "1e30", "3.4e38", "-1.0", "0.5", "1.0e-45"];
 const SWAPS: &[(&str, &str)] = &[
@@ -61,7 +75,11 @@ fn tokens(src: &str) -> Vec<(usize, usize, Kind)> {
             }
             let float = src[start..i].contains(['.', 'e']);
             out.push((start, i, if float { Kind::Float } else { Kind::Int }));
-        } else if let Some((op, _)) = SWAPS.iter().filter(|(op, _)| b[i..].starts_with(op.as_bytes())).max_by_key(|(op, _)| op.len()) {
+        } else if let Some((op, _)) = SWAPS
+            .iter()
+            .filter(|(op, _)| b[i..].starts_with(op.as_bytes()))
+            .max_by_key(|(op, _)| op.len())
+        {
             // Not part of a longer operator (`+=`, `->`, `<<`).
             let end = i + op.len();
             let next = b.get(end).copied().unwrap_or(b' ');
@@ -88,7 +106,11 @@ fn mutate(src: &str, edits: &[(usize, usize)]) -> String {
                 Kind::Float => FLOATS[r % FLOATS.len()].to_string(),
                 Kind::Operator => {
                     let old = &src[start..end];
-                    SWAPS.iter().find(|(a, _)| *a == old).map_or(old, |(_, b)| b).to_string()
+                    SWAPS
+                        .iter()
+                        .find(|(a, _)| *a == old)
+                        .map_or(old, |(_, b)| b)
+                        .to_string()
                 }
             };
             (start, end, new)
@@ -175,7 +197,16 @@ fn the_mutator_finds_and_replaces_literals_and_operators() {
         .collect();
     assert_eq!(
         kinds,
-        [("3", false), ("1.5", false), ("2", false), ("-", true), ("1", false), ("<=", true), ("&&", true), ("4", false)]
+        [
+            ("3", false),
+            ("1.5", false),
+            ("2", false),
+            ("-", true),
+            ("1", false),
+            ("<=", true),
+            ("&&", true),
+            ("4", false)
+        ]
     );
     // Token 0 (`3`) to INTS[14] (`65536`), token 3 (`-`) swapped.
     assert_eq!(

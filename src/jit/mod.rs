@@ -216,19 +216,21 @@ impl Body {
 }
 
 /// `func`'s body as lowered, from `bodies` (made and kept there on first use).
+/// Made outside the lock: a batch's functions are lowered in parallel (`batch`), and the
+/// root's body (1-2 ms for nurb_surface) must not hold up its callees'.
 fn body_of(bodies: &Bodies, program: &Program, unroll_loops: bool, func: FuncId) -> Arc<Body> {
-    let mut bodies = bodies.lock().unwrap_or_else(|e| e.into_inner());
-    bodies
-        .entry(func)
-        .or_insert_with(|| {
-            // Whole-array copies forwarded first (`crate::ir::forward`), then unrolled.
-            let f = crate::ir::forward::forward_copies(program.func(func));
-            Arc::new(Body {
-                function: if unroll_loops { unroll::unroll_function(&f) } else { f },
-                proven_sites: Default::default(),
-            })
-        })
-        .clone()
+    let lock = || bodies.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(body) = lock().get(&func) {
+        return body.clone();
+    }
+    // Whole-array copies forwarded first (`crate::ir::forward`), then unrolled.
+    let f = crate::ir::forward::forward_copies(program.func(func));
+    let body = Arc::new(Body {
+        function: if unroll_loops { unroll::unroll_function(f) } else { f },
+        proven_sites: Default::default(),
+    });
+    // Another thread may have made it meanwhile: the first one stays.
+    lock().entry(func).or_insert(body).clone()
 }
 
 /// The bodies of every live program, per unrolling setting, shared by all the JITs of that
