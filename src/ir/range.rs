@@ -124,6 +124,20 @@ fn join(a: State, b: State) -> State {
     }
 }
 
+/// `join(a, b.clone())` without copying `b` when `a` has a vector to join into.
+fn join_into(a: State, b: &State) -> State {
+    match (a, b) {
+        (Some(mut a), Some(b)) => {
+            for (x, y) in a.iter_mut().zip(b) {
+                *x = (x.0.min(y.0), x.1.max(y.1));
+            }
+            Some(a)
+        }
+        (a, None) => a,
+        (None, b) => b.clone(),
+    }
+}
+
 /// Every state `a` allows, `b` allows too.
 fn included(a: &State, b: &State) -> bool {
     match (a, b) {
@@ -156,6 +170,17 @@ fn widen(old: Range, new: Range) -> Range {
     (lo, hi)
 }
 
+/// The length of the array the `depth`-th index of a place of type `ty` indexes (`None`:
+/// the sequence length): `ty.element()` applied `depth` times, without building the types
+/// (a type per assignment and round was a tenth of the analysis's instructions).
+fn index_len(ty: &super::Type, depth: usize) -> Option<u32> {
+    match (ty.per_seq, depth) {
+        (true, 0) => None,
+        (true, d) => ty.dims.get(d - 1).copied(),
+        (false, d) => ty.dims.get(d).copied(),
+    }
+}
+
 fn fits(lo: i64, hi: i64) -> Range {
     if lo < TOP.0 || hi > TOP.1 {
         TOP
@@ -186,11 +211,9 @@ impl Analysis<'_> {
     fn stmt(&mut self, s: &Stmt, st: State) -> State {
         if let StmtKind::Assign { place, value } = &s.kind {
             let mut env = st?;
-            let local_ty = self.f.locals.get(place.local.0 as usize).map(|l| l.ty.clone());
-            if let Some(mut ty) = local_ty {
-                for (index, site) in &place.indices {
-                    self.judge(&ty, index, *site, &env);
-                    ty = ty.element();
+            if let Some(local) = self.f.locals.get(place.local.0 as usize) {
+                for (depth, (index, site)) in place.indices.iter().enumerate() {
+                    self.judge(index_len(&local.ty, depth), index, *site, &env);
                 }
             }
             for (index, _) in &place.indices {
@@ -304,7 +327,7 @@ impl Analysis<'_> {
         let mut round = 0;
         let (narrowed, exit) = loop {
             let (back, exit) = self.loop_round(id, cond, body, step, head.clone());
-            let next = join(entry.clone(), back);
+            let next = join_into(back, &entry);
             if included(&next, &head) {
                 break (next, exit);
             }
@@ -382,11 +405,14 @@ impl Analysis<'_> {
         (back, exit)
     }
 
-    /// Judge every index site in `e` under `env`.
+    /// Judge every index site in `e` under `env` (nothing to do in a quiet round).
     fn visit(&mut self, e: &Expr, env: &[Range]) {
+        if self.quiet {
+            return;
+        }
         match &e.kind {
             ExprKind::Index { base, index, site } => {
-                self.judge(&base.ty, index, *site, env);
+                self.judge(index_len(&base.ty, 0), index, *site, env);
                 self.visit(base, env);
                 self.visit(index, env);
             }
@@ -407,15 +433,11 @@ impl Analysis<'_> {
         }
     }
 
-    fn judge(&mut self, base_ty: &super::Type, index: &Expr, site: SiteId, env: &[Range]) {
+    /// `len`: the indexed array's length (`None`: the sequence length, not fixed).
+    fn judge(&mut self, len: Option<u32>, index: &Expr, site: SiteId, env: &[Range]) {
         if self.quiet {
             return;
         }
-        let len = if base_ty.per_seq {
-            None
-        } else {
-            base_ty.dims.first().copied()
-        };
         let (lo, hi) = self.eval(index, env);
         let ok = !index.var.is_varying() && len.is_some_and(|n| lo >= 0 && hi < n as i64);
         let at = site.0 as usize;
