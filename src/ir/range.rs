@@ -115,12 +115,7 @@ struct Analysis<'a> {
 fn join(a: State, b: State) -> State {
     match (a, b) {
         (None, x) | (x, None) => x,
-        (Some(mut a), Some(b)) => {
-            for (x, y) in a.iter_mut().zip(&b) {
-                *x = (x.0.min(y.0), x.1.max(y.1));
-            }
-            Some(a)
-        }
+        (a, b) => join_into(a, &b),
     }
 }
 
