@@ -135,7 +135,7 @@ fn no_gate_on_one_thread_for_a_detached_worker_or_a_single_tier_jit() {
     assert_eq!((one.stats.gated_jobs, one.stats.gated_peak_threads), (0, 0));
     assert!(same_frame(&one.frame, &reference.frame));
     let watch = jit.tier_up_watch().unwrap();
-    assert!(watch.pending());
+    assert_ne!(watch.activity(), TierUpActivity::Idle, "the stalled compile is pending");
 
     // Detached while its compile is stalled: the JIT no longer reports a compiler, the
     // worker drains its queue on its own (the stall no longer binds it), and the next
@@ -178,7 +178,11 @@ fn a_hold_outliving_its_jit_does_not_keep_the_drop_waiting() {
         "the request waits behind the hold"
     );
     drop(jit);
-    assert!(!watch.pending(), "the worker answered the request before it ended");
+    assert_eq!(
+        watch.activity(),
+        TierUpActivity::Idle,
+        "the worker answered the request before it ended"
+    );
     drop(hold);
 }
 

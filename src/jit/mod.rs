@@ -500,12 +500,6 @@ pub struct TierUpWatch {
 }
 
 impl TierUpWatch {
-    /// Some tier-1 compile requested so far has not finished (it may be held back). A
-    /// failed compile counts as finished.
-    pub fn pending(&self) -> bool {
-        self.state.0.lock().unwrap_or_else(|e| e.into_inner()).pending > 0
-    }
-
     /// What the worker is doing now (see [`TierUpActivity`]).
     pub fn activity(&self) -> TierUpActivity {
         let st = self.state.0.lock().unwrap_or_else(|e| e.into_inner());
@@ -1203,7 +1197,6 @@ impl Jit {
 mod tests {
     use super::*;
 
-    /// Kernels are shared across render threads; the JIT itself moves between threads.
     /// A primitive whose tier-1 compile panics (see [`panic_if_asked`]).
     const PANICS_AT_TIER_1: &str = "panics_at_tier_1";
 
@@ -1249,6 +1242,7 @@ mod tests {
         assert_eq!(tiered.kernel(func, &key).unwrap().entry as usize, tier0.entry as usize);
     }
 
+    /// Kernels are shared across render threads; the JIT itself moves between threads.
     #[test]
     fn kernels_are_send_and_sync() {
         fn send_sync<T: Send + Sync>() {}
