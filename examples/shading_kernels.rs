@@ -1,5 +1,5 @@
 //! The deferred shading pass alone, per kernel: the f64 reference, the portable f32 lanes and
-//! the AVX2 build of the same lanes, on the bench's effects scenes (512 x 512, every pixel
+//! the SIMD build of the same lanes (AVX-512 or AVX2, whichever the CPU has), on the bench's effects scenes (512 x 512, every pixel
 //! visible), one thread, interleaved round by round:
 //!
 //! `cargo run --release --example shading_kernels -- [RUNS]` (default 15 runs).
