@@ -307,15 +307,15 @@ pub unsafe extern "C" fn scalar<const T: usize, const COUNT: bool>(ctx: *mut Til
                 }
                 if T == 3 {
                     let w = delta_w + t * s.gamma_w;
-                    let outward: [f32; 3] = std::array::from_fn(|k| (delta[k] + t * s.gamma[k]) / w);
+                    let outward: [f32; 3] = std::array::from_fn(|k| delta[k] + t * s.gamma[k]);
                     let lit: [f32; 3] = std::array::from_fn(|k| {
                         outward[0] * s.normal_x[k] + outward[1] * s.normal_y[k] + outward[2] * s.normal_z[k]
                     });
-                    let v = lit.map(|l| s.handedness * l);
-                    let len = dot3(v, v).sqrt();
-                    for (&plane, vk) in s.planes.iter().zip(v) {
+                    let side = if w < 0.0 { -s.handedness } else { s.handedness };
+                    let scale = side / dot3(lit, lit).sqrt();
+                    for (&plane, lk) in s.planes.iter().zip(lit) {
                         if plane < ctx.num_planes {
-                            *ctx.gbuf.add(plane as usize * ctx.plane_stride as usize + idx) = vk / len;
+                            *ctx.gbuf.add(plane as usize * ctx.plane_stride as usize + idx) = scale * lk;
                         }
                     }
                 }
@@ -426,24 +426,24 @@ pub unsafe extern "C" fn avx2<const T: usize, const COUNT: bool>(ctx: *mut TileC
                 }
                 if T == 3 {
                     let w = add(delta_w, mul(t, gamma_w));
-                    let outward: [__m256; 3] =
-                        std::array::from_fn(|k| _mm256_div_ps(add(delta[k], mul(t, gamma[k])), w));
-                    let handed = set1(s.handedness);
-                    let v: [__m256; 3] = std::array::from_fn(|k| {
-                        let lit = add(
+                    let outward: [__m256; 3] = std::array::from_fn(|k| add(delta[k], mul(t, gamma[k])));
+                    let lit: [__m256; 3] = std::array::from_fn(|k| {
+                        add(
                             add(
                                 mul(outward[0], set1(s.normal_x[k])),
                                 mul(outward[1], set1(s.normal_y[k])),
                             ),
                             mul(outward[2], set1(s.normal_z[k])),
-                        );
-                        mul(handed, lit)
+                        )
                     });
-                    let len = _mm256_sqrt_ps(dot(v, v));
-                    for (&plane, vk) in s.planes.iter().zip(v) {
+                    let handed = set1(s.handedness);
+                    let behind = _mm256_cmp_ps::<_CMP_LT_OQ>(w, _mm256_setzero_ps());
+                    let side = _mm256_blendv_ps(handed, set1(-s.handedness), behind);
+                    let scale = _mm256_div_ps(side, _mm256_sqrt_ps(dot(lit, lit)));
+                    for (&plane, lk) in s.planes.iter().zip(lit) {
                         if plane < ctx.num_planes {
                             let dst = ctx.gbuf.add(plane as usize * ctx.plane_stride as usize + base);
-                            _mm256_maskstore_ps(dst, mask, _mm256_div_ps(vk, len));
+                            _mm256_maskstore_ps(dst, mask, mul(scale, lk));
                         }
                     }
                 }
@@ -597,15 +597,17 @@ macro_rules! sse_kernel {
                         if T == 3 {
                             let w = _mm_add_ps(delta_w, _mm_mul_ps(t, gamma_w));
                             let outward: [__m128; 3] =
-                                std::array::from_fn(|k| _mm_div_ps(_mm_add_ps(delta[k], _mm_mul_ps(t, gamma[k])), w));
-                            let v: [__m128; 3] = std::array::from_fn(|k| _mm_mul_ps(handed, dot(outward, normal_rows[k])));
-                            let len = _mm_sqrt_ps(dot(v, v));
-                            for (&plane, vk) in plane_base.iter().zip(v) {
+                                std::array::from_fn(|k| _mm_add_ps(delta[k], _mm_mul_ps(t, gamma[k])));
+                            let lit: [__m128; 3] = std::array::from_fn(|k| dot(outward, normal_rows[k]));
+                            let behind = _mm_cmplt_ps(w, _mm_setzero_ps());
+                            let side = blend(handed, set1(-s.handedness), behind);
+                            let scale = _mm_div_ps(side, _mm_sqrt_ps(dot(lit, lit)));
+                            for (&plane, lk) in plane_base.iter().zip(lit) {
                                 if plane.is_null() {
                                     continue;
                                 }
                                 let dst = plane.add(base);
-                                let mut n = _mm_div_ps(vk, len);
+                                let mut n = _mm_mul_ps(scale, lk);
                                 if !full {
                                     n = blend(_mm_loadu_ps(dst), n, pass);
                                 }
