@@ -1046,10 +1046,10 @@ impl Frame {
     /// Run `shader` over every written pixel into `colors` (resized to the frame; its old
     /// contents do not matter); unwritten pixels get zero. Bands of [`SHADE_BAND_ROWS`] rows
     /// are shaded in parallel (each pixel's colour depends on that pixel's inputs alone, so
-    /// the result is the same for any thread count); each band zeroes its own colours first
-    /// (in parallel, cache-hot, instead of a serial clear of the whole buffer). The fast
-    /// kernels read each row's planes as contiguous slices ([`RowInputs`]) in one fused pass;
-    /// the f64 reference takes the written pixels one by one.
+    /// the result is the same for any thread count). The fast kernels write every pixel of
+    /// a row (zero where nothing was drawn; no clear of the whole buffer first), reading each
+    /// row's planes as contiguous slices ([`RowInputs`]) in one fused pass; the f64
+    /// reference takes the written pixels one by one.
     fn shade(&self, shader: &Shader, texture_param: Option<&str>, colors: &mut Vec<[f32; 3]>) {
         *colors = fit(std::mem::take(colors), self.plane_len(), [0.0; 3]);
         let (width, stride) = (self.width as usize, self.stride as usize);
@@ -1083,10 +1083,10 @@ impl Frame {
             .par_chunks_mut(stride * SHADE_BAND_ROWS)
             .enumerate()
             .for_each(|(band, band_colors)| {
-                // `shade_row` skips chunks with no written pixel: they must read zero (and
-                // the padding is zero too, so frames compare equal whatever they held).
-                band_colors.fill([0.0; 3]);
                 for (i, row_colors) in band_colors.chunks_mut(stride).enumerate() {
+                    // `shade_row` writes the row's pixels; the padding is zeroed too, so
+                    // frames compare equal whatever the buffer held.
+                    row_colors[width..].fill([0.0; 3]);
                     let y = band * SHADE_BAND_ROWS + i;
                     let at = y * stride;
                     let row = RowInputs {

@@ -263,10 +263,10 @@ impl Shader {
         self.shade_row_body::<Avx2, LIT, FOG, TEXTURE>(row, out);
     }
 
-    /// The body of [`Self::shade_row_for`], inlined into the AVX2 or the baseline build: one
-    /// fused pass over the row in vectors of [`LANES`] pixels. Each vector loads its planes
-    /// contiguously, computes geometry, every light, fog and the final colour in registers
-    /// and stores the colours once; a vector with no written pixel is skipped.
+    /// The body of [`Self::shade_row_for`], inlined into each build: one fused pass over the
+    /// row in vectors of [`LANES`] pixels. Each vector loads its planes contiguously,
+    /// computes geometry, every light, fog and the final colour in registers and stores the
+    /// colours once; a vector with no written pixel is stored as zeros unshaded.
     #[inline(always)]
     fn shade_row_body<I: Isa, const LIT: bool, const FOG: bool, const TEXTURE: bool>(
         &self,
@@ -285,7 +285,10 @@ impl Shader {
                 }
             };
             let written = Mask::<I>::nonzero(depth);
-            if written.any() {
+            if !written.any() {
+                // Nothing drawn here: black, without the shading.
+                out[x0..width.min(x0 + LANES)].fill([0.0; 3]);
+            } else {
                 let colour = self.shade_chunk::<I, LIT, FOG, TEXTURE>(row, x0, depth, written);
                 // Unwritten pixels are zero.
                 let [r, g, b] = map3!(colour, c => written.select(c, F32s::splat(0.0)));
