@@ -228,14 +228,16 @@ impl Shader {
         out: &mut [[f32; 3]],
     ) {
         #[cfg(target_arch = "x86_64")]
-        if self.kernel == ShadingKernel::Simd {
-            match simd_level() {
-                // SAFETY: the CPU has AVX-512 F and DQ (detected at run time).
-                SimdLevel::Avx512 => return unsafe { self.shade_row_avx512::<LIT, FOG, TEXTURE>(row, out) },
-                // SAFETY: the CPU has AVX2 and FMA (detected at run time).
-                SimdLevel::Avx2 => return unsafe { self.shade_row_avx2::<LIT, FOG, TEXTURE>(row, out) },
-                SimdLevel::None => {}
+        match (self.kernel, simd_level()) {
+            // SAFETY: the CPU has AVX-512 F and DQ (detected at run time).
+            (ShadingKernel::Simd, SimdLevel::Avx512) => {
+                return unsafe { self.shade_row_avx512::<LIT, FOG, TEXTURE>(row, out) }
             }
+            // SAFETY: the CPU has AVX2 and FMA (detected at run time; AVX-512 CPUs have them).
+            (ShadingKernel::Simd | ShadingKernel::Avx2, SimdLevel::Avx512 | SimdLevel::Avx2) => {
+                return unsafe { self.shade_row_avx2::<LIT, FOG, TEXTURE>(row, out) }
+            }
+            _ => {}
         }
         self.shade_row_body::<Portable, LIT, FOG, TEXTURE>(row, out);
     }
@@ -580,9 +582,10 @@ fn simd_level() -> SimdLevel {
     use std::sync::OnceLock;
     static LEVEL: OnceLock<SimdLevel> = OnceLock::new();
     *LEVEL.get_or_init(|| {
-        if is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512dq") {
+        let avx2 = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
+        if avx2 && is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512dq") {
             SimdLevel::Avx512
-        } else if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+        } else if avx2 {
             SimdLevel::Avx2
         } else {
             SimdLevel::None

@@ -134,7 +134,7 @@ pub struct ShadingSetup {
 }
 
 /// The implementation of the shading pass. The fast kernels agree with the f64 reference
-/// within the bound stated in the module documentation; `Simd` and `Portable` give
+/// within the bound stated in the module documentation; `Simd`, `Avx2` and `Portable` give
 /// bit-identical results (same IEEE operations in the same order, no fused multiply-add).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum ShadingKernel {
@@ -142,6 +142,9 @@ pub enum ShadingKernel {
     /// time), otherwise the portable loop.
     #[default]
     Simd,
+    /// The same f32 lanes on AVX2 registers even where the CPU has AVX-512 (the portable
+    /// loop where it has no AVX2): to compare the builds.
+    Avx2,
     /// The same f32 lanes compiled for the baseline target (SSE2 on x86-64).
     Portable,
     /// Scalar f64 per pixel: the reference the fast kernels are measured against.
