@@ -593,6 +593,29 @@ impl Isa for Portable {
 // AVX2: explicit intrinsics.
 // ---------------------------------------------------------------------------------------
 
+/// `r[i] = op(a[i], b[i])` over the registers of a vector (the intrinsic modules' one
+/// shape of operation). Loops and macros, never closures: a closure is compiled without the
+/// target feature and the intrinsics in it would not inline.
+#[cfg(target_arch = "x86_64")]
+macro_rules! per_register {
+    ($n:expr, $op:ident, $a:expr) => {{
+        let a = $a;
+        let mut r = a;
+        for i in 0..$n {
+            r[i] = unsafe { $op(a[i]) };
+        }
+        r
+    }};
+    ($n:expr, $op:ident, $a:expr, $b:expr) => {{
+        let (a, b) = ($a, $b);
+        let mut r = a;
+        for i in 0..$n {
+            r[i] = unsafe { $op(a[i], b[i]) };
+        }
+        r
+    }};
+}
+
 #[cfg(target_arch = "x86_64")]
 pub use avx2::Avx2;
 
@@ -611,28 +634,6 @@ mod avx2 {
 
     /// Registers per f32 vector.
     const R: usize = LANES / 8;
-
-    // `r[i] = op(a[i], b[i])` over the registers of a vector. Loops and macros, never
-    // closures: a closure is compiled without the AVX2 feature and the intrinsics in it
-    // would not inline.
-    macro_rules! per_register {
-        ($n:expr, $op:ident, $a:expr) => {{
-            let a = $a;
-            let mut r = a;
-            for i in 0..$n {
-                r[i] = unsafe { $op(a[i]) };
-            }
-            r
-        }};
-        ($n:expr, $op:ident, $a:expr, $b:expr) => {{
-            let (a, b) = ($a, $b);
-            let mut r = a;
-            for i in 0..$n {
-                r[i] = unsafe { $op(a[i], b[i]) };
-            }
-            r
-        }};
-    }
 
     #[inline(always)]
     unsafe fn neg_ps(a: __m256) -> __m256 {
@@ -930,25 +931,6 @@ mod avx512 {
 
     /// Registers per f32 vector.
     const R: usize = LANES / 16;
-
-    macro_rules! per_register {
-        ($n:expr, $op:ident, $a:expr) => {{
-            let a = $a;
-            let mut r = a;
-            for i in 0..$n {
-                r[i] = unsafe { $op(a[i]) };
-            }
-            r
-        }};
-        ($n:expr, $op:ident, $a:expr, $b:expr) => {{
-            let (a, b) = ($a, $b);
-            let mut r = a;
-            for i in 0..$n {
-                r[i] = unsafe { $op(a[i], b[i]) };
-            }
-            r
-        }};
-    }
 
     #[inline(always)]
     unsafe fn neg_ps(a: __m512) -> __m512 {
