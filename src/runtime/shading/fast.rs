@@ -208,7 +208,8 @@ impl Shader {
 
     /// Shade one row with the fast kernel, writing `out[x]` for every x of the row: the
     /// colour where depth was written, zero elsewhere. Monomorphised per effect set like
-    /// the reference; the whole body is compiled for AVX2 + FMA when the CPU has them.
+    /// the reference, and built for AVX-512 and AVX2 (the widest the CPU has runs, or AVX2
+    /// when the kernel is [`ShadingKernel::Avx2`]) and for any target.
     pub fn shade_row(&self, row: &RowInputs<'_>, out: &mut [[f32; 3]]) {
         match (self.effects.lit, self.effects.fog, self.effects.texture) {
             (false, false, false) => self.shade_row_for::<false, false, false>(row, out),
@@ -233,7 +234,7 @@ impl Shader {
             (ShadingKernel::Simd, SimdLevel::Avx512) => {
                 return unsafe { self.shade_row_avx512::<LIT, FOG, TEXTURE>(row, out) }
             }
-            // SAFETY: the CPU has AVX2 and FMA (detected at run time; AVX-512 CPUs have them).
+            // SAFETY: the CPU has AVX2 and FMA (detected at run time; `Avx512` implies them).
             (ShadingKernel::Simd | ShadingKernel::Avx2, SimdLevel::Avx512 | SimdLevel::Avx2) => {
                 return unsafe { self.shade_row_avx2::<LIT, FOG, TEXTURE>(row, out) }
             }
