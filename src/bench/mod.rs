@@ -116,6 +116,8 @@ pub struct BenchReport {
     pub isa: String,
     pub simd_kernel: String,
     pub sse_kernel: String,
+    /// The deferred shading pass's build on this CPU ([`crate::runtime::shading::simd_build`]).
+    pub shading_kernel: String,
     pub threads: usize,
     pub workloads: Vec<WorkloadResult>,
     pub compile: Vec<CompileTiming>,
@@ -667,6 +669,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
         isa: jit.isa_summary(),
         simd_kernel: Flavor::Avx2.describe().to_string(),
         sse_kernel: Flavor::Sse.describe().to_string(),
+        shading_kernel: crate::runtime::shading::simd_build(),
         threads,
         workloads: results,
         compile,
@@ -791,8 +794,8 @@ fn machine_description(threads: usize) -> String {
 pub fn format_table(report: &BenchReport) -> String {
     let mut s = String::new();
     s.push_str(&format!(
-        "machine: {}\nJIT: {}\nhand-written SSE: {}\nhand-written SIMD: {}\n\n",
-        report.machine, report.isa, report.sse_kernel, report.simd_kernel
+        "machine: {}\nJIT: {}\nhand-written SSE: {}\nhand-written SIMD: {}\nshading pass: {}\n\n",
+        report.machine, report.isa, report.sse_kernel, report.simd_kernel, report.shading_kernel
     ));
     s.push_str(&format!(
         "{:<32} {:<26} {:>7} {:>10} {:>10} {:>10}\n",

@@ -568,6 +568,19 @@ impl Shader {
     }
 }
 
+/// Which build of the fast kernels `ShadingKernel::Simd` runs on this CPU, for reports.
+pub fn simd_build() -> String {
+    #[cfg(target_arch = "x86_64")]
+    let name = match simd_level() {
+        SimdLevel::Avx512 => "AVX-512",
+        SimdLevel::Avx2 => "AVX2",
+        SimdLevel::None => "portable loops",
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let name = "portable loops";
+    format!("{name}, {LANES} pixels per vector")
+}
+
 /// The widest vector instructions the CPU has that the kernels are built for.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy, PartialEq, Eq)]

@@ -47,7 +47,7 @@ mod fast;
 mod lanes;
 
 use fast::FastSetup;
-pub use fast::RowInputs;
+pub use fast::{simd_build, RowInputs};
 
 /// A light as the scene gives it, in world coordinates.
 #[derive(Clone, Copy, Debug, PartialEq)]
