@@ -4,14 +4,16 @@
 //!
 //! The types are generic over an instruction set ([`Isa`]): [`Portable`] is element-wise
 //! loops over arrays that the compiler vectorises as it can (SSE2 on the baseline x86-64
-//! target), [`Avx2`] is one AVX2 register per `F32s` and `Mask` and two per `F64s`, by
-//! explicit intrinsics (left to the auto-vectoriser, the same kernels split into 4-wide
-//! halves and spilled, at twice the time). Both perform the same IEEE operations in the
-//! same order and neither fuses a multiply-add, so a kernel's two builds are bit-identical.
+//! target); [`Avx2`] and [`Avx512`] hold each vector in registers (four AVX2 or two AVX-512
+//! registers per 32 f32 lanes, twice that for f64) and compute it by explicit intrinsics.
+//! Left to the auto-vectoriser, the same kernels split into 4-wide halves and spilled, at
+//! twice the time. Every build performs the same IEEE operations in the same order and none
+//! fuses a multiply-add, so a kernel's builds are bit-identical (NaN payloads aside).
 
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
 
-/// Pixels per lane vector: one AVX2 register of f32.
+/// Pixels per lane vector: several registers, so that each operation of the (latency-bound)
+/// kernels has independent work beside it (measured in `fast.rs`'s documentation).
 pub const LANES: usize = 32;
 
 /// How lane vectors are represented and computed. Each operation is the IEEE operation of
@@ -110,7 +112,7 @@ pub fn load<T: Copy>(plane: &[T], x0: usize, fill: T) -> [T; LANES] {
 }
 
 // Macros, not closures, for the per-component expressions of the kernels: a closure is a
-// function of its own, compiled without the AVX2 feature, and the intrinsics called in it
+// function of its own, compiled without the target feature, and the intrinsics called in it
 // would not inline (a call per operation, ten times slower).
 
 /// `[e(0), e(1), e(2)]`: `xyz!(k => e)` evaluates `e` with `k` = 0, 1, 2.
