@@ -5,21 +5,23 @@
 //! `cargo run --release --example thread_scaling -- [LAYERS [RUNS [TILE [K]]]]`
 //! (defaults 20 layers as in `bench --quick`, 15 runs, 64 px tiles, K = 4).
 //!
-//! Two ways of rendering, interleaved run by run: `reused` renders every frame into the same
+//! Three pools: one thread, the renderer's `render_pool(2)` (each thread pinned to a CPU of its
+//! own, see `runtime::pool`) and a plain rayon pool of two threads, which shows what pinning
+//! changes. Two ways of rendering, interleaved run by run: `reused` renders every frame into the same
 //! `Frame` per thread count (`Renderer::render_into`), as an application does, so no frame
 //! pays for allocating and faulting in fresh buffers (what `primflow bench` times); `fresh`
 //! calls `Renderer::render`, which returns a new frame every time. Prints, per way and
-//! thread count, the median and minimum frame time and the median setup (compile lookup,
+//! pool, the median and minimum frame time and the median setup (compile lookup,
 //! bound pass, binning: serial), tiles (tile clears and kernels, straight into the frame: parallel)
 //! and shading times, then the 2-thread / 1-thread ratios. Run it when the machine is idle:
 //! on a shared 2-core machine any other process takes one of the two cores.
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use primflow::bench::fill_scene;
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::jit::Jit;
-use primflow::runtime::{Frame, Registry, RenderStats};
+use primflow::runtime::{render_pool, Frame, Registry, RenderStats};
 
 fn arg<T: std::str::FromStr>(i: usize, default: T) -> T {
     std::env::args().nth(i).and_then(|s| s.parse().ok()).unwrap_or(default)
@@ -29,6 +31,9 @@ fn median<T: Copy + PartialOrd>(mut v: Vec<T>) -> T {
     v.sort_by(|a, b| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal));
     v[v.len() / 2]
 }
+
+/// Idle time before each frame: a 60 Hz application's frame period.
+const IDLE: Duration = Duration::from_millis(16);
 
 /// One timed frame: (frame ms, setup us, tiles us, shade us).
 type Run = (f64, u64, u64, u64);
@@ -52,23 +57,36 @@ fn main() -> Result<(), String> {
     let mut scene = fill_scene(&program, 512, layers, Some("perspective_linear"), k);
     scene.set_tile_size(tile).map_err(|e| e.message)?;
     let mut jit = Jit::new(program.clone()).map_err(|e| e.to_string())?;
-    let pools = [1, 2].map(|n| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .map_err(|e| e.to_string())
-    });
-    let pools: Vec<rayon::ThreadPool> = pools.into_iter().collect::<Result<_, _>>()?;
+    // The renderer's pools (`render_pool`: with 2 threads, each pinned to a CPU) and a plain
+    // rayon pool of 2, whose threads the scheduler places.
+    let plain = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .map_err(|e| e.to_string())?;
+    let pools = [
+        ("1 thread", render_pool(1).map_err(|e| e.to_string())?),
+        (
+            "2 threads, render_pool (pinned)",
+            render_pool(2).map_err(|e| e.to_string())?,
+        ),
+        ("2 threads, plain rayon pool", plain),
+    ];
     // Compile outside the timed runs.
-    let _ = pools[0].install(|| scene.render(&mut jit));
+    let _ = pools[0].1.install(|| scene.render(&mut jit));
     let mut frames: Vec<Frame> = pools.iter().map(|_| Frame::empty()).collect();
-    // [way][pool] -> one entry per run; way 0 = reused frame, 1 = fresh frame.
+    // [way][pool] -> one entry per run; way 0 = reused frame, 1 = fresh frame. Before every
+    // frame the process idles for IDLE, as an interactive application does between frames:
+    // the pool's threads and the cores go to sleep, and what wakes them is part of the frame.
     let mut runs_of: [Vec<Vec<Run>>; 2] = [vec![vec![]; pools.len()], vec![vec![]; pools.len()]];
     for _ in 0..runs {
-        for (p, pool) in pools.iter().enumerate() {
+        for (p, (_, pool)) in pools.iter().enumerate() {
+            std::thread::sleep(IDLE);
             let started = Instant::now();
             let report = pool.install(|| scene.render_into(&mut jit, &mut frames[p]));
             runs_of[0][p].push(run_of(started, &report.stats));
+        }
+        for (p, (_, pool)) in pools.iter().enumerate() {
+            std::thread::sleep(IDLE);
             let started = Instant::now();
             let out = pool.install(|| scene.render(&mut jit));
             runs_of[1][p].push(run_of(started, &out.stats));
@@ -80,12 +98,11 @@ fn main() -> Result<(), String> {
     {
         let mut med_ms = vec![];
         let mut min_ms = vec![];
-        for (pool, times) in pools.iter().zip(&runs_of[way]) {
+        for ((label, _), times) in pools.iter().zip(&runs_of[way]) {
             let ms: Vec<f64> = times.iter().map(|t| t.0).collect();
             let (m, lo) = (median(ms.clone()), ms.iter().copied().fold(f64::INFINITY, f64::min));
             println!(
-                "{name}, {} thread(s): frame median {m:.2} ms (min {lo:.2}); phases (median us): setup {} tiles {} shade {}",
-                pool.current_num_threads(),
+                "{name}, {label}: frame median {m:.2} ms (min {lo:.2}); phases (median us): setup {} tiles {} shade {}",
                 median(times.iter().map(|t| t.1).collect()),
                 median(times.iter().map(|t| t.2).collect()),
                 median(times.iter().map(|t| t.3).collect()),
@@ -93,11 +110,14 @@ fn main() -> Result<(), String> {
             med_ms.push(m);
             min_ms.push(lo);
         }
-        println!(
-            "{name}: fill perspective_linear K={k}, {layers} layers, tile {tile}, {runs} runs: 2 threads / 1 thread = {:.2}x (medians), {:.2}x (minima)",
-            med_ms[0] / med_ms[1],
-            min_ms[0] / min_ms[1]
-        );
+        for p in 1..pools.len() {
+            println!(
+                "{name}: fill perspective_linear K={k}, {layers} layers, tile {tile}, {runs} runs: {} / 1 thread = {:.2}x (medians), {:.2}x (minima)",
+                pools[p].0,
+                med_ms[0] / med_ms[p],
+                min_ms[0] / min_ms[p]
+            );
+        }
     }
     Ok(())
 }

@@ -22,7 +22,7 @@ use crate::handwritten::{Flavor, Handwritten};
 use crate::ir::Program;
 use crate::jit::Jit;
 use crate::runtime::shading::{Fog, SceneLight, SurfaceMaterial, Texture};
-use crate::runtime::{Frame, KernelSource, Registry, Renderer, Value};
+use crate::runtime::{render_pool, Frame, KernelSource, Registry, Renderer, Value};
 
 #[derive(Clone, Debug)]
 pub struct BenchOptions {
@@ -459,14 +459,8 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
     let mut sources = SourceMap::new();
     let program = library(&mut sources)?;
     let threads = rayon::current_num_threads().max(1);
-    let one = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .map_err(|e| e.to_string())?;
-    let all = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| e.to_string())?;
+    let one = render_pool(1).map_err(|e| e.to_string())?;
+    let all = render_pool(threads).map_err(|e| e.to_string())?;
     let runs = if opts.quick { opts.runs.min(5) } else { opts.runs }.max(1);
     let selected: Vec<Workload> = workloads(opts.quick)
         .into_iter()
@@ -697,10 +691,7 @@ pub fn time_to_first_pixel() -> Result<f64, String> {
         &mut Lcg(3),
     );
     let mut jit = Jit::tiered(program).map_err(|e| e.to_string())?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .map_err(|e| e.to_string())?;
+    let pool = render_pool(1).map_err(|e| e.to_string())?;
     render(&r, &mut jit, &pool)?;
     Ok(started.elapsed().as_secs_f64() * 1e3)
 }
@@ -754,7 +745,8 @@ pub fn example_scenes_to_first_pixel() -> Result<Vec<SceneToFirstPixel>, String>
                 return Err(format!("{name}: {}", diags.render(&sources)));
             }
             let mut jit = Jit::tiered(program).map_err(|e| e.to_string())?;
-            let frame = r.render(&mut jit);
+            let pool = render_pool(0).map_err(|e| e.to_string())?;
+            let frame = pool.install(|| r.render(&mut jit));
             let ms = started.elapsed().as_secs_f64() * 1e3;
             if frame.diags.has_errors() {
                 return Err(format!("{name}: {:?}", frame.diags.items));

@@ -358,11 +358,7 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
             return 1;
         }
     };
-    let pool = match rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.unwrap_or(0))
-        .stack_size(crate::runtime::RENDER_THREAD_STACK)
-        .build()
-    {
+    let pool = match crate::runtime::render_pool(args.threads.unwrap_or(0)) {
         Ok(pool) => pool,
         Err(e) => {
             let _ = writeln!(err, "error: cannot start {} threads: {e}", args.threads.unwrap_or(0));

@@ -59,7 +59,7 @@ pub const MAX_TILE_SIDE: u32 = 4096;
 /// process when the allocation fails; above this the render is refused with E0803.
 pub const MAX_FRAME_BYTES: u64 = 16 << 30;
 
-/// Stack of each render thread `primflow render` and `primflow test` start: room for
+/// Stack of each thread of a [`render_pool`](super::render_pool): room for
 /// primitives with large local arrays nested in calls (a kernel's frame holds its arrays;
 /// one whose frame does not fit records a run-time error instead of running, see
 /// `abi::TileCtx::stack_limit`). Reserved, not committed: pages are used as touched.

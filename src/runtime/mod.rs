@@ -11,6 +11,7 @@
 //!   `vertex` / `end`, the current transform, instances and their argument blocks.
 //! - [`frame`]: binning, parallel tile rendering, the [`Frame`] and its images.
 //! - `expand`: runs a primitive that only calls primitives once and bins its calls instead.
+//! - [`pool`]: render thread pools, each thread on a core of its own.
 //! - `tiergate`: leaves a tiered JIT's background compiler a thread while it compiles.
 //! - [`geometry`]: the geometry pipeline at `end`: clip codes, trivial reject / accept,
 //!   clipping, culling, points to device and normals to lighting coordinates.
@@ -25,6 +26,7 @@ mod expand;
 pub mod frame;
 pub mod geometry;
 pub mod kernels;
+pub mod pool;
 pub mod registry;
 pub mod shading;
 mod tiergate;
@@ -37,5 +39,6 @@ pub use api::{
 };
 pub use frame::{describe_key, Frame, KernelReport, ParamPlanes, RenderOutput, RenderReport, RenderStats};
 pub use kernels::KernelSource;
+pub use pool::render_pool;
 pub use registry::Registry;
 pub use value::Value;

@@ -466,11 +466,7 @@ fn render_case(
             return (None, diags, sources);
         }
     };
-    let pool = match rayon::ThreadPoolBuilder::new()
-        .num_threads(options.threads)
-        .stack_size(crate::runtime::RENDER_THREAD_STACK)
-        .build()
-    {
+    let pool = match crate::runtime::render_pool(options.threads) {
         Ok(p) => p,
         Err(e) => {
             diags.push(crate::diag::Diagnostic::error(
