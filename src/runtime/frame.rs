@@ -277,7 +277,9 @@ impl FrameTarget<'_> {
 
 impl Renderer {
     /// Render every instance submitted so far into a new [`Frame`]. Uses the current rayon
-    /// thread pool (wrap the call in `ThreadPool::install` to choose the thread count).
+    /// thread pool: wrap the call in `ThreadPool::install` on a
+    /// [`render_pool`](super::render_pool), whose threads each keep to a core (a plain pool's
+    /// threads, woken after an idle gap, may share one core for the whole frame).
     /// Equivalent to [`Renderer::render_into`] on [`Frame::empty`].
     pub fn render(&self, source: &mut dyn KernelSource) -> RenderOutput {
         let mut frame = Frame::empty();
