@@ -1,5 +1,6 @@
 //! `primflow render --explain` on examples/geometry.scene: the pipelines taken, the kernel
-//! variants compiled (with and without clipping code) and the shading effects are listed.
+//! variants compiled (with and without clipping code), the shading effects and the render
+//! threads are listed.
 
 #[test]
 fn explain_lists_pipelines_variants_and_effects() {
@@ -30,6 +31,14 @@ fn explain_lists_pipelines_variants_and_effects() {
         out.contains("shading effects: Phong lighting, fog, checker texture (lights: 2, lit in lighting coordinates)"),
         "{out}"
     );
+    // The render threads and where they run (the default: one per CPU, pinned when 2+).
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let pinned = primflow::runtime::pool::pinning_plan(threads);
+    let line = match &pinned {
+        Some(cpus) => format!("render threads: {threads}, pinned to CPUs {cpus:?}"),
+        None => format!("render threads: {threads}, not pinned"),
+    };
+    assert!(out.contains(&line), "{line} in {out}");
     let img = image::open(&png).unwrap().to_rgb8();
     assert_eq!(img.dimensions(), (160, 120));
     std::fs::remove_dir_all(&dir).unwrap();

@@ -88,7 +88,8 @@ pub struct RenderArgs {
     /// 3: RGB clamped). Repeatable.
     #[arg(long, num_args = 2, value_names = ["NAME", "FILE.png"], action = clap::ArgAction::Append)]
     pub param: Vec<String>,
-    /// Worker threads for the tiles (default: one per core).
+    /// Worker threads for the tiles (default: one per core). Two or more, and no more than
+    /// the CPUs the process may use: each is pinned to a CPU of its own.
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
     /// Extra directory of .prim files (repeatable).
@@ -112,7 +113,7 @@ pub struct TestArgs {
     /// Extra directory of .prim files (repeatable).
     #[arg(long = "prims", value_name = "DIR")]
     pub prims: Vec<PathBuf>,
-    /// Worker threads per render (default: one per core).
+    /// Worker threads per render (default: one per core; pinned as `render`'s are).
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
     /// Create missing golden images from this run instead of failing.
@@ -405,6 +406,10 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     }
     if args.explain {
         write_explain(&renderer, &result, out);
+        let _ = match crate::runtime::pool::pinning_plan(threads) {
+            Some(cpus) => writeln!(out, "render threads: {threads}, pinned to CPUs {cpus:?}"),
+            None => writeln!(out, "render threads: {threads}, not pinned"),
+        };
     }
     let ok = failures.is_empty();
     let s = &result.stats;
