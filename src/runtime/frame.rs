@@ -716,7 +716,7 @@ impl<'a> Bins<'a> {
                 }
             }
         };
-        let ranges = chunk_ranges(expanded, chunks);
+        let ranges = chunk_ranges(expanded, chunks, tiles);
         let (counts, counted) = tiergate::run_items(compiler, ranges.len(), 1, |c| {
             let mut n = vec![0usize; tiles];
             each(ranges[c].clone(), &mut |t, _, _, _| n[t] += 1);
@@ -759,11 +759,12 @@ impl<'a> Bins<'a> {
 }
 
 /// Up to `chunks` ranges of consecutive instances with about the same number of draws each,
-/// at least [`BIN_CHUNK_DRAWS`] apiece (one range for a small frame), covering every
-/// instance.
-fn chunk_ranges(expanded: &[Option<Expanded>], chunks: usize) -> Vec<std::ops::Range<usize>> {
+/// covering every instance: at least [`BIN_CHUNK_DRAWS`] draws apiece, and at least `tiles`
+/// (a chunk's per-tile counts and runs must not outweigh its draws: a 16384-pixel frame of
+/// 4-pixel tiles has 16 M tiles). One range for a small frame.
+fn chunk_ranges(expanded: &[Option<Expanded>], chunks: usize, tiles: usize) -> Vec<std::ops::Range<usize>> {
     let total: usize = expanded.iter().flatten().map(Expanded::len).sum();
-    let chunks = chunks.min(total / BIN_CHUNK_DRAWS).max(1);
+    let chunks = chunks.min(total / BIN_CHUNK_DRAWS).min(total / tiles.max(1)).max(1);
     let per_chunk = total.div_ceil(chunks).max(1);
     let mut ranges = vec![];
     let (mut first, mut draws) = (0, 0);
@@ -1492,7 +1493,10 @@ mod tests {
         assert!(want.1.len() > 30_000, "draws span several tiles");
         let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
         for chunks in [2, 3, 5, 6] {
-            assert!(chunk_ranges(&expanded, chunks).len() == chunks, "{chunks} chunks used");
+            assert!(
+                chunk_ranges(&expanded, chunks, tiles).len() == chunks,
+                "{chunks} chunks used"
+            );
             let (parallel, _) = pool.install(|| Bins::new(&expanded, &instances, tiles, tiles_x, chunks, None));
             assert!(key(&parallel) == want, "{chunks} chunks");
         }
@@ -1507,10 +1511,19 @@ mod tests {
             error: None,
             over_budget: false,
         };
-        for (n, chunks, want) in [(0, 4, 1), (10, 4, 1), (5 * BIN_CHUNK_DRAWS, 8, 4), (20_000, 2, 2)] {
+        // (instances, chunks asked for, tiles, ranges): 4/5 of the instances have a draw.
+        for (n, chunks, tiles, want) in [
+            (0, 4, 64, 1),
+            (10, 4, 64, 1),
+            (5 * BIN_CHUNK_DRAWS, 8, 64, 4),
+            (20_000, 2, 64, 2),
+            // Far more tiles than draws: one range, not per-tile arrays per chunk.
+            (100_000, 8, 1 << 24, 1),
+            (100_000, 8, 30_000, 2),
+        ] {
             let expanded: Vec<Option<Expanded>> = (0..n).map(|i| (i % 5 != 0).then(itself)).collect();
-            let ranges = chunk_ranges(&expanded, chunks);
-            assert_eq!(ranges.len(), want, "{n} instances, {chunks} chunks");
+            let ranges = chunk_ranges(&expanded, chunks, tiles);
+            assert_eq!(ranges.len(), want, "{n} instances, {chunks} chunks, {tiles} tiles");
             assert_eq!(ranges.first().map(|r| r.start), Some(0));
             assert_eq!(ranges.last().map(|r| r.end), Some(n));
             assert!(ranges
