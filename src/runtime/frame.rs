@@ -9,10 +9,11 @@
 //!    call order ([`super::expand`]; off with `RenderOptions::expand_calls`); any other
 //!    instance is one draw. Each draw's kernel runs once in `MODE_BOUND` on an empty tile
 //!    with no buffers (instances expand and bound in parallel, draws are binned afterwards
-//!    in submission order, in parallel chunks); its recorded screen bound (conservative) bins it into the tiles
+//!    in submission order); its recorded screen bound (conservative) bins it into the tiles
 //!    it overlaps. A NaN bound, or no bound at all, puts it in no tile. The bins are one flat
-//!    list of draw copies grouped by tile (a counting sort), so a tile task reads its draws
-//!    front to back and prefetches a coming draw's arguments while a kernel runs.
+//!    list of draw copies grouped by tile (a counting sort, in parallel chunks of instances),
+//!    so a tile task reads its draws front to back and prefetches a coming draw's arguments
+//!    while a kernel runs.
 //! 3. Tiles render in parallel with rayon, one job per tile (so that the tiles spread evenly
 //!    over the threads), straight into the frame: the frame's buffers (depth u32 with 0 =
 //!    farthest, G-buffer planes f32 in one buffer, write counts) have a row stride of whole
