@@ -47,7 +47,8 @@ fn render_on(threads: usize, r: &Renderer, source: &mut (dyn KernelSource + Send
     out
 }
 
-/// Jobs a gated render runs: the bound pass's (512 instances each) and the tiles.
+/// Jobs a gated render runs: the bound pass's (512 instances each) and the tiles (these
+/// scenes bin their few draws in one chunk, on the calling thread: no binning jobs).
 fn jobs_of(r: &Renderer) -> usize {
     let side = primflow::runtime::frame::tile_side(r.options.tile_size);
     let tiles = r.options.width.div_ceil(side) * r.options.height.div_ceil(side);

@@ -166,10 +166,11 @@ pub struct RenderStats {
     /// Instances whose expansion exceeded `RenderOptions::expand_budget_words` (rendered
     /// per tile instead).
     pub expand_over_budget: usize,
-    /// Jobs of the expansion and bound pass (up to `BOUND_JOB` instances each) and tiles
-    /// started while the kernel source's background compiler had a compile pending, on one
-    /// thread fewer than the pool has (`super::tiergate`; 0 for a source without one, a
-    /// one-thread pool, or once the compile has landed).
+    /// Jobs of the expansion and bound pass (up to `BOUND_JOB` instances each), of the
+    /// binning (its chunks, when it has more than one) and tiles started while the kernel
+    /// source's background compiler had a compile pending, on one thread fewer than the pool
+    /// has (`super::tiergate`; 0 for a source without one, a one-thread pool, or once the
+    /// compile has landed).
     pub gated_jobs: usize,
     /// Most threads that ran those jobs at once (at most the pool's threads less one).
     pub gated_peak_threads: usize,
@@ -718,11 +719,18 @@ impl<'a> Bins<'a> {
             }
         };
         let ranges = chunk_ranges(expanded, chunks, tiles);
-        let (counts, counted) = tiergate::run_items(compiler, ranges.len(), 1, |c| {
+        // One chunk runs on the calling thread: no jobs (and none counted as gated).
+        let serial = ranges.len() == 1;
+        let count = |c: usize| {
             let mut n = vec![0usize; tiles];
             each(ranges[c].clone(), &mut |t, _, _, _| n[t] += 1);
             n
-        });
+        };
+        let (counts, counted) = if serial {
+            (vec![count(0)], GateStats::default())
+        } else {
+            tiergate::run_items(compiler, ranges.len(), 1, count)
+        };
         let mut start = vec![0usize; tiles + 1];
         for t in 0..tiles {
             start[t + 1] = start[t] + counts.iter().map(|n| n[t]).sum::<usize>();
@@ -740,7 +748,7 @@ impl<'a> Bins<'a> {
             }
         }
         let runs: Vec<std::sync::Mutex<Vec<&mut [Draw<'a>]>>> = runs.into_iter().map(std::sync::Mutex::new).collect();
-        let (_, placed) = tiergate::run_items(compiler, ranges.len(), 1, |c| {
+        let place = |c: usize| {
             // Each chunk's job is the only one to lock its runs.
             let mut runs = runs[c].lock().unwrap_or_else(|e| e.into_inner());
             let mut filled = vec![0usize; tiles];
@@ -748,7 +756,13 @@ impl<'a> Bins<'a> {
                 runs[t][filled[t]] = e.draw(d, &instances[i], i);
                 filled[t] += 1;
             });
-        });
+        };
+        let placed = if serial {
+            place(0);
+            GateStats::default()
+        } else {
+            tiergate::run_items(compiler, ranges.len(), 1, place).1
+        };
         drop(runs);
         (Bins { start, draws }, [counted, placed])
     }
