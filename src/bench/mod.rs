@@ -779,7 +779,12 @@ fn machine_description(threads: usize) -> String {
                 .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
         })
         .unwrap_or_else(|| std::env::consts::ARCH.to_string());
-    format!("{cpu}, {threads} threads")
+    // The all-threads runs' pool (`render_pool`): pinned threads scale, unpinned ones may not.
+    let pinned = match crate::runtime::pool::pinning_plan(threads) {
+        Some(cpus) => format!("pinned to CPUs {cpus:?}"),
+        None => "not pinned".to_string(),
+    };
+    format!("{cpu}, {threads} threads ({pinned})")
 }
 
 /// The report as a text table.
