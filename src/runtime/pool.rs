@@ -22,21 +22,19 @@ use rayon::{ThreadPool, ThreadPoolBuildError, ThreadPoolBuilder};
 
 use super::RENDER_THREAD_STACK;
 
-/// A pool of `threads` render threads (0: one per CPU the process may use), each with a
-/// [`RENDER_THREAD_STACK`] stack and, where [`pinning_plan`] gives one, its own CPU.
-/// `primflow render`, `primflow test` and `primflow bench` render on these; an application
-/// rendering frame after frame should too.
+/// A pool of `threads` render threads (0: rayon's default, one per CPU unless
+/// `RAYON_NUM_THREADS` says otherwise), each with a [`RENDER_THREAD_STACK`] stack and, where
+/// [`pinning_plan`] gives one, its own CPU. `primflow render`, `primflow test` and
+/// `primflow bench` render on these; an application rendering frame after frame should too.
 pub fn render_pool(threads: usize) -> Result<ThreadPool, ThreadPoolBuildError> {
-    let threads = if threads == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        threads
-    };
-    let plan = pinning_plan(threads);
+    // Planned by the first thread to start, for the size rayon settled on (a start handler
+    // runs on its worker, inside the pool).
+    let plan = std::sync::Arc::new(std::sync::OnceLock::new());
     ThreadPoolBuilder::new()
         .num_threads(threads)
         .stack_size(RENDER_THREAD_STACK)
         .start_handler(move |i| {
+            let plan = plan.get_or_init(|| pinning_plan(rayon::current_num_threads()));
             if let Some(&cpu) = plan.as_ref().and_then(|cpus| cpus.get(i)) {
                 pin_current_thread(cpu);
             }
