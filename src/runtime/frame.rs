@@ -421,25 +421,22 @@ impl Renderer {
         let (expanded, gated) = tiergate::run_items(compiler, instances.len(), BOUND_JOB, expand_one);
         stats.add_gated(gated);
         drop(ready);
+        let mut draws = 0;
         for (i, e) in expanded.iter().enumerate() {
             let Some(e) = e else { continue };
+            draws += e.len();
             stats.expanded_instances += usize::from(e.expanded());
             stats.expanded_calls += if e.expanded() { e.len() } else { 0 };
             stats.expand_over_budget += usize::from(e.over_budget());
             errors.extend(e.errors().iter().map(|&(code, site)| (i, code, site)));
         }
-        let (bins, gated) = Bins::new(
-            &expanded,
-            instances,
-            tiles.len(),
-            tiles_x,
-            // A few chunks per thread, so that a thread slowed by other work is helped out.
-            match rayon::current_num_threads() {
-                1 => 1,
-                n => 4 * n,
-            },
-            compiler,
-        );
+        // A few chunks per thread, so that a thread slowed by other work is helped out.
+        let chunks = match rayon::current_num_threads() {
+            1 => 1,
+            n => 4 * n,
+        };
+        let ranges = chunk_ranges(&expanded, draws, chunks, tiles.len());
+        let (bins, gated) = Bins::new(&expanded, instances, tiles.len(), tiles_x, &ranges, compiler);
         gated.into_iter().for_each(|g| stats.add_gated(g));
         stats.tile_invocations = bins.draws.len();
         let tiles_started = Instant::now();
@@ -699,7 +696,7 @@ impl<'a> Bins<'a> {
         instances: &'a [Instance],
         tiles: usize,
         tiles_x: usize,
-        chunks: usize,
+        ranges: &[std::ops::Range<usize>],
         compiler: Option<&dyn Compiler>,
     ) -> (Bins<'a>, [GateStats; 2]) {
         // Draw `d` of instance `i` in each tile of its rectangle, for the instances of `range`.
@@ -718,7 +715,6 @@ impl<'a> Bins<'a> {
                 }
             }
         };
-        let ranges = chunk_ranges(expanded, chunks, tiles);
         // One chunk runs on the calling thread: no jobs (and none counted as gated).
         let serial = ranges.len() == 1;
         let count = |c: usize| {
@@ -773,13 +769,20 @@ impl<'a> Bins<'a> {
     }
 }
 
-/// Up to `chunks` ranges of consecutive instances with about the same number of draws each,
-/// covering every instance: at least [`BIN_CHUNK_DRAWS`] draws apiece, and at least `tiles`
-/// (a chunk's per-tile counts and runs must not outweigh its draws: a 16384-pixel frame of
-/// 4-pixel tiles has 16 M tiles). One range for a small frame.
-fn chunk_ranges(expanded: &[Option<Expanded>], chunks: usize, tiles: usize) -> Vec<std::ops::Range<usize>> {
-    let total: usize = expanded.iter().flatten().map(Expanded::len).sum();
+/// Up to `chunks` ranges of consecutive instances with about the same number of draws each
+/// (`total` draws in all), covering every instance: at least [`BIN_CHUNK_DRAWS`] draws
+/// apiece, and at least `tiles` (a chunk's per-tile counts and runs must not outweigh its
+/// draws: a 16384-pixel frame of 4-pixel tiles has 16 M tiles). One range for a small frame.
+fn chunk_ranges(
+    expanded: &[Option<Expanded>],
+    total: usize,
+    chunks: usize,
+    tiles: usize,
+) -> Vec<std::ops::Range<usize>> {
     let chunks = chunks.min(total / BIN_CHUNK_DRAWS).min(total / tiles.max(1)).max(1);
+    if chunks == 1 {
+        return vec![0..expanded.len()];
+    }
     let per_chunk = total.div_ceil(chunks).max(1);
     let mut ranges = vec![];
     let (mut first, mut draws) = (0, 0);
@@ -1497,7 +1500,8 @@ mod tests {
             let draws: Vec<(usize, u32)> = b.draws.iter().map(|d| (d.instance, d.args[0])).collect();
             (b.start.clone(), draws)
         };
-        let (serial, _) = Bins::new(&expanded, &instances, tiles, tiles_x, 1, None);
+        let total: usize = expanded.iter().flatten().map(Expanded::len).sum();
+        let (serial, _) = Bins::new(&expanded, &instances, tiles, tiles_x, &[0..instances.len()], None);
         let want = key(&serial);
         // Every tile's list is in instance order and names each draw's own arguments.
         for t in 0..tiles {
@@ -1508,11 +1512,9 @@ mod tests {
         assert!(want.1.len() > 30_000, "draws span several tiles");
         let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
         for chunks in [2, 3, 5, 6] {
-            assert!(
-                chunk_ranges(&expanded, chunks, tiles).len() == chunks,
-                "{chunks} chunks used"
-            );
-            let (parallel, _) = pool.install(|| Bins::new(&expanded, &instances, tiles, tiles_x, chunks, None));
+            let ranges = chunk_ranges(&expanded, total, chunks, tiles);
+            assert!(ranges.len() == chunks, "{chunks} chunks used");
+            let (parallel, _) = pool.install(|| Bins::new(&expanded, &instances, tiles, tiles_x, &ranges, None));
             assert!(key(&parallel) == want, "{chunks} chunks");
         }
     }
@@ -1537,7 +1539,8 @@ mod tests {
             (100_000, 8, 30_000, 2),
         ] {
             let expanded: Vec<Option<Expanded>> = (0..n).map(|i| (i % 5 != 0).then(itself)).collect();
-            let ranges = chunk_ranges(&expanded, chunks, tiles);
+            let total: usize = expanded.iter().flatten().map(Expanded::len).sum();
+            let ranges = chunk_ranges(&expanded, total, chunks, tiles);
             assert_eq!(ranges.len(), want, "{n} instances, {chunks} chunks, {tiles} tiles");
             assert_eq!(ranges.first().map(|r| r.start), Some(0));
             assert_eq!(ranges.last().map(|r| r.end), Some(n));
