@@ -32,7 +32,7 @@ fn explain_lists_pipelines_variants_and_effects() {
         "{out}"
     );
     // The render threads and where they run (the default: one per CPU, pinned when 2+).
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = primflow::runtime::render_pool(0).unwrap().current_num_threads();
     let pinned = primflow::runtime::pool::pinning_plan(threads);
     let line = match &pinned {
         Some(cpus) => format!("render threads: {threads}, pinned to CPUs {cpus:?}"),
