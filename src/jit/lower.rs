@@ -4330,6 +4330,26 @@ impl<'a, 'b> Lower<'a, 'b> {
         r
     }
 
+    /// While a row prologue substitutes row locals: element `k` of a one-dimensional row
+    /// local (`along[1]`), from the local's value (see `hoist.rs`). `None` for anything else.
+    fn row_local_element(&mut self, e: &'a Expr) -> Option<Res<Val>> {
+        let ExprKind::Index { base, index, .. } = &e.kind else {
+            return None;
+        };
+        let (ExprKind::Local(l), ExprKind::Const(ConstValue::Int(k))) = (&base.kind, &index.kind) else {
+            return None;
+        };
+        let &value = self.row_locals.get(l)?;
+        if base.ty.dims.len() != 1 {
+            return None;
+        }
+        let k = usize::try_from(*k).ok()?;
+        Some(self.eval(value).and_then(|v| match v.comps.get(k) {
+            Some(&c) => Ok(Val { comps: vec![c], ..v }),
+            None => err("row local element out of range"),
+        }))
+    }
+
     pub(crate) fn eval_uniform(&mut self, e: &'a Expr) -> Res<Val> {
         let v = self.eval(e)?;
         if v.varying {
@@ -4342,9 +4362,14 @@ impl<'a, 'b> Lower<'a, 'b> {
         if let Some(v) = self.hoisted(e) {
             return Ok(v);
         }
-        if let (true, ExprKind::Local(l)) = (self.substitute_row_locals, &e.kind) {
-            if let Some(&value) = self.row_locals.get(l) {
-                return self.eval(value);
+        if self.substitute_row_locals {
+            if let ExprKind::Local(l) = &e.kind {
+                if let Some(&value) = self.row_locals.get(l) {
+                    return self.eval(value);
+                }
+            }
+            if let Some(v) = self.row_local_element(e) {
+                return v;
             }
         }
         if let Some(v) = self.carried_value(e) {

@@ -12,18 +12,22 @@
 //! source order, so results are bit-identical (no re-association).
 //!
 //! Invariants of a hoisted expression: pure (no index that may fail, no call, no division
-//! of integers, no fixed point or bool arithmetic), its leaves are constants, Y (when the
-//! pixel code never assigns Y), uniform locals in the uniform frame or parameters in the
-//! argument block (neither changes while the pixel loops run) and *row locals*, and it is
-//! scalar, an array of float or int scalars (one component per element), or
-//! interpolation_data (one component per view component). Expressions are keyed by address
-//! together with the interpolation view they were collected under.
+//! of integers, no fixed point or bool arithmetic; the built-ins lowered inline — `dot`,
+//! `cross`, `length`, `normalize`, `sqrt`, `min`, `clamp` ... — are pure maths and count,
+//! library calls and transforms do not), its leaves are constants, Y (when the pixel code
+//! never assigns Y), uniform locals in the uniform frame or parameters in the argument
+//! block (neither changes while the pixel loops run), *row locals* and constant-index
+//! elements of one-dimensional row locals, and it is scalar, an array of float or int
+//! scalars (one component per element), or interpolation_data (one component per view
+//! component). Expressions are keyed by address together with the interpolation view they
+//! were collected under.
 //!
 //! A row local is a varying local of the pixel code assigned once, whole, by a top-level
 //! statement, from a row-invariant value (`float dy = Y - sy;`): every read sees that value,
-//! so `dy * g1` is a row term too. The row prologue evaluates such a term with the local
-//! replaced by its defining expression (the same operations again, so the same bits); the
-//! group reads the stored term and never the local. Only hoisting sees row locals (the
+//! so `dy * g1` is a row term too, and so are `cross(gamma, d)` and `d[1] * k` of a row
+//! local `d`. The row prologue evaluates such a term with the local replaced by its
+//! defining expression (an element by that expression's component: the same operations
+//! again, so the same bits); the group reads the stored term and never the local. Only hoisting sees row locals (the
 //! carried terms of [`super::affine`] keep their own notion of substitutable locals).
 //!
 //! The uniform frame also gets a *vector section*: every non-bool word splatted to 16
@@ -33,7 +37,7 @@
 
 use std::collections::{HashMap, HashSet};
 
-use crate::ir::{BinOp, ConstValue, Elem, Expr, ExprKind, Function, LocalId, Scalar, Stmt, StmtKind, UnaryOp};
+use crate::ir::{BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, Function, LocalId, Scalar, Stmt, StmtKind, UnaryOp};
 
 use super::{Lower, Storage};
 
@@ -317,9 +321,46 @@ impl<'a, 'b> Lower<'a, 'b> {
                     (ExprKind::Const(ConstValue::Int(k)), false, Some(&len)) => *k >= 0 && (*k as i64) < len as i64,
                     _ => false,
                 };
-                // Not an element of a row local: the prologue reads elements from their
-                // storage, which it does not substitute.
-                in_range && matches!(base.kind, ExprKind::Local(_)) && self.row_invariant(f, base, y, assigned)
+                let ExprKind::Local(l) = base.kind else {
+                    return false;
+                };
+                // An element of a one-dimensional row local: the prologue substitutes the
+                // local's value and takes the element (`Lower::row_local_element`).
+                let row_element = base.ty.dims.len() == 1
+                    && plain(&e.ty)
+                    && rows.is_some_and(|r| r.contains_key(&l));
+                in_range && (row_element || self.row_invariant(f, base, y, assigned))
+            }
+            ExprKind::Builtin { func, args } => {
+                // Pure maths lowered inline, on float or int scalars and arrays: the same
+                // operations in the prologue as in a group. Library calls and transforms
+                // stay in the groups.
+                let inline = matches!(
+                    func,
+                    Builtin::Sqrt
+                        | Builtin::Abs
+                        | Builtin::Min
+                        | Builtin::Max
+                        | Builtin::Clamp
+                        | Builtin::Floor
+                        | Builtin::Ceil
+                        | Builtin::Round
+                        | Builtin::Sign
+                        | Builtin::Mix
+                        | Builtin::Step
+                        | Builtin::Smoothstep
+                        | Builtin::Dot
+                        | Builtin::Cross
+                        | Builtin::Length
+                        | Builtin::Normalize
+                        | Builtin::Distance
+                );
+                let scalars = |t: &crate::ir::Type| plain(t) && matches!(t.elem, Elem::Scalar(_));
+                inline
+                    && scalars(&e.ty)
+                    && args
+                        .iter()
+                        .all(|a| scalars(&a.ty) && self.row_invariant_in(f, a, y, assigned, rows))
             }
             ExprKind::Unary { op: UnaryOp::Neg, expr } => {
                 plain(&e.ty) && self.row_invariant_in(f, expr, y, assigned, rows)
