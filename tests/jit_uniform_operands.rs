@@ -2,7 +2,8 @@
 //! per-group broadcast: a ternary whose condition is uniform and whose arms are varying (a
 //! scalar `select` of whole vectors, not a lane mask and a blend), and uniform frame words
 //! as operands of a built-in (`cross`), of an array literal and of a matrix product (their
-//! splats loaded from the uniform frame's vector section). The depths must equal a Rust
+//! splats loaded from the uniform frame's vector section), and a varying ternary whose arms
+//! are uniform operations (evaluated once per kernel run). The depths must equal a Rust
 //! reference computed with the same f32 operations, bit for bit, on every tier, for both
 //! values of the condition.
 
@@ -24,7 +25,9 @@ primitive uniform_operands(float rect[4]; float a; float g[3]; varying float X, 
     float p[3] = {X, Y, s};
     float c[3] = cross(g, p);
     float mp[2] = m * p;
-    Z = v + (c[0] + c[1] + c[2] + mp[0] - mp[1]) * 0.0009765625;
+    // A varying condition choosing between uniform operations (evaluated once per run).
+    float side = X < 10 ? -g[1] * 3 : g[2] + s;
+    Z = v + (c[0] + c[1] + c[2] + mp[0] - mp[1] + side) * 0.0009765625;
 }
 "#;
 
@@ -44,7 +47,8 @@ fn expected(a: f32, g: [f32; 3], x: f32, y: f32) -> u32 {
     let c = cross(g, p);
     let mp0 = g[0] * p[0] + g[1] * p[1] + g[2] * p[2];
     let mp1 = s * p[0] + g[2] * p[1] + 1.0 * p[2];
-    let z = v + ((((c[0] + c[1]) + c[2]) + mp0) - mp1) * 0.0009765625;
+    let side = if x < 10.0 { -g[1] * 3.0 } else { g[2] + s };
+    let z = v + (((((c[0] + c[1]) + c[2]) + mp0) - mp1) + side) * 0.0009765625;
     (z * 4294967296.0).round_ties_even() as u32
 }
 

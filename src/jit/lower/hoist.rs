@@ -214,8 +214,16 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             ExprKind::Select { cond, then, otherwise } => {
                 self.hoists_expr(f, cond, view, y, assigned, out, next);
-                self.hoists_expr(f, then, view, y, assigned, out, next);
-                self.hoists_expr(f, otherwise, view, y, assigned, out, next);
+                // A uniform operation as an arm of a varying select (`-handedness` in
+                // `w < 0 ? -handedness : handedness`) is splatted and recomputed in every
+                // group: once per kernel run instead, as for a binary operator's operand.
+                for arm in [then, otherwise] {
+                    if e.var.is_varying() && self.uniform_operation(f, arm, y, assigned) {
+                        push_per_run(arm, view, out, next);
+                    } else {
+                        self.hoists_expr(f, arm, view, y, assigned, out, next);
+                    }
+                }
             }
             ExprKind::Builtin { args, .. } => {
                 for a in args {
