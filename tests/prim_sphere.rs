@@ -2,7 +2,8 @@
 //! depth and normal at every covered pixel, and silhouette coverage except within half a
 //! pixel of the edge, for an ordinary sphere, a tiny far one through a very narrow field of
 //! view, a huge one whose surface is one unit in front of the eye, one cut by the hither
-//! plane, and one under an orthographic camera.
+//! plane, one stretched in the corner of a very wide view, and one under an orthographic
+//! camera.
 
 mod common;
 use common::*;
@@ -172,6 +173,16 @@ fn sphere_cut_by_the_hither_plane_shows_its_far_side() {
     let m = transform::perspective(90.0, 1.0, 10.0, 64, 48);
     let fig = check(m, 64, 48, [0.0, 0.0, -1.2], 0.8);
     assert_figures("hither cut", &fig, 500);
+}
+
+#[test]
+fn wide_angle_sphere_in_the_corner_of_the_view() {
+    // A 150-degree field of view with the sphere near the top-left corner: the strongest
+    // perspective stretch along a row, so the per-row polynomials in dx have their largest
+    // coefficients and the silhouette is a long ellipse.
+    let m = transform::perspective(150.0, 0.5, 100.0, 96, 72);
+    let fig = check(m, 96, 72, [-7.0, 4.5, -2.5], 1.5);
+    assert_figures("wide corner", &fig, 400);
 }
 
 #[test]

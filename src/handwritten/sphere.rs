@@ -1,14 +1,15 @@
 //! The sphere written by hand in Rust, in three forms: portable scalar code; SSE4.1 (4
 //! pixels per group, the width of the JIT's f32x4 groups, legacy or VEX encoded: what the
 //! JIT's sphere is measured against to separate the compiler from the vector width); and
-//! AVX2 (8 pixels per step, masked stores). The vector forms hoist per-row terms and skip
-//! groups with no pixel left.
+//! AVX2 (8 pixels per step, masked stores). Every form computes the prim's row terms once
+//! per row ([`SphereSetup::row_terms`]); the vector forms skip groups with no pixel left.
 //!
 //! All mirror `prims/sphere.prim` operation for operation: the same space matrices read
 //! from the argument block and applied in the JIT's order (`transform` of a 4-component
 //! point is `((m[i][3] w + m[i][0] x) + m[i][1] y) + m[i][2] z`, literal zeros included),
-//! the same error-free `sphere_power`, the same cancellation-free discriminant and root
-//! choice per pixel, and no fused multiply-add anywhere. Every operation is an IEEE
+//! the same error-free `sphere_power`, the same cancellation-free discriminant evaluated as
+//! the prim's polynomial in dx with per-row coefficients, the same root choice per pixel,
+//! and no fused multiply-add anywhere. Every operation is an IEEE
 //! add/sub/mul/div/sqrt (no libm call), so on the same scene they produce the same depth and
 //! normal buffers as the JIT kernel, bit for bit; the benchmark and
 //! `tests/handwritten_shapes.rs` check that.
@@ -65,6 +66,53 @@ pub(crate) struct SphereSetup<const T: usize> {
     pub normal_y: [f32; 3],
     pub normal_z: [f32; 3],
     pub handedness: f32,
+    /// The dX coefficients of the discriminant's vectors, of disc, b and c', and of the
+    /// normal's lighting-space image (the prim's `along_x` ... `lit_gamma`).
+    pub along_x: [f32; 3],
+    pub across_x: [f32; 3],
+    pub disc_xx: f32,
+    pub b_x: f32,
+    pub c_xx: f32,
+    pub lit_x: [f32; 3],
+    pub lit_gamma: [f32; 3],
+}
+
+/// The prim's row terms: everything per pixel that reads Y but not X, for one row.
+pub(crate) struct RowTerms {
+    pub delta_w_row: f32,
+    pub disc_row: f32,
+    pub disc_x: f32,
+    pub b_row: f32,
+    pub c_row: f32,
+    pub c_x: f32,
+    pub lit_row: [f32; 3],
+}
+
+impl<const T: usize> SphereSetup<T> {
+    /// The row terms for the row whose pixel centres are `dy` below the centre's
+    /// projection, with the prim's operations (the JIT evaluates them once per row too).
+    #[inline(always)]
+    pub(crate) fn row_terms(&self, dy: f32) -> RowTerms {
+        let delta_row = self.g1.map(|g| dy * g);
+        let delta_w_row = self.inv_cw + dy * self.n1w;
+        let along_row: [f32; 3] = std::array::from_fn(|c| delta_w_row * self.gamma[c] - self.gamma_w * delta_row[c]);
+        let across_row = cross3(self.gamma, delta_row);
+        RowTerms {
+            delta_w_row,
+            disc_row: self.r2 * dot3(along_row, along_row) - dot3(across_row, across_row),
+            disc_x: 2.0 * (self.r2 * dot3(along_row, self.along_x) - dot3(across_row, self.across_x)),
+            b_row: dot3(delta_row, self.gamma) - self.r2 * delta_w_row * self.gamma_w,
+            c_row: dot3(delta_row, delta_row) - self.r2 * delta_w_row * delta_w_row,
+            c_x: 2.0 * (dot3(delta_row, self.g0) - self.r2 * delta_w_row * self.n0w),
+            lit_row: lighting_image(delta_row, [self.normal_x, self.normal_y, self.normal_z]),
+        }
+    }
+}
+
+/// `v[0] * normal_x + v[1] * normal_y + v[2] * normal_z`, in the prim's order.
+#[inline(always)]
+fn lighting_image(v: [f32; 3], normal: [[f32; 3]; 3]) -> [f32; 3] {
+    std::array::from_fn(|k| v[0] * normal[0][k] + v[1] * normal[1][k] + v[2] * normal[2][k])
 }
 
 /// The language's `dot` of two 3-vectors, in its order (the prims' bits).
@@ -208,6 +256,10 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32) -> Option<SphereSet
     for (c, plane) in planes.iter_mut().enumerate() {
         *plane = word(1 + c);
     }
+    let n0w = n0[3];
+    let along_x: [f32; 3] = std::array::from_fn(|c| n0w * gamma[c] - gamma_w * g0[c]);
+    let across_x = cross3(gamma, g0);
+    let normal = [normal_x, normal_y, normal_z];
     Some(SphereSetup {
         planes,
         bound,
@@ -218,7 +270,7 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32) -> Option<SphereSet
         g1,
         gamma,
         gamma_w,
-        n0w: n0[3],
+        n0w,
         n1w: n1[3],
         inv_cw: 1.0 / cw,
         r2,
@@ -227,6 +279,13 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32) -> Option<SphereSet
         normal_y,
         normal_z,
         handedness,
+        along_x,
+        across_x,
+        disc_xx: r2 * dot3(along_x, along_x) - dot3(across_x, across_x),
+        b_x: dot3(g0, gamma) - r2 * n0w * gamma_w,
+        c_xx: dot3(g0, g0) - r2 * n0w * n0w,
+        lit_x: lighting_image(g0, normal),
+        lit_gamma: lighting_image(gamma, normal),
     })
 }
 
@@ -260,20 +319,16 @@ pub unsafe extern "C" fn scalar<const T: usize, const COUNT: bool>(ctx: *mut Til
     };
     for py in ry0..ry1 {
         let y = py as f32 + 0.5;
-        let dy = y - s.sy;
+        let row = s.row_terms(y - s.sy);
         for px in rx0..rx1 {
             let x = px as f32 + 0.5;
             let dx = x - s.sx;
-            let delta: [f32; 3] = std::array::from_fn(|c| dx * s.g0[c] + dy * s.g1[c]);
-            let delta_w = s.inv_cw + dx * s.n0w + dy * s.n1w;
-            let across = cross3(s.gamma, delta);
-            let along: [f32; 3] = std::array::from_fn(|c| delta_w * s.gamma[c] - s.gamma_w * delta[c]);
-            let disc = s.r2 * dot3(along, along) - dot3(across, across);
+            let disc = (s.disc_xx * dx + row.disc_x) * dx + row.disc_row;
             if !(disc >= 0.0) {
                 continue;
             }
-            let b = dot3(delta, s.gamma) - s.r2 * delta_w * s.gamma_w;
-            let c = dot3(delta, delta) - s.r2 * delta_w * delta_w;
+            let b = s.b_x * dx + row.b_row;
+            let c = (s.c_xx * dx + row.c_x) * dx + row.c_row;
             let root = disc.sqrt();
             let q = if b >= 0.0 { -(b + root) } else { root - b };
             if q == 0.0 {
@@ -306,11 +361,8 @@ pub unsafe extern "C" fn scalar<const T: usize, const COUNT: bool>(ctx: *mut Til
                     *ctx.write_count.add(idx) += 1;
                 }
                 if T == 3 {
-                    let w = delta_w + t * s.gamma_w;
-                    let outward: [f32; 3] = std::array::from_fn(|k| delta[k] + t * s.gamma[k]);
-                    let lit: [f32; 3] = std::array::from_fn(|k| {
-                        outward[0] * s.normal_x[k] + outward[1] * s.normal_y[k] + outward[2] * s.normal_z[k]
-                    });
+                    let w = (dx * s.n0w + row.delta_w_row) + t * s.gamma_w;
+                    let lit: [f32; 3] = std::array::from_fn(|k| (dx * s.lit_x[k] + row.lit_row[k]) + t * s.lit_gamma[k]);
                     let side = if w < 0.0 { -s.handedness } else { s.handedness };
                     let scale = side / dot3(lit, lit).sqrt();
                     for (&plane, lk) in s.planes.iter().zip(lit) {
@@ -347,38 +399,31 @@ pub unsafe extern "C" fn avx2<const T: usize, const COUNT: bool>(ctx: *mut TileC
     let lane_index = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     let sign = _mm256_set1_epi32(i32::MIN);
     let (zero, one) = (_mm256_setzero_ps(), set1(1.0));
-    let g0 = s.g0.map(set1);
-    let gamma = s.gamma.map(set1);
-    let (gamma_w, r2, zc) = (set1(s.gamma_w), set1(s.r2), set1(s.zc));
-    let (inv_cw, n0w, sx) = (set1(s.inv_cw), set1(s.n0w), set1(s.sx));
+    let (disc_xx, b_x, c_xx) = (set1(s.disc_xx), set1(s.b_x), set1(s.c_xx));
+    let (lit_x, lit_gamma) = (s.lit_x.map(set1), s.lit_gamma.map(set1));
+    let (gamma_w, zc) = (set1(s.gamma_w), set1(s.zc));
+    let (n0w, sx) = (set1(s.n0w), set1(s.sx));
     let (a, a_nonzero) = (set1(s.a), s.a != 0.0);
     for py in ry0..ry1 {
-        let dy = (py as f32 + 0.5) - s.sy;
+        let terms = s.row_terms((py as f32 + 0.5) - s.sy);
         let row = (py - ctx.y0) as usize * ctx.stride as usize;
-        // Per-row terms: dy * g1 and dy * n1[3] (the prim adds them last).
-        let dy_g1: [__m256; 3] = std::array::from_fn(|c| set1(dy * s.g1[c]));
-        let dy_n1w = set1(dy * s.n1w);
+        let (disc_x, disc_row) = (set1(terms.disc_x), set1(terms.disc_row));
+        let (b_row, c_x, c_row) = (set1(terms.b_row), set1(terms.c_x), set1(terms.c_row));
+        let (delta_w_row, lit_row) = (set1(terms.delta_w_row), terms.lit_row.map(set1));
         let mut px = rx0;
         while px < rx1 {
             let n = (rx1 - px).min(8);
             let live = _mm256_cmpgt_epi32(_mm256_set1_epi32(n), lane_index);
             let x = add(set1(px as f32), lane_offsets);
             let dx = sub(x, sx);
-            let delta: [__m256; 3] = std::array::from_fn(|c| add(mul(dx, g0[c]), dy_g1[c]));
-            let delta_w = add(add(inv_cw, mul(dx, n0w)), dy_n1w);
-            let across: [__m256; 3] = std::array::from_fn(|c| {
-                let (i, j) = [(1, 2), (2, 0), (0, 1)][c];
-                sub(mul(gamma[i], delta[j]), mul(gamma[j], delta[i]))
-            });
-            let along: [__m256; 3] = std::array::from_fn(|c| sub(mul(delta_w, gamma[c]), mul(gamma_w, delta[c])));
-            let disc = sub(mul(r2, dot(along, along)), dot(across, across));
+            let disc = add(mul(add(mul(disc_xx, dx), disc_x), dx), disc_row);
             let mut mask = _mm256_and_si256(live, _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(disc, zero)));
             if _mm256_testz_si256(mask, mask) != 0 {
                 px += 8;
                 continue;
             }
-            let b = sub(dot(delta, gamma), mul(mul(r2, delta_w), gamma_w));
-            let c = sub(dot(delta, delta), mul(mul(r2, delta_w), delta_w));
+            let b = add(mul(b_x, dx), b_row);
+            let c = add(mul(add(mul(c_xx, dx), c_x), dx), c_row);
             let root = _mm256_sqrt_ps(disc);
             let b_nonneg = _mm256_cmp_ps::<_CMP_GE_OQ>(b, zero);
             // -(b + root) by flipping the sign bit, as the JIT's fneg.
@@ -425,17 +470,9 @@ pub unsafe extern "C" fn avx2<const T: usize, const COUNT: bool>(ctx: *mut TileC
                     continue;
                 }
                 if T == 3 {
-                    let w = add(delta_w, mul(t, gamma_w));
-                    let outward: [__m256; 3] = std::array::from_fn(|k| add(delta[k], mul(t, gamma[k])));
-                    let lit: [__m256; 3] = std::array::from_fn(|k| {
-                        add(
-                            add(
-                                mul(outward[0], set1(s.normal_x[k])),
-                                mul(outward[1], set1(s.normal_y[k])),
-                            ),
-                            mul(outward[2], set1(s.normal_z[k])),
-                        )
-                    });
+                    let w = add(add(mul(dx, n0w), delta_w_row), mul(t, gamma_w));
+                    let lit: [__m256; 3] =
+                        std::array::from_fn(|k| add(add(mul(dx, lit_x[k]), lit_row[k]), mul(t, lit_gamma[k])));
                     let handed = set1(s.handedness);
                     let behind = _mm256_cmp_ps::<_CMP_LT_OQ>(w, _mm256_setzero_ps());
                     let side = _mm256_blendv_ps(handed, set1(-s.handedness), behind);
@@ -458,8 +495,8 @@ pub unsafe extern "C" fn avx2<const T: usize, const COUNT: bool>(ctx: *mut TileC
 /// is what the JIT emits there. Both are 128-bit, 4 pixels per group: the JIT's width, so
 /// the JIT and this kernel retire the same number of divides and square roots per pixel.
 ///
-/// Per row: `dy * g1` and `dy * n1[3]` (the prim adds them last). Per group: the prim's
-/// operations in the AVX2 kernel's order, groups with no pixel left skipped after the
+/// Per row: the prim's row terms, splatted. Per group: the prim's operations in the AVX2
+/// kernel's order, groups with no pixel left skipped after the
 /// silhouette, depth-range and Z tests; the Z buffer, write counts and normal planes are
 /// stored whole when all four lanes pass and blended with what is there otherwise. Groups
 /// start at tile-aligned x, like the JIT's, so a 4-lane load or store never leaves the row.
@@ -502,20 +539,18 @@ macro_rules! sse_kernel {
             let all_lanes = _mm_set1_epi32(-1);
             let sign = _mm_castsi128_ps(_mm_set1_epi32(i32::MIN));
             let (zero, one) = (_mm_setzero_ps(), set1(1.0));
-            let g0 = s.g0.map(set1);
-            let gamma = s.gamma.map(set1);
-            let (gamma_w, r2, zc) = (set1(s.gamma_w), set1(s.r2), set1(s.zc));
-            let (inv_cw, n0w, sx) = (set1(s.inv_cw), set1(s.n0w), set1(s.sx));
+            let (disc_xx, b_x, c_xx) = (set1(s.disc_xx), set1(s.b_x), set1(s.c_xx));
+            let (lit_x, lit_gamma) = (s.lit_x.map(set1), s.lit_gamma.map(set1));
+            let (gamma_w, zc) = (set1(s.gamma_w), set1(s.zc));
+            let (n0w, sx) = (set1(s.n0w), set1(s.sx));
             let (a, a_nonzero) = (set1(s.a), s.a != 0.0);
             let handed = set1(s.handedness);
-            let normal_rows: [[__m128; 3]; 3] =
-                std::array::from_fn(|k| [set1(s.normal_x[k]), set1(s.normal_y[k]), set1(s.normal_z[k])]);
             for py in ry0..ry1 {
-                let dy = (py as f32 + 0.5) - s.sy;
+                let terms = s.row_terms((py as f32 + 0.5) - s.sy);
                 let row = (py - ctx.y0) as usize * stride;
-                // Per-row terms: dy * g1 and dy * n1[3] (the prim adds them last).
-                let dy_g1: [__m128; 3] = std::array::from_fn(|c| set1(dy * s.g1[c]));
-                let dy_n1w = set1(dy * s.n1w);
+                let (disc_x, disc_row) = (set1(terms.disc_x), set1(terms.disc_row));
+                let (b_row, c_x, c_row) = (set1(terms.b_row), set1(terms.c_x), set1(terms.c_row));
+                let (delta_w_row, lit_row) = (set1(terms.delta_w_row), terms.lit_row.map(set1));
                 let mut gx = ctx.x0 + ((rx0 - ctx.x0) & !3);
                 while gx < rx1 {
                     let live = if gx < rx0 || gx + 4 > rx1 {
@@ -531,22 +566,15 @@ macro_rules! sse_kernel {
                     gx += 4;
                     let x = _mm_add_ps(set1((gx - 4) as f32), lane_offsets);
                     let dx = _mm_sub_ps(x, sx);
-                    let delta: [__m128; 3] = std::array::from_fn(|c| _mm_add_ps(_mm_mul_ps(dx, g0[c]), dy_g1[c]));
-                    let delta_w = _mm_add_ps(_mm_add_ps(inv_cw, _mm_mul_ps(dx, n0w)), dy_n1w);
-                    let across: [__m128; 3] = std::array::from_fn(|c| {
-                        let (i, j) = [(1, 2), (2, 0), (0, 1)][c];
-                        _mm_sub_ps(_mm_mul_ps(gamma[i], delta[j]), _mm_mul_ps(gamma[j], delta[i]))
-                    });
-                    let along: [__m128; 3] = std::array::from_fn(|c| {
-                        _mm_sub_ps(_mm_mul_ps(delta_w, gamma[c]), _mm_mul_ps(gamma_w, delta[c]))
-                    });
-                    let disc = _mm_sub_ps(_mm_mul_ps(r2, dot(along, along)), dot(across, across));
+                    // (a dx + b) dx + c, as the prim's polynomials in dx.
+                    let horner = |a, b, c| _mm_add_ps(_mm_mul_ps(_mm_add_ps(_mm_mul_ps(a, dx), b), dx), c);
+                    let disc = horner(disc_xx, disc_x, disc_row);
                     let mut pass = _mm_and_ps(_mm_castsi128_ps(live), _mm_cmpge_ps(disc, zero));
                     if _mm_movemask_ps(pass) == 0 {
                         continue;
                     }
-                    let b = _mm_sub_ps(dot(delta, gamma), _mm_mul_ps(_mm_mul_ps(r2, delta_w), gamma_w));
-                    let c = _mm_sub_ps(dot(delta, delta), _mm_mul_ps(_mm_mul_ps(r2, delta_w), delta_w));
+                    let b = _mm_add_ps(_mm_mul_ps(b_x, dx), b_row);
+                    let c = horner(c_xx, c_x, c_row);
                     let root = _mm_sqrt_ps(disc);
                     // -(b + root) by flipping the sign bit, as the JIT's fneg.
                     let q = blend(_mm_sub_ps(root, b), _mm_xor_ps(_mm_add_ps(b, root), sign), _mm_cmpge_ps(b, zero));
@@ -595,10 +623,13 @@ macro_rules! sse_kernel {
                             _mm_storeu_si128(cptr, _mm_sub_epi32(_mm_loadu_si128(cptr), _mm_castps_si128(pass)));
                         }
                         if T == 3 {
-                            let w = _mm_add_ps(delta_w, _mm_mul_ps(t, gamma_w));
-                            let outward: [__m128; 3] =
-                                std::array::from_fn(|k| _mm_add_ps(delta[k], _mm_mul_ps(t, gamma[k])));
-                            let lit: [__m128; 3] = std::array::from_fn(|k| dot(outward, normal_rows[k]));
+                            let w = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, n0w), delta_w_row), _mm_mul_ps(t, gamma_w));
+                            let lit: [__m128; 3] = std::array::from_fn(|k| {
+                                _mm_add_ps(
+                                    _mm_add_ps(_mm_mul_ps(dx, lit_x[k]), lit_row[k]),
+                                    _mm_mul_ps(t, lit_gamma[k]),
+                                )
+                            });
                             let behind = _mm_cmplt_ps(w, _mm_setzero_ps());
                             let side = blend(handed, set1(-s.handedness), behind);
                             let scale = _mm_div_ps(side, _mm_sqrt_ps(dot(lit, lit)));
