@@ -311,6 +311,9 @@ pub(crate) struct Lower<'a, 'b> {
     row_locals: std::collections::HashMap<LocalId, &'a Expr>,
     /// While a row term is evaluated in the row prologue: read row locals as their values.
     substitute_row_locals: bool,
+    /// The row locals' values already computed in the current row prologue, with the block
+    /// they were computed in: a local read by several row terms is evaluated once per row.
+    row_local_values: std::collections::HashMap<LocalId, (ir::Block, Val)>,
     /// Int terms affine in the pixel column, carried along the row (see [`affine`]).
     carried: Vec<affine::Carried<'a>>,
     /// Pixel locals the carried terms read, by their single defining value (see [`affine`]).
@@ -480,6 +483,7 @@ pub(crate) fn lower_kernel(
         hoists: vec![],
         row_locals: std::collections::HashMap::new(),
         substitute_row_locals: false,
+        row_local_values: std::collections::HashMap::new(),
         carried: vec![],
         affine_defs: std::collections::HashMap::new(),
         affine_x: None,
@@ -1404,6 +1408,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         // `int(Y * 16) - int(oy * 16)`) are read back from the frame, not recomputed per row.
         let addr = self.b.ins().stack_addr(types::I64, fs, 0);
         self.prologue_frame = Some((addr, false));
+        self.row_local_values.clear();
         let mut stored = Ok(());
         for k in 0..self.hoists.len() {
             let h = &self.hoists[k];
@@ -1418,6 +1423,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
         }
         self.prologue_frame = None;
+        self.row_local_values.clear();
         stored
     }
 
@@ -4330,6 +4336,26 @@ impl<'a, 'b> Lower<'a, 'b> {
         r
     }
 
+    /// While a row prologue substitutes row locals: the value of row local `l` (`None`: not
+    /// a row local), evaluated from its defining expression once per prologue (the same
+    /// operations every time, so reusing them changes no bit).
+    fn row_local_value(&mut self, l: LocalId) -> Option<Res<Val>> {
+        let &value = self.row_locals.get(&l)?;
+        let block = self.b.current_block();
+        if let Some((at, v)) = self.row_local_values.get(&l) {
+            if Some(*at) == block {
+                return Some(Ok(v.clone()));
+            }
+        }
+        let v = self.eval(value);
+        if let (Ok(v), Some(at)) = (&v, block) {
+            if self.b.current_block() == Some(at) {
+                self.row_local_values.insert(l, (at, v.clone()));
+            }
+        }
+        Some(v)
+    }
+
     /// While a row prologue substitutes row locals: element `k` of a one-dimensional row
     /// local (`along[1]`), from the local's value (see `hoist.rs`). `None` for anything else.
     fn row_local_element(&mut self, e: &'a Expr) -> Option<Res<Val>> {
@@ -4339,12 +4365,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         let (ExprKind::Local(l), ExprKind::Const(ConstValue::Int(k))) = (&base.kind, &index.kind) else {
             return None;
         };
-        let &value = self.row_locals.get(l)?;
         if base.ty.dims.len() != 1 {
             return None;
         }
         let k = usize::try_from(*k).ok()?;
-        Some(self.eval(value).and_then(|v| match v.comps.get(k) {
+        Some(self.row_local_value(*l)?.and_then(|v| match v.comps.get(k) {
             Some(&c) => Ok(Val { comps: vec![c], ..v }),
             None => err("row local element out of range"),
         }))
@@ -4364,8 +4389,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         if self.substitute_row_locals {
             if let ExprKind::Local(l) = &e.kind {
-                if let Some(&value) = self.row_locals.get(l) {
-                    return self.eval(value);
+                if let Some(v) = self.row_local_value(*l) {
+                    return v;
                 }
             }
             if let Some(v) = self.row_local_element(e) {
