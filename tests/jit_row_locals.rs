@@ -98,7 +98,9 @@ primitive row_builtins(float rect[4]; float sy; float g[3]; varying float X, Y; 
 }
 "#;
 
-/// `BUILTINS`'s depth at pixel centre (x, y), with the JIT's operations for each built-in.
+/// `BUILTINS`'s depth at pixel centre (x, y), with the JIT's operations for each built-in
+/// (`clamp` is its max then min, written out).
+#[allow(clippy::manual_clamp)]
 fn expected_builtins(sy: f32, g: [f32; 3], x: f32, y: f32) -> u32 {
     let dot = |p: [f32; 3], q: [f32; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
     let dx = x - 10.0;
