@@ -113,8 +113,19 @@ fn expected_builtins(sy: f32, g: [f32; 3], x: f32, y: f32) -> u32 {
     ];
     let len = dot(a, a).sqrt();
     let s = dot(a, n) + len * a[1];
-    let sign = |v: f32| if v > 0.0 { 1.0 } else if v < 0.0 { -1.0 } else { 0.0 };
-    let m = a[0].max(-1.0).min(1.0) + n[2].min(0.5) + n[0].max(-0.5) + a[2].abs().sqrt()
+    let sign = |v: f32| {
+        if v > 0.0 {
+            1.0
+        } else if v < 0.0 {
+            -1.0
+        } else {
+            0.0
+        }
+    };
+    let m = a[0].max(-1.0).min(1.0)
+        + n[2].min(0.5)
+        + n[0].max(-0.5)
+        + a[2].abs().sqrt()
         + (dy * 0.3).floor()
         + a[1].ceil()
         + (a[0] * 3.0).round_ties_even()

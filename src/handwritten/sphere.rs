@@ -362,7 +362,8 @@ pub unsafe extern "C" fn scalar<const T: usize, const COUNT: bool>(ctx: *mut Til
                 }
                 if T == 3 {
                     let w = (dx * s.n0w + row.delta_w_row) + t * s.gamma_w;
-                    let lit: [f32; 3] = std::array::from_fn(|k| (dx * s.lit_x[k] + row.lit_row[k]) + t * s.lit_gamma[k]);
+                    let lit: [f32; 3] =
+                        std::array::from_fn(|k| (dx * s.lit_x[k] + row.lit_row[k]) + t * s.lit_gamma[k]);
                     let side = if w < 0.0 { -s.handedness } else { s.handedness };
                     let scale = side / dot3(lit, lit).sqrt();
                     for (&plane, lk) in s.planes.iter().zip(lit) {

@@ -27,8 +27,9 @@
 //! so `dy * g1` is a row term too, and so are `cross(gamma, d)` and `d[1] * k` of a row
 //! local `d`. The row prologue evaluates such a term with the local replaced by its
 //! defining expression (an element by that expression's component: the same operations
-//! again, so the same bits); the group reads the stored term and never the local. Only hoisting sees row locals (the
-//! carried terms of [`super::affine`] keep their own notion of substitutable locals).
+//! again, so the same bits), each local once per prologue; the group reads the stored term
+//! and never the local. Only hoisting sees row locals (the carried terms of
+//! [`super::affine`] keep their own notion of substitutable locals).
 //!
 //! The uniform frame also gets a *vector section*: every non-bool word splatted to 16
 //! bytes, written once per kernel run. A uniform read in a group that feeds a varying
@@ -334,9 +335,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 };
                 // An element of a one-dimensional row local: the prologue substitutes the
                 // local's value and takes the element (`Lower::row_local_element`).
-                let row_element = base.ty.dims.len() == 1
-                    && plain(&e.ty)
-                    && rows.is_some_and(|r| r.contains_key(&l));
+                let row_element = base.ty.dims.len() == 1 && plain(&e.ty) && rows.is_some_and(|r| r.contains_key(&l));
                 in_range && (row_element || self.row_invariant(f, base, y, assigned))
             }
             ExprKind::Builtin { func, args } => {
