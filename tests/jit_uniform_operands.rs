@@ -2,10 +2,10 @@
 //! per-group broadcast: a ternary whose condition is uniform and whose arms are varying (a
 //! scalar `select` of whole vectors, not a lane mask and a blend), and uniform frame words
 //! as operands of a built-in (`cross`), of an array literal and of a matrix product (their
-//! splats loaded from the uniform frame's vector section), and a varying ternary whose arms
-//! are uniform operations (evaluated once per kernel run). The depths must equal a Rust
-//! reference computed with the same f32 operations, bit for bit, on every tier, for both
-//! values of the condition.
+//! splats loaded from the uniform frame's vector section), a varying ternary whose arms are
+//! uniform operations, and varying built-ins with uniform-operation arguments (both
+//! evaluated once per kernel run). The depths must equal a Rust reference computed with the
+//! same f32 operations, bit for bit, on every tier, for both values of the condition.
 
 mod common;
 
@@ -27,7 +27,9 @@ primitive uniform_operands(float rect[4]; float a; float g[3]; varying float X, 
     float mp[2] = m * p;
     // A varying condition choosing between uniform operations (evaluated once per run).
     float side = X < 10 ? -g[1] * 3 : g[2] + s;
-    Z = v + (c[0] + c[1] + c[2] + mp[0] - mp[1] + side) * 0.0009765625;
+    // Uniform operations as arguments of varying built-ins (also evaluated once per run).
+    float bounded = clamp(X * 0.25, -g[0] * 2, g[2] + 1) + max(Y * 0.125, g[1] * g[1]);
+    Z = v + (c[0] + c[1] + c[2] + mp[0] - mp[1] + side + bounded) * 0.0009765625;
 }
 "#;
 
@@ -40,6 +42,7 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
 }
 
 /// The prim's depth at pixel centre (x, y), in its operation order.
+#[allow(clippy::manual_clamp)]
 fn expected(a: f32, g: [f32; 3], x: f32, y: f32) -> u32 {
     let s = g[0] * 2.0;
     let v = if a != 0.0 { x * 0.015625 } else { y * 0.015625 + 0.5 };
@@ -48,7 +51,9 @@ fn expected(a: f32, g: [f32; 3], x: f32, y: f32) -> u32 {
     let mp0 = g[0] * p[0] + g[1] * p[1] + g[2] * p[2];
     let mp1 = s * p[0] + g[2] * p[1] + 1.0 * p[2];
     let side = if x < 10.0 { -g[1] * 3.0 } else { g[2] + s };
-    let z = v + (((((c[0] + c[1]) + c[2]) + mp0) - mp1) + side) * 0.0009765625;
+    // clamp is the JIT's max then min.
+    let bounded = (x * 0.25).max(-g[0] * 2.0).min(g[2] + 1.0) + (y * 0.125).max(g[1] * g[1]);
+    let z = v + ((((((c[0] + c[1]) + c[2]) + mp0) - mp1) + side) + bounded) * 0.0009765625;
     (z * 4294967296.0).round_ties_even() as u32
 }
 

@@ -227,8 +227,14 @@ impl<'a, 'b> Lower<'a, 'b> {
                 }
             }
             ExprKind::Builtin { args, .. } => {
+                // Likewise a uniform operation as an argument of a varying built-in
+                // (`clamp(v, lo * 2, hi)`).
                 for a in args {
-                    self.hoists_expr(f, a, view, y, assigned, out, next);
+                    if e.var.is_varying() && self.uniform_operation(f, a, y, assigned) {
+                        push_per_run(a, view, out, next);
+                    } else {
+                        self.hoists_expr(f, a, view, y, assigned, out, next);
+                    }
                 }
             }
             _ => {}
