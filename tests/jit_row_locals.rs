@@ -75,7 +75,8 @@ fn row_terms_through_locals_match_a_reference_on_every_tier() {
 /// Row terms through built-ins and elements of row-local arrays: `cross(g, a)` of a row
 /// local is a row local itself, `dot`, `length`, `normalize`, `clamp` ... of row locals are
 /// row terms, and so is `a[1]` (the prologue substitutes `a`'s value and takes the element;
-/// reading the local's storage there instead would read a value no group has written yet).
+/// reading the local's storage there instead would read a value no group has written yet);
+/// `q`, which only row terms read, is not assigned in the groups at all.
 const BUILTINS: &str = r#"
 primitive row_builtins(float rect[4]; float sy; float g[3]; varying float X, Y; inout varying fixed<32,32> Z)
 {
@@ -89,12 +90,14 @@ primitive row_builtins(float rect[4]; float sy; float g[3]; varying float X, Y; 
               + floor(dy * 0.3) + ceil(a[1]) + round(a[0] * 3) + sign(a[1]);
     float u[3] = normalize(a);
     float e = mix(a[0], a[1], 0.25) + step(0.1, a[2]) + smoothstep(0, 2, a[0]) + distance(a, g);
+    float q[3] = cross(a, g);                   // only row terms read it: no group does
+    float qq = dot(q, q) * 0.5;
     float lx = dx * a[2] + s;                   // a row-local element times X
     float mixed = max(dx, dy);                  // reads X: not a row term
     float late = 0;
     if (dx < 2)
         late = dot(a, a);                       // in a branch: still a row term (pure)
-    Z = 0.5 + (lx + m * dx + u[0] * dx + n[1] + e + mixed * g[2] + late) * 0.0009765625;
+    Z = 0.5 + (lx + m * dx + u[0] * dx + n[1] + e + mixed * g[2] + late + qq) * 0.0009765625;
 }
 "#;
 
@@ -135,10 +138,16 @@ fn expected_builtins(sy: f32, g: [f32; 3], x: f32, y: f32) -> u32 {
     let smooth = (t * t) * (3.0 - 2.0 * t);
     let d: [f32; 3] = std::array::from_fn(|c| a[c] - g[c]);
     let e = ((a[0] + (a[1] - a[0]) * 0.25) + if a[2] < 0.1 { 0.0 } else { 1.0 }) + smooth + dot(d, d).sqrt();
+    let q = [
+        a[1] * g[2] - a[2] * g[1],
+        a[2] * g[0] - a[0] * g[2],
+        a[0] * g[1] - a[1] * g[0],
+    ];
+    let qq = dot(q, q) * 0.5;
     let lx = dx * a[2] + s;
     let mixed = dx.max(dy);
     let late = if dx < 2.0 { dot(a, a) } else { 0.0 };
-    let sum = (((((lx + m * dx) + u0 * dx) + n[1]) + e) + mixed * g[2]) + late;
+    let sum = ((((((lx + m * dx) + u0 * dx) + n[1]) + e) + mixed * g[2]) + late) + qq;
     let z = 0.5 + sum * 0.0009765625;
     (z * 4294967296.0).round_ties_even() as u32
 }

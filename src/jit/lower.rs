@@ -325,12 +325,12 @@ pub(crate) struct Lower<'a, 'b> {
     /// Outside the groups, while carried terms are evaluated (see [`affine`]): the uniform
     /// frame's address, and whether the row section holds the current row's terms.
     prologue_frame: Option<(ir::Value, bool)>,
-    /// Pixel locals only carried terms read: their assignment is not lowered in a group
-    /// (see [`affine`]).
-    affine_dead: std::collections::HashSet<LocalId>,
+    /// Pixel locals no group reads, because only carried terms (see [`affine`]) or only row
+    /// terms (see [`hoist`]) read them: their assignment is not lowered in a group.
+    unread_in_groups: std::collections::HashSet<LocalId>,
     /// Addresses of the expressions in those locals' values (their row terms are not
     /// stored per row).
-    affine_dead_exprs: std::collections::HashSet<usize>,
+    unstored_terms: std::collections::HashSet<usize>,
     /// In the group being lowered: each carried term's value (by address).
     carry_now: Vec<(usize, ir::Value)>,
     /// Scalar frame reads of the current group -> the byte offset of their splat.
@@ -490,8 +490,8 @@ pub(crate) fn lower_kernel(
         affine_y: None,
         prologue_frame: None,
         carry_now: vec![],
-        affine_dead: std::collections::HashSet::new(),
-        affine_dead_exprs: std::collections::HashSet::new(),
+        unread_in_groups: std::collections::HashSet::new(),
+        unstored_terms: std::collections::HashSet::new(),
         splat_src: std::collections::HashMap::new(),
         scratch,
         plane_ptrs: None,
@@ -1299,6 +1299,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         if !self.tier0() {
             self.carried = self.collect_carried(f, carry_section);
         }
+        self.mark_row_locals_unread_in_groups(f);
         let frame_bytes = self
             .carried
             .iter()
@@ -1379,8 +1380,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         } else {
             self.hoists.clear();
             self.carried.clear();
-            self.affine_dead.clear();
-            self.affine_dead_exprs.clear();
+            self.unread_in_groups.clear();
+            self.unstored_terms.clear();
         }
     }
 
@@ -1414,7 +1415,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             let h = &self.hoists[k];
             let key = h.expr as *const Expr as usize;
             let skip =
-                h.per_run || only.is_some_and(|set| !set.contains(&key)) || self.affine_dead_exprs.contains(&key);
+                h.per_run || only.is_some_and(|set| !set.contains(&key)) || self.unstored_terms.contains(&key);
             if !skip {
                 stored = self.store_hoist(fs, k);
                 if stored.is_err() {
@@ -2142,11 +2143,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                 if self.dead_setup_assign(s, place.local) {
                     return Ok(());
                 }
-                // Only carried terms read it: nothing in the group does (see [`affine`]).
+                // Only carried or row terms read it: nothing in the group does.
                 if self.pix.is_some()
                     && self.frames.len() == 1
                     && place.indices.is_empty()
-                    && self.affine_dead.contains(&place.local)
+                    && self.unread_in_groups.contains(&place.local)
                 {
                     return Ok(());
                 }

@@ -38,7 +38,7 @@
 //!
 //! A substitutable local that only carried expressions read (`sx`, `sy` of
 //! screen_triangle) is not assigned in the groups at all, and the row terms of its value
-//! are not stored per row (`Lower::affine_dead`).
+//! are not stored per row (`Lower::unread_in_groups`).
 //!
 //! X must never be assigned in the pixel code, and pixel code that calls a primitive
 //! carries nothing. Tier 0 evaluates every expression as written (it serves one frame;
@@ -257,13 +257,13 @@ impl<'a, 'b> Lower<'a, 'b> {
         for c in &carried {
             count_reads(c.expr, &mut carried_reads);
         }
-        self.affine_dead.clear();
-        self.affine_dead_exprs.clear();
+        self.unread_in_groups.clear();
+        self.unstored_terms.clear();
         for l in &w.def_order {
             if all_reads.get(l) == carried_reads.get(l) {
-                self.affine_dead.insert(*l);
+                self.unread_in_groups.insert(*l);
                 if let Some(&(value, _, _)) = w.defs.get(l) {
-                    collect_keys(value, &mut self.affine_dead_exprs);
+                    collect_keys(value, &mut self.unstored_terms);
                 }
             }
         }
@@ -735,7 +735,7 @@ fn calls_primitive(stmts: &[Stmt]) -> bool {
 }
 
 /// Count the reads of each local in `e` (every `Local` node).
-fn count_reads(e: &Expr, out: &mut HashMap<LocalId, u32>) {
+pub(super) fn count_reads(e: &Expr, out: &mut HashMap<LocalId, u32>) {
     if let ExprKind::Local(l) = e.kind {
         *out.entry(l).or_insert(0) += 1;
     }
@@ -743,7 +743,7 @@ fn count_reads(e: &Expr, out: &mut HashMap<LocalId, u32>) {
 }
 
 /// Count the reads of each local in every expression of `stmts`.
-fn count_stmt_reads(stmts: &[Stmt], out: &mut HashMap<LocalId, u32>) {
+pub(super) fn count_stmt_reads(stmts: &[Stmt], out: &mut HashMap<LocalId, u32>) {
     for s in stmts {
         match &s.kind {
             StmtKind::Assign { place, value } => {
@@ -774,7 +774,7 @@ fn count_stmt_reads(stmts: &[Stmt], out: &mut HashMap<LocalId, u32>) {
 }
 
 /// The addresses of `e` and every subexpression.
-fn collect_keys(e: &Expr, out: &mut HashSet<usize>) {
+pub(super) fn collect_keys(e: &Expr, out: &mut HashSet<usize>) {
     out.insert(e as *const Expr as usize);
     e.for_each_child(|c| collect_keys(c, out));
 }
