@@ -102,3 +102,62 @@ fn arrays_cleared_by_a_loop_read_zero_after_partial_writes_in_both_tiers() {
         }
     }
 }
+
+/// `interpolation_data acc[40]` declared in a loop (the NURB tessellation's `known_data`
+/// form: cleared as a block, 16 bytes per store, when the data has all its components):
+/// round r writes `acc[r]`, reads it and `acc[39 - r]`, then writes `acc[38 - r]`, the
+/// element the next round reads as its `acc[39 - r]`: zero only if that round's declaration
+/// cleared the array again.
+const INTERP_SOURCE: &str = r#"
+primitive interp_cleared(float rect[4]; int rounds;
+                         interpolator_data interp_data[];
+                         varying float X, Y; inout varying fixed<32,32> Z)
+{
+    interpolation_data sum = interp_data[0] * 0;
+    for (int r = 0; r < rounds; r++) {
+        interpolation_data acc[40];
+        acc[r] = interp_data[0] * (r + 1);
+        sum = sum + acc[r] + acc[39 - r] * 2;
+        acc[38 - r] = interp_data[0] * 100;
+    }
+    interpolation_data data[3] = {sum, sum, sum};
+    float a[4] = {rect[0], rect[1], 0.5, 1};
+    float b[4] = {rect[2], rect[1], 0.5, 1};
+    float c[4] = {rect[0], rect[3], 0.5, 1};
+    float v[3][4] = {a, b, c};
+    screen_triangle(v, data, X, Y, Z);
+}
+"#;
+
+#[test]
+fn interpolation_data_arrays_declared_in_a_loop_read_zero_in_both_tiers() {
+    let mut sources = SourceMap::new();
+    let program = common::library_with(&mut sources, &[("interp_cleared.prim", INTERP_SOURCE)]);
+    let colour = [0.25f32, 0.5, 2.0];
+    for rounds in [0, 1, 7, 19] {
+        let mut r = primflow::runtime::Renderer::new(program.clone());
+        r.set_image_size(24, 16).unwrap();
+        r.material_interp("Cs", "linear", &[]).unwrap();
+        r.begin("interp_cleared").unwrap();
+        r.rast_param("rect", &primflow::runtime::Value(vec![2.0, 2.0, 20.0, 12.0]))
+            .unwrap();
+        r.rast_param("rounds", &primflow::runtime::Value(vec![rounds as f32]))
+            .unwrap();
+        for _ in 0..3 {
+            r.material("Cs", &primflow::runtime::Value(colour.to_vec())).unwrap();
+            r.sequence_point().unwrap();
+        }
+        r.end().unwrap();
+        // Sum over rounds of (r + 1): the reads of `acc[39 - r]` see the clear.
+        let factor: f32 = (0..rounds).map(|r| (r + 1) as f32).sum();
+        for tier in [Tier::Fast, Tier::Optimised] {
+            let mut jit = primflow::jit::Jit::at_tier(program.clone(), tier).unwrap();
+            let out = r.render(&mut jit);
+            assert!(out.diags.items.is_empty(), "{:?}", out.diags.items);
+            let got = out.frame.param_at("Cs", 4, 4).expect("Cs is a plane");
+            let want: Vec<f32> = colour.iter().map(|c| c * factor).collect();
+            assert_eq!(got, want, "rounds={rounds} {tier:?}");
+            assert!(out.frame.depth_at(4, 4).unwrap() > 0, "rounds={rounds} {tier:?}: drawn");
+        }
+    }
+}
