@@ -105,14 +105,10 @@ fn span(knots: &[f32; 16], count: usize, order: usize, t: f32) -> usize {
     k
 }
 
-/// The prim's `nurb_de_boor`: the homogeneous point at t and its derivative.
-fn de_boor(knots: &[f32; 16], count: usize, order: usize, points: &[[f32; 4]; 16], t: f32) -> ([f32; 4], [f32; 4]) {
-    let p = order - 1;
-    let k = span(knots, count, order, t);
-    let mut d = [[0f32; 4]; 4];
-    for j in 0..=p {
-        d[j] = points[k - p + j];
-    }
+/// The prim's `nurb_de_boor`: the homogeneous point at t and its derivative from the p + 1
+/// points of knot span k (`points[j]` is the curve's point k - p + j).
+fn de_boor(knots: &[f32; 16], k: usize, p: usize, points: &[[f32; 4]; 4], t: f32) -> ([f32; 4], [f32; 4]) {
+    let mut d = *points;
     let (mut before_last, mut last) = ([0f32; 4], [0f32; 4]);
     for level in 1..=p {
         if level == p {
@@ -262,17 +258,18 @@ impl<const T: usize> Surface<T> {
         let ku = span(&self.u_knots, self.u_count, self.u_order, u);
         let kv = span(&self.v_knots, self.v_count, self.v_order, v);
         let (pu, pv) = (self.u_order - 1, self.v_order - 1);
-        let mut column = [[0f32; 4]; 16];
-        let mut column_du = [[0f32; 4]; 16];
+        let mut column = [[0f32; 4]; 4];
+        let mut column_du = [[0f32; 4]; 4];
         let mut data_rows = [[0f32; T]; 4];
         let mut weight_rows = [0f32; 4];
         for r in 0..=pv {
             let row = kv - pv + r;
-            let mut row_points = [[0f32; 4]; 16];
-            row_points[..self.u_count].copy_from_slice(&self.h[row * self.u_count..(row + 1) * self.u_count]);
-            let (value, du) = de_boor(&self.u_knots, self.u_count, self.u_order, &row_points, u);
-            column[row] = value;
-            column_du[row] = du;
+            let mut window = [[0f32; 4]; 4];
+            let first = row * self.u_count + ku - pu;
+            window[..=pu].copy_from_slice(&self.h[first..=first + pu]);
+            let (value, du) = de_boor(&self.u_knots, ku, pu, &window, u);
+            column[r] = value;
+            column_du[r] = du;
             // The shading data by the same scheme: weight * data, and the weight.
             let mut d = [[0f32; T]; 4];
             let mut w = [0f32; 4];
@@ -293,8 +290,8 @@ impl<const T: usize> Surface<T> {
             data_rows[r] = d[pu];
             weight_rows[r] = w[pu];
         }
-        let (surface, dv) = de_boor(&self.v_knots, self.v_count, self.v_order, &column, v);
-        let (du_surface, _) = de_boor(&self.v_knots, self.v_count, self.v_order, &column_du, v);
+        let (surface, dv) = de_boor(&self.v_knots, kv, pv, &column, v);
+        let (du_surface, _) = de_boor(&self.v_knots, kv, pv, &column_du, v);
         for level in 1..=pv {
             for j in (level..=pv).rev() {
                 let i = kv - pv + j;
