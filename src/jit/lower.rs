@@ -4216,11 +4216,10 @@ impl<'a, 'b> Lower<'a, 'b> {
         // interpolation_data counts too when the view is every component (outside the
         // arms that narrow it): `interpolation_data known_data[1280]` of the NURB tessellation
         // was 3840 one-word stores, 39 % of its kernel's tier-0 CLIF.
-        let whole_view =
-            || self.view.len() as u32 == self.n_interp && self.view.iter().enumerate().all(|(j, &v)| v == j as u32);
+        // (A view holds distinct components: as many as the data has is all of them.)
         let whole = matches!(acc.dyn_off, Dyn::None)
             && !acc.compact
-            && (matches!(acc.ty.elem(), Elem::Scalar(_)) || whole_view());
+            && (matches!(acc.ty.elem(), Elem::Scalar(_)) || self.view.len() as u32 == self.n_interp);
         let words = self.value_comps(acc.ty.elem(), acc.ty.fixed_len(), false);
         // The value must cover the place exactly (or be one scalar, broadcast), as the
         // general path checks.

@@ -249,25 +249,41 @@ impl<'a, 'b> Lower<'a, 'b> {
             .collect();
         self.affine_defs = w.defs.iter().map(|(l, (e, _, _))| (*l, *e)).collect();
         // A substitutable local every read of which is inside a carried expression is never
-        // read by a group: its assignment is not lowered there, and the row terms only its
-        // value uses are not stored per row (`sy` of screen_triangle).
-        let mut all_reads = HashMap::new();
-        count_stmt_reads(&f.pixel, &mut all_reads);
-        let mut carried_reads = HashMap::new();
-        for c in &carried {
-            count_reads(c.expr, &mut carried_reads);
-        }
+        // read by a group (`sy` of screen_triangle).
         self.unread_in_groups.clear();
         self.unstored_terms.clear();
-        for l in &w.def_order {
-            if all_reads.get(l) == carried_reads.get(l) {
-                self.unread_in_groups.insert(*l);
-                if let Some(&(value, _, _)) = w.defs.get(l) {
-                    collect_keys(value, &mut self.unstored_terms);
-                }
+        self.mark_unread_in_groups(
+            f,
+            carried.iter().map(|c| c.expr),
+            w.def_order
+                .iter()
+                .filter_map(|l| w.defs.get(l).map(|&(value, _, _)| (*l, value))),
+        );
+        carried
+    }
+
+    /// Of `locals` (each with the value the terms substitute for it), mark those whose every
+    /// read in `f`'s pixel code is inside one of `terms`: no group reads them, so their
+    /// assignment is not lowered there, and the row terms only their values use are not
+    /// stored per row. Shared by the carried terms (above) and the row terms (`hoist`).
+    pub(super) fn mark_unread_in_groups<'e>(
+        &mut self,
+        f: &Function,
+        terms: impl IntoIterator<Item = &'e Expr>,
+        locals: impl IntoIterator<Item = (LocalId, &'e Expr)>,
+    ) {
+        let mut all_reads = HashMap::new();
+        count_stmt_reads(&f.pixel, &mut all_reads);
+        let mut term_reads = HashMap::new();
+        for t in terms {
+            count_reads(t, &mut term_reads);
+        }
+        for (l, value) in locals {
+            if all_reads.get(&l) == term_reads.get(&l) {
+                self.unread_in_groups.insert(l);
+                collect_keys(value, &mut self.unstored_terms);
             }
         }
-        carried
     }
 
     /// Walk `stmts` in order; `straight`: not under a varying `if` (assignments here are
@@ -735,7 +751,7 @@ fn calls_primitive(stmts: &[Stmt]) -> bool {
 }
 
 /// Count the reads of each local in `e` (every `Local` node).
-pub(super) fn count_reads(e: &Expr, out: &mut HashMap<LocalId, u32>) {
+fn count_reads(e: &Expr, out: &mut HashMap<LocalId, u32>) {
     if let ExprKind::Local(l) = e.kind {
         *out.entry(l).or_insert(0) += 1;
     }
@@ -743,7 +759,7 @@ pub(super) fn count_reads(e: &Expr, out: &mut HashMap<LocalId, u32>) {
 }
 
 /// Count the reads of each local in every expression of `stmts`.
-pub(super) fn count_stmt_reads(stmts: &[Stmt], out: &mut HashMap<LocalId, u32>) {
+fn count_stmt_reads(stmts: &[Stmt], out: &mut HashMap<LocalId, u32>) {
     for s in stmts {
         match &s.kind {
             StmtKind::Assign { place, value } => {
@@ -774,7 +790,7 @@ pub(super) fn count_stmt_reads(stmts: &[Stmt], out: &mut HashMap<LocalId, u32>) 
 }
 
 /// The addresses of `e` and every subexpression.
-pub(super) fn collect_keys(e: &Expr, out: &mut HashSet<usize>) {
+fn collect_keys(e: &Expr, out: &mut HashSet<usize>) {
     out.insert(e as *const Expr as usize);
     e.for_each_child(|c| collect_keys(c, out));
 }

@@ -108,22 +108,16 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// local's value, so no group reads the local. Its assignment is left out of the groups
     /// and its own value not stored per row, as for the locals only carried terms read.
     pub(super) fn mark_row_locals_unread_in_groups(&mut self, f: &'a Function) {
-        let mut all_reads = HashMap::new();
-        super::affine::count_stmt_reads(&f.pixel, &mut all_reads);
         // Each term once, whatever the views it was collected under.
-        let mut term_reads = HashMap::new();
         let mut counted = HashSet::new();
-        for h in self.hoists.iter().filter(|h| !h.per_run) {
-            if counted.insert(h.expr as *const Expr as usize) {
-                super::affine::count_reads(h.expr, &mut term_reads);
-            }
-        }
-        for (&l, &value) in &self.row_locals {
-            if all_reads.get(&l) == term_reads.get(&l) {
-                self.unread_in_groups.insert(l);
-                super::affine::collect_keys(value, &mut self.unstored_terms);
-            }
-        }
+        let terms: Vec<&'a Expr> = self
+            .hoists
+            .iter()
+            .filter(|h| !h.per_run && counted.insert(h.expr as *const Expr as usize))
+            .map(|h| h.expr)
+            .collect();
+        let locals: Vec<(LocalId, &'a Expr)> = self.row_locals.iter().map(|(&l, &v)| (l, v)).collect();
+        self.mark_unread_in_groups(f, terms, locals);
     }
 
     /// The maximal row-invariant varying subexpressions of `f`'s pixel code, in the order
