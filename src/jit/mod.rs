@@ -980,8 +980,7 @@ impl Jit {
         let (batch_started, batch_cpu) = (Instant::now(), thread_cpu_micros());
         let program = self.program.clone();
         if !self.declared.contains_key(&(root, key.clone())) {
-            let name = format!("pf_root_{}", self.next_name);
-            self.declare_kernel(root, key, name)?;
+            self.declare_kernel(root, key)?;
         }
         let work = batch::BatchWork::new(
             &program,
@@ -1008,15 +1007,7 @@ impl Jit {
             for &callee in &outcome.callees {
                 let ck = (callee, key.clone());
                 if !self.declared.contains_key(&ck) {
-                    let name = format!(
-                        "pf_{}_{}",
-                        program
-                            .func(callee)
-                            .name
-                            .replace(|c: char| !c.is_ascii_alphanumeric(), "_"),
-                        self.next_name
-                    );
-                    self.declare_kernel(callee, key, name)?;
+                    self.declare_kernel(callee, key)?;
                 }
                 // Declared by a batch that failed, a callee still needs its body.
                 if !self.cache.contains_key(&ck) && queued.insert(callee) {
@@ -1097,9 +1088,21 @@ impl Jit {
         Ok(words)
     }
 
-    /// Declare the kernel for (`func`, `key`) in the module under `name` (names are unique
-    /// by the number `next_name` gives them).
-    fn declare_kernel(&mut self, func: FuncId, key: &VariantKey, name: String) -> Result<(), JitError> {
+    /// Declare the kernel for (`func`, `key`) in the module as `pf_<primitive>_t<tier>_<n>`
+    /// (unique by the number `next_name` gives). The name is what profilers show: with
+    /// `PERF_BUILDID_DIR` set, cranelift-jit lists every kernel in `/tmp/perf-<pid>.map`
+    /// (docs/performance.md, "Profiling kernels").
+    fn declare_kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<(), JitError> {
+        let prim = &self.program.func(func).name;
+        let tier = match self.options.tier {
+            Tier::Fast => 0,
+            Tier::Optimised => 1,
+        };
+        let name = format!(
+            "pf_{}_t{tier}_{}",
+            prim.replace(|c: char| !c.is_ascii_alphanumeric(), "_"),
+            self.next_name
+        );
         self.next_name += 1;
         let id = self
             .module
