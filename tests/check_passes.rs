@@ -184,6 +184,30 @@ fn inout_helper_parameters_write_back() {
     assert_eq!(assigned(f, &f.setup), ["a", "x", "loop", "a"]);
 }
 
+#[test]
+fn a_whole_variable_is_its_inout_parameter_unless_copies_are_needed() {
+    let p = ok(&format!(
+        "void fill(inout float a[4]; float x) {{ a[1] = x; }}
+         void swap(inout float a[4]; inout float b[4]) {{ float t[4] = a; a = b; b = t; }}
+         void pin(inout uniform float a[4]) {{ a[0] = 1; }}
+         {HEAD}{{ float v[4], w[4]; uniform float u[4];
+                  fill(v, 2); fill(v, v[0]); swap(v, w); swap(v, v); pin(v); fill(u, 3); }}"
+    ));
+    let f = func(&p, "p");
+    assert_eq!(
+        assigned(f, &f.setup),
+        [
+            "v", "w", "u", // declarations
+            "x", "loop", // fill(v, 2): v is the parameter, only x is copied
+            "a", "x", "loop", "v",    // fill(v, v[0]): another argument reads v
+            "loop", // swap(v, w): both are the parameters
+            "a", "b", "loop", "v", "v", // swap(v, v): one variable twice
+            "a", "loop", "v", // pin(v): the parameter declares its variability
+            "a", "x", "loop", "u", // fill(u, 3): the variable does
+        ]
+    );
+}
+
 const TRIANGLE_LIKE: &str = "
 primitive tri(float v[3][3]; interpolation_data d[3]; varying float X, Y; inout varying float Z)
 {

@@ -25,7 +25,7 @@ use crate::ir::{
 use crate::syntax::ast;
 
 use super::types::{self, convert, scalar_of, type_name};
-use super::{consts, Globals, LocalInfo, LocalWhat, Signature, Sink};
+use super::{consts, Globals, LocalInfo, LocalWhat, SigParam, Signature, Sink};
 
 /// What an enclosing construct lets `break`/`continue` reach.
 #[derive(Clone, Copy)]
@@ -1217,7 +1217,8 @@ impl<'g, 'a> FnLower<'g, 'a> {
             ));
             return None;
         }
-        // Arguments, by value into fresh temporaries; inout ones remember their place.
+        // Arguments, by value into fresh temporaries; inout ones remember their place, or
+        // are the parameter themselves (see `Self::inout_alias`).
         let mut param_locals = vec![];
         let mut write_back = vec![];
         let mut ok = true;
@@ -1225,6 +1226,10 @@ impl<'g, 'a> FnLower<'g, 'a> {
             let value = match args.get(i) {
                 Some(a) if p.inout => match self.place(a, pre) {
                     Some((place, pty)) => {
+                        if pty == p.ty && self.inout_alias(p, &place, args, i) {
+                            param_locals.push(place.local);
+                            continue;
+                        }
                         if pty != p.ty {
                             self.sink.push(
                                 err(
@@ -1293,6 +1298,24 @@ impl<'g, 'a> FnLower<'g, 'a> {
             Some(r) => self.local_expr(r, span),
             None => types::const_expr(ConstValue::Int(0), Scalar::Int, span),
         })
+    }
+
+    /// Can the variable `place` names stand for inout parameter `p` (argument `i` of
+    /// `args`) in the inlined body, instead of a copy in and a copy out? Only a whole
+    /// variable that no other argument names: then nothing reads or writes it between the
+    /// copy in and the copy out but the body, through the parameter, so every read sees
+    /// what the copy would hold (for an array the copies were a load and a store per
+    /// element each way: nurb_surface's de Boor weights and points). Not when the parameter
+    /// or the variable declares its variability: the copies are where those rules are
+    /// checked, and where their errors point.
+    fn inout_alias(&self, p: &SigParam, place: &Place, args: &[ast::Expr], i: usize) -> bool {
+        let ast::ExprKind::Name(id) = &args[i].kind else {
+            return false;
+        };
+        place.indices.is_empty()
+            && p.declared.is_none()
+            && self.infos[place.local.0 as usize].declared.is_none()
+            && !args.iter().enumerate().any(|(j, a)| j != i && mentions(a, &id.name))
     }
 
     /// Lower helper `idx`'s body as a one-trip loop with its parameters bound to
@@ -2248,5 +2271,26 @@ fn broadcast(v: Expr, dims: &[u32]) -> Expr {
             }
             cur
         }
+    }
+}
+
+/// Does the name `name` occur anywhere in `e` (in nested calls' arguments too)?
+fn mentions(e: &ast::Expr, name: &str) -> bool {
+    match &e.kind {
+        ast::ExprKind::Name(id) => id.name == name,
+        ast::ExprKind::Int(_)
+        | ast::ExprKind::Float(_)
+        | ast::ExprKind::Bool(_)
+        | ast::ExprKind::Str(_)
+        | ast::ExprKind::Error => false,
+        ast::ExprKind::Unary { expr, .. } => mentions(expr, name),
+        ast::ExprKind::Binary { lhs, rhs, .. } => mentions(lhs, name) || mentions(rhs, name),
+        ast::ExprKind::Ternary { cond, then, otherwise } => {
+            mentions(cond, name) || mentions(then, name) || mentions(otherwise, name)
+        }
+        ast::ExprKind::Call { args, .. } | ast::ExprKind::Construct { args, .. } | ast::ExprKind::List(args) => {
+            args.iter().any(|a| mentions(a, name))
+        }
+        ast::ExprKind::Index { base, index } => mentions(base, name) || mentions(index, name),
     }
 }
