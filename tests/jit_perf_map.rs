@@ -27,7 +27,12 @@ fn perf_map_names_each_kernel_by_primitive_and_tier() {
     let text = std::fs::read_to_string(&map).expect("cranelift-jit wrote no perf map");
     let names: Vec<&str> = text.lines().filter_map(|l| l.split_whitespace().nth(2)).collect();
     // polygon's batch is polygon and the screen_triangle it calls, at each tier.
-    for prefix in ["pf_polygon_t0_", "pf_screen_triangle_t0_", "pf_polygon_t1_", "pf_screen_triangle_t1_"] {
+    for prefix in [
+        "pf_polygon_t0_",
+        "pf_screen_triangle_t0_",
+        "pf_polygon_t1_",
+        "pf_screen_triangle_t1_",
+    ] {
         assert_eq!(
             names.iter().filter(|n| n.starts_with(prefix)).count(),
             1,
