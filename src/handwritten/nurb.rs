@@ -105,9 +105,24 @@ fn span(knots: &[f32; 16], count: usize, order: usize, t: f32) -> usize {
     k
 }
 
-/// The prim's `nurb_de_boor`: the homogeneous point at t and its derivative from the p + 1
-/// points of knot span k (`points[j]` is the curve's point k - p + j).
-fn de_boor(knots: &[f32; 16], k: usize, p: usize, points: &[[f32; 4]; 4], t: f32) -> ([f32; 4], [f32; 4]) {
+/// The prim's `nurb_alphas`: de Boor's weights at t in knot span k for degree p (step
+/// `level` mixes points j - 1 and j with `alpha[level][j]`), shared by every curve
+/// evaluated at t.
+fn alphas(knots: &[f32; 16], k: usize, p: usize, t: f32) -> [[f32; 4]; 4] {
+    let mut alpha = [[0f32; 4]; 4];
+    for level in 1..=p {
+        for j in (level..=p).rev() {
+            let i = k - p + j;
+            alpha[level][j] = (t - knots[i]) / (knots[i + p + 1 - level] - knots[i]);
+        }
+    }
+    alpha
+}
+
+/// The prim's `nurb_de_boor`: the homogeneous point and its derivative from the p + 1
+/// points of a knot span (`points[j]` is the curve's point k - p + j), with the span's
+/// weights and width `knots[k + 1] - knots[k]`.
+fn de_boor(alpha: &[[f32; 4]; 4], p: usize, points: &[[f32; 4]; 4], width: f32) -> ([f32; 4], [f32; 4]) {
     let mut d = *points;
     let (mut before_last, mut last) = ([0f32; 4], [0f32; 4]);
     for level in 1..=p {
@@ -116,13 +131,11 @@ fn de_boor(knots: &[f32; 16], k: usize, p: usize, points: &[[f32; 4]; 4], t: f32
             last = d[p];
         }
         for j in (level..=p).rev() {
-            let i = k - p + j;
-            let a = (t - knots[i]) / (knots[i + p + 1 - level] - knots[i]);
+            let a = alpha[level][j];
             d[j] = std::array::from_fn(|c| (1.0 - a) * d[j - 1][c] + a * d[j][c]);
         }
     }
-    let span_width = knots[k + 1] - knots[k];
-    let derivative = std::array::from_fn(|c| p as f32 * (last[c] - before_last[c]) / span_width);
+    let derivative = std::array::from_fn(|c| p as f32 * (last[c] - before_last[c]) / width);
     (d[p], derivative)
 }
 
@@ -258,46 +271,66 @@ impl<const T: usize> Surface<T> {
         let ku = span(&self.u_knots, self.u_count, self.u_order, u);
         let kv = span(&self.v_knots, self.v_count, self.v_order, v);
         let (pu, pv) = (self.u_order - 1, self.v_order - 1);
+        // Each direction's de Boor weights once, for every curve evaluated in it.
+        let alpha_u = alphas(&self.u_knots, ku, pu, u);
+        let alpha_v = alphas(&self.v_knots, kv, pv, v);
+        let width_u = self.u_knots[ku + 1] - self.u_knots[ku];
+        let width_v = self.v_knots[kv + 1] - self.v_knots[kv];
         let mut column = [[0f32; 4]; 4];
         let mut column_du = [[0f32; 4]; 4];
-        let mut data_rows = [[0f32; T]; 4];
         let mut weight_rows = [0f32; 4];
         for r in 0..=pv {
             let row = kv - pv + r;
             let mut window = [[0f32; 4]; 4];
             let first = row * self.u_count + ku - pu;
             window[..=pu].copy_from_slice(&self.h[first..=first + pu]);
-            let (value, du) = de_boor(&self.u_knots, ku, pu, &window, u);
+            let (value, du) = de_boor(&alpha_u, pu, &window, width_u);
             column[r] = value;
             column_du[r] = du;
-            // The shading data by the same scheme: weight * data, and the weight.
-            let mut d = [[0f32; T]; 4];
+            // The weight by the same scheme (the patch's denominator).
             let mut w = [0f32; 4];
-            for j in 0..=pu {
-                let at = row * self.u_count + ku - pu + j;
-                let data = self.data(at);
-                d[j] = std::array::from_fn(|c| self.weights[at] * data[c]);
-                w[j] = self.weights[at];
-            }
+            w[..=pu].copy_from_slice(&self.weights[first..=first + pu]);
             for level in 1..=pu {
                 for j in (level..=pu).rev() {
-                    let i = ku - pu + j;
-                    let a = (u - self.u_knots[i]) / (self.u_knots[i + pu + 1 - level] - self.u_knots[i]);
-                    d[j] = std::array::from_fn(|c| (1.0 - a) * d[j - 1][c] + a * d[j][c]);
+                    let a = alpha_u[level][j];
                     w[j] = (1.0 - a) * w[j - 1] + a * w[j];
                 }
             }
-            data_rows[r] = d[pu];
             weight_rows[r] = w[pu];
         }
-        let (surface, dv) = de_boor(&self.v_knots, kv, pv, &column, v);
-        let (du_surface, _) = de_boor(&self.v_knots, kv, pv, &column_du, v);
+        let (surface, dv) = de_boor(&alpha_v, pv, &column, width_v);
+        let (du_surface, _) = de_boor(&alpha_v, pv, &column_du, width_v);
         for level in 1..=pv {
             for j in (level..=pv).rev() {
-                let i = kv - pv + j;
-                let a = (v - self.v_knots[i]) / (self.v_knots[i + pv + 1 - level] - self.v_knots[i]);
-                data_rows[j] = std::array::from_fn(|c| (1.0 - a) * data_rows[j - 1][c] + a * data_rows[j][c]);
+                let a = alpha_v[level][j];
                 weight_rows[j] = (1.0 - a) * weight_rows[j - 1] + a * weight_rows[j];
+            }
+        }
+        // The shading data (weight * data by the same scheme, over the weight), as the prim's
+        // `default:` arm: only when some component is not the normal's.
+        let mut data_rows = [[0f32; T]; 4];
+        if T > if NORMAL { 3 } else { 0 } {
+            for (r, data_row) in data_rows.iter_mut().enumerate().take(pv + 1) {
+                let row = kv - pv + r;
+                let mut d = [[0f32; T]; 4];
+                for (j, dj) in d.iter_mut().enumerate().take(pu + 1) {
+                    let at = row * self.u_count + ku - pu + j;
+                    let data = self.data(at);
+                    *dj = std::array::from_fn(|c| self.weights[at] * data[c]);
+                }
+                for level in 1..=pu {
+                    for j in (level..=pu).rev() {
+                        let a = alpha_u[level][j];
+                        d[j] = std::array::from_fn(|c| (1.0 - a) * d[j - 1][c] + a * d[j][c]);
+                    }
+                }
+                *data_row = d[pu];
+            }
+            for level in 1..=pv {
+                for j in (level..=pv).rev() {
+                    let a = alpha_v[level][j];
+                    data_rows[j] = std::array::from_fn(|c| (1.0 - a) * data_rows[j - 1][c] + a * data_rows[j][c]);
+                }
             }
         }
         let mut vertex_data: [f32; T] = std::array::from_fn(|c| data_rows[pv][c] / weight_rows[pv]);
