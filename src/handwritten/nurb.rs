@@ -122,6 +122,7 @@ fn alphas(knots: &[f32; 16], k: usize, p: usize, t: f32) -> [[f32; 4]; 4] {
 /// The prim's `nurb_de_boor`: the homogeneous point and its derivative from the p + 1
 /// points of a knot span (`points[j]` is the curve's point k - p + j), with the span's
 /// weights and width `knots[k + 1] - knots[k]`.
+#[allow(clippy::needless_range_loop)] // the loops are the prim's, index for index
 fn de_boor(alpha: &[[f32; 4]; 4], p: usize, points: &[[f32; 4]; 4], width: f32) -> ([f32; 4], [f32; 4]) {
     let mut d = *points;
     let (mut before_last, mut last) = ([0f32; 4], [0f32; 4]);
@@ -267,6 +268,7 @@ impl<const T: usize> Surface<T> {
 
     /// Position (homogeneous device point) and interpolation data of the surface at (u, v),
     /// as the prim's corner loop computes them.
+    #[allow(clippy::needless_range_loop)] // the loops are the prim's, index for index
     fn corner<const NORMAL: bool>(&self, u: f32, v: f32) -> ([f32; 4], [f32; T]) {
         let ku = span(&self.u_knots, self.u_count, self.u_order, u);
         let kv = span(&self.v_knots, self.v_count, self.v_order, v);
