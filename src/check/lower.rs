@@ -1226,10 +1226,6 @@ impl<'g, 'a> FnLower<'g, 'a> {
             let value = match args.get(i) {
                 Some(a) if p.inout => match self.place(a, pre) {
                     Some((place, pty)) => {
-                        if pty == p.ty && self.inout_alias(p, &place, args, i) {
-                            param_locals.push(place.local);
-                            continue;
-                        }
                         if pty != p.ty {
                             self.sink.push(
                                 err(
@@ -1246,6 +1242,10 @@ impl<'g, 'a> FnLower<'g, 'a> {
                                 .secondary(p.span, "parameter declared here"),
                             );
                             ok = false;
+                            continue;
+                        }
+                        if self.inout_alias(p, &place, args, i) {
+                            param_locals.push(place.local);
                             continue;
                         }
                         let cur = self.place_expr(&place, &pty);
@@ -2276,21 +2276,10 @@ fn broadcast(v: Expr, dims: &[u32]) -> Expr {
 
 /// Does the name `name` occur anywhere in `e` (in nested calls' arguments too)?
 fn mentions(e: &ast::Expr, name: &str) -> bool {
-    match &e.kind {
-        ast::ExprKind::Name(id) => id.name == name,
-        ast::ExprKind::Int(_)
-        | ast::ExprKind::Float(_)
-        | ast::ExprKind::Bool(_)
-        | ast::ExprKind::Str(_)
-        | ast::ExprKind::Error => false,
-        ast::ExprKind::Unary { expr, .. } => mentions(expr, name),
-        ast::ExprKind::Binary { lhs, rhs, .. } => mentions(lhs, name) || mentions(rhs, name),
-        ast::ExprKind::Ternary { cond, then, otherwise } => {
-            mentions(cond, name) || mentions(then, name) || mentions(otherwise, name)
-        }
-        ast::ExprKind::Call { args, .. } | ast::ExprKind::Construct { args, .. } | ast::ExprKind::List(args) => {
-            args.iter().any(|a| mentions(a, name))
-        }
-        ast::ExprKind::Index { base, index } => mentions(base, name) || mentions(index, name),
+    if let ast::ExprKind::Name(id) = &e.kind {
+        return id.name == name;
     }
+    let mut found = false;
+    e.for_each_child(|c| found = found || mentions(c, name));
+    found
 }

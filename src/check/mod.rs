@@ -538,29 +538,10 @@ fn stmt_calls(s: &ast::Stmt, out: &mut Vec<(String, Span)>) {
 }
 
 fn expr_calls(e: &ast::Expr, out: &mut Vec<(String, Span)>) {
-    use ast::ExprKind as K;
-    match &e.kind {
-        K::Call { callee, args } => {
-            out.push((callee.name.clone(), e.span));
-            args.iter().for_each(|a| expr_calls(a, out));
-        }
-        K::Unary { expr, .. } => expr_calls(expr, out),
-        K::Binary { lhs, rhs, .. } => {
-            expr_calls(lhs, out);
-            expr_calls(rhs, out);
-        }
-        K::Ternary { cond, then, otherwise } => {
-            expr_calls(cond, out);
-            expr_calls(then, out);
-            expr_calls(otherwise, out);
-        }
-        K::Construct { args, .. } | K::List(args) => args.iter().for_each(|a| expr_calls(a, out)),
-        K::Index { base, index } => {
-            expr_calls(base, out);
-            expr_calls(index, out);
-        }
-        K::Int(_) | K::Float(_) | K::Bool(_) | K::Str(_) | K::Name(_) | K::Error => {}
+    if let ast::ExprKind::Call { callee, .. } = &e.kind {
+        out.push((callee.name.clone(), e.span));
     }
+    e.for_each_child(|c| expr_calls(c, out));
 }
 
 /// Type-check a helper on its own (its parameters as temporaries) and check that a helper

@@ -216,6 +216,38 @@ pub struct Expr {
     pub span: Span,
 }
 
+impl Expr {
+    /// Call `f` on each direct sub-expression, in source order: the one place that knows
+    /// the shape of every `ExprKind`, for walks that treat all children alike.
+    pub fn for_each_child<'e>(&'e self, mut f: impl FnMut(&'e Expr)) {
+        match &self.kind {
+            ExprKind::Unary { expr, .. } => f(expr),
+            ExprKind::Binary { lhs, rhs, .. } => {
+                f(lhs);
+                f(rhs);
+            }
+            ExprKind::Ternary { cond, then, otherwise } => {
+                f(cond);
+                f(then);
+                f(otherwise);
+            }
+            ExprKind::Call { args, .. } | ExprKind::Construct { args, .. } | ExprKind::List(args) => {
+                args.iter().for_each(f)
+            }
+            ExprKind::Index { base, index } => {
+                f(base);
+                f(index);
+            }
+            ExprKind::Int(_)
+            | ExprKind::Float(_)
+            | ExprKind::Bool(_)
+            | ExprKind::Str(_)
+            | ExprKind::Name(_)
+            | ExprKind::Error => {}
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum UnaryOp {
     Neg,
