@@ -308,3 +308,54 @@ fn varying_argument_for_a_uniform_helper_parameter_is_reported_at_the_call() {
         d.items[0].message
     );
 }
+
+/// Every expression node of `stmts`, nested statements and sub-expressions included.
+fn expr_nodes(stmts: &[Stmt]) -> usize {
+    fn expr(e: &primflow::ir::Expr) -> usize {
+        let mut n = 1;
+        e.for_each_child(|c| n += expr(c));
+        n
+    }
+    let mut n = 0;
+    primflow::ir::for_each_assign(stmts, &mut |place, value| {
+        n += expr(value) + place.indices.iter().map(|(i, _)| expr(i)).sum::<usize>()
+    });
+    n
+}
+
+#[test]
+fn an_array_filled_with_one_value_is_one_splat_node_whatever_its_size() {
+    // Zero for a declaration without initialiser, a scalar assigned to a whole array, and a
+    // scalar argument of a component-wise built-in beside an array: each one `Splat` of the
+    // scalar, not a list per element (the NURB surface's `point known[1280]` was 6 400
+    // nodes, copied and walked by every pass).
+    let p = ok(&format!(
+        "{HEAD}{{ float big[1000][4];
+            int counts[300] = 7;
+            float m[4] = mix(big[1], big[2], k);
+            Z = big[3][1] + counts[4] + m[0]; }}"
+    ));
+    let f = func(&p, "p");
+    let values: Vec<&primflow::ir::Expr> = f
+        .setup
+        .iter()
+        .chain(&f.pixel)
+        .filter_map(|s| match &s.kind {
+            StmtKind::Assign { value, .. } => Some(value),
+            _ => None,
+        })
+        .collect();
+    let splat_of = |e: &primflow::ir::Expr| match &e.kind {
+        ExprKind::Splat(item) => Some((e.ty.dims.clone(), item.ty.dims.is_empty())),
+        _ => None,
+    };
+    assert_eq!(splat_of(values[0]), Some((vec![1000, 4], true)), "{:?}", values[0].kind);
+    assert_eq!(splat_of(values[1]), Some((vec![300], true)));
+    assert!(
+        matches!(&values[2].kind, ExprKind::Builtin { args, .. } if splat_of(&args[2]) == Some((vec![4], true))),
+        "{:?}",
+        values[2].kind
+    );
+    let nodes = expr_nodes(&f.setup) + expr_nodes(&f.pixel);
+    assert!(nodes < 60, "{nodes} expression nodes");
+}

@@ -124,13 +124,14 @@ fn shape_error(name: &str, args: &[Expr], span: Span, want: &str) -> BuiltinErro
     )
 }
 
-/// A float scalar repeated into nested lists of `dims`.
+/// A float scalar repeated over an array of `dims` (see [`ExprKind::Splat`]).
 fn expand(v: Expr, dims: &[u32]) -> Expr {
-    let Some((&n, rest)) = dims.split_first() else { return v };
-    let inner = expand(v, rest);
-    let span = inner.span;
+    if dims.is_empty() {
+        return v;
+    }
+    let span = v.span;
     Expr {
-        kind: ExprKind::List(vec![inner; n as usize]),
+        kind: ExprKind::Splat(Box::new(v)),
         ty: Type::array(Elem::Scalar(Scalar::Float), dims.to_vec()),
         var: Variability::Uniform,
         span,

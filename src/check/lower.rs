@@ -2251,27 +2251,15 @@ fn to_interp(v: Expr) -> Expr {
     mk(ExprKind::Convert(Box::new(v)), Type::array(Elem::Interp, vec![]), span)
 }
 
-/// Repeat a scalar into nested lists of the given dimensions.
+/// A scalar (or interpolation_data element) repeated over an array of the given
+/// dimensions: one [`ExprKind::Splat`] node, not a tree of lists.
 fn broadcast(v: Expr, dims: &[u32]) -> Expr {
-    match dims.split_last() {
-        None => v,
-        Some((&last, outer)) => {
-            let span = v.span;
-            let elem = v.ty.elem;
-            let mut cur = mk(
-                ExprKind::List(vec![v; last as usize]),
-                Type::array(elem, vec![last]),
-                span,
-            );
-            for &d in outer.iter().rev() {
-                let mut dims2 = vec![d];
-                dims2.extend(cur.ty.dims.iter().copied());
-                let elem = cur.ty.elem;
-                cur = mk(ExprKind::List(vec![cur; d as usize]), Type::array(elem, dims2), span);
-            }
-            cur
-        }
+    if dims.is_empty() {
+        return v;
     }
+    let span = v.span;
+    let ty = Type::array(v.ty.elem, dims.to_vec());
+    mk(ExprKind::Splat(Box::new(v)), ty, span)
 }
 
 /// Does the name `name` occur anywhere in `e` (in nested calls' arguments too)?

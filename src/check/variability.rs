@@ -315,7 +315,9 @@ impl State<'_> {
                 join(&mut acc, self.expr(base));
                 join(&mut acc, self.expr(index));
             }
-            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => join(&mut acc, self.expr(expr)),
+            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) | ExprKind::Splat(expr) => {
+                join(&mut acc, self.expr(expr))
+            }
             ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
                 join(&mut acc, self.expr(lhs));
                 join(&mut acc, self.expr(rhs));

@@ -308,7 +308,7 @@ impl Expr {
                 f(base);
                 f(index);
             }
-            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => f(expr),
+            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) | ExprKind::Splat(expr) => f(expr),
             ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
                 f(lhs);
                 f(rhs);
@@ -330,7 +330,7 @@ impl Expr {
                 f(base);
                 f(index);
             }
-            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => f(expr),
+            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) | ExprKind::Splat(expr) => f(expr),
             ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
                 f(lhs);
                 f(rhs);
@@ -508,6 +508,12 @@ pub enum ExprKind {
     },
     /// Aggregate literal: each element has the type of `self.ty.element()`.
     List(Vec<Expr>),
+    /// A scalar of this expression's element kind (or one interpolation_data element)
+    /// repeated into every element of its fixed-size array type: what a declaration
+    /// without an initialiser (zero) and a scalar assigned to an array become. One node
+    /// whatever the array's size (`point known[1280];` was 6 400 as a `List`, walked and
+    /// copied by every pass).
+    Splat(Box<Expr>),
     /// Matrix product: `[n][m] * [m]` -> `[n]`, `[n][m] * [m][k]` -> `[n][k]` (floats).
     MatMul {
         lhs: Box<Expr>,

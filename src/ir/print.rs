@@ -275,6 +275,7 @@ impl Printer<'_> {
                 let a: Vec<String> = items.iter().map(|x| self.expr(x)).collect();
                 format!("{{{}}}", a.join(", "))
             }
+            ExprKind::Splat(x) => format!("splat{:?}({})", e.ty.dims, self.expr(x)),
             ExprKind::MatMul { lhs, rhs } => format!("matmul({}, {})", self.expr(lhs), self.expr(rhs)),
             ExprKind::SeqCount => "seq_count".into(),
             ExprKind::ClipFlag => "clipping()".into(),

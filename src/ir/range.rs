@@ -412,7 +412,7 @@ impl Analysis<'_> {
                 self.visit(index, env);
             }
             ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
-            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => self.visit(expr, env),
+            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) | ExprKind::Splat(expr) => self.visit(expr, env),
             ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
                 self.visit(lhs, env);
                 self.visit(rhs, env);

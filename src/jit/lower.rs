@@ -4594,6 +4594,19 @@ impl<'a, 'b> Lower<'a, 'b> {
                     varying,
                 })
             }
+            ExprKind::Splat(item) => {
+                let v = self.eval(item)?;
+                let one: Vec<ir::Value> = v
+                    .comps
+                    .iter()
+                    .map(|&c| fixed::convert(&mut self.b, v.scalar, sc, c))
+                    .collect();
+                Ok(Val {
+                    comps: one.repeat(e.ty.fixed_len() as usize),
+                    scalar: sc,
+                    varying: v.varying,
+                })
+            }
             ExprKind::MatMul { lhs, rhs } => {
                 let a = self.eval(lhs)?;
                 let c = self.eval(rhs)?;
@@ -4919,6 +4932,7 @@ fn speculable_expr(e: &Expr) -> bool {
         }
         ExprKind::Builtin { args, .. } => args.iter().all(speculable_expr),
         ExprKind::List(items) => items.iter().all(speculable_expr),
+        ExprKind::Splat(item) => speculable_expr(item),
     }
 }
 
@@ -4972,6 +4986,7 @@ fn all_zero_bits(e: &Expr) -> bool {
         ExprKind::Const(ConstValue::Int(v) | ConstValue::Fixed(v)) => *v == 0,
         ExprKind::Const(ConstValue::Bool(b)) => !b,
         ExprKind::List(items) => items.iter().all(all_zero_bits),
+        ExprKind::Splat(item) => all_zero_bits(item),
         // Every conversion (to interpolation data too: a broadcast) keeps zero bits zero.
         ExprKind::Convert(inner) => all_zero_bits(inner),
         _ => false,

@@ -378,6 +378,10 @@ fn fold_in(e: &mut Expr, env: &Env) {
             items.iter_mut().for_each(|a| fold_in(a, env));
             ExprKind::List(items)
         }
+        ExprKind::Splat(mut item) => {
+            fold_in(&mut item, env);
+            ExprKind::Splat(item)
+        }
         ExprKind::MatMul { mut lhs, mut rhs } => {
             fold_in(&mut lhs, env);
             fold_in(&mut rhs, env);

@@ -164,7 +164,7 @@ pub(super) fn pure(e: &Expr) -> bool {
             };
             in_range && pure(base)
         }
-        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => pure(expr),
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) | ExprKind::Splat(expr) => pure(expr),
         ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => pure(lhs) && pure(rhs),
         ExprKind::Select { cond, then, otherwise } => pure(cond) && pure(then) && pure(otherwise),
         ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().all(pure),

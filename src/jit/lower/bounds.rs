@@ -271,6 +271,7 @@ impl LocalBounds {
                 }
                 all
             }
+            ExprKind::Splat(item) => self.expr_with(item, refined),
             ExprKind::MatMul { .. } | ExprKind::SeqCount | ExprKind::ClipFlag => None,
         }
     }
