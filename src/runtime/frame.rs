@@ -1125,13 +1125,19 @@ impl Frame {
     /// `Cs` is gray; with no usable `Cs` the pixel is white, OpenGL's default current colour);
     /// elsewhere the background.
     pub fn color_at(&self, x: u32, y: u32) -> [f32; 3] {
+        self.color_with(self.param("Cs"), x, y)
+    }
+
+    /// [`Frame::color_at`] with `Cs` already looked up (by name it is a string compare per
+    /// pixel).
+    fn color_with(&self, cs: Option<&ParamPlanes>, x: u32, y: u32) -> [f32; 3] {
         if !self.written(x, y) {
             return self.background.map(clamp01);
         }
         if let Some(c) = self.shaded_at(x, y) {
             return c.map(clamp01);
         }
-        let Some(cs) = self.param("Cs") else {
+        let Some(cs) = cs else {
             return [1.0; 3];
         };
         let c = |k: u32| clamp01(self.plane_at(cs.first_plane + k, x, y).unwrap_or(0.0));
@@ -1269,8 +1275,12 @@ impl Frame {
         });
     }
 
+    /// [`Frame::color_at`] at every pixel, rounded to 8 bits.
     pub fn to_rgb8(&self) -> RgbImage {
-        ImageBuffer::from_fn(self.width, self.height, |x, y| Rgb(self.color_at(x, y).map(to_u8)))
+        let cs = self.param("Cs");
+        ImageBuffer::from_fn(self.width, self.height, |x, y| {
+            Rgb(self.color_with(cs, x, y).map(to_u8))
+        })
     }
 
     /// Depth as 16-bit gray, nearer brighter (the top 16 bits of the raw depth).
@@ -1339,13 +1349,38 @@ fn clamp01(v: f32) -> f32 {
     }
 }
 
+/// `(clamp01(v) * 255).round()` (half away from zero) without a libm `roundf` call per
+/// component: for `x` in [0, 255], `x - trunc(x)` is exact (checked for every f32 in [0, 1]
+/// when written; `to_u8_rounds_half_away_from_zero` tests the ties and their neighbours).
 fn to_u8(v: f32) -> u8 {
-    (clamp01(v) * 255.0).round() as u8
+    let x = clamp01(v) * 255.0;
+    let whole = x as u32;
+    (whole + u32::from(x - whole as f32 >= 0.5)) as u8
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn to_u8_rounds_half_away_from_zero() {
+        // Every tie k + 1/2 of the 8-bit scale and the floats either side of it, the ends,
+        // and what clamps: the same as `round()`.
+        let reference = |v: f32| (clamp01(v) * 255.0).round() as u8;
+        let mut values = vec![0.0, 1.0, -0.0, -1.0, 2.0, f32::NAN, f32::INFINITY, f32::MIN_POSITIVE];
+        for k in 0..256 {
+            let tie = (k as f32 + 0.5) / 255.0;
+            values.extend([
+                tie,
+                f32::from_bits(tie.to_bits() - 1),
+                f32::from_bits(tie.to_bits() + 1),
+            ]);
+            values.push(k as f32 / 255.0);
+        }
+        for v in values {
+            assert_eq!(to_u8(v), reference(v), "{v:e}");
+        }
+    }
 
     fn opts(w: u32, h: u32, ts: u32) -> RenderOptions {
         RenderOptions {
