@@ -11,7 +11,6 @@
 mod common;
 
 use primflow::diag::SourceMap;
-use primflow::jit::{Jit, JitOptions, Tier};
 use primflow::runtime::{Renderer, Value};
 
 const PRIM: &str = r#"
@@ -96,21 +95,6 @@ fn inout_parameters_give_what_copies_give() {
         r.begin("inouts").unwrap();
         r.rast_param("d", &Value(d.to_vec())).unwrap();
         r.end().unwrap();
-        for unroll_loops in [false, true] {
-            for tier in [Tier::Fast, Tier::Optimised] {
-                let mut jit = Jit::with_options(program.clone(), JitOptions { tier, unroll_loops }).unwrap();
-                let out = r.render(&mut jit);
-                assert!(out.diags.items.is_empty(), "{:?}", out.diags.items);
-                for y in 0..4 {
-                    for x in 0..40 {
-                        assert_eq!(
-                            out.frame.depth_at(x, y),
-                            Some(reference_depth(d, x)),
-                            "d={d:?} unroll={unroll_loops} {tier:?} at ({x}, {y})"
-                        );
-                    }
-                }
-            }
-        }
+        common::assert_depth_in_every_jit(&r, &format!("d={d:?}"), |x, _| reference_depth(d, x));
     }
 }

@@ -8,7 +8,6 @@
 mod common;
 
 use primflow::diag::SourceMap;
-use primflow::jit::{Jit, JitOptions, Tier};
 use primflow::runtime::{Renderer, Value};
 
 const PRIM: &str = r#"
@@ -58,21 +57,6 @@ fn splats_give_every_element_the_value() {
         r.rast_param("k", &Value(vec![k])).unwrap();
         r.rast_param("at", &Value(vec![at as f32])).unwrap();
         r.end().unwrap();
-        for unroll_loops in [false, true] {
-            for tier in [Tier::Fast, Tier::Optimised] {
-                let mut jit = Jit::with_options(program.clone(), JitOptions { tier, unroll_loops }).unwrap();
-                let out = r.render(&mut jit);
-                assert!(out.diags.items.is_empty(), "{:?}", out.diags.items);
-                for y in 0..2 {
-                    for x in 0..16 {
-                        assert_eq!(
-                            out.frame.depth_at(x, y),
-                            Some(reference_depth(f64::from(k), x)),
-                            "k={k} at={at} unroll={unroll_loops} {tier:?} at ({x}, {y})"
-                        );
-                    }
-                }
-            }
-        }
+        common::assert_depth_in_every_jit(&r, &format!("k={k} at={at}"), |x, _| reference_depth(f64::from(k), x));
     }
 }

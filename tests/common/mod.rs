@@ -40,6 +40,28 @@ pub fn jits(program: &Arc<Program>) -> Vec<(&'static str, Jit)> {
     ]
 }
 
+/// Render `r` with a fresh JIT of every tier, with loop unrolling on and off, and assert no
+/// diagnostics and the depth `expected(x, y)` at every pixel (`what` names the case in a
+/// failure).
+pub fn assert_depth_in_every_jit(r: &Renderer, what: &str, expected: impl Fn(u32, u32) -> u32) {
+    for unroll_loops in [false, true] {
+        for tier in [Tier::Fast, Tier::Optimised] {
+            let mut jit = Jit::with_options(r.program().clone(), JitOptions { tier, unroll_loops }).unwrap();
+            let out = r.render(&mut jit);
+            assert!(out.diags.items.is_empty(), "{what}: {:?}", out.diags.items);
+            for y in 0..out.frame.height {
+                for x in 0..out.frame.width {
+                    assert_eq!(
+                        out.frame.depth_at(x, y),
+                        Some(expected(x, y)),
+                        "{what} unroll={unroll_loops} {tier:?} at ({x}, {y})"
+                    );
+                }
+            }
+        }
+    }
+}
+
 pub fn renderer(program: &Arc<Program>, width: u32, height: u32, count_writes: bool) -> Renderer {
     let mut r = Renderer::new(program.clone());
     r.set_image_size(width, height).unwrap();
