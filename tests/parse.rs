@@ -216,6 +216,11 @@ fn syntax_errors_recover_and_point_at_the_right_place() {
         ),
         // Unterminated item.
         ("primitive p() {\n  float a = 1;\n", &["E0012@2:15"]),
+        // Lexical garbage where the parse runs out of input: still reported.
+        (
+            "primitive p() {\n  float a = 1;\n @ $",
+            &["E0001@3:2", "E0001@3:4", "E0012@2:15"],
+        ),
         // Statement before the first interpolation label.
         (
             "primitive p() {\n  interpolation {\n    a = 1;\n    linear: interpolator_return(1);\n  }\n}\n",

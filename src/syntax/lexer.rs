@@ -1,5 +1,5 @@
-//! The logos lexer. [`lex`] turns a whole file into `(start, Tok, end)` triples for the
-//! lalrpop parser, reporting bad characters and malformed numbers (E0001, E0002) as it goes
+//! The logos lexer. [`lex`] hands the lalrpop parser a file's `(start, Tok, end)` triples as
+//! it pulls them, reporting bad characters and malformed numbers (E0001, E0002) as it goes
 //! and skipping them, so the parser only ever sees valid tokens.
 
 use logos::Logos;
@@ -245,20 +245,39 @@ pub fn token_text(t: &Tok) -> &'static str {
 #[derive(Clone, Debug, PartialEq)]
 pub struct LexError;
 
-/// Lex a whole file. Bad characters and numbers out of range are reported and skipped.
-pub fn lex(file: FileId, text: &str, diags: &mut Diagnostics) -> Vec<(usize, Tok, usize)> {
-    // The library's files have one token per 5-8 bytes: reserve for the densest so the
-    // vector is not regrown (and copied) on the way.
-    let mut out = Vec::with_capacity(text.len() / 4);
-    let mut lexer = Tok::lexer(text);
-    // Merge runs of bad characters into one diagnostic.
-    let mut bad: Option<(usize, usize)> = None;
-    let flush = |bad: &mut Option<(usize, usize)>, diags: &mut Diagnostics| {
-        if let Some((s, e)) = bad.take() {
-            let what = &text[s..e];
+/// The tokens of a file, as the parser pulls them: bad characters and numbers out of range
+/// are reported to `diags` and skipped (a number out of range reads as 0). Streaming rather
+/// than a token vector: the library's vectors were ~0.5 MB of fresh pages per process.
+pub fn lex<'t, 'd>(file: FileId, text: &'t str, diags: &'d mut Diagnostics) -> Lexer<'t, 'd> {
+    Lexer {
+        file,
+        text,
+        inner: Tok::lexer(text),
+        bad: None,
+        diags,
+        done: false,
+    }
+}
+
+/// See [`lex`].
+pub struct Lexer<'t, 'd> {
+    file: FileId,
+    text: &'t str,
+    inner: logos::Lexer<'t, Tok>,
+    /// A run of bad characters not yet reported: runs are merged into one diagnostic.
+    bad: Option<(usize, usize)>,
+    diags: &'d mut Diagnostics,
+    done: bool,
+}
+
+impl Lexer<'_, '_> {
+    /// Report the pending run of bad characters, if any.
+    fn flush(&mut self) {
+        if let Some((s, e)) = self.bad.take() {
+            let what = &self.text[s..e];
             let d = if what.starts_with('"') {
                 Diagnostic::error("E0003", "unterminated string literal")
-                    .primary(Span::new(file, s, e), "no closing `\"` on this line")
+                    .primary(Span::new(self.file, s, e), "no closing `\"` on this line")
             } else {
                 Diagnostic::error(
                     "E0001",
@@ -268,50 +287,61 @@ pub fn lex(file: FileId, text: &str, diags: &mut Diagnostics) -> Vec<(usize, Tok
                         what.escape_debug()
                     ),
                 )
-                .primary(Span::new(file, s, e), "not part of the language")
+                .primary(Span::new(self.file, s, e), "not part of the language")
             };
-            diags.push(d);
+            self.diags.push(d);
         }
-    };
-    while let Some(tok) = lexer.next() {
-        let span = lexer.span();
-        match tok {
-            // A `/*` the skip rule did not consume has no `*/`: the rest is an open comment.
-            Ok(Tok::Slash) if text[span.end..].starts_with('*') => {
-                flush(&mut bad, diags);
-                diags.push(Diagnostic::error("E0003", "unterminated block comment").primary(
-                    Span::new(file, span.start, span.end + 1),
-                    "this comment is never closed",
-                ));
+    }
+}
+
+impl Iterator for Lexer<'_, '_> {
+    type Item = (usize, Tok, usize);
+
+    fn next(&mut self) -> Option<(usize, Tok, usize)> {
+        while !self.done {
+            let Some(tok) = self.inner.next() else {
+                self.done = true;
                 break;
-            }
-            Ok(t) => {
-                flush(&mut bad, diags);
-                out.push((span.start, t, span.end));
-            }
-            Err(()) => {
-                let slice = lexer.slice();
-                if slice.chars().all(|c| c.is_ascii_digit())
-                    || slice.contains(['.', 'e', 'E']) && slice.starts_with(|c: char| c.is_ascii_digit())
-                {
-                    flush(&mut bad, diags);
-                    diags.push(
-                        Diagnostic::error("E0002", "number literal out of range")
-                            .primary(Span::new(file, span.start, span.end), "does not fit in 64 bits"),
-                    );
-                    out.push((span.start, Tok::IntLit(0), span.end));
-                    continue;
+            };
+            let span = self.inner.span();
+            match tok {
+                // A `/*` the skip rule did not consume has no `*/`: the rest is an open comment.
+                Ok(Tok::Slash) if self.text[span.end..].starts_with('*') => {
+                    self.flush();
+                    self.diags
+                        .push(Diagnostic::error("E0003", "unterminated block comment").primary(
+                            Span::new(self.file, span.start, span.end + 1),
+                            "this comment is never closed",
+                        ));
+                    self.done = true;
                 }
-                match &mut bad {
-                    Some((_, e)) if *e == span.start => *e = span.end,
-                    _ => {
-                        flush(&mut bad, diags);
-                        bad = Some((span.start, span.end));
+                Ok(t) => {
+                    self.flush();
+                    return Some((span.start, t, span.end));
+                }
+                Err(()) => {
+                    let slice = self.inner.slice();
+                    if slice.chars().all(|c| c.is_ascii_digit())
+                        || slice.contains(['.', 'e', 'E']) && slice.starts_with(|c: char| c.is_ascii_digit())
+                    {
+                        self.flush();
+                        self.diags.push(
+                            Diagnostic::error("E0002", "number literal out of range")
+                                .primary(Span::new(self.file, span.start, span.end), "does not fit in 64 bits"),
+                        );
+                        return Some((span.start, Tok::IntLit(0), span.end));
+                    }
+                    match &mut self.bad {
+                        Some((_, e)) if *e == span.start => *e = span.end,
+                        _ => {
+                            self.flush();
+                            self.bad = Some((span.start, span.end));
+                        }
                     }
                 }
             }
         }
+        self.flush();
+        None
     }
-    flush(&mut bad, diags);
-    out
 }

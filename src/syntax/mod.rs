@@ -24,10 +24,13 @@ use lexer::{LexError, Tok};
 /// Parse one source file. Never panics; on syntax errors the returned module holds what
 /// could be recovered (with `Error` nodes) and `diags` holds the errors.
 pub fn parse(file: FileId, text: &str, diags: &mut Diagnostics) -> ast::Module {
-    let tokens = lexer::lex(file, text, diags);
+    let mut tokens = lexer::lex(file, text, diags);
     let mut recovered = Vec::new();
     let mut extra = Vec::new();
-    let result = grammar::ModuleParser::new().parse(file, &mut recovered, &mut extra, tokens);
+    let result = grammar::ModuleParser::new().parse(file, &mut recovered, &mut extra, &mut tokens);
+    // A parse that gave up early leaves tokens unread: their lexical errors are reported all
+    // the same (before the syntax errors, as when the file was lexed first).
+    tokens.for_each(drop);
     for r in recovered {
         diags.push(parse_error(file, text, r.error));
     }
@@ -45,10 +48,12 @@ pub fn parse(file: FileId, text: &str, diags: &mut Diagnostics) -> ast::Module {
 
 /// Parse a single expression (tests and tools).
 pub fn parse_expr(file: FileId, text: &str, diags: &mut Diagnostics) -> Option<ast::Expr> {
-    let tokens = lexer::lex(file, text, diags);
+    let mut tokens = lexer::lex(file, text, diags);
     let mut recovered = Vec::new();
     let mut extra = Vec::new();
-    match grammar::ExprParser::new().parse(file, &mut recovered, &mut extra, tokens) {
+    let result = grammar::ExprParser::new().parse(file, &mut recovered, &mut extra, &mut tokens);
+    tokens.for_each(drop);
+    match result {
         Ok(e) if recovered.is_empty() => Some(e),
         Ok(_) => {
             for r in recovered {
