@@ -326,9 +326,22 @@ impl Expander<'_> {
         if rec.over_budget {
             return false;
         }
+        // The first recorder's words become the pool as they are (its kept calls stay where
+        // they were recorded): a tessellation records megabytes, and copying them faulted
+        // in fresh pages for all of it. Later recorders' kept blocks are appended.
+        let recorded = if self.pool.is_empty() {
+            self.pool = rec.words;
+            None
+        } else {
+            Some(rec.words)
+        };
         for call in &rec.calls {
-            let block = &rec.words[call.start..call.start + call.len];
-            if !self.fits(call.callee, block) {
+            let range = call.start..call.start + call.len;
+            let block = match &recorded {
+                Some(words) => &words[range.clone()],
+                None => &self.pool[range.clone()],
+            };
+            if !fits(&mut self.layouts, self.program, self.key, call.callee, block) {
                 // Cannot happen for blocks the JIT or the hand-written kernels build; never
                 // hand a kernel a block shorter than its layout reads.
                 continue;
@@ -337,13 +350,21 @@ impl Expander<'_> {
                 && call.call_depth <= MAX_CALL_DEPTH
                 && expands(self.program, FuncId(call.callee));
             if expands_too {
-                if !self.expand(call.entry, block, call.call_depth) {
+                // A copy: the nested expansion appends to the pool this may point into.
+                let block = block.to_vec();
+                if !self.expand(call.entry, &block, call.call_depth) {
                     return false;
                 }
                 continue;
             }
-            let start = self.pool.len();
-            self.pool.extend_from_slice(block);
+            let start = match &recorded {
+                Some(words) => {
+                    let start = self.pool.len();
+                    self.pool.extend_from_slice(&words[range]);
+                    start
+                }
+                None => call.start,
+            };
             self.items.push(Item {
                 entry: call.entry,
                 args: Args::Pool { start, len: call.len },
@@ -352,24 +373,29 @@ impl Expander<'_> {
         }
         true
     }
+}
 
-    /// Whether `block` is at least as long as `callee`'s layout under the key reads (an
-    /// unknown callee is taken at its word: its block is what a native kernel built for it).
-    fn fits(&mut self, callee: u32, block: &[u32]) -> bool {
-        if callee == CALLEE_UNKNOWN {
-            return true;
-        }
-        if callee as usize >= self.program.functions.len() {
-            return false;
-        }
-        let (program, key) = (self.program, self.key);
-        let layout = self
-            .layouts
-            .entry(callee)
-            .or_insert_with(|| ArgLayout::new(program, FuncId(callee), key));
-        let n_seq = block.first().copied().unwrap_or(0);
-        layout.words(n_seq) <= block.len()
+/// Whether `block` is at least as long as `callee`'s layout under `key` reads (an unknown
+/// callee is taken at its word: its block is what a native kernel built for it); `layouts`
+/// keeps the layouts made.
+fn fits(
+    layouts: &mut HashMap<u32, ArgLayout>,
+    program: &Program,
+    key: &VariantKey,
+    callee: u32,
+    block: &[u32],
+) -> bool {
+    if callee == CALLEE_UNKNOWN {
+        return true;
     }
+    if callee as usize >= program.functions.len() {
+        return false;
+    }
+    let layout = layouts
+        .entry(callee)
+        .or_insert_with(|| ArgLayout::new(program, FuncId(callee), key));
+    let n_seq = block.first().copied().unwrap_or(0);
+    layout.words(n_seq) <= block.len()
 }
 
 impl Expanded {
