@@ -112,6 +112,18 @@ primitive last_rise(float rect[4]; int n; varying float X, Y; inout varying fixe
     float s = a[k + 1];
     Z = s;
 }}
+
+primitive pick(float rect[4]; int hi; bool low; varying float X, Y; inout varying fixed<32,32> Z)
+{{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    if (hi < 0 || hi >= {len})
+        return;
+    float a[{len}] = {{{init}}};
+    int i = low ? 0 : hi;
+    int j = low ? 0 : hi + 1;
+    float s = a[i] + a[j];
+    Z = s;
+}}
 "#
     )
 }
@@ -180,6 +192,19 @@ fn index_proofs_cover_bounded_loops_and_guards_but_not_free_ones() {
         select.is_empty(),
         "a[i] in an arm of ?: runs whatever the condition: {select:?}"
     );
+    // `?:` on a condition that bounds nothing (a bool): the join of both arms, so `a[i]`
+    // (0 or hi) is proven and `a[j]` (0 or hi + 1) is not.
+    let text = source(4);
+    let line = 1 + text.lines().position(|l| l.contains("s = a[i] + a[j];")).unwrap();
+    let at = |index: &str| {
+        let col = text.lines().nth(line - 1).unwrap().find(index).unwrap();
+        format!("{line}:{}", col + 1)
+    };
+    let picked: Vec<String> = proven("pick")
+        .into_iter()
+        .filter(|s| s.starts_with(&format!("{line}:")))
+        .collect();
+    assert_eq!(picked, [at("i]")], "of {} and {}", at("i]"), at("j]"));
     // The NURB surface's setup: its validation bounds the orders and counts, so many of
     // the tessellation's accesses are proven (de Boor's `d[j]`, `w[j]`, the ring arrays).
     let mut sources = SourceMap::new();

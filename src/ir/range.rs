@@ -31,12 +31,25 @@ use std::collections::{HashMap, HashSet};
 use super::{BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, Function, LocalId, LoopId, Scalar, SiteId, Stmt};
 use super::{LocalKind, StmtKind, UnaryOp};
 
-/// An interval of i32 values, `lo <= hi`.
+/// An interval of i32 values, `lo <= hi`, as arithmetic on it takes it (exact in i64).
 type Range = (i64, i64);
+/// An interval as a state stores it: half the bytes of a [`Range`] to copy and join (states
+/// are copied at every branch and loop round; nurb_surface's hold 165 locals).
+type Stored = (i32, i32);
 /// Per local; `None`: this point is not reached.
-type State = Option<Vec<Range>>;
+type State = Option<Vec<Stored>>;
 
 const TOP: Range = (i32::MIN as i64, i32::MAX as i64);
+
+/// `r` as stored: every interval the analysis makes lies in the i32 range; clamping one that
+/// did not would still hold every i32 value it held.
+fn stored(r: Range) -> Stored {
+    (r.0.clamp(TOP.0, TOP.1) as i32, r.1.clamp(TOP.0, TOP.1) as i32)
+}
+
+fn range(s: Stored) -> Range {
+    (s.0.into(), s.1.into())
+}
 
 /// Index sites of `f`'s setup whose index is proven inside its array at every occurrence.
 pub fn proven_index_sites(f: &Function) -> HashSet<SiteId> {
@@ -48,7 +61,7 @@ pub fn proven_index_sites(f: &Function) -> HashSet<SiteId> {
         slots.push(int.then_some(start.len()));
         if int {
             start.push(if matches!(l.kind, LocalKind::Param(_)) {
-                TOP
+                stored(TOP)
             } else {
                 (0, 0)
             });
@@ -103,7 +116,7 @@ struct Analysis<'a> {
     /// last reached a fixpoint at while `quiet`: the next quiet visit starts from it joined
     /// with its entry, so a nested loop takes one round per visit instead of being solved
     /// from scratch in every round of every loop around it.
-    heads: HashMap<usize, Vec<Range>>,
+    heads: HashMap<usize, Vec<Stored>>,
     /// Per loop statement, per state position: is the local a counter of the loop (see
     /// `counters_in`)?
     counters: HashMap<usize, Vec<bool>>,
@@ -218,7 +231,7 @@ impl Analysis<'_> {
             if place.indices.is_empty() && self.tracked(place.local) {
                 let v = self.eval(value, &env);
                 if let Some(at) = self.slot(place.local) {
-                    env[at] = v;
+                    env[at] = stored(v);
                 }
             }
             return Some(env);
@@ -339,7 +352,13 @@ impl Analysis<'_> {
                         h.iter()
                             .zip(&n)
                             .zip(&counters)
-                            .map(|((o, n), &c)| if all || c { widen(*o, *n) } else { *n })
+                            .map(|((o, n), &c)| {
+                                if all || c {
+                                    stored(widen(range(*o), range(*n)))
+                                } else {
+                                    *n
+                                }
+                            })
                             .collect(),
                     ),
                     (_, n) => n,
@@ -349,7 +368,7 @@ impl Analysis<'_> {
             };
             if round > 12 {
                 // Cannot happen after widening; give up on the loop's facts all the same.
-                head = head.map(|h| h.iter().map(|_| TOP).collect());
+                head = head.map(|h| h.iter().map(|_| stored(TOP)).collect());
             }
         };
         if let Some(h) = &narrowed {
@@ -401,7 +420,7 @@ impl Analysis<'_> {
     }
 
     /// Judge every index site in `e` under `env` (nothing to do in a quiet round).
-    fn visit(&mut self, e: &Expr, env: &[Range]) {
+    fn visit(&mut self, e: &Expr, env: &[Stored]) {
         if self.quiet {
             return;
         }
@@ -429,7 +448,7 @@ impl Analysis<'_> {
     }
 
     /// `len`: the indexed array's length (`None`: the sequence length, not fixed).
-    fn judge(&mut self, len: Option<u32>, index: &Expr, site: SiteId, env: &[Range]) {
+    fn judge(&mut self, len: Option<u32>, index: &Expr, site: SiteId, env: &[Stored]) {
         if self.quiet {
             return;
         }
@@ -447,13 +466,13 @@ impl Analysis<'_> {
     }
 
     /// The interval of a uniform int expression (TOP for anything else).
-    fn eval(&self, e: &Expr, env: &[Range]) -> Range {
+    fn eval(&self, e: &Expr, env: &[Stored]) -> Range {
         if e.var.is_varying() || !e.ty.is_scalar() || e.ty.elem != Elem::Scalar(Scalar::Int) {
             return TOP;
         }
         match &e.kind {
             ExprKind::Const(ConstValue::Int(v)) => (*v as i64, *v as i64),
-            ExprKind::Local(l) => self.slot(*l).and_then(|at| env.get(at).copied()).unwrap_or(TOP),
+            ExprKind::Local(l) => self.slot(*l).and_then(|at| env.get(at).copied()).map_or(TOP, range),
             ExprKind::Unary { op: UnaryOp::Neg, expr } => {
                 let (lo, hi) = self.eval(expr, env);
                 fits(-hi, -lo)
@@ -472,7 +491,7 @@ impl Analysis<'_> {
                     _ => TOP,
                 }
             }
-            ExprKind::Select { cond, then, otherwise } => {
+            ExprKind::Select { cond, then, otherwise } if !refines_nothing(cond) => {
                 let st = Some(env.to_vec());
                 let t = self.refine(st.clone(), cond, true).map(|t| self.eval(then, &t));
                 let o = self.refine(st, cond, false).map(|o| self.eval(otherwise, &o));
@@ -481,6 +500,10 @@ impl Analysis<'_> {
                     (Some(x), None) | (None, Some(x)) => x,
                     (None, None) => TOP,
                 }
+            }
+            ExprKind::Select { then, otherwise, .. } => {
+                let (t, o) = (self.eval(then, env), self.eval(otherwise, env));
+                (t.0.min(o.0), t.1.max(o.1))
             }
             ExprKind::Builtin { func, args } => {
                 let r: Vec<Range> = args.iter().map(|a| self.eval(a, env)).collect();
@@ -506,7 +529,7 @@ impl Analysis<'_> {
 
     /// `st` where `cond` evaluates to `truth` (None: it cannot).
     fn refine(&self, st: State, cond: &Expr, truth: bool) -> State {
-        let env = st.as_ref()?;
+        st.as_ref()?;
         if let ExprKind::Const(ConstValue::Bool(b)) = cond.kind {
             return if b == truth { st } else { None };
         }
@@ -543,8 +566,8 @@ impl Analysis<'_> {
                     (BinOp::Eq, true) | (BinOp::Ne, false) => Cmp::Eq,
                     _ => return st,
                 };
-                let mut next = env.clone();
-                let (a, b) = (self.eval(lhs, env), self.eval(rhs, env));
+                let mut next = st?;
+                let (a, b) = (self.eval(lhs, &next), self.eval(rhs, &next));
                 // lhs OP b, and rhs OP' a (the mirrored comparison).
                 let mirrored = match op {
                     Cmp::Lt => Cmp::Gt,
@@ -562,7 +585,7 @@ impl Analysis<'_> {
 
     /// Narrow the local in `e` (`l`, `l + c` or `l - c`) so that `e OP other` can hold;
     /// false if it cannot.
-    fn narrow(&self, env: &mut [Range], e: &Expr, op: Cmp, other: Range) -> bool {
+    fn narrow(&self, env: &mut [Stored], e: &Expr, op: Cmp, other: Range) -> bool {
         let (l, offset) = match &e.kind {
             ExprKind::Local(l) => (*l, 0),
             ExprKind::Binary {
@@ -580,7 +603,7 @@ impl Analysis<'_> {
         let Some(at) = self.slot(l) else {
             return true;
         };
-        let Some(cur) = env.get(at).copied() else {
+        let Some(cur) = env.get(at).copied().map(range) else {
             return true;
         };
         // `l + offset` must not wrap for the shift to be exact.
@@ -598,7 +621,7 @@ impl Analysis<'_> {
         if lo > hi {
             return false;
         }
-        env[at] = (lo - offset, hi - offset);
+        env[at] = stored((lo - offset, hi - offset));
         true
     }
 }
@@ -622,6 +645,16 @@ enum Cmp {
     Gt,
     Ge,
     Eq,
+}
+
+/// Whether `refine` leaves every state as it is under `cond` (either way), so a `?:` on it
+/// need not copy its state per arm: a condition that is not a constant, `!`, `&&`, `||` or
+/// a comparison (a `bool` local, a call).
+fn refines_nothing(cond: &Expr) -> bool {
+    !matches!(
+        cond.kind,
+        ExprKind::Const(ConstValue::Bool(_)) | ExprKind::Unary { op: UnaryOp::Not, .. } | ExprKind::Binary { .. }
+    )
 }
 
 fn is_int(e: &Expr) -> bool {
