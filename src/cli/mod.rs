@@ -335,7 +335,8 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     let registry = if diags.has_errors() {
         None
     } else {
-        Registry::load(&mut sources, &dirs, &[], &mut diags)
+        let (prims, kinds) = scene.library_names();
+        Registry::load_for(&mut sources, &dirs, &prims, &kinds, &mut diags)
     };
     let Some(registry) = registry else {
         print_diags(&diags, &sources, err);

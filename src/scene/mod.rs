@@ -123,6 +123,21 @@ impl Scene {
             })
             .collect()
     }
+
+    /// The library names the scene uses: the primitives its `begin`s name, and the kinds its
+    /// `material_interp`s name (a kind that is a shared interpolator's name is that
+    /// interpolator). What [`crate::runtime::Registry::load_for`] compiles the scene with.
+    pub fn library_names(&self) -> (Vec<&str>, Vec<&str>) {
+        let (mut prims, mut kinds) = (vec![], vec![]);
+        for c in &self.commands {
+            match &c.kind {
+                CommandKind::Begin(name) => prims.push(name.as_str()),
+                CommandKind::MaterialInterp { kind, .. } => kinds.push(kind.as_str()),
+                _ => {}
+            }
+        }
+        (prims, kinds)
+    }
 }
 
 const COMMANDS: &[&str] = &[
