@@ -317,8 +317,11 @@ pub fn parse_key(spec: &str, program: &Program) -> Result<VariantKey, String> {
 fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     // The render threads start (thread creation, the CPU topology read for pinning: ~0.5 ms)
     // while this thread loads the scene and the library.
+    // (Where no helper thread can start, the pool is made in place below.)
     let wanted = args.threads.unwrap_or(0);
-    let pool = std::thread::spawn(move || crate::runtime::render_pool(wanted));
+    let starting = std::thread::Builder::new()
+        .spawn(move || crate::runtime::render_pool(wanted))
+        .ok();
     let mut sources = SourceMap::new();
     let scene_file = match sources.load(&args.scene) {
         Ok(id) => id,
@@ -364,14 +367,15 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
             return 1;
         }
     };
-    let pool = match pool.join() {
-        Ok(Ok(pool)) => pool,
-        Ok(Err(e)) => {
+    let started = match starting.map(|helper| helper.join()) {
+        Some(Ok(started)) => started,
+        // The helper could not start or did not finish: make the pool here.
+        _ => crate::runtime::render_pool(wanted),
+    };
+    let pool = match started {
+        Ok(pool) => pool,
+        Err(e) => {
             let _ = writeln!(err, "error: cannot start {wanted} threads: {e}");
-            return 1;
-        }
-        Err(_) => {
-            let _ = writeln!(err, "error: cannot start {wanted} threads");
             return 1;
         }
     };

@@ -80,9 +80,9 @@ impl Registry {
     }
 
     /// [`Registry::load`] for a scene that names the primitives `prims` and the interpolation
-    /// kinds `kinds`: only the files a name the scene needs is defined in are compiled (and,
-    /// through the calls in them, the files those need), as a renderer only ever asks for
-    /// what the scene names. The library's nurb_surface.prim is half of its parse and check,
+    /// kinds `kinds`: it compiles only the files that define a name the scene needs and,
+    /// through their calls, the files those need, as a renderer only ever asks for what the
+    /// scene names. The library's nurb_surface.prim is half of its parse and check,
     /// ~2 ms of a small scene's ~11 ms process. Diagnostics come from the files compiled;
     /// when in doubt (a named primitive no file seems to define, a file whose items cannot
     /// be told apart, errors in the files picked) the whole library is compiled, so a
