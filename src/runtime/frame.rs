@@ -50,7 +50,7 @@ use std::collections::BTreeSet;
 use std::sync::Arc;
 use std::time::Instant;
 
-use image::{ImageBuffer, Luma, Rgb, RgbImage};
+use image::{ImageBuffer, Luma, RgbImage};
 use rayon::prelude::*;
 
 use crate::abi::{TileCtx, VariantKey, ERR_CALL_DEPTH, ERR_FUEL, ERR_INDEX, ERR_STACK, GROUP, MODE_BOUND, MODE_RENDER};
@@ -1340,36 +1340,64 @@ impl Frame {
         let p = self
             .param(name)
             .ok_or_else(|| format!("the scene has no shading parameter `{name}`"))?;
-        match p.components {
-            1 => {
-                let value = |x: u32, y: u32| {
-                    let v = self.plane_at(p.first_plane, x, y).unwrap_or(0.0);
-                    (self.written(x, y) && v.is_finite()).then_some(v)
-                };
-                let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-                for y in 0..self.height {
-                    for v in (0..self.width).filter_map(|x| value(x, y)) {
-                        lo = lo.min(v);
-                        hi = hi.max(v);
-                    }
+        if p.components != 1 && p.components != 3 {
+            return Err(format!(
+                "shading parameter `{name}` has {} components; only 1 (gray) or 3 (RGB) can be written as an image",
+                p.components
+            ));
+        }
+        // Row by row over whole buffers, as `to_rgb8`; a plane the frame lacks reads 0.
+        let (width, stride) = (self.width as usize, self.stride as usize);
+        let zeros = vec![0.0f32; width];
+        let row_of = |plane: u32, y: usize| -> &[f32] {
+            let row = y * stride..y * stride + width;
+            self.plane(plane).and_then(|p| p.get(row)).unwrap_or(&zeros)
+        };
+        let depth_row = |y: usize| self.depth.get(y * stride..y * stride + width).unwrap_or(&[]);
+        let mut rgb = vec![0u8; width * self.height as usize * 3];
+        let mut bytes = vec![0u8; width * 3];
+        let rows = rgb.chunks_exact_mut((width * 3).max(1)).enumerate();
+        if p.components == 3 {
+            for (y, out) in rows {
+                let (r, rest) = bytes.split_at_mut(width);
+                let (g, b) = rest.split_at_mut(width);
+                to_u8_row(row_of(p.first_plane, y), r);
+                to_u8_row(row_of(p.first_plane + 1, y), g);
+                to_u8_row(row_of(p.first_plane + 2, y), b);
+                for (px, ((&r, &g), &b)) in out.chunks_exact_mut(3).zip(r.iter().zip(g.iter()).zip(b.iter())) {
+                    px.copy_from_slice(&[r, g, b]);
                 }
-                Ok(ImageBuffer::from_fn(self.width, self.height, |x, y| {
-                    let g = match value(x, y) {
+            }
+        } else {
+            // Gray over the range of the written, finite values; others black.
+            let value = |d: u32, v: f32| (d != 0 && v.is_finite()).then_some(v);
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            for y in 0..self.height as usize {
+                for v in depth_row(y)
+                    .iter()
+                    .zip(row_of(p.first_plane, y))
+                    .filter_map(|(&d, &v)| value(d, v))
+                {
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+            }
+            for (y, out) in rows {
+                let mut values = depth_row(y)
+                    .iter()
+                    .zip(row_of(p.first_plane, y))
+                    .map(|(&d, &v)| value(d, v));
+                for px in out.chunks_exact_mut(3) {
+                    let g = match values.next().flatten() {
                         None => 0.0,
                         Some(v) if hi > lo => (v - lo) / (hi - lo),
                         Some(_) => 0.5,
                     };
-                    Rgb([to_u8(g); 3])
-                }))
+                    px.fill(to_u8(g));
+                }
             }
-            3 => Ok(ImageBuffer::from_fn(self.width, self.height, |x, y| {
-                let c = |k: u32| clamp01(self.plane_at(p.first_plane + k, x, y).unwrap_or(0.0));
-                Rgb([c(0), c(1), c(2)].map(to_u8))
-            })),
-            n => Err(format!(
-                "shading parameter `{name}` has {n} components; only 1 (gray) or 3 (RGB) can be written as an image"
-            )),
         }
+        Ok(RgbImage::from_raw(self.width, self.height, rgb).expect("3 bytes per pixel"))
     }
 }
 
@@ -1459,6 +1487,69 @@ mod tests {
             // Both kinds of pixel occur.
             assert!((0..w).any(|x| f.written(x, 0)) && (0..w).any(|x| !f.written(x, 0)));
         }
+    }
+
+    /// `param_image` row by row gives what it gave pixel by pixel through `plane_at` and
+    /// `written`: 3 components clamped (unwritten pixels included), 1 as gray over the range
+    /// of the written finite values, a constant one as mid gray, a missing plane as 0.
+    #[test]
+    fn param_image_is_its_per_pixel_definition() {
+        let (w, h) = (7, 5);
+        let values = [0.25, -1.0, 2.0, f32::NAN, 0.5, f32::INFINITY, 0.999];
+        let cases = [
+            ("c3", 3, 0, false),
+            ("g", 1, 3, false),
+            ("flat", 1, 1, true),
+            ("gone", 1, 4, false),
+        ];
+        for (name, components, first, flat) in cases {
+            let mut f = Frame::empty();
+            let param = ParamPlanes {
+                name: name.into(),
+                first_plane: first,
+                components,
+            };
+            f.reset(&opts(w, h, 4), 4, std::iter::once(param));
+            for (k, v) in f.planes.iter_mut().enumerate() {
+                *v = if flat {
+                    0.75
+                } else {
+                    values[k % values.len()] * (1.0 + k as f32 / 64.0)
+                };
+            }
+            for (i, d) in f.depth.iter_mut().enumerate() {
+                *d = if i % 3 == 0 { 0 } else { i as u32 };
+            }
+            let image = f.param_image(name).unwrap();
+            let at = |k: u32, x: u32, y: u32| f.plane_at(first + k, x, y).unwrap_or(0.0);
+            let gray = |x: u32, y: u32| (f.written(x, y) && at(0, x, y).is_finite()).then(|| at(0, x, y));
+            let seen: Vec<f32> = (0..h).flat_map(|y| (0..w).filter_map(move |x| gray(x, y))).collect();
+            let lo = seen.iter().copied().fold(f32::INFINITY, f32::min);
+            let hi = seen.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+            for y in 0..h {
+                for x in 0..w {
+                    let want = if components == 3 {
+                        [0, 1, 2].map(|k| to_u8(at(k, x, y)))
+                    } else {
+                        let g = match gray(x, y) {
+                            None => 0.0,
+                            Some(v) if hi > lo => (v - lo) / (hi - lo),
+                            Some(_) => 0.5,
+                        };
+                        [to_u8(g); 3]
+                    };
+                    assert_eq!(image.get_pixel(x, y).0, want, "{name} at ({x}, {y})");
+                }
+            }
+        }
+        let mut f = Frame::empty();
+        let two = ParamPlanes {
+            name: "uv".into(),
+            first_plane: 0,
+            components: 2,
+        };
+        f.reset(&opts(4, 4, 4), 2, std::iter::once(two));
+        assert!(f.param_image("uv").is_err() && f.param_image("none").is_err());
     }
 
     #[test]
