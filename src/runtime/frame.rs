@@ -1004,6 +1004,30 @@ impl Frame {
         (end <= buf.len()).then_some(start..end)
     }
 
+    /// Row `y` of `buf`, a per-pixel buffer of the frame (`None` past its end).
+    fn row_of<'b, T>(&self, buf: &'b [T], y: usize) -> Option<&'b [T]> {
+        let y = u32::try_from(y).ok()?;
+        self.row(buf, y).map(|r| &buf[r])
+    }
+
+    /// Row `y` of plane `plane`, or `missing` (a row of zeros, as an unwritten plane holds)
+    /// for a plane the frame lacks.
+    fn plane_row<'b>(&'b self, plane: u32, y: usize, missing: &'b [f32]) -> &'b [f32] {
+        self.plane(plane).and_then(|p| self.row_of(p, y)).unwrap_or(missing)
+    }
+
+    /// An RGB image of the frame's size, row `y`'s pixels (3 bytes each) written by
+    /// `fill_row(y, row)`.
+    fn rgb8_image(&self, mut fill_row: impl FnMut(usize, &mut [u8])) -> RgbImage {
+        let (width, height) = (self.width as usize, self.height as usize);
+        let mut rgb = vec![0u8; width * height * 3];
+        // (`max(1)`: a frame without columns has no rows to fill either.)
+        for (y, row) in rgb.chunks_exact_mut((width * 3).max(1)).enumerate() {
+            fill_row(y, row);
+        }
+        RgbImage::from_raw(self.width, self.height, rgb).expect("3 bytes per pixel")
+    }
+
     /// Plane `plane`'s elements (`None` for a plane the frame does not have).
     fn plane(&self, plane: u32) -> Option<&[f32]> {
         let len = self.plane_len();
@@ -1125,19 +1149,13 @@ impl Frame {
     /// `Cs` is gray; with no usable `Cs` the pixel is white, OpenGL's default current colour);
     /// elsewhere the background.
     pub fn color_at(&self, x: u32, y: u32) -> [f32; 3] {
-        self.color_with(self.param("Cs"), x, y)
-    }
-
-    /// [`Frame::color_at`] with `Cs` already looked up (by name it is a string compare per
-    /// pixel).
-    fn color_with(&self, cs: Option<&ParamPlanes>, x: u32, y: u32) -> [f32; 3] {
         if !self.written(x, y) {
             return self.background.map(clamp01);
         }
         if let Some(c) = self.shaded_at(x, y) {
             return c.map(clamp01);
         }
-        let Some(cs) = cs else {
+        let Some(cs) = self.param("Cs") else {
             return [1.0; 3];
         };
         let c = |k: u32| clamp01(self.plane_at(cs.first_plane + k, x, y).unwrap_or(0.0));
@@ -1183,13 +1201,7 @@ impl Frame {
         // Row `y` of a parameter's component `k` (a plane the frame lacks reads as zeros,
         // as an unwritten plane would; `reset` makes every parameter's planes exist).
         let zeros = vec![0.0f32; width];
-        let plane = |p: &ParamPlanes, k: u32, y: usize| -> &[f32] {
-            let row = self.row(&self.depth, y as u32);
-            match (self.plane(p.first_plane + k), row) {
-                (Some(plane), Some(row)) => &plane[row],
-                _ => &zeros,
-            }
-        };
+        let plane = |p: &ParamPlanes, k: u32, y: usize| self.plane_row(p.first_plane + k, y, &zeros);
         colors
             .par_chunks_mut(stride * SHADE_BAND_ROWS)
             .enumerate()
@@ -1280,7 +1292,7 @@ impl Frame {
     /// to bytes in one vectorisable pass, then picked per pixel by its depth. Per pixel
     /// through `color_at` it was ~8 ns a pixel on drawn pixels (16 ms for 1920 x 1080).
     pub fn to_rgb8(&self) -> RgbImage {
-        let (width, height, stride) = (self.width as usize, self.height as usize, self.stride as usize);
+        let width = self.width as usize;
         let background = self.background.map(to_u8);
         // Without shaded colours a pixel is Cs: 3 planes, or one as gray; a plane the frame
         // lacks reads 0 (as in `plane_at`); no Cs (or one of 2 components) is white.
@@ -1288,16 +1300,13 @@ impl Frame {
         let (zeros, ones) = (vec![0.0f32; width], vec![1.0f32; width]);
         // A row's colours as bytes: interleaved when shaded, else the r, g and b rows.
         let mut bytes = vec![0u8; width * 3];
-        let mut rgb = vec![0u8; width * height * 3];
-        // (`max(1)`: a frame without columns has no rows to fill either.)
-        for (y, out) in rgb.chunks_exact_mut((width * 3).max(1)).enumerate() {
-            let row = y * stride..y * stride + width;
+        self.rgb8_image(|y, out| {
             let pixels = out.chunks_exact_mut(3);
-            let Some(depth) = self.depth.get(row.clone()) else {
+            let Some(depth) = self.row_of(&self.depth, y) else {
                 pixels.for_each(|px| px.copy_from_slice(&background));
-                continue;
+                return;
             };
-            if let Some(colors) = self.colors.as_ref().and_then(|c| c.get(row.clone())) {
+            if let Some(colors) = self.colors.as_ref().and_then(|c| self.row_of(c, y)) {
                 to_u8_row(colors.as_flattened(), &mut bytes);
                 for ((px, &d), shaded) in pixels.zip(depth).zip(bytes.chunks_exact(3)) {
                     let written = d != 0;
@@ -1305,26 +1314,21 @@ impl Frame {
                     px[1] = if written { shaded[1] } else { background[1] };
                     px[2] = if written { shaded[2] } else { background[2] };
                 }
-                continue;
+                return;
             }
             let plane_row = |k: u32| -> &[f32] {
                 let Some(cs) = cs else { return &ones };
                 let plane = cs.first_plane + if cs.components == 1 { 0 } else { k };
-                self.plane(plane).and_then(|p| p.get(row.clone())).unwrap_or(&zeros)
+                self.plane_row(plane, y, &zeros)
             };
-            let (r, rest) = bytes.split_at_mut(width);
-            let (g, b) = rest.split_at_mut(width);
-            to_u8_row(plane_row(0), r);
-            to_u8_row(plane_row(1), g);
-            to_u8_row(plane_row(2), b);
-            for ((px, &d), ((&r, &g), &b)) in pixels.zip(depth).zip(r.iter().zip(g.iter()).zip(b.iter())) {
+            let [r, g, b] = rows_to_u8([plane_row(0), plane_row(1), plane_row(2)], &mut bytes);
+            for ((px, &d), ((&r, &g), &b)) in pixels.zip(depth).zip(r.iter().zip(g).zip(b)) {
                 let written = d != 0;
                 px[0] = if written { r } else { background[0] };
                 px[1] = if written { g } else { background[1] };
                 px[2] = if written { b } else { background[2] };
             }
-        }
-        RgbImage::from_raw(self.width, self.height, rgb).expect("3 bytes per pixel")
+        })
     }
 
     /// Depth as 16-bit gray, nearer brighter (the top 16 bits of the raw depth).
@@ -1347,57 +1351,40 @@ impl Frame {
             ));
         }
         // Row by row over whole buffers, as `to_rgb8`; a plane the frame lacks reads 0.
-        let (width, stride) = (self.width as usize, self.stride as usize);
+        let width = self.width as usize;
         let zeros = vec![0.0f32; width];
-        let row_of = |plane: u32, y: usize| -> &[f32] {
-            let row = y * stride..y * stride + width;
-            self.plane(plane).and_then(|p| p.get(row)).unwrap_or(&zeros)
-        };
-        let depth_row = |y: usize| self.depth.get(y * stride..y * stride + width).unwrap_or(&[]);
-        let mut rgb = vec![0u8; width * self.height as usize * 3];
-        let mut bytes = vec![0u8; width * 3];
-        let rows = rgb.chunks_exact_mut((width * 3).max(1)).enumerate();
+        let row_of = |k: u32, y: usize| self.plane_row(p.first_plane + k, y, &zeros);
         if p.components == 3 {
-            for (y, out) in rows {
-                let (r, rest) = bytes.split_at_mut(width);
-                let (g, b) = rest.split_at_mut(width);
-                to_u8_row(row_of(p.first_plane, y), r);
-                to_u8_row(row_of(p.first_plane + 1, y), g);
-                to_u8_row(row_of(p.first_plane + 2, y), b);
-                for (px, ((&r, &g), &b)) in out.chunks_exact_mut(3).zip(r.iter().zip(g.iter()).zip(b.iter())) {
+            let mut bytes = vec![0u8; width * 3];
+            return Ok(self.rgb8_image(|y, out| {
+                let [r, g, b] = rows_to_u8([row_of(0, y), row_of(1, y), row_of(2, y)], &mut bytes);
+                for (px, ((&r, &g), &b)) in out.chunks_exact_mut(3).zip(r.iter().zip(g).zip(b)) {
                     px.copy_from_slice(&[r, g, b]);
                 }
-            }
-        } else {
-            // Gray over the range of the written, finite values; others black.
-            let value = |d: u32, v: f32| (d != 0 && v.is_finite()).then_some(v);
-            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-            for y in 0..self.height as usize {
-                for v in depth_row(y)
-                    .iter()
-                    .zip(row_of(p.first_plane, y))
-                    .filter_map(|(&d, &v)| value(d, v))
-                {
-                    lo = lo.min(v);
-                    hi = hi.max(v);
-                }
-            }
-            for (y, out) in rows {
-                let mut values = depth_row(y)
-                    .iter()
-                    .zip(row_of(p.first_plane, y))
-                    .map(|(&d, &v)| value(d, v));
-                for px in out.chunks_exact_mut(3) {
-                    let g = match values.next().flatten() {
-                        None => 0.0,
-                        Some(v) if hi > lo => (v - lo) / (hi - lo),
-                        Some(_) => 0.5,
-                    };
-                    px.fill(to_u8(g));
-                }
-            }
+            }));
         }
-        Ok(RgbImage::from_raw(self.width, self.height, rgb).expect("3 bytes per pixel"))
+        // Gray over the range of the written, finite values; others black.
+        let value = |d: u32, v: f32| (d != 0 && v.is_finite()).then_some(v);
+        let values = |y: usize| {
+            let depth = self.row_of(&self.depth, y).unwrap_or(&[]);
+            depth.iter().zip(row_of(0, y)).map(move |(&d, &v)| value(d, v))
+        };
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for v in (0..self.height as usize).flat_map(values).flatten() {
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        Ok(self.rgb8_image(|y, out| {
+            let mut values = values(y);
+            for px in out.chunks_exact_mut(3) {
+                let g = match values.next().flatten() {
+                    None => 0.0,
+                    Some(v) if hi > lo => (v - lo) / (hi - lo),
+                    Some(_) => 0.5,
+                };
+                px.fill(to_u8(g));
+            }
+        }))
     }
 }
 
@@ -1439,6 +1426,17 @@ fn to_u8_row(src: &[f32], dst: &mut [u8]) {
     for (d, &v) in dst.iter_mut().zip(src) {
         *d = to_u8(v);
     }
+}
+
+/// Three rows of one width as bytes, in the thirds of `bytes`.
+fn rows_to_u8<'b>(rows: [&[f32]; 3], bytes: &'b mut [u8]) -> [&'b [u8]; 3] {
+    let width = bytes.len() / 3;
+    let (r, rest) = bytes.split_at_mut(width);
+    let (g, b) = rest.split_at_mut(width);
+    to_u8_row(rows[0], r);
+    to_u8_row(rows[1], g);
+    to_u8_row(rows[2], b);
+    [r, g, b]
 }
 
 #[cfg(test)]
