@@ -6,6 +6,7 @@
 //! go into the caller's [`SourceMap`] so that compile errors, and later kernel run-time
 //! errors (which point into `Program::sites`), can be rendered against them.
 
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -161,12 +162,14 @@ fn load_file(sources: &mut SourceMap, path: &Path, loaded: &mut Vec<FileId>, dia
 /// call into, transitively; `None` when that cannot be told (see [`Registry::load_for`]).
 fn files_for(sources: &SourceMap, files: &[FileId], prims: &[&str], kinds: &[&str]) -> Option<Vec<FileId>> {
     let items: Vec<Option<FileItems>> = files.iter().map(|&f| file_items(sources.text(f))).collect();
-    let defines = |name: &str| -> Vec<usize> {
-        (0..items.len())
-            .filter(|&k| items[k].as_ref().is_some_and(|i| i.defines.iter().any(|d| d == name)))
-            .collect()
-    };
-    if prims.iter().any(|p| defines(p).is_empty()) {
+    // Name -> the files defining it.
+    let mut definers: HashMap<&str, Vec<usize>> = HashMap::new();
+    for (k, i) in items.iter().enumerate() {
+        for name in i.iter().flat_map(|i| &i.defines) {
+            definers.entry(name).or_default().push(k);
+        }
+    }
+    if prims.iter().any(|p| !definers.contains_key(p)) {
         return None;
     }
     // Files whose items could not be told apart are compiled whatever they define.
@@ -174,12 +177,12 @@ fn files_for(sources: &SourceMap, files: &[FileId], prims: &[&str], kinds: &[&st
     // (Their calls cannot be told either: a name they need in another file is one the
     // scene's names lead to, or the compile of the files picked fails and all are compiled.)
     let mut wanted: Vec<&str> = prims.iter().chain(kinds).copied().collect();
-    let mut seen = std::collections::HashSet::new();
+    let mut seen = HashSet::new();
     while let Some(name) = wanted.pop() {
         if !seen.insert(name) {
             continue;
         }
-        for k in defines(name) {
+        for &k in definers.get(name).into_iter().flatten() {
             if !picked[k] {
                 picked[k] = true;
                 if let Some(i) = &items[k] {
