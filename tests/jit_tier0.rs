@@ -337,7 +337,36 @@ fn the_jit_reports_compile_cost_in_thread_cpu_time() {
         if cfg!(target_os = "linux") {
             assert!(c.cpu_micros > 0, "{name}: thread CPU time is measured: {c:?}");
         }
+        assert!(
+            c.codegen_cpu_micros <= c.cpu_micros,
+            "{name}: Cranelift's part is part of the kernel's time: {c:?}"
+        );
     }
+    // The CLIF size reported is the kernel's as `clif` prints it.
+    for tier in [Tier::Fast, Tier::Optimised] {
+        let mut jit = Jit::at_tier(program.clone(), tier).unwrap();
+        jit.kernel(inst.func, &inst.key).unwrap();
+        let cost = jit.compile_cost(inst.func, &inst.key).unwrap();
+        let printed = jit.clif(inst.func, &inst.key).unwrap();
+        assert_eq!(cost.clif_insts, clif_instructions(&printed), "{tier:?}: {cost:?}");
+    }
+}
+
+/// Instruction lines of printed CLIF: indented lines that are neither declarations (stack
+/// slots, signatures, imported functions, global values, constants) nor value aliases
+/// (`v5 -> v3`).
+fn clif_instructions(clif: &str) -> u64 {
+    let declaration = |first: &str| {
+        ["ss", "sig", "fn", "gv", "const", "jt", "dss"].iter().any(|p| {
+            first
+                .strip_prefix(p)
+                .is_some_and(|rest| !rest.is_empty() && rest.bytes().all(|b| b.is_ascii_digit()))
+        })
+    };
+    clif.lines()
+        .filter(|l| l.starts_with("    "))
+        .filter(|l| !declaration(l.split_whitespace().next().unwrap_or("")) && !l.contains(" -> "))
+        .count() as u64
 }
 
 /// One `prim` over `rect` with scalar parameters `params` on a 40 x 24 image in 16-pixel

@@ -108,6 +108,12 @@ pub struct CompileTiming {
     /// in `examples/compile_probe.rs`, while `cpu_micros` follows rendering (caches
     /// evicted), which on the development machine costs up to twice as much.
     pub warm_cpu_micros: u64,
+    /// Of `warm_cpu_micros`, Cranelift's part (instruction selection, register allocation,
+    /// emission; see [`crate::jit::CompileCost::codegen_cpu_micros`]): what compiling this
+    /// much CLIF costs whatever the front end does.
+    pub warm_codegen_cpu_micros: u64,
+    /// Instructions in the tier-0 kernel's CLIF.
+    pub clif_insts: u64,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -506,6 +512,8 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
                 tier1_cpu_micros: tier1_cost.cpu_micros,
                 tier1_batch_cpu_micros: tier1_cost.batch_cpu_micros,
                 warm_cpu_micros: warm_cost.cpu_micros,
+                warm_codegen_cpu_micros: warm_cost.codegen_cpu_micros,
+                clif_insts: warm_cost.clif_insts,
             });
         }
 
@@ -839,18 +847,21 @@ pub fn format_table(report: &BenchReport) -> String {
         "JIT compile time per variant, microseconds: thread CPU of the kernel (of its whole batch:\n\
          callees, linking) and wall time of the kernel; tier 0 is what the first frame waits for,\n\
          tier 1 compiles in the background (its wall time includes waiting for a core); warm:\n\
-         tier 0 compiled again at once in a fresh JIT (caches warm, as in compile_probe)\n",
+         tier 0 compiled again at once in a fresh JIT (caches warm, as in compile_probe), and of\n\
+         that Cranelift's part (instruction selection, register allocation, emission), which\n\
+         grows with the kernel's tier-0 CLIF instructions\n",
     );
     s.push_str(&format!(
-        "  {:>22} {:>8} {:>6} | {:>22} {:>8}\n",
-        "tier 0 CPU (batch)", "wall", "warm", "tier 1 CPU (batch)", "wall"
+        "  {:>22} {:>8} {:>18} {:>6} | {:>22} {:>8}\n",
+        "tier 0 CPU (batch)", "wall", "warm (Cranelift)", "CLIF", "tier 1 CPU (batch)", "wall"
     ));
     for c in &report.compile {
         s.push_str(&format!(
-            "  {:>22} {:>8} {:>6} | {:>22} {:>8}  {}: {}\n",
+            "  {:>22} {:>8} {:>18} {:>6} | {:>22} {:>8}  {}: {}\n",
             format!("{} ({})", c.cpu_micros, c.batch_cpu_micros),
             c.micros,
-            c.warm_cpu_micros,
+            format!("{} ({})", c.warm_cpu_micros, c.warm_codegen_cpu_micros),
+            c.clif_insts,
             format!("{} ({})", c.tier1_cpu_micros, c.tier1_batch_cpu_micros),
             c.tier1_micros,
             c.workload,

@@ -63,6 +63,10 @@ pub(super) struct CompiledFunction {
     /// Lowering and compiling it: wall time and its thread's CPU time, microseconds.
     pub wall_micros: u64,
     pub cpu_micros: u64,
+    /// Of `cpu_micros`, Cranelift's `Context::compile`.
+    pub codegen_cpu_micros: u64,
+    /// Instructions of the CLIF compiled.
+    pub clif_insts: u64,
 }
 
 impl CompiledFunction {
@@ -93,6 +97,15 @@ impl CompiledFunction {
             })
             .collect()
     }
+}
+
+/// What Cranelift made of one lowered function.
+struct MachineCode {
+    code: Vec<u8>,
+    alignment: u64,
+    relocs: Vec<ModuleReloc>,
+    codegen_cpu_micros: u64,
+    clif_insts: u64,
 }
 
 /// Why a function of a batch has no machine code. A lowering error ends the serial batch
@@ -213,15 +226,17 @@ impl<'j> BatchWork<'j> {
         give_back_context(ctx);
         let cpu = super::thread_cpu_micros().saturating_sub(started_cpu);
         self.cpu_micros.fetch_add(cpu, Ordering::Relaxed);
-        let result = result.map(|((layout, warnings), (code, alignment, relocs))| CompiledFunction {
-            code,
-            alignment,
-            relocs,
+        let result = result.map(|((layout, warnings), compiled)| CompiledFunction {
+            code: compiled.code,
+            alignment: compiled.alignment,
+            relocs: compiled.relocs,
             layout,
             warnings,
             upgrade,
             wall_micros: started.elapsed().as_micros() as u64,
             cpu_micros: cpu,
+            codegen_cpu_micros: compiled.codegen_cpu_micros,
+            clif_insts: compiled.clif_insts,
         });
         let outcome = Outcome { callees, result };
         self.outcomes
@@ -232,13 +247,18 @@ impl<'j> BatchWork<'j> {
 
     /// Compile `ctx`'s function (`f` lowered): its machine code, alignment and relocations
     /// (with placeholder names).
-    fn compile(&self, f: FuncId, ctx: &mut Context) -> Result<(Vec<u8>, u64, Vec<ModuleReloc>), Failure> {
+    fn compile(&self, f: FuncId, ctx: &mut Context) -> Result<MachineCode, Failure> {
         let failed = |detail: String| {
             Failure::Compiling(JitError {
                 message: format!("compiling `{}`: {detail}", self.program.func(f).name),
             })
         };
-        if let Err(e) = ctx.compile(&**self.isa, &mut Default::default()) {
+        let layout = &ctx.func.layout;
+        let clif_insts = layout.blocks().map(|b| layout.block_insts(b).count() as u64).sum();
+        let started_cpu = super::thread_cpu_micros();
+        let compiled = ctx.compile(&**self.isa, &mut Default::default());
+        let codegen_cpu_micros = super::thread_cpu_micros().saturating_sub(started_cpu);
+        if let Err(e) = compiled {
             return Err(failed(format!("{:?}", e.inner)));
         }
         let code = ctx
@@ -251,7 +271,13 @@ impl<'j> BatchWork<'j> {
             .iter()
             .map(|r| ModuleReloc::from_mach_reloc(r, &ctx.func, placeholder))
             .collect();
-        Ok((code.code_buffer().to_vec(), code.buffer.alignment as u64, relocs))
+        Ok(MachineCode {
+            code: code.code_buffer().to_vec(),
+            alignment: code.buffer.alignment as u64,
+            relocs,
+            codegen_cpu_micros,
+            clif_insts,
+        })
     }
 
     /// Lower `f` into `func`: its argument layout and the lowering's warnings.

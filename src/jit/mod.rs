@@ -105,6 +105,13 @@ pub struct CompileCost {
     pub wall_micros: u64,
     /// The same, in the CPU time of the threads that did it, microseconds.
     pub cpu_micros: u64,
+    /// The part of `cpu_micros` spent in Cranelift (`Context::compile`: instruction
+    /// selection, register allocation, emission); the rest is ours (preparing the body,
+    /// range analysis, lowering to CLIF, linking). Cranelift's cost grows with the CLIF, so
+    /// this is the floor no front-end work can go under without emitting less code.
+    pub codegen_cpu_micros: u64,
+    /// Instructions in the kernel's CLIF as handed to Cranelift.
+    pub clif_insts: u64,
     /// The whole batch this kernel was compiled in (itself, the callees compiled with it,
     /// unrolling, linking and making the code executable): the CPU time of every thread
     /// that worked on it, summed, microseconds. The functions of a batch are compiled in
@@ -1047,6 +1054,8 @@ impl Jit {
             let cost = CompileCost {
                 wall_micros: c.wall_micros + started.elapsed().as_micros() as u64,
                 cpu_micros: c.cpu_micros + thread_cpu_micros().saturating_sub(started_cpu),
+                codegen_cpu_micros: c.codegen_cpu_micros,
+                clif_insts: c.clif_insts,
                 ..CompileCost::default()
             };
             defined.push((f, id, c.layout, c.warnings, cost));
