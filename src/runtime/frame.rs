@@ -1333,9 +1333,17 @@ impl Frame {
 
     /// Depth as 16-bit gray, nearer brighter (the top 16 bits of the raw depth).
     pub fn depth_image(&self) -> ImageBuffer<Luma<u16>, Vec<u16>> {
-        ImageBuffer::from_fn(self.width, self.height, |x, y| {
-            Luma([(self.depth_at(x, y).unwrap_or(0) >> 16) as u16])
-        })
+        // Row by row, as `to_rgb8`: a row past the depth buffer's end reads 0.
+        let (width, height) = (self.width as usize, self.height as usize);
+        let mut gray = vec![0u16; width * height];
+        for (y, out) in gray.chunks_exact_mut(width.max(1)).enumerate() {
+            if let Some(row) = self.row_of(&self.depth, y) {
+                for (o, &d) in out.iter_mut().zip(row) {
+                    *o = (d >> 16) as u16;
+                }
+            }
+        }
+        ImageBuffer::from_raw(self.width, self.height, gray).expect("one u16 per pixel")
     }
 
     /// A shading parameter as an image: 1 component as gray normalised to its range over the
@@ -1548,6 +1556,26 @@ mod tests {
         };
         f.reset(&opts(4, 4, 4), 2, std::iter::once(two));
         assert!(f.param_image("uv").is_err() && f.param_image("none").is_err());
+    }
+
+    #[test]
+    fn depth_image_is_the_top_16_bits_of_every_pixels_depth() {
+        let (w, h) = (7, 5);
+        let mut f = Frame::empty();
+        f.reset(&opts(w, h, 4), 0, std::iter::empty());
+        for (i, d) in f.depth.iter_mut().enumerate() {
+            *d = (i as u32).wrapping_mul(0x9e37_79b9) | u32::from(i % 4 == 0) << 31;
+        }
+        let image = f.depth_image();
+        assert_eq!(image.dimensions(), (w, h));
+        for y in 0..h {
+            for x in 0..w {
+                let want = (f.depth_at(x, y).unwrap() >> 16) as u16;
+                assert_eq!(image.get_pixel(x, y).0, [want], "({x}, {y})");
+            }
+        }
+        // A frame never rendered: an empty image, no panic.
+        assert_eq!(Frame::empty().depth_image().dimensions(), (0, 0));
     }
 
     #[test]
