@@ -19,7 +19,6 @@ use crate::abi::{TileCtx, MODE_BOUND};
 pub(crate) struct Setup<const T: usize> {
     /// G-buffer plane of each component (the argument block's plane table).
     pub planes: [u32; T],
-    pub bound: [f32; 4],
     pub exact: bool,
     pub ox16: i32,
     pub oy16: i32,
@@ -60,7 +59,45 @@ fn max3(a: f32, b: f32, c: f32) -> f32 {
     a.max(b).max(c)
 }
 
-/// The uniform part of the prim. `None` when the triangle draws nothing.
+/// The prim up to its `bound(...)`: the integer grid's origin and the vertices' largest
+/// coordinates. `None` for a NaN or infinite vertex (nothing to draw).
+#[derive(Clone, Copy)]
+pub(crate) struct Extent {
+    ox: f32,
+    oy: f32,
+    max_x: f32,
+    max_y: f32,
+}
+
+impl Extent {
+    /// # Safety
+    /// `args` must hold the screen_triangle argument block for `T` components.
+    #[inline(always)]
+    pub(crate) unsafe fn of<const T: usize>(args: *const u32) -> Option<Extent> {
+        let sv = |v: usize, c: usize| f32::from_bits(unsafe { word(args, 1 + T + v * 4 + c) });
+        for i in 0..3 {
+            if !(sv(i, 0).abs() < 1e30 && sv(i, 1).abs() < 1e30) {
+                return None;
+            }
+        }
+        Some(Extent {
+            ox: min3(sv(0, 0), sv(1, 0), sv(2, 0)).floor(),
+            oy: min3(sv(0, 1), sv(1, 1), sv(2, 1)).floor(),
+            max_x: max3(sv(0, 0), sv(1, 0), sv(2, 0)),
+            max_y: max3(sv(0, 1), sv(1, 1), sv(2, 1)),
+        })
+    }
+
+    /// The bound the prim records: padded by a 1/16 grid step, since snapping can move a
+    /// corner past the largest coordinate.
+    #[inline(always)]
+    pub(crate) fn bound(&self) -> [f32; 4] {
+        [self.ox, self.oy, self.max_x + 0.0625, self.max_y + 0.0625]
+    }
+}
+
+/// The rest of the prim's uniform part, after its `bound(...)`. `None` when the triangle
+/// draws nothing.
 ///
 /// Inlined into each kernel so the SIMD ones round with their own instructions (SSE4.1's
 /// `roundss`) rather than baseline x86-64's libm calls (`floorf`, `rintf`): per small
@@ -69,22 +106,12 @@ fn max3(a: f32, b: f32, c: f32) -> f32 {
 /// # Safety
 /// `args` must hold the screen_triangle argument block for `T` components.
 #[inline(always)]
-pub(crate) unsafe fn setup<const T: usize>(args: *const u32) -> Option<Setup<T>> {
+pub(crate) unsafe fn setup<const T: usize>(args: *const u32, e: Extent) -> Option<Setup<T>> {
     let sv_at = 1 + T;
     let data_at = sv_at + 12;
     let sv = |v: usize, c: usize| f32::from_bits(unsafe { word(args, sv_at + v * 4 + c) });
     let data = |v: usize, c: usize| f32::from_bits(unsafe { word(args, data_at + v * T + c) });
-    for i in 0..3 {
-        if !(sv(i, 0).abs() < 1e30 && sv(i, 1).abs() < 1e30) {
-            return None;
-        }
-    }
-    let ox = min3(sv(0, 0), sv(1, 0), sv(2, 0)).floor();
-    let oy = min3(sv(0, 1), sv(1, 1), sv(2, 1)).floor();
-    let max_x = max3(sv(0, 0), sv(1, 0), sv(2, 0));
-    let max_y = max3(sv(0, 1), sv(1, 1), sv(2, 1));
-    // Padded by a 1/16 grid step, as the prim does: snapping can move a corner past max.
-    let bound = [ox, oy, max_x + 0.0625, max_y + 0.0625];
+    let Extent { ox, oy, max_x, max_y } = e;
     let exact = max_x - ox < 1024.0 && max_y - oy < 1024.0;
     let mut vx = [0i32; 3];
     let mut vy = [0i32; 3];
@@ -154,7 +181,6 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32) -> Option<Setup<T>>
     }
     let mut s = Setup::<T> {
         planes,
-        bound,
         exact,
         ox16: (ox * 16.0) as i32,
         oy16: (oy * 16.0) as i32,
@@ -330,8 +356,14 @@ pub unsafe extern "C" fn scalar<const P: usize, const L: usize, const T: usize, 
 ) {
     // SAFETY: the runtime hands a valid, exclusive context for the duration of the call.
     let ctx = unsafe { &mut *ctx };
-    let Some(s) = (unsafe { setup::<T>(args) }) else { return };
-    let Some([rx0, ry0, rx1, ry1]) = bound_or_rect(ctx, s.bound) else {
+    // As the prim (and the JIT): a bound run ends at the bound.
+    let Some(e) = (unsafe { Extent::of::<T>(args) }) else {
+        return;
+    };
+    let Some([rx0, ry0, rx1, ry1]) = bound_or_rect(ctx, e.bound()) else {
+        return;
+    };
+    let Some(s) = (unsafe { setup::<T>(args, e) }) else {
         return;
     };
     let planes = s.planes;
@@ -403,8 +435,14 @@ pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, co
     use std::arch::x86_64::*;
     // SAFETY: as in `scalar`.
     let ctx = unsafe { &mut *ctx };
-    let Some(s) = (unsafe { setup::<T>(args) }) else { return };
-    let Some([rx0, ry0, rx1, ry1]) = bound_or_rect(ctx, s.bound) else {
+    // As the prim (and the JIT): a bound run ends at the bound.
+    let Some(e) = (unsafe { Extent::of::<T>(args) }) else {
+        return;
+    };
+    let Some([rx0, ry0, rx1, ry1]) = bound_or_rect(ctx, e.bound()) else {
+        return;
+    };
+    let Some(s) = (unsafe { setup::<T>(args, e) }) else {
         return;
     };
     let planes = s.planes;
@@ -587,10 +625,12 @@ macro_rules! sse_kernel {
 
             // SAFETY: as in `scalar`.
             let ctx = unsafe { &mut *ctx };
-            let Some(s) = (unsafe { setup::<T>(args) }) else { return };
-            let Some([rx0, ry0, rx1, ry1]) = bound_or_rect(ctx, s.bound) else {
+            // As the prim (and the JIT): a bound run ends at the bound.
+            let Some(e) = (unsafe { Extent::of::<T>(args) }) else { return };
+            let Some([rx0, ry0, rx1, ry1]) = bound_or_rect(ctx, e.bound()) else {
                 return;
             };
+            let Some(s) = (unsafe { setup::<T>(args, e) }) else { return };
             let stride = ctx.stride as usize;
             let plane_base = tile_plane_bases(ctx, &s.planes);
             let splat = |v: f32| _mm_set1_ps(v);
