@@ -1,10 +1,11 @@
-//! Tier 0's lighter lowering (src/jit/lower.rs, `Lower::tier0`): small uniform `if`s of setup
-//! code become straight-line code with selects, `if (c) return;` in setup is one branch,
-//! locals get no explicit zero, repeated argument loads are shared, stores have no
-//! all-lanes fast path and the uniform frame keeps no splatted copies. None of that may
-//! change a pixel or a run-time error: every case here renders with tier 0 and tier 1 and
-//! compares the frames bit for bit and the errors code for code. Also: the JIT reports what
-//! a compile cost in thread CPU time (`Jit::compile_cost`).
+//! Tier 0's lighter lowering (src/jit/lower.rs, `Lower::tier0`): `if (c) return;` in setup
+//! is one branch, locals get no explicit zero, repeated argument loads are shared, stores
+//! have no all-lanes fast path and the uniform frame keeps no splatted copies; and, at both
+//! tiers, small uniform `if`s of setup code become straight-line code with selects (checked
+//! against the source's values too). None of that may change a pixel or a run-time error:
+//! every case here renders with tier 0 and tier 1 and compares the frames bit for bit and
+//! the errors code for code. Also: the JIT reports what a compile cost in thread CPU time
+//! (`Jit::compile_cost`).
 
 mod common;
 
@@ -16,7 +17,7 @@ use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Frame, Renderer, Value};
 
-/// Setup code with nested uniform `if`s that only assign (if-converted by tier 0), a local
+/// Setup code with nested uniform `if`s that only assign (if-converted by both tiers), a local
 /// read on a path where nothing assigned it (zero), a dynamically indexed store inside an
 /// `if` (not if-converted: taken with `k` out of range it records an error, untaken it must
 /// not) and an early `return`.
@@ -260,6 +261,30 @@ fn if_converted_setup_gives_the_same_pixels_and_errors_as_branches() {
         let (frame, codes) = both_tiers(&sources, &program, &r, &format!("mode {mode} k {k}"));
         assert_eq!(!codes.is_empty(), error, "mode {mode} k {k}: errors {codes:?}");
         assert_eq!(written(&frame) > 0, draws, "mode {mode} k {k}: draws");
+        if draws {
+            // Both tiers if-convert these `if`s: the values themselves, from the source's
+            // semantics (rect[0] = 2; an out-of-range `w[k]` clamps to `w[1]`).
+            let (mut a, mut sum_s, mut w) = ([0.0f32; 3], 0.0f32, [0.0f32; 2]);
+            if mode > 1.0 {
+                a[0] = 2.0 * 0.5;
+                a[1] = a[0] + 1.0;
+                if mode > 2.0 {
+                    sum_s = a[1] * 2.0;
+                } else {
+                    a[2] = 0.25;
+                }
+            } else {
+                a[2] = mode;
+            }
+            if mode > 3.0 {
+                w[k.clamp(0, 1) as usize] = 7.0;
+            }
+            let (x, y) = (10u32, 8u32);
+            let (px, py) = (x as f32 + 0.5, y as f32 + 0.5);
+            let want = (a[0] + a[1] + a[2] + sum_s + w[0] + w[1]) * 0.01 + px * 0.001 + py * 0.0001;
+            let got = frame.depth_f32_at(x, y).unwrap();
+            assert!((got - want).abs() < 1e-6, "mode {mode} k {k}: depth {got}, want {want}");
+        }
         frames.push(frame);
     }
     // The branches matter: each of the first four modes writes different depths.

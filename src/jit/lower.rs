@@ -2251,8 +2251,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                     return self.masked_if(entry, m, then, otherwise);
                 }
             }
-            // Tier 0: fewer blocks (see `if_converted`).
-            if self.tier0() && self.pix.is_none() && self.if_convertible(then, otherwise) {
+            // Small assigning `if`s of setup code: straight-line (see `if_converted`).
+            if self.pix.is_none() && self.if_convertible(then, otherwise) {
                 return self.if_converted(c, then, otherwise);
             }
             // Tier 0: `if (c) return;` in setup is one branch to the exit, not a `then`
@@ -2424,14 +2424,17 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.switch_to_block(cont);
     }
 
-    // ------------------------------------------------ tier 0: if-conversion in setup
+    // ------------------------------------------------ if-conversion in setup
 
-    /// Tier 0 lowers a small uniform `if` of setup code whose sides only assign SSA
-    /// variables from expressions that cannot fail as straight-line code: both sides, then
-    /// one `select` per variable either side assigns. Each block boundary costs the tier-0
-    /// register allocator (it spills every live value there and reloads it on use), so
-    /// fewer blocks compile faster; the values assigned are the same, so results are
-    /// bit-identical to the branching form.
+    /// A small uniform `if` of setup code whose sides only assign SSA variables from
+    /// expressions that cannot fail is lowered as straight-line code: both sides, then one
+    /// `select` per variable either side assigns. The values assigned are the same, so
+    /// results are bit-identical to the branching form. At tier 0 each block boundary
+    /// costs the register allocator (it spills every live value there and reloads it on
+    /// use), so fewer blocks compile faster. At tier 1 the e-graph places a pure value at
+    /// its first use: a value used inside one side and again after the join was computed
+    /// twice (screen_triangle's snapped vertices, used for `px` in the `exact` side and for
+    /// the integer edges after it: 6 of its setup's rounds and conversions repeated).
     fn if_convertible(&self, then: &[Stmt], otherwise: &[Stmt]) -> bool {
         const MAX_STMTS: usize = 24;
         let mut budget = MAX_STMTS;
