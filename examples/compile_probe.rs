@@ -5,8 +5,8 @@
 //! Run: `cargo run --release --example compile_probe -- [rounds] [options]`.
 //! Compiles the bench's `fill perspective_linear K=4` screen_triangle variant (or
 //! `kind=linear|none`, `k=N`) `rounds` times (default 20) on fresh JITs, for each
-//! configuration (tier 0, tier 1, unrolling off), prints the minimum of each (and of Cranelift's part, `CompileCost::codegen_cpu_micros`) and the
-//! bench's time to first pixel. Options: `timings [fast]` adds Cranelift's pass timings
+//! configuration (tier 0, tier 1, unrolling off), prints the minimum of each (and of its
+//! Cranelift part, `CompileCost::codegen_cpu_micros`) and the bench's time to first pixel. Options: `timings [fast]` adds Cranelift's pass timings
 //! summed over `rounds` compiles (tier 1, or tier 0 with `fast`); `clif=FILE [fast]` writes
 //! the CLIF; `disasm=FILE [fast]` writes the machine code after register allocation and
 //! prints its instruction and spill/reload counts; `shape=sphere_implicit|sphere_lit|polygon|nurb` compiles the first instance of
