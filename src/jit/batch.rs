@@ -51,11 +51,7 @@ const OWN_ID_PLACEHOLDER: u32 = u32::MAX;
 
 /// One function of a batch, lowered and compiled.
 pub(super) struct CompiledFunction {
-    /// The machine code (its relocations not applied).
-    pub code: Vec<u8>,
-    pub alignment: u64,
-    /// Relocations with placeholder names (see [`CompiledFunction::relocs_for`]).
-    relocs: Vec<ModuleReloc>,
+    pub machine: MachineCode,
     pub layout: ArgLayout,
     pub warnings: Vec<String>,
     /// A tiered JIT's upgrade word, which the code reads (see `super::UpgradeWord`).
@@ -63,10 +59,6 @@ pub(super) struct CompiledFunction {
     /// Lowering and compiling it: wall time and its thread's CPU time, microseconds.
     pub wall_micros: u64,
     pub cpu_micros: u64,
-    /// Of `cpu_micros`, Cranelift's `Context::compile`.
-    pub codegen_cpu_micros: u64,
-    /// Instructions of the CLIF compiled.
-    pub clif_insts: u64,
 }
 
 impl CompiledFunction {
@@ -77,7 +69,8 @@ impl CompiledFunction {
         own: ModuleFuncId,
         callee: impl Fn(FuncId) -> Option<ModuleFuncId>,
     ) -> Result<Vec<ModuleReloc>, JitError> {
-        self.relocs
+        self.machine
+            .relocs
             .iter()
             .map(|r| {
                 let name = match r.name {
@@ -100,12 +93,16 @@ impl CompiledFunction {
 }
 
 /// What Cranelift made of one lowered function.
-struct MachineCode {
-    code: Vec<u8>,
-    alignment: u64,
+pub(super) struct MachineCode {
+    /// The machine code (its relocations not applied).
+    pub code: Vec<u8>,
+    pub alignment: u64,
+    /// Relocations with placeholder names (see [`CompiledFunction::relocs_for`]).
     relocs: Vec<ModuleReloc>,
-    codegen_cpu_micros: u64,
-    clif_insts: u64,
+    /// Thread CPU time of Cranelift's `Context::compile`, microseconds.
+    pub codegen_cpu_micros: u64,
+    /// Instructions of the CLIF compiled.
+    pub clif_insts: u64,
 }
 
 /// Why a function of a batch has no machine code. A lowering error ends the serial batch
@@ -226,17 +223,13 @@ impl<'j> BatchWork<'j> {
         give_back_context(ctx);
         let cpu = super::thread_cpu_micros().saturating_sub(started_cpu);
         self.cpu_micros.fetch_add(cpu, Ordering::Relaxed);
-        let result = result.map(|((layout, warnings), compiled)| CompiledFunction {
-            code: compiled.code,
-            alignment: compiled.alignment,
-            relocs: compiled.relocs,
+        let result = result.map(|((layout, warnings), machine)| CompiledFunction {
+            machine,
             layout,
             warnings,
             upgrade,
             wall_micros: started.elapsed().as_micros() as u64,
             cpu_micros: cpu,
-            codegen_cpu_micros: compiled.codegen_cpu_micros,
-            clif_insts: compiled.clif_insts,
         });
         let outcome = Outcome { callees, result };
         self.outcomes

@@ -1043,7 +1043,7 @@ impl Jit {
             })?;
             let relocs = c.relocs_for(id, |callee| self.declared.get(&(callee, key.clone())).copied())?;
             self.module
-                .define_function_bytes(id, c.alignment, &c.code, &relocs)
+                .define_function_bytes(id, c.machine.alignment, &c.machine.code, &relocs)
                 .map_err(|e| JitError {
                     message: format!("compiling `{}`: {e}", program.func(f).name),
                 })?;
@@ -1054,8 +1054,8 @@ impl Jit {
             let cost = CompileCost {
                 wall_micros: c.wall_micros + started.elapsed().as_micros() as u64,
                 cpu_micros: c.cpu_micros + thread_cpu_micros().saturating_sub(started_cpu),
-                codegen_cpu_micros: c.codegen_cpu_micros,
-                clif_insts: c.clif_insts,
+                codegen_cpu_micros: c.machine.codegen_cpu_micros,
+                clif_insts: c.machine.clif_insts,
                 ..CompileCost::default()
             };
             defined.push((f, id, c.layout, c.warnings, cost));
