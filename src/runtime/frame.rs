@@ -1306,14 +1306,18 @@ impl Frame {
                 pixels.for_each(|px| px.copy_from_slice(&background));
                 return;
             };
+            // Each pixel its colour where a primitive wrote it, else the background.
+            let put = |colors: &mut dyn Iterator<Item = [u8; 3]>| {
+                for ((px, &d), c) in pixels.zip(depth).zip(colors) {
+                    let written = d != 0;
+                    px[0] = if written { c[0] } else { background[0] };
+                    px[1] = if written { c[1] } else { background[1] };
+                    px[2] = if written { c[2] } else { background[2] };
+                }
+            };
             if let Some(colors) = self.colors.as_ref().and_then(|c| self.row_of(c, y)) {
                 to_u8_row(colors.as_flattened(), &mut bytes);
-                for ((px, &d), shaded) in pixels.zip(depth).zip(bytes.chunks_exact(3)) {
-                    let written = d != 0;
-                    px[0] = if written { shaded[0] } else { background[0] };
-                    px[1] = if written { shaded[1] } else { background[1] };
-                    px[2] = if written { shaded[2] } else { background[2] };
-                }
+                put(&mut bytes.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
                 return;
             }
             let plane_row = |k: u32| -> &[f32] {
@@ -1322,12 +1326,7 @@ impl Frame {
                 self.plane_row(plane, y, &zeros)
             };
             let [r, g, b] = rows_to_u8([plane_row(0), plane_row(1), plane_row(2)], &mut bytes);
-            for ((px, &d), ((&r, &g), &b)) in pixels.zip(depth).zip(r.iter().zip(g).zip(b)) {
-                let written = d != 0;
-                px[0] = if written { r } else { background[0] };
-                px[1] = if written { g } else { background[1] };
-                px[2] = if written { b } else { background[2] };
-            }
+            put(&mut r.iter().zip(g).zip(b).map(|((&r, &g), &b)| [r, g, b]));
         })
     }
 
