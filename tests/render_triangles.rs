@@ -247,3 +247,34 @@ fn non_finite_and_degenerate_triangles_draw_nothing() {
         .sum();
     assert_eq!(total, 0, "degenerate or non-finite triangles wrote pixels");
 }
+
+/// Binning sends a primitive only to the tiles holding a pixel centre of its bound (no
+/// margin): small triangles, some with corners on pixel centres and tile edges, render to
+/// the same bits in 8, 16 and 24 px tiles as in one tile covering the whole image.
+#[test]
+fn small_triangles_render_the_same_whatever_the_tile_size() {
+    let program = library();
+    let mut r = primflow::bench::small_scene(&program, 96, 2000, 4);
+    // Corners on pixel centres and on tile edges (8 and 16 divide 32, 64; 24 divides 48).
+    for (i, x) in [31.5f32, 32.0, 32.5, 47.5, 48.0, 63.5, 64.0, 64.5].into_iter().enumerate() {
+        let y = 16.0 + 8.0 * i as f32;
+        screen_triangle(
+            &mut r,
+            [[x, y, 0.99, 1.0], [x + 3.0, y + 0.5, 0.99, 1.0], [x + 0.5, y + 7.5, 0.99, 1.0]],
+            &[],
+        );
+        screen_triangle(
+            &mut r,
+            [[x, y, 0.99, 1.0], [x - 0.5, y + 7.5, 0.99, 1.0], [x - 3.0, y + 0.5, 0.99, 1.0]],
+            &[],
+        );
+    }
+    r.set_tile_size(96).unwrap();
+    let whole = render(&r, 1);
+    assert!(whole.depth_values().iter().filter(|&&d| d != 0).count() > 4000);
+    for tile in [8, 16, 24] {
+        r.set_tile_size(tile).unwrap();
+        let tiled = render(&r, 2);
+        assert!(primflow::bench::same_frame(&tiled, &whole), "{tile} px tiles");
+    }
+}

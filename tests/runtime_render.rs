@@ -67,9 +67,9 @@ fn a_rect_across_tiles_covers_exactly_its_pixels() {
         }
     }
     assert_eq!(covered, 16 * 11);
-    // Binned into the 4x3 tiles its pixels plus a one-pixel margin (x 5..=24, y 6..=20)
-    // touch, of the 6x4 8-pixel tiles.
-    assert_eq!(out.stats.tile_invocations, 12);
+    // Binned into the 3x2 tiles its pixels (x 7..=22, y 8..=18) touch, of the 6x4 8-pixel
+    // tiles: no call for a tile that holds none of them.
+    assert_eq!(out.stats.tile_invocations, 6);
 }
 
 #[test]

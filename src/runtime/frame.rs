@@ -625,9 +625,12 @@ pub(super) fn run_bound(draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>,
 /// An inclusive rectangle of tile indices: (tx0, ty0, tx1, ty1).
 pub(super) type TileRect = (usize, usize, usize, usize);
 
-/// The tiles (inclusive tile-index rectangle) a screen bound overlaps, or `None`. Pixels
-/// whose centre lies in the bound are covered; the range is widened by one pixel each way so
-/// float rounding can never drop a tile.
+/// The tiles (inclusive tile-index rectangle) holding a pixel whose centre lies in a screen
+/// bound, or `None`: exactly the tiles in which a kernel's render call runs a pixel
+/// (`pass_range` in the JIT takes the same pixels). In f64 `x - 0.5` and its floor and ceil
+/// are exact for every clamped f32 bound, so no margin is needed; a one-pixel margin each way
+/// (until session 20) sent a 20-pixel triangle to 1.29 tiles on average where 1.2 hold a
+/// pixel of it, each extra call paying the whole setup for no pixel.
 fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<TileRect> {
     if bound.iter().any(|v| v.is_nan()) {
         return None;
@@ -638,10 +641,10 @@ fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<TileRect> {
     let ymin = f64::from(bound[1]).clamp(-2.0, h + 2.0);
     let xmax = f64::from(bound[2]).clamp(-2.0, w + 2.0);
     let ymax = f64::from(bound[3]).clamp(-2.0, h + 2.0);
-    let px0 = (floor_clamped(xmin - 0.5) - 1).max(0);
-    let py0 = (floor_clamped(ymin - 0.5) - 1).max(0);
-    let px1 = (ceil_clamped(xmax - 0.5) + 1).min(i64::from(opts.width) - 1);
-    let py1 = (ceil_clamped(ymax - 0.5) + 1).min(i64::from(opts.height) - 1);
+    let px0 = ceil_clamped(xmin - 0.5).max(0);
+    let py0 = ceil_clamped(ymin - 0.5).max(0);
+    let px1 = floor_clamped(xmax - 0.5).min(i64::from(opts.width) - 1);
+    let py1 = floor_clamped(ymax - 0.5).min(i64::from(opts.height) - 1);
     if px0 > px1 || py0 > py1 {
         return None;
     }
@@ -1696,6 +1699,41 @@ mod tests {
         }
     }
 
+    /// Against brute force: the tiles holding a pixel whose centre lies in the bound, for
+    /// bounds on, just off and between pixel centres and tile edges.
+    #[test]
+    fn binning_takes_exactly_the_tiles_with_a_covered_centre() {
+        let o = opts(40, 24, 8);
+        let edges: Vec<f32> = (-2..=44)
+            .flat_map(|i| {
+                let x = i as f32;
+                [x, x + 0.5, x + 0.5 - 1e-4, x + 0.5 + 1e-4, x + 0.25]
+            })
+            .collect();
+        let mut seed = 7u32;
+        let mut pick = || {
+            seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+            edges[(seed >> 8) as usize % edges.len()]
+        };
+        for _ in 0..20_000 {
+            let b = [pick(), pick() * 0.6, pick(), pick() * 0.6];
+            let mut want: Option<TileRect> = None;
+            for py in 0..o.height {
+                for px in 0..o.width {
+                    let (cx, cy) = (px as f32 + 0.5, py as f32 + 0.5);
+                    if cx >= b[0] && cx <= b[2] && cy >= b[1] && cy <= b[3] {
+                        let (tx, ty) = ((px / 8) as usize, (py / 8) as usize);
+                        want = Some(match want {
+                            None => (tx, ty, tx, ty),
+                            Some((a, b, c, d)) => (a.min(tx), b.min(ty), c.max(tx), d.max(ty)),
+                        });
+                    }
+                }
+            }
+            assert_eq!(tiles_overlapped(b, &o), want, "bound {b:?}");
+        }
+    }
+
     #[test]
     fn clamped_floor_and_ceil_match_the_library_ones() {
         let mut values = vec![-0.0, 0.0, -2.5, -2.0, -1.5, -1.0, -0.5, -1e-9, 1e-9, 0.5, 16386.5];
@@ -1804,8 +1842,14 @@ mod tests {
     fn binning_is_conservative_and_clamped() {
         let o = opts(256, 128, 64);
         assert_eq!(tiles_overlapped([10.0, 10.0, 20.0, 20.0], &o), Some((0, 0, 0, 0)));
-        // A bound ending exactly on a tile edge also takes the next tile (one pixel margin).
-        assert_eq!(tiles_overlapped([10.0, 10.0, 64.0, 20.0], &o), Some((0, 0, 1, 0)));
+        // Pixel 64's centre is 64.5: a bound ending at 64 holds no pixel of tile 1, one
+        // ending at 64.5 does (and one starting at 63.5 holds pixel 63 of tile 0).
+        assert_eq!(tiles_overlapped([10.0, 10.0, 64.0, 20.0], &o), Some((0, 0, 0, 0)));
+        assert_eq!(tiles_overlapped([10.0, 10.0, 64.5, 20.0], &o), Some((0, 0, 1, 0)));
+        assert_eq!(tiles_overlapped([63.5, 10.0, 70.0, 20.0], &o), Some((0, 0, 1, 0)));
+        assert_eq!(tiles_overlapped([63.51, 10.0, 70.0, 20.0], &o), Some((1, 0, 1, 0)));
+        // A bound between two centres holds no pixel.
+        assert_eq!(tiles_overlapped([10.6, 10.0, 11.4, 20.0], &o), None);
         assert_eq!(
             tiles_overlapped([f32::NEG_INFINITY, -1e30, f32::INFINITY, 1e30], &o),
             Some((0, 0, 3, 1))
