@@ -5,7 +5,8 @@
 //! splats loaded from the uniform frame's vector section), a varying ternary whose arms are
 //! uniform operations, and varying built-ins with uniform-operation arguments (both
 //! evaluated once per kernel run). The depths must equal a Rust reference computed with the
-//! same f32 operations, bit for bit, on every tier, for both values of the condition.
+//! same f32 operations, bit for bit, on every tier, for both values of the condition. Also:
+//! tier 1 stores the splat of a frame word only when a group loads it.
 
 mod common;
 
@@ -82,4 +83,58 @@ fn uniform_conditions_and_frame_words_in_pixel_code_match_a_reference_on_every_t
             assert_eq!(frame.depth_at(x, y), Some(want), "pixel ({x}, {y})");
         }
     }
+}
+
+const FRAME_SPLATS: &str = r#"
+primitive frame_splats(float rect[4]; float a, b, c; varying float X, Y; inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    float in_groups = a + 1;    // a group operand: read from its splat
+    float in_rows = b * 0.5;    // read only by the row term `Y * in_rows`
+    float d = c * 2 > 100 ? 0 : 0.25;
+    Z = (X * in_groups + Y * in_rows + d) * 0.0009765625;
+}
+"#;
+
+/// Stores in printed CLIF whose value a `splat` defined.
+fn splat_stores(clif: &str) -> usize {
+    let splats: std::collections::HashSet<&str> = clif
+        .lines()
+        .filter_map(|l| l.trim().split_once(" = splat."))
+        .map(|(v, _)| v)
+        .collect();
+    clif.lines()
+        .filter_map(|l| l.trim().strip_prefix("store "))
+        .filter(|rest| rest.split([' ', ',']).any(|w| splats.contains(w)))
+        .count()
+}
+
+/// Tier 1 splats a uniform frame word to the vector section only when a group reads the
+/// splat: `in_rows` (a row term's operand, read once per row as a scalar) gets no splat
+/// store, `in_groups` and `d` do. The depths stay the reference's.
+#[test]
+fn only_words_a_group_reads_are_splatted_to_the_frame() {
+    let mut sources = SourceMap::new();
+    let program = common::library_with(&mut sources, &[("frame_splats.prim", FRAME_SPLATS)]);
+    let (w, h) = (13u32, 6u32);
+    let (a, b, c) = (0.75f32, -1.5f32, 3.0f32);
+    let mut r = Renderer::new(program.clone());
+    r.set_image_size(w, h).unwrap();
+    r.begin("frame_splats").unwrap();
+    r.rast_param("rect", &Value(vec![0.0, 0.0, w as f32, h as f32]))
+        .unwrap();
+    for (name, v) in [("a", a), ("b", b), ("c", c)] {
+        r.rast_param(name, &Value(vec![v])).unwrap();
+    }
+    r.end().unwrap();
+    let (in_groups, in_rows, d) = (a + 1.0, b * 0.5, 0.25f32);
+    common::assert_depth_in_every_jit(&r, "frame splats", |x, y| {
+        let (x, y) = (x as f32 + 0.5, y as f32 + 0.5);
+        let z = (x * in_groups + y * in_rows + d) * 0.0009765625;
+        (z * 4294967296.0).round_ties_even() as u32
+    });
+    let inst = r.instances()[0].clone();
+    let jit = primflow::jit::Jit::new(program.clone()).unwrap();
+    let clif = jit.clif(inst.func, &inst.key).unwrap();
+    assert_eq!(splat_stores(&clif), 2, "{clif}");
 }

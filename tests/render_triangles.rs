@@ -256,16 +256,27 @@ fn small_triangles_render_the_same_whatever_the_tile_size() {
     let program = library();
     let mut r = primflow::bench::small_scene(&program, 96, 2000, 4);
     // Corners on pixel centres and on tile edges (8 and 16 divide 32, 64; 24 divides 48).
-    for (i, x) in [31.5f32, 32.0, 32.5, 47.5, 48.0, 63.5, 64.0, 64.5].into_iter().enumerate() {
+    for (i, x) in [31.5f32, 32.0, 32.5, 47.5, 48.0, 63.5, 64.0, 64.5]
+        .into_iter()
+        .enumerate()
+    {
         let y = 16.0 + 8.0 * i as f32;
         screen_triangle(
             &mut r,
-            [[x, y, 0.99, 1.0], [x + 3.0, y + 0.5, 0.99, 1.0], [x + 0.5, y + 7.5, 0.99, 1.0]],
+            [
+                [x, y, 0.99, 1.0],
+                [x + 3.0, y + 0.5, 0.99, 1.0],
+                [x + 0.5, y + 7.5, 0.99, 1.0],
+            ],
             &[],
         );
         screen_triangle(
             &mut r,
-            [[x, y, 0.99, 1.0], [x - 0.5, y + 7.5, 0.99, 1.0], [x - 3.0, y + 0.5, 0.99, 1.0]],
+            [
+                [x, y, 0.99, 1.0],
+                [x - 0.5, y + 7.5, 0.99, 1.0],
+                [x - 3.0, y + 0.5, 0.99, 1.0],
+            ],
             &[],
         );
     }

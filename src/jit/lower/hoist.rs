@@ -31,10 +31,11 @@
 //! and never the local. Only hoisting sees row locals (the carried terms of
 //! [`super::affine`] keep their own notion of substitutable locals).
 //!
-//! The uniform frame also gets a *vector section*: every non-bool word splatted to 16
-//! bytes, written once per kernel run. A uniform read in a group that feeds a varying
-//! operation then loads the splat (`vmulps xmm, xmm, [base + off]`) instead of
-//! broadcasting the scalar in every group.
+//! The uniform frame also gets a *vector section*: a slot of 16 bytes per non-bool word,
+//! holding its splat, written once per kernel run. A uniform read in a group that feeds a
+//! varying operation then loads the splat (`vmulps xmm, xmm, [base + off]`) instead of
+//! broadcasting the scalar in every group. Only the splats some group loads are stored
+//! (`Lower::drop_unread_splats`).
 
 use std::collections::{HashMap, HashSet};
 
