@@ -289,3 +289,31 @@ fn small_triangles_render_the_same_whatever_the_tile_size() {
         assert!(primflow::bench::same_frame(&tiled, &whole), "{tile} px tiles");
     }
 }
+
+/// screen_triangle's bound is its extremes padded by a 1/16 grid step, not the pixel corner
+/// below-left of it: a triangle whose leftmost corner (63.6) lies right of pixel 63's centre
+/// is binned into tile 1 only (its old bound from x = 63 also sent it to tile 0 for no
+/// pixel), and still covers exactly the reference's pixels, the ones on its left edge too.
+#[test]
+fn a_triangle_is_binned_by_its_extremes_not_its_grid_origin() {
+    let program = library();
+    for (x0, tiles) in [(63.6f32, 1), (63.45, 2)] {
+        let mut r = renderer(&program, 128, 64, true);
+        r.set_tile_size(64).unwrap();
+        let v = [
+            [x0, 10.2, 0.5, 1.0],
+            [x0 + 6.0, 30.7, 0.5, 1.0],
+            [x0 + 1.0, 40.3, 0.5, 1.0],
+        ];
+        screen_triangle(&mut r, v, &[]);
+        let mut jit = primflow::jit::Jit::new(program.clone()).unwrap();
+        let out = r.render(&mut jit);
+        assert!(out.diags.items.is_empty(), "{:?}", out.diags.items);
+        assert_eq!(out.stats.tile_invocations, tiles, "corner at {x0}");
+        let exact = reference_coverage(v.map(|p| [f64::from(p[0]), f64::from(p[1])]), 128, 64);
+        let want: Vec<u32> = exact.iter().map(|&c| u32::from(c)).collect();
+        assert_counts(&out.frame, &want);
+        let left_column = (0..64).any(|y| out.frame.write_count_at(x0.round() as u32, y) == Some(1));
+        assert!(left_column, "corner at {x0}: its leftmost pixel column is covered");
+    }
+}

@@ -63,6 +63,8 @@ fn max3(a: f32, b: f32, c: f32) -> f32 {
 /// coordinates. `None` for a NaN or infinite vertex (nothing to draw).
 #[derive(Clone, Copy)]
 pub(crate) struct Extent {
+    min_x: f32,
+    min_y: f32,
     ox: f32,
     oy: f32,
     max_x: f32,
@@ -80,19 +82,27 @@ impl Extent {
                 return None;
             }
         }
+        let (min_x, min_y) = (min3(sv(0, 0), sv(1, 0), sv(2, 0)), min3(sv(0, 1), sv(1, 1), sv(2, 1)));
         Some(Extent {
-            ox: min3(sv(0, 0), sv(1, 0), sv(2, 0)).floor(),
-            oy: min3(sv(0, 1), sv(1, 1), sv(2, 1)).floor(),
+            min_x,
+            min_y,
+            ox: min_x.floor(),
+            oy: min_y.floor(),
             max_x: max3(sv(0, 0), sv(1, 0), sv(2, 0)),
             max_y: max3(sv(0, 1), sv(1, 1), sv(2, 1)),
         })
     }
 
     /// The bound the prim records: padded by a 1/16 grid step, since snapping can move a
-    /// corner past the largest coordinate.
+    /// corner past the extreme coordinates.
     #[inline(always)]
     pub(crate) fn bound(&self) -> [f32; 4] {
-        [self.ox, self.oy, self.max_x + 0.0625, self.max_y + 0.0625]
+        [
+            self.min_x - 0.0625,
+            self.min_y - 0.0625,
+            self.max_x + 0.0625,
+            self.max_y + 0.0625,
+        ]
     }
 }
 
@@ -123,7 +133,9 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32, e: Extent) -> Optio
     let data_at = sv_at + 12;
     let sv = |v: usize, c: usize| f32::from_bits(unsafe { word(args, sv_at + v * 4 + c) });
     let data = |v: usize, c: usize| f32::from_bits(unsafe { word(args, data_at + v * T + c) });
-    let Extent { ox, oy, max_x, max_y } = e;
+    let Extent {
+        ox, oy, max_x, max_y, ..
+    } = e;
     let exact = max_x - ox < 1024.0 && max_y - oy < 1024.0;
     let mut vx = [0i32; 3];
     let mut vy = [0i32; 3];
