@@ -93,7 +93,6 @@ struct PassRect {
     x0: ir::Value,
     y0: ir::Value,
     lo_x: ir::Value,
-    hi_x: ir::Value,
     stride64: ir::Value,
     /// A group starting at `g` has all four lanes inside [lo_x, hi_x) iff
     /// `(g - lo_x) <u interior_lim` (`max(hi_x - lo_x - 3, 0)`: 0 makes no group interior).
@@ -305,6 +304,8 @@ pub(crate) struct Lower<'a, 'b> {
     /// Byte offset of the uniform frame's vector section (word `w` splatted at
     /// `vec_section + 16 * w`; see [`hoist`]).
     vec_section: u32,
+    /// Byte offset in the uniform frame of the render pass's lo_x and hi_x, as f32x4 splats.
+    x_range_at: u32,
     /// Row-invariant pixel terms evaluated once per row into the frame's row section.
     hoists: Vec<hoist::Hoist<'a>>,
     /// Pixel locals with a row-invariant value, by their defining expression (see [`hoist`]).
@@ -485,6 +486,7 @@ pub(crate) fn lower_kernel(
         uniform_frame: None,
         group_resets: vec![],
         vec_section: 0,
+        x_range_at: 0,
         hoists: vec![],
         row_locals: std::collections::HashMap::new(),
         substitute_row_locals: false,
@@ -977,11 +979,23 @@ impl<'a, 'b> Lower<'a, 'b> {
         let lim = self.b.ins().iadd_imm_s(width, -3);
         let zero_i = self.b.ins().iconst(types::I32, 0);
         let interior_lim = self.b.ins().smax(lim, zero_i);
+        // lo_x and hi_x as f32x4 splats in the uniform frame, for the groups at either end
+        // of a row (`pixel_group`).
+        let Some((fs, _)) = self.uniform_frame else {
+            return err("uniform frame missing");
+        };
+        let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+        for (k, v) in [lo_x, hi_x].into_iter().enumerate() {
+            let f = self.b.ins().fcvt_from_sint(types::F32, v);
+            let fv = self.b.ins().splat(F32X4, f);
+            self.b
+                .ins()
+                .store(mem_flags(), fv, addr, (self.x_range_at + 16 * k as u32) as i32);
+        }
         let rect = PassRect {
             x0,
             y0,
             lo_x,
-            hi_x,
             stride64,
             interior_lim,
         };
@@ -1308,20 +1322,23 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.carried = self.collect_carried(f, carry_section);
         }
         self.mark_row_locals_unread_in_groups(f);
-        let frame_bytes = self
+        let carried_end = self
             .carried
             .iter()
             .map(|c| c.row_step_offset.unwrap_or(c.step_offset) + 16)
             .fold(carry_section, u32::max);
-        let frame_slot = (frame_bytes > 0).then(|| {
+        // Last, the render pass's x range as two splats (see `pixel_group`).
+        self.x_range_at = carried_end.div_ceil(16) * 16;
+        let frame_bytes = self.x_range_at + 32;
+        let frame_slot =
             self.b
-                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, frame_bytes, 4))
-        });
+                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, frame_bytes, 4));
         // One frame address for all the stores below (they are consecutive, so it is live
         // only across them): a `stack_addr` per local was 36 of K=4's CLIF instructions.
-        let frame_addr = frame_slot
-            .filter(|_| placed.iter().any(|(_, _, at)| at.is_some()))
-            .map(|fs| self.b.ins().stack_addr(types::I64, fs, 0));
+        let frame_addr = placed
+            .iter()
+            .any(|(_, _, at)| at.is_some())
+            .then(|| self.b.ins().stack_addr(types::I64, frame_slot, 0));
         for (i, vars, at) in placed {
             let sc = elem_scalar(&f.locals[i].ty);
             match (at, frame_addr) {
@@ -1376,21 +1393,14 @@ impl<'a, 'b> Lower<'a, 'b> {
             copy_slot(&mut self.b, work, init, bytes);
             self.group_resets[r] = (init, work, bytes);
         }
-        if let Some(fs) = frame_slot {
-            // The frame's address, reloaded per group through this slot (see above).
-            let ptr_slot = self
-                .b
-                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8, 3));
-            let addr = self.b.ins().stack_addr(types::I64, fs, 0);
-            let pa = self.b.ins().stack_addr(types::I64, ptr_slot, 0);
-            self.b.ins().store(mem_flags(), addr, pa, 0);
-            self.uniform_frame = Some((fs, ptr_slot));
-        } else {
-            self.hoists.clear();
-            self.carried.clear();
-            self.unread_in_groups.clear();
-            self.unstored_terms.clear();
-        }
+        // The frame's address, reloaded per group through this slot (see above).
+        let ptr_slot = self
+            .b
+            .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8, 3));
+        let addr = self.b.ins().stack_addr(types::I64, frame_slot, 0);
+        let pa = self.b.ins().stack_addr(types::I64, ptr_slot, 0);
+        self.b.ins().store(mem_flags(), addr, pa, 0);
+        self.uniform_frame = Some((frame_slot, ptr_slot));
     }
 
     /// Row prologue: evaluate the hoisted terms for row centre `y_f` into the frame's row
@@ -1710,18 +1720,22 @@ impl<'a, 'b> Lower<'a, 'b> {
         let group_end = self.b.create_block();
         let g64 = self.b.ins().sextend(types::I64, g);
         let tile_idx = self.b.ins().iadd(row_base, g64);
-        // Lane i is live when lo_x - g <= i < hi_x - g. Splatting the group-relative bounds
-        // (not lo_x and hi_x themselves) keeps loop-invariant vectors out of the group loop:
-        // hoisted, they were spilled, reloaded at the top of every group and stored back
-        // at the bottom.
+        let frame_base = self.uniform_frame.map(|(_, ptr_slot)| {
+            let pa = self.b.ins().stack_addr(types::I64, ptr_slot, 0);
+            self.b.ins().load(types::I64, mem_flags(), pa, 0)
+        });
+        // Lane i is live when lo_x <= g + i < hi_x, i.e. lo_x < X < hi_x for its centre X
+        // (integers below 2^22 and their half-integer centres are exact in f32). The bounds'
+        // splats are read from the frame: two compares with memory operands. (Splats of the
+        // group-relative bounds cost 13 instructions a group; splats kept in registers
+        // across the loops cost the fill workload's groups 4 % in spills.)
+        let Some(base) = frame_base else {
+            return err("uniform frame missing");
+        };
         let edge_mask = |l: &mut Self| {
-            let iota = l.iota();
-            let lo_rel = l.b.ins().isub(rect.lo_x, g);
-            let hi_rel = l.b.ins().isub(rect.hi_x, g);
-            let lo_s = l.b.ins().splat(I32X4, lo_rel);
-            let hi_s = l.b.ins().splat(I32X4, hi_rel);
-            let ge = l.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, iota, lo_s);
-            let lt = l.b.ins().icmp(IntCC::SignedLessThan, iota, hi_s);
+            let [lo, hi] = [0, 16].map(|k| l.b.ins().load(F32X4, args_flags(), base, (l.x_range_at + k) as i32));
+            let ge = l.b.ins().fcmp(FloatCC::GreaterThan, x_f, lo);
+            let lt = l.b.ins().fcmp(FloatCC::LessThan, x_f, hi);
             l.b.ins().band(ge, lt)
         };
         let mask = if self.flat {
@@ -1768,10 +1782,6 @@ impl<'a, 'b> Lower<'a, 'b> {
         } else {
             None
         };
-        let frame_base = self.uniform_frame.map(|(_, ptr_slot)| {
-            let pa = self.b.ins().stack_addr(types::I64, ptr_slot, 0);
-            self.b.ins().load(types::I64, mem_flags(), pa, 0)
-        });
         self.pix = Some(PixelState {
             alive,
             exec,
