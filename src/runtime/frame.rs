@@ -1703,13 +1703,20 @@ mod tests {
     /// bounds on, just off and between pixel centres and tile edges.
     #[test]
     fn binning_takes_exactly_the_tiles_with_a_covered_centre() {
-        let o = opts(40, 24, 8);
-        let edges: Vec<f32> = (-2..=44)
+        for (w, h, ts) in [(40, 24, 8), (37, 23, 12), (41, 19, 4)] {
+            tiles_with_a_covered_centre(&opts(w, h, ts));
+        }
+    }
+
+    fn tiles_with_a_covered_centre(o: &RenderOptions) {
+        let ts = o.tile_size;
+        let mut edges: Vec<f32> = (-2..=44)
             .flat_map(|i| {
                 let x = i as f32;
                 [x, x + 0.5, x + 0.5 - 1e-4, x + 0.5 + 1e-4, x + 0.25]
             })
             .collect();
+        edges.extend([f32::NEG_INFINITY, -1e30, 1e30, f32::INFINITY]);
         let mut seed = 7u32;
         let mut pick = || {
             seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
@@ -1722,7 +1729,7 @@ mod tests {
                 for px in 0..o.width {
                     let (cx, cy) = (px as f32 + 0.5, py as f32 + 0.5);
                     if cx >= b[0] && cx <= b[2] && cy >= b[1] && cy <= b[3] {
-                        let (tx, ty) = ((px / 8) as usize, (py / 8) as usize);
+                        let (tx, ty) = ((px / ts) as usize, (py / ts) as usize);
                         want = Some(match want {
                             None => (tx, ty, tx, ty),
                             Some((a, b, c, d)) => (a.min(tx), b.min(ty), c.max(tx), d.max(ty)),
@@ -1730,7 +1737,7 @@ mod tests {
                     }
                 }
             }
-            assert_eq!(tiles_overlapped(b, &o), want, "bound {b:?}");
+            assert_eq!(tiles_overlapped(b, o), want, "bound {b:?} in {ts} px tiles");
         }
     }
 
