@@ -1583,6 +1583,23 @@ impl<'a, 'b> Lower<'a, 'b> {
         let gx = self.b.declare_var(types::I32);
         let xv = self.b.declare_var(F32X4);
         self.b.def_var(py, ys[0]);
+        // The row's element index of pixel x = 0 (`(y - y0) * stride - x0`; the tile's x0
+        // subtracted once, so a group's index is one add) and its centre Y, carried from row
+        // to row by an add: both exact (integers; multiples of 0.5 below 2^22 in f32).
+        let row_base_var = self.b.declare_var(types::I64);
+        let yf_var = self.b.declare_var(types::F32);
+        {
+            let row = self.b.ins().isub(ys[0], rect.y0);
+            let row64 = self.b.ins().sextend(types::I64, row);
+            let row_base = self.b.ins().imul(row64, rect.stride64);
+            let x0_64 = self.b.ins().sextend(types::I64, rect.x0);
+            let row_base = self.b.ins().isub(row_base, x0_64);
+            self.b.def_var(row_base_var, row_base);
+            let yf = self.b.ins().fcvt_from_sint(types::F32, ys[0]);
+            let half = self.b.ins().f32const(0.5);
+            let yf = self.b.ins().fadd(yf, half);
+            self.b.def_var(yf_var, yf);
+        }
         let row_carry = self.carry_rows_start(f, gs[0], ys[0], used_exprs.as_ref())?;
         let row_hdr = self.b.create_block();
         let row_body = self.b.create_block();
@@ -1599,17 +1616,8 @@ impl<'a, 'b> Lower<'a, 'b> {
 
         self.b.switch_to_block(row_body);
         let row_y = self.b.use_var(py);
-        let y = row_y;
-        let row = self.b.ins().isub(y, rect.y0);
-        let row64 = self.b.ins().sextend(types::I64, row);
-        let row_base = self.b.ins().imul(row64, rect.stride64);
-        // Element index of pixel x = 0 of this row (the tile's x0 subtracted once per row,
-        // so a group's index is one add): `row_base + (g - x0)`, same value in i64.
-        let x0_64 = self.b.ins().sextend(types::I64, rect.x0);
-        let row_base = self.b.ins().isub(row_base, x0_64);
-        let yf = self.b.ins().fcvt_from_sint(types::F32, y);
-        let half = self.b.ins().f32const(0.5);
-        let yf = self.b.ins().fadd(yf, half);
+        let row_base = self.b.use_var(row_base_var);
+        let yf = self.b.use_var(yf_var);
         let y_f = self.b.ins().splat(F32X4, yf);
         self.row_hoists(f, y_f, used_exprs.as_ref())?;
         self.b.def_var(gx, gs[0]);
@@ -1679,6 +1687,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.switch_to_block(row_next);
         let y = self.b.ins().iadd_imm_s(row_y, 1);
         self.b.def_var(py, y);
+        let row_base = self.b.ins().iadd(row_base, rect.stride64);
+        self.b.def_var(row_base_var, row_base);
+        let one = self.b.ins().f32const(1.0);
+        let yf = self.b.ins().fadd(yf, one);
+        self.b.def_var(yf_var, yf);
         self.carry_next_row(&carry);
         self.b.ins().jump(row_hdr, &[]);
         self.seal_blocks_from(first_block);
