@@ -2,7 +2,10 @@
 //! `if` of the pixel code once per draw and lowers the pixel loops once per side. Every
 //! case renders with both tiers (tier 0 never unswitches: it is the reference lowering)
 //! and compares the frames bit for bit, and checks each pixel against a reference
-//! computed here: coverage in f64, depth with the primitive's own f32 operations.
+//! computed here: coverage in f64, depth with the primitive's own f32 operations. The
+//! setup words only one side reads (`fa`, `fb`, `fc` below, screen_triangle's float edges)
+//! are stored in that side's dispatch block (`Lower::defer_frame_stores`): with the sides
+//! swapped, every test here fails.
 
 mod common;
 

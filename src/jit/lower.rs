@@ -341,6 +341,10 @@ pub(crate) struct Lower<'a, 'b> {
     /// once the pixel code is lowered (`drop_unread_splats`).
     splat_stores: Vec<(u32, ir::Inst)>,
     splats_read: std::collections::HashSet<u32>,
+    /// Frame words only one side of the first unswitched condition reads (tier 1, see
+    /// `defer_frame_stores`): that condition's key, and per local its side, variables,
+    /// first word and scalar type. Their stores go to the side's dispatch block.
+    deferred_frame: Option<(usize, Vec<(bool, Vec<Variable>, u32, Scalar)>)>,
     /// A 16-byte slot that stores to planes the frame does not have go to.
     scratch: StackSlot,
     /// Per binding component: its G-buffer plane's base address (see `plane_table`).
@@ -502,6 +506,7 @@ pub(crate) fn lower_kernel(
         splat_src: std::collections::HashMap::new(),
         splat_stores: vec![],
         splats_read: std::collections::HashSet::new(),
+        deferred_frame: None,
         scratch,
         plane_ptrs: None,
         written: vec![false; key.bindings.len()],
@@ -1322,6 +1327,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.carried = self.collect_carried(f, carry_section);
         }
         self.mark_row_locals_unread_in_groups(f);
+        let deferred = self.defer_frame_stores(f, &placed);
         let carried_end = self
             .carried
             .iter()
@@ -1339,8 +1345,13 @@ impl<'a, 'b> Lower<'a, 'b> {
             .iter()
             .any(|(_, _, at)| at.is_some())
             .then(|| self.b.ins().stack_addr(types::I64, frame_slot, 0));
+        let mut deferred_stores = vec![];
         for (i, vars, at) in placed {
             let sc = elem_scalar(&f.locals[i].ty);
+            if let (Some(&side), Some(first)) = (deferred.get(&i), at) {
+                deferred_stores.push((side, vars, first, sc));
+                continue;
+            }
             match (at, frame_addr) {
                 (Some(first), Some(addr)) => {
                     for (c, v) in vars.iter().enumerate() {
@@ -1392,6 +1403,9 @@ impl<'a, 'b> Lower<'a, 'b> {
                 .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, bytes, 4));
             copy_slot(&mut self.b, work, init, bytes);
             self.group_resets[r] = (init, work, bytes);
+        }
+        if let Some((cond, _)) = self.deferred_frame {
+            self.deferred_frame = Some((cond, deferred_stores));
         }
         // The frame's address, reloaded per group through this slot (see above).
         let ptr_slot = self
@@ -1510,6 +1524,104 @@ impl<'a, 'b> Lower<'a, 'b> {
             scalar,
             varying: true,
         })
+    }
+
+    /// Tier 1: the frame locals (of `placed`, by local index) that only one side of the
+    /// pixel code's first unswitched condition reads, with that side (`true`: then), when
+    /// the condition is a top-level statement of the pixel code. Their stores are left to
+    /// the side's dispatch block (`store_deferred_frame`), so Cranelift computes them only
+    /// on the path that reads them: screen_triangle's float edges, read only when the
+    /// triangle is not `exact`, were computed and stored in every render call.
+    ///
+    /// A local some other reader needs before the dispatch stays in setup: a per-run row
+    /// term, a carried term (its steps are evaluated once per run) or the definition of a
+    /// local either reads; so does one read outside the condition's sides (its row terms and
+    /// block facts are pixel code too) or in the condition itself.
+    fn defer_frame_stores(
+        &mut self,
+        f: &'a Function,
+        placed: &[(usize, Vec<Variable>, Option<u32>)],
+    ) -> std::collections::HashMap<usize, bool> {
+        let mut deferred = std::collections::HashMap::new();
+        if self.tier0() {
+            return deferred;
+        }
+        let mut assigned = std::collections::HashSet::new();
+        block::assigned_locals(&f.pixel, &mut assigned);
+        let Some(cond) =
+            unswitch::next_condition(&f.pixel, &std::collections::HashMap::new(), &assigned, self.key)
+        else {
+            return deferred;
+        };
+        let Some(at) = f
+            .pixel
+            .iter()
+            .position(|s| matches!(&s.kind, StmtKind::If { cond: c, .. } if std::ptr::eq(c, cond)))
+        else {
+            return deferred;
+        };
+        let StmtKind::If { then, otherwise, .. } = &f.pixel[at].kind else {
+            return deferred;
+        };
+        let n = f.locals.len();
+        let mut outside = vec![false; n];
+        self.visit_live_pixel_locals(&f.pixel[..at], &mut |l| mark_local(&mut outside, l));
+        self.visit_live_pixel_locals(&f.pixel[at + 1..], &mut |l| mark_local(&mut outside, l));
+        cond.for_each_local(&mut |l| mark_local(&mut outside, l));
+        let early: Vec<&Expr> = self
+            .hoists
+            .iter()
+            .filter(|h| h.per_run)
+            .map(|h| h.expr)
+            .chain(self.carried.iter().map(|c| c.expr))
+            .chain(self.affine_defs.values().copied())
+            .chain(self.row_locals.values().copied())
+            .collect();
+        for e in early {
+            e.for_each_local(&mut |l| mark_local(&mut outside, l));
+        }
+        let mut in_then = vec![false; n];
+        let mut in_else = vec![false; n];
+        self.visit_live_pixel_locals(then, &mut |l| mark_local(&mut in_then, l));
+        self.visit_live_pixel_locals(otherwise, &mut |l| mark_local(&mut in_else, l));
+        for (i, _, word) in placed {
+            let i = *i;
+            if word.is_none() || outside[i] || in_then[i] == in_else[i] {
+                continue;
+            }
+            deferred.insert(i, in_then[i]);
+        }
+        if !deferred.is_empty() {
+            self.deferred_frame = Some((unswitch::cond_key(cond), vec![]));
+        }
+        deferred
+    }
+
+    /// In the dispatch block of side `on` of the condition `cond` (`unswitched_loops`): the
+    /// frame stores `defer_frame_stores` left for that side, splats included.
+    pub(super) fn store_deferred_frame(&mut self, cond: usize, on: bool) {
+        let Some((key, locals)) = self.deferred_frame.take() else {
+            return;
+        };
+        if key == cond {
+            if let Some((fs, _)) = self.uniform_frame {
+                let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+                for (_, vars, first, sc) in locals.iter().filter(|d| d.0 == on) {
+                    for (c, v) in vars.iter().enumerate() {
+                        let x = self.b.use_var(*v);
+                        let w = first + c as u32;
+                        self.b.ins().store(mem_flags(), x, addr, (4 * w) as i32);
+                        if *sc != Scalar::Bool {
+                            let xv = splat(&mut self.b, *sc, x);
+                            let off = self.vec_section + 16 * w;
+                            let st = self.b.ins().store(mem_flags(), xv, addr, off as i32);
+                            self.splat_stores.push((off, st));
+                        }
+                    }
+                }
+            }
+        }
+        self.deferred_frame = Some((key, locals));
     }
 
     /// Remove the setup's splat stores no group loads from (most words are read only by

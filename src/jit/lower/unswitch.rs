@@ -121,6 +121,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(c, sides[0], &[], sides[1], &[]);
         for (side, on) in sides.into_iter().zip([true, false]) {
             self.b.switch_to_block(side);
+            if depth == 0 {
+                self.store_deferred_frame(cond_key(cond), on);
+            }
             self.unswitched.insert(cond_key(cond), on);
             let r = self.unswitched_loops(f, depth + 1, loops);
             self.unswitched.remove(&cond_key(cond));
