@@ -1548,8 +1548,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         let mut assigned = std::collections::HashSet::new();
         block::assigned_locals(&f.pixel, &mut assigned);
-        let Some(cond) =
-            unswitch::next_condition(&f.pixel, &std::collections::HashMap::new(), &assigned, self.key)
+        let Some(cond) = unswitch::next_condition(&f.pixel, &std::collections::HashMap::new(), &assigned, self.key)
         else {
             return deferred;
         };
