@@ -88,6 +88,16 @@ const ALL_LANE_BITS: i64 = (1 << 4) - 1;
 /// Pass rectangles smaller than this many pixels skip the block evaluation.
 const SMALL_RECT: i64 = 128;
 
+/// A frame local's stores left to one side of an unswitched condition
+/// (`Lower::defer_frame_stores`).
+struct DeferredStore {
+    /// The side (`true`: then) whose dispatch block stores it.
+    on: bool,
+    vars: Vec<Variable>,
+    first_word: u32,
+    scalar: Scalar,
+}
+
 /// The render pass's rectangle and tile geometry, shared by the loops that walk it.
 struct PassRect {
     x0: ir::Value,
@@ -342,9 +352,9 @@ pub(crate) struct Lower<'a, 'b> {
     splat_stores: Vec<(u32, ir::Inst)>,
     splats_read: std::collections::HashSet<u32>,
     /// Frame words only one side of the first unswitched condition reads (tier 1, see
-    /// `defer_frame_stores`): that condition's key, and per local its side, variables,
-    /// first word and scalar type. Their stores go to the side's dispatch block.
-    deferred_frame: Option<(usize, Vec<(bool, Vec<Variable>, u32, Scalar)>)>,
+    /// `defer_frame_stores`): that condition's key and the stores left to its sides'
+    /// dispatch blocks.
+    deferred_frame: Option<(usize, Vec<DeferredStore>)>,
     /// A 16-byte slot that stores to planes the frame does not have go to.
     scratch: StackSlot,
     /// Per binding component: its G-buffer plane's base address (see `plane_table`).
@@ -1348,26 +1358,18 @@ impl<'a, 'b> Lower<'a, 'b> {
         let mut deferred_stores = vec![];
         for (i, vars, at) in placed {
             let sc = elem_scalar(&f.locals[i].ty);
-            if let (Some(&side), Some(first)) = (deferred.get(&i), at) {
-                deferred_stores.push((side, vars, first, sc));
+            if let (Some(&on), Some(first_word)) = (deferred.get(&i), at) {
+                deferred_stores.push(DeferredStore {
+                    on,
+                    vars,
+                    first_word,
+                    scalar: sc,
+                });
                 continue;
             }
             match (at, frame_addr) {
                 (Some(first), Some(addr)) => {
-                    for (c, v) in vars.iter().enumerate() {
-                        let x = self.b.use_var(*v);
-                        let w = first + c as u32;
-                        self.b.ins().store(mem_flags(), x, addr, (4 * w) as i32);
-                        // Tier 0 stores no splatted copy: a group splats the word it
-                        // reads itself (one instruction per use instead of two stores per
-                        // uniform here, which is less code for the tier that runs one frame).
-                        if sc != Scalar::Bool && !self.tier0() {
-                            let xv = splat(&mut self.b, sc, x);
-                            let off = self.vec_section + 16 * w;
-                            let st = self.b.ins().store(mem_flags(), xv, addr, off as i32);
-                            self.splat_stores.push((off, st));
-                        }
-                    }
+                    self.store_frame_words(addr, &vars, first, sc);
                 }
                 _ => {
                     let slot = self.b.create_sized_stack_slot(StackSlotData::new(
@@ -1605,22 +1607,31 @@ impl<'a, 'b> Lower<'a, 'b> {
         if key == cond {
             if let Some((fs, _)) = self.uniform_frame {
                 let addr = self.b.ins().stack_addr(types::I64, fs, 0);
-                for (_, vars, first, sc) in locals.iter().filter(|d| d.0 == on) {
-                    for (c, v) in vars.iter().enumerate() {
-                        let x = self.b.use_var(*v);
-                        let w = first + c as u32;
-                        self.b.ins().store(mem_flags(), x, addr, (4 * w) as i32);
-                        if *sc != Scalar::Bool {
-                            let xv = splat(&mut self.b, *sc, x);
-                            let off = self.vec_section + 16 * w;
-                            let st = self.b.ins().store(mem_flags(), xv, addr, off as i32);
-                            self.splat_stores.push((off, st));
-                        }
-                    }
+                for d in locals.iter().filter(|d| d.on == on) {
+                    self.store_frame_words(addr, &d.vars, d.first_word, d.scalar);
                 }
             }
         }
         self.deferred_frame = Some((key, locals));
+    }
+
+    /// Store a frame local's variables `vars` to its words from `first` in the uniform
+    /// frame at `addr`, and (tier 1, not bool) each word's splat to the vector section,
+    /// recorded for `drop_unread_splats`. Tier 0 stores no splatted copy: a group splats
+    /// the word it reads itself (one instruction per use instead of two stores per uniform
+    /// here, which is less code for the tier that runs one frame).
+    fn store_frame_words(&mut self, addr: ir::Value, vars: &[Variable], first: u32, sc: Scalar) {
+        for (c, v) in vars.iter().enumerate() {
+            let x = self.b.use_var(*v);
+            let w = first + c as u32;
+            self.b.ins().store(mem_flags(), x, addr, (4 * w) as i32);
+            if sc != Scalar::Bool && !self.tier0() {
+                let xv = splat(&mut self.b, sc, x);
+                let off = self.vec_section + 16 * w;
+                let st = self.b.ins().store(mem_flags(), xv, addr, off as i32);
+                self.splat_stores.push((off, st));
+            }
+        }
     }
 
     /// Remove the setup's splat stores no group loads from (most words are read only by
