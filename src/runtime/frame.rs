@@ -146,11 +146,17 @@ pub struct Frame {
 pub struct RenderStats {
     pub instances: usize,
     pub kernels_compiled: usize,
+    /// The kernels' own compile times (`Kernel::compile_micros`, callees excluded), summed
+    /// over the frame's variants: a kernel a source had compiled for an earlier frame counts
+    /// its compile again.
     pub compile_micros: u64,
     pub render_micros: u64,
     /// Of `render_micros`: compiling (or looking up) kernels, the bound pass and binning
     /// (serial).
     pub setup_micros: u64,
+    /// Of `setup_micros`: getting the frame's kernels from the source, wall time (compiling
+    /// the ones it has not compiled yet, their callees included; else only looking them up).
+    pub kernels_micros: u64,
     /// Of `render_micros`: shaping the frame (allocating only buffers it has no room for)
     /// and rendering the tiles into it (parallel).
     pub tiles_micros: u64,
@@ -376,8 +382,9 @@ impl Renderer {
                 kernel
             })
             .collect();
+        let compiled = Instant::now();
+        stats.kernels_micros = micros_between(started, compiled);
         if let (Some(hold), Some(watch)) = (&mut held_compiler, &compiler) {
-            let compiled = Instant::now();
             hold.release_at(compiled + watch.grace(compiled.duration_since(started)));
         }
         // Never hand a kernel an argument block shorter than its layout reads.

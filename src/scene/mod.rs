@@ -699,6 +699,32 @@ fn issue_diagnostic(issue: &ApiIssue, c: &Command) -> Diagnostic {
     base.primary(span, label)
 }
 
+/// A scene file made ready to render, as `primflow render` and `primflow bench --scene` load
+/// it: parsed, the library files its names lead to compiled (with `dirs` and the scene's own
+/// `prims DIR` lines, resolved against `base`, its directory; see
+/// [`crate::runtime::Registry::load_for`]), and applied to a fresh [`Renderer`]. `None` when
+/// the scene, the library or the applied calls have errors (all of them in `diags`, at
+/// `file:line:col`); warnings are in `diags` either way.
+pub fn load_for_render(
+    sources: &mut SourceMap,
+    file: FileId,
+    base: &Path,
+    dirs: &[PathBuf],
+    diags: &mut Diagnostics,
+) -> Option<Renderer> {
+    let scene = parse(sources, file, diags);
+    if diags.has_errors() {
+        return None;
+    }
+    let mut dirs = dirs.to_vec();
+    dirs.extend(scene.prim_dirs(base));
+    let (prims, kinds) = scene.library_names();
+    let registry = crate::runtime::Registry::load_for(sources, &dirs, &prims, &kinds, diags)?;
+    let mut renderer = Renderer::new(registry.program);
+    apply(&scene, &mut renderer, diags);
+    (!diags.has_errors()).then_some(renderer)
+}
+
 /// Parse and apply a scene in one go (for tests and tools that have no `prims` lines to
 /// honour): returns the parsed scene.
 pub fn load_into(sources: &SourceMap, file: FileId, renderer: &mut Renderer, diags: &mut Diagnostics) -> Scene {
