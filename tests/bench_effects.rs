@@ -242,8 +242,11 @@ fn report_has_effects_thread_figures_and_llvmpipe_rows() {
     let table = format_table(&report);
     assert!(table.contains("example scenes to first pixel"), "{table}");
     assert!(table.contains("thread scaling"), "{table}");
-    assert!(table.contains("x llvmpipe"), "{table}");
+    // No llvmpipe worker asked for: the figures stand alone.
+    assert!(table.contains("issue's figure   88.0: JIT"), "{table}");
+    assert!(table.contains("llvmpipe here: -"), "{table}");
     assert!(table.contains("hand-written best"), "{table}");
+    assert_eq!(report.llvmpipe_status, "not asked for");
     let json = serde_json::to_value(&report).unwrap();
     assert!(json["llvmpipe"].as_array().is_some_and(|a| a.len() == 2));
     assert!(json["effects"].is_null());

@@ -44,6 +44,9 @@ pub enum Command {
     /// Sweep the accuracy knobs: error against the f64 reference vs time, as a table, CSV,
     /// JSON and one plot per knob.
     Accuracy(AccuracyArgs),
+    /// `bench`'s llvmpipe process (see `bench::llvmpipe`): not for direct use.
+    #[command(name = "llvmpipe-worker", hide = true)]
+    LlvmpipeWorker,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -129,6 +132,15 @@ pub struct BenchArgs {
     /// Fewer primitives and runs (well under two minutes).
     #[arg(long)]
     pub quick: bool,
+    /// Benchmark this scene file instead of the standard workloads: its first frame and
+    /// where the time goes, each kernel variant's compile at both tiers, and its frames with
+    /// tier-1 and tier-0 kernels, on one thread and on all, and with the hand-written
+    /// kernels where they can draw it.
+    #[arg(long, value_name = "FILE.scene", conflicts_with_all = ["filter", "quick"])]
+    pub scene: Option<PathBuf>,
+    /// Extra directory of .prim files for `--scene` (repeatable).
+    #[arg(long, value_name = "DIR", requires = "scene")]
+    pub prims: Vec<PathBuf>,
     /// Timed runs per kernel; the median is reported.
     #[arg(long, default_value_t = 7, value_name = "N")]
     pub runs: usize,
@@ -183,6 +195,7 @@ where
         Command::Test(args) => test(&args, out),
         Command::Bench(args) => bench(&args, out, err),
         Command::Accuracy(args) => accuracy(&args, out, err),
+        Command::LlvmpipeWorker => crate::bench::llvmpipe_worker(&mut std::io::stdin().lock(), out),
     }
 }
 
@@ -331,35 +344,21 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
         }
     };
     let mut diags = Diagnostics::new();
-    let scene = crate::scene::parse(&sources, scene_file, &mut diags);
     let base = args.scene.parent().unwrap_or(Path::new("."));
-    let mut dirs = args.prims.clone();
-    dirs.extend(scene.prim_dirs(base));
-    let registry = if diags.has_errors() {
-        None
-    } else {
-        let (prims, kinds) = scene.library_names();
-        Registry::load_for(&mut sources, &dirs, &prims, &kinds, &mut diags)
-    };
-    let Some(registry) = registry else {
-        print_diags(&diags, &sources, err);
-        return 1;
-    };
-    let mut renderer = Renderer::new(registry.program.clone());
-    renderer.options.count_writes = args.count_writes;
-    crate::scene::apply(&scene, &mut renderer, &mut diags);
-    if diags.has_errors() {
+    let Some(mut renderer) = crate::scene::load_for_render(&mut sources, scene_file, base, &args.prims, &mut diags)
+    else {
         print_diags(&diags, &sources, err);
         let _ = writeln!(
             err,
-            "error: {} error(s) in the scene; nothing rendered",
+            "error: {} error(s) in the scene or the primitives it uses; nothing rendered",
             diags.error_count()
         );
         return 1;
-    }
+    };
+    renderer.options.count_writes = args.count_writes;
     // Tiered: the frame starts on tier-0 kernels (compiled in a millisecond or two) and
     // switches to tier-1 ones as the background compiler finishes them, mid-frame.
-    let mut jit = match Jit::tiered(registry.program.clone()) {
+    let mut jit = match Jit::tiered(renderer.program().clone()) {
         Ok(jit) => jit,
         Err(e) => {
             print_diags(&diags, &sources, err);
@@ -483,22 +482,34 @@ fn write_explain(renderer: &Renderer, result: &crate::runtime::RenderOutput, out
 }
 
 fn bench(args: &BenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
-    let opts = crate::bench::BenchOptions {
-        filter: args.filter.clone(),
-        quick: args.quick,
-        runs: args.runs.max(1),
-        progress: true,
+    let report = match &args.scene {
+        Some(scene) => crate::bench::run_scene(&crate::bench::SceneBenchOptions {
+            scene: scene.clone(),
+            prims: args.prims.clone(),
+            runs: args.runs.max(1),
+            progress: true,
+        })
+        .map(|r| (crate::bench::format_scene_report(&r), serde_json::to_string_pretty(&r))),
+        None => crate::bench::run(&crate::bench::BenchOptions {
+            filter: args.filter.clone(),
+            quick: args.quick,
+            runs: args.runs.max(1),
+            progress: true,
+            // This very binary times llvmpipe in a process of its own.
+            llvmpipe: std::env::current_exe().ok(),
+        })
+        .map(|r| (crate::bench::format_table(&r), serde_json::to_string_pretty(&r))),
     };
-    let report = match crate::bench::run(&opts) {
+    let (table, json) = match report {
         Ok(r) => r,
         Err(e) => {
             let _ = writeln!(err, "error: {e}");
             return 1;
         }
     };
-    let _ = out.write_all(crate::bench::format_table(&report).as_bytes());
+    let _ = out.write_all(table.as_bytes());
     if let Some(path) = &args.json {
-        let written = serde_json::to_string_pretty(&report)
+        let written = json
             .map_err(|e| e.to_string())
             .and_then(|text| std::fs::write(path, text).map_err(|e| e.to_string()));
         if let Err(e) = written {

@@ -22,7 +22,7 @@ use crate::jit::{JitError, Kernel};
 use crate::runtime::KernelSource;
 
 /// Which form of the hand-written kernels to serve.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub enum Flavor {
     /// Portable scalar Rust.
     Scalar,

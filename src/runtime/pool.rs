@@ -102,6 +102,14 @@ fn sibling_rank(cpu: usize) -> usize {
     siblings.iter().position(|&s| s == cpu).unwrap_or(0)
 }
 
+/// Pin the calling thread (and the threads it starts from then on, which inherit its mask)
+/// to the first CPU the process may use: which one, or `None` where nothing was pinned.
+pub(crate) fn pin_to_one_cpu() -> Option<usize> {
+    let cpu = *allowed_cpus()?.first()?;
+    pin_current_thread(cpu);
+    Some(cpu)
+}
+
 #[cfg(target_os = "linux")]
 fn pin_current_thread(cpu: usize) {
     // SAFETY: as in `allowed_cpus`; `cpu` came from the process's own mask. A refusal leaves

@@ -1,0 +1,181 @@
+//! llvmpipe measured live beside the JIT (`primflow bench`, issue 5): the worker draws the
+//! workloads' own geometry — the same pixels pass its depth test as the JIT writes — and
+//! the report sets its figures beside the JIT's. Where the host has no Mesa EGL the bench
+//! must say so and carry on; this machine image has it, and there every assertion about
+//! llvmpipe's output runs. Outcomes only: nothing here asserts a timing.
+
+use std::io::{BufRead, BufReader, Write};
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+use primflow::bench::{run, BenchOptions, KernelKind};
+
+const EXE: &str = env!("CARGO_BIN_EXE_primflow");
+
+/// Whether this host has an EGL library at all (then llvmpipe must work).
+fn has_egl() -> bool {
+    [
+        "/usr/lib/x86_64-linux-gnu/libEGL.so.1",
+        "/usr/lib64/libEGL.so.1",
+        "/usr/lib/libEGL.so.1",
+    ]
+    .iter()
+    .any(|p| Path::new(p).exists())
+}
+
+/// A worker, spoken to line by line.
+struct Worker {
+    child: std::process::Child,
+    output: BufReader<std::process::ChildStdout>,
+}
+
+impl Worker {
+    fn start() -> (Worker, String) {
+        let mut child = Command::new(EXE)
+            .arg("llvmpipe-worker")
+            .env("LP_NUM_THREADS", "1")
+            .env("LIBGL_ALWAYS_SOFTWARE", "1")
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let output = BufReader::new(child.stdout.take().unwrap());
+        let mut w = Worker { child, output };
+        let ready = w.line();
+        (w, ready)
+    }
+
+    fn line(&mut self) -> String {
+        let mut line = String::new();
+        self.output.read_line(&mut line).unwrap();
+        line.trim_end().to_string()
+    }
+
+    fn ask(&mut self, command: &str) -> String {
+        let input = self.child.stdin.as_mut().unwrap();
+        writeln!(input, "{command}").unwrap();
+        input.flush().unwrap();
+        self.line()
+    }
+}
+
+/// The samples of an `ok <ms> <samples>` answer.
+fn samples(answer: &str) -> u64 {
+    let fields: Vec<&str> = answer.split('\t').collect();
+    assert_eq!(fields.len(), 3, "{answer}");
+    assert_eq!(fields[0], "ok", "{answer}");
+    assert!(fields[1].parse::<f64>().unwrap() > 0.0, "{answer}");
+    fields[2].parse().unwrap()
+}
+
+#[test]
+fn the_worker_draws_the_workloads_own_pixels() {
+    let (mut w, ready) = Worker::start();
+    if !has_egl() {
+        assert!(ready.starts_with("error\t"), "{ready}");
+        return;
+    }
+    assert!(ready.starts_with("ready\tllvmpipe"), "{ready}");
+    // `frame` before any `setup`, and a workload without a twin, are errors, not crashes.
+    assert!(w.ask("frame").starts_with("error\t"));
+    let unknown = w.ask("setup\t1\tpolygon hither K=4");
+    assert!(unknown.starts_with("error\tno llvmpipe scene"), "{unknown}");
+    // The quick fill workloads: 20 full-viewport layers drawn back to front, 512 x 512:
+    // every layer's every pixel passes, whatever the parameters and their interpolation.
+    for name in [
+        "fill perspective_linear K=4",
+        "fill linear K=4",
+        "fill none K=0",
+        "fill perspective_linear K=1",
+        "fill perspective_linear K=16",
+    ] {
+        let first = w.ask(&format!("setup\t1\t{name}"));
+        assert_eq!(samples(&first), 20 * 512 * 512, "{name}");
+        assert_eq!(samples(&w.ask("frame")), 20 * 512 * 512, "{name}");
+    }
+    // 20 000 triangles of 20 px: about 400 000 pixels.
+    let small = samples(&w.ask("setup\t1\tsmall perspective_linear K=4"));
+    assert!((390_000..410_000).contains(&small), "{small}");
+    let lit = samples(&w.ask("setup\t1\tsphere lit (diffuse + specular)"));
+    let unlit = samples(&w.ask("setup\t1\tsphere implicit N"));
+    assert_eq!(lit, unlit, "lighting changes no coverage");
+    assert!(lit > 100_000, "{lit}");
+    drop(w.child.stdin.take());
+    assert!(w.child.wait().unwrap().success());
+}
+
+#[test]
+fn the_report_sets_measured_llvmpipe_beside_the_jit_on_the_same_pixels() {
+    #[allow(clippy::needless_update)]
+    let opts = BenchOptions {
+        filter: Some("sphere".into()),
+        quick: true,
+        runs: 1,
+        progress: false,
+        llvmpipe: Some(EXE.into()),
+        ..BenchOptions::default()
+    };
+    let report = run(&opts).unwrap();
+    assert_eq!(report.llvmpipe.len(), 2, "{:?}", report.llvmpipe);
+    if !has_egl() {
+        assert!(
+            report.llvmpipe_status.starts_with("not measured"),
+            "{}",
+            report.llvmpipe_status
+        );
+        assert!(report.llvmpipe.iter().all(|c| c.measured.is_none()));
+        return;
+    }
+    assert!(
+        report.llvmpipe_status.starts_with("llvmpipe"),
+        "{}",
+        report.llvmpipe_status
+    );
+    for c in &report.llvmpipe {
+        let w = report.workloads.iter().find(|w| w.workload == c.workload).unwrap();
+        let run = w
+            .llvmpipe
+            .as_ref()
+            .unwrap_or_else(|| panic!("{}: {:?}", w.workload, w.llvmpipe_error));
+        // The same spheres from the same camera: the pixels agree to a few edge pixels.
+        let (ours, theirs) = (w.pixels_written as f64, run.pixels_written as f64);
+        assert!(
+            (ours - theirs).abs() <= ours * 1e-3,
+            "{}: {ours} vs {theirs}",
+            w.workload
+        );
+        let row = w.timing(KernelKind::Llvmpipe, 1).unwrap();
+        assert!(row.setup_ms.is_nan() && row.tiles_ms.is_nan(), "{row:?}");
+        assert_eq!(c.measured, Some(row.mpixels_per_s));
+        let jit = w.timing(KernelKind::Jit, 1).unwrap();
+        assert_eq!(c.measured_ratio, Some(row.median_ms / jit.median_ms));
+        assert_eq!(c.measured_pixels, Some(run.pixels_written));
+    }
+    let text = primflow::bench::format_table(&report);
+    assert!(text.contains("llvmpipe here"), "{text}");
+    assert!(text.contains("JIT/llvmpipe"), "{text}");
+}
+
+#[test]
+fn without_a_worker_the_report_keeps_the_issues_figures() {
+    #[allow(clippy::needless_update)]
+    let opts = BenchOptions {
+        filter: Some("sphere implicit".into()),
+        quick: true,
+        runs: 1,
+        progress: false,
+        llvmpipe: Some("/nonexistent/primflow".into()),
+        ..BenchOptions::default()
+    };
+    let report = run(&opts).unwrap();
+    assert!(
+        report.llvmpipe_status.starts_with("not measured: cannot start"),
+        "{}",
+        report.llvmpipe_status
+    );
+    assert_eq!(report.llvmpipe.len(), 1);
+    assert_eq!(report.llvmpipe[0].llvmpipe, 88.0);
+    assert!(report.llvmpipe[0].measured.is_none());
+    assert!(report.workloads[0].timing(KernelKind::Llvmpipe, 1).is_none());
+}
