@@ -1699,9 +1699,9 @@ fn format_scaling_and_llvmpipe(report: &BenchReport) -> String {
             };
             match (c.measured, c.measured_ratio, c.measured_pixels) {
                 (Some(figure), Some(ratio), Some(px)) => s.push_str(&format!(
-                    " | llvmpipe here {figure:>7.1}: JIT {ratio:.2}x{} (its pixels {:.3}x)",
-                    best(figure),
-                    px as f64 / c.jit_pixels.max(1) as f64
+                    " | llvmpipe here {figure:>7.1} (pixels {:.3}x the JIT's): JIT {ratio:.2}x{}",
+                    px as f64 / c.jit_pixels.max(1) as f64,
+                    best(figure)
                 )),
                 _ => s.push_str(" | llvmpipe here: -"),
             }
