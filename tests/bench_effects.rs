@@ -199,7 +199,7 @@ fn report_has_effects_thread_figures_and_llvmpipe_rows() {
     // Filtered to spheres: no effects series.
     assert!(report.effects.is_none());
     for w in &report.workloads {
-        for threads in [1, report.threads] {
+        for threads in [1, report.machine.threads] {
             assert!(
                 w.timings.iter().any(|t| t.kernel == "JIT" && t.threads == threads),
                 "{}: no JIT figure for {threads} threads",

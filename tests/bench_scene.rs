@@ -5,22 +5,15 @@
 //! the JIT's), a primitive from a user directory gets the JIT's rows alone, and a broken
 //! scene is refused with its diagnostics. Outcomes only: nothing here asserts a timing.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
+use common::cli;
 use primflow::bench::{format_scene_report, run_scene, KernelKind, SceneBenchOptions};
-use primflow::cli::run;
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::handwritten::Flavor;
 use primflow::jit::Jit;
-
-fn cli(args: &[&str]) -> (i32, String, String) {
-    let mut out = vec![];
-    let mut err = vec![];
-    let mut argv = vec!["primflow"];
-    argv.extend_from_slice(args);
-    let code = run(argv, &mut out, &mut err);
-    (code, String::from_utf8(out).unwrap(), String::from_utf8(err).unwrap())
-}
 
 fn temp_dir(tag: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("primflow-bench-scene-{tag}-{}", std::process::id()));
@@ -89,7 +82,7 @@ fn the_spheres_example_is_measured_with_every_hand_written_form() {
         assert!(t.median_ms > 0.0 && t.tiles_ms <= t.median_ms, "{t:?}");
         assert_eq!(t.mpixels_per_s, w.pixels_written as f64 / t.median_ms / 1e3);
     }
-    assert!(w.timing(KernelKind::Jit, report.threads).is_some());
+    assert!(w.timing(KernelKind::Jit, report.machine.threads).is_some());
     // Spheres call nothing: no per-tile row.
     assert!(w.timing(KernelKind::JitSetupPerTile, 1).is_none());
     assert!(w.expand_speedup.is_none());

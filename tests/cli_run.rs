@@ -1,21 +1,14 @@
 //! The command line: exit codes and messages of `check` and `render` on bad input, and the
 //! `--key` syntax. (Rendering real scenes end to end needs the checker and the JIT.)
 
+mod common;
+
 use std::path::PathBuf;
 
+use common::cli;
 use primflow::abi::{Binding, BindingKind};
-use primflow::cli::{parse_key, run};
+use primflow::cli::parse_key;
 use primflow::ir::Program;
-
-/// Run the CLI in-process: (exit code, stdout, stderr).
-fn cli(args: &[&str]) -> (i32, String, String) {
-    let mut out = vec![];
-    let mut err = vec![];
-    let mut argv = vec!["primflow"];
-    argv.extend_from_slice(args);
-    let code = run(argv, &mut out, &mut err);
-    (code, String::from_utf8(out).unwrap(), String::from_utf8(err).unwrap())
-}
 
 fn temp_file(name: &str, text: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("primflow-cli-{}", std::process::id()));

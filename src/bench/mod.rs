@@ -180,8 +180,9 @@ pub struct CompileTiming {
     pub clif_insts: u64,
 }
 
+/// What ran the bench: the machine and the kernels' builds on it.
 #[derive(Clone, Debug, Serialize)]
-pub struct BenchReport {
+pub struct Machine {
     pub machine: String,
     pub isa: String,
     pub simd_kernel: String,
@@ -189,6 +190,33 @@ pub struct BenchReport {
     /// The deferred shading pass's build on this CPU ([`crate::runtime::shading::simd_build`]).
     pub shading_kernel: String,
     pub threads: usize,
+}
+
+impl Machine {
+    fn of(jit: &Jit, threads: usize) -> Machine {
+        Machine {
+            machine: machine_description(threads),
+            isa: jit.isa_summary(),
+            simd_kernel: Flavor::Avx2.describe().to_string(),
+            sse_kernel: Flavor::Sse.describe().to_string(),
+            shading_kernel: crate::runtime::shading::simd_build(),
+            threads,
+        }
+    }
+
+    /// The report's first lines.
+    fn header(&self) -> String {
+        format!(
+            "machine: {}\nJIT: {}\nhand-written SSE: {}\nhand-written SIMD: {}\nshading pass: {}\n\n",
+            self.machine, self.isa, self.sse_kernel, self.simd_kernel, self.shading_kernel
+        )
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchReport {
+    #[serde(flatten)]
+    pub machine: Machine,
     pub workloads: Vec<WorkloadResult>,
     pub compile: Vec<CompileTiming>,
     /// Parse + check the library, compile the kernels of a one-triangle scene, render it.
@@ -1009,12 +1037,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
     bar.finish_and_clear();
     let llvmpipe = llvmpipe_comparisons(&results);
     Ok(BenchReport {
-        machine: machine_description(threads),
-        isa: src.jit.isa_summary(),
-        simd_kernel: Flavor::Avx2.describe().to_string(),
-        sse_kernel: Flavor::Sse.describe().to_string(),
-        shading_kernel: crate::runtime::shading::simd_build(),
-        threads,
+        machine: Machine::of(&src.jit, threads),
         workloads: results,
         compile,
         time_to_first_pixel_ms: ttfp,
@@ -1066,18 +1089,14 @@ fn machine_description(threads: usize) -> String {
 
 /// The report as a text table.
 pub fn format_table(report: &BenchReport) -> String {
-    let mut s = String::new();
-    s.push_str(&format!(
-        "machine: {}\nJIT: {}\nhand-written SSE: {}\nhand-written SIMD: {}\nshading pass: {}\n\n",
-        report.machine, report.isa, report.sse_kernel, report.simd_kernel, report.shading_kernel
-    ));
+    let mut s = report.machine.header();
     s.push_str(
         "ms: median frame time; setup, tiles, shade: its parts (expansion, bound pass and binning;\n\
          the tile kernels; the deferred shading pass), medians\n",
     );
     s.push_str(&workload_header());
     for w in &report.workloads {
-        s.push_str(&format_workload(w, report.threads));
+        s.push_str(&format_workload(w, report.machine.threads));
         s.push('\n');
     }
     s.push_str(&format_scaling_and_llvmpipe(report));
@@ -1094,7 +1113,7 @@ pub fn format_table(report: &BenchReport) -> String {
     if !report.scenes_to_first_pixel.is_empty() {
         s.push_str(&format!(
             "example scenes to first pixel, as `primflow render` (parse the scene and the library files it needs, tier-0 compile, first frame on {} threads; fastest of {SCENE_TTFP_RUNS}):\n",
-            report.threads
+            report.machine.threads
         ));
         for t in &report.scenes_to_first_pixel {
             s.push_str(&format!(
@@ -1650,7 +1669,7 @@ fn spheres_lit() -> Workload {
 /// Per workload: JIT one thread, all threads, and the ratio, by medians and by the fastest
 /// run; then llvmpipe's figures.
 fn format_scaling_and_llvmpipe(report: &BenchReport) -> String {
-    let n = report.threads;
+    let n = report.machine.threads;
     let mut s = format!(
         "thread scaling (JIT, ms per whole frame: bound pass, tile clears and kernels, and the \
          deferred shading pass where the scene has effects, as in `sphere lit`): 1 thread vs {n} threads, \
@@ -1665,7 +1684,10 @@ fn format_scaling_and_llvmpipe(report: &BenchReport) -> String {
         "ratio",
     );
     for w in &report.workloads {
-        if let (Some(one), Some(all)) = (w.timing(KernelKind::Jit, 1), w.timing(KernelKind::Jit, report.threads)) {
+        if let (Some(one), Some(all)) = (
+            w.timing(KernelKind::Jit, 1),
+            w.timing(KernelKind::Jit, report.machine.threads),
+        ) {
             s.push_str(&format!(
                 "  {:<34} {:>9.2} {:>9.2} {:>6.2}x   {:>9.2} {:>9.2} {:>6.2}x\n",
                 w.workload,

@@ -17,8 +17,8 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::{
-    compile_timing, format_compile, format_workload, machine_description, measure, progress_bar, workload_header,
-    CompileTiming, Sources, WorkloadResult, ALL_FLAVORS,
+    compile_timing, format_compile, format_workload, measure, progress_bar, workload_header, CompileTiming, Machine,
+    Sources, WorkloadResult, ALL_FLAVORS,
 };
 use crate::diag::{Diagnostics, SourceMap};
 use crate::handwritten::Flavor;
@@ -134,12 +134,8 @@ pub struct SceneBenchOptions {
 /// `primflow bench --scene`'s results.
 #[derive(Clone, Debug, Serialize)]
 pub struct SceneBenchReport {
-    pub machine: String,
-    pub isa: String,
-    pub sse_kernel: String,
-    pub simd_kernel: String,
-    pub shading_kernel: String,
-    pub threads: usize,
+    #[serde(flatten)]
+    pub machine: Machine,
     pub scene: String,
     pub width: u32,
     pub height: u32,
@@ -219,12 +215,7 @@ pub fn run_scene(opts: &SceneBenchOptions) -> Result<SceneBenchReport, String> {
     )?;
     bar.finish_and_clear();
     Ok(SceneBenchReport {
-        machine: machine_description(threads),
-        isa: src.jit.isa_summary(),
-        sse_kernel: Flavor::Sse.describe().to_string(),
-        simd_kernel: Flavor::Avx2.describe().to_string(),
-        shading_kernel: crate::runtime::shading::simd_build(),
-        threads,
+        machine: Machine::of(&src.jit, threads),
         scene: name,
         width: r.options.width,
         height: r.options.height,
@@ -240,10 +231,7 @@ pub fn run_scene(opts: &SceneBenchOptions) -> Result<SceneBenchReport, String> {
 pub fn format_scene_report(report: &SceneBenchReport) -> String {
     let f = &report.first_frame;
     let w = &report.frames;
-    let mut s = format!(
-        "machine: {}\nJIT: {}\nhand-written SSE: {}\nhand-written SIMD: {}\nshading pass: {}\n\n",
-        report.machine, report.isa, report.sse_kernel, report.simd_kernel, report.shading_kernel
-    );
+    let mut s = report.machine.header();
     s.push_str(&format!(
         "scene {}: {}x{}, {} primitives, {} draws after expansion, {} pixels written (depth writes) per frame\n\n",
         report.scene, report.width, report.height, w.primitives, report.draws, w.pixels_written
@@ -252,7 +240,7 @@ pub fn format_scene_report(report: &SceneBenchReport) -> String {
         "first frame, as `primflow render` (tier-0 kernels, {} threads; fastest of {SCENE_TTFP_RUNS}): {:.1} ms\n\
          \x20 load {:.1} ms (scene, library files it needs), compile {:.1} ms (tier 0), setup {:.1} ms \
          (expansion, bound pass, binning), tiles {:.1} ms, shade {:.1} ms\n\n",
-        report.threads, f.ms, f.load_ms, f.compile_ms, f.setup_ms, f.tiles_ms, f.shade_ms
+        report.machine.threads, f.ms, f.load_ms, f.compile_ms, f.setup_ms, f.tiles_ms, f.shade_ms
     ));
     s.push_str(&format_compile(&report.compile));
     s.push_str(
@@ -260,7 +248,7 @@ pub fn format_scene_report(report: &SceneBenchReport) -> String {
          frame's parts: expansion, bound pass and binning; the tile kernels; deferred shading)\n",
     );
     s.push_str(&workload_header());
-    s.push_str(&format_workload(w, report.threads));
+    s.push_str(&format_workload(w, report.machine.threads));
     for (form, why) in &report.handwritten_skipped {
         s.push_str(&format!("not timed: hand-written {form}: {why}\n"));
     }

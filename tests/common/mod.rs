@@ -9,6 +9,16 @@ use primflow::ir::Program;
 use primflow::jit::{Jit, JitOptions, Tier};
 use primflow::runtime::{Frame, Registry, Renderer, Value};
 
+/// Run the command line in-process: (exit code, stdout, stderr).
+pub fn cli(args: &[&str]) -> (i32, String, String) {
+    let mut out = vec![];
+    let mut err = vec![];
+    let mut argv = vec!["primflow"];
+    argv.extend_from_slice(args);
+    let code = primflow::cli::run(argv, &mut out, &mut err);
+    (code, String::from_utf8(out).unwrap(), String::from_utf8(err).unwrap())
+}
+
 /// The built-in primitive library, compiled (panics with the rendered diagnostics if not).
 pub fn library() -> Arc<Program> {
     let mut sources = SourceMap::new();
