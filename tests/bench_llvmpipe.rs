@@ -179,3 +179,40 @@ fn without_a_worker_the_report_keeps_the_issues_figures() {
     assert!(report.llvmpipe[0].measured.is_none());
     assert!(report.workloads[0].timing(KernelKind::Llvmpipe, 1).is_none());
 }
+
+#[test]
+fn a_worker_that_dies_mid_way_loses_its_row_not_the_bench() {
+    // A stand-in worker: starts, answers the setup, then ends.
+    let dir = std::env::temp_dir().join(format!("primflow-llvmpipe-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let fake = dir.join("fake-worker");
+    std::fs::write(
+        &fake,
+        "#!/bin/sh\nprintf 'ready\\tllvmpipe (stand-in)\\t0\\n'\nread line\nprintf 'ok\\t1.0\\t5242880\\n'\nread line\n",
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
+    #[allow(clippy::needless_update)]
+    let opts = BenchOptions {
+        filter: Some("fill none".into()),
+        quick: true,
+        runs: 2,
+        progress: false,
+        llvmpipe: Some(fake),
+        ..BenchOptions::default()
+    };
+    let report = run(&opts).unwrap();
+    assert!(
+        report.llvmpipe_status.starts_with("llvmpipe (stand-in)"),
+        "{}",
+        report.llvmpipe_status
+    );
+    let w = &report.workloads[0];
+    assert!(w.llvmpipe.is_none());
+    let error = w.llvmpipe_error.as_deref().unwrap_or_default();
+    assert!(error.contains("ended"), "{error}");
+    assert!(w.timing(KernelKind::Llvmpipe, 1).is_none());
+    assert!(w.timing(KernelKind::Jit, 1).is_some());
+    assert_eq!(report.llvmpipe[0].measured, None);
+}

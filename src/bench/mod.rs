@@ -809,14 +809,21 @@ fn measure(
         for (i, &kind) in ROWS.iter().enumerate() {
             let pool = if i == ALL_THREADS_ROW { all } else { one };
             if kind == KernelKind::Llvmpipe {
-                if let Some(twin) = &mut gl {
+                match gl.as_mut().map(|twin| twin.worker.frame()) {
                     // Its frame has no parts the bench can see.
-                    times[i].push(FrameParts {
-                        ms: twin.worker.frame()?.ms,
+                    Some(Ok(f)) => times[i].push(FrameParts {
+                        ms: f.ms,
                         setup_ms: f64::NAN,
                         tiles_ms: f64::NAN,
                         shade_ms: f64::NAN,
-                    });
+                    }),
+                    // A worker that fails mid-way loses its row, not the bench.
+                    Some(Err(e)) => {
+                        llvmpipe_error = Some(e);
+                        gl = None;
+                        times[i].clear();
+                    }
+                    None => {}
                 }
                 continue;
             }
@@ -881,7 +888,7 @@ fn measure(
         thread_scaling: scaling(|t| t.median_ms),
         thread_scaling_best: scaling(|t| t.min_ms),
         expand_speedup: over_jit(KernelKind::JitSetupPerTile),
-        llvmpipe: match (gl, gl_first) {
+        llvmpipe: match (gl, gl_first.filter(|_| llvmpipe_error.is_none())) {
             (Some(twin), Some(first)) => Some(LlvmpipeRun {
                 renderer: twin.worker.renderer.clone(),
                 cpu: twin.worker.cpu,
