@@ -39,7 +39,8 @@ pub enum Command {
     Render(RenderArgs),
     /// Run primitive test cases: scene files with `# expect:` lines (default: prims/tests).
     Test(TestArgs),
-    /// Benchmark JIT kernels against hand-written Rust kernels of the same primitives.
+    /// Benchmark JIT kernels against hand-written Rust kernels of the same primitives and
+    /// against Mesa llvmpipe (`--scene`: a scene of your own).
     Bench(BenchArgs),
     /// Sweep the accuracy knobs: error against the f64 reference vs time, as a table, CSV,
     /// JSON and one plot per knob.
