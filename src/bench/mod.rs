@@ -97,6 +97,8 @@ pub struct KernelTiming {
 pub struct WorkloadResult {
     pub workload: String,
     pub primitives: usize,
+    /// Draws of a frame: instances drawn as themselves plus the calls the expanded ones make.
+    pub draws: usize,
     pub pixels_written: u64,
     pub timings: Vec<KernelTiming>,
     /// JIT (tier 1) throughput over its tier-0 kernels', one thread each.
@@ -559,18 +561,17 @@ fn library(sources: &mut SourceMap) -> Result<Arc<Program>, String> {
     Ok(program)
 }
 
+/// One frame of `r` by `source` on `pool`, and what the render measured; errors refused.
 fn render(
     r: &Renderer,
     source: &mut (dyn KernelSource + Send),
     pool: &rayon::ThreadPool,
-) -> Result<(Frame, f64), String> {
-    let started = Instant::now();
+) -> Result<(Frame, crate::runtime::RenderStats), String> {
     let out = pool.install(|| r.render(source));
-    let ms = started.elapsed().as_secs_f64() * 1e3;
     if out.diags.has_errors() {
         return Err(format!("{:?}", out.diags.items));
     }
-    Ok((out.frame, ms))
+    Ok((out.frame, out.stats))
 }
 
 /// One timed frame rendered into `frame`, reusing its buffers as an application rendering
@@ -745,7 +746,8 @@ fn measure(
     bar.inc_length((5 + runs) as u64);
     // The JIT's first frame may run tier-0 kernels; the tier-1 ones must agree with it bit
     // for bit, and the timed runs below use them.
-    let (reference, _) = render(r, &mut src.jit, one)?;
+    let (reference, stats) = render(r, &mut src.jit, one)?;
+    let draws = stats.instances - stats.expanded_instances + stats.expanded_calls;
     src.jit.wait_for_tier_up();
     if !same_frame(&reference, &render(r, &mut src.jit, one)?.0) {
         return Err(format!("{name}: the JIT's tier-1 frame differs from its tier-0 frame"));
@@ -880,6 +882,7 @@ fn measure(
     Ok(WorkloadResult {
         workload: name.to_string(),
         primitives,
+        draws,
         pixels_written: pixels,
         jit_vs_tier0: over_jit(KernelKind::JitTier0).unwrap_or(f64::NAN),
         jit_vs_scalar: over_jit(KernelKind::Handwritten(Flavor::Scalar)),

@@ -139,8 +139,6 @@ pub struct SceneBenchReport {
     pub scene: String,
     pub width: u32,
     pub height: u32,
-    /// Draws of a frame: instances drawn as themselves plus the calls the expanded ones make.
-    pub draws: usize,
     pub first_frame: SceneToFirstPixel,
     /// Every kernel variant the scene's instances use, in first-use order.
     pub compile: Vec<CompileTiming>,
@@ -172,14 +170,12 @@ pub fn run_scene(opts: &SceneBenchOptions) -> Result<SceneBenchReport, String> {
     let all = render_pool(threads).map_err(|e| e.to_string())?;
 
     bar.set_message("compiles");
-    let mut compile = vec![];
-    let mut seen = vec![];
-    for inst in r.instances() {
-        if !seen.contains(&(inst.func, &inst.key)) {
-            seen.push((inst.func, &inst.key));
-            compile.push(compile_timing(&program, "", inst.func, &inst.key)?);
-        }
-    }
+    let compile = r
+        .variants()
+        .0
+        .iter()
+        .map(|(func, key)| compile_timing(&program, "", *func, key))
+        .collect::<Result<Vec<_>, _>>()?;
 
     // The hand-written forms that can render the scene: every primitive it draws (and every
     // one those call) must have one for its key.
@@ -194,12 +190,6 @@ pub fn run_scene(opts: &SceneBenchOptions) -> Result<SceneBenchReport, String> {
         }
     }
     bar.set_message("frames");
-    let mut draws = 0;
-    {
-        let out = one.install(|| r.render(&mut src.jit));
-        let s = &out.stats;
-        draws += s.instances - s.expanded_instances + s.expanded_calls;
-    }
     let primitives = r.instances().len();
     let frames = measure(
         &name,
@@ -219,7 +209,6 @@ pub fn run_scene(opts: &SceneBenchOptions) -> Result<SceneBenchReport, String> {
         scene: name,
         width: r.options.width,
         height: r.options.height,
-        draws,
         first_frame,
         compile,
         frames,
@@ -234,7 +223,7 @@ pub fn format_scene_report(report: &SceneBenchReport) -> String {
     let mut s = report.machine.header();
     s.push_str(&format!(
         "scene {}: {}x{}, {} primitives, {} draws after expansion, {} pixels written (depth writes) per frame\n\n",
-        report.scene, report.width, report.height, w.primitives, report.draws, w.pixels_written
+        report.scene, report.width, report.height, w.primitives, w.draws, w.pixels_written
     ));
     s.push_str(&format!(
         "first frame, as `primflow render` (tier-0 kernels, {} threads; fastest of {SCENE_TTFP_RUNS}): {:.1} ms\n\
