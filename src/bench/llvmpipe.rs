@@ -224,7 +224,8 @@ struct Drawing {
     vao: glow::VertexArray,
     buffer: glow::Buffer,
     framebuffer: glow::Framebuffer,
-    renderbuffers: [glow::Renderbuffer; 2],
+    /// Colour, depth.
+    renderbuffers: Vec<glow::Renderbuffer>,
     vertices: i32,
 }
 
@@ -359,24 +360,17 @@ impl Gl {
         };
         let framebuffer = gl.create_framebuffer()?;
         gl.bind_framebuffer(glow::FRAMEBUFFER, Some(framebuffer));
-        let colour = gl.create_renderbuffer()?;
-        gl.bind_renderbuffer(glow::RENDERBUFFER, Some(colour));
-        gl.renderbuffer_storage(glow::RENDERBUFFER, glow::RGBA8, size, size);
-        gl.framebuffer_renderbuffer(
-            glow::FRAMEBUFFER,
-            glow::COLOR_ATTACHMENT0,
-            glow::RENDERBUFFER,
-            Some(colour),
-        );
-        let depth = gl.create_renderbuffer()?;
-        gl.bind_renderbuffer(glow::RENDERBUFFER, Some(depth));
-        gl.renderbuffer_storage(glow::RENDERBUFFER, glow::DEPTH_COMPONENT32F, size, size);
-        gl.framebuffer_renderbuffer(
-            glow::FRAMEBUFFER,
-            glow::DEPTH_ATTACHMENT,
-            glow::RENDERBUFFER,
-            Some(depth),
-        );
+        let mut renderbuffers = vec![];
+        for (format, attachment) in [
+            (glow::RGBA8, glow::COLOR_ATTACHMENT0),
+            (glow::DEPTH_COMPONENT32F, glow::DEPTH_ATTACHMENT),
+        ] {
+            let buffer = gl.create_renderbuffer()?;
+            gl.bind_renderbuffer(glow::RENDERBUFFER, Some(buffer));
+            gl.renderbuffer_storage(glow::RENDERBUFFER, format, size, size);
+            gl.framebuffer_renderbuffer(glow::FRAMEBUFFER, attachment, glow::RENDERBUFFER, Some(buffer));
+            renderbuffers.push(buffer);
+        }
         let status = gl.check_framebuffer_status(glow::FRAMEBUFFER);
         if status != glow::FRAMEBUFFER_COMPLETE {
             return Err(format!("framebuffer incomplete ({status:#x})"));
@@ -396,14 +390,13 @@ impl Gl {
             } => triangle_program(*size, tris, *k, *interpolation),
             GlScene::Spheres {
                 camera, spheres, lit, ..
-            } => sphere_program(*camera, spheres, *lit),
+            } => sphere_program(focal(camera.0), spheres, *lit),
         };
         let program = link(gl, &vertex, &fragment)?;
         gl.use_program(Some(program));
         if let GlScene::Spheres { size, camera, .. } = scene {
             let (fovy, near, far) = *camera;
-            let f = 1.0 / (fovy.to_radians() / 2.0).tan();
-            gl.uniform_1_f32(gl.get_uniform_location(program, "focal").as_ref(), f);
+            gl.uniform_1_f32(gl.get_uniform_location(program, "focal").as_ref(), focal(fovy));
             gl.uniform_1_f32(
                 gl.get_uniform_location(program, "inv_size").as_ref(),
                 1.0 / *size as f32,
@@ -432,7 +425,7 @@ impl Gl {
             vao,
             buffer,
             framebuffer,
-            renderbuffers: [colour, depth],
+            renderbuffers,
             vertices: (data.len() / floats_per_vertex) as i32,
         })
     }
@@ -488,14 +481,17 @@ fn triangle_program(
     (vertex, fragment, data, 4 + k, attributes)
 }
 
-/// Shaders and vertices of a sphere scene: per sphere a quad over its projection (the
-/// projected corners of its eye-space bounding cube), each vertex carrying the sphere; the
-/// fragment shader intersects the pixel's eye ray with it.
-fn sphere_program(
-    camera: (f32, f32, f32),
-    spheres: &[([f32; 3], f32)],
-    lit: bool,
-) -> (String, String, Vec<f32>, usize, Vec<i32>) {
+/// The projection's scale of a camera with vertical field of view `fovy` degrees (square
+/// target): a point (x, y, z) of eye space lands at f x / -z, f y / -z.
+fn focal(fovy: f32) -> f32 {
+    1.0 / (fovy.to_radians() / 2.0).tan()
+}
+
+/// Shaders and vertices of a sphere scene seen with projection scale `f` ([`focal`]): per
+/// sphere a quad over its projection (the projected corners of its eye-space bounding
+/// cube), each vertex carrying the sphere; the fragment shader intersects the pixel's eye
+/// ray with it.
+fn sphere_program(f: f32, spheres: &[([f32; 3], f32)], lit: bool) -> (String, String, Vec<f32>, usize, Vec<i32>) {
     let vertex = "#version 330 core\nlayout(location = 0) in vec2 corner;\nlayout(location = 1) in vec4 sphere;\n\
                   flat out vec4 s;\nvoid main() { gl_Position = vec4(corner, 0.0, 1.0); s = sphere; }\n";
     let shade = if lit {
@@ -515,8 +511,6 @@ fn sphere_program(
          float z = (depth.x * p.z + depth.y) / -p.z;\n    if (z < -1.0 || z > 1.0) discard;\n    \
          gl_FragDepth = z * 0.5 + 0.5;\n    vec3 n = (p - s.xyz) / s.w;\n    {shade}\n}}\n"
     );
-    let (fovy, _, _) = camera;
-    let f = 1.0 / (fovy.to_radians() / 2.0).tan();
     let mut data = vec![];
     for &(c, r) in spheres {
         let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
