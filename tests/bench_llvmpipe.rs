@@ -30,10 +30,11 @@ struct Worker {
 }
 
 impl Worker {
-    fn start() -> (Worker, String) {
+    /// A worker with `threads` rasterizer threads.
+    fn start(threads: usize) -> (Worker, String) {
         let mut child = Command::new(EXE)
             .arg("llvmpipe-worker")
-            .env("LP_NUM_THREADS", "1")
+            .env("LP_NUM_THREADS", threads.to_string())
             .env("LIBGL_ALWAYS_SOFTWARE", "1")
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
@@ -71,12 +72,14 @@ fn samples(answer: &str) -> u64 {
 
 #[test]
 fn the_worker_draws_the_workloads_own_pixels() {
-    let (mut w, ready) = Worker::start();
+    let (mut w, ready) = Worker::start(1);
     if !has_egl() {
         assert!(ready.starts_with("error\t"), "{ready}");
         return;
     }
     assert!(ready.starts_with("ready\tllvmpipe"), "{ready}");
+    // One rasterizer thread: pinned to a CPU (the last field names it).
+    assert!(ready.rsplit('\t').next().unwrap().parse::<usize>().is_ok(), "{ready}");
     // `frame` before any `setup`, and a workload without a twin, are errors, not crashes.
     assert!(w.ask("frame").starts_with("error\t"));
     let unknown = w.ask("setup\t1\tpolygon hither K=4");
@@ -103,6 +106,25 @@ fn the_worker_draws_the_workloads_own_pixels() {
     assert!(lit > 100_000, "{lit}");
     drop(w.child.stdin.take());
     assert!(w.child.wait().unwrap().success());
+}
+
+#[test]
+fn a_worker_with_a_rasterizer_thread_per_cpu_is_unpinned_and_draws_the_same_pixels() {
+    let (mut w, ready) = Worker::start(2);
+    if !has_egl() {
+        assert!(ready.starts_with("error\t"), "{ready}");
+        return;
+    }
+    assert!(
+        ready.starts_with("ready\tllvmpipe") && ready.ends_with("\t-"),
+        "{ready}"
+    );
+    let first = w.ask("setup\t1\tfill perspective_linear K=4");
+    assert_eq!(samples(&first), 20 * 512 * 512);
+    assert_eq!(samples(&w.ask("frame")), 20 * 512 * 512);
+    let (mut one, _) = Worker::start(1);
+    let small = "setup\t1\tsmall perspective_linear K=4";
+    assert_eq!(samples(&w.ask(small)), samples(&one.ask(small)));
 }
 
 #[test]
@@ -151,10 +173,28 @@ fn the_report_sets_measured_llvmpipe_beside_the_jit_on_the_same_pixels() {
         let jit = w.timing(KernelKind::Jit, 1).unwrap();
         assert_eq!(c.measured_ratio, Some(row.median_ms / jit.median_ms));
         assert_eq!(c.measured_pixels, Some(run.pixels_written));
+        // On every CPU: llvmpipe's row by its own pixel count, beside the JIT's on its pool.
+        let n = report.machine.threads;
+        if n > 1 {
+            let all = w.timing(KernelKind::Llvmpipe, n).unwrap();
+            let jit_all = w.timing(KernelKind::Jit, n).unwrap();
+            assert_eq!(all.kernel, "llvmpipe, all CPUs");
+            let expected = run.pixels_written as f64 / all.median_ms / 1e3;
+            assert!((all.mpixels_per_s - expected).abs() <= expected * 1e-3, "{all:?}");
+            assert_eq!(run.jit_vs_llvmpipe_all_threads, Some(all.median_ms / jit_all.median_ms));
+            assert_eq!(run.thread_scaling, Some(row.median_ms / all.median_ms));
+            assert_eq!(c.measured_all_threads, Some(all.mpixels_per_s));
+            assert_eq!(c.measured_all_threads_ratio, run.jit_vs_llvmpipe_all_threads);
+        } else {
+            assert_eq!(run.jit_vs_llvmpipe_all_threads, None);
+        }
     }
     let text = primflow::bench::format_table(&report);
     assert!(text.contains("llvmpipe here"), "{text}");
     assert!(text.contains("JIT/llvmpipe"), "{text}");
+    if report.machine.threads > 1 {
+        assert!(text.contains("against Mesa llvmpipe on"), "{text}");
+    }
 }
 
 #[test]
@@ -213,6 +253,52 @@ fn a_worker_that_dies_mid_way_loses_its_row_not_the_bench() {
     let error = w.llvmpipe_error.as_deref().unwrap_or_default();
     assert!(error.contains("ended"), "{error}");
     assert!(w.timing(KernelKind::Llvmpipe, 1).is_none());
+    assert!(w.timings.iter().all(|t| t.kind != KernelKind::Llvmpipe));
     assert!(w.timing(KernelKind::Jit, 1).is_some());
     assert_eq!(report.llvmpipe[0].measured, None);
+}
+
+#[test]
+fn an_all_threads_worker_that_dies_loses_only_its_own_row() {
+    // A stand-in: with one rasterizer thread it answers every frame (the quick `fill none`
+    // workload's pixel count); with more it answers the setup and then ends.
+    let dir = std::env::temp_dir().join(format!("primflow-llvmpipe-all-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let fake = dir.join("fake-worker");
+    std::fs::write(
+        &fake,
+        "#!/bin/sh\nprintf 'ready\\tllvmpipe (stand-in)\\t0\\n'\n\
+         if [ \"$LP_NUM_THREADS\" != 1 ]; then read line; printf 'ok\\t1.0\\t5242880\\n'; read line; exit 0; fi\n\
+         while read line; do printf 'ok\\t1.0\\t5242880\\n'; done\n",
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
+    #[allow(clippy::needless_update)]
+    let opts = BenchOptions {
+        filter: Some("fill none".into()),
+        quick: true,
+        runs: 2,
+        progress: false,
+        llvmpipe: Some(fake),
+        ..BenchOptions::default()
+    };
+    let report = run(&opts).unwrap();
+    let n = report.machine.threads;
+    if n == 1 {
+        return; // no all-threads worker to lose
+    }
+    let w = &report.workloads[0];
+    let run = w.llvmpipe.as_ref().expect("the one-thread worker kept its row");
+    assert_eq!(run.jit_vs_llvmpipe_all_threads, None);
+    assert_eq!(run.thread_scaling, None);
+    let error = w.llvmpipe_error.as_deref().unwrap_or_default();
+    assert!(
+        error.contains("rasterizer thread per CPU") && error.contains("ended"),
+        "{error}"
+    );
+    assert!(w.timing(KernelKind::Llvmpipe, 1).is_some());
+    assert!(w.timing(KernelKind::Llvmpipe, n).is_none());
+    assert_eq!(report.llvmpipe[0].measured_all_threads, None);
+    assert!(report.llvmpipe[0].measured.is_some());
 }

@@ -8,11 +8,12 @@
 //! in the same rounds as the JIT's.
 //!
 //! llvmpipe runs in a child process, `primflow llvmpipe-worker` ([`worker`]): Mesa takes its
-//! settings from the environment when it starts (`LP_NUM_THREADS=1`: one rasterizer thread,
-//! as the figures; software rendering forced), keeps threads of its own, and a driver
-//! fault must not take the bench down. The child pins itself to one CPU before Mesa starts, so
-//! llvmpipe's main thread (vertex processing, binning) and its rasterizer thread share one
-//! core, as the JIT's one-thread figure has one. Protocol, one line each way, fields
+//! settings from the environment when it starts (`LP_NUM_THREADS`: its rasterizer threads;
+//! software rendering forced), keeps threads of its own, and a driver fault must not take the
+//! bench down. The bench runs two: one with `LP_NUM_THREADS=1`, as the figures, which
+//! pins itself to one CPU before Mesa starts, so llvmpipe's main thread (vertex processing,
+//! binning) and its rasterizer thread share one core, as the JIT's one-thread figure has one;
+//! and one with a rasterizer thread per CPU, unpinned, beside the JIT on all threads. Protocol, one line each way, fields
 //! separated by tabs: the child first says `ready <GL_RENDERER> <cpu>`; `setup <quick 0|1>
 //! <workload>` builds that workload's scene and renders a first frame (shaders compile then);
 //! `frame` renders and times one more; each answers `ok <ms> <samples passed>` or `error
@@ -82,11 +83,12 @@ pub(crate) struct Llvmpipe {
 }
 
 impl Llvmpipe {
-    /// Start `exe llvmpipe-worker` (`exe`: a primflow binary) with llvmpipe's settings.
-    pub fn start(exe: &Path) -> Result<Llvmpipe, String> {
+    /// Start `exe llvmpipe-worker` (`exe`: a primflow binary) with llvmpipe's settings and
+    /// `threads` rasterizer threads (one: pinned to one CPU with its main thread).
+    pub fn start(exe: &Path, threads: usize) -> Result<Llvmpipe, String> {
         let mut child = Command::new(exe)
             .arg("llvmpipe-worker")
-            .env("LP_NUM_THREADS", "1")
+            .env("LP_NUM_THREADS", threads.max(1).to_string())
             .env("LIBGL_ALWAYS_SOFTWARE", "1")
             .env("GALLIUM_DRIVER", "llvmpipe")
             .env("EGL_PLATFORM", "surfaceless")
@@ -170,7 +172,11 @@ impl Drop for Llvmpipe {
 /// until the input ends. The exit status: 0, or 1 when llvmpipe could not start (after
 /// saying why).
 pub fn worker(input: &mut dyn BufRead, output: &mut dyn Write) -> i32 {
-    let cpu = crate::runtime::pool::pin_to_one_cpu();
+    // One rasterizer thread shares one CPU with the main thread; more take every CPU.
+    let cpu = match std::env::var("LP_NUM_THREADS").as_deref() {
+        Ok("1") => crate::runtime::pool::pin_to_one_cpu(),
+        _ => None,
+    };
     let mut gl = match Gl::new() {
         Ok(gl) => gl,
         Err(e) => {

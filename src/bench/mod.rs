@@ -71,8 +71,9 @@ pub enum KernelKind {
     Handwritten(Flavor),
     /// The JIT (tier 1) with expansion off: a calling primitive's setup reruns in every tile.
     JitSetupPerTile,
-    /// Mesa's llvmpipe drawing the same geometry (one rasterizer thread, pinned to one CPU
-    /// with its main thread; see [`llvmpipe`]).
+    /// Mesa's llvmpipe drawing the same geometry (see [`llvmpipe`]): on one thread, one
+    /// rasterizer thread pinned to one CPU with its main thread; on all threads, a rasterizer
+    /// thread per CPU.
     Llvmpipe,
 }
 
@@ -121,7 +122,8 @@ pub struct WorkloadResult {
     pub expand_speedup: Option<f64>,
     /// llvmpipe on the same geometry, where it was measured (its row is in `timings`).
     pub llvmpipe: Option<LlvmpipeRun>,
-    /// Why llvmpipe was not measured on a workload that has its twin, if it failed there.
+    /// Why llvmpipe (on one thread, or else on all) was not measured on a workload that
+    /// has its twin, if it failed there.
     pub llvmpipe_error: Option<String>,
 }
 
@@ -138,6 +140,11 @@ pub struct LlvmpipeRun {
     pub first_frame_ms: f64,
     /// JIT (tier 1, one thread) throughput over llvmpipe's.
     pub jit_vs_llvmpipe: f64,
+    /// The JIT on all threads over llvmpipe with a rasterizer thread per CPU, where that
+    /// was measured.
+    pub jit_vs_llvmpipe_all_threads: Option<f64>,
+    /// llvmpipe's own all-threads throughput over its one-thread throughput.
+    pub thread_scaling: Option<f64>,
 }
 
 impl WorkloadResult {
@@ -678,23 +685,23 @@ impl Sources {
     }
 }
 
-/// The rows of a workload's timings, in report order (the JIT on all threads is the
-/// all-threads pool's row).
-const ROWS: [KernelKind; 8] = [
-    KernelKind::Jit,
-    KernelKind::JitTier0,
-    KernelKind::Handwritten(Flavor::Scalar),
-    KernelKind::Handwritten(Flavor::Sse),
-    KernelKind::Handwritten(Flavor::Avx2),
-    KernelKind::Llvmpipe,
-    KernelKind::Jit,
-    KernelKind::JitSetupPerTile,
+/// The rows of a workload's timings, in report order: a source, and whether it runs on
+/// all threads.
+const ROWS: [(KernelKind, bool); 9] = [
+    (KernelKind::Jit, false),
+    (KernelKind::JitTier0, false),
+    (KernelKind::Handwritten(Flavor::Scalar), false),
+    (KernelKind::Handwritten(Flavor::Sse), false),
+    (KernelKind::Handwritten(Flavor::Avx2), false),
+    (KernelKind::Llvmpipe, false),
+    (KernelKind::Jit, true),
+    (KernelKind::Llvmpipe, true),
+    (KernelKind::JitSetupPerTile, false),
 ];
-/// The index in [`ROWS`] of the all-threads JIT row.
-const ALL_THREADS_ROW: usize = 6;
 
-fn row_name(kind: KernelKind) -> String {
+fn row_name(kind: KernelKind, all_threads: bool) -> String {
     match kind {
+        KernelKind::Llvmpipe if all_threads => "llvmpipe, all CPUs".into(),
         KernelKind::Jit => "JIT".into(),
         KernelKind::JitTier0 => "JIT tier 0".into(),
         KernelKind::Handwritten(Flavor::Scalar) => "scalar".into(),
@@ -715,10 +722,11 @@ fn gl_scene(quick: bool, name: &str) -> Option<GlScene> {
         .map(|make| make())
 }
 
-/// llvmpipe for [`measure`]: the running worker, the workload's name as the worker finds it
-/// and whether the bench is quick.
+/// llvmpipe for [`measure`]: the running workers (one thread, and all threads where there
+/// are more), the workload's name as the worker finds it and whether the bench is quick.
 struct GlTwin<'a> {
-    worker: &'a mut Llvmpipe,
+    one: Option<&'a mut Llvmpipe>,
+    all: Option<&'a mut Llvmpipe>,
     name: &'a str,
     quick: bool,
 }
@@ -739,7 +747,7 @@ fn measure(
     one: &rayon::ThreadPool,
     all: &rayon::ThreadPool,
     runs: usize,
-    mut gl: Option<GlTwin>,
+    gl: Option<GlTwin>,
     bar: &ProgressBar,
 ) -> Result<WorkloadResult, String> {
     let threads = all.current_num_threads();
@@ -762,7 +770,7 @@ fn measure(
         if !same_frame(&reference, &render(r, src.handwritten(flavor), one)?.0) {
             return Err(format!(
                 "{name}: the hand-written {} kernel's frame differs from the JIT's",
-                row_name(KernelKind::Handwritten(flavor))
+                row_name(KernelKind::Handwritten(flavor), false)
             ));
         }
     }
@@ -789,29 +797,33 @@ fn measure(
         .0
         .write_count_values()
         .map_or(0, |c| c.iter().map(|&x| x as u64).sum());
-    // llvmpipe's first frame (its shaders compile then); a worker that fails here is left
-    // out of this workload, not the bench.
-    let mut llvmpipe_error = None;
-    let gl_first = match &mut gl {
-        Some(twin) => twin
-            .worker
-            .setup(twin.quick, twin.name)
-            .map_err(|e| llvmpipe_error = Some(e))
-            .ok(),
-        None => None,
-    };
-    if gl_first.is_none() {
-        gl = None;
+    // llvmpipe's first frames (its shaders compile then); a worker that fails is left out
+    // of this workload from then on, not the bench. Index 0: one thread, 1: all threads.
+    let (mut gl_workers, mut gl_firsts, mut gl_errors) = ([None, None], [None, None], [None, None]);
+    if let Some(twin) = gl {
+        gl_workers = [twin.one, twin.all];
+        for (i, slot) in gl_workers.iter_mut().enumerate() {
+            if let Some(worker) = slot.as_deref_mut() {
+                match worker.setup(twin.quick, twin.name) {
+                    Ok(first) => gl_firsts[i] = Some(first),
+                    Err(e) => {
+                        gl_errors[i] = Some(e);
+                        *slot = None;
+                    }
+                }
+            }
+        }
     }
     bar.inc(2);
 
     let mut times: [Vec<FrameParts>; ROWS.len()] = Default::default();
     let mut frames: [Frame; ROWS.len()] = std::array::from_fn(|_| Frame::empty());
     for _ in 0..runs {
-        for (i, &kind) in ROWS.iter().enumerate() {
-            let pool = if i == ALL_THREADS_ROW { all } else { one };
+        for (i, &(kind, all_threads)) in ROWS.iter().enumerate() {
+            let pool = if all_threads { all } else { one };
             if kind == KernelKind::Llvmpipe {
-                match gl.as_mut().map(|twin| twin.worker.frame()) {
+                let w = usize::from(all_threads);
+                match gl_workers[w].as_deref_mut().map(Llvmpipe::frame) {
                     // Its frame has no parts the bench can see.
                     Some(Ok(f)) => times[i].push(FrameParts {
                         ms: f.ms,
@@ -821,8 +833,8 @@ fn measure(
                     }),
                     // A worker that fails mid-way loses its row, not the bench.
                     Some(Err(e)) => {
-                        llvmpipe_error = Some(e);
-                        gl = None;
+                        gl_errors[w] = Some(e);
+                        gl_workers[w] = None;
                         times[i].clear();
                     }
                     None => {}
@@ -853,15 +865,16 @@ fn measure(
         .map(|(i, t)| {
             let part = |f: fn(&FrameParts) -> f64| median(t.iter().map(f).collect());
             let ms = part(|p| p.ms);
+            let (kind, all_threads) = ROWS[i];
             // llvmpipe's throughput by its own count of the pixels it wrote.
-            let pixels = match (ROWS[i], gl_first) {
+            let pixels = match (kind, gl_firsts[usize::from(all_threads)]) {
                 (KernelKind::Llvmpipe, Some(first)) => first.samples,
                 _ => pixels,
             };
             KernelTiming {
-                kind: ROWS[i],
-                kernel: row_name(ROWS[i]),
-                threads: if i == ALL_THREADS_ROW { threads } else { 1 },
+                kind,
+                kernel: row_name(kind, all_threads),
+                threads: if all_threads { threads } else { 1 },
                 median_ms: ms,
                 min_ms: t.iter().map(|p| p.ms).fold(f64::INFINITY, f64::min),
                 setup_ms: part(|p| p.setup_ms),
@@ -891,17 +904,31 @@ fn measure(
         thread_scaling: scaling(|t| t.median_ms),
         thread_scaling_best: scaling(|t| t.min_ms),
         expand_speedup: over_jit(KernelKind::JitSetupPerTile),
-        llvmpipe: match (gl, gl_first.filter(|_| llvmpipe_error.is_none())) {
-            (Some(twin), Some(first)) => Some(LlvmpipeRun {
-                renderer: twin.worker.renderer.clone(),
-                cpu: twin.worker.cpu,
-                pixels_written: first.samples,
-                first_frame_ms: first.ms,
-                jit_vs_llvmpipe: over_jit(KernelKind::Llvmpipe).unwrap_or(f64::NAN),
-            }),
+        llvmpipe: match (&gl_workers[0], gl_firsts[0]) {
+            (Some(worker), Some(first)) => {
+                let all_threads = |kind| row(kind, threads).filter(|_| threads > 1);
+                let lp_all = all_threads(KernelKind::Llvmpipe);
+                Some(LlvmpipeRun {
+                    renderer: worker.renderer.clone(),
+                    cpu: worker.cpu,
+                    pixels_written: first.samples,
+                    first_frame_ms: first.ms,
+                    jit_vs_llvmpipe: over_jit(KernelKind::Llvmpipe).unwrap_or(f64::NAN),
+                    jit_vs_llvmpipe_all_threads: lp_all
+                        .zip(all_threads(KernelKind::Jit))
+                        .map(|(lp, jit)| lp.median_ms / jit.median_ms),
+                    thread_scaling: lp_all
+                        .zip(row(KernelKind::Llvmpipe, 1))
+                        .map(|(all, one)| one.median_ms / all.median_ms),
+                })
+            }
             _ => None,
         },
-        llvmpipe_error,
+        llvmpipe_error: match gl_errors {
+            [Some(e), _] => Some(e),
+            [None, Some(e)] => Some(format!("with a rasterizer thread per CPU: {e}")),
+            [None, None] => None,
+        },
         timings,
     })
 }
@@ -984,15 +1011,17 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
         .collect();
     let bar = progress_bar(opts.progress)?;
     let mut src = Sources::new(&program)?;
-    // llvmpipe only where a workload has its twin.
+    // llvmpipe only where a workload has its twin: one worker with one rasterizer thread,
+    // and where there are more CPUs one with a rasterizer thread per CPU.
     let mut llvmpipe = None;
+    let mut llvmpipe_all = None;
     let mut llvmpipe_status = "not asked for".to_string();
     if let Some(exe) = opts
         .llvmpipe
         .as_ref()
         .filter(|_| selected.iter().any(|w| w.gl.is_some()))
     {
-        match Llvmpipe::start(exe) {
+        match Llvmpipe::start(exe, 1) {
             Ok(lp) => {
                 llvmpipe_status = format!(
                     "{}, pinned to CPU {}",
@@ -1000,6 +1029,12 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
                     lp.cpu.map_or("-".into(), |c| c.to_string())
                 );
                 llvmpipe = Some(lp);
+                if threads > 1 {
+                    match Llvmpipe::start(exe, threads) {
+                        Ok(lp) => llvmpipe_all = Some(lp),
+                        Err(e) => llvmpipe_status.push_str(&format!("; with {threads} rasterizer threads: {e}")),
+                    }
+                }
             }
             Err(e) => llvmpipe_status = format!("not measured: {e}"),
         }
@@ -1021,15 +1056,16 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
             &one,
             &all,
             runs,
-            llvmpipe.as_mut().filter(|_| w.gl.is_some()).map(|worker| GlTwin {
-                worker,
+            w.gl.as_ref().map(|_| GlTwin {
+                one: llvmpipe.as_mut(),
+                all: llvmpipe_all.as_mut(),
                 name: &w.name,
                 quick: opts.quick,
             }),
             &bar,
         )?);
     }
-    drop(llvmpipe);
+    drop((llvmpipe, llvmpipe_all));
     let effects = if effects_selected(opts.filter.as_deref()) {
         bar.set_message("effects series");
         Some(effects_series(
@@ -1215,9 +1251,15 @@ pub fn format_workload(w: &WorkloadResult, threads: usize) -> String {
         w.thread_scaling
     ));
     if let Some(l) = &w.llvmpipe {
+        s.push_str(&format!("{:<32} JIT/llvmpipe {:.2}x", "", l.jit_vs_llvmpipe));
+        if let (Some(ratio), Some(scaling)) = (l.jit_vs_llvmpipe_all_threads, l.thread_scaling) {
+            s.push_str(&format!(
+                "   on {threads} threads: JIT/llvmpipe {ratio:.2}x (llvmpipe {threads} threads/1 thread {scaling:.2}x)"
+            ));
+        }
         s.push_str(&format!(
-            "{:<32} JIT/llvmpipe {:.2}x (llvmpipe's first frame, shaders compiled on the way: {:.1} ms)\n",
-            "", l.jit_vs_llvmpipe, l.first_frame_ms
+            "   (llvmpipe's first frame, shaders compiled on the way: {:.1} ms)\n",
+            l.first_frame_ms
         ));
     }
     if let Some(e) = &w.llvmpipe_error {
@@ -1602,6 +1644,11 @@ pub struct LlvmpipeComparison {
     pub measured: Option<f64>,
     /// The JIT's throughput over the measured llvmpipe's, by frame time (above 1: faster).
     pub measured_ratio: Option<f64>,
+    /// The same on all threads (llvmpipe with a rasterizer thread per CPU): the JIT's
+    /// figure, llvmpipe's, and the ratio by frame time.
+    pub jit_all_threads: Option<f64>,
+    pub measured_all_threads: Option<f64>,
+    pub measured_all_threads_ratio: Option<f64>,
     /// Pixels written per frame: the JIT's depth writes and llvmpipe's passing samples.
     pub jit_pixels: u64,
     pub measured_pixels: Option<u64>,
@@ -1624,6 +1671,8 @@ pub fn llvmpipe_comparisons(results: &[WorkloadResult]) -> Vec<LlvmpipeCompariso
             };
             let jit = w.timing(KernelKind::Jit, 1)?;
             let measured = w.timing(KernelKind::Llvmpipe, 1);
+            let all_threads = |kind| w.timings.iter().find(|t| t.kind == kind && t.threads > 1);
+            let measured_all_threads_ratio = w.llvmpipe.as_ref().and_then(|l| l.jit_vs_llvmpipe_all_threads);
             let best_handwritten = w
                 .timings
                 .iter()
@@ -1638,6 +1687,13 @@ pub fn llvmpipe_comparisons(results: &[WorkloadResult]) -> Vec<LlvmpipeCompariso
                 ratio: figure(jit) / reference,
                 measured: measured.map(figure),
                 measured_ratio: w.llvmpipe.as_ref().map(|l| l.jit_vs_llvmpipe),
+                jit_all_threads: all_threads(KernelKind::Jit)
+                    .map(figure)
+                    .filter(|_| measured_all_threads_ratio.is_some()),
+                measured_all_threads: all_threads(KernelKind::Llvmpipe)
+                    .map(figure)
+                    .filter(|_| measured_all_threads_ratio.is_some()),
+                measured_all_threads_ratio,
                 jit_pixels: w.pixels_written,
                 measured_pixels: w.llvmpipe.as_ref().map(|l| l.pixels_written),
                 best_handwritten,
@@ -1747,6 +1803,29 @@ fn format_scaling_and_llvmpipe(report: &BenchReport) -> String {
                 s.push_str(&format!(" ({kernel} {figure:.1})"));
             }
             s.push('\n');
+        }
+        let all_threads: Vec<_> = report
+            .llvmpipe
+            .iter()
+            .filter_map(|c| {
+                Some((
+                    c,
+                    c.jit_all_threads?,
+                    c.measured_all_threads?,
+                    c.measured_all_threads_ratio?,
+                ))
+            })
+            .collect();
+        if !all_threads.is_empty() {
+            s.push_str(&format!(
+                "against Mesa llvmpipe on {n} threads (a rasterizer thread per CPU, unpinned; the JIT on its {n}-thread pool):\n"
+            ));
+            for (c, jit, lp, ratio) in all_threads {
+                s.push_str(&format!(
+                    "  {:<34} JIT {jit:>7.1} {:<7} | llvmpipe {lp:>7.1}: JIT {ratio:.2}x\n",
+                    c.workload, c.unit
+                ));
+            }
         }
     }
     s
