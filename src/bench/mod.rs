@@ -818,8 +818,12 @@ fn measure(
 
     let mut times: [Vec<FrameParts>; ROWS.len()] = Default::default();
     let mut frames: [Frame; ROWS.len()] = std::array::from_fn(|_| Frame::empty());
-    for _ in 0..runs {
-        for (i, &(kind, all_threads)) in ROWS.iter().enumerate() {
+    for round in 0..runs {
+        // Each round starts one row later, so no source always runs right after the same
+        // other one (an all-threads row leaves both CPUs' caches and llvmpipe's threads
+        // settling; the row after it used to be the JIT's one-thread row every time).
+        for i in (0..ROWS.len()).map(|k| (k + round) % ROWS.len()) {
+            let (kind, all_threads) = ROWS[i];
             let pool = if all_threads { all } else { one };
             if kind == KernelKind::Llvmpipe {
                 let w = usize::from(all_threads);
