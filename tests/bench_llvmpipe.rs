@@ -8,7 +8,7 @@ use std::io::{BufRead, BufReader, Write};
 use std::path::Path;
 use std::process::{Command, Stdio};
 
-use primflow::bench::{run, BenchOptions, KernelKind};
+use primflow::bench::{paired_ratio, run, BenchOptions, KernelKind};
 
 const EXE: &str = env!("CARGO_BIN_EXE_primflow");
 
@@ -133,7 +133,7 @@ fn the_report_sets_measured_llvmpipe_beside_the_jit_on_the_same_pixels() {
     let opts = BenchOptions {
         filter: Some("sphere".into()),
         quick: true,
-        runs: 1,
+        runs: 3,
         progress: false,
         llvmpipe: Some(EXE.into()),
         ..BenchOptions::default()
@@ -171,7 +171,8 @@ fn the_report_sets_measured_llvmpipe_beside_the_jit_on_the_same_pixels() {
         assert!(row.setup_ms.is_nan() && row.tiles_ms.is_nan(), "{row:?}");
         assert_eq!(c.measured, Some(row.mpixels_per_s));
         let jit = w.timing(KernelKind::Jit, 1).unwrap();
-        assert_eq!(c.measured_ratio, Some(row.median_ms / jit.median_ms));
+        assert_eq!(row.runs_ms.len(), jit.runs_ms.len());
+        assert_eq!(c.measured_ratio, Some(paired_ratio(row, jit)));
         assert_eq!(c.measured_pixels, Some(run.pixels_written));
         // On every CPU: llvmpipe's row by its own pixel count, beside the JIT's on its pool.
         let n = report.machine.threads;
@@ -181,8 +182,8 @@ fn the_report_sets_measured_llvmpipe_beside_the_jit_on_the_same_pixels() {
             assert_eq!(all.kernel, "llvmpipe, all CPUs");
             let expected = run.pixels_written as f64 / all.median_ms / 1e3;
             assert!((all.mpixels_per_s - expected).abs() <= expected * 1e-3, "{all:?}");
-            assert_eq!(run.jit_vs_llvmpipe_all_threads, Some(all.median_ms / jit_all.median_ms));
-            assert_eq!(run.thread_scaling, Some(row.median_ms / all.median_ms));
+            assert_eq!(run.jit_vs_llvmpipe_all_threads, Some(paired_ratio(all, jit_all)));
+            assert_eq!(run.thread_scaling, Some(paired_ratio(row, all)));
             assert_eq!(c.measured_all_threads, Some(all.mpixels_per_s));
             assert_eq!(c.measured_all_threads_ratio, run.jit_vs_llvmpipe_all_threads);
         } else {

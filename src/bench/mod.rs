@@ -85,6 +85,8 @@ pub struct KernelTiming {
     pub median_ms: f64,
     /// The fastest of the runs: the figure least inflated by other load on a shared machine.
     pub min_ms: f64,
+    /// Every timed run's frame time, one per round, in round order.
+    pub runs_ms: Vec<f64>,
     /// Medians of the frame's parts (`RenderStats`): the serial setup (expansion, bound
     /// pass, binning), the tiles, and the deferred shading pass.
     pub setup_ms: f64,
@@ -102,7 +104,8 @@ pub struct WorkloadResult {
     pub draws: usize,
     pub pixels_written: u64,
     pub timings: Vec<KernelTiming>,
-    /// JIT (tier 1) throughput over its tier-0 kernels', one thread each.
+    /// JIT (tier 1) throughput over its tier-0 kernels', one thread each. This and every
+    /// ratio of two rows below is [`paired_ratio`]: the median of the rounds' own ratios.
     pub jit_vs_tier0: f64,
     /// JIT throughput over the hand-written kernel's, one thread each (above 1: the JIT is
     /// faster).
@@ -112,7 +115,7 @@ pub struct WorkloadResult {
     pub jit_vs_sse: Option<f64>,
     /// Over the 8-lane AVX2 kernel.
     pub jit_vs_simd: Option<f64>,
-    /// JIT all-threads throughput over JIT one-thread throughput (medians).
+    /// JIT all-threads throughput over JIT one-thread throughput (paired, as above).
     pub thread_scaling: f64,
     /// The same from the fastest run of each (one core taken by other load for part of the
     /// runs inflates the all-threads median far more than the one-thread one).
@@ -660,6 +663,18 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// How many times faster row `fast` ran than row `slow`: the median over the timed rounds
+/// of `slow`'s frame time over `fast`'s in the same round (the ratio of the two medians
+/// where the rows have different run counts). Rows of one round run within a second of each
+/// other, so a slow stretch of a shared host that spans a round divides out of the round's
+/// ratio; in the ratio of medians, each median may come from a different stretch.
+pub fn paired_ratio(slow: &KernelTiming, fast: &KernelTiming) -> f64 {
+    if slow.runs_ms.len() != fast.runs_ms.len() || slow.runs_ms.is_empty() {
+        return slow.median_ms / fast.median_ms;
+    }
+    median(slow.runs_ms.iter().zip(&fast.runs_ms).map(|(s, f)| s / f).collect())
+}
+
 /// The kernel sources the bench renders a workload with, all for one program.
 struct Sources {
     /// Tiered: its first frame runs tier-0 kernels; timed once the tier-1 ones are in.
@@ -881,6 +896,7 @@ fn measure(
                 threads: if all_threads { threads } else { 1 },
                 median_ms: ms,
                 min_ms: t.iter().map(|p| p.ms).fold(f64::INFINITY, f64::min),
+                runs_ms: t.iter().map(|p| p.ms).collect(),
                 setup_ms: part(|p| p.setup_ms),
                 tiles_ms: part(|p| p.tiles_ms),
                 shade_ms: part(|p| p.shade_ms),
@@ -890,10 +906,11 @@ fn measure(
         })
         .collect();
     let row = |kind: KernelKind, n: usize| timings.iter().find(|t| t.kind == kind && t.threads == n);
-    let jit_one = row(KernelKind::Jit, 1).map_or(f64::NAN, |t| t.median_ms);
-    let over_jit = |kind: KernelKind| row(kind, 1).map(|t| t.median_ms / jit_one);
-    let scaling = |pick: fn(&KernelTiming) -> f64| match (row(KernelKind::Jit, 1), row(KernelKind::Jit, threads)) {
-        (Some(one), Some(all)) if threads > 1 => pick(one) / pick(all),
+    let over_jit =
+        |kind: KernelKind| row(kind, 1).map(|t| row(KernelKind::Jit, 1).map_or(f64::NAN, |jit| paired_ratio(t, jit)));
+    let scaling = |paired: bool| match (row(KernelKind::Jit, 1), row(KernelKind::Jit, threads)) {
+        (Some(one), Some(all)) if threads > 1 && paired => paired_ratio(one, all),
+        (Some(one), Some(all)) if threads > 1 => one.min_ms / all.min_ms,
         _ => f64::NAN,
     };
     Ok(WorkloadResult {
@@ -905,8 +922,8 @@ fn measure(
         jit_vs_scalar: over_jit(KernelKind::Handwritten(Flavor::Scalar)),
         jit_vs_sse: over_jit(KernelKind::Handwritten(Flavor::Sse)),
         jit_vs_simd: over_jit(KernelKind::Handwritten(Flavor::Avx2)),
-        thread_scaling: scaling(|t| t.median_ms),
-        thread_scaling_best: scaling(|t| t.min_ms),
+        thread_scaling: scaling(true),
+        thread_scaling_best: scaling(false),
         expand_speedup: over_jit(KernelKind::JitSetupPerTile),
         llvmpipe: match (&gl_workers[0], gl_firsts[0]) {
             (Some(worker), Some(first)) => {
@@ -920,10 +937,10 @@ fn measure(
                     jit_vs_llvmpipe: over_jit(KernelKind::Llvmpipe).unwrap_or(f64::NAN),
                     jit_vs_llvmpipe_all_threads: lp_all
                         .zip(all_threads(KernelKind::Jit))
-                        .map(|(lp, jit)| lp.median_ms / jit.median_ms),
+                        .map(|(lp, jit)| paired_ratio(lp, jit)),
                     thread_scaling: lp_all
                         .zip(row(KernelKind::Llvmpipe, 1))
-                        .map(|(all, one)| one.median_ms / all.median_ms),
+                        .map(|(all, one)| paired_ratio(one, all)),
                 })
             }
             _ => None,
@@ -1837,7 +1854,42 @@ fn format_scaling_and_llvmpipe(report: &BenchReport) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::runs_of;
+    use super::{paired_ratio, runs_of, KernelKind, KernelTiming};
+
+    fn timing(runs_ms: &[f64]) -> KernelTiming {
+        let mut sorted = runs_ms.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        KernelTiming {
+            kind: KernelKind::Jit,
+            kernel: String::new(),
+            threads: 1,
+            median_ms: sorted[sorted.len() / 2],
+            min_ms: sorted[0],
+            runs_ms: runs_ms.to_vec(),
+            setup_ms: 0.0,
+            tiles_ms: 0.0,
+            shade_ms: 0.0,
+            mpixels_per_s: 0.0,
+            mprims_per_s: 0.0,
+        }
+    }
+
+    #[test]
+    fn paired_ratios_are_the_median_of_the_rounds_ratios() {
+        // Rounds: 10/10, 20/5, 30/40 -> 1, 4, 0.75: the median is 1 (the medians' ratio, 20/10,
+        // pairs round 2's slow row with round 1's fast one).
+        let a = timing(&[10.0, 20.0, 30.0]);
+        let b = timing(&[10.0, 5.0, 40.0]);
+        assert_eq!(paired_ratio(&a, &b), 1.0);
+        assert_eq!(paired_ratio(&b, &a), 1.0);
+        // A round twice as slow for both rows changes no round's ratio.
+        assert_eq!(
+            paired_ratio(&timing(&[10.0, 40.0, 12.0]), &timing(&[5.0, 20.0, 6.0])),
+            2.0
+        );
+        // Rows with different run counts (one lost mid-way) fall back to the medians.
+        assert_eq!(paired_ratio(&timing(&[10.0, 20.0]), &timing(&[5.0])), 4.0);
+    }
 
     #[test]
     fn runs_of_equal_bindings_are_counted() {
