@@ -672,7 +672,12 @@ pub fn paired_ratio(slow: &KernelTiming, fast: &KernelTiming) -> f64 {
     if slow.runs_ms.len() != fast.runs_ms.len() || slow.runs_ms.is_empty() {
         return slow.median_ms / fast.median_ms;
     }
-    median(slow.runs_ms.iter().zip(&fast.runs_ms).map(|(s, f)| s / f).collect())
+    paired(&slow.runs_ms, &fast.runs_ms)
+}
+
+/// The median of `slow[r] / fast[r]` over rounds `r` (the same number of each).
+fn paired(slow: &[f64], fast: &[f64]) -> f64 {
+    median(slow.iter().zip(fast).map(|(s, f)| s / f).collect())
 }
 
 /// The kernel sources the bench renders a workload with, all for one program.
@@ -1456,10 +1461,11 @@ pub struct EffectsRow {
     pub kernels_ms: f64,
     /// Of which the deferred shading pass (0 when the scene turns no effect on).
     pub shading_ms: f64,
-    /// Frame time minus the `none` frame's, and the ratio to it.
+    /// Frame time minus the `none` frame's (medians), and the ratio to it (paired by
+    /// round, as [`paired_ratio`]).
     pub extra_ms: f64,
     pub ratio_to_none: f64,
-    /// Whole frame with all threads, and 1-thread time over it.
+    /// Whole frame with all threads, and 1-thread time over it (paired by round).
     pub frame_ms_all_threads: f64,
     pub shading_ms_all_threads: f64,
     pub thread_scaling: f64,
@@ -1558,7 +1564,9 @@ pub fn effects_series(
         }
     }
     let med = |v: &[[f64; 3]], k: usize| median(v.iter().map(|x| x[k]).collect());
+    let frames_of = |v: &[[f64; 3]]| v.iter().map(|x| x[0]).collect::<Vec<f64>>();
     let none_ms = med(&times[0][0], 0);
+    let none_runs = frames_of(&times[0][0]);
     let rows = EFFECT_SETS
         .iter()
         .zip(&times)
@@ -1572,10 +1580,11 @@ pub fn effects_series(
                 kernels_ms: med(t1, 1),
                 shading_ms: med(t1, 2),
                 extra_ms: frame_ms - none_ms,
-                ratio_to_none: frame_ms / none_ms,
+                // Paired by round, as the workloads' ratios (`paired_ratio`).
+                ratio_to_none: paired(&frames_of(t1), &none_runs),
                 frame_ms_all_threads,
                 shading_ms_all_threads: med(tn, 2),
-                thread_scaling: frame_ms / frame_ms_all_threads,
+                thread_scaling: paired(&frames_of(t1), &frames_of(tn)),
             }
         })
         .collect();
