@@ -3,9 +3,10 @@
 //!
 //! Every workload is rendered first by each kernel source and the frames compared bit for
 //! bit (a benchmark of kernels that disagree measures nothing); then the sources are timed
-//! interleaved (JIT, scalar, SSE, AVX2, JIT on all threads, ...) for several runs and the
-//! median frame time is reported, so drift of the machine (clock, other load) hits every
-//! kernel alike. Each configuration renders its timed frames into one `Frame` of its own,
+//! interleaved (JIT, scalar, SSE, AVX2, JIT on all threads, ...) for several rounds, each
+//! starting one source later, and the median frame time is reported, so drift of the
+//! machine (clock, other load) hits every kernel alike; a ratio of two sources is the
+//! median of each round's own ratio ([`paired_ratio`]). Each configuration renders its timed frames into one `Frame` of its own,
 //! reused from run to run (`Renderer::render_into`), as an application renders frame after
 //! frame into the same buffers: a timed frame pays for no frame allocation and no page
 //! faults on fresh buffers. Throughput is depth writes per second (pixels that passed coverage and the
@@ -1164,7 +1165,8 @@ pub fn format_table(report: &BenchReport) -> String {
     let mut s = report.machine.header();
     s.push_str(
         "ms: median frame time; setup, tiles, shade: its parts (expansion, bound pass and binning;\n\
-         the tile kernels; the deferred shading pass), medians\n",
+         the tile kernels; the deferred shading pass), medians; ratios: the median of each\n\
+         round's ratio\n",
     );
     s.push_str(&workload_header());
     for w in &report.workloads {

@@ -234,7 +234,8 @@ pub fn format_scene_report(report: &SceneBenchReport) -> String {
     s.push_str(&format_compile(&report.compile));
     s.push_str(
         "\nframes (interleaved runs, medians, each into a reused frame; setup, tiles, shade: the\n\
-         frame's parts: expansion, bound pass and binning; the tile kernels; deferred shading)\n",
+         frame's parts: expansion, bound pass and binning; the tile kernels; deferred shading;\n\
+         ratios: the median of each round's ratio)\n",
     );
     s.push_str(&workload_header());
     s.push_str(&format_workload(w, report.machine.threads));
