@@ -13,11 +13,12 @@
 //! bench down. The bench runs two: one with `LP_NUM_THREADS=1`, as the figures, which
 //! pins itself to one CPU before Mesa starts, so llvmpipe's main thread (vertex processing,
 //! binning) and its rasterizer thread share one core, as the JIT's one-thread figure has one;
-//! and one with a rasterizer thread per CPU, unpinned, beside the JIT on all threads. Protocol, one line each way, fields
-//! separated by tabs: the child first says `ready <GL_RENDERER> <cpu>`; `setup <quick 0|1>
-//! <workload>` builds that workload's scene and renders a first frame (shaders compile then);
-//! `frame` renders and times one more; each answers `ok <ms> <samples passed>` or `error
-//! <message>`; end of input ends the child.
+//! and one with a rasterizer thread per CPU, unpinned, beside the JIT on all threads.
+//! Protocol, one line each way, fields separated by tabs: the child first says `ready
+//! <GL_RENDERER> <cpu>` (`-` when unpinned); `setup <quick 0|1> <workload>` builds that
+//! workload's scene and renders a first frame (shaders compile then); `frame` renders and
+//! times one more; each answers `ok <ms> <samples passed>` or `error <message>`; end of input
+//! ends the child.
 //!
 //! What llvmpipe draws is the workload's own geometry ([`GlScene`], from the generators the
 //! workloads draw with): the screen triangles as clip-space triangles with the same w (so

@@ -6,8 +6,8 @@
 //! interleaved (JIT, scalar, SSE, AVX2, JIT on all threads, ...) for several rounds, each
 //! starting one source later, and the median frame time is reported, so drift of the
 //! machine (clock, other load) hits every kernel alike; a ratio of two sources is the
-//! median of each round's own ratio ([`paired_ratio`]). Each configuration renders its timed frames into one `Frame` of its own,
-//! reused from run to run (`Renderer::render_into`), as an application renders frame after
+//! median of each round's own ratio ([`paired_ratio`]). Each configuration renders its
+//! timed frames into one `Frame` of its own, reused from run to run (`Renderer::render_into`), as an application renders frame after
 //! frame into the same buffers: a timed frame pays for no frame allocation and no page
 //! faults on fresh buffers. Throughput is depth writes per second (pixels that passed coverage and the
 //! Z test) and primitives per second.
@@ -914,10 +914,9 @@ fn measure(
     let row = |kind: KernelKind, n: usize| timings.iter().find(|t| t.kind == kind && t.threads == n);
     let over_jit =
         |kind: KernelKind| row(kind, 1).map(|t| row(KernelKind::Jit, 1).map_or(f64::NAN, |jit| paired_ratio(t, jit)));
-    let scaling = |paired: bool| match (row(KernelKind::Jit, 1), row(KernelKind::Jit, threads)) {
-        (Some(one), Some(all)) if threads > 1 && paired => paired_ratio(one, all),
-        (Some(one), Some(all)) if threads > 1 => one.min_ms / all.min_ms,
-        _ => f64::NAN,
+    let (thread_scaling, thread_scaling_best) = match (row(KernelKind::Jit, 1), row(KernelKind::Jit, threads)) {
+        (Some(one), Some(all)) if threads > 1 => (paired_ratio(one, all), one.min_ms / all.min_ms),
+        _ => (f64::NAN, f64::NAN),
     };
     Ok(WorkloadResult {
         workload: name.to_string(),
@@ -928,8 +927,8 @@ fn measure(
         jit_vs_scalar: over_jit(KernelKind::Handwritten(Flavor::Scalar)),
         jit_vs_sse: over_jit(KernelKind::Handwritten(Flavor::Sse)),
         jit_vs_simd: over_jit(KernelKind::Handwritten(Flavor::Avx2)),
-        thread_scaling: scaling(true),
-        thread_scaling_best: scaling(false),
+        thread_scaling,
+        thread_scaling_best,
         expand_speedup: over_jit(KernelKind::JitSetupPerTile),
         llvmpipe: match (&gl_workers[0], gl_firsts[0]) {
             (Some(worker), Some(first)) => {
@@ -1574,6 +1573,7 @@ pub fn effects_series(
         .zip(&times)
         .map(|(&(name, set), [t1, tn])| {
             let frame_ms = med(t1, 0);
+            let runs = frames_of(t1);
             let frame_ms_all_threads = med(tn, 0);
             EffectsRow {
                 effects: name.to_string(),
@@ -1583,10 +1583,10 @@ pub fn effects_series(
                 shading_ms: med(t1, 2),
                 extra_ms: frame_ms - none_ms,
                 // Paired by round, as the workloads' ratios (`paired_ratio`).
-                ratio_to_none: paired(&frames_of(t1), &none_runs),
+                ratio_to_none: paired(&runs, &none_runs),
                 frame_ms_all_threads,
                 shading_ms_all_threads: med(tn, 2),
-                thread_scaling: paired(&frames_of(t1), &frames_of(tn)),
+                thread_scaling: paired(&runs, &frames_of(tn)),
             }
         })
         .collect();
