@@ -221,17 +221,13 @@ fn without_a_worker_the_report_keeps_the_issues_figures() {
     assert!(report.workloads[0].timing(KernelKind::Llvmpipe, 1).is_none());
 }
 
-#[test]
-fn a_worker_that_dies_mid_way_loses_its_row_not_the_bench() {
-    // A stand-in worker: starts, answers the setup, then ends.
-    let dir = std::env::temp_dir().join(format!("primflow-llvmpipe-{}", std::process::id()));
+/// The quick `fill none` workload, two rounds, timed beside a stand-in llvmpipe worker:
+/// the shell `script` (its own file, named by `tag`), run for both workers.
+fn bench_with_stand_in(tag: &str, script: &str) -> primflow::bench::BenchReport {
+    let dir = std::env::temp_dir().join(format!("primflow-llvmpipe-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let fake = dir.join("fake-worker");
-    std::fs::write(
-        &fake,
-        "#!/bin/sh\nprintf 'ready\\tllvmpipe (stand-in)\\t0\\n'\nread line\nprintf 'ok\\t1.0\\t5242880\\n'\nread line\n",
-    )
-    .unwrap();
+    std::fs::write(&fake, script).unwrap();
     use std::os::unix::fs::PermissionsExt;
     std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
     #[allow(clippy::needless_update)]
@@ -243,7 +239,16 @@ fn a_worker_that_dies_mid_way_loses_its_row_not_the_bench() {
         llvmpipe: Some(fake),
         ..BenchOptions::default()
     };
-    let report = run(&opts).unwrap();
+    run(&opts).unwrap()
+}
+
+#[test]
+fn a_worker_that_dies_mid_way_loses_its_row_not_the_bench() {
+    // A stand-in worker: starts, answers the setup, then ends.
+    let report = bench_with_stand_in(
+        "dies",
+        "#!/bin/sh\nprintf 'ready\\tllvmpipe (stand-in)\\t0\\n'\nread line\nprintf 'ok\\t1.0\\t5242880\\n'\nread line\n",
+    );
     assert!(
         report.llvmpipe_status.starts_with("llvmpipe (stand-in)"),
         "{}",
@@ -263,28 +268,12 @@ fn a_worker_that_dies_mid_way_loses_its_row_not_the_bench() {
 fn an_all_threads_worker_that_dies_loses_only_its_own_row() {
     // A stand-in: with one rasterizer thread it answers every frame (the quick `fill none`
     // workload's pixel count); with more it answers the setup and then ends.
-    let dir = std::env::temp_dir().join(format!("primflow-llvmpipe-all-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let fake = dir.join("fake-worker");
-    std::fs::write(
-        &fake,
+    let report = bench_with_stand_in(
+        "all",
         "#!/bin/sh\nprintf 'ready\\tllvmpipe (stand-in)\\t0\\n'\n\
          if [ \"$LP_NUM_THREADS\" != 1 ]; then read line; printf 'ok\\t1.0\\t5242880\\n'; read line; exit 0; fi\n\
          while read line; do printf 'ok\\t1.0\\t5242880\\n'; done\n",
-    )
-    .unwrap();
-    use std::os::unix::fs::PermissionsExt;
-    std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
-    #[allow(clippy::needless_update)]
-    let opts = BenchOptions {
-        filter: Some("fill none".into()),
-        quick: true,
-        runs: 2,
-        progress: false,
-        llvmpipe: Some(fake),
-        ..BenchOptions::default()
-    };
-    let report = run(&opts).unwrap();
+    );
     let n = report.machine.threads;
     if n == 1 {
         return; // no all-threads worker to lose
