@@ -24,6 +24,10 @@ use primflow::diag::{Diagnostics, SourceMap};
 use primflow::jit::{Jit, JitOptions, Tier};
 use primflow::runtime::Registry;
 
+/// The `primflow` binary's allocator (src/main.rs), so compiles cost here what they cost there.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// This thread's CPU time in nanoseconds (the JIT's own clock, microsecond resolution).
 fn thread_cpu_ns() -> u64 {
     primflow::jit::thread_cpu_micros() * 1000

@@ -1,5 +1,11 @@
 //! The `primflow` binary: a thin shell over [`primflow::cli::run`].
 
+/// mimalloc: the JIT's compiles allocate and free many small vectors (Cranelift's, ours);
+/// with glibc's malloc that was ~5 % of a tier-0 compile's instructions, and mimalloc made
+/// compiles ~4-7 % faster (docs/performance.md, "Session 23").
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() -> std::process::ExitCode {
     let mut out = std::io::stdout().lock();
     let mut err = std::io::stderr().lock();
