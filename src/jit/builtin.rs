@@ -19,7 +19,7 @@ type Mat = Option<[ir::Value; 16]>;
 
 impl<'a, 'b> Lower<'a, 'b> {
     fn fconst_like(&mut self, like: ir::Value, x: f32) -> ir::Value {
-        let c = self.b.ins().f32const(x);
+        let c = self.f32const_here(x);
         if self.b.func.dfg.value_type(like).is_vector() {
             self.b.ins().splat(F32X4, c)
         } else {
@@ -75,7 +75,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         match acc {
             Some(v) => v,
             None => {
-                let z = self.b.ins().f32const(0.0);
+                let z = self.f32const_here(0.0);
                 if a.varying {
                     self.b.ins().splat(F32X4, z)
                 } else {

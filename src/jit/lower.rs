@@ -591,13 +591,13 @@ impl<'a, 'b> Lower<'a, 'b> {
         let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
         self.b.def_var(self.fuel, fuel);
         // The pass rectangle defaults to everything; `bound` narrows it.
-        let ninf = self.b.ins().f32const(f32::NEG_INFINITY);
-        let pinf = self.b.ins().f32const(f32::INFINITY);
+        let ninf = self.f32const_here(f32::NEG_INFINITY);
+        let pinf = self.f32const_here(f32::INFINITY);
         self.b.def_var(self.bound_vars[0], ninf);
         self.b.def_var(self.bound_vars[1], ninf);
         self.b.def_var(self.bound_vars[2], pinf);
         self.b.def_var(self.bound_vars[3], pinf);
-        let no = self.b.ins().iconst(types::I8, 0);
+        let no = self.iconst_here(types::I8, 0);
         self.b.def_var(self.has_bound, no);
 
         let frame = self.make_frame(f, self.layout.params.clone(), self.layout.fixed_words, None)?;
@@ -619,7 +619,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         // counts to see loops).
         let setup_exit = self.tier0() && self.setup_may_fail_index(&f.setup);
         let setup_exit = setup_exit.then(|| {
-            let none = self.b.ins().iconst(types::I32, 0);
+            let none = self.iconst_here(types::I32, 0);
             self.b.def_var(self.pending_error, none);
             self.defer_errors = true;
             self.deferring_errors = true;
@@ -760,11 +760,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                 first = self.b.ins().band(first, any);
             }
         }
-        let code_v = self.b.ins().iconst(types::I32, code as i64);
+        let code_v = self.iconst_here(types::I32, code as i64);
         let new = self.b.ins().select(first, code_v, old);
         self.store_ctx(new, ctx_off::ERROR);
         let old_site = self.load_ctx(types::I32, ctx_off::ERROR_SITE);
-        let site_v = self.b.ins().iconst(types::I32, site as i32 as i64);
+        let site_v = self.iconst_here(types::I32, site as i32 as i64);
         let new_site = self.b.ins().select(first, site_v, old_site);
         self.store_ctx(new_site, ctx_off::ERROR_SITE);
     }
@@ -813,7 +813,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         let pending = self.b.use_var(self.pending_error);
         let old = self.load_ctx(types::I32, ctx_off::ERROR);
-        let zero = self.b.ins().iconst(types::I32, 0);
+        let zero = self.iconst_here(types::I32, 0);
         // The pending error if it is to be recorded now, else 0.
         let first = self.b.ins().select(old, zero, pending);
         // `first` is 0 where `old` is not: the OR keeps `old` then.
@@ -862,7 +862,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             };
             self.store_ctx(new, off);
         }
-        let one = self.b.ins().iconst(types::I32, 1);
+        let one = self.iconst_here(types::I32, 1);
         let one = match go {
             Some(go) => self.b.ins().select(go, one, set),
             None => one,
@@ -873,7 +873,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// `bound(...)`. `then_done`: nothing after it in the setup matters to a bound run
     /// (see `body`), so in bound mode the kernel returns right after recording it.
     fn lower_bound(&mut self, es: &'a [Expr; 4], then_done: bool) -> Res<()> {
-        let mut r = [self.b.ins().f32const(0.0); 4];
+        let mut r = [self.f32const_here(0.0); 4];
         for (i, e) in es.iter().enumerate() {
             let v = self.eval_uniform(e)?;
             r[i] = fixed::convert(&mut self.b, v.scalar, Scalar::Float, v.comps[0]);
@@ -910,7 +910,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         for (i, &v) in r.iter().enumerate() {
             self.b.def_var(self.bound_vars[i], v);
         }
-        let yes = self.b.ins().iconst(types::I8, 1);
+        let yes = self.iconst_here(types::I8, 1);
         self.b.def_var(self.has_bound, yes);
         Ok(())
     }
@@ -954,7 +954,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             let h = self.load_ctx(types::I32, ctx_off::HEIGHT);
             let wf = self.b.ins().fcvt_from_uint(types::F32, w);
             let hf = self.b.ins().fcvt_from_uint(types::F32, h);
-            let z = self.b.ins().f32const(0.0);
+            let z = self.f32const_here(0.0);
             self.union_bound([z, z, wf, hf], None);
             self.b.ins().jump(self.exit, &[]);
         }
@@ -992,14 +992,14 @@ impl<'a, 'b> Lower<'a, 'b> {
         let gx_start = self.b.ins().iadd(x0, off);
         let width = self.b.ins().isub(hi_x, lo_x);
         let lim = self.b.ins().iadd_imm_s(width, -3);
-        let zero_i = self.b.ins().iconst(types::I32, 0);
+        let zero_i = self.iconst_here(types::I32, 0);
         let interior_lim = self.b.ins().smax(lim, zero_i);
         // lo_x and hi_x as f32x4 splats in the uniform frame, for the groups at either end
         // of a row (`pixel_group`).
         let Some((fs, _)) = self.uniform_frame else {
             return err("uniform frame missing");
         };
-        let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+        let addr = self.slot_addr(fs);
         for (k, v) in [lo_x, hi_x].into_iter().enumerate() {
             let f = self.b.ins().fcvt_from_sint(types::F32, v);
             let fv = self.b.ins().splat(F32X4, f);
@@ -1074,7 +1074,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let coarse = self.b.declare_var(types::I8);
         let bw = self.b.declare_var(types::I32);
         let bh = self.b.declare_var(types::I32);
-        let yes = self.b.ins().iconst(types::I8, 1);
+        let yes = self.iconst_here(types::I8, 1);
         self.b.def_var(coarse, yes);
         let rect_w = self.b.ins().isub(hi_x, gx_start);
         let rect_h = self.b.ins().isub(hi_y, lo_y);
@@ -1141,7 +1141,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.def_var(full_ys[1], hi_y);
         self.b.def_var(full_gs[0], gx_start);
         self.b.def_var(full_gs[1], hi_x);
-        let one = self.b.ins().iconst(types::I32, 1);
+        let one = self.iconst_here(types::I32, 1);
         self.b.def_var(full_then, one);
         self.b.ins().jump(full_entry, &[]);
 
@@ -1182,10 +1182,10 @@ impl<'a, 'b> Lower<'a, 'b> {
         let c = self.b.use_var(coarse);
         self.b.ins().brif(c, refine, &[], to_full, &[]);
         self.b.switch_to_block(refine);
-        let no = self.b.ins().iconst(types::I8, 0);
+        let no = self.iconst_here(types::I8, 0);
         self.b.def_var(coarse, no);
-        let fine_w = self.b.ins().iconst(types::I32, BLOCK_W as i64);
-        let fine_h = self.b.ins().iconst(types::I32, BLOCK_H as i64);
+        let fine_w = self.iconst_here(types::I32, BLOCK_W as i64);
+        let fine_h = self.iconst_here(types::I32, BLOCK_H as i64);
         self.b.def_var(bw, fine_w);
         self.b.def_var(bh, fine_h);
         self.b.ins().jump(brow_body, &[]);
@@ -1203,7 +1203,7 @@ impl<'a, 'b> Lower<'a, 'b> {
 
         for (blk, code) in [(row_end, 0), (to_dead, 1), (to_full, 2)] {
             self.b.switch_to_block(blk);
-            let c = self.b.ins().iconst(types::I32, code);
+            let c = self.iconst_here(types::I32, code);
             self.b.def_var(after, c);
             self.b.ins().jump(flush, &[]);
         }
@@ -1252,7 +1252,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.def_var(full_ys[1], y_end);
         self.b.def_var(full_gs[0], x);
         self.b.def_var(full_gs[1], x_end);
-        let zero = self.b.ins().iconst(types::I32, 0);
+        let zero = self.iconst_here(types::I32, 0);
         self.b.def_var(full_then, zero);
         self.b.ins().jump(full_entry, &[]);
 
@@ -1354,7 +1354,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let frame_addr = placed
             .iter()
             .any(|(_, _, at)| at.is_some())
-            .then(|| self.b.ins().stack_addr(types::I64, frame_slot, 0));
+            .then(|| self.slot_addr(frame_slot));
         let mut deferred_stores = vec![];
         for (i, vars, at) in placed {
             let sc = elem_scalar(&f.locals[i].ty);
@@ -1377,7 +1377,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                         4 * vars.len() as u32,
                         2,
                     ));
-                    let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                    let addr = self.slot_addr(slot);
                     for (c, v) in vars.iter().enumerate() {
                         let x = self.b.use_var(*v);
                         self.b.ins().store(mem_flags(), x, addr, (4 * c) as i32);
@@ -1413,8 +1413,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         let ptr_slot = self
             .b
             .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8, 3));
-        let addr = self.b.ins().stack_addr(types::I64, frame_slot, 0);
-        let pa = self.b.ins().stack_addr(types::I64, ptr_slot, 0);
+        let addr = self.slot_addr(frame_slot);
+        let pa = self.slot_addr(ptr_slot);
         self.b.ins().store(mem_flags(), addr, pa, 0);
         self.uniform_frame = Some((frame_slot, ptr_slot));
     }
@@ -1441,7 +1441,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         // A row term's uniform operations hoisted once per run (`int(oy * 16)` in
         // `int(Y * 16) - int(oy * 16)`) are read back from the frame, not recomputed per row.
-        let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+        let addr = self.slot_addr(fs);
         self.prologue_frame = Some((addr, false));
         self.row_local_values.clear();
         let mut stored = Ok(());
@@ -1491,7 +1491,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         if v.comps.len() != comps as usize {
             return err("hoisted row term has an unexpected number of components");
         }
-        let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+        let addr = self.slot_addr(fs);
         for (c, &x) in v.comps.iter().enumerate() {
             let x = splat(&mut self.b, v.scalar, x);
             self.b
@@ -1606,7 +1606,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         };
         if key == cond {
             if let Some((fs, _)) = self.uniform_frame {
-                let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+                let addr = self.slot_addr(fs);
                 for d in locals.iter().filter(|d| d.on == on) {
                     self.store_frame_words(addr, &d.vars, d.first_word, d.scalar);
                 }
@@ -1718,7 +1718,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             let row_base = self.b.ins().isub(row_base, x0_64);
             self.b.def_var(row_base_var, row_base);
             let yf = self.b.ins().fcvt_from_sint(types::F32, ys[0]);
-            let half = self.b.ins().f32const(0.5);
+            let half = self.f32const_here(0.5);
             let yf = self.b.ins().fadd(yf, half);
             self.b.def_var(yf_var, yf);
         }
@@ -1773,7 +1773,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             let x_f = if k == 0 {
                 x_f
             } else {
-                let step = self.b.ins().f32const(4.0 * k as f32);
+                let step = self.f32const_here(4.0 * k as f32);
                 let step = self.b.ins().splat(F32X4, step);
                 self.b.ins().fadd(x_f, step)
             };
@@ -1793,7 +1793,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let g = self.b.ins().iadd_imm_s(g, 4 * unroll as i64);
         self.b.def_var(gx, g);
         let x_f = self.b.use_var(xv);
-        let step = self.b.ins().f32const(4.0 * unroll as f32);
+        let step = self.f32const_here(4.0 * unroll as f32);
         let step = self.b.ins().splat(F32X4, step);
         let x_f = self.b.ins().fadd(x_f, step);
         self.b.def_var(xv, x_f);
@@ -1811,7 +1811,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.def_var(py, y);
         let row_base = self.b.ins().iadd(row_base, rect.stride64);
         self.b.def_var(row_base_var, row_base);
-        let one = self.b.ins().f32const(1.0);
+        let one = self.f32const_here(1.0);
         let yf = self.b.ins().fadd(yf, one);
         self.b.def_var(yf_var, yf);
         self.carry_next_row(&carry);
@@ -1856,7 +1856,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let g64 = self.b.ins().sextend(types::I64, g);
         let tile_idx = self.b.ins().iadd(row_base, g64);
         let frame_base = self.uniform_frame.map(|(_, ptr_slot)| {
-            let pa = self.b.ins().stack_addr(types::I64, ptr_slot, 0);
+            let pa = self.slot_addr(ptr_slot);
             self.b.ins().load(types::I64, mem_flags(), pa, 0)
         });
         // Lane i is live when lo_x <= g + i < hi_x, i.e. lo_x < X < hi_x for its centre X
@@ -2093,8 +2093,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     fn pass_range(&mut self, bmin: ir::Value, bmax: ir::Value, t0: ir::Value, t1: ir::Value) -> (ir::Value, ir::Value) {
         let t0f = self.b.ins().fcvt_from_sint(types::F32, t0);
         let t1f = self.b.ins().fcvt_from_sint(types::F32, t1);
-        let half = self.b.ins().f32const(0.5);
-        let one = self.b.ins().f32const(1.0);
+        let half = self.f32const_here(0.5);
+        let one = self.f32const_here(1.0);
         let lo = self.b.ins().fsub(bmin, half);
         let lo = self.b.ins().ceil(lo);
         let lo = self.b.ins().fmax(lo, t0f);
@@ -2118,7 +2118,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let iota = self.iota();
         let px0 = self.b.ins().iadd(g0, iota);
         let pxf = self.b.ins().fcvt_from_sint(F32X4, px0);
-        let half = self.b.ins().f32const(0.5);
+        let half = self.f32const_here(0.5);
         let halfv = self.b.ins().splat(F32X4, half);
         self.b.ins().fadd(pxf, halfv)
     }
@@ -2201,7 +2201,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                         // Zero it so no run reads stale stack memory, unless every read
                         // comes after a whole assignment.
                         if entry_clear.as_ref().is_none_or(|c| c.get(i).copied().unwrap_or(true)) {
-                            let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                            let addr = self.slot_addr(slot);
                             self.zero_stack_bytes(addr, 0, bytes);
                         }
                         Storage::Stack(slot)
@@ -3156,7 +3156,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let tile_idx = p.tile_idx;
         let exec = self.exec().expect("pixel context");
         let bytes = self.b.ins().ishl_imm_u(tile_idx, 2);
-        let slot_addr = self.b.ins().stack_addr(types::I64, table, 0);
+        let slot_addr = self.slot_addr(table);
         // Tier 0: only the masked store (the all-lanes fast path is a second copy of every
         // store, which pays only in the long runs of full groups tier 1 serves).
         if self.tier0() {
@@ -3216,7 +3216,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             let addr = if all_present {
                 real
             } else {
-                let dummy = self.b.ins().stack_addr(types::I64, self.scratch, 0);
+                let dummy = self.slot_addr(self.scratch);
                 self.b.ins().select(base, real, dummy)
             };
             let old = self.b.ins().load(F32X4, mem_flags(), addr, 0);
@@ -3239,12 +3239,12 @@ impl<'a, 'b> Lower<'a, 'b> {
             .b
             .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8 * n + 8, 3));
         let num = self.load_ctx(types::I32, ctx_off::NUM_PLANES);
-        let mut all_valid = self.b.ins().iconst(types::I8, 1);
+        let mut all_valid = self.iconst_here(types::I8, 1);
         let pstride = self.load_ctx(types::I32, ctx_off::PLANE_STRIDE);
         let ps64 = self.b.ins().uextend(types::I64, pstride);
         let gbuf = self.load_ctx(types::I64, ctx_off::GBUF);
-        let null = self.b.ins().iconst(types::I64, 0);
-        let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+        let null = self.iconst_here(types::I64, 0);
+        let addr = self.slot_addr(slot);
         for g in 0..n {
             let plane = self.b.ins().load(
                 types::I32,
@@ -3261,8 +3261,8 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.b.ins().store(mem_flags(), base, addr, (8 * g) as i32);
             all_valid = self.b.ins().band(all_valid, valid);
         }
-        let all_bits = self.b.ins().iconst(types::I32, ALL_LANE_BITS);
-        let none_bits = self.b.ins().iconst(types::I32, 0);
+        let all_bits = self.iconst_here(types::I32, ALL_LANE_BITS);
+        let none_bits = self.iconst_here(types::I32, 0);
         let word = self.b.ins().select(all_valid, all_bits, none_bits);
         self.b.ins().store(mem_flags(), word, addr, (8 * n) as i32);
         self.plane_ptrs = Some(slot);
@@ -3535,11 +3535,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         let slot = self
             .b
             .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, bytes.max(4), 4));
-        let base = self.b.ins().stack_addr(types::I64, slot, 0);
+        let base = self.slot_addr(slot);
         let store_word = |l: &mut Self, v: ir::Value, word: u32| {
             l.b.ins().store(mem_flags(), v, base, (word * 4) as i32);
         };
-        let nv = self.b.ins().iconst(types::I32, n_seq as i64);
+        let nv = self.iconst_here(types::I32, n_seq as i64);
         store_word(self, nv, 0);
         // Plane table and binding data: same key, so the same prefix as ours.
         let prefix_end = 1
@@ -3577,7 +3577,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                     for m in 0..6 {
                         for k in 0..16 {
                             let one = if k % 5 == 0 { 1.0 } else { 0.0 };
-                            let v = self.b.ins().f32const(one);
+                            let v = self.f32const_here(one);
                             store_word(self, v, dst + m * 16 + k);
                         }
                     }
@@ -3595,7 +3595,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             for w in 0..total {
                 let comp = match v.comps.get(w as usize) {
                     Some(&c) => word_of(&mut self.b, v.scalar, c),
-                    None => self.b.ins().iconst(types::I32, 0),
+                    None => self.iconst_here(types::I32, 0),
                 };
                 store_word(self, comp, start + w);
             }
@@ -3667,8 +3667,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         sig.params.push(ir::AbiParam::new(types::I32)); // its words
         let sig = self.b.import_signature(sig);
         let entry = self.b.ins().func_addr(types::I64, fref);
-        let id = self.b.ins().iconst(types::I32, i64::from(callee.0));
-        let n = self.b.ins().iconst(types::I32, i64::from(words));
+        let id = self.iconst_here(types::I32, i64::from(callee.0));
+        let n = self.iconst_here(types::I32, i64::from(words));
         self.b
             .ins()
             .call_indirect(sig, recorder, &[self.ctx, id, entry, base, n]);
@@ -3771,7 +3771,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 4,
             ));
             for (i, &c) in v.comps.iter().enumerate() {
-                let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                let addr = self.slot_addr(slot);
                 self.b.ins().store(mem_flags(), c, addr, (i as u32 * bytes) as i32);
             }
             acc.root = Root::Stack {
@@ -3793,7 +3793,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             let last_v = self.b.ins().splat(I32X4, last);
             let c = self.b.ins().smax(idx_comp, zero_v);
             let c = self.b.ins().smin(c, last_v);
-            let stride_s = self.b.ins().iconst(types::I32, stride as i64);
+            let stride_s = self.iconst_here(types::I32, stride as i64);
             let stride_v = self.b.ins().splat(I32X4, stride_s);
             let c = self.b.ins().imul(c, stride_v);
             match acc.dyn_off {
@@ -3872,6 +3872,12 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// merge the copies: the NURB setup's CLIF had ~250 duplicate shift amounts).
     fn iconst_here(&mut self, ty: ir::Type, v: i64) -> ir::Value {
         self.once_per_block(VnKey::IntConst(ty, v), |l| l.b.ins().iconst(ty, v))
+    }
+
+    /// `f32const` `x`, made once per block at tier 0 like [`Self::iconst_here`] (and shared
+    /// with the source's float constants of the same bits).
+    pub(super) fn f32const_here(&mut self, x: f32) -> ir::Value {
+        self.once_per_block(VnKey::Const(0, x.to_bits(), Scalar::Float), |l| l.b.ins().f32const(x))
     }
 
     /// `make`'s value, or at tier 0 the one it made earlier in the current block for `key`
@@ -4117,7 +4123,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 })
             }
             Root::Stack { slot, varying } => {
-                let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                let addr = self.slot_addr(slot);
                 Ok(self.read_memory(addr, sc, varying, offs, acc.base, acc.dyn_off, false, false))
             }
             Root::Local { frame, local } => {
@@ -4158,7 +4164,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                         let in_group = self.pix.as_ref().and_then(|p| p.frame_base);
                         let (addr, pure) = match (in_group, self.uniform_frame) {
                             (Some(base), _) => (base, true),
-                            (None, Some((fs, _))) => (self.b.ins().stack_addr(types::I64, fs, 0), false),
+                            (None, Some((fs, _))) => (self.slot_addr(fs), false),
                             (None, None) => return err("uniform frame missing"),
                         };
                         let v = self.read_memory(addr, sc, false, offs, word + acc.base, acc.dyn_off, false, pure);
@@ -4400,7 +4406,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         if varying || !whole || words < 8 || !fits {
             return false;
         }
-        let base_addr = self.b.ins().stack_addr(types::I64, slot, 0);
+        let base_addr = self.slot_addr(slot);
         self.zero_stack_bytes(base_addr, acc.base * 4, (acc.base + words) * 4);
         true
     }
@@ -4441,7 +4447,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             at += 16;
         }
         if at < end {
-            let zero_word = self.b.ins().iconst(types::I32, 0);
+            let zero_word = self.iconst_here(types::I32, 0);
             while at < end {
                 self.b.ins().store(mem_flags(), zero_word, base_addr, at as i32);
                 at += 4;
@@ -4592,9 +4598,9 @@ impl<'a, 'b> Lower<'a, 'b> {
                     return Ok(Val::one(v, sc, false));
                 }
                 let v = match *c {
-                    ConstValue::Float(x) => self.b.ins().f32const(x),
-                    ConstValue::Int(i) | ConstValue::Fixed(i) => self.b.ins().iconst(types::I32, i as i64),
-                    ConstValue::Bool(x) => self.b.ins().iconst(types::I8, x as i64),
+                    ConstValue::Float(x) => self.f32const_here(x),
+                    ConstValue::Int(i) | ConstValue::Fixed(i) => self.iconst_here(types::I32, i as i64),
+                    ConstValue::Bool(x) => self.iconst_here(types::I8, x as i64),
                 };
                 // A constant of one scalar type used as another (defensive): convert.
                 let from = match c {
@@ -4670,7 +4676,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                             let x = i as f32;
                             let key = VnKey::Const(0, x.to_bits(), Scalar::Float);
                             self.numbered(key).unwrap_or_else(|| {
-                                let f = self.b.ins().f32const(x);
+                                let f = self.f32const_here(x);
                                 self.number(key, f);
                                 f
                             })
@@ -4825,7 +4831,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 Ok(Val::one(n, Scalar::Int, false))
             }
             ExprKind::ClipFlag => {
-                let on = self.b.ins().iconst(types::I8, i64::from(!self.key.trivial_accept));
+                let on = self.iconst_here(types::I8, i64::from(!self.key.trivial_accept));
                 Ok(Val::one(on, Scalar::Bool, false))
             }
         }
@@ -4950,7 +4956,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                     // the multiply is ~4 cycles to the division's ~11 (`vx[i] / 16.0` of
                     // the triangle's snapping, six per setup).
                     Some(r) => {
-                        let r = b.ins().f32const(r);
+                        let r = self.f32const_here(r);
+                        let b = &mut self.b;
                         let r = if b.func.dfg.value_type(x).is_vector() {
                             b.ins().splat(F32X4, r)
                         } else {

@@ -469,7 +469,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// uniform multipliers evaluated here (once per kernel run, after setup).
     fn column_coefficient(&mut self, e: &'a Expr, axis: LocalId) -> Res<Option<ir::Value>> {
         if let Some(c) = column_leaf(e, axis) {
-            return Ok(Some(self.b.ins().iconst(types::I32, c as i64)));
+            return Ok(Some(self.iconst_here(types::I32, c as i64)));
         }
         Ok(match &e.kind {
             ExprKind::Local(l) => match self.affine_defs.get(l) {
@@ -527,20 +527,20 @@ impl<'a, 'b> Lower<'a, 'b> {
             let (expr, offset, row_offset) = (c.expr, c.step_offset, c.row_step_offset);
             let a = match self.column_coefficient(expr, x)? {
                 Some(a) => a,
-                None => self.b.ins().iconst(types::I32, 0),
+                None => self.iconst_here(types::I32, 0),
             };
             let step = self.b.ins().imul_imm_s(a, 4);
             let mut steps = vec![(step, offset)];
             if let (Some(row_offset), Some(y)) = (row_offset, y) {
                 let b = match self.column_coefficient(expr, y)? {
                     Some(b) => b,
-                    None => self.b.ins().iconst(types::I32, 0),
+                    None => self.iconst_here(types::I32, 0),
                 };
                 steps.push((b, row_offset));
             }
             for (step, offset) in steps {
                 let step = splat(&mut self.b, Scalar::Int, step);
-                let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+                let addr = self.slot_addr(fs);
                 self.b.ins().store(mem_flags(), step, addr, offset as i32);
             }
         }
@@ -609,14 +609,12 @@ impl<'a, 'b> Lower<'a, 'b> {
         ));
         let x0_f = self.lane_centres(g0);
         let yf = self.b.ins().fcvt_from_sint(types::F32, y0);
-        let half = self.b.ins().f32const(0.5);
+        let half = self.f32const_here(0.5);
         let yf = self.b.ins().fadd(yf, half);
         let y0_f = self.b.ins().splat(super::F32X4, yf);
         self.bind_xy(f, x0_f, y0_f);
         // The hoisted uniform operations are already in the frame; the row terms are not.
-        let addr = self
-            .uniform_frame
-            .map(|(fs, _)| self.b.ins().stack_addr(types::I64, fs, 0));
+        let addr = self.uniform_frame.map(|(fs, _)| self.slot_addr(fs));
         self.prologue_frame = addr.map(|a| (a, false));
         let mut out = RowCarry {
             slot: Some(slot),
@@ -632,7 +630,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 }
             };
             let at = 16 * i as u32;
-            let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+            let addr = self.slot_addr(slot);
             self.b.ins().store(mem_flags(), v, addr, at as i32);
             out.items.push((expr as *const Expr as usize, at, row_offset));
         }
@@ -664,15 +662,13 @@ impl<'a, 'b> Lower<'a, 'b> {
         // Only the hoisted uniform operations are read back: a row term is in the frame
         // only when the loop's variant reads it, which a substituted local's definition
         // (evaluated here) need not be.
-        let addr = self
-            .uniform_frame
-            .map(|(fs, _)| self.b.ins().stack_addr(types::I64, fs, 0));
+        let addr = self.uniform_frame.map(|(fs, _)| self.slot_addr(fs));
         self.prologue_frame = addr.map(|a| (a, false));
         for (expr, offset, _) in picked {
             let key = expr as *const Expr as usize;
             let v = match (rows.slot, rows.items.iter().find(|r| r.0 == key)) {
                 (Some(slot), Some(&(_, at, _))) => {
-                    let addr = self.b.ins().stack_addr(types::I64, slot, 0);
+                    let addr = self.slot_addr(slot);
                     Ok(self.b.ins().load(I32X4, mem_flags(), addr, at as i32))
                 }
                 _ => self.eval_carried(expr),
@@ -698,7 +694,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         if carry.group.is_empty() || groups == 0 {
             return;
         }
-        let addr = self.b.ins().stack_addr(types::I64, fs, 0);
+        let addr = self.slot_addr(fs);
         for (v, &(_, _, off)) in vals.iter_mut().zip(&carry.group) {
             // Not `can_move`: hoisted out of the loop the steps were spilled and reloaded;
             // here each load folds into its add.
@@ -714,8 +710,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         let (Some((fs, _)), Some(slot)) = (self.uniform_frame, carry.rows.slot) else {
             return;
         };
-        let addr = self.b.ins().stack_addr(types::I64, fs, 0);
-        let row_addr = self.b.ins().stack_addr(types::I64, slot, 0);
+        let addr = self.slot_addr(fs);
+        let row_addr = self.slot_addr(slot);
         for &(_, at, off) in &carry.rows.items {
             let v = self.b.ins().load(I32X4, mem_flags(), row_addr, at as i32);
             let step = self.b.ins().load(I32X4, mem_flags(), addr, off as i32);

@@ -276,7 +276,7 @@ impl<'a> Lower<'a, '_> {
         let y_local = role(crate::ir::ParamRole::Y).filter(|l| elem_scalar(&f.local(*l).ty) == Scalar::Float);
         let mut range = |r: Option<[ir::Value; 2]>| {
             r.map(|[lo, hi]| {
-                let ok = self.b.ins().iconst(types::I8, 1);
+                let ok = self.iconst_here(types::I8, 1);
                 Abs::F { lo, hi, ok }
             })
         };
@@ -321,11 +321,11 @@ impl<'a> Lower<'a, '_> {
         self.abs_stmts(&p.stmts, &mut env, &mut cache, &mut flags, &mut decidable)?;
         let dead = match flags.dead {
             Some(d) => d,
-            None => self.b.ins().iconst(types::I8, 0),
+            None => self.iconst_here(types::I8, 0),
         };
         let pass = match flags.pass {
             Some(p) => p,
-            None => self.b.ins().iconst(types::I8, 1),
+            None => self.iconst_here(types::I8, 1),
         };
         Ok(BlockFacts { dead, pass, decidable })
     }
@@ -366,7 +366,7 @@ impl<'a> Lower<'a, '_> {
                 }
                 PStmt::Kill(_) => {
                     if block {
-                        flags.dead = Some(self.b.ins().iconst(types::I8, 1));
+                        flags.dead = Some(self.iconst_here(types::I8, 1));
                     }
                 }
                 PStmt::UniformIf { cond, then, otherwise } => {
@@ -585,21 +585,21 @@ impl<'a> Lower<'a, '_> {
     /// condition... (a condition is only read on the side that computed it).
     fn unknown_parts(&mut self, shape: &Shape) -> Vec<ir::Value> {
         match shape {
-            Shape::Flag { dead } => vec![self.b.ins().iconst(types::I8, if *dead { 0 } else { 1 })],
-            Shape::Cond => vec![self.b.ins().iconst(types::I8, 0)],
+            Shape::Flag { dead } => vec![self.iconst_here(types::I8, if *dead { 0 } else { 1 })],
+            Shape::Cond => vec![self.iconst_here(types::I8, 0)],
             Shape::Abs(Abs::Top) => vec![],
             Shape::Abs(Abs::F { .. }) => {
-                let z = self.b.ins().f32const(0.0);
-                let no = self.b.ins().iconst(types::I8, 0);
+                let z = self.f32const_here(0.0);
+                let no = self.iconst_here(types::I8, 0);
                 vec![z, z, no]
             }
             Shape::Abs(Abs::I { .. }) => {
-                let z = self.b.ins().iconst(types::I64, 0);
-                let no = self.b.ins().iconst(types::I8, 0);
+                let z = self.iconst_here(types::I64, 0);
+                let no = self.iconst_here(types::I8, 0);
                 vec![z, z, no]
             }
             Shape::Abs(Abs::B { .. }) => {
-                let yes = self.b.ins().iconst(types::I8, 1);
+                let yes = self.iconst_here(types::I8, 1);
                 vec![yes, yes]
             }
         }
@@ -629,7 +629,7 @@ impl<'a> Lower<'a, '_> {
     /// i8: |v| is finite.
     fn finite(&mut self, v: ir::Value) -> ir::Value {
         let a = self.b.ins().fabs(v);
-        let inf = self.b.ins().f32const(f32::INFINITY);
+        let inf = self.f32const_here(f32::INFINITY);
         self.b.ins().fcmp(FloatCC::LessThan, a, inf)
     }
 
@@ -663,12 +663,12 @@ impl<'a> Lower<'a, '_> {
     fn abs_point(&mut self, sc: Scalar, v: ir::Value) -> Abs {
         match sc {
             Scalar::Float => {
-                let ok = self.b.ins().iconst(types::I8, 1);
+                let ok = self.iconst_here(types::I8, 1);
                 self.float_iv(v, v, ok)
             }
             Scalar::Int => {
                 let w = self.b.ins().sextend(types::I64, v);
-                let ok = self.b.ins().iconst(types::I8, 1);
+                let ok = self.iconst_here(types::I8, 1);
                 Abs::I { lo: w, hi: w, ok }
             }
             Scalar::Bool => {
@@ -810,7 +810,7 @@ impl<'a> Lower<'a, '_> {
                     BinOp::Mul | BinOp::Div => {
                         let ok = if op == BinOp::Div {
                             // The divisor interval must not contain zero.
-                            let zero = self.b.ins().f32const(0.0);
+                            let zero = self.f32const_here(0.0);
                             let pos = self.b.ins().fcmp(FloatCC::GreaterThan, cl, zero);
                             let neg = self.b.ins().fcmp(FloatCC::LessThan, ch, zero);
                             let nz = self.b.ins().bor(pos, neg);
@@ -958,7 +958,7 @@ impl<'a> Lower<'a, '_> {
             }
             (Builtin::Abs, [Abs::F { lo, hi, ok }]) => {
                 // [lo, hi] above zero: itself; below: mirrored; across: [0, max(-lo, hi)].
-                let zero = self.b.ins().f32const(0.0);
+                let zero = self.f32const_here(0.0);
                 let nlo = self.b.ins().fneg(*hi);
                 let nhi = self.b.ins().fneg(*lo);
                 let above = self.b.ins().fcmp(FloatCC::GreaterThanOrEqual, *lo, zero);
