@@ -18,7 +18,8 @@ use crate::ir::{Builtin, Expr, Scalar, Space};
 type Mat = Option<[ir::Value; 16]>;
 
 impl<'a, 'b> Lower<'a, 'b> {
-    fn fconst_like(&mut self, like: ir::Value, x: f32) -> ir::Value {
+    /// Float constant `x` shaped like `like`: splatted when `like` is a vector.
+    pub(super) fn fconst_like(&mut self, like: ir::Value, x: f32) -> ir::Value {
         let c = self.f32const_here(x);
         if self.b.func.dfg.value_type(like).is_vector() {
             self.b.ins().splat(F32X4, c)

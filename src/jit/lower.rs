@@ -4956,14 +4956,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                     // the multiply is ~4 cycles to the division's ~11 (`vx[i] / 16.0` of
                     // the triangle's snapping, six per setup).
                     Some(r) => {
-                        let r = self.f32const_here(r);
-                        let b = &mut self.b;
-                        let r = if b.func.dfg.value_type(x).is_vector() {
-                            b.ins().splat(F32X4, r)
-                        } else {
-                            r
-                        };
-                        b.ins().fmul(x, r)
+                        let r = self.fconst_like(x, r);
+                        self.b.ins().fmul(x, r)
                     }
                     None => b.ins().fdiv(x, y),
                 },
