@@ -12,7 +12,9 @@
 //! the calling thread takes whatever no other thread has started: it only ever waits for
 //! work in progress elsewhere, never for a pool too busy to start it. A batch of one
 //! function never leaves the calling thread, and in a one-thread pool the tasks run one
-//! after another.
+//! after another. At tier 0 a kernel's lowering also makes its pixel loops' function
+//! (`lower::outline`); its compile is queued as a task of its own the moment the lowering
+//! ends, so another thread compiles it while the lowering's thread compiles the kernel.
 //!
 //! Nothing here touches the JIT module: declaring functions needs it mutably and numbers
 //! them in the order the serial lowering met them, and the machine code must not depend on
@@ -37,13 +39,17 @@ use cranelift_module::{FuncId as ModuleFuncId, ModuleReloc, ModuleRelocTarget};
 use super::libm::LibmFn;
 use super::lower::{self, Linker, Res};
 use super::{give_back_context, kernel_signature, libm_signature, take_context, Bodies, CacheKey, Kernel, Tier};
-use super::{JitError, SPARE_BUILDER_CONTEXT};
+use super::{JitError, SPARE_BUILDER_CONTEXTS};
 use crate::abi::{ArgLayout, VariantKey};
 use crate::ir::{FuncId, Program};
 
 /// The namespace of the placeholder names a batch's lowerings give callees (index: the
 /// callee's `FuncId`); the module's own names are namespace 0.
 const CALLEE_NAMESPACE: u32 = 2;
+
+/// The namespace of the placeholder name a kernel's lowering gives its outlined pixel
+/// function (index: the kernel's `FuncId`; see `lower::outline`).
+const PIXELS_NAMESPACE: u32 = 3;
 
 /// Stands for the function's own module `FuncId` in relocations to an offset inside it,
 /// until the function is declared.
@@ -52,28 +58,42 @@ const OWN_ID_PLACEHOLDER: u32 = u32::MAX;
 /// One function of a batch, lowered and compiled.
 pub(super) struct CompiledFunction {
     pub machine: MachineCode,
+    /// Tier 0: the kernel's outlined pixel function (see `lower::outline`), which its
+    /// machine code calls.
+    pub pixels: Option<MachineCode>,
     pub layout: ArgLayout,
     pub warnings: Vec<String>,
     /// A tiered JIT's upgrade word, which the code reads (see `super::UpgradeWord`).
     pub upgrade: Option<&'static AtomicUsize>,
-    /// Lowering and compiling it: wall time and its thread's CPU time, microseconds.
+    /// Lowering and compiling it (and its pixel function, on whichever thread compiled
+    /// that): wall time and CPU time, microseconds.
     pub wall_micros: u64,
     pub cpu_micros: u64,
+    started: Instant,
 }
 
-impl CompiledFunction {
-    /// The relocations with names resolved: `own`, this function's module id, and
-    /// `callee`, each callee's (all of them declared by now).
+impl MachineCode {
+    /// The relocations with names resolved: `own`, this function's module id, `callee`,
+    /// each callee's, and `pixels`, the outlined pixel function's (all declared by now).
     pub fn relocs_for(
         &self,
         own: ModuleFuncId,
         callee: impl Fn(FuncId) -> Option<ModuleFuncId>,
+        pixels: Option<ModuleFuncId>,
     ) -> Result<Vec<ModuleReloc>, JitError> {
-        self.machine
-            .relocs
+        self.relocs
             .iter()
             .map(|r| {
                 let name = match r.name {
+                    ModuleRelocTarget::User {
+                        namespace: PIXELS_NAMESPACE,
+                        ..
+                    } => {
+                        let id = pixels.ok_or_else(|| JitError {
+                            message: "pixel function not declared".into(),
+                        })?;
+                        ModuleRelocTarget::user(0, id.as_u32())
+                    }
                     ModuleRelocTarget::User {
                         namespace: CALLEE_NAMESPACE,
                         index,
@@ -112,6 +132,22 @@ pub(super) enum Failure {
     Compiling(JitError),
 }
 
+/// A kernel's outlined pixel function, compiled.
+struct CompiledPixels {
+    code: Result<MachineCode, Failure>,
+    /// When its compile ended, and its thread's CPU time, microseconds.
+    done: Instant,
+    cpu_micros: u64,
+}
+
+/// A batch's unit of work.
+enum Task {
+    /// Lower and compile this function.
+    Lower(FuncId),
+    /// Compile this kernel's outlined pixel function, lowered into the context.
+    CompilePixels(FuncId, Box<Context>),
+}
+
 /// What a batch's task made of one function.
 pub(super) struct Outcome {
     /// The kernels its lowering asked for, in order, repeats included (the serial lowering
@@ -136,8 +172,10 @@ pub(super) struct BatchWork<'j> {
     /// Functions whose task has been queued.
     started: Mutex<HashSet<FuncId>>,
     /// Queued tasks no thread has taken yet, first queued first.
-    queue: Mutex<VecDeque<FuncId>>,
+    queue: Mutex<VecDeque<Task>>,
     outcomes: Mutex<HashMap<FuncId, Outcome>>,
+    /// Outlined pixel functions compiled, by kernel.
+    pixels: Mutex<HashMap<FuncId, CompiledPixels>>,
     /// Thread CPU time of every task, microseconds.
     cpu_micros: AtomicU64,
 }
@@ -168,6 +206,7 @@ impl<'j> BatchWork<'j> {
             started: Mutex::default(),
             queue: Mutex::default(),
             outcomes: Mutex::default(),
+            pixels: Mutex::default(),
             cpu_micros: AtomicU64::new(0),
         }
     }
@@ -181,7 +220,19 @@ impl<'j> BatchWork<'j> {
             self.lower_and_compile(s, root);
             while self.take_one(s) {}
         });
-        let outcomes = self.outcomes.into_inner().unwrap_or_else(|e| e.into_inner());
+        let mut outcomes = self.outcomes.into_inner().unwrap_or_else(|e| e.into_inner());
+        for (f, p) in self.pixels.into_inner().unwrap_or_else(|e| e.into_inner()) {
+            let Some(outcome) = outcomes.get_mut(&f) else { continue };
+            let Ok(c) = &mut outcome.result else { continue };
+            match p.code {
+                Ok(code) => {
+                    c.pixels = Some(code);
+                    c.cpu_micros += p.cpu_micros;
+                    c.wall_micros = c.wall_micros.max(p.done.duration_since(c.started).as_micros() as u64);
+                }
+                Err(e) => outcome.result = Err(e),
+            }
+        }
         (outcomes, self.cpu_micros.into_inner())
     }
 
@@ -192,17 +243,46 @@ impl<'j> BatchWork<'j> {
             return;
         }
         if self.started.lock().unwrap_or_else(|e| e.into_inner()).insert(f) {
-            self.queue.lock().unwrap_or_else(|e| e.into_inner()).push_back(f);
-            scope.spawn(move |s| {
-                self.take_one(s);
-            });
+            self.queue(scope, Task::Lower(f));
         }
+    }
+
+    /// Queue `task`, and a pool job to take one.
+    fn queue<'s>(&'s self, scope: &rayon::Scope<'s>, task: Task) {
+        self.queue.lock().unwrap_or_else(|e| e.into_inner()).push_back(task);
+        scope.spawn(move |s| {
+            self.take_one(s);
+        });
     }
 
     /// Run the first queued task, if any is left; whether there was one.
     fn take_one<'s>(&'s self, scope: &rayon::Scope<'s>) -> bool {
         let next = self.queue.lock().unwrap_or_else(|e| e.into_inner()).pop_front();
-        next.map(|f| self.lower_and_compile(scope, f)).is_some()
+        next.map(|task| self.run_task(scope, task)).is_some()
+    }
+
+    fn run_task<'s>(&'s self, scope: &rayon::Scope<'s>, task: Task) {
+        match task {
+            Task::Lower(f) => self.lower_and_compile(scope, f),
+            Task::CompilePixels(f, ctx) => self.compile_pixels(f, ctx),
+        }
+    }
+
+    /// Compile kernel `f`'s outlined pixel function (lowered into `ctx`).
+    fn compile_pixels(&self, f: FuncId, mut ctx: Box<Context>) {
+        let started_cpu = super::thread_cpu_micros();
+        let code = self.compile(f, &mut ctx);
+        give_back_context(*ctx);
+        let cpu = super::thread_cpu_micros().saturating_sub(started_cpu);
+        self.cpu_micros.fetch_add(cpu, Ordering::Relaxed);
+        self.pixels.lock().unwrap_or_else(|e| e.into_inner()).insert(
+            f,
+            CompiledPixels {
+                code,
+                done: Instant::now(),
+                cpu_micros: cpu,
+            },
+        );
     }
 
     /// `f`'s task: lower it (starting its callees' tasks), then compile it.
@@ -211,25 +291,34 @@ impl<'j> BatchWork<'j> {
         let mut linker = BatchLinker {
             work: self,
             scope,
+            func: f,
             callees: vec![],
         };
         let upgrade: Option<&'static AtomicUsize> = self.tiered.then(|| &*Box::leak(Box::new(AtomicUsize::new(0))));
         let mut ctx = take_context();
-        let lowered = self.lower(f, &mut ctx.func, &mut linker, upgrade);
+        let mut pixels = Box::new(take_context());
+        let lowered = self.lower(f, &mut ctx.func, &mut pixels.func, &mut linker, upgrade);
         let callees = linker.callees;
+        // Another thread compiles the pixel function, if it is free before this one is.
+        match &lowered {
+            Ok((_, _, true)) => self.queue(scope, Task::CompilePixels(f, pixels)),
+            _ => give_back_context(*pixels),
+        }
         let result = lowered
             .map_err(Failure::Lowering)
             .and_then(|lowered| Ok((lowered, self.compile(f, &mut ctx)?)));
         give_back_context(ctx);
         let cpu = super::thread_cpu_micros().saturating_sub(started_cpu);
         self.cpu_micros.fetch_add(cpu, Ordering::Relaxed);
-        let result = result.map(|((layout, warnings), machine)| CompiledFunction {
+        let result = result.map(|((layout, warnings, _), machine)| CompiledFunction {
             machine,
+            pixels: None,
             layout,
             warnings,
             upgrade,
             wall_micros: started.elapsed().as_micros() as u64,
             cpu_micros: cpu,
+            started,
         });
         let outcome = Outcome { callees, result };
         self.outcomes
@@ -273,21 +362,25 @@ impl<'j> BatchWork<'j> {
         })
     }
 
-    /// Lower `f` into `func`: its argument layout and the lowering's warnings.
+    /// Lower `f` into `func` (and its pixel loops into `pixels`, where tier 0 outlines
+    /// them): its argument layout, the lowering's warnings and whether `pixels` was used.
     fn lower(
         &self,
         f: FuncId,
         func: &mut ir::Function,
+        pixels: &mut ir::Function,
         linker: &mut BatchLinker,
         upgrade: Option<&'static AtomicUsize>,
-    ) -> Res<(ArgLayout, Vec<String>)> {
+    ) -> Res<(ArgLayout, Vec<String>, bool)> {
         let layout = ArgLayout::new(self.program, f, self.key);
         let body = super::body_of(self.bodies, self.program, self.unroll_loops, f);
         func.signature = kernel_signature(self.isa);
         func.name = UserFuncName::user(0, f.0);
-        let mut fctx = SPARE_BUILDER_CONTEXT
-            .with(|spare| spare.borrow_mut().take())
-            .unwrap_or_default();
+        pixels.name = UserFuncName::user(PIXELS_NAMESPACE, f.0);
+        let [mut fctx, mut pctx] = SPARE_BUILDER_CONTEXTS.with(|spare| {
+            let mut spare = spare.borrow_mut();
+            [spare.pop().unwrap_or_default(), spare.pop().unwrap_or_default()]
+        });
         let lowered = lower::lower_kernel(
             self.program,
             f,
@@ -296,17 +389,19 @@ impl<'j> BatchWork<'j> {
             &layout,
             func,
             &mut fctx,
+            Some((pixels, &mut pctx)),
             linker,
             self.isa.frontend_config(),
             self.tier == Tier::Optimised,
             upgrade.map(|w| w as *const AtomicUsize),
         );
-        // A lowering error leaves the builder context mid-function; the next kernel must
-        // not inherit it, so only a clean one is kept.
+        // A lowering error leaves the builder contexts mid-function; the next kernel must
+        // not inherit them, so only clean ones are kept.
         if lowered.is_ok() {
-            SPARE_BUILDER_CONTEXT.with(|spare| *spare.borrow_mut() = Some(fctx));
+            SPARE_BUILDER_CONTEXTS.with(|spare| spare.borrow_mut().extend([fctx, pctx]));
         }
-        Ok((layout, lowered?))
+        let lowered = lowered?;
+        Ok((layout, lowered.warnings, lowered.outlined))
     }
 }
 
@@ -333,6 +428,8 @@ pub(super) fn import_function(
 struct BatchLinker<'s, 'r> {
     work: &'s BatchWork<'s>,
     scope: &'r rayon::Scope<'s>,
+    /// The function being lowered.
+    func: FuncId,
     callees: Vec<FuncId>,
 }
 
@@ -358,5 +455,14 @@ impl Linker for BatchLinker<'_, '_> {
         };
         // Imported (`Linkage::Import`): not colocated.
         Ok(import_function(func, name, libm_signature(self.work.isa, f), false))
+    }
+
+    fn pixel_ref(&mut self, func: &mut ir::Function, sig: ir::Signature) -> Res<ir::FuncRef> {
+        let name = UserExternalName {
+            namespace: PIXELS_NAMESPACE,
+            index: self.func.0,
+        };
+        // Declared `Linkage::Local` with its kernel: colocated.
+        Ok(import_function(func, name, sig, true))
     }
 }

@@ -6,7 +6,8 @@
 //!    the callee's argument block in a stack slot and call it directly, or in `MODE_EXPAND`
 //!    hand it to `ctx.expand` (the runtime renders the call later as an instance).
 //! 2. If there is a pixel part: in bound mode record the viewport unless a bound ran, and
-//!    return; in render mode loop rows, then 4-pixel groups of the pass rectangle clipped to
+//!    return; in render mode (at tier 0 in a function of its own the kernel calls, see
+//!    [`outline`]) loop rows, then 4-pixel groups of the pass rectangle clipped to
 //!    the tile (groups start at tile-aligned x; lanes outside start dead), `UNROLL` groups
 //!    per loop step. Loop headers branch exit-first so Cranelift keeps hoisting uniform work
 //!    out of them. Uniform locals move to a stack frame first (`spill_uniforms`) and the
@@ -71,7 +72,10 @@ mod dead;
 mod flat;
 mod hoist;
 mod init;
+mod outline;
 mod unswitch;
+
+pub(crate) use outline::pixel_signature;
 
 pub(crate) type Res<T> = Result<T, JitError>;
 
@@ -117,6 +121,8 @@ pub(crate) fn err<T>(msg: impl Into<String>) -> Res<T> {
 pub(crate) trait Linker {
     fn kernel_ref(&mut self, func: &mut ir::Function, callee: FuncId) -> Res<ir::FuncRef>;
     fn libm_ref(&mut self, func: &mut ir::Function, f: LibmFn) -> Res<ir::FuncRef>;
+    /// The kernel's outlined pixel function (signature `sig`; see [`outline`]).
+    fn pixel_ref(&mut self, func: &mut ir::Function, sig: ir::Signature) -> Res<ir::FuncRef>;
 }
 
 /// Where a deferred error's code starts in `Lower::pending_error` (its site + 1 below).
@@ -408,9 +414,25 @@ pub(crate) struct Lower<'a, 'b> {
     /// Spare component-offset lists (see [`Self::comp_offsets`]).
     offs_spare: Vec<Vec<u32>>,
     pub(crate) warnings: Vec<String>,
+    /// The types of the SSA variables declared so far, in order (see [`outline`]).
+    var_types: Vec<ir::Type>,
+    /// Tier 0: the pixel loops' own function (see [`outline`]).
+    outline: outline::Outline<'b>,
+    func_id: FuncId,
+    frontend: cranelift_codegen::isa::TargetFrontendConfig,
+}
+
+/// What [`lower_kernel`] made besides the kernel's CLIF.
+pub(crate) struct Lowered {
+    pub warnings: Vec<String>,
+    /// The pixel loops went to the function given for them (see [`outline`]).
+    pub outlined: bool,
 }
 
 /// Lower `func_id` for `key` into `func` (whose signature is already the kernel's).
+///
+/// `pixels`: where tier 0 may put the pixel loops, as a function of their own (see
+/// [`outline`]; [`Lowered::outlined`] says whether it did).
 ///
 /// `upgrade`: the address of the word a tiered JIT's worker fills with this kernel's tier-1
 /// entry point once it is compiled (see `super::TierUp`). The kernel then starts by reading
@@ -419,19 +441,20 @@ pub(crate) struct Lower<'a, 'b> {
 /// direct calls) runs tier-1 code from then on, mid-frame. Both tiers compute the same
 /// buffers bit for bit, so which tier runs which call never shows in a frame.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn lower_kernel(
+pub(crate) fn lower_kernel<'b>(
     program: &Program,
     func_id: FuncId,
     body: &Body,
     key: &VariantKey,
     layout: &ArgLayout,
-    func: &mut ir::Function,
-    fctx: &mut cranelift_frontend::FunctionBuilderContext,
-    linker: &mut dyn Linker,
+    func: &'b mut ir::Function,
+    fctx: &'b mut cranelift_frontend::FunctionBuilderContext,
+    pixels: Option<(&'b mut ir::Function, &'b mut cranelift_frontend::FunctionBuilderContext)>,
+    linker: &'b mut dyn Linker,
     frontend: cranelift_codegen::isa::TargetFrontendConfig,
     block_culling: bool,
     upgrade: Option<*const std::sync::atomic::AtomicUsize>,
-) -> Res<Vec<String>> {
+) -> Res<Lowered> {
     // `body` is `func_id`'s function, possibly rewritten by IR passes (`super::unroll`);
     // callees and interpolators come from `program`.
     if program.functions.get(func_id.0 as usize).is_none() {
@@ -466,15 +489,20 @@ pub(crate) fn lower_kernel(
         b.switch_to_block(run_own);
     }
     let exit = b.create_block();
+    let mut var_types = vec![];
+    let mut declare_var = |ty: ir::Type| {
+        var_types.push(ty);
+        b.declare_var(ty)
+    };
     let bound_vars = [
-        b.declare_var(types::F32),
-        b.declare_var(types::F32),
-        b.declare_var(types::F32),
-        b.declare_var(types::F32),
+        declare_var(types::F32),
+        declare_var(types::F32),
+        declare_var(types::F32),
+        declare_var(types::F32),
     ];
-    let has_bound = b.declare_var(types::I8);
-    let fuel = b.declare_var(types::I64);
-    let pending_error = b.declare_var(types::I32);
+    let has_bound = declare_var(types::I8);
+    let fuel = declare_var(types::I64);
+    let pending_error = declare_var(types::I32);
     let scratch = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 4));
     let mut l = Lower {
         b,
@@ -535,6 +563,11 @@ pub(crate) fn lower_kernel(
         live_targets: std::collections::HashSet::new(),
         offs_spare: vec![],
         warnings: vec![],
+        var_types,
+        // Tier 0 only, and only a kernel with pixel loops.
+        outline: outline::Outline::new(pixels.filter(|_| !block_culling && !f.pixel.is_empty())),
+        func_id,
+        frontend,
     };
     l.body(f)?;
     l.drop_unread_splats();
@@ -549,9 +582,12 @@ pub(crate) fn lower_kernel(
         }
     }
     l.b.seal_all_blocks();
-    let warnings = std::mem::take(&mut l.warnings);
+    let lowered = Lowered {
+        warnings: std::mem::take(&mut l.warnings),
+        outlined: l.outline.done,
+    };
     l.b.finalize(frontend);
-    Ok(warnings)
+    Ok(lowered)
 }
 
 /// The kernel's first instructions: when the frame its prologue reserved reaches below
@@ -963,6 +999,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         if !early_frame {
             self.spill_uniforms(f);
         }
+        // Tier 0: from here on into the pixel function, if there is one (see [`outline`]).
+        let outlined = self.begin_outlined_pixels();
         self.run_hoists()?;
         self.carry_steps()?;
         self.plane_table();
@@ -1021,6 +1059,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             l.pixel_loops(f, &rect, [lo_y, hi_y], [gx_start, hi_x], loops_done)
         })?;
         self.b.switch_to_block(loops_done);
+        if outlined {
+            self.end_outlined_pixels()?;
+        }
         Ok(())
     }
 
@@ -1070,24 +1111,24 @@ impl<'a, 'b> Lower<'a, 'b> {
         //   block), so a tile entirely inside or outside the primitive costs one evaluation.
         //   When the coarse block is neither dead nor passing, the walk restarts with
         //   BLOCK_W x BLOCK_H blocks.
-        let by = self.b.declare_var(types::I32);
-        let coarse = self.b.declare_var(types::I8);
-        let bw = self.b.declare_var(types::I32);
-        let bh = self.b.declare_var(types::I32);
+        let by = self.declare_var(types::I32);
+        let coarse = self.declare_var(types::I8);
+        let bw = self.declare_var(types::I32);
+        let bh = self.declare_var(types::I32);
         let yes = self.iconst_here(types::I8, 1);
         self.b.def_var(coarse, yes);
         let rect_w = self.b.ins().isub(hi_x, gx_start);
         let rect_h = self.b.ins().isub(hi_y, lo_y);
         self.b.def_var(bw, rect_w);
         self.b.def_var(bh, rect_h);
-        let bxv = self.b.declare_var(types::I32);
-        let span_lo = self.b.declare_var(types::I32);
-        let span_hi = self.b.declare_var(types::I32);
-        let after = self.b.declare_var(types::I32);
+        let bxv = self.declare_var(types::I32);
+        let span_lo = self.declare_var(types::I32);
+        let span_hi = self.declare_var(types::I32);
+        let after = self.declare_var(types::I32);
         // The full run's rectangle and where it returns: 0 the block after it, 1 the end.
-        let full_ys = [self.b.declare_var(types::I32), self.b.declare_var(types::I32)];
-        let full_gs = [self.b.declare_var(types::I32), self.b.declare_var(types::I32)];
-        let full_then = self.b.declare_var(types::I32);
+        let full_ys = [self.declare_var(types::I32), self.declare_var(types::I32)];
+        let full_gs = [self.declare_var(types::I32), self.declare_var(types::I32)];
+        let full_then = self.declare_var(types::I32);
         self.b.def_var(by, lo_y);
         let brow_hdr = self.b.create_block();
         let brow_body = self.b.create_block();
@@ -1403,7 +1444,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             let init = self
                 .b
                 .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, bytes, 4));
-            copy_slot(&mut self.b, work, init, bytes);
+            self.copy_slot(work, init, bytes);
             self.group_resets[r] = (init, work, bytes);
         }
         if let Some((cond, _)) = self.deferred_frame {
@@ -1701,15 +1742,15 @@ impl<'a, 'b> Lower<'a, 'b> {
             None if !self.unswitched.is_empty() => Some(unswitch::full_code_exprs(f, &self.unswitched)),
             None => None,
         };
-        let py = self.b.declare_var(types::I32);
-        let gx = self.b.declare_var(types::I32);
-        let xv = self.b.declare_var(F32X4);
+        let py = self.declare_var(types::I32);
+        let gx = self.declare_var(types::I32);
+        let xv = self.declare_var(F32X4);
         self.b.def_var(py, ys[0]);
         // The row's element index of pixel x = 0 (`(y - y0) * stride - x0`; the tile's x0
         // subtracted once, so a group's index is one add) and its centre Y, carried from row
         // to row by an add: both exact (integers; multiples of 0.5 below 2^22 in f32).
-        let row_base_var = self.b.declare_var(types::I64);
-        let yf_var = self.b.declare_var(types::F32);
+        let row_base_var = self.declare_var(types::I64);
+        let yf_var = self.declare_var(types::F32);
         {
             let row = self.b.ins().isub(ys[0], rect.y0);
             let row64 = self.b.ins().sextend(types::I64, row);
@@ -1898,9 +1939,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.b.switch_to_block(grp_run);
             mask
         };
-        let alive = self.b.declare_var(I32X4);
-        let exec = self.b.declare_var(I32X4);
-        let z_written = self.b.declare_var(I32X4);
+        let alive = self.declare_var(I32X4);
+        let exec = self.declare_var(I32X4);
+        let z_written = self.declare_var(I32X4);
         self.b.def_var(alive, mask);
         self.b.def_var(exec, mask);
         let none_mask = mask_const(&mut self.b, false);
@@ -1955,8 +1996,9 @@ impl<'a, 'b> Lower<'a, 'b> {
                 _ => {}
             }
         }
-        for &(init, work, bytes) in &self.group_resets {
-            copy_slot(&mut self.b, init, work, bytes);
+        for r in 0..self.group_resets.len() {
+            let (init, work, bytes) = self.group_resets[r];
+            self.copy_slot(init, work, bytes);
         }
         if self.flat {
             self.flat_group_locals(f);
@@ -2183,10 +2225,8 @@ impl<'a, 'b> Lower<'a, 'b> {
             let varying = local.var.is_varying();
             let sc = elem_scalar(&local.ty);
             let st = match param_role {
-                Some(ParamRole::Z) if interp_binding.is_none() => Storage::Z(self.b.declare_var(I32X4_or(sc))),
-                Some(ParamRole::X | ParamRole::Y | ParamRole::Z) => {
-                    Storage::Vars(vec![self.b.declare_var(I32X4_or(sc))])
-                }
+                Some(ParamRole::Z) if interp_binding.is_none() => Storage::Z(self.declare_var(I32X4_or(sc))),
+                Some(ParamRole::X | ParamRole::Y | ParamRole::Z) => Storage::Vars(vec![self.declare_var(I32X4_or(sc))]),
                 Some(_) => Storage::Args,
                 None => {
                     if local.ty.per_seq {
@@ -2211,7 +2251,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                             let z = zero(&mut self.b, sc, varying);
                             (0..n)
                                 .map(|_| {
-                                    let v = self.b.declare_var(ty);
+                                    let v = self.declare_var(ty);
                                     self.b.def_var(v, z);
                                     v
                                 })
@@ -2221,7 +2261,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                             // reaches is zero all the same (the SSA builder materialises
                             // zero there), without ~100 constants at entry and the block
                             // parameters they feed.
-                            (0..n).map(|_| self.b.declare_var(ty)).collect()
+                            (0..n).map(|_| self.declare_var(ty)).collect()
                         };
                         Storage::Vars(vars)
                     }
@@ -2477,11 +2517,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         let then_mask = self.b.ins().band(entry, c);
         let else_mask = self.b.ins().band_not(entry, c);
-        let then_out = self.b.declare_var(I32X4);
+        let then_out = self.declare_var(I32X4);
         self.b.def_var(then_out, then_mask);
         self.depth_add(1);
         self.masked_side(then_mask, then, then_out)?;
-        let else_out = self.b.declare_var(I32X4);
+        let else_out = self.declare_var(I32X4);
         self.b.def_var(else_out, else_mask);
         if !otherwise.is_empty() {
             self.masked_side(else_mask, otherwise, else_out)?;
@@ -2846,8 +2886,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     ) -> Res<()> {
         let entry = self.exec().expect("pixel context");
         let alive_var = self.pix.as_ref().expect("pixel context").alive;
-        let mask = self.b.declare_var(I32X4);
-        let cont = self.b.declare_var(I32X4);
+        let mask = self.declare_var(I32X4);
+        let cont = self.declare_var(I32X4);
         self.b.def_var(mask, entry);
         let none_mask = mask_const(&mut self.b, false);
         self.b.def_var(cont, none_mask);
@@ -3461,8 +3501,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         // The body is a one-trip masked loop: `return` and `interpolator_return(e)` leave it.
         let entry = self.exec().expect("pixel context");
-        let mask = self.b.declare_var(I32X4);
-        let cont = self.b.declare_var(I32X4);
+        let mask = self.declare_var(I32X4);
+        let cont = self.declare_var(I32X4);
         self.b.def_var(mask, entry);
         let none = mask_const(&mut self.b, false);
         self.b.def_var(cont, none);
@@ -3975,7 +4015,30 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// `stack_addr`s (one per array access: ~350 in the NURB kernel), so within one block
     /// the first is reused.
     fn slot_addr(&mut self, slot: StackSlot) -> ir::Value {
-        self.once_per_block(VnKey::SlotAddr(slot), |l| l.b.ins().stack_addr(types::I64, slot, 0))
+        self.once_per_block(VnKey::SlotAddr(slot), |l| match l.inherited_slot_addr(slot) {
+            Some(addr) => addr,
+            None => l.b.ins().stack_addr(types::I64, slot, 0),
+        })
+    }
+
+    /// Copy `bytes` (a multiple of 4) from stack slot `from` to `to`, 16 bytes per load where
+    /// they fit.
+    fn copy_slot(&mut self, from: StackSlot, to: StackSlot, bytes: u32) {
+        let src = self.slot_addr(from);
+        let dst = self.slot_addr(to);
+        let mut off = 0;
+        while off + 4 <= bytes {
+            let ty = if bytes - off >= 16 { I32X4 } else { types::I32 };
+            let v = self.b.ins().load(ty, mem_flags(), src, off as i32);
+            self.b.ins().store(mem_flags(), v, dst, off as i32);
+            off += ty.bytes();
+        }
+    }
+
+    /// A new SSA variable of type `ty` (its type recorded for [`outline`]).
+    fn declare_var(&mut self, ty: ir::Type) -> Variable {
+        self.var_types.push(ty);
+        self.b.declare_var(ty)
     }
 
     /// Load a scalar of `sc` from `addr + off` bytes in uniform form (bools stored as bytes
@@ -5131,20 +5194,6 @@ fn quiet_stmt(f: &Function, s: &Stmt) -> bool {
         }
         StmtKind::Return => true,
         _ => false,
-    }
-}
-
-/// Copy `bytes` (a multiple of 4) from stack slot `from` to `to`, 16 bytes per load where
-/// they fit.
-fn copy_slot(b: &mut FunctionBuilder, from: StackSlot, to: StackSlot, bytes: u32) {
-    let src = b.ins().stack_addr(types::I64, from, 0);
-    let dst = b.ins().stack_addr(types::I64, to, 0);
-    let mut off = 0;
-    while off + 4 <= bytes {
-        let ty = if bytes - off >= 16 { I32X4 } else { types::I32 };
-        let v = b.ins().load(ty, mem_flags(), src, off as i32);
-        b.ins().store(mem_flags(), v, dst, off as i32);
-        off += ty.bytes();
     }
 }
 

@@ -16,8 +16,9 @@
 //!
 //! Tiers ([`Tier`], [`JitOptions`]): tier 0 ([`Tier::Fast`]) compiles with regalloc2's
 //! single-pass allocator, `opt_level=none`, without block-level culling and with a lighter
-//! lowering (`lower::Lower::tier0`: fewer blocks and less CLIF), so a scene's first frame
-//! starts quickly; tier 1 ([`Tier::Optimised`]) is the full pipeline. A *tiered* JIT
+//! lowering (`lower::Lower::tier0`: fewer blocks and less CLIF), and with each kernel's pixel
+//! loops in a function of their own that the batch compiles beside it (`lower::outline`),
+//! so a scene's first frame starts quickly; tier 1 ([`Tier::Optimised`]) is the full pipeline. A *tiered* JIT
 //! ([`Jit::tiered`]) answers each new (function, key) with a tier-0 kernel at once and asks a
 //! background worker thread, which owns a second JIT module, for the tier-1 kernel; later
 //! requests get the tier-1 kernel once it is ready. The frame in flight switches too: a
@@ -47,9 +48,9 @@
 //! latter with its count of register-allocator spills, see [`Disassembly`]).
 //!
 //! Run-time errors a kernel records carry a `SiteId` in `TileCtx::error_site`, except
-//! `ERR_CALL_DEPTH`, which has no site and records `u32::MAX`, and `ERR_STACK` (every kernel
-//! begins by comparing its stack pointer with `TileCtx::stack_limit`), which records the
-//! kernel's `FuncId`.
+//! `ERR_CALL_DEPTH`, which has no site and records `u32::MAX`, and `ERR_STACK` (every kernel,
+//! and every outlined pixel function, begins by comparing its stack pointer with
+//! `TileCtx::stack_limit`), which records the kernel's `FuncId`.
 
 mod batch;
 mod builtin;
@@ -294,7 +295,7 @@ thread_local! {
     /// allocation was a visible part of a tier-0 compile. Every JIT on the thread shares
     /// them (the tier-1 worker thread has its own).
     static SPARE_CONTEXTS: RefCell<Vec<Context>> = const { RefCell::new(Vec::new()) };
-    static SPARE_BUILDER_CONTEXT: RefCell<Option<FunctionBuilderContext>> = const { RefCell::new(None) };
+    static SPARE_BUILDER_CONTEXTS: RefCell<Vec<FunctionBuilderContext>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Spare contexts kept per thread (a batch rarely compiles more functions at once).
@@ -416,7 +417,13 @@ impl Linker for PrintLinker<'_> {
         let index = 1_000_000 + LibmFn::ALL.iter().position(|&g| g == f).unwrap_or(0) as u32;
         Ok(self.import(func, index, libm_signature(self.isa, f)))
     }
+    fn pixel_ref(&mut self, func: &mut ir::Function, sig: ir::Signature) -> Res<ir::FuncRef> {
+        Ok(self.import(func, PRINTED_PIXEL_INDEX, sig))
+    }
 }
+
+/// The name printed CLIF gives a kernel's outlined pixel function (`u0:2000000`).
+const PRINTED_PIXEL_INDEX: u32 = 2_000_000;
 
 /// What the tier-1 worker has finished, shared with the JIT that feeds it.
 struct TierUpState {
@@ -1041,7 +1048,12 @@ impl Jit {
             let id = self.declared.get(&ck).copied().ok_or_else(|| JitError {
                 message: format!("`{}` was not declared with its batch", program.func(f).name),
             })?;
-            let relocs = c.relocs_for(id, |callee| self.declared.get(&(callee, key.clone())).copied())?;
+            let pixels = match &c.pixels {
+                Some(code) => Some(self.define_pixels(f, id, code)?),
+                None => None,
+            };
+            let callee = |callee| self.declared.get(&(callee, key.clone())).copied();
+            let relocs = c.machine.relocs_for(id, callee, pixels)?;
             self.module
                 .define_function_bytes(id, c.machine.alignment, &c.machine.code, &relocs)
                 .map_err(|e| JitError {
@@ -1051,11 +1063,12 @@ impl Jit {
                 self.upgrade_words.insert(ck.clone(), w);
                 words.push((ck, w));
             }
+            let pixels = c.pixels.as_ref();
             let cost = CompileCost {
                 wall_micros: c.wall_micros + started.elapsed().as_micros() as u64,
                 cpu_micros: c.cpu_micros + thread_cpu_micros().saturating_sub(started_cpu),
-                codegen_cpu_micros: c.machine.codegen_cpu_micros,
-                clif_insts: c.machine.clif_insts,
+                codegen_cpu_micros: c.machine.codegen_cpu_micros + pixels.map_or(0, |p| p.codegen_cpu_micros),
+                clif_insts: c.machine.clif_insts + pixels.map_or(0, |p| p.clif_insts),
                 ..CompileCost::default()
             };
             defined.push((f, id, c.layout, c.warnings, cost));
@@ -1097,6 +1110,34 @@ impl Jit {
         Ok(words)
     }
 
+    /// Declare and define the outlined pixel function of kernel `kernel` (module id of the
+    /// kernel, `func`'s), named after it with `_pixels`; its module id.
+    fn define_pixels(
+        &mut self,
+        func: FuncId,
+        kernel: cranelift_module::FuncId,
+        code: &batch::MachineCode,
+    ) -> Result<cranelift_module::FuncId, JitError> {
+        let name = self
+            .module
+            .declarations()
+            .get_function_decl(kernel)
+            .linkage_name(kernel);
+        let name = format!("{name}_pixels");
+        let sig = lower::pixel_signature(self.isa.default_call_conv());
+        let id = self
+            .module
+            .declare_function(&name, Linkage::Local, &sig)
+            .map_err(|e| jit_err("declare pixel function", e))?;
+        let relocs = code.relocs_for(id, |_| None, None)?;
+        self.module
+            .define_function_bytes(id, code.alignment, &code.code, &relocs)
+            .map_err(|e| JitError {
+                message: format!("compiling `{}`'s pixel loops: {e}", self.program.func(func).name),
+            })?;
+        Ok(id)
+    }
+
     /// Declare the kernel for (`func`, `key`) in the module as `pf_<primitive>_t<tier>_<n>`
     /// (unique by the number `next_name` gives). The name is what profilers show: with
     /// `PERF_BUILDID_DIR` set, cranelift-jit lists every kernel in `/tmp/perf-<pid>.map`
@@ -1121,21 +1162,38 @@ impl Jit {
         Ok(())
     }
 
-    /// The Cranelift IR text of `func` specialised for `key` (for `check --emit clif`).
+    /// The Cranelift IR text of `func` specialised for `key` (for `check --emit clif`): the
+    /// kernel, and after it its outlined pixel function where tier 0 made one.
     pub fn clif(&self, func: FuncId, key: &VariantKey) -> Result<String, JitError> {
-        Ok(self.lower_for_print(func, key)?.display().to_string())
+        let (kernel, pixels) = self.lower_for_print(func, key)?;
+        let mut text = kernel.display().to_string();
+        if let Some(p) = pixels {
+            text.push('\n');
+            text.push_str(&p.display().to_string());
+        }
+        Ok(text)
     }
 
-    /// `func` lowered for `key` into a CLIF function of its own, calls to other primitives
-    /// left as declarations (for [`Jit::clif`] and [`Jit::disassembly`]).
-    fn lower_for_print(&self, func: FuncId, key: &VariantKey) -> Result<ir::Function, JitError> {
+    /// `func` lowered for `key` into a CLIF function of its own (and its outlined pixel
+    /// function, if any), calls to other primitives left as declarations (for [`Jit::clif`]
+    /// and [`Jit::disassembly`]).
+    fn lower_for_print(
+        &self,
+        func: FuncId,
+        key: &VariantKey,
+    ) -> Result<(ir::Function, Option<ir::Function>), JitError> {
         self.check_func(func)?;
         let layout = ArgLayout::new(&self.program, func, key);
         let mut f = ir::Function::with_name_signature(UserFuncName::user(0, func.0), kernel_signature(&self.isa));
         let mut fctx = FunctionBuilderContext::new();
+        let mut pf = ir::Function::with_name_signature(
+            UserFuncName::user(0, PRINTED_PIXEL_INDEX),
+            ir::Signature::new(self.isa.default_call_conv()),
+        );
+        let mut pfctx = FunctionBuilderContext::new();
         let mut linker = PrintLinker { isa: &self.isa };
         let body = self.body(func);
-        lower::lower_kernel(
+        let lowered = lower::lower_kernel(
             &self.program,
             func,
             &body,
@@ -1143,6 +1201,7 @@ impl Jit {
             &layout,
             &mut f,
             &mut fctx,
+            Some((&mut pf, &mut pfctx)),
             &mut linker,
             self.isa.frontend_config(),
             self.options.tier == Tier::Optimised,
@@ -1152,7 +1211,7 @@ impl Jit {
                 &PRINTED_ONLY as *const AtomicUsize
             }),
         )?;
-        Ok(f)
+        Ok((f, lowered.outlined.then_some(pf)))
     }
 
     /// The machine code of `func` specialised for `key` as Cranelift prints it after register
@@ -1160,7 +1219,21 @@ impl Jit {
     /// With it, the count of the register allocator's spill and reload instructions (tier 0's
     /// single-pass allocator spills much; see `examples/compile_probe.rs`'s `disasm=FILE`).
     pub fn disassembly(&self, func: FuncId, key: &VariantKey) -> Result<Disassembly, JitError> {
-        let mut ctx = Context::for_function(self.lower_for_print(func, key)?);
+        let (kernel, pixels) = self.lower_for_print(func, key)?;
+        let mut all = self.disassemble(func, kernel)?;
+        if let Some(p) = pixels {
+            let p = self.disassemble(func, p)?;
+            all.text.push('\n');
+            all.text.push_str(&p.text);
+            all.spill_lines += p.spill_lines;
+            all.inst_lines += p.inst_lines;
+        }
+        Ok(all)
+    }
+
+    /// Compile `f` (lowered from `func`) and take its listing.
+    fn disassemble(&self, func: FuncId, f: ir::Function) -> Result<Disassembly, JitError> {
+        let mut ctx = Context::for_function(f);
         // The slot area's layout as Cranelift computes it (`FrameLayout`): each explicit slot
         // aligned to max(its alignment, a word), then the spill slots.
         let explicit_bytes = ctx.func.sized_stack_slots.values().fold(0u32, |end, slot| {

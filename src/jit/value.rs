@@ -112,6 +112,13 @@ impl VnTable {
         }
         self.values.insert(key, v);
     }
+
+    /// Forget every value: the lowering moves to another function, whose blocks reuse the
+    /// numbers of this one's.
+    pub fn forget(&mut self) {
+        self.block = None;
+        self.values.clear();
+    }
 }
 
 /// A multiply-rotate hasher for small keys of integers (the value-numbering table is

@@ -680,7 +680,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                     return Err(e);
                 }
             };
-            let var = self.b.declare_var(I32X4);
+            let var = self.declare_var(I32X4);
             self.b.def_var(var, v);
             out.group.push((key, var, offset));
         }
