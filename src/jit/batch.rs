@@ -54,8 +54,9 @@ const CALLEE_NAMESPACE: u32 = 2;
 const PIXELS_NAMESPACE: u32 = 3;
 
 /// Stands for the function's own module `FuncId` in relocations to an offset inside it,
-/// until the function is declared.
-const OWN_ID_PLACEHOLDER: u32 = u32::MAX;
+/// until the function is declared. (`u32::MAX` is the entity types' reserved value, which
+/// `FuncId::from_u32` rejects in debug builds.)
+const OWN_ID_PLACEHOLDER: u32 = u32::MAX - 1;
 
 /// One function of a batch, lowered and compiled.
 pub(super) struct CompiledFunction {
