@@ -1110,8 +1110,8 @@ impl Jit {
         Ok(words)
     }
 
-    /// Declare and define the outlined pixel function of kernel `kernel` (module id of the
-    /// kernel, `func`'s), named after it with `_pixels`; its module id.
+    /// Declare and define the outlined pixel function of `func`'s kernel (module id
+    /// `kernel`), named after the kernel with `_pixels`; the pixel function's module id.
     fn define_pixels(
         &mut self,
         func: FuncId,
