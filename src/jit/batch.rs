@@ -29,7 +29,7 @@
 //! the real one, so every function's bytes are those a serial compile gives.
 
 use std::collections::{HashMap, HashSet, VecDeque};
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
 
@@ -140,8 +140,7 @@ struct CloseOnDrop<'w, 'j>(&'w BatchWork<'j>);
 
 impl Drop for CloseOnDrop<'_, '_> {
     fn drop(&mut self) {
-        let _queue = self.0.queue.lock().unwrap_or_else(|e| e.into_inner());
-        self.0.closed.store(true, Ordering::Relaxed);
+        self.0.queue.lock().unwrap_or_else(|e| e.into_inner()).closed = true;
         self.0.queued.notify_all();
     }
 }
@@ -152,6 +151,14 @@ struct CompiledPixels {
     /// When its compile ended, and its thread's CPU time, microseconds.
     done: Instant,
     cpu_micros: u64,
+}
+
+/// A batch's queued tasks no thread has taken yet, first queued first.
+#[derive(Default)]
+struct Queue {
+    tasks: VecDeque<Task>,
+    /// The calling thread has run out of work: the helper leaves (see [`BatchWork::help`]).
+    closed: bool,
 }
 
 /// A batch's unit of work.
@@ -185,12 +192,9 @@ pub(super) struct BatchWork<'j> {
     compiled: &'j HashMap<CacheKey, Arc<Kernel>>,
     /// Functions whose task has been queued.
     started: Mutex<HashSet<FuncId>>,
-    /// Queued tasks no thread has taken yet, first queued first.
-    queue: Mutex<VecDeque<Task>>,
-    /// Signalled when a task is queued and when the calling thread runs out of work (see
-    /// [`Self::help`]); `closed` is set, under the queue's lock, then.
+    queue: Mutex<Queue>,
+    /// Signalled when a task is queued and when the queue is closed (see [`Self::help`]).
     queued: Condvar,
-    closed: AtomicBool,
     outcomes: Mutex<HashMap<FuncId, Outcome>>,
     /// Outlined pixel functions compiled, by kernel.
     pixels: Mutex<HashMap<FuncId, CompiledPixels>>,
@@ -224,7 +228,6 @@ impl<'j> BatchWork<'j> {
             started: Mutex::default(),
             queue: Mutex::default(),
             queued: Condvar::new(),
-            closed: AtomicBool::new(false),
             outcomes: Mutex::default(),
             pixels: Mutex::default(),
             cpu_micros: AtomicU64::new(0),
@@ -274,7 +277,11 @@ impl<'j> BatchWork<'j> {
 
     /// Queue `task`, and a pool job to take one.
     fn queue<'s>(&'s self, scope: &rayon::Scope<'s>, task: Task) {
-        self.queue.lock().unwrap_or_else(|e| e.into_inner()).push_back(task);
+        self.queue
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .tasks
+            .push_back(task);
         self.queued.notify_one();
         scope.spawn(move |s| {
             self.take_one(s);
@@ -290,11 +297,11 @@ impl<'j> BatchWork<'j> {
     fn help<'s>(&'s self, scope: &rayon::Scope<'s>) {
         let mut queue = self.queue.lock().unwrap_or_else(|e| e.into_inner());
         loop {
-            if let Some(task) = queue.pop_front() {
+            if let Some(task) = queue.tasks.pop_front() {
                 drop(queue);
                 self.run_task(scope, task);
                 queue = self.queue.lock().unwrap_or_else(|e| e.into_inner());
-            } else if self.closed.load(Ordering::Relaxed) {
+            } else if queue.closed {
                 return;
             } else {
                 queue = self.queued.wait(queue).unwrap_or_else(|e| e.into_inner());
@@ -304,7 +311,7 @@ impl<'j> BatchWork<'j> {
 
     /// Run the first queued task, if any is left; whether there was one.
     fn take_one<'s>(&'s self, scope: &rayon::Scope<'s>) -> bool {
-        let next = self.queue.lock().unwrap_or_else(|e| e.into_inner()).pop_front();
+        let next = self.queue.lock().unwrap_or_else(|e| e.into_inner()).tasks.pop_front();
         next.map(|task| self.run_task(scope, task)).is_some()
     }
 

@@ -688,11 +688,16 @@ impl<'a, 'b> Lower<'a, 'b> {
                 self.b.ins().jump(self.exit, &[]);
             }
         }
+        self.return_at_exit();
+        Ok(())
+    }
+
+    /// Fill the exit block: store the fuel left to `ctx` and return.
+    fn return_at_exit(&mut self) {
         self.b.switch_to_block(self.exit);
         let fuel = self.b.use_var(self.fuel);
         self.store_ctx(fuel, ctx_off::FUEL);
         self.b.ins().return_(&[]);
-        Ok(())
     }
 
     /// Compiling for tier 0 (`Tier::Fast`): besides skipping block culling, the lowering

@@ -157,10 +157,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             return super::err("pixel function not begun");
         };
         self.b.ins().jump(self.exit, &[]);
-        self.b.switch_to_block(self.exit);
-        let fuel = self.b.use_var(self.fuel);
-        self.store_ctx(fuel, ctx_off::FUEL);
-        self.b.ins().return_(&[]);
+        self.return_at_exit();
         self.b.seal_all_blocks();
         let pixel_b = std::mem::replace(&mut self.b, side.b);
         pixel_b.finalize(self.frontend);
