@@ -13,10 +13,11 @@
 //! work in progress elsewhere, never for a pool too busy to start it. A batch of one
 //! function never leaves the calling thread, and in a one-thread pool the tasks run one
 //! after another. At tier 0 a kernel's lowering also makes its pixel loops' function
-//! (`lower::outline`); its compile is queued as a task of its own the moment the lowering
-//! ends, so another thread compiles it while the lowering's thread compiles the kernel. For
-//! that thread to be there in time, a tier-0 batch starts with a pool job that waits for
-//! tasks until the calling thread is done ([`BatchWork::help`]).
+//! (`lower::outline`), and the kernel is finished before the pixel function is lowered: its
+//! compile is queued as a task of its own then, so another thread compiles it while the
+//! lowering's thread lowers and compiles the pixel function. For that thread to be there in
+//! time, a tier-0 batch starts with a pool job that waits for tasks until the calling
+//! thread is done ([`BatchWork::help`]).
 //!
 //! Nothing here touches the JIT module: declaring functions needs it mutably and numbers
 //! them in the order the serial lowering met them, and the machine code must not depend on
@@ -60,6 +61,8 @@ const OWN_ID_PLACEHOLDER: u32 = u32::MAX - 1;
 
 /// One function of a batch, lowered and compiled.
 pub(super) struct CompiledFunction {
+    /// The kernel's machine code (where tier 0 outlined its pixel loops, compiled by a task
+    /// of its own and put here when the batch ends).
     pub machine: MachineCode,
     /// Tier 0: the kernel's outlined pixel function (see `lower::outline`), which its
     /// machine code calls.
@@ -68,8 +71,8 @@ pub(super) struct CompiledFunction {
     pub warnings: Vec<String>,
     /// A tiered JIT's upgrade word, which the code reads (see `super::UpgradeWord`).
     pub upgrade: Option<&'static AtomicUsize>,
-    /// Lowering and compiling it (and its pixel function, on whichever thread compiled
-    /// that): wall time and CPU time, microseconds.
+    /// Lowering and compiling it (and the kernel compiled apart from its outlined pixel
+    /// function, on whichever thread compiled that): wall time and CPU time, microseconds.
     pub wall_micros: u64,
     pub cpu_micros: u64,
     started: Instant,
@@ -116,6 +119,7 @@ impl MachineCode {
 }
 
 /// What Cranelift made of one lowered function.
+#[derive(Default)]
 pub(super) struct MachineCode {
     /// The machine code (its relocations not applied).
     pub code: Vec<u8>,
@@ -145,8 +149,8 @@ impl Drop for CloseOnDrop<'_, '_> {
     }
 }
 
-/// A kernel's outlined pixel function, compiled.
-struct CompiledPixels {
+/// A kernel compiled apart from its lowering (tier 0, pixel loops outlined).
+struct CompiledApart {
     code: Result<MachineCode, Failure>,
     /// When its compile ended, and its thread's CPU time, microseconds.
     done: Instant,
@@ -165,8 +169,9 @@ struct Queue {
 enum Task {
     /// Lower and compile this function.
     Lower(FuncId),
-    /// Compile this kernel's outlined pixel function, lowered into the context.
-    CompilePixels(FuncId, Box<Context>),
+    /// Compile this kernel, lowered into the context (its pixel loops outlined, their
+    /// function lowered and compiled by the kernel's task).
+    CompileKernel(FuncId, Box<Context>),
 }
 
 /// What a batch's task made of one function.
@@ -196,8 +201,8 @@ pub(super) struct BatchWork<'j> {
     /// Signalled when a task is queued and when the queue is closed (see [`Self::help`]).
     queued: Condvar,
     outcomes: Mutex<HashMap<FuncId, Outcome>>,
-    /// Outlined pixel functions compiled, by kernel.
-    pixels: Mutex<HashMap<FuncId, CompiledPixels>>,
+    /// Kernels compiled apart from their lowering, by kernel.
+    compiled_apart: Mutex<HashMap<FuncId, CompiledApart>>,
     /// Thread CPU time of every task, microseconds.
     cpu_micros: AtomicU64,
 }
@@ -229,7 +234,7 @@ impl<'j> BatchWork<'j> {
             queue: Mutex::default(),
             queued: Condvar::new(),
             outcomes: Mutex::default(),
-            pixels: Mutex::default(),
+            compiled_apart: Mutex::default(),
             cpu_micros: AtomicU64::new(0),
         }
     }
@@ -249,16 +254,24 @@ impl<'j> BatchWork<'j> {
             while self.take_one(s) {}
         });
         let mut outcomes = self.outcomes.into_inner().unwrap_or_else(|e| e.into_inner());
-        for (f, p) in self.pixels.into_inner().unwrap_or_else(|e| e.into_inner()) {
-            let Some(outcome) = outcomes.get_mut(&f) else { continue };
+        let mut apart = self.compiled_apart.into_inner().unwrap_or_else(|e| e.into_inner());
+        for (&f, outcome) in outcomes.iter_mut() {
             let Ok(c) = &mut outcome.result else { continue };
-            match p.code {
-                Ok(code) => {
-                    c.pixels = Some(code);
-                    c.cpu_micros += p.cpu_micros;
-                    c.wall_micros = c.wall_micros.max(p.done.duration_since(c.started).as_micros() as u64);
+            if c.pixels.is_none() {
+                continue;
+            }
+            match apart.remove(&f) {
+                Some(CompiledApart { code: Ok(code), done, cpu_micros }) => {
+                    c.machine = code;
+                    c.cpu_micros += cpu_micros;
+                    c.wall_micros = c.wall_micros.max(done.duration_since(c.started).as_micros() as u64);
                 }
-                Err(e) => outcome.result = Err(e),
+                Some(CompiledApart { code: Err(e), .. }) => outcome.result = Err(e),
+                None => {
+                    outcome.result = Err(Failure::Compiling(JitError {
+                        message: format!("`{}`: kernel not compiled", self.program.func(f).name),
+                    }))
+                }
             }
         }
         (outcomes, self.cpu_micros.into_inner())
@@ -289,11 +302,12 @@ impl<'j> BatchWork<'j> {
     }
 
     /// Tier 0's helper: from the start of the batch, a pool thread waits for tasks and runs
-    /// them until the calling thread is out of work. A kernel's pixel function is queued
-    /// when its lowering ends, ~0.3 ms before the calling thread is done compiling the
-    /// kernel (`lower::outline`); a pool thread woken only then mostly started after the
-    /// calling thread had taken the task itself (measured on the 2-core VM: the compile's
-    /// wall time equalled the calling thread's CPU time).
+    /// them until the calling thread is out of work. A kernel is queued when the lowering
+    /// reaches its pixel loops (`lower::outline`), a few hundred microseconds before the
+    /// calling thread is done with the pixel function; a pool thread woken only then
+    /// mostly started after the calling thread had taken the task itself (measured on the
+    /// 2-core VM when the pixel function was the queued one: the compile's wall time
+    /// equalled the calling thread's CPU time).
     fn help<'s>(&'s self, scope: &rayon::Scope<'s>) {
         let mut queue = self.queue.lock().unwrap_or_else(|e| e.into_inner());
         loop {
@@ -318,20 +332,20 @@ impl<'j> BatchWork<'j> {
     fn run_task<'s>(&'s self, scope: &rayon::Scope<'s>, task: Task) {
         match task {
             Task::Lower(f) => self.lower_and_compile(scope, f),
-            Task::CompilePixels(f, ctx) => self.compile_pixels(f, ctx),
+            Task::CompileKernel(f, ctx) => self.compile_apart(f, ctx),
         }
     }
 
-    /// Compile kernel `f`'s outlined pixel function (lowered into `ctx`).
-    fn compile_pixels(&self, f: FuncId, mut ctx: Box<Context>) {
+    /// Compile kernel `f` (lowered into `ctx`; its pixel loops outlined).
+    fn compile_apart(&self, f: FuncId, mut ctx: Box<Context>) {
         let started_cpu = super::thread_cpu_micros();
         let code = self.compile(f, &mut ctx);
         give_back_context(*ctx);
         let cpu = super::thread_cpu_micros().saturating_sub(started_cpu);
         self.cpu_micros.fetch_add(cpu, Ordering::Relaxed);
-        self.pixels.lock().unwrap_or_else(|e| e.into_inner()).insert(
+        self.compiled_apart.lock().unwrap_or_else(|e| e.into_inner()).insert(
             f,
-            CompiledPixels {
+            CompiledApart {
                 code,
                 done: Instant::now(),
                 cpu_micros: cpu,
@@ -350,23 +364,25 @@ impl<'j> BatchWork<'j> {
         };
         let upgrade: Option<&'static AtomicUsize> = self.tiered.then(|| &*Box::leak(Box::new(AtomicUsize::new(0))));
         let mut ctx = take_context();
-        let mut pixels = Box::new(take_context());
+        let mut pixels = take_context();
         let lowered = self.lower(f, &mut ctx.func, &mut pixels.func, &mut linker, upgrade);
         let callees = linker.callees;
-        // Another thread compiles the pixel function, if it is free before this one is.
-        match &lowered {
-            Ok((_, _, true)) => self.queue(scope, Task::CompilePixels(f, pixels)),
-            _ => give_back_context(*pixels),
-        }
-        let result = lowered
-            .map_err(Failure::Lowering)
-            .and_then(|lowered| Ok((lowered, self.compile(f, &mut ctx)?)));
+        // Outlined: the kernel was queued (`BatchLinker::kernel_finished`), this thread
+        // compiles the pixel function; the kernel's code joins it when the batch ends.
+        let result = lowered.map_err(Failure::Lowering).and_then(|lowered| {
+            let (machine, pixels) = match lowered.2 {
+                true => (MachineCode::default(), Some(self.compile(f, &mut pixels)?)),
+                false => (self.compile(f, &mut ctx)?, None),
+            };
+            Ok((lowered, machine, pixels))
+        });
         give_back_context(ctx);
+        give_back_context(pixels);
         let cpu = super::thread_cpu_micros().saturating_sub(started_cpu);
         self.cpu_micros.fetch_add(cpu, Ordering::Relaxed);
-        let result = result.map(|((layout, warnings, _), machine)| CompiledFunction {
+        let result = result.map(|((layout, warnings, _), machine, pixels)| CompiledFunction {
             machine,
-            pixels: None,
+            pixels,
             layout,
             warnings,
             upgrade,
@@ -518,5 +534,11 @@ impl Linker for BatchLinker<'_, '_> {
         };
         // Declared `Linkage::Local` with its kernel: colocated.
         Ok(import_function(func, name, sig, true))
+    }
+
+    fn kernel_finished(&mut self, func: &mut ir::Function) {
+        let mut ctx = Box::new(take_context());
+        std::mem::swap(&mut ctx.func, func);
+        self.work.queue(self.scope, Task::CompileKernel(self.func, ctx));
     }
 }

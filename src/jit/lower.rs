@@ -123,6 +123,10 @@ pub(crate) trait Linker {
     fn libm_ref(&mut self, func: &mut ir::Function, f: LibmFn) -> Res<ir::FuncRef>;
     /// The kernel's outlined pixel function (signature `sig`; see [`outline`]).
     fn pixel_ref(&mut self, func: &mut ir::Function, sig: ir::Signature) -> Res<ir::FuncRef>;
+    /// Tier 0: the kernel is finished before its outlined pixel function is lowered (see
+    /// [`outline`]). The linker may take `func` (leaving an empty function in its place) to
+    /// compile it meanwhile; left in place, it is in the caller's function as usual.
+    fn kernel_finished(&mut self, _func: &mut ir::Function) {}
 }
 
 /// Where a deferred error's code starts in `Lower::pending_error` (its site + 1 below).
@@ -418,6 +422,9 @@ pub(crate) struct Lower<'a, 'b> {
     var_types: Vec<ir::Type>,
     /// Tier 0: the pixel loops' own function (see [`outline`]).
     outline: outline::Outline<'b>,
+    /// Tier 0, a setup that may fail: the block its early exits go to, which flushes the
+    /// deferred error (filled by [`Self::finish_function`]).
+    setup_exit: Option<Block>,
     func_id: FuncId,
     frontend: cranelift_codegen::isa::TargetFrontendConfig,
 }
@@ -566,6 +573,7 @@ pub(crate) fn lower_kernel<'b>(
         var_types,
         // Tier 0 only, and only a kernel with pixel loops.
         outline: outline::Outline::new(pixels.filter(|_| !block_culling && !f.pixel.is_empty())),
+        setup_exit: None,
         func_id,
         frontend,
     };
@@ -654,7 +662,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         // out-of-fuel blocks then store nothing to `ctx`, which `tests/jit_unroll.rs`
         // counts to see loops).
         let setup_exit = self.tier0() && self.setup_may_fail_index(&f.setup);
-        let setup_exit = setup_exit.then(|| {
+        self.setup_exit = setup_exit.then(|| {
             let none = self.iconst_here(types::I32, 0);
             self.b.def_var(self.pending_error, none);
             self.defer_errors = true;
@@ -663,7 +671,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.exit
         });
         let pending_return = self.setup_stmts(f)?;
-        if setup_exit.is_some() {
+        if self.setup_exit.is_some() {
             self.flush_errors();
             self.deferring_errors = false;
             self.exit = kernel_exit;
@@ -674,8 +682,16 @@ impl<'a, 'b> Lower<'a, 'b> {
         } else if let Some(p) = pending_return {
             self.return_if(p);
         }
+        self.finish_function();
+        Ok(())
+    }
+
+    /// End the function being lowered where its code ends: jump to the exit, fill the
+    /// setup's error exit (the kernel's only) and the exit. The kernel of an outlined pixel
+    /// function ends at the call (see [`outline`]), the pixel function here.
+    fn finish_function(&mut self) {
         self.b.ins().jump(self.exit, &[]);
-        if let Some(setup_exit) = setup_exit {
+        if let Some(setup_exit) = self.setup_exit.take() {
             // Every jump here was lowered by now: sealed, it knows whether any exists.
             self.b.switch_to_block(setup_exit);
             self.seal_now(setup_exit);
@@ -689,7 +705,6 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
         }
         self.return_at_exit();
-        Ok(())
     }
 
     /// Fill the exit block: store the fuel left to `ctx` and return.
@@ -1005,7 +1020,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.spill_uniforms(f);
         }
         // Tier 0: from here on into the pixel function, if there is one (see [`outline`]).
-        let outlined = self.begin_outlined_pixels();
+        self.begin_outlined_pixels()?;
         self.run_hoists()?;
         self.carry_steps()?;
         self.plane_table();
@@ -1064,9 +1079,6 @@ impl<'a, 'b> Lower<'a, 'b> {
             l.pixel_loops(f, &rect, [lo_y, hi_y], [gx_start, hi_x], loops_done)
         })?;
         self.b.switch_to_block(loops_done);
-        if outlined {
-            self.end_outlined_pixels()?;
-        }
         Ok(())
     }
 

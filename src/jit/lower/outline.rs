@@ -8,22 +8,26 @@
 //! four numbers of the pass rectangle (`spill_uniforms` has stored every uniform local the
 //! pixel code reads). So tier 0 lowers the loops into a second function,
 //! `pixels(ctx, args, slots, x_lo, y_lo, x_hi, y_hi)`, which the kernel calls where the
-//! loops were, and the batch ([`crate::jit`]'s `batch`) compiles the two at once: the
-//! compile's wall time becomes the lowering plus the larger of the two.
+//! loops were. The kernel ends with that call, so it is finished when the lowering reaches
+//! the loops ([`Lower::begin_outlined_pixels`]): the linker takes it then
+//! ([`super::Linker::kernel_finished`]) and the batch ([`crate::jit`]'s `batch`) has
+//! another thread compile it while this one lowers and compiles the pixel function. The
+//! compile's wall time becomes the setup's lowering plus the larger of the kernel's
+//! compile and the pixel function's lowering and compile.
 //!
-//! The pixel function is lowered by the same `Lower`, its builder swapped in at the split
-//! ([`Lower::begin_outlined_pixels`]) and out again at the end
-//! ([`Lower::end_outlined_pixels`]), so every analysis and every piece of state the pixel
-//! code reads (frames, hoists, the frame layout) carries over unchanged. What names a
-//! function's own entities is made to mean the same in the new one:
+//! The pixel function is lowered by the same `Lower`, its builder swapped in at the split,
+//! so every analysis and every piece of state the pixel code reads (frames, hoists, the
+//! frame layout) carries over unchanged. What names a function's own entities is made to
+//! mean the same in the new one:
 //! - SSA `Variable`s: the pixel function declares the kernel's variables again, in the
 //!   same order with the same types (`Lower::var_types`); the fuel and the pass rectangle's
 //!   variables start from `ctx` and the parameters, the others are never read before they
 //!   are assigned (uniform locals the pixel code reads live on the stack by then).
 //! - Stack slots: the new function starts with one empty placeholder per slot of the
 //!   kernel, so slot numbers keep their meaning, and `Lower::slot_addr` gives a kernel
-//!   slot's address from the `slots` table the kernel passes (one word per slot the
-//!   pixel code addressed, filled by the kernel right before the call).
+//!   slot's address from the `slots` table the kernel passes (word `n` the address of
+//!   slot `n`, every slot of the kernel: which ones the pixel code reads is known only
+//!   after the kernel is finished).
 //! - The fuel goes through `ctx.fuel` around the call; run-time errors of the pixel code
 //!   go to `ctx` directly, as in the kernel (the setup's deferred errors are flushed
 //!   before the split).
@@ -32,26 +36,22 @@
 //! values; `tests/jit_tier0.rs` and `tests/jit_tiers.rs` compare tiers). Tier 1 keeps one
 //! function: it compiles in the background, and its optimisations work across the split.
 
-use cranelift_codegen::ir::{self, types, AbiParam, InstBuilder, StackSlot, StackSlotData, StackSlotKind};
+use cranelift_codegen::ir::{self, types, AbiParam, InstBuilder, StackSlotData, StackSlotKind};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};
 
-use super::{stack_check, Lower, Res};
+use super::{err, stack_check, Lower, Res};
 use crate::jit::value::{ctx_off, mem_flags};
 
-/// Where the pixel function goes and what the split swapped out (see the module doc).
+/// Where the pixel function goes (see the module doc).
 #[derive(Default)]
 pub(crate) struct Outline<'b> {
     /// The function the pixel loops go to, until the lowering reaches them; `None`: the
     /// kernel is lowered as one function.
     target: Option<(&'b mut ir::Function, &'b mut FunctionBuilderContext)>,
-    /// While the pixel function is lowered: the kernel's builder and its entities.
-    kernel: Option<KernelSide<'b>>,
     /// Slots numbered below this are the kernel's (placeholders in the pixel function).
     inherited: u32,
-    /// In the pixel function: the `slots` parameter, and the kernel slots addressed so
-    /// far, in table order.
+    /// In the pixel function: the `slots` parameter, the kernel's slot addresses.
     table: Option<ir::Value>,
-    table_slots: Vec<StackSlot>,
     /// The pixel loops were outlined.
     pub done: bool,
 }
@@ -64,17 +64,6 @@ impl<'b> Outline<'b> {
             ..Default::default()
         }
     }
-}
-
-/// The kernel's side of the split, kept while the pixel function is lowered.
-struct KernelSide<'b> {
-    b: FunctionBuilder<'b>,
-    ctx: ir::Value,
-    args: ir::Value,
-    exit: ir::Block,
-    dead_blocks: std::collections::HashSet<ir::Block>,
-    live_targets: std::collections::HashSet<ir::Block>,
-    sealed_early: std::collections::HashSet<ir::Block>,
 }
 
 /// The pixel function's signature: `(ctx, args, slots, x_lo, y_lo, x_hi, y_hi)`.
@@ -90,96 +79,26 @@ pub(crate) fn pixel_signature(call_conv: cranelift_codegen::isa::CallConv) -> ir
 }
 
 impl<'a, 'b> Lower<'a, 'b> {
-    /// At the start of the render path (the current block): continue in the pixel
-    /// function, if there is one to lower into. The kernel's block is left as it is until
-    /// [`Self::end_outlined_pixels`] calls the function from it.
-    pub(super) fn begin_outlined_pixels(&mut self) -> bool {
+    /// At the start of the render path (the current block), if there is a pixel function
+    /// to lower into: finish the kernel with a call to it, hand the kernel to the linker
+    /// ([`super::Linker::kernel_finished`]), and continue in the pixel function.
+    pub(super) fn begin_outlined_pixels(&mut self) -> Res<()> {
         let Some((func, fctx)) = self.outline.target.take() else {
-            return false;
+            return Ok(());
         };
-        func.signature = pixel_signature(self.b.func.signature.call_conv);
+        // The kernel: every slot's address in the table (three for screen_triangle and
+        // the sphere; which ones the pixel code reads is known only after lowering it),
+        // the fuel through `ctx`, the call, and the kernel's end.
         let inherited = self.b.func.sized_stack_slots.len() as u32;
-        for _ in 0..inherited {
-            func.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 0, 0));
-        }
-        let mut b = FunctionBuilder::new(func, fctx);
-        let entry = b.create_block();
-        b.append_block_params_for_function_params(entry);
-        b.switch_to_block(entry);
-        b.seal_block(entry);
-        for &ty in &self.var_types {
-            b.declare_var(ty);
-        }
-        let params = b.block_params(entry).to_vec();
-        let kernel_b = std::mem::replace(&mut self.b, b);
-        let exit = self.b.create_block();
-        self.outline.kernel = Some(KernelSide {
-            b: kernel_b,
-            ctx: std::mem::replace(&mut self.ctx, params[0]),
-            args: std::mem::replace(&mut self.args, params[1]),
-            exit: std::mem::replace(&mut self.exit, exit),
-            dead_blocks: std::mem::take(&mut self.dead_blocks),
-            live_targets: std::mem::take(&mut self.live_targets),
-            sealed_early: std::mem::take(&mut self.sealed_early),
-        });
-        self.vn.forget();
-        self.outline.inherited = inherited;
-        self.outline.table = Some(params[2]);
-        stack_check(&mut self.b, self.ctx, self.func_id);
-        for (k, &p) in params[3..7].iter().enumerate() {
-            self.b.def_var(self.bound_vars[k], p);
-        }
-        let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
-        self.b.def_var(self.fuel, fuel);
-        true
-    }
-
-    /// The address of kernel slot `slot` in the pixel function (`None` elsewhere, and for
-    /// the pixel function's own slots): the word the kernel stored in the slot table.
-    pub(super) fn inherited_slot_addr(&mut self, slot: StackSlot) -> Option<ir::Value> {
-        let table = self.outline.table.filter(|_| slot.as_u32() < self.outline.inherited)?;
-        let pos = match self.outline.table_slots.iter().position(|&s| s == slot) {
-            Some(pos) => pos,
-            None => {
-                self.outline.table_slots.push(slot);
-                self.outline.table_slots.len() - 1
-            }
-        };
-        Some(self.b.ins().load(types::I64, mem_flags(), table, 8 * pos as i32))
-    }
-
-    /// At the end of the pixel loops (the current block of the pixel function): return
-    /// from it, go back to the kernel, and call the function from the block the split
-    /// left it in, with the slot table filled and the fuel in `ctx`. The kernel continues
-    /// in that block.
-    pub(super) fn end_outlined_pixels(&mut self) -> Res<()> {
-        let Some(side) = self.outline.kernel.take() else {
-            return super::err("pixel function not begun");
-        };
-        self.b.ins().jump(self.exit, &[]);
-        self.return_at_exit();
-        self.b.seal_all_blocks();
-        let pixel_b = std::mem::replace(&mut self.b, side.b);
-        pixel_b.finalize(self.frontend);
-        self.ctx = side.ctx;
-        self.args = side.args;
-        self.exit = side.exit;
-        self.dead_blocks = side.dead_blocks;
-        self.live_targets = side.live_targets;
-        self.sealed_early = side.sealed_early;
-        self.vn.forget();
-        self.outline.table = None;
-
-        let slots = std::mem::take(&mut self.outline.table_slots);
         let table = self.b.create_sized_stack_slot(StackSlotData::new(
             StackSlotKind::ExplicitSlot,
-            8 * slots.len().max(1) as u32,
+            8 * inherited.max(1),
             3,
         ));
         let table_addr = self.slot_addr(table);
-        for (pos, &slot) in slots.iter().enumerate() {
+        for slot in self.b.func.sized_stack_slots.keys().take(inherited as usize).collect::<Vec<_>>() {
             let addr = self.slot_addr(slot);
-            self.b.ins().store(mem_flags(), addr, table_addr, 8 * pos as i32);
+            self.b.ins().store(mem_flags(), addr, table_addr, 8 * slot.as_u32() as i32);
         }
         let fuel = self.b.use_var(self.fuel);
         self.store_ctx(fuel, ctx_off::FUEL);
@@ -192,7 +111,52 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().call(fref, &call_args);
         let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
         self.b.def_var(self.fuel, fuel);
+        self.finish_function();
+        self.b.seal_all_blocks();
+        if self.setup_exit.is_some() {
+            return err("the setup's exit outlived the kernel");
+        }
+
+        // The pixel function, lowered by this `Lower` from here on.
+        func.signature = pixel_signature(self.b.func.signature.call_conv);
+        for _ in 0..inherited {
+            func.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 0, 0));
+        }
+        let mut b = FunctionBuilder::new(func, fctx);
+        let entry = b.create_block();
+        b.append_block_params_for_function_params(entry);
+        b.switch_to_block(entry);
+        b.seal_block(entry);
+        for &ty in &self.var_types {
+            b.declare_var(ty);
+        }
+        let params = b.block_params(entry).to_vec();
+        let kernel = std::mem::replace(&mut self.b, b);
+        self.linker.kernel_finished(kernel.func);
+        kernel.finalize(self.frontend);
+        self.ctx = params[0];
+        self.args = params[1];
+        self.exit = self.b.create_block();
+        self.dead_blocks.clear();
+        self.live_targets.clear();
+        self.sealed_early.clear();
+        self.vn.forget();
+        self.outline.inherited = inherited;
+        self.outline.table = Some(params[2]);
+        stack_check(&mut self.b, self.ctx, self.func_id);
+        for (k, &p) in params[3..7].iter().enumerate() {
+            self.b.def_var(self.bound_vars[k], p);
+        }
+        let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
+        self.b.def_var(self.fuel, fuel);
         self.outline.done = true;
         Ok(())
+    }
+
+    /// The address of kernel slot `slot` in the pixel function (`None` elsewhere, and for
+    /// the pixel function's own slots): the word the kernel stored in the slot table.
+    pub(super) fn inherited_slot_addr(&mut self, slot: ir::StackSlot) -> Option<ir::Value> {
+        let table = self.outline.table.filter(|_| slot.as_u32() < self.outline.inherited)?;
+        Some(self.b.ins().load(types::I64, mem_flags(), table, 8 * slot.as_u32() as i32))
     }
 }
