@@ -389,11 +389,11 @@ impl<'a, 'b> Lower<'a, 'b> {
             // A 3-component point is taken with w = 1 (no divide afterwards).
             let mut acc = self.mat_entry(&m, i * 4 + 3, v.varying);
             if n == 4 {
-                acc = self.b.ins().fmul(acc, v.comps[3]);
+                acc = self.fmul(acc, v.comps[3]);
             }
             for j in 0..3 {
                 let e = self.mat_entry(&m, i * 4 + j, v.varying);
-                let p = self.b.ins().fmul(e, v.comps[j]);
+                let p = self.fmul(e, v.comps[j]);
                 acc = self.b.ins().fadd(acc, p);
             }
             comps.push(acc);
@@ -412,7 +412,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             for j in 0..3 {
                 let k = if transpose { j * 4 + i } else { i * 4 + j };
                 let e = self.mat_entry(&m, k, v.varying);
-                let p = self.b.ins().fmul(e, v.comps[j]);
+                let p = self.fmul(e, v.comps[j]);
                 acc = Some(match acc {
                     None => p,
                     Some(s) => self.b.ins().fadd(s, p),

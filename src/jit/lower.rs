@@ -5023,13 +5023,27 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
+    /// `x * y`, or the other factor where one is the constant 1: `x * 1` is `x` for every
+    /// float (NaN, infinities and signed zeros included). Transforms of unit vectors
+    /// (`transform("device", "object", {1, 0, 0, 0})`, the sphere's matrix columns) have
+    /// a quarter of their products by 1.
+    pub(crate) fn fmul(&mut self, x: ir::Value, y: ir::Value) -> ir::Value {
+        if float_const(self.b.func, y) == Some(1.0) {
+            x
+        } else if float_const(self.b.func, x) == Some(1.0) {
+            y
+        } else {
+            self.b.ins().fmul(x, y)
+        }
+    }
+
     fn binop(&mut self, op: BinOp, sc: Scalar, x: ir::Value, y: ir::Value) -> Res<ir::Value> {
         let b = &mut self.b;
         Ok(match sc {
             Scalar::Float => match op {
                 BinOp::Add => b.ins().fadd(x, y),
                 BinOp::Sub => b.ins().fsub(x, y),
-                BinOp::Mul => b.ins().fmul(x, y),
+                BinOp::Mul => self.fmul(x, y),
                 BinOp::Div => match exact_reciprocal(b.func, y) {
                     // x / 2^k and x * 2^-k round the same real number, so they are the same
                     // value for every x (NaN, infinities, zeros and subnormals included);
@@ -5360,22 +5374,27 @@ fn key_constant(cond: &Expr, key: &VariantKey) -> Option<bool> {
     }
 }
 
-/// `1 / c` when `v` is a float constant `c` (an `f32const`, or a splat of one) that is a
-/// power of two whose reciprocal is a normal float: the divisors by which dividing and
-/// multiplying by the reciprocal give the same result for every dividend.
-fn exact_reciprocal(func: &ir::Function, v: ir::Value) -> Option<f32> {
+/// The value of `v` if it is a float constant: an `f32const`, or a splat of one.
+fn float_const(func: &ir::Function, v: ir::Value) -> Option<f32> {
     let inst = func.dfg.value_def(v).inst()?;
-    let c = match func.dfg.insts[inst] {
+    match func.dfg.insts[inst] {
         ir::InstructionData::UnaryIeee32 {
             opcode: ir::Opcode::F32const,
             imm,
-        } => f32::from_bits(imm.bits()),
+        } => Some(f32::from_bits(imm.bits())),
         ir::InstructionData::Unary {
             opcode: ir::Opcode::Splat,
             arg,
-        } => return exact_reciprocal(func, arg),
-        _ => return None,
-    };
+        } => float_const(func, arg),
+        _ => None,
+    }
+}
+
+/// `1 / c` when `v` is a float constant `c` that is a power of two whose reciprocal is a
+/// normal float: the divisors by which dividing and multiplying by the reciprocal give the
+/// same result for every dividend.
+fn exact_reciprocal(func: &ir::Function, v: ir::Value) -> Option<f32> {
+    let c = float_const(func, v)?;
     let r = 1.0 / c;
     let power_of_two = c.is_normal() && c.abs().to_bits() & 0x007f_ffff == 0;
     (power_of_two && r.is_normal()).then_some(r)
