@@ -6,10 +6,10 @@
 //! Compiles the bench's `fill perspective_linear K=4` screen_triangle variant (or
 //! `kind=linear|none`, `k=N`) `rounds` times (default 20) on fresh JITs, for each
 //! configuration (tier 0, tier 1, unrolling off), prints the minimum of each (and of its
-//! Cranelift part, `CompileCost::codegen_cpu_micros`), the median wall time, and the bench's
-//! time to first pixel. Tier 0 compiles a kernel's pixel loops on another thread
-//! (`jit::lower::outline`), so its wall time, not this thread's CPU time, is what a first
-//! frame waits for. Options: `timings [fast]` adds Cranelift's pass timings
+//! Cranelift part, `CompileCost::codegen_cpu_micros`, and that part per CLIF instruction),
+//! the median wall time, and the bench's time to first pixel. Tier 0 compiles a kernel and
+//! its pixel loops on two threads (`jit::lower::outline`), so its wall time, not this
+//! thread's CPU time, is what a first frame waits for. Options: `timings [fast]` adds Cranelift's pass timings
 //! summed over `rounds` compiles (tier 1, or tier 0 with `fast`); `clif=FILE [fast]` writes
 //! the CLIF; `disasm=FILE [fast]` writes the machine code after register allocation and
 //! prints its instruction and spill/reload counts; `shape=sphere_implicit|sphere_lit|polygon|nurb` compiles the first instance of
@@ -173,7 +173,7 @@ fn main() {
         ),
     ];
     for (name, opts) in configs {
-        let (mut reported, mut codegen) = (u64::MAX, u64::MAX);
+        let (mut reported, mut codegen, mut insts) = (u64::MAX, u64::MAX, 0);
         let (mut walls, mut cpus) = (vec![], vec![]);
         for _ in 0..rounds {
             let mut jit = Jit::with_options(program.clone(), opts.clone()).expect("host ISA");
@@ -184,6 +184,7 @@ fn main() {
             reported = reported.min(k.compile_micros);
             if let Some(cost) = jit.compile_cost(inst.func, &inst.key) {
                 codegen = codegen.min(cost.codegen_cpu_micros);
+                insts = cost.clif_insts;
             }
         }
         cpus.sort_by(|a, b| a.total_cmp(b));
@@ -200,6 +201,13 @@ fn main() {
             walls[walls.len() / 2],
             cpus[cpus.len() / 2],
             cpus[cpus.len() - 1]
+        );
+        // Cranelift's cost per instruction is what bounds a compile from below: the CLIF
+        // a kernel needs, times this, over the threads compiling its functions.
+        println!(
+            "{:<28} {insts} CLIF instructions, Cranelift {:.2} us per instruction (min, all threads)",
+            "",
+            codegen as f64 / insts.max(1) as f64
         );
     }
     let mut ttfp = vec![];
