@@ -5026,7 +5026,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// `x * y`, or the other factor where one is the constant 1: `x * 1` is `x` for every
     /// float (NaN, infinities and signed zeros included). Transforms of unit vectors
     /// (`transform("device", "object", {1, 0, 0, 0})`, the sphere's matrix columns) have
-    /// a quarter of their products by 1.
+    /// a quarter of their products by 1; `x / 1.0` is one too (`exact_reciprocal`).
+    /// `tests/jit_multiply_by_one.rs`.
     pub(crate) fn fmul(&mut self, x: ir::Value, y: ir::Value) -> ir::Value {
         if float_const(self.b.func, y) == Some(1.0) {
             x
@@ -5051,7 +5052,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                     // the triangle's snapping, six per setup).
                     Some(r) => {
                         let r = self.fconst_like(x, r);
-                        self.b.ins().fmul(x, r)
+                        self.fmul(x, r)
                     }
                     None => b.ins().fdiv(x, y),
                 },
