@@ -109,9 +109,9 @@ fn multiplies_by_one(clif: &str) -> Vec<&str> {
             .filter_map(|l| l.split('=').next().map(str::trim))
             .collect();
         found.extend(function.lines().filter(|l| l.contains("fmul")).filter(|l| {
-            l.split(';').next().is_some_and(|code| {
-                code.split([',', ' ']).any(|operand| ones.contains(&operand))
-            })
+            l.split(';')
+                .next()
+                .is_some_and(|code| code.split([',', ' ']).any(|operand| ones.contains(&operand)))
         }));
     }
     found

@@ -261,7 +261,11 @@ impl<'j> BatchWork<'j> {
                 continue;
             }
             match apart.remove(&f) {
-                Some(CompiledApart { code: Ok(code), done, cpu_micros }) => {
+                Some(CompiledApart {
+                    code: Ok(code),
+                    done,
+                    cpu_micros,
+                }) => {
                     c.machine = code;
                     c.cpu_micros += cpu_micros;
                     c.wall_micros = c.wall_micros.max(done.duration_since(c.started).as_micros() as u64);

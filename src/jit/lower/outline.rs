@@ -90,15 +90,22 @@ impl<'a, 'b> Lower<'a, 'b> {
         // the sphere; which ones the pixel code reads is known only after lowering it),
         // the fuel through `ctx`, the call, and the kernel's end.
         let inherited = self.b.func.sized_stack_slots.len() as u32;
-        let table = self.b.create_sized_stack_slot(StackSlotData::new(
-            StackSlotKind::ExplicitSlot,
-            8 * inherited.max(1),
-            3,
-        ));
+        let table =
+            self.b
+                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8 * inherited.max(1), 3));
         let table_addr = self.slot_addr(table);
-        for slot in self.b.func.sized_stack_slots.keys().take(inherited as usize).collect::<Vec<_>>() {
+        for slot in self
+            .b
+            .func
+            .sized_stack_slots
+            .keys()
+            .take(inherited as usize)
+            .collect::<Vec<_>>()
+        {
             let addr = self.slot_addr(slot);
-            self.b.ins().store(mem_flags(), addr, table_addr, 8 * slot.as_u32() as i32);
+            self.b
+                .ins()
+                .store(mem_flags(), addr, table_addr, 8 * slot.as_u32() as i32);
         }
         let fuel = self.b.use_var(self.fuel);
         self.store_ctx(fuel, ctx_off::FUEL);
@@ -157,6 +164,10 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// the pixel function's own slots): the word the kernel stored in the slot table.
     pub(super) fn inherited_slot_addr(&mut self, slot: ir::StackSlot) -> Option<ir::Value> {
         let table = self.outline.table.filter(|_| slot.as_u32() < self.outline.inherited)?;
-        Some(self.b.ins().load(types::I64, mem_flags(), table, 8 * slot.as_u32() as i32))
+        Some(
+            self.b
+                .ins()
+                .load(types::I64, mem_flags(), table, 8 * slot.as_u32() as i32),
+        )
     }
 }
