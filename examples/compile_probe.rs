@@ -37,6 +37,8 @@ fn thread_cpu_ns() -> u64 {
 }
 
 fn main() {
+    // As the binary does (src/main.rs): the first compile's figures depend on it.
+    primflow::cli::disable_transparent_huge_pages();
     let args: Vec<String> = std::env::args().collect();
     let rounds: usize = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(20);
     let timings = args.iter().any(|a| a == "timings");

@@ -7,6 +7,7 @@
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 fn main() -> std::process::ExitCode {
+    primflow::cli::disable_transparent_huge_pages();
     let mut out = std::io::stdout().lock();
     let mut err = std::io::stderr().lock();
     let code = primflow::cli::run(std::env::args_os(), &mut out, &mut err);

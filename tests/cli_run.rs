@@ -184,3 +184,22 @@ fn check_of_a_library_file_loads_it_once_and_emits_clif_per_primitive() {
     assert_eq!(code, 0);
     assert!(out.contains("primitive screen_triangle"), "{out}");
 }
+
+/// The binary turns transparent huge pages off for its process before anything else
+/// (`disable_transparent_huge_pages`, src/main.rs): the kernel then reports them disabled
+/// for the process, which is what keeps a first compile from zeroing 2 MiB pages.
+#[test]
+#[cfg(target_os = "linux")]
+fn transparent_huge_pages_are_off_for_the_process() {
+    let status = || std::fs::read_to_string("/proc/self/status").unwrap();
+    let thp = |s: String| {
+        s.lines()
+            .find(|l| l.starts_with("THP_enabled:"))
+            .map(|l| l.split_whitespace().nth(1).unwrap_or("").to_string())
+    };
+    // Kernels before 5.0 do not report it; the call must still succeed.
+    assert!(primflow::cli::disable_transparent_huge_pages());
+    if let Some(enabled) = thp(status()) {
+        assert_eq!(enabled, "0", "{}", status());
+    }
+}

@@ -170,6 +170,25 @@ pub struct AccuracyArgs {
     pub no_progress: bool,
 }
 
+/// Turn transparent huge pages off for this process (Linux; elsewhere nothing). The binary's
+/// allocator, mimalloc, asks for them on its arenas (`madvise`), and the kernel zeroes a
+/// whole 2 MiB page at the first touch of each: a process's first compiles touch ~50, which
+/// on the 2-vCPU VM was 40 % of a first NURB compile's time and most of `primflow render`'s
+/// system time, for no measured gain in a frame's time (docs/performance.md, "Session 25").
+/// The binary calls this first thing; the setting is the process's (`PR_SET_THP_DISABLE`),
+/// so it also holds for memory mimalloc reserved before `main`. Returns whether it took.
+pub fn disable_transparent_huge_pages() -> bool {
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: PR_SET_THP_DISABLE takes integer arguments and touches no memory of ours.
+        unsafe { libc::prctl(libc::PR_SET_THP_DISABLE, 1, 0, 0, 0) == 0 }
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        false
+    }
+}
+
 /// Run the command line `args` (the first is the program name), printing to `out` and
 /// `err`; returns the exit code.
 pub fn run<I, T>(args: I, out: &mut dyn Write, err: &mut dyn Write) -> i32
