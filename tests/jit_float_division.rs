@@ -43,32 +43,11 @@ primitive division(float rect[4]; float num[16]; float want[112]; varying float 
 
 const DIVISORS: [f32; 7] = [16.0, 0.5, -4.0, 3.0, 0.0, 1.0, 1.7014118e38];
 
-fn dividends() -> [f32; 16] {
-    [
-        0.0,
-        -0.0,
-        1.0,
-        -7.0,
-        123.456,
-        f32::from_bits(1),
-        -f32::from_bits(0x0000_0123),
-        f32::MIN_POSITIVE,
-        1e-40,
-        f32::MAX,
-        -3e38,
-        f32::INFINITY,
-        f32::NEG_INFINITY,
-        f32::NAN,
-        0.1,
-        6e-39,
-    ]
-}
-
 #[test]
 fn division_by_constants_matches_rust_bit_for_bit_in_every_tier() {
     let mut sources = SourceMap::new();
     let program = common::library_with(&mut sources, &[("division.prim", DIVISION)]);
-    let num = dividends();
+    let num = common::special_floats();
     let want: Vec<f32> = DIVISORS.iter().flat_map(|&c| num.iter().map(move |&n| n / c)).collect();
     let mut r = Renderer::new(program.clone());
     r.set_image_size(16, 7).unwrap();

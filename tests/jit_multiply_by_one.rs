@@ -46,32 +46,11 @@ primitive unit_transform(varying float X, Y; inout varying fixed<32,32> Z)
 }
 "#;
 
-fn operands() -> [f32; 16] {
-    [
-        0.0,
-        -0.0,
-        1.0,
-        -7.0,
-        123.456,
-        f32::from_bits(1),
-        -f32::from_bits(0x0000_0123),
-        f32::MIN_POSITIVE,
-        1e-40,
-        f32::MAX,
-        -3e38,
-        f32::INFINITY,
-        f32::NEG_INFINITY,
-        f32::NAN,
-        0.1,
-        6e-39,
-    ]
-}
-
 #[test]
 fn multiplying_by_one_gives_the_operand_bit_for_bit_in_every_tier() {
     let mut sources = SourceMap::new();
     let program = common::library_with(&mut sources, &[("times_one.prim", TIMES_ONE)]);
-    let num = operands();
+    let num = common::special_floats();
     // What Rust computes, so the test says what the fold must keep.
     for n in num {
         assert!(n * 1.0 == n || n.is_nan(), "{n}");
@@ -84,18 +63,10 @@ fn multiplying_by_one_gives_the_operand_bit_for_bit_in_every_tier() {
     r.rast_param("rect", &Value(vec![0.0, 0.0, 16.0, 4.0])).unwrap();
     r.rast_param("num", &Value(num.to_vec())).unwrap();
     r.end().unwrap();
-    let frame = common::all_tiers(&program, &r, "times_one_prim");
+    // Pixel (x, y) checks operand x in form y: depth 0.375 = its pixel code wrong, 0.75 =
+    // the setup's loop over every pair wrong, 0.25 = both.
     let all_good = (0.875f64 * 4294967296.0) as u32;
-    for y in 0..4 {
-        for x in 0..16 {
-            assert_eq!(
-                frame.depth_at(x, y),
-                Some(all_good),
-                "{} form {y}: pixel ({x}, {y}) (0.25 = both wrong, 0.375 = pixel code wrong, 0.75 = setup wrong)",
-                num[x as usize]
-            );
-        }
-    }
+    common::assert_depth_in_every_jit(&r, "times_one_prim", |_, _| all_good);
 }
 
 /// The CLIF lines that multiply by the constant 1: an `fmul` with an operand defined by

@@ -42,6 +42,29 @@ pub fn library_with(sources: &mut SourceMap, user: &[(&str, &str)]) -> Arc<Progr
     }
 }
 
+/// Sixteen operands that tell exact float arithmetic from nearly exact: signed zeros,
+/// subnormals, the smallest normal, the largest finite values, infinities and NaN.
+pub fn special_floats() -> [f32; 16] {
+    [
+        0.0,
+        -0.0,
+        1.0,
+        -7.0,
+        123.456,
+        f32::from_bits(1),
+        -f32::from_bits(0x0000_0123),
+        f32::MIN_POSITIVE,
+        1e-40,
+        f32::MAX,
+        -3e38,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NAN,
+        0.1,
+        6e-39,
+    ]
+}
+
 /// A JIT of each tier, named, for tests that render the same scene through both.
 pub fn jits(program: &Arc<Program>) -> Vec<(&'static str, Jit)> {
     vec![
