@@ -36,7 +36,7 @@
 //! values; `tests/jit_tier0.rs` and `tests/jit_tiers.rs` compare tiers). Tier 1 keeps one
 //! function: it compiles in the background, and its optimisations work across the split.
 
-use cranelift_codegen::ir::{self, types, AbiParam, InstBuilder, StackSlotData, StackSlotKind};
+use cranelift_codegen::ir::{self, types, AbiParam, InstBuilder, StackSlot, StackSlotData, StackSlotKind};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};
 
 use super::{stack_check, Lower, Res};
@@ -94,18 +94,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.b
                 .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8 * inherited.max(1), 3));
         let table_addr = self.slot_addr(table);
-        for slot in self
-            .b
-            .func
-            .sized_stack_slots
-            .keys()
-            .take(inherited as usize)
-            .collect::<Vec<_>>()
-        {
-            let addr = self.slot_addr(slot);
-            self.b
-                .ins()
-                .store(mem_flags(), addr, table_addr, 8 * slot.as_u32() as i32);
+        for n in 0..inherited {
+            let addr = self.slot_addr(StackSlot::from_u32(n));
+            self.b.ins().store(mem_flags(), addr, table_addr, 8 * n as i32);
         }
         let fuel = self.b.use_var(self.fuel);
         self.store_ctx(fuel, ctx_off::FUEL);
