@@ -292,7 +292,11 @@ pub(crate) struct Lower<'a, 'b> {
     linker: &'b mut dyn Linker,
     ctx: ir::Value,
     args: ir::Value,
+    /// Where a `return` goes: `kernel_exit`, or while the setup defers its errors the block
+    /// that flushes them first (`setup_exit`).
     exit: Block,
+    /// The block that ends the function being lowered (stores the fuel, returns).
+    kernel_exit: Block,
     frames: Vec<Frame<'a>>,
     pix: Option<PixelState>,
     /// Varying loop masks from outermost to innermost (all frames), for restoring `exec`.
@@ -521,6 +525,7 @@ pub(crate) fn lower_kernel<'b>(
         ctx,
         args,
         exit,
+        kernel_exit: exit,
         frames: vec![],
         pix: None,
         vloops: vec![],
@@ -571,8 +576,8 @@ pub(crate) fn lower_kernel<'b>(
         offs_spare: vec![],
         warnings: vec![],
         var_types,
-        // Tier 0 only, and only a kernel with pixel loops.
-        outline: outline::Outline::new(pixels.filter(|_| !block_culling && !f.pixel.is_empty())),
+        // Tier 0 only, and only a kernel with pixel loops or a setup worth splitting.
+        outline: outline::Outline::new(pixels.filter(|_| !block_culling), f),
         setup_exit: None,
         func_id,
         frontend,
@@ -656,7 +661,6 @@ impl<'a, 'b> Lower<'a, 'b> {
         // exits go through `setup_exit`, which flushes it, and so does the end of the
         // setup; from there on errors are recorded in `ctx` directly and the variable is
         // dead (it never lives into the pixel loops).
-        let kernel_exit = self.exit;
         // Tier 0 only: tier 1 keeps its records in cold blocks, where they cost no run time
         // (deferring there too: CLIF -11 %, NURB frame -0.6 % by instructions, but the
         // out-of-fuel blocks then store nothing to `ctx`, which `tests/jit_unroll.rs`
@@ -674,7 +678,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         if self.setup_exit.is_some() {
             self.flush_errors();
             self.deferring_errors = false;
-            self.exit = kernel_exit;
+            self.exit = self.kernel_exit;
         }
         if !f.pixel.is_empty() {
             self.flat = self.tier0() && flat::pixel_code_is_flattenable(self.program, f, self.key);
@@ -2610,7 +2614,13 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         // The OR of the guards deferred so far in this run.
         let mut pending: Option<ir::Value> = None;
-        for s in setup {
+        for (i, s) in setup.iter().enumerate() {
+            if self.outline.setup_split == Some(i) {
+                if let Some(p) = pending.take() {
+                    self.return_if(p);
+                }
+                self.begin_outlined_setup(f, i)?;
+            }
             if let Some(cond) = self.deferrable_guard(s) {
                 let c = self.eval_uniform(cond)?;
                 let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);

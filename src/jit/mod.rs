@@ -17,8 +17,9 @@
 //! Tiers ([`Tier`], [`JitOptions`]): tier 0 ([`Tier::Fast`]) compiles with regalloc2's
 //! single-pass allocator, `opt_level=none`, without block-level culling and with a lighter
 //! lowering (`lower::Lower::tier0`: fewer blocks and less CLIF), and with each kernel's pixel
-//! loops in a function of their own that the batch compiles beside it (`lower::outline`),
-//! so a scene's first frame starts quickly; tier 1 ([`Tier::Optimised`]) is the full pipeline. A *tiered* JIT
+//! loops (or the second half of a large setup without them) in a function of their own
+//! that the batch compiles beside it (`lower::outline`), so a scene's first frame starts
+//! quickly; tier 1 ([`Tier::Optimised`]) is the full pipeline. A *tiered* JIT
 //! ([`Jit::tiered`]) answers each new (function, key) with a tier-0 kernel at once and asks a
 //! background worker thread, which owns a second JIT module, for the tier-1 kernel; later
 //! requests get the tier-1 kernel once it is ready. The frame in flight switches too: a
@@ -1049,7 +1050,7 @@ impl Jit {
                 message: format!("`{}` was not declared with its batch", program.func(f).name),
             })?;
             let pixels = match &c.pixels {
-                Some(code) => Some(self.define_pixels(f, id, code)?),
+                Some(code) => Some(self.define_pixels(f, &key, id, code)?),
                 None => None,
             };
             let callee = |callee| self.declared.get(&(callee, key.clone())).copied();
@@ -1110,11 +1111,14 @@ impl Jit {
         Ok(words)
     }
 
-    /// Declare and define the outlined pixel function of `func`'s kernel (module id
-    /// `kernel`), named after the kernel with `_pixels`; the pixel function's module id.
+    /// Declare and define the second function of `func`'s kernel (module id `kernel`; see
+    /// `lower::outline`), named after the kernel with `_pixels` (its pixel loops) or
+    /// `_rest` (the rest of a setup split in two); the second function's module id. It
+    /// calls the primitives the kernel calls, declared with the batch for `key`.
     fn define_pixels(
         &mut self,
         func: FuncId,
+        key: &VariantKey,
         kernel: cranelift_module::FuncId,
         code: &batch::MachineCode,
     ) -> Result<cranelift_module::FuncId, JitError> {
@@ -1123,17 +1127,23 @@ impl Jit {
             .declarations()
             .get_function_decl(kernel)
             .linkage_name(kernel);
-        let name = format!("{name}_pixels");
+        let part = if self.program.func(func).pixel.is_empty() {
+            "rest"
+        } else {
+            "pixels"
+        };
+        let name = format!("{name}_{part}");
         let sig = lower::pixel_signature(self.isa.default_call_conv());
         let id = self
             .module
             .declare_function(&name, Linkage::Local, &sig)
             .map_err(|e| jit_err("declare pixel function", e))?;
-        let relocs = code.relocs_for(id, |_| None, None)?;
+        let callee = |callee| self.declared.get(&(callee, key.clone())).copied();
+        let relocs = code.relocs_for(id, callee, None)?;
         self.module
             .define_function_bytes(id, code.alignment, &code.code, &relocs)
             .map_err(|e| JitError {
-                message: format!("compiling `{}`'s pixel loops: {e}", self.program.func(func).name),
+                message: format!("compiling `{}`'s second function: {e}", self.program.func(func).name),
             })?;
         Ok(id)
     }

@@ -101,3 +101,9 @@ pub(super) fn assigned_flags(stmts: &[Stmt], locals: usize) -> Vec<bool> {
     });
     out
 }
+
+/// The locals `stmts` reads or assigns anywhere, as a flag per local (`locals` of them).
+pub(super) fn mentioned_flags(stmts: &[Stmt], locals: usize) -> Vec<bool> {
+    // Nothing removable: one round marks every read and every assigned local.
+    live_setup_locals(stmts, vec![false; locals], &|_| false)
+}

@@ -1,4 +1,5 @@
-//! Tier 0's pixel loops as a function of their own, compiled on another core.
+//! Tier 0 splits a kernel into two functions, compiled on two cores: its pixel loops, or
+//! the second half of a large setup.
 //!
 //! A tier-0 compile is what a scene's first frame waits for, and Cranelift's part of it
 //! grows with the function's instructions (~0.7 us per CLIF instruction on the 2-core VM;
@@ -15,18 +16,27 @@
 //! compile's wall time becomes the setup's lowering plus the larger of the kernel's
 //! compile and the pixel function's lowering and compile.
 //!
-//! The pixel function is lowered by the same `Lower`, its builder swapped in at the split,
-//! so every analysis and every piece of state the pixel code reads (frames, hoists, the
-//! frame layout) carries over unchanged. What names a function's own entities is made to
-//! mean the same in the new one:
-//! - SSA `Variable`s: the pixel function declares the kernel's variables again, in the
+//! A kernel without pixel loops whose setup is large (NURB's tessellation, ~4 400
+//! instructions in one function) is split the same way before the top-level setup
+//! statement that halves it best ([`setup_split_point`], [`Lower::begin_outlined_setup`]):
+//! the second function runs the rest of the setup. Its locals are the kernel's, so the
+//! SSA variables of locals both halves use are stored after the slot addresses in the
+//! table and defined from there at the second function's entry; the kernel's deferred
+//! errors are flushed before the call, and the second function defers its own.
+//!
+//! The second function is lowered by the same `Lower`, its builder swapped in at the split,
+//! so every analysis and every piece of state the code after the split reads (frames,
+//! hoists, the frame layout) carries over unchanged. What names a function's own entities
+//! is made to mean the same in the new one:
+//! - SSA `Variable`s: the second function declares the kernel's variables again, in the
 //!   same order with the same types (`Lower::var_types`); the fuel and the pass rectangle's
-//!   variables start from `ctx` and the parameters, the others are never read before they
-//!   are assigned (uniform locals the pixel code reads live on the stack by then).
+//!   variables start from `ctx` and the parameters, the carried ones from the table, the
+//!   others are never read before they are assigned (uniform locals the pixel code reads
+//!   live on the stack by then) or read as zero in both forms.
 //! - Stack slots: the new function starts with one empty placeholder per slot of the
 //!   kernel, so slot numbers keep their meaning, and `Lower::slot_addr` gives a kernel
 //!   slot's address from the `slots` table the kernel passes (word `n` the address of
-//!   slot `n`, every slot of the kernel: which ones the pixel code reads is known only
+//!   slot `n`, every slot of the kernel: which ones the second function reads is known only
 //!   after the kernel is finished).
 //! - The fuel goes through `ctx.fuel` around the call; run-time errors of the pixel code
 //!   go to `ctx` directly, as in the kernel (the setup's deferred errors are flushed
@@ -36,34 +46,101 @@
 //! values; `tests/jit_tier0.rs` and `tests/jit_tiers.rs` compare tiers). Tier 1 keeps one
 //! function: it compiles in the background, and its optimisations work across the split.
 
+use cranelift_codegen::entity::EntityRef;
 use cranelift_codegen::ir::{self, types, AbiParam, InstBuilder, StackSlot, StackSlotData, StackSlotKind};
-use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};
+use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 
-use super::{stack_check, Lower, Res};
+use super::{dead, stack_check, Lower, Res, Storage};
+use crate::ir::{Expr, ExprKind, Function, Stmt, StmtKind};
 use crate::jit::value::{ctx_off, mem_flags};
 
-/// Where the pixel function goes (see the module doc).
+/// Where the second function goes (see the module doc).
 #[derive(Default)]
 pub(crate) struct Outline<'b> {
-    /// The function the pixel loops go to, until the lowering reaches them; `None`: the
-    /// kernel is lowered as one function.
+    /// The function the pixel loops (or the setup's second half) go to, until the lowering
+    /// reaches them; `None`: the kernel is lowered as one function.
     target: Option<(&'b mut ir::Function, &'b mut FunctionBuilderContext)>,
-    /// Slots numbered below this are the kernel's (placeholders in the pixel function).
+    /// A kernel without pixel loops: the top-level setup statement its second function
+    /// starts with ([`setup_split_point`]).
+    pub setup_split: Option<usize>,
+    /// Slots numbered below this are the kernel's (placeholders in the second function).
     inherited: u32,
-    /// In the pixel function: the `slots` parameter, the kernel's slot addresses.
+    /// In the second function: the `slots` parameter, the kernel's slot addresses.
     table: Option<ir::Value>,
-    /// The pixel loops were outlined.
+    /// The kernel was split.
     pub done: bool,
 }
 
 impl<'b> Outline<'b> {
-    /// Outline into `target` (`None`: lower the kernel as one function).
-    pub fn new(target: Option<(&'b mut ir::Function, &'b mut FunctionBuilderContext)>) -> Outline<'b> {
+    /// Split `f`'s kernel into `target` where it pays (`None`: lower it as one function).
+    pub fn new(target: Option<(&'b mut ir::Function, &'b mut FunctionBuilderContext)>, f: &Function) -> Outline<'b> {
+        let setup_split = match (&target, f.pixel.is_empty()) {
+            (Some(_), true) => setup_split_point(&f.setup),
+            _ => None,
+        };
+        let wanted = !f.pixel.is_empty() || setup_split.is_some();
         Outline {
-            target,
+            target: target.filter(|_| wanted),
+            setup_split,
             ..Default::default()
         }
     }
+}
+
+/// A setup this large (in [`stmt_size`] units) is split when the kernel has no pixel
+/// loops: NURB's is ~4 900, polygon's ~500.
+const SPLIT_SETUP_SIZE: usize = 2000;
+
+/// Tier 0, a kernel without pixel loops (NURB tessellation, any primitive that only calls
+/// others): the top-level setup statement that halves the setup most evenly by size, if
+/// the setup is large enough and neither half is under a quarter of it. Each half is then
+/// a function of its own, compiled side by side like a kernel and its pixel loops.
+pub(super) fn setup_split_point(setup: &[Stmt]) -> Option<usize> {
+    let sizes: Vec<usize> = setup.iter().map(stmt_size).collect();
+    let total: usize = sizes.iter().sum();
+    if total < SPLIT_SETUP_SIZE {
+        return None;
+    }
+    let mut before: usize = 0;
+    let mut best: Option<(usize, usize)> = None;
+    for (i, &s) in sizes.iter().enumerate() {
+        let imbalance = before.abs_diff(total - before);
+        if i > 0 && best.is_none_or(|(_, b)| imbalance < b) {
+            best = Some((i, imbalance));
+        }
+        before += s;
+    }
+    let (i, imbalance) = best?;
+    (imbalance <= total / 2).then_some(i)
+}
+
+/// A statement's size: the components its expressions compute (an operation on a point
+/// counts four), a rough measure of the CLIF it lowers to.
+fn stmt_size(s: &Stmt) -> usize {
+    let list = |l: &[Stmt]| l.iter().map(stmt_size).sum::<usize>();
+    1 + match &s.kind {
+        StmtKind::Assign { place, value } => {
+            expr_size(value) + place.indices.iter().map(|(i, _)| expr_size(i)).sum::<usize>()
+        }
+        StmtKind::If { cond, then, otherwise } => expr_size(cond) + list(then) + list(otherwise),
+        StmtKind::Loop { cond, body, step, .. } => cond.as_ref().map_or(0, expr_size) + list(body) + list(step),
+        StmtKind::Interpolation { arms } => arms.iter().map(|a| list(&a.body)).sum(),
+        StmtKind::InterpolatorReturn(e) => e.as_ref().map_or(0, expr_size),
+        StmtKind::Bound(es) => es.iter().map(expr_size).sum(),
+        StmtKind::CallPrimitive { args, .. } => args.iter().map(expr_size).sum(),
+        StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => 0,
+    }
+}
+
+fn expr_size(e: &Expr) -> usize {
+    // A local's value is its variables or its address (an index computes the element);
+    // whole arrays beyond 16 components are cleared and copied by loops.
+    let mut n = match e.kind {
+        ExprKind::Local(_) => 1,
+        _ => e.ty.fixed_len().clamp(1, 16) as usize,
+    };
+    e.for_each_child(|c| n += expr_size(c));
+    n
 }
 
 /// The pixel function's signature: `(ctx, args, slots, x_lo, y_lo, x_hi, y_hi)`.
@@ -78,25 +155,82 @@ pub(crate) fn pixel_signature(call_conv: cranelift_codegen::isa::CallConv) -> ir
     sig
 }
 
+/// Bytes a carried variable of type `ty` takes in the slot table (vectors 16, others 8).
+fn carried_bytes(ty: ir::Type) -> u32 {
+    if ty.is_vector() {
+        16
+    } else {
+        8
+    }
+}
+
 impl<'a, 'b> Lower<'a, 'b> {
     /// At the start of the render path (the current block), if there is a pixel function
     /// to lower into: finish the kernel with a call to it, hand the kernel to the linker
     /// ([`super::Linker::kernel_finished`]), and continue in the pixel function.
     pub(super) fn begin_outlined_pixels(&mut self) -> Res<()> {
+        self.split_function(&[])
+    }
+
+    /// Before top-level setup statement `split` (the current block; the setup's deferred
+    /// guards are resolved): finish the kernel with a call to the second function and
+    /// continue in it, as [`Self::begin_outlined_pixels`] does. The SSA variables of the
+    /// locals both halves use are carried through the slot table; the kernel's deferred
+    /// errors are flushed first (they come before any the second half records), and the
+    /// second function defers its own into its own setup exit.
+    pub(super) fn begin_outlined_setup(&mut self, f: &'a Function, split: usize) -> Res<()> {
+        let before = dead::mentioned_flags(&f.setup[..split], f.locals.len());
+        let after = dead::mentioned_flags(&f.setup[split..], f.locals.len());
+        let mut carried = vec![];
+        for (i, st) in self.frames[0].storage.iter().enumerate() {
+            if before[i] && after[i] {
+                match st {
+                    Storage::Vars(vars) => carried.extend(vars.iter().copied()),
+                    Storage::Z(var) => carried.push(*var),
+                    Storage::Stack(_) | Storage::Frame(_) | Storage::Args => {}
+                }
+            }
+        }
+        self.flush_errors();
+        let deferring = self.setup_exit.is_some();
+        self.exit = self.kernel_exit;
+        self.split_function(&carried)?;
+        if deferring {
+            let none = self.iconst_here(types::I32, 0);
+            self.b.def_var(self.pending_error, none);
+            let setup_exit = self.b.create_block();
+            self.setup_exit = Some(setup_exit);
+            self.exit = setup_exit;
+        }
+        Ok(())
+    }
+
+    /// Finish the kernel with a call to the second function and continue lowering into it
+    /// (see the module doc); `carried`: variables whose values go along in the slot table.
+    fn split_function(&mut self, carried: &[Variable]) -> Res<()> {
         let Some((func, fctx)) = self.outline.target.take() else {
             return Ok(());
         };
         // The kernel: every slot's address in the table (three for screen_triangle and
-        // the sphere; which ones the pixel code reads is known only after lowering it),
-        // the fuel through `ctx`, the call, and the kernel's end.
+        // the sphere; which ones the second function reads is known only after lowering
+        // it), then the carried values, the fuel through `ctx`, the call, and the
+        // kernel's end.
         let inherited = self.b.func.sized_stack_slots.len() as u32;
+        let carried: Vec<(Variable, ir::Type)> = carried.iter().map(|&v| (v, self.var_types[v.index()])).collect();
+        let table_bytes = 8 * inherited + carried.iter().map(|&(_, ty)| carried_bytes(ty)).sum::<u32>();
         let table =
             self.b
-                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8 * inherited.max(1), 3));
+                .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, table_bytes.max(8), 3));
         let table_addr = self.slot_addr(table);
         for n in 0..inherited {
             let addr = self.slot_addr(StackSlot::from_u32(n));
             self.b.ins().store(mem_flags(), addr, table_addr, 8 * n as i32);
+        }
+        let mut at = 8 * inherited;
+        for &(var, ty) in &carried {
+            let v = self.b.use_var(var);
+            self.b.ins().store(mem_flags(), v, table_addr, at as i32);
+            at += carried_bytes(ty);
         }
         let fuel = self.b.use_var(self.fuel);
         self.store_ctx(fuel, ctx_off::FUEL);
@@ -112,7 +246,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.finish_function();
         self.b.seal_all_blocks();
 
-        // The pixel function, lowered by this `Lower` from here on.
+        // The second function, lowered by this `Lower` from here on.
         func.signature = pixel_signature(self.b.func.signature.call_conv);
         for _ in 0..inherited {
             func.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 0, 0));
@@ -135,6 +269,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.ctx = params[0];
         self.args = params[1];
         self.exit = self.b.create_block();
+        self.kernel_exit = self.exit;
         self.dead_blocks.clear();
         self.live_targets.clear();
         self.sealed_early.clear();
@@ -147,6 +282,12 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
         self.b.def_var(self.fuel, fuel);
+        let mut at = 8 * inherited;
+        for &(var, ty) in &carried {
+            let v = self.b.ins().load(ty, mem_flags(), params[2], at as i32);
+            self.b.def_var(var, v);
+            at += carried_bytes(ty);
+        }
         self.outline.done = true;
         Ok(())
     }
