@@ -44,7 +44,7 @@ use super::lower::{self, Linker, Res};
 use super::{give_back_context, kernel_signature, libm_signature, take_context, Bodies, CacheKey, Kernel, Tier};
 use super::{JitError, SPARE_BUILDER_CONTEXTS};
 use crate::abi::{ArgLayout, VariantKey};
-use crate::ir::{FuncId, Program};
+use crate::ir::{FuncId, Program, Stmt, StmtKind};
 
 /// The namespace of the placeholder names a batch's lowerings give callees (index: the
 /// callee's `FuncId`); the module's own names are namespace 0.
@@ -360,6 +360,16 @@ impl<'j> BatchWork<'j> {
     /// `f`'s task: lower it (starting its callees' tasks), then compile it.
     fn lower_and_compile<'s>(&'s self, scope: &rayon::Scope<'s>, f: FuncId) {
         let (started, started_cpu) = (Instant::now(), super::thread_cpu_micros());
+        if self.tier == Tier::Fast {
+            // The helper lowers and compiles the callees while this thread lowers their
+            // caller, instead of when the lowering reaches the calls (NURB's are at the end
+            // of its setup). A callee the variant does not reach is compiled for nothing:
+            // its outcome is left unused (`Jit::compile_batch` walks from the root).
+            let func = self.program.func(f);
+            for stmts in [&func.setup, &func.pixel] {
+                self.start_callees(scope, stmts);
+            }
+        }
         let mut linker = BatchLinker {
             work: self,
             scope,
@@ -399,6 +409,25 @@ impl<'j> BatchWork<'j> {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .insert(f, outcome);
+    }
+
+    /// Start the task of every primitive `stmts` calls.
+    fn start_callees<'s>(&'s self, scope: &rayon::Scope<'s>, stmts: &[Stmt]) {
+        for s in stmts {
+            match &s.kind {
+                StmtKind::CallPrimitive { callee, .. } => self.start(scope, *callee),
+                StmtKind::If { then, otherwise, .. } => {
+                    self.start_callees(scope, then);
+                    self.start_callees(scope, otherwise);
+                }
+                StmtKind::Loop { body, step, .. } => {
+                    self.start_callees(scope, body);
+                    self.start_callees(scope, step);
+                }
+                StmtKind::Interpolation { arms } => arms.iter().for_each(|a| self.start_callees(scope, &a.body)),
+                _ => {}
+            }
+        }
     }
 
     /// Compile `ctx`'s function (`f` lowered): its machine code, alignment and relocations

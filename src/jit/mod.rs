@@ -18,8 +18,8 @@
 //! single-pass allocator, `opt_level=none`, without block-level culling and with a lighter
 //! lowering (`lower::Lower::tier0`: fewer blocks and less CLIF), and with each kernel's pixel
 //! loops (or the second half of a large setup without them) in a function of their own
-//! that the batch compiles beside it (`lower::outline`), so a scene's first frame starts
-//! quickly; tier 1 ([`Tier::Optimised`]) is the full pipeline. A *tiered* JIT
+//! that the batch compiles beside it (`lower::outline`), and a batch's callees started
+//! before their caller is lowered, so a scene's first frame starts quickly; tier 1 ([`Tier::Optimised`]) is the full pipeline. A *tiered* JIT
 //! ([`Jit::tiered`]) answers each new (function, key) with a tier-0 kernel at once and asks a
 //! background worker thread, which owns a second JIT module, for the tier-1 kernel; later
 //! requests get the tier-1 kernel once it is ready. The frame in flight switches too: a
