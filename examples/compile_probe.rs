@@ -18,7 +18,11 @@
 //! bench's fill and small scenes instead; `cold` compares a tier-0 compile right after
 //! another one (warm caches) with one after evicting the caches and with one in a fresh
 //! tiered JIT, as the bench measures it. Every run first prints the process's first tier-0
-//! compile (cold code, unrolling included).
+//! compile (cold code, unrolling included). Everything runs on a thread of the render pool
+//! (`runtime::render_pool`, a thread per CPU), where `primflow render` compiles its kernels:
+//! a compile's helper tasks then share the CPUs with it as there (from outside a pool,
+//! the calling thread and every thread of rayon's global pool would take tasks, one
+//! thread more than the CPUs).
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -39,6 +43,11 @@ fn thread_cpu_ns() -> u64 {
 fn main() {
     // As the binary does (src/main.rs): the first compile's figures depend on it.
     primflow::cli::disable_transparent_huge_pages();
+    let pool = primflow::runtime::render_pool(0).expect("render pool");
+    pool.install(probe);
+}
+
+fn probe() {
     let args: Vec<String> = std::env::args().collect();
     let rounds: usize = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(20);
     let timings = args.iter().any(|a| a == "timings");

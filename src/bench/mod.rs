@@ -959,8 +959,21 @@ fn measure(
     })
 }
 
-/// Compile time of `func`'s variant `key` at both tiers on fresh JITs (see [`CompileTiming`]).
+/// Compile time of `func`'s variant `key` at both tiers on fresh JITs (see [`CompileTiming`]),
+/// compiled on a thread of `pool` as a render compiles them: tier 0's helper tasks then
+/// share its CPUs as in a frame (outside a pool, the calling thread and all of rayon's
+/// global pool would take them, one thread more than the CPUs).
 fn compile_timing(
+    program: &Arc<Program>,
+    workload: &str,
+    func: crate::ir::FuncId,
+    key: &crate::abi::VariantKey,
+    pool: &rayon::ThreadPool,
+) -> Result<CompileTiming, String> {
+    pool.install(|| compile_timing_here(program, workload, func, key))
+}
+
+fn compile_timing_here(
     program: &Arc<Program>,
     workload: &str,
     func: crate::ir::FuncId,
@@ -1071,7 +1084,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
         bar.set_message(w.name.clone());
         let mut r = scene(&program, SIZE, w, false);
         if let Some(inst) = r.instances().first() {
-            compile.push(compile_timing(&program, &w.name, inst.func, &inst.key)?);
+            compile.push(compile_timing(&program, &w.name, inst.func, &inst.key, &all)?);
         }
         results.push(measure(
             &w.name,

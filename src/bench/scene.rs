@@ -174,7 +174,7 @@ pub fn run_scene(opts: &SceneBenchOptions) -> Result<SceneBenchReport, String> {
         .variants()
         .0
         .iter()
-        .map(|(func, key)| compile_timing(&program, "", *func, key))
+        .map(|(func, key)| compile_timing(&program, "", *func, key, &all))
         .collect::<Result<Vec<_>, _>>()?;
 
     // The hand-written forms that can render the scene: every primitive it draws (and every
