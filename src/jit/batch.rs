@@ -1,10 +1,13 @@
 //! Lowering and compiling a batch's functions in parallel, on the caller's rayon pool.
 //!
 //! A batch is a root kernel and every not-yet-compiled primitive it reaches (see
-//! `Jit::compile_batch`). Which functions those are is only known by lowering: a callee is
-//! found when its caller's lowering asks for it. So each function is one task that lowers it
-//! and compiles the CLIF to machine code with Cranelift (`Context::compile`), and a lowering
-//! queues the task of each callee the moment it first asks for it ([`BatchWork::start`]).
+//! `Jit::compile_batch`). Which functions those are is only known for sure by lowering: a
+//! callee is found when its caller's lowering asks for it. So each function is one task
+//! that lowers it and compiles the CLIF to machine code with Cranelift
+//! (`Context::compile`), and a lowering queues the task of each callee the moment it first
+//! asks for it ([`BatchWork::start`]); at tier 0 a task first queues those of every
+//! primitive its function's IR calls, so they do not wait for the caller's lowering to
+//! reach the calls (a call the variant never lowers costs a compile nobody uses).
 //! The calling thread runs the root's task itself: the root is the largest function of
 //! every batch in the library (nurb_surface is 90 % of its batch's CLIF), so it gets a
 //! thread from the start and keeps it from lowering to machine code, while idle threads of
@@ -12,10 +15,11 @@
 //! the calling thread takes whatever no other thread has started: it only ever waits for
 //! work in progress elsewhere, never for a pool too busy to start it. A batch of one
 //! function never leaves the calling thread, and in a one-thread pool the tasks run one
-//! after another. At tier 0 a kernel's lowering also makes its pixel loops' function
-//! (`lower::outline`), and the kernel is finished before the pixel function is lowered: its
-//! compile is queued as a task of its own then, so another thread compiles it while the
-//! lowering's thread lowers and compiles the pixel function. For that thread to be there in
+//! after another. At tier 0 a kernel's lowering also makes a second function, its pixel
+//! loops or the second half of a large setup (`lower::outline`), and the kernel is finished
+//! before the second function is lowered: its compile is queued as a task of its own then,
+//! so another thread compiles it while the lowering's thread lowers and compiles the second
+//! function. For that thread to be there in
 //! time, a tier-0 batch starts with a pool job that waits for tasks until the calling
 //! thread is done ([`BatchWork::help`]).
 //!
