@@ -360,25 +360,35 @@ impl Expr {
     }
 }
 
-/// Call `f` on every assignment in `stmts`, nested ones too (through `if` sides, loop
-/// bodies and steps, interpolation arms), with its place and value. The one place that
-/// knows which statements assign; the walks that collect assigned locals go through it.
-pub fn for_each_assign(stmts: &[Stmt], f: &mut dyn FnMut(&Place, &Expr)) {
+/// Call `f` on every statement in `stmts`, nested ones too (through `if` sides, loop
+/// bodies and steps, interpolation arms), each before the statements inside it. The one
+/// place that knows which statements hold others.
+pub fn for_each_stmt<'s>(stmts: &'s [Stmt], f: &mut dyn FnMut(&'s Stmt)) {
     for s in stmts {
+        f(s);
         match &s.kind {
-            StmtKind::Assign { place, value } => f(place, value),
             StmtKind::If { then, otherwise, .. } => {
-                for_each_assign(then, f);
-                for_each_assign(otherwise, f);
+                for_each_stmt(then, f);
+                for_each_stmt(otherwise, f);
             }
             StmtKind::Loop { body, step, .. } => {
-                for_each_assign(body, f);
-                for_each_assign(step, f);
+                for_each_stmt(body, f);
+                for_each_stmt(step, f);
             }
-            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| for_each_assign(&a.body, f)),
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| for_each_stmt(&a.body, f)),
             _ => {}
         }
     }
+}
+
+/// Call `f` on every assignment in `stmts`, nested ones too, with its place and value; the
+/// walks that collect assigned locals go through it.
+pub fn for_each_assign(stmts: &[Stmt], f: &mut dyn FnMut(&Place, &Expr)) {
+    for_each_stmt(stmts, &mut |s| {
+        if let StmtKind::Assign { place, value } = &s.kind {
+            f(place, value);
+        }
+    });
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -48,7 +48,7 @@ use super::lower::{self, Linker, Res};
 use super::{give_back_context, kernel_signature, libm_signature, take_context, Bodies, CacheKey, Kernel, Tier};
 use super::{JitError, SPARE_BUILDER_CONTEXTS};
 use crate::abi::{ArgLayout, VariantKey};
-use crate::ir::{FuncId, Program, Stmt, StmtKind};
+use crate::ir::{FuncId, Program, StmtKind};
 
 /// The namespace of the placeholder names a batch's lowerings give callees (index: the
 /// callee's `FuncId`); the module's own names are namespace 0.
@@ -371,7 +371,11 @@ impl<'j> BatchWork<'j> {
             // its outcome is left unused (`Jit::compile_batch` walks from the root).
             let func = self.program.func(f);
             for stmts in [&func.setup, &func.pixel] {
-                self.start_callees(scope, stmts);
+                crate::ir::for_each_stmt(stmts, &mut |s| {
+                    if let StmtKind::CallPrimitive { callee, .. } = s.kind {
+                        self.start(scope, callee);
+                    }
+                });
             }
         }
         let mut linker = BatchLinker {
@@ -413,25 +417,6 @@ impl<'j> BatchWork<'j> {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .insert(f, outcome);
-    }
-
-    /// Start the task of every primitive `stmts` calls.
-    fn start_callees<'s>(&'s self, scope: &rayon::Scope<'s>, stmts: &[Stmt]) {
-        for s in stmts {
-            match &s.kind {
-                StmtKind::CallPrimitive { callee, .. } => self.start(scope, *callee),
-                StmtKind::If { then, otherwise, .. } => {
-                    self.start_callees(scope, then);
-                    self.start_callees(scope, otherwise);
-                }
-                StmtKind::Loop { body, step, .. } => {
-                    self.start_callees(scope, body);
-                    self.start_callees(scope, step);
-                }
-                StmtKind::Interpolation { arms } => arms.iter().for_each(|a| self.start_callees(scope, &a.body)),
-                _ => {}
-            }
-        }
     }
 
     /// Compile `ctx`'s function (`f` lowered): its machine code, alignment and relocations

@@ -114,22 +114,24 @@ pub(super) fn setup_split_point(setup: &[Stmt]) -> Option<usize> {
     (imbalance <= total / 2).then_some(i)
 }
 
-/// A statement's size: the components its expressions compute (an operation on a point
-/// counts four), a rough measure of the CLIF it lowers to.
+/// A statement's size with the statements inside it: the components their expressions
+/// compute (an operation on a point counts four), a rough measure of the CLIF it lowers to.
 fn stmt_size(s: &Stmt) -> usize {
-    let list = |l: &[Stmt]| l.iter().map(stmt_size).sum::<usize>();
-    1 + match &s.kind {
-        StmtKind::Assign { place, value } => {
-            expr_size(value) + place.indices.iter().map(|(i, _)| expr_size(i)).sum::<usize>()
-        }
-        StmtKind::If { cond, then, otherwise } => expr_size(cond) + list(then) + list(otherwise),
-        StmtKind::Loop { cond, body, step, .. } => cond.as_ref().map_or(0, expr_size) + list(body) + list(step),
-        StmtKind::Interpolation { arms } => arms.iter().map(|a| list(&a.body)).sum(),
-        StmtKind::InterpolatorReturn(e) => e.as_ref().map_or(0, expr_size),
-        StmtKind::Bound(es) => es.iter().map(expr_size).sum(),
-        StmtKind::CallPrimitive { args, .. } => args.iter().map(expr_size).sum(),
-        StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => 0,
-    }
+    let mut size = 0;
+    crate::ir::for_each_stmt(std::slice::from_ref(s), &mut |s| {
+        size += 1 + match &s.kind {
+            StmtKind::Assign { place, value } => {
+                expr_size(value) + place.indices.iter().map(|(i, _)| expr_size(i)).sum::<usize>()
+            }
+            StmtKind::If { cond, .. } => expr_size(cond),
+            StmtKind::Loop { cond, .. } => cond.as_ref().map_or(0, expr_size),
+            StmtKind::InterpolatorReturn(e) => e.as_ref().map_or(0, expr_size),
+            StmtKind::Bound(es) => es.iter().map(expr_size).sum(),
+            StmtKind::CallPrimitive { args, .. } => args.iter().map(expr_size).sum(),
+            StmtKind::Interpolation { .. } | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => 0,
+        };
+    });
+    size
 }
 
 fn expr_size(e: &Expr) -> usize {
