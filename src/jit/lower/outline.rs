@@ -218,8 +218,17 @@ impl<'a, 'b> Lower<'a, 'b> {
         // it), then the carried values, the fuel through `ctx`, the call, and the
         // kernel's end.
         let inherited = self.b.func.sized_stack_slots.len() as u32;
-        let carried: Vec<(Variable, ir::Type)> = carried.iter().map(|&v| (v, self.var_types[v.index()])).collect();
-        let table_bytes = 8 * inherited + carried.iter().map(|&(_, ty)| carried_bytes(ty)).sum::<u32>();
+        // Each carried variable with its type and its offset in the table.
+        let mut table_bytes = 8 * inherited;
+        let carried: Vec<(Variable, ir::Type, i32)> = carried
+            .iter()
+            .map(|&v| {
+                let ty = self.var_types[v.index()];
+                let at = table_bytes;
+                table_bytes += carried_bytes(ty);
+                (v, ty, at as i32)
+            })
+            .collect();
         let table =
             self.b
                 .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, table_bytes.max(8), 3));
@@ -228,11 +237,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             let addr = self.slot_addr(StackSlot::from_u32(n));
             self.b.ins().store(mem_flags(), addr, table_addr, 8 * n as i32);
         }
-        let mut at = 8 * inherited;
-        for &(var, ty) in &carried {
+        for &(var, _, at) in &carried {
             let v = self.b.use_var(var);
-            self.b.ins().store(mem_flags(), v, table_addr, at as i32);
-            at += carried_bytes(ty);
+            self.b.ins().store(mem_flags(), v, table_addr, at);
         }
         let fuel = self.b.use_var(self.fuel);
         self.store_ctx(fuel, ctx_off::FUEL);
@@ -284,11 +291,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
         self.b.def_var(self.fuel, fuel);
-        let mut at = 8 * inherited;
-        for &(var, ty) in &carried {
-            let v = self.b.ins().load(ty, mem_flags(), params[2], at as i32);
+        for &(var, ty, at) in &carried {
+            let v = self.b.ins().load(ty, mem_flags(), params[2], at);
             self.b.def_var(var, v);
-            at += carried_bytes(ty);
         }
         self.outline.done = true;
         Ok(())
