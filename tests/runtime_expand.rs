@@ -363,6 +363,30 @@ fn a_user_primitive_calling_screen_triangle_in_a_loop_is_bit_identical_expanded(
 }
 
 #[test]
+fn a_long_strip_is_bound_in_parallel_and_stays_bit_identical() {
+    // One instance recording 700 draws: its bound pass runs in parallel chunks (above
+    // `PARALLEL_BOUNDS` in runtime/expand.rs). Overlapping triangles at rising depth, most of
+    // them off screen (no tiles) and many too thin to cover a pixel centre; a short strip
+    // after it keeps its place in the order.
+    let program = library_with_user_prims();
+    let mut r = renderer(&program, 120, 48, true);
+    r.set_tile_size(16).unwrap();
+    bind_c_and_s(&mut r);
+    let mut rng = Lcg(33);
+    strip(&mut r, [-30.0, 6.0], 1.5, 700, 0.2, false, &mut rng);
+    strip(&mut r, [10.0, 20.0], 9.0, 12, 0.3, false, &mut rng);
+    let mut jit = Jit::new(program.clone()).unwrap();
+    let (expanded, per_tile) = same_either_way(&mut r, &mut jit, "long strip");
+    assert!(expanded.diags.items.is_empty(), "{:?}", expanded.diags.items);
+    assert_eq!(expanded.stats.expanded_calls, 712);
+    assert!(written(&expanded) > 400, "only {} pixels", written(&expanded));
+    // Every draw binned into the same tiles whatever the thread count.
+    let two = render_mode(&mut r, &mut jit, true, 2);
+    assert_eq!(two.stats.tile_invocations, expanded.stats.tile_invocations);
+    assert!(expanded.stats.tile_invocations > per_tile.stats.tile_invocations);
+}
+
+#[test]
 fn run_time_errors_of_an_expanded_setup_are_reported_once_at_their_site() {
     let program = library_with_user_prims();
     let mut r = renderer(&program, 80, 40, false);

@@ -19,8 +19,9 @@
 //! run-time errors of the caller's setup are recorded once, by the expand run.
 //!
 //! Instances are expanded and their draws bound (`MODE_BOUND`) in parallel (rayon jobs of a
-//! few hundred instances), each instance with its own recorder and argument pool; a draw's
-//! bound is turned into the rectangle of tiles it overlaps right there. The renderer then
+//! few hundred instances, and an instance's many calls in chunks of their own), each
+//! instance with its own recorder and argument pool; a draw's bound is turned into the
+//! rectangle of tiles it overlaps right there. The renderer then
 //! bins the draws sequentially in instance order, so every tile's draw list does not depend
 //! on the thread count. An instance drawn as itself (the usual case) allocates nothing.
 //!
@@ -34,15 +35,24 @@ use std::collections::HashMap;
 use std::ffi::c_void;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+use rayon::prelude::*;
+
 use crate::abi::{expands, ArgLayout, KernelFn, TileCtx, VariantKey, CALLEE_UNKNOWN, MAX_CALL_DEPTH, MODE_EXPAND};
 use crate::ir::{FuncId, Program};
 use crate::jit::Kernel;
 
 use super::api::{Instance, RenderOptions};
 use super::frame::{run_bound, TileRect};
+use super::tiergate::{self, Compiler};
 
 /// Budget charged per recorded call on top of its argument words (what its bookkeeping takes).
 const CALL_WORDS: usize = 12;
+
+/// An expanded instance with at least this many draws binds them in parallel, in chunks of
+/// at least [`BOUND_CHUNK`] (a bound run of screen_triangle takes ~0.3-1 us: smaller
+/// chunks would cost rayon's bookkeeping more than they spread).
+const PARALLEL_BOUNDS: usize = 256;
+const BOUND_CHUNK: usize = 64;
 
 /// One kernel invocation per tile it is binned into: a submitted instance, or a call that an
 /// expanded instance made.
@@ -231,14 +241,16 @@ struct Expander<'p> {
 
 /// The draws of instance `inst` (whose kernel is `kernel`), each bound and its bound turned
 /// into the tiles it overlaps by `tiles_of`: its calls if its primitive expands (and
-/// expansion is on and fits the budget), else itself.
+/// expansion is on and fits the budget), else itself. `compiler`: the frame's background
+/// compiler, whose gate (`tiergate`) decides whether many calls are bound in parallel.
 pub(crate) fn expand_instance(
     program: &Program,
     opts: &RenderOptions,
     budget: &Budget,
     inst: &Instance,
     kernel: &Kernel,
-    tiles_of: impl Fn([f32; 4]) -> Option<TileRect>,
+    compiler: Option<&dyn Compiler>,
+    tiles_of: impl Fn([f32; 4]) -> Option<TileRect> + Sync,
 ) -> Expanded {
     let mut over_budget = false;
     if opts.expand_calls && expands(program, inst.func) {
@@ -254,10 +266,23 @@ pub(crate) fn expand_instance(
             layouts: HashMap::new(),
         };
         if e.expand(kernel.entry, &inst.args, 0) {
-            let mut tiles = Vec::with_capacity(e.items.len());
-            for item in &e.items {
+            let bound_one = |item: &Item| {
                 let (bound, error) = run_bound(&item.draw(&e.pool, inst, 0), opts);
-                tiles.push(bound.and_then(&tiles_of));
+                (bound.and_then(&tiles_of), error)
+            };
+            // A tessellation's thousands of draws are bound in parallel chunks, so a thread
+            // done with its own instances helps with a large patch's (one pass after the
+            // expansion instead waited for the largest patch's setup: measured slower). Not
+            // under a closed gate, which leaves the pool's other thread to the compiler.
+            let in_parallel = e.items.len() >= PARALLEL_BOUNDS && !tiergate::closed(compiler);
+            let bounds: Vec<_> = if in_parallel {
+                e.items.par_iter().with_min_len(BOUND_CHUNK).map(bound_one).collect()
+            } else {
+                e.items.iter().map(bound_one).collect()
+            };
+            let mut tiles = Vec::with_capacity(bounds.len());
+            for (t, error) in bounds {
+                tiles.push(t);
                 e.errors.extend(error);
             }
             return Expanded::Calls(Box::new(CallDraws {

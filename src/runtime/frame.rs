@@ -422,6 +422,7 @@ impl Renderer {
                 &budget,
                 &instances[i],
                 kernel,
+                compiler,
                 tiles_of,
             ))
         };

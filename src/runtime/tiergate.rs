@@ -81,6 +81,12 @@ pub(super) fn run_items<T: Send>(
     }
 }
 
+/// Whether a pass started now would run under a closed gate: `compiler` is compiling
+/// and nothing holds it. Work nested in a pass's jobs stays on its thread then.
+pub(super) fn closed(compiler: Option<&dyn Compiler>) -> bool {
+    compiler.is_some_and(|c| c.activity() == TierUpActivity::Compiling)
+}
+
 /// A closed gate for one pass of a frame (see the module doc).
 pub(super) struct Gate<'w> {
     compiler: &'w dyn Compiler,
