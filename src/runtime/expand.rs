@@ -274,17 +274,11 @@ pub(crate) fn expand_instance(
             // done with its own instances helps with a large patch's (one pass after the
             // expansion instead waited for the largest patch's setup: measured slower). Not
             // under a closed gate, which leaves the pool's other thread to the compiler.
+            // (A chunk as long as the whole list is never split: it runs on this thread.)
             let in_parallel = e.items.len() >= PARALLEL_BOUNDS && !tiergate::closed(compiler);
-            let bounds: Vec<_> = if in_parallel {
-                e.items.par_iter().with_min_len(BOUND_CHUNK).map(bound_one).collect()
-            } else {
-                e.items.iter().map(bound_one).collect()
-            };
-            let mut tiles = Vec::with_capacity(bounds.len());
-            for (t, error) in bounds {
-                tiles.push(t);
-                e.errors.extend(error);
-            }
+            let chunk = if in_parallel { BOUND_CHUNK } else { usize::MAX };
+            let (tiles, errors): (Vec<_>, Vec<_>) = e.items.par_iter().with_min_len(chunk).map(bound_one).unzip();
+            e.errors.extend(errors.into_iter().flatten());
             return Expanded::Calls(Box::new(CallDraws {
                 pool: e.pool,
                 items: e.items,
