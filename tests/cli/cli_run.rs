@@ -1,0 +1,205 @@
+//! The command line: exit codes and messages of `check` and `render` on bad input, and the
+//! `--key` syntax. (Rendering real scenes end to end needs the checker and the JIT.)
+
+use crate::common;
+
+use std::path::PathBuf;
+
+use common::cli;
+use primflow::abi::{Binding, BindingKind};
+use primflow::cli::parse_key;
+use primflow::ir::Program;
+
+fn temp_file(name: &str, text: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("primflow-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn render_reports_every_scene_error_with_its_location_and_exits_1() {
+    let scene = temp_file("bad.scene", "image 32 x\nbegn screen_triangle\nvertex 1 2\n");
+    let out_png = scene.with_extension("png");
+    let (code, out, err) = cli(&["render", scene.to_str().unwrap(), "-o", out_png.to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(out.is_empty(), "{out}");
+    assert!(err.contains("bad.scene:1:10"), "{err}");
+    assert!(err.contains("E0601") && err.contains("bad.scene:2:1"), "{err}");
+    assert!(err.contains("did you mean `begin`?"), "{err}");
+    assert!(err.contains("E0602") && err.contains("bad.scene:3:8"), "{err}");
+    assert!(!out_png.exists(), "no image on errors");
+}
+
+#[test]
+fn render_of_a_missing_scene_is_a_clear_error() {
+    let (code, _, err) = cli(&["render", "/nonexistent/x.scene", "-o", "/tmp/never.png"]);
+    assert_eq!(code, 1);
+    assert!(
+        err.starts_with("error: cannot read scene `/nonexistent/x.scene`"),
+        "{err}"
+    );
+}
+
+#[test]
+fn check_reports_syntax_errors_at_file_line_col_and_exits_1() {
+    let prim = temp_file(
+        "broken.prim",
+        "primitive broken(varying float X, Y) {\n    float a = ;\n}\n",
+    );
+    let (code, _, err) = cli(&["check", prim.to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(err.contains("broken.prim:2:"), "{err}");
+}
+
+#[test]
+fn check_emit_ast_prints_each_given_file() {
+    let prim = temp_file("ast.prim", "primitive p(varying float X, Y) { return; \n");
+    let (code, out, _) = cli(&["check", prim.to_str().unwrap(), "--emit", "ast"]);
+    assert_eq!(code, 1, "the missing brace is an error");
+    assert!(out.starts_with(&format!("// {}", prim.display())), "{out}");
+    assert!(out.contains("Module"), "{out}");
+}
+
+#[test]
+fn check_of_a_missing_file_or_directory_is_e0709() {
+    let (code, _, err) = cli(&["check", "/nonexistent/a.prim"]);
+    assert_eq!(code, 1);
+    assert!(err.contains("E0709") && err.contains("/nonexistent/a.prim"), "{err}");
+    let (code, _, err) = cli(&["check", "/nonexistent/a.prim", "--prims", "/nonexistent/dir"]);
+    assert_eq!(code, 1);
+    assert!(err.contains("/nonexistent/dir"), "{err}");
+}
+
+#[test]
+fn usage_errors_exit_2_from_the_binary() {
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_primflow"))
+        .args(["render", "scene.scene"])
+        .output()
+        .unwrap();
+    assert_eq!(status.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&status.stderr).contains("--output"));
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_primflow"))
+        .args(["render", "/nonexistent.scene", "-o", "x.png", "--threads", "lots"])
+        .output()
+        .unwrap();
+    assert_eq!(status.status.code(), Some(2));
+}
+
+#[test]
+fn key_specs_parse_into_bindings() {
+    let program = Program::default();
+    let key = parse_key("linear:3, perspective_linear:1,constant:2,bumpy:4", &program).unwrap();
+    assert_eq!(
+        key.bindings,
+        vec![
+            Binding {
+                kind: BindingKind::Kind("linear".into()),
+                components: 3
+            },
+            Binding {
+                kind: BindingKind::Kind("perspective_linear".into()),
+                components: 1
+            },
+            Binding {
+                kind: BindingKind::Constant,
+                components: 2
+            },
+            Binding {
+                kind: BindingKind::Kind("bumpy".into()),
+                components: 4
+            },
+        ]
+    );
+    assert!(parse_key("linear", &program).unwrap_err().contains("KIND:COMPONENTS"));
+    assert!(parse_key("linear:0", &program).is_err());
+    assert!(parse_key("lin ear:1", &program).is_err());
+    assert_eq!(parse_key("", &program).unwrap().bindings, vec![]);
+}
+
+#[test]
+fn render_writes_the_image_depth_and_parameter_and_prints_a_summary() {
+    let dir = std::env::temp_dir().join(format!("primflow-cli-render-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (img, depth, cs) = (dir.join("t.png"), dir.join("d.png"), dir.join("cs.png"));
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/triangles.scene");
+    let (code, out, err) = cli(&[
+        "render",
+        scene,
+        "-o",
+        img.to_str().unwrap(),
+        "--depth",
+        depth.to_str().unwrap(),
+        "--param",
+        "Cs",
+        cs.to_str().unwrap(),
+        "--threads",
+        "2",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.starts_with("rendered 320x240: 4 primitive(s), 2 kernel(s) compiled"),
+        "{out}"
+    );
+    let rgb = image::open(&img).unwrap().to_rgb8();
+    assert_eq!(rgb.dimensions(), (320, 240));
+    assert_eq!(rgb.get_pixel(2, 2).0, [26, 26, 31], "background 0.1 0.1 0.12");
+    let depth = image::open(&depth).unwrap().to_luma16();
+    assert!(
+        depth.get_pixel(250, 110).0[0] > depth.get_pixel(100, 40).0[0],
+        "0.6 is nearer than 0.2"
+    );
+    assert_eq!(
+        image::open(&cs).unwrap().to_rgb8().get_pixel(300, 232).0,
+        [204, 77, 230]
+    );
+
+    let (code, _, err) = cli(&[
+        "render",
+        scene,
+        "-o",
+        img.to_str().unwrap(),
+        "--param",
+        "nosuch",
+        "x.png",
+    ]);
+    assert_eq!(code, 1);
+    assert!(err.contains("no shading parameter `nosuch`"), "{err}");
+}
+
+#[test]
+fn check_of_a_library_file_loads_it_once_and_emits_clif_per_primitive() {
+    let prim = concat!(env!("CARGO_MANIFEST_DIR"), "/prims/screen_triangle.prim");
+    let (code, out, err) = cli(&["check", prim, "--emit", "clif", "--key", "linear:3,constant:1"]);
+    assert_eq!(code, 0, "{err}");
+    let mut lines = out.lines();
+    assert!(lines.next().unwrap().contains("4 pixels per group"), "{out}");
+    assert_eq!(
+        lines.next(),
+        Some("; primitive screen_triangle key linear:3,constant:1")
+    );
+    assert!(out.contains("function "), "{out}");
+    let (code, out, _) = cli(&["check", prim, "--emit", "ir"]);
+    assert_eq!(code, 0);
+    assert!(out.contains("primitive screen_triangle"), "{out}");
+}
+
+/// The binary turns transparent huge pages off for its process before anything else
+/// (`disable_transparent_huge_pages`, src/main.rs): the kernel then reports them disabled
+/// for the process, which is what keeps a first compile from zeroing 2 MiB pages.
+#[test]
+#[cfg(target_os = "linux")]
+fn transparent_huge_pages_are_off_for_the_process() {
+    let status = || std::fs::read_to_string("/proc/self/status").unwrap();
+    let thp = |s: String| {
+        s.lines()
+            .find(|l| l.starts_with("THP_enabled:"))
+            .map(|l| l.split_whitespace().nth(1).unwrap_or("").to_string())
+    };
+    // Kernels before 5.0 do not report it; the call must still succeed.
+    assert!(primflow::cli::disable_transparent_huge_pages());
+    if let Some(enabled) = thp(status()) {
+        assert_eq!(enabled, "0", "{}", status());
+    }
+}

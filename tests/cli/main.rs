@@ -1,0 +1,13 @@
+//! The command line: `render`, `check`, `test`, `bench` (effects, llvmpipe, `--scene`) and
+//! `accuracy`, run in-process or as the built binary.
+//!
+//! One test binary per layer keeps the suite to a handful of links; one module per concern.
+
+#[path = "../common/mod.rs"]
+mod common;
+mod accuracy_cli;
+mod accuracy_knobs;
+mod bench_effects;
+mod bench_llvmpipe;
+mod bench_scene;
+mod cli_run;

@@ -1,0 +1,11 @@
+//! The front end: lexer and grammar (`parse`), the checker's diagnostics (`check_errors`, `check_ok`,
+//! with insta snapshots under `snapshots/`), its passes over the IR (`check_passes`) and a fuzz of
+//! mutated sources (`check_fuzz`).
+//!
+//! One test binary per layer keeps the suite to a handful of links; one module per concern.
+
+mod check_errors;
+mod check_fuzz;
+mod check_ok;
+mod check_passes;
+mod parse;

@@ -1,0 +1,14 @@
+//! The primitive library (prims/*.prim) rendered through the JIT against analytic and f64
+//! references, and the hand-written baseline kernels checked against the JIT.
+//!
+//! One test binary per layer keeps the suite to a handful of links; one module per concern.
+
+#[path = "../common/mod.rs"]
+mod common;
+mod handwritten_shapes;
+mod handwritten_twins;
+mod interpolators;
+mod library;
+mod nurb;
+mod polygon;
+mod sphere;

@@ -1,0 +1,26 @@
+//! The runtime: the primitive API, instances and expansion, binning and parallel tiles, the frame's
+//! buffers, the shading pass and the scene format. `runtime_support` drives it with hand-written
+//! ABI kernels, without the JIT.
+//!
+//! One test binary per layer keeps the suite to a handful of links; one module per concern.
+
+#[path = "../common/mod.rs"]
+mod common;
+#[path = "../runtime_support/mod.rs"]
+mod runtime_support;
+mod api;
+mod e2e;
+mod expand;
+mod frame_budget;
+mod kernels;
+mod plane_layout;
+mod render;
+mod render_into;
+mod render_triangles;
+mod scene_format;
+mod scene_library_subset;
+mod shading_builds;
+mod shading_fast;
+mod shading_lighting;
+mod shading_rows;
+mod tier_gate;
