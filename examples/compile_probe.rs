@@ -1,4 +1,4 @@
-//! Compile-time probe (issue 5): how long one kernel variant takes to build and compile, in
+//! Compile-time probe: how long one kernel variant takes to build and compile, in
 //! wall time and in this thread's CPU time (from /proc/thread-self/schedstat, so other load on
 //! the machine does not count), plus the library's parse + check time.
 //!

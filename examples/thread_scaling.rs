@@ -1,6 +1,6 @@
 //! One thread against two on the bench's `fill perspective_linear` scene (512 x 512, JIT),
-//! interleaved, with the render's own phase split, for issue 5's target "2 threads >= 1.8x
-//! 1 thread on the fill workload":
+//! interleaved, with the render's own phase split, for the target "2 threads >= 1.8x 1 thread
+//! on the fill workload" (docs/performance.md, "What limits the targets"):
 //!
 //! `cargo run --release --example thread_scaling -- [LAYERS [RUNS [TILE [K]]]]`
 //! (defaults 20 layers as in `bench --quick`, 15 runs, 64 px tiles, K = 4).
