@@ -43,6 +43,7 @@ pub fn compile(sources: &SourceMap, files: &[FileId], diags: &mut Diagnostics) -
     if diags.has_errors() {
         return None;
     }
+    let modules: Vec<&syntax::ast::Module> = modules.iter().collect();
     let program = check::check(&modules, sources, diags);
     if diags.has_errors() {
         None

@@ -39,7 +39,7 @@ use lower::{resolve_dims, resolve_type, var_of, FnLower, BUILTIN_NAMES};
 /// Check every module as one program and lower it to IR (helpers inlined, functions split
 /// into setup and pixel parts). Errors go to `diags`; the returned program is only
 /// meaningful when there are none.
-pub fn check(modules: &[ast::Module], sources: &SourceMap, diags: &mut Diagnostics) -> ir::Program {
+pub fn check(modules: &[&ast::Module], sources: &SourceMap, diags: &mut Diagnostics) -> ir::Program {
     let _ = sources;
     let mut sink = Sink::default();
     let items = collect_items(modules, &mut sink);
@@ -146,10 +146,10 @@ pub struct Globals<'a> {
     pub recursive: FxHashSet<usize>,
 }
 
-fn collect_items<'a>(modules: &'a [ast::Module], sink: &mut Sink) -> Vec<&'a ast::Item> {
+fn collect_items<'a>(modules: &[&'a ast::Module], sink: &mut Sink) -> Vec<&'a ast::Item> {
     let mut seen: FxHashMap<&str, Span> = FxHashMap::default();
     let mut out = vec![];
-    for m in modules {
+    for &m in modules {
         for item in &m.items {
             let name = item.name.name.as_str();
             if BUILTIN_NAMES.contains(&name) {

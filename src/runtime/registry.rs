@@ -12,6 +12,7 @@ use std::sync::Arc;
 
 use crate::diag::{Diagnostic, Diagnostics, FileId, SourceMap};
 use crate::ir::Program;
+use crate::syntax::ast;
 
 /// The compiled primitives, shared interpolators and the files they came from.
 #[derive(Clone, Debug)]
@@ -83,11 +84,11 @@ impl Registry {
     /// [`Registry::load`] for a scene that names the primitives `prims` and the interpolation
     /// kinds `kinds`: it compiles only the files that define a name the scene needs and,
     /// through their calls, the files those need, as a renderer only ever asks for what the
-    /// scene names. The library's nurb_surface.prim is half of its parse and check,
-    /// ~2 ms of a small scene's ~11 ms process. Diagnostics come from the files compiled;
-    /// when in doubt (a named primitive no file seems to define, a file whose items cannot
-    /// be told apart, errors in the files picked) the whole library is compiled, so a
-    /// scene never sees an error `load` would not give it.
+    /// scene names (checking nurb_surface.prim costs more than the rest of a small scene).
+    /// Every file is parsed, and its AST says what it defines and calls. Diagnostics come
+    /// from the files checked; when in doubt (a named primitive no file defines, errors in
+    /// the files picked) the whole library is checked, so a scene never sees an error
+    /// `load` would not give it.
     pub fn load_for(
         sources: &mut SourceMap,
         dirs: &[PathBuf],
@@ -99,10 +100,21 @@ impl Registry {
         if diags.has_errors() {
             return None;
         }
-        if let Some(picked) = files_for(sources, &loaded, prims, kinds) {
-            if picked.len() < loaded.len() {
+        // Each file is parsed once: its AST says what it defines and calls, and the check
+        // of the files picked (or of all of them) reads the same ASTs.
+        let parsed: Vec<Parsed> = loaded
+            .iter()
+            .map(|&file| {
+                let mut diags = Diagnostics::new();
+                let module = crate::syntax::parse(file, sources.text(file), &mut diags);
+                Parsed { file, module, diags }
+            })
+            .collect();
+        if let Some(picked) = files_for(&parsed, prims, kinds) {
+            if picked.len() < parsed.len() {
                 let mut picked_diags = Diagnostics::new();
-                if let Some(registry) = Registry::compile(sources, picked, &mut picked_diags) {
+                let picked: Vec<&Parsed> = picked.into_iter().map(|k| &parsed[k]).collect();
+                if let Some(registry) = check_parsed(sources, &picked, &mut picked_diags) {
                     if !picked_diags.has_errors() {
                         diags.extend(picked_diags);
                         return Some(registry);
@@ -110,7 +122,7 @@ impl Registry {
                 }
             }
         }
-        Registry::compile(sources, loaded, diags)
+        check_parsed(sources, &parsed.iter().collect::<Vec<_>>(), diags)
     }
 
     /// Compile already loaded files as one program.
@@ -158,24 +170,51 @@ fn load_file(sources: &mut SourceMap, path: &Path, loaded: &mut Vec<FileId>, dia
     }
 }
 
-/// Of `files` (in order), those defining a name of `prims` or `kinds`, and the files those
-/// call into, transitively; `None` when that cannot be told (see [`Registry::load_for`]).
-fn files_for(sources: &SourceMap, files: &[FileId], prims: &[&str], kinds: &[&str]) -> Option<Vec<FileId>> {
-    let items: Vec<Option<FileItems>> = files.iter().map(|&f| file_items(sources.text(f))).collect();
+/// A loaded file's parse: its AST and its syntax diagnostics.
+struct Parsed {
+    file: FileId,
+    module: ast::Module,
+    diags: Diagnostics,
+}
+
+/// Check parsed files as one program, as [`crate::compile`] checks the files it parses.
+fn check_parsed(sources: &SourceMap, parsed: &[&Parsed], diags: &mut Diagnostics) -> Option<Registry> {
+    for p in parsed {
+        diags.extend(p.diags.clone());
+    }
+    if diags.has_errors() {
+        return None;
+    }
+    let modules: Vec<&ast::Module> = parsed.iter().map(|p| &p.module).collect();
+    let program = crate::check::check(&modules, sources, diags);
+    if diags.has_errors() {
+        return None;
+    }
+    Some(Registry {
+        program: Arc::new(program),
+        files: parsed.iter().map(|p| p.file).collect(),
+    })
+}
+
+/// Of `parsed` (in order), the indices of those defining a name of `prims` or `kinds`, and
+/// of the files those call into, transitively; `None` when a name of `prims` is defined
+/// nowhere (see [`Registry::load_for`]).
+fn files_for(parsed: &[Parsed], prims: &[&str], kinds: &[&str]) -> Option<Vec<usize>> {
+    let items: Vec<FileItems> = parsed.iter().map(|p| file_items(&p.module)).collect();
     // Name -> the files defining it.
     let mut definers: HashMap<&str, Vec<usize>> = HashMap::new();
     for (k, i) in items.iter().enumerate() {
-        for name in i.iter().flat_map(|i| &i.defines) {
+        for name in &i.defines {
             definers.entry(name).or_default().push(k);
         }
     }
     if prims.iter().any(|p| !definers.contains_key(p)) {
         return None;
     }
-    // Files whose items could not be told apart are compiled whatever they define.
-    let mut picked: Vec<bool> = items.iter().map(Option::is_none).collect();
-    // (Their calls cannot be told either: a name they need in another file is one the
-    // scene's names lead to, or the compile of the files picked fails and all are compiled.)
+    // A file with syntax errors counts by the items its parse recovered: one the scene
+    // needs is picked and its errors then send `load_for` to the whole library; one it
+    // does not need stays out, as a renderer only asks for what its scene names.
+    let mut picked = vec![false; parsed.len()];
     let mut wanted: Vec<&str> = prims.iter().chain(kinds).copied().collect();
     let mut seen = HashSet::new();
     while let Some(name) = wanted.pop() {
@@ -185,60 +224,50 @@ fn files_for(sources: &SourceMap, files: &[FileId], prims: &[&str], kinds: &[&st
         for &k in definers.get(name).into_iter().flatten() {
             if !picked[k] {
                 picked[k] = true;
-                if let Some(i) = &items[k] {
-                    wanted.extend(i.uses.iter().map(String::as_str));
-                }
+                wanted.extend(items[k].uses.iter().map(String::as_str));
             }
         }
     }
-    Some(files.iter().zip(&picked).filter(|(_, &p)| p).map(|(&f, _)| f).collect())
+    Some(picked.iter().enumerate().filter(|(_, &p)| p).map(|(k, _)| k).collect())
 }
 
-/// What a file defines and calls, by name, as its tokens show: `name (` outside any braces
-/// and parentheses starts an item (a primitive, interpolator or function), anywhere else it
-/// is a call.
+/// What a file defines (its items' names) and calls (every callee name in its items'
+/// bodies and parameter defaults, built-ins included: they have no definer).
 struct FileItems {
     defines: Vec<String>,
     uses: Vec<String>,
 }
 
-/// `None` when the tokens do not make items one can tell apart: lexical errors, or braces
-/// or parentheses that do not balance (the file has errors the compile will report).
-fn file_items(text: &str) -> Option<FileItems> {
-    use crate::syntax::lexer::{lex, Tok};
-    let mut lex_diags = Diagnostics::new();
-    let mut items = FileItems {
-        defines: vec![],
-        uses: vec![],
-    };
-    let (mut braces, mut parens) = (0i64, 0i64);
-    let mut name: Option<String> = None;
-    for (_, tok, _) in lex(0, text, &mut lex_diags) {
-        match &tok {
-            Tok::LParen => {
-                if let Some(n) = name.take() {
-                    if braces == 0 && parens == 0 {
-                        items.defines.push(n);
-                    } else {
-                        items.uses.push(n);
-                    }
+/// Walks the AST with explicit stacks, so a deeply nested file cannot overflow this one.
+fn file_items(module: &ast::Module) -> FileItems {
+    let defines = module.items.iter().map(|i| i.name.name.clone()).collect();
+    let mut uses = vec![];
+    let mut stmts: Vec<&ast::Stmt> = vec![];
+    let mut exprs: Vec<&ast::Expr> = vec![];
+    for item in &module.items {
+        stmts.extend(item.body.stmts.iter().rev());
+        for param in &item.params {
+            exprs.extend(&param.default);
+            for dim in &param.dims {
+                if let ast::ArrayDim::Sized(e) = dim {
+                    exprs.push(e);
                 }
-                parens += 1;
             }
-            Tok::RParen => parens -= 1,
-            Tok::LBrace => braces += 1,
-            Tok::RBrace => braces -= 1,
-            _ => {}
-        }
-        name = match tok {
-            Tok::Ident(n) => Some(n),
-            _ => None,
-        };
-        if braces < 0 || parens < 0 {
-            return None;
         }
     }
-    (braces == 0 && parens == 0 && !lex_diags.has_errors()).then_some(items)
+    loop {
+        if let Some(e) = exprs.pop() {
+            if let ast::ExprKind::Call { callee, .. } = &e.kind {
+                uses.push(callee.name.clone());
+            }
+            e.for_each_child(|c| exprs.push(c));
+        } else if let Some(s) = stmts.pop() {
+            s.for_each_child(|c| stmts.push(c), |e| exprs.push(e));
+        } else {
+            break;
+        }
+    }
+    FileItems { defines, uses }
 }
 
 #[cfg(test)]
@@ -256,16 +285,16 @@ mod tests {
     }
 
     #[test]
-    fn items_are_names_called_outside_braces_and_calls_inside() {
+    fn a_file_defines_its_items_and_uses_every_callee() {
         let text = "float f(float a = g(1)) { return h(a); }\n\
-                    primitive p(varying float X, Y) { float x = f(X); }\n// q(\n";
-        let items = file_items(text).unwrap();
+                    primitive p(varying float X, Y) { if (X > 0) { float x = f(k(X)); } }\n// q(\n";
+        let mut diags = Diagnostics::new();
+        let items = file_items(&crate::syntax::parse(0, text, &mut diags));
+        assert!(!diags.has_errors());
         assert_eq!(items.defines, ["f", "p"]);
-        assert_eq!(items.uses, ["g", "h", "f"]);
-        // Unbalanced, or not lexable: cannot be told apart.
-        assert!(file_items("primitive p() { {").is_none());
-        assert!(file_items("primitive p() } {").is_none());
-        assert!(file_items("primitive p() { @ }").is_none());
+        let mut uses = items.uses;
+        uses.sort();
+        assert_eq!(uses, ["f", "g", "h", "k"]);
     }
 
     /// Loads the built-in library plus `user` (name, text) files from a fresh directory for

@@ -210,6 +210,54 @@ pub enum StmtKind {
     Error,
 }
 
+impl Stmt {
+    /// Call `on_stmt` on each direct sub-statement and `on_expr` on each direct expression
+    /// (array sizes, initialisers, conditions, targets, values, arguments), in source order:
+    /// the one place that knows the shape of every `StmtKind`, for walks that treat all
+    /// children alike.
+    pub fn for_each_child<'s>(&'s self, mut on_stmt: impl FnMut(&'s Stmt), mut on_expr: impl FnMut(&'s Expr)) {
+        match &self.kind {
+            StmtKind::Decl { vars, .. } => {
+                for var in vars {
+                    for dim in &var.dims {
+                        if let ArrayDim::Sized(e) = dim {
+                            on_expr(e);
+                        }
+                    }
+                    if let Some(init) = &var.init {
+                        on_expr(init);
+                    }
+                }
+            }
+            StmtKind::Assign { target, value, .. } => {
+                on_expr(target);
+                on_expr(value);
+            }
+            StmtKind::Expr(e) => on_expr(e),
+            StmtKind::If { cond, then, otherwise } => {
+                on_expr(cond);
+                then.stmts.iter().for_each(&mut on_stmt);
+                otherwise.iter().flat_map(|b| &b.stmts).for_each(on_stmt);
+            }
+            StmtKind::For { init, cond, step, body } => {
+                init.iter().for_each(|s| on_stmt(s));
+                cond.iter().for_each(|e| on_expr(e));
+                step.iter().for_each(|s| on_stmt(s));
+                body.stmts.iter().for_each(on_stmt);
+            }
+            StmtKind::While { cond, body } => {
+                on_expr(cond);
+                body.stmts.iter().for_each(on_stmt);
+            }
+            StmtKind::Return(e) | StmtKind::InterpolatorReturn(e) => e.iter().for_each(on_expr),
+            StmtKind::Interpolation { arms } => arms.iter().flat_map(|a| &a.body).for_each(on_stmt),
+            StmtKind::Bound(args) => args.iter().for_each(on_expr),
+            StmtKind::Block(b) => b.stmts.iter().for_each(on_stmt),
+            StmtKind::Break | StmtKind::Continue | StmtKind::Error => {}
+        }
+    }
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Expr {
     pub kind: ExprKind,
