@@ -6,8 +6,12 @@
 //! and calls it. On render threads with 512 KiB stacks neither draws and W0801 names `big`
 //! (the primitive whose frame did not fit, also when it was called); on 8 MiB stacks both
 //! draw the exact depth. Both tiers.
+//!
+//! A test binary of its own: in a binary whose other tests' threads have ended, a new
+//! 512 KiB thread can be given a finished thread's larger stack from glibc's stack cache,
+//! and the frame then fits (seen when this test ran inside the grouped `jit` binary).
 
-use crate::common;
+mod common;
 
 use std::sync::Arc;
 

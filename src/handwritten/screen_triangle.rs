@@ -831,7 +831,7 @@ mod tests {
     }
 
     /// The legacy-encoded and VEX-encoded SSE kernels draw exactly what the scalar one
-    /// does (which tests/handwritten_twins.rs holds to the JIT) on one tile, with a plane
+    /// does (which tests/prims/handwritten_twins.rs holds to the JIT) on one tile, with a plane
     /// the frame lacks (index 7 of 3), wide, narrow and huge (float edge) triangles.
     #[test]
     fn sse_forms_match_scalar_on_a_tile() {

@@ -12,7 +12,7 @@
 //! and no fused multiply-add anywhere. Every operation is an IEEE
 //! add/sub/mul/div/sqrt (no libm call), so on the same scene they produce the same depth and
 //! normal buffers as the JIT kernel, bit for bit; the benchmark and
-//! `tests/handwritten_shapes.rs` check that.
+//! `tests/prims/handwritten_shapes.rs` check that.
 //!
 //! Keys served: no bindings, or exactly one 3-component `implicit` binding (the normal, in
 //! lighting coordinates). Argument block (see `abi::ArgLayout`): word 0 n_seq; `T` plane
@@ -745,7 +745,7 @@ mod tests {
     }
 
     /// Both SSE4.1 encodings draw exactly what the scalar kernel does (which
-    /// tests/handwritten_shapes.rs holds to the JIT): a viewport that is not whole groups
+    /// tests/prims/handwritten_shapes.rs holds to the JIT): a viewport that is not whole groups
     /// wide with small tiles, overlapping spheres of several sizes (one narrower than a
     /// group), one cut by the hither plane; with the normal and write counts, and without
     /// either.

@@ -6,7 +6,7 @@
 //! mutants reach what hand-written tests rarely do: huge and negative array sizes and
 //! indices, loops that never end or never run, NaN and infinite coordinates; the first one
 //! run (`float fa[65535]` in screen_triangle) panicked Cranelift's SSA builder
-//! (`tests/jit_large_locals.rs` keeps that case).
+//! (`tests/jit/large_locals.rs` keeps that case).
 
 use std::path::Path;
 use std::sync::Arc;

@@ -3,15 +3,13 @@
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
-#[path = "../common/mod.rs"]
-mod common;
-#[path = "../jit_util/mod.rs"]
-mod jit_util;
 mod array_clear;
 mod batch;
 mod blocks;
 mod builtins;
 mod calls;
+#[path = "../common/mod.rs"]
+mod common;
 mod dead_setup;
 mod disassembly;
 mod edges;
@@ -21,6 +19,7 @@ mod float_division;
 mod forward;
 mod fuel;
 mod fuzz;
+mod golden;
 mod group_state;
 mod guard_bounds;
 mod index_range;
@@ -28,6 +27,8 @@ mod inlined_helpers;
 mod inout_helpers;
 mod int_affine;
 mod int_conversion;
+#[path = "../jit_util/mod.rs"]
+mod jit_util;
 mod large_locals;
 mod multiply_by_one;
 mod outline;
@@ -37,7 +38,6 @@ mod rows;
 mod setup;
 mod setup_split;
 mod splat;
-mod stack;
 mod tier0;
 mod tiers;
 mod uniform_operands;

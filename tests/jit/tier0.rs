@@ -478,7 +478,7 @@ fn tier_0_keeps_early_exits_before_a_uniform_loop_in_pixel_code() {
     let (frame, codes) = both_tiers(&sources, &program, &r, "loopy, all retired");
     assert!(codes.is_empty(), "{codes:?}");
     assert_eq!(written(&frame), 0);
-    // Live lanes running the loop, group after group: tests/jit_group_state.rs.
+    // Live lanes running the loop, group after group: tests/jit/group_state.rs.
 }
 
 #[test]

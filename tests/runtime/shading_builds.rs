@@ -6,7 +6,7 @@
 //! negative) and texture coordinates, in rows whose width is no multiple of the vector (two
 //! in three rows of a plane hold ordinary values only, so that the fast path runs: one
 //! non-finite normal sends its whole vector to the exact one). Every colour is finite, and an unwritten pixel is black. (The scene tests,
-//! tests/shading_fast.rs and tests/shading_rows.rs, hold the builds to the f64 reference.)
+//! tests/runtime/shading_fast.rs and tests/runtime/shading_rows.rs, hold the builds to the f64 reference.)
 
 use glam::{DMat4, DVec3};
 use primflow::pipeline::transform::{device_from_clip, orthographic_matrix, perspective_matrix, Viewport};

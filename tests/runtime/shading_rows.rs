@@ -1,11 +1,11 @@
 //! The fused row pass of the fast shading kernels (`Shader::shade_row`) on what the scenes
-//! of tests/shading_fast.rs do not reach: rows whose width is not a whole number of chunks
+//! of tests/runtime/shading_fast.rs do not reach: rows whose width is not a whole number of chunks
 //! (the tail chunk), bands of rows shaded in parallel (any thread count gives the same bits),
 //! a texture naming a parameter the frame lacks (the base colour stays `Cs`, as in the
 //! reference), and shininess on both power paths (integer exponents by repeated squaring,
 //! others and two-sided exponents by the polynomial power).
 //!
-//! Bound as in tests/shading_fast.rs: every shaded channel within 1/4096 of
+//! Bound as in tests/runtime/shading_fast.rs: every shaded channel within 1/4096 of
 //! `ShadingKernel::ReferenceF64`, the 8-bit image off by one on at most 2% of covered pixels.
 
 use crate::common;

@@ -31,7 +31,7 @@
 //! and stores the colours once. Built three times:
 //! AVX-512 (two registers per 32 f32 lanes) or AVX2 (four), chosen at run time by what the
 //! CPU has, and element-wise loops for any target — with bit-identical results.
-//! Stated bound (tests/shading_fast.rs, tests/shading_rows.rs): every channel within 1/4096
+//! Stated bound (tests/runtime/shading_fast.rs, tests/runtime/shading_rows.rs): every channel within 1/4096
 //! of the reference before quantisation, the 8-bit image equal or off by one on at most 2% of
 //! covered pixels. Values outside the bound's domain (shininess outside [1, 1024],
 //! coefficients above 1e6 or non-finite) run the reference instead.
