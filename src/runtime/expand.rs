@@ -37,9 +37,10 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
-use crate::abi::{expands, ArgLayout, KernelFn, TileCtx, VariantKey, CALLEE_UNKNOWN, MAX_CALL_DEPTH, MODE_EXPAND};
+use crate::abi::{
+    expands, ArgLayout, Kernel, KernelFn, TileCtx, VariantKey, CALLEE_UNKNOWN, MAX_CALL_DEPTH, MODE_EXPAND,
+};
 use crate::ir::{FuncId, Program};
-use crate::jit::Kernel;
 
 use super::api::{Instance, RenderOptions};
 use super::frame::{run_bound, TileRect};

@@ -53,10 +53,11 @@ use std::time::Instant;
 use image::{ImageBuffer, Luma, RgbImage};
 use rayon::prelude::*;
 
-use crate::abi::{TileCtx, VariantKey, ERR_CALL_DEPTH, ERR_FUEL, ERR_INDEX, ERR_STACK, GROUP, MODE_BOUND, MODE_RENDER};
+use crate::abi::{
+    Kernel, TileCtx, VariantKey, ERR_CALL_DEPTH, ERR_FUEL, ERR_INDEX, ERR_STACK, GROUP, MODE_BOUND, MODE_RENDER,
+};
 use crate::diag::{Diagnostic, Diagnostics};
 use crate::ir::{FuncId, Program};
-use crate::jit::Kernel;
 
 use super::api::{Instance, RenderOptions, Renderer, MAX_FRAME_BYTES, MAX_IMAGE_SIDE, MAX_TILE_SIDE};
 use super::expand::{expand_instance, Budget, Draw, Expanded};

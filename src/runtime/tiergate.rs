@@ -28,7 +28,7 @@
 use std::sync::{Condvar, Mutex};
 use std::time::Duration;
 
-use crate::jit::{TierUpActivity, TierUpWatch};
+use crate::abi::{TierUpActivity, TierUpWatch};
 
 /// How long a loop waiting for a permit sleeps before it asks the compiler again.
 pub(super) const POLL: Duration = Duration::from_millis(1);

@@ -3,15 +3,13 @@
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
-#[path = "../common/mod.rs"]
-mod common;
-#[path = "../jit_util/mod.rs"]
-mod jit_util;
 mod array_clear;
 mod batch;
 mod blocks;
 mod builtins;
 mod calls;
+#[path = "../common/mod.rs"]
+mod common;
 mod dead_setup;
 mod disassembly;
 mod edges;
@@ -28,6 +26,8 @@ mod inlined_helpers;
 mod inout_helpers;
 mod int_affine;
 mod int_conversion;
+#[path = "../jit_util/mod.rs"]
+mod jit_util;
 mod large_locals;
 mod multiply_by_one;
 mod outline;

@@ -3,9 +3,9 @@
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
+mod clip;
 #[path = "../common/mod.rs"]
 mod common;
-mod clip;
 mod face;
 mod factor;
 mod geometry_explain;

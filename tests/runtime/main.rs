@@ -4,11 +4,9 @@
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
+mod api;
 #[path = "../common/mod.rs"]
 mod common;
-#[path = "../runtime_support/mod.rs"]
-mod runtime_support;
-mod api;
 mod e2e;
 mod expand;
 mod frame_budget;
@@ -17,6 +15,8 @@ mod plane_layout;
 mod render;
 mod render_into;
 mod render_triangles;
+#[path = "../runtime_support/mod.rs"]
+mod runtime_support;
 mod scene_format;
 mod scene_library_subset;
 mod shading_builds;
