@@ -53,14 +53,12 @@ use std::time::Instant;
 use image::{ImageBuffer, Luma, RgbImage};
 use rayon::prelude::*;
 
-use crate::abi::{
-    Kernel, TileCtx, VariantKey, ERR_CALL_DEPTH, ERR_FUEL, ERR_INDEX, ERR_STACK, GROUP, MODE_BOUND, MODE_RENDER,
-};
+use crate::abi::{Kernel, TileCtx, VariantKey, ERR_CALL_DEPTH, ERR_FUEL, ERR_INDEX, ERR_STACK, GROUP, MODE_RENDER};
 use crate::diag::{Diagnostic, Diagnostics};
 use crate::ir::{FuncId, Program};
 
 use super::api::{Instance, RenderOptions, Renderer, MAX_FRAME_BYTES, MAX_IMAGE_SIDE, MAX_TILE_SIDE};
-use super::expand::{expand_instance, Budget, Draw, Expanded};
+use super::expand::{expand_instance, Budget, Draw, Expanded, TileRect};
 use super::kernels::KernelSource;
 use super::shading::{Effects, PixelInputs, RowInputs, Shader, ShadingKernel, ShadingSpaces};
 use super::tiergate::{self, Compiler, GateStats};
@@ -607,32 +605,6 @@ fn tile_grid(opts: &RenderOptions) -> Vec<Tile> {
     }
     tiles
 }
-
-/// Run a draw's kernel in bound mode: its screen bound (if it recorded one) and its
-/// run-time error.
-pub(super) fn run_bound(draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>, Option<(u32, u32)>) {
-    let mut ctx = TileCtx::new(MODE_BOUND, opts.width, opts.height);
-    ctx.call_depth = draw.call_depth;
-    // Zero-size buffers: bound mode never touches them, and the empty tile rectangle
-    // (x0 = x1 = 0) means even a pixel pass would cover no pixel.
-    let mut no_depth: Vec<u32> = Vec::new();
-    let mut no_planes: Vec<f32> = Vec::new();
-    let mut no_counts: Vec<u32> = Vec::new();
-    ctx.depth = no_depth.as_mut_ptr();
-    ctx.gbuf = no_planes.as_mut_ptr();
-    ctx.write_count = no_counts.as_mut_ptr();
-    // SAFETY: `ctx` is a valid TileCtx naming (empty) buffers that outlive the call, and
-    // `draw.args` holds at least the words the kernel's layout reads (checked when the
-    // kernel was made ready, or when the call was recorded), which is all the ABI lets a
-    // kernel read.
-    unsafe { (draw.entry)(&mut ctx, draw.args.as_ptr()) };
-    let bound = (ctx.bound_set != 0).then_some(ctx.bound);
-    let error = (ctx.error != 0).then_some((ctx.error, ctx.error_site));
-    (bound, error)
-}
-
-/// An inclusive rectangle of tile indices: (tx0, ty0, tx1, ty1).
-pub(super) type TileRect = (usize, usize, usize, usize);
 
 /// The tiles (inclusive tile-index rectangle) holding a pixel whose centre lies in a screen
 /// bound, or `None`: exactly the tiles in which a kernel's render call runs a pixel
