@@ -43,7 +43,7 @@ pub fn compile(sources: &SourceMap, files: &[FileId], diags: &mut Diagnostics) -
     if diags.has_errors() {
         return None;
     }
-    let program = check::check(&modules, sources, diags);
+    let program = check::check(&modules, diags);
     if diags.has_errors() {
         None
     } else {
