@@ -29,7 +29,7 @@
 //! frame): an instance whose expansion would exceed what is left is rolled back (its words
 //! refunded) and rendered per tile, as without expansion. Under that pressure, which
 //! instances fall back can depend on the order jobs run in; the pixels never do.
-//! Where it sits: `frame::Renderer::render` step 2, between compiling and binning.
+//! Where it sits: `render::Renderer::render` step 2, between compiling and binning.
 
 use std::collections::HashMap;
 use std::ffi::c_void;
