@@ -9,8 +9,9 @@
 //! background compiler is idle, held or compiling, and holds it for the start of a frame
 //! (`runtime::tiergate`). The crate-private side of the watch is the worker's: it counts
 //! requests in and out, waits while a hold keeps it, and is closed when its source goes. A
-//! request is counted pending from before the worker can see it until its result is recorded,
-//! under one lock, so `activity` never reports `Idle` while a result is on its way.
+//! request counts as pending from before the worker can receive it until its result is
+//! recorded; the count and the result change under one lock, so whoever sees the count drop
+//! also sees the result.
 
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
@@ -55,7 +56,9 @@ struct TierUpState {
     holds: Vec<HoldEntry>,
     next_hold: u64,
     /// How long a renderer holds the worker back after a frame's kernels are compiled, per
-    /// unit of time that compiling them took ([`Jit::set_tier_up_grace`](crate::jit::Jit::set_tier_up_grace)).
+    /// unit of time that compiling them took ([`Jit::set_tier_up_grace`]).
+    ///
+    /// [`Jit::set_tier_up_grace`]: crate::jit::Jit::set_tier_up_grace
     grace_per_compile: f64,
     /// The feeding JIT is gone: the worker ignores holds and drains its queue.
     closing: bool,
@@ -66,8 +69,10 @@ struct HoldEntry {
     id: u64,
     /// When it stops holding (None: when it drops).
     deadline: Option<Instant>,
-    /// A stall ([`Jit::stall_tier_up`](crate::jit::Jit::stall_tier_up)): holds the worker, but [`TierUpWatch::activity`]
+    /// A stall ([`Jit::stall_tier_up`]): holds the worker, but [`TierUpWatch::activity`]
     /// reports the worker compiling, as if its compile took that long.
+    ///
+    /// [`Jit::stall_tier_up`]: crate::jit::Jit::stall_tier_up
     stall: bool,
 }
 
@@ -159,7 +164,7 @@ impl TierUpWatch {
     }
 
     /// How long a renderer holds the worker back after a frame whose kernels took
-    /// `tier0_compile` to compile: that times [`Jit::set_tier_up_grace`](crate::jit::Jit::set_tier_up_grace)'s factor (default
+    /// `tier0_compile` to compile: that times [`Jit::set_tier_up_grace`]'s factor (default
     /// [`DEFAULT_TIER_UP_GRACE`]).
     ///
     /// Why proportional: a tier-1 compile costs about ten times the tier-0 one, and while it
@@ -168,6 +173,8 @@ impl TierUpWatch {
     /// before it pays for it: a frame shorter than that (the example scenes' tiles take
     /// 1-6 ms) never has the worker in its way, a longer one gets tier-1 code at most that
     /// much later. Kernels already compiled (a later frame) give no grace.
+    ///
+    /// [`Jit::set_tier_up_grace`]: crate::jit::Jit::set_tier_up_grace
     pub fn grace(&self, tier0_compile: std::time::Duration) -> std::time::Duration {
         let factor = self.state.0.lock().unwrap_or_else(|e| e.into_inner()).grace_per_compile;
         // At most an hour: whatever the factor, a deadline that far is "until the frame ends",
@@ -265,9 +272,11 @@ impl TierUpWatch {
 }
 
 /// While it holds, the tier-1 worker of the JIT it came from starts no compile (it finishes
-/// the one in progress): [`TierUpWatch::hold`], [`Jit::stall_tier_up`](crate::jit::Jit::stall_tier_up). It holds until it
+/// the one in progress): [`TierUpWatch::hold`], [`Jit::stall_tier_up`]. It holds until it
 /// drops or, once given one ([`TierUpHold::release_at`]), until its deadline, dropped or
 /// not; a JIT being dropped ignores it.
+///
+/// [`Jit::stall_tier_up`]: crate::jit::Jit::stall_tier_up
 pub struct TierUpHold {
     state: Arc<(Mutex<TierUpState>, Condvar)>,
     id: u64,

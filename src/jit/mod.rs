@@ -595,10 +595,12 @@ impl Jit {
 
     /// How long a renderer keeps this tiered JIT's worker from starting a compile after a
     /// frame's kernels are compiled, per unit of time compiling them took (default
-    /// [`DEFAULT_TIER_UP_GRACE`](crate::abi::DEFAULT_TIER_UP_GRACE); see [`TierUpWatch::grace`]): a frame shorter than that
+    /// [`DEFAULT_TIER_UP_GRACE`]; see [`TierUpWatch::grace`]): a frame shorter than that
     /// runs on every thread with the worker out of the way; a longer one then leaves the
     /// worker a thread (`runtime::tiergate`). A negative or NaN factor counts as 0. No-op if
     /// not tiered.
+    ///
+    /// [`DEFAULT_TIER_UP_GRACE`]: crate::abi::DEFAULT_TIER_UP_GRACE
     pub fn set_tier_up_grace(&mut self, per_compile: f64) {
         if let Some(t) = &self.tier_up {
             let factor = if per_compile >= 0.0 { per_compile } else { 0.0 };
