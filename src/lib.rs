@@ -13,7 +13,8 @@
 //!    reads the text scene format into API calls.
 //!
 //! Beside the stages: [`accuracy`] measures error against an f64 reference renderer versus
-//! time for each accuracy knob (`primflow accuracy`).
+//! time for each accuracy knob (`primflow accuracy`); [`ops`] holds the operator enums the
+//! AST and the IR share.
 
 pub mod abi;
 pub mod accuracy;
@@ -24,6 +25,7 @@ pub mod diag;
 pub mod handwritten;
 pub mod ir;
 pub mod jit;
+pub mod ops;
 pub mod pipeline;
 pub mod runtime;
 pub mod scene;
@@ -44,7 +46,7 @@ pub fn compile(sources: &SourceMap, files: &[FileId], diags: &mut Diagnostics) -
         return None;
     }
     let modules: Vec<&syntax::ast::Module> = modules.iter().collect();
-    let program = check::check(&modules, sources, diags);
+    let program = check::check(&modules, diags);
     if diags.has_errors() {
         None
     } else {

@@ -1743,7 +1743,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
     /// Type a binary operation (see the module docs of [`super::types`]).
     pub fn binary(&mut self, op: ast::BinOp, l: Expr, r: Expr, span: Span) -> Option<Expr> {
         use ast::BinOp as B;
-        let iop = bin_op(op);
+        let iop = op;
         if l.ty.per_seq || r.ty.per_seq {
             self.sink.push(
                 err(
@@ -2203,25 +2203,6 @@ pub fn var_of(v: ast::Variability) -> Variability {
 /// (formatted only when there is an error: this is the hot path of lowering).
 fn shapes(l: &Expr, r: &Expr) -> String {
     format!("{} and {}", type_name(&l.ty), type_name(&r.ty))
-}
-
-fn bin_op(op: ast::BinOp) -> BinOp {
-    use ast::BinOp as A;
-    match op {
-        A::Add => BinOp::Add,
-        A::Sub => BinOp::Sub,
-        A::Mul => BinOp::Mul,
-        A::Div => BinOp::Div,
-        A::Rem => BinOp::Rem,
-        A::Lt => BinOp::Lt,
-        A::Le => BinOp::Le,
-        A::Gt => BinOp::Gt,
-        A::Ge => BinOp::Ge,
-        A::Eq => BinOp::Eq,
-        A::Ne => BinOp::Ne,
-        A::And => BinOp::And,
-        A::Or => BinOp::Or,
-    }
 }
 
 fn bin(op: BinOp, l: Expr, r: Expr, ty: Type, span: Span) -> Expr {

@@ -30,7 +30,7 @@ mod variability;
 
 use rustc_hash::{FxHashMap, FxHashSet};
 
-use crate::diag::{Diagnostic, Diagnostics, SourceMap, Span};
+use crate::diag::{Diagnostic, Diagnostics, Span};
 use crate::ir::{self, ConstValue, FuncId, FuncKind, LocalKind, ParamRole, ParamSpace, Type, Variability};
 use crate::syntax::ast;
 
@@ -39,8 +39,7 @@ use lower::{resolve_dims, resolve_type, var_of, FnLower, BUILTIN_NAMES};
 /// Check every module as one program and lower it to IR (helpers inlined, functions split
 /// into setup and pixel parts). Errors go to `diags`; the returned program is only
 /// meaningful when there are none.
-pub fn check(modules: &[&ast::Module], sources: &SourceMap, diags: &mut Diagnostics) -> ir::Program {
-    let _ = sources;
+pub fn check(modules: &[&ast::Module], diags: &mut Diagnostics) -> ir::Program {
     let mut sink = Sink::default();
     let items = collect_items(modules, &mut sink);
     let g = signatures(&items, &mut sink);

@@ -16,9 +16,8 @@ pub mod sphere;
 
 use std::sync::Arc;
 
-use crate::abi::{ArgLayout, BindingKind, KernelFn, ParamSlot, VariantKey};
+use crate::abi::{ArgLayout, BindingKind, Kernel, KernelError, KernelFn, ParamSlot, VariantKey};
 use crate::ir::{FuncId, Program};
-use crate::jit::{JitError, Kernel};
 use crate::runtime::KernelSource;
 
 /// Which form of the hand-written kernels to serve.
@@ -188,8 +187,8 @@ shape_table!(
     (4, 4)
 );
 
-fn error(message: String) -> JitError {
-    JitError { message }
+fn error(message: String) -> KernelError {
+    KernelError { message }
 }
 
 /// Whether screen_triangle's arguments under `key` (`t` components) sit where the
@@ -210,7 +209,7 @@ fn screen_triangle_layout_ok(layout: &ArgLayout, t: u32) -> bool {
 }
 
 impl Handwritten {
-    fn screen_triangle(&self, func: FuncId, key: &VariantKey) -> Result<KernelFn, JitError> {
+    fn screen_triangle(&self, func: FuncId, key: &VariantKey) -> Result<KernelFn, KernelError> {
         let (p, l) = key_shape(key).ok_or_else(|| {
             error("hand-written screen_triangle serves perspective_linear then linear bindings only".into())
         })?;
@@ -229,7 +228,7 @@ impl Handwritten {
 
     /// The sphere in this flavour's form (scalar, SSE4.1 legacy or VEX, AVX2); its
     /// `entry_for` checks the layout and the key.
-    fn sphere(&self, func: FuncId, key: &VariantKey) -> Result<KernelFn, JitError> {
+    fn sphere(&self, func: FuncId, key: &VariantKey) -> Result<KernelFn, KernelError> {
         sphere::entry_for(&ArgLayout::new(&self.program, func, key), key, self.flavor.isa()).map_err(error)
     }
 
@@ -240,7 +239,7 @@ impl Handwritten {
         entry_for: fn(&ArgLayout, &VariantKey, bool) -> Result<KernelFn, String>,
         func: FuncId,
         key: &VariantKey,
-    ) -> Result<KernelFn, JitError> {
+    ) -> Result<KernelFn, KernelError> {
         let avx2 = match self.flavor.isa() {
             isa::AVX2 => true,
             // No AVX2 on this CPU: the scalar form, as `describe` says.
@@ -256,7 +255,7 @@ impl Handwritten {
         entry_for(&ArgLayout::new(&self.program, func, key), key, avx2).map_err(error)
     }
 
-    fn polygon(&self, func: FuncId, key: &VariantKey) -> Result<KernelFn, JitError> {
+    fn polygon(&self, func: FuncId, key: &VariantKey) -> Result<KernelFn, KernelError> {
         let (p, l) = key_shape(key)
             .ok_or_else(|| error("hand-written polygon serves perspective_linear then linear bindings only".into()))?;
         let t = (p + l) as u32;
@@ -301,7 +300,7 @@ impl Handwritten {
 }
 
 impl KernelSource for Handwritten {
-    fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, JitError> {
+    fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, KernelError> {
         let f = self.program.func(func);
         let entry = match f.name.as_str() {
             "screen_triangle" => self.screen_triangle(func, key)?,

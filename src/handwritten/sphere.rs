@@ -716,10 +716,10 @@ mod tests {
     use std::sync::Arc;
 
     use super::*;
+    use crate::abi::{Kernel, KernelError};
     use crate::diag::{Diagnostics, SourceMap};
     use crate::handwritten::{Flavor, Handwritten};
     use crate::ir::FuncId;
-    use crate::jit::{JitError, Kernel};
     use crate::runtime::{KernelSource, Registry, Renderer, Value};
 
     /// The hand-written sphere in form `isa` (an `isa::*` constant), whatever the CPU (the
@@ -730,9 +730,9 @@ mod tests {
     }
 
     impl KernelSource for Form {
-        fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, JitError> {
+        fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, KernelError> {
             let k = self.hand.kernel(func, key)?;
-            let entry = entry_for(&k.layout, key, self.isa).map_err(|message| JitError { message })?;
+            let entry = entry_for(&k.layout, key, self.isa).map_err(|message| KernelError { message })?;
             Ok(Arc::new(Kernel {
                 func: k.func,
                 key: k.key.clone(),

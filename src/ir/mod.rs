@@ -28,6 +28,7 @@ pub mod range;
 pub mod split;
 
 use crate::diag::Span;
+pub use crate::ops::{BinOp, UnaryOp};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct FuncId(pub u32);
@@ -389,31 +390,6 @@ pub fn for_each_assign(stmts: &[Stmt], f: &mut dyn FnMut(&Place, &Expr)) {
             f(place, value);
         }
     });
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum UnaryOp {
-    Neg,
-    Not,
-}
-
-/// Component-wise binary operators. Comparisons give `Bool` of the operands' shape;
-/// `And`/`Or` take and give `Bool` (both sides are always evaluated: expressions are pure).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum BinOp {
-    Add,
-    Sub,
-    Mul,
-    Div,
-    Rem,
-    Lt,
-    Le,
-    Gt,
-    Ge,
-    Eq,
-    Ne,
-    And,
-    Or,
 }
 
 /// Built-in functions. Unless stated, they work component-wise on floats.

@@ -64,7 +64,7 @@ mod value;
 use std::cell::RefCell;
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{mpsc, Arc, Condvar, Mutex, Weak};
+use std::sync::{mpsc, Arc, Mutex, Weak};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
@@ -76,24 +76,13 @@ use cranelift_frontend::FunctionBuilderContext;
 use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, Linkage, Module};
 
-use crate::abi::{ArgLayout, KernelFn, VariantKey};
+use crate::abi::{ArgLayout, Kernel, KernelFn, TierUpHold, TierUpWatch, VariantKey};
 use crate::ir::{FuncId, Function, Program};
 use libm::LibmFn;
 use lower::{Linker, Res};
 
-/// A compiled kernel for one (primitive, variant key).
-#[derive(Debug)]
-pub struct Kernel {
-    pub func: FuncId,
-    pub key: VariantKey,
-    /// Entry point; valid while the [`Jit`] that made it is alive.
-    pub entry: KernelFn,
-    pub layout: ArgLayout,
-    /// Wall time spent building and compiling this kernel (callees excluded), microseconds.
-    pub compile_micros: u64,
-    /// Things the specialisation noticed (a bound parameter no arm writes, ...).
-    pub warnings: Vec<String>,
-}
+/// The JIT's name for the kernel error of the ABI (what its lowering and compiling report).
+pub(crate) use crate::abi::KernelError as JitError;
 
 /// What compiling one kernel cost (see [`Jit::compile_cost`]).
 ///
@@ -150,19 +139,6 @@ pub fn thread_cpu_micros() -> u64 {
         0
     }
 }
-
-#[derive(Debug, Clone)]
-pub struct JitError {
-    pub message: String,
-}
-
-impl std::fmt::Display for JitError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.message)
-    }
-}
-
-impl std::error::Error for JitError {}
 
 fn jit_err(what: &str, e: impl std::fmt::Display) -> JitError {
     JitError {
@@ -426,207 +402,23 @@ impl Linker for PrintLinker<'_> {
 /// The name printed CLIF gives a kernel's outlined pixel function (`u0:2000000`).
 const PRINTED_PIXEL_INDEX: u32 = 2_000_000;
 
-/// What the tier-1 worker has finished, shared with the JIT that feeds it.
-struct TierUpState {
+/// What the tier-1 worker has finished, shared with the JIT that feeds it; recorded under the
+/// watch's lock (`TierUpWatch::finish_request`), so a kernel is here by the time its request
+/// stops being pending.
+#[derive(Default)]
+struct TierUpResults {
     ready: HashMap<CacheKey, Arc<Kernel>>,
     /// What each kernel in `ready` cost the worker to compile.
     costs: HashMap<CacheKey, CompileCost>,
-    /// Requests sent and not yet answered.
-    pending: usize,
     /// Tier-1 compile failures (the tier-0 kernel stays in use).
     failed: HashMap<CacheKey, JitError>,
-    /// Live [`TierUpHold`]s: the worker starts no compile while one holds.
-    holds: Vec<HoldEntry>,
-    next_hold: u64,
-    /// How long a renderer holds the worker back after a frame's kernels are compiled, per
-    /// unit of time that compiling them took ([`Jit::set_tier_up_grace`]).
-    grace_per_compile: f64,
-    /// The feeding JIT is gone: the worker ignores holds and drains its queue.
-    closing: bool,
-}
-
-/// One [`TierUpHold`] as the worker sees it.
-struct HoldEntry {
-    id: u64,
-    /// When it stops holding (None: when it drops).
-    deadline: Option<Instant>,
-    /// A stall ([`Jit::stall_tier_up`]): holds the worker, but [`TierUpWatch::activity`]
-    /// reports the worker compiling, as if its compile took that long.
-    stall: bool,
-}
-
-/// The default grace per unit of tier-0 compile time (see [`TierUpWatch::grace`]).
-pub const DEFAULT_TIER_UP_GRACE: f64 = 3.0;
-
-impl Default for TierUpState {
-    fn default() -> TierUpState {
-        TierUpState {
-            ready: HashMap::new(),
-            costs: HashMap::new(),
-            pending: 0,
-            failed: HashMap::new(),
-            holds: vec![],
-            next_hold: 0,
-            grace_per_compile: DEFAULT_TIER_UP_GRACE,
-            closing: false,
-        }
-    }
-}
-
-impl TierUpState {
-    /// Whether a hold (stalls included when `stalls`) keeps the worker from starting a
-    /// compile at `now`: `None` if not, `Some(None)` until a hold drops, `Some(Some(t))`
-    /// until `t` at the latest.
-    fn held_at(&self, now: Instant, stalls: bool) -> Option<Option<Instant>> {
-        if self.closing {
-            return None;
-        }
-        let mut until: Option<Option<Instant>> = None;
-        for hold in self.holds.iter().filter(|h| stalls || !h.stall) {
-            match hold.deadline {
-                None => return Some(None),
-                Some(t) if t > now => until = Some(Some(until.flatten().map_or(t, |u| u.max(t)))),
-                Some(_) => {}
-            }
-        }
-        until
-    }
-}
-
-/// What a tiered JIT's background compiler is doing, as [`TierUpWatch::activity`] sees it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum TierUpActivity {
-    /// Every compile requested so far has finished (or failed).
-    Idle,
-    /// A compile is pending but a [`TierUpHold`] keeps the worker from starting it.
-    Held,
-    /// A compile is pending or in progress and the worker is free to run it.
-    Compiling,
-}
-
-/// What a renderer (or anyone running a tiered JIT's kernels) can ask of its background
-/// tier-1 compiler without borrowing the JIT: what it is doing, a bounded wait for it, and
-/// a hold that keeps it from starting a compile (see `runtime::tiergate`, which holds it for
-/// the start of a frame and then keeps one render thread fewer than the pool has busy while
-/// it compiles). Cloning shares the same state.
-#[derive(Clone)]
-pub struct TierUpWatch {
-    state: Arc<(Mutex<TierUpState>, Condvar)>,
-}
-
-impl TierUpWatch {
-    /// What the worker is doing now (see [`TierUpActivity`]).
-    pub fn activity(&self) -> TierUpActivity {
-        let st = self.state.0.lock().unwrap_or_else(|e| e.into_inner());
-        if st.pending == 0 {
-            TierUpActivity::Idle
-        } else if st.held_at(Instant::now(), false).is_some() {
-            TierUpActivity::Held
-        } else {
-            TierUpActivity::Compiling
-        }
-    }
-
-    /// Wait until no compile is pending or `timeout` has passed, whichever is first; true
-    /// when one is still pending.
-    pub fn wait(&self, timeout: std::time::Duration) -> bool {
-        let (lock, done) = &*self.state;
-        let st = lock.lock().unwrap_or_else(|e| e.into_inner());
-        let (st, _) = done
-            .wait_timeout_while(st, timeout, |st| st.pending > 0)
-            .unwrap_or_else(|e| e.into_inner());
-        st.pending > 0
-    }
-
-    /// Keep the worker from starting a compile until the returned hold drops or reaches
-    /// the deadline given to [`TierUpHold::release_at`] (the compile in progress, if any,
-    /// finishes).
-    pub fn hold(&self) -> TierUpHold {
-        self.add_hold(false)
-    }
-
-    /// How long a renderer holds the worker back after a frame whose kernels took
-    /// `tier0_compile` to compile: that times [`Jit::set_tier_up_grace`]'s factor (default
-    /// [`DEFAULT_TIER_UP_GRACE`]).
-    ///
-    /// Why proportional: a tier-1 compile costs about ten times the tier-0 one, and while it
-    /// runs the frame loses a thread to it. Like renting skis until the rent paid equals the
-    /// price, a frame runs on every thread for a time in proportion to what tier 1 will cost
-    /// before it pays for it: a frame shorter than that (the example scenes' tiles take
-    /// 1-6 ms) never has the worker in its way, a longer one gets tier-1 code at most that
-    /// much later. Kernels already compiled (a later frame) give no grace.
-    pub fn grace(&self, tier0_compile: std::time::Duration) -> std::time::Duration {
-        let factor = self.state.0.lock().unwrap_or_else(|e| e.into_inner()).grace_per_compile;
-        // At most an hour: whatever the factor, a deadline that far is "until the frame ends",
-        // and an instant plus it cannot overflow.
-        let most = std::time::Duration::from_secs(3600);
-        let secs = tier0_compile.as_secs_f64() * factor;
-        if secs.is_nan() {
-            // An infinite factor times no compile: nothing compiled, no grace.
-            return std::time::Duration::ZERO;
-        }
-        std::time::Duration::try_from_secs_f64(secs).map_or(most, |g| g.min(most))
-    }
-
-    fn add_hold(&self, stall: bool) -> TierUpHold {
-        let mut st = self.state.0.lock().unwrap_or_else(|e| e.into_inner());
-        let id = st.next_hold;
-        st.next_hold += 1;
-        st.holds.push(HoldEntry {
-            id,
-            deadline: None,
-            stall,
-        });
-        TierUpHold {
-            state: self.state.clone(),
-            id,
-        }
-    }
-}
-
-/// While it holds, the tier-1 worker of the JIT it came from starts no compile (it finishes
-/// the one in progress): [`TierUpWatch::hold`], [`Jit::stall_tier_up`]. It holds until it
-/// drops or, once given one ([`TierUpHold::release_at`]), until its deadline, dropped or
-/// not; a JIT being dropped ignores it.
-pub struct TierUpHold {
-    state: Arc<(Mutex<TierUpState>, Condvar)>,
-    id: u64,
-}
-
-impl TierUpHold {
-    /// Hold only until `deadline`, whether dropped before then or not.
-    pub fn release_at(&mut self, deadline: Instant) {
-        let (lock, changed) = &*self.state;
-        let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(h) = st.holds.iter_mut().find(|h| h.id == self.id) {
-            h.deadline = Some(deadline);
-        }
-        changed.notify_all();
-    }
-}
-
-impl Drop for TierUpHold {
-    /// A hold without a deadline ends here; one with a deadline keeps it (the renderer's
-    /// hold ends with its frame, and a worker let go right then would compete with the
-    /// thread that waits for the frame to come back, which under load gave that frame's
-    /// caller its result milliseconds late).
-    fn drop(&mut self) {
-        let (lock, changed) = &*self.state;
-        let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
-        let now = Instant::now();
-        // Expired deadlines go too, whoever's.
-        st.holds.retain(|h| match h.deadline {
-            Some(t) => t > now,
-            None => h.id != self.id,
-        });
-        changed.notify_all();
-    }
 }
 
 /// The background tier-1 compiler: a thread owning an optimising [`Jit`].
 struct TierUp {
     requests: Option<mpsc::Sender<(CacheKey, Vec<UpgradeWord>)>>,
-    state: Arc<(Mutex<TierUpState>, Condvar)>,
+    watch: TierUpWatch,
+    results: Arc<Mutex<TierUpResults>>,
     worker: Option<JoinHandle<()>>,
 }
 
@@ -637,9 +429,10 @@ impl TierUp {
             tier: Tier::Optimised,
             unroll_loops,
         };
-        let state: Arc<(Mutex<TierUpState>, Condvar)> = Arc::default();
+        let watch = TierUpWatch::new();
+        let results: Arc<Mutex<TierUpResults>> = Arc::default();
         let (tx, rx) = mpsc::channel::<(CacheKey, Vec<UpgradeWord>)>();
-        let shared = state.clone();
+        let (shared, finished) = (watch.clone(), results.clone());
         let worker = std::thread::Builder::new()
             .name("primflow-tier1".into())
             .spawn(move || {
@@ -655,21 +448,7 @@ impl TierUp {
                 let mut one_thread: Option<Result<rayon::ThreadPool, rayon::ThreadPoolBuildError>> = None;
                 // Ends when the feeding JIT drops its sender.
                 while let Ok(((func, key), words)) = rx.recv() {
-                    {
-                        // Held back (a test, or a renderer keeping a short frame's cores):
-                        // wait for the drop or the deadline.
-                        let (lock, changed) = &*shared;
-                        let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
-                        while let Some(until) = st.held_at(Instant::now(), true) {
-                            st = match until {
-                                None => changed.wait(st).unwrap_or_else(|e| e.into_inner()),
-                                Some(t) => {
-                                    let left = t.saturating_duration_since(Instant::now());
-                                    changed.wait_timeout(st, left).unwrap_or_else(|e| e.into_inner()).0
-                                }
-                            };
-                        }
-                    }
+                    shared.wait_while_held();
                     let jit = built.get_or_insert_with(|| Jit::build(program.clone(), bodies.clone(), options.clone()));
                     let pool = one_thread.get_or_insert_with(|| {
                         rayon::ThreadPoolBuilder::new()
@@ -691,55 +470,48 @@ impl TierUp {
                             }
                         }
                     }
-                    let (lock, done) = &*shared;
-                    let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
-                    match result {
-                        Ok(k) => {
-                            if let Some(cost) = jit.as_ref().ok().and_then(|j| j.compile_cost(func, &key)) {
-                                st.costs.insert((func, key.clone()), cost);
+                    shared.finish_request(|| {
+                        let mut st = finished.lock().unwrap_or_else(|e| e.into_inner());
+                        match result {
+                            Ok(k) => {
+                                if let Some(cost) = jit.as_ref().ok().and_then(|j| j.compile_cost(func, &key)) {
+                                    st.costs.insert((func, key.clone()), cost);
+                                }
+                                st.ready.insert((func, key), k);
                             }
-                            st.ready.insert((func, key), k);
+                            Err(e) => {
+                                st.failed.insert((func, key), e);
+                            }
                         }
-                        Err(e) => {
-                            st.failed.insert((func, key), e);
-                        }
-                    }
-                    st.pending -= 1;
-                    done.notify_all();
+                    });
                 }
             })
             .map_err(|e| jit_err("starting the tier-1 compiler thread", e))?;
         Ok(TierUp {
             requests: Some(tx),
-            state,
+            watch,
+            results,
             worker: Some(worker),
         })
     }
 
     fn ready(&self, ck: &CacheKey) -> Option<Arc<Kernel>> {
-        let st = self.state.0.lock().unwrap_or_else(|e| e.into_inner());
+        let st = self.results.lock().unwrap_or_else(|e| e.into_inner());
         st.ready.get(ck).cloned()
     }
 
     fn cost(&self, ck: &CacheKey) -> Option<CompileCost> {
-        let st = self.state.0.lock().unwrap_or_else(|e| e.into_inner());
+        let st = self.results.lock().unwrap_or_else(|e| e.into_inner());
         st.costs.get(ck).copied()
     }
 
     fn request(&self, ck: CacheKey, words: Vec<UpgradeWord>) {
         let Some(tx) = &self.requests else { return };
-        let mut st = self.state.0.lock().unwrap_or_else(|e| e.into_inner());
-        if tx.send((ck, words)).is_ok() {
-            st.pending += 1;
-        }
+        self.watch.count_request(|| tx.send((ck, words)).is_ok());
     }
 
     fn wait(&self) {
-        let (lock, done) = &*self.state;
-        let mut st = lock.lock().unwrap_or_else(|e| e.into_inner());
-        while st.pending > 0 {
-            st = done.wait(st).unwrap_or_else(|e| e.into_inner());
-        }
+        self.watch.wait_idle();
     }
 }
 
@@ -748,11 +520,7 @@ impl Drop for TierUp {
         // Closing the channel ends the worker after its current compile; a hold outliving
         // the JIT must not keep it (and this join) waiting.
         self.requests = None;
-        {
-            let (lock, changed) = &*self.state;
-            lock.lock().unwrap_or_else(|e| e.into_inner()).closing = true;
-            changed.notify_all();
-        }
+        self.watch.close();
         if let Some(w) = self.worker.take() {
             let _ = w.join();
         }
@@ -814,7 +582,7 @@ impl Jit {
     /// whether a compile is pending, to leave the worker a core meanwhile.
     pub fn tier_up_watch(&self) -> Option<TierUpWatch> {
         let t = self.tier_up.as_ref()?;
-        Some(TierUpWatch { state: t.state.clone() })
+        Some(t.watch.clone())
     }
 
     /// Stall the tier-1 worker (tiered JITs only): until the returned guard drops it starts
@@ -831,10 +599,12 @@ impl Jit {
     /// runs on every thread with the worker out of the way; a longer one then leaves the
     /// worker a thread (`runtime::tiergate`). A negative or NaN factor counts as 0. No-op if
     /// not tiered.
+    ///
+    /// [`DEFAULT_TIER_UP_GRACE`]: crate::abi::DEFAULT_TIER_UP_GRACE
     pub fn set_tier_up_grace(&mut self, per_compile: f64) {
         if let Some(t) = &self.tier_up {
             let factor = if per_compile >= 0.0 { per_compile } else { 0.0 };
-            t.state.0.lock().unwrap_or_else(|e| e.into_inner()).grace_per_compile = factor;
+            t.watch.set_grace_per_compile(factor);
         }
     }
 
@@ -1291,6 +1061,7 @@ impl Jit {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::abi::TierUpActivity;
 
     /// A primitive whose tier-1 compile panics (see [`panic_if_asked`]).
     const PANICS_AT_TIER_1: &str = "panics_at_tier_1";

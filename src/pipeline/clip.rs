@@ -178,6 +178,28 @@ branch_free_code!(
     0x7ff0_0000_0000_0000i128
 );
 
+/// A [`Real`] with branch-free clip codes in its own precision: what [`classify`] and
+/// [`clip_polygon_to_view`] compute the codes with.
+pub trait ClipCode: Real {
+    /// The branch-free clip code of a clip-space vertex ([`clip_code_f32`],
+    /// [`clip_code_f64`]).
+    fn clip_code(v: [Self; 4], mode: PyramidMode) -> u32;
+}
+
+impl ClipCode for f32 {
+    #[inline]
+    fn clip_code(v: [f32; 4], mode: PyramidMode) -> u32 {
+        clip_code_f32(v, mode)
+    }
+}
+
+impl ClipCode for f64 {
+    #[inline]
+    fn clip_code(v: [f64; 4], mode: PyramidMode) -> u32 {
+        clip_code_f64(v, mode)
+    }
+}
+
 /// The clip code written the obvious way, with comparisons and branches: the specification
 /// [`clip_code_f32`] and [`clip_code_f64`] are tested against.
 pub fn clip_code_reference<T: Real>(v: [T; 4], mode: PyramidMode) -> u32 {
@@ -324,7 +346,7 @@ impl ClipAccumulator {
 }
 
 /// The clip codes of `vertices` accumulated (branch-free codes of `T`'s precision).
-pub fn classify<T: Real>(vertices: impl IntoIterator<Item = [T; 4]>, mode: PyramidMode) -> ClipVerdict {
+pub fn classify<T: ClipCode>(vertices: impl IntoIterator<Item = [T; 4]>, mode: PyramidMode) -> ClipVerdict {
     let mut acc = ClipAccumulator::new();
     for v in vertices {
         acc.add(T::clip_code(v, mode));
@@ -685,7 +707,7 @@ fn rescaled(poly: &ClipPolygon<f64>) -> std::borrow::Cow<'_, ClipPolygon<f64>> {
 
 /// Classifies the polygon with the branch-free codes and clips only if needed: the usual
 /// entry point. Rejected polygons give no pieces, accepted ones come back unchanged.
-pub fn clip_polygon_to_view<T: Real>(
+pub fn clip_polygon_to_view<T: ClipCode>(
     poly: &ClipPolygon<T>,
     model_planes: &[[T; 4]],
     mode: PyramidMode,

@@ -39,20 +39,13 @@ pub trait Real:
     /// Total order on the bit patterns (`f64::total_cmp`), used to order edge endpoints
     /// canonically so shared edges clip identically from both sides.
     fn total_cmp(&self, other: &Self) -> std::cmp::Ordering;
-    /// The branch-free clip code of a clip-space vertex in this precision
-    /// (see [`crate::pipeline::clip`]).
-    fn clip_code(v: [Self; 4], mode: crate::pipeline::clip::PyramidMode) -> u32;
 }
 
 macro_rules! impl_real {
-    ($t:ty, $code:path) => {
+    ($t:ty) => {
         impl Real for $t {
             const ZERO: Self = 0.0;
             const ONE: Self = 1.0;
-            #[inline]
-            fn clip_code(v: [Self; 4], mode: crate::pipeline::clip::PyramidMode) -> u32 {
-                $code(v, mode)
-            }
             #[inline]
             fn from_f64(v: f64) -> Self {
                 v as $t
@@ -93,8 +86,8 @@ macro_rules! impl_real {
     };
 }
 
-impl_real!(f32, crate::pipeline::clip::clip_code_f32);
-impl_real!(f64, crate::pipeline::clip::clip_code_f64);
+impl_real!(f32);
+impl_real!(f64);
 
 /// A 3-vector of either precision.
 pub type V3<T> = [T; 3];

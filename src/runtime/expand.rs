@@ -29,7 +29,7 @@
 //! frame): an instance whose expansion would exceed what is left is rolled back (its words
 //! refunded) and rendered per tile, as without expansion. Under that pressure, which
 //! instances fall back can depend on the order jobs run in; the pixels never do.
-//! Where it sits: `frame::Renderer::render` step 2, between compiling and binning.
+//! Where it sits: `render::Renderer::render` step 2, between compiling and binning.
 
 use std::collections::HashMap;
 use std::ffi::c_void;
@@ -37,12 +37,12 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
-use crate::abi::{expands, ArgLayout, KernelFn, TileCtx, VariantKey, CALLEE_UNKNOWN, MAX_CALL_DEPTH, MODE_EXPAND};
+use crate::abi::{
+    expands, ArgLayout, Kernel, KernelFn, TileCtx, VariantKey, CALLEE_UNKNOWN, MAX_CALL_DEPTH, MODE_BOUND, MODE_EXPAND,
+};
 use crate::ir::{FuncId, Program};
-use crate::jit::Kernel;
 
 use super::api::{Instance, RenderOptions};
-use super::frame::{run_bound, TileRect};
 use super::tiergate::{self, Compiler};
 
 /// Budget charged per recorded call on top of its argument words (what its bookkeeping takes).
@@ -65,6 +65,32 @@ pub(crate) struct Draw<'a> {
     /// The submitted instance it comes from (its run-time errors are reported as that one's).
     pub instance: usize,
 }
+
+/// Run a draw's kernel in bound mode: its screen bound (if it recorded one) and its
+/// run-time error.
+fn run_bound(draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>, Option<(u32, u32)>) {
+    let mut ctx = TileCtx::new(MODE_BOUND, opts.width, opts.height);
+    ctx.call_depth = draw.call_depth;
+    // Zero-size buffers: bound mode never touches them, and the empty tile rectangle
+    // (x0 = x1 = 0) means even a pixel pass would cover no pixel.
+    let mut no_depth: Vec<u32> = Vec::new();
+    let mut no_planes: Vec<f32> = Vec::new();
+    let mut no_counts: Vec<u32> = Vec::new();
+    ctx.depth = no_depth.as_mut_ptr();
+    ctx.gbuf = no_planes.as_mut_ptr();
+    ctx.write_count = no_counts.as_mut_ptr();
+    // SAFETY: `ctx` is a valid TileCtx naming (empty) buffers that outlive the call, and
+    // `draw.args` holds at least the words the kernel's layout reads (checked when the
+    // kernel was made ready, or when the call was recorded), which is all the ABI lets a
+    // kernel read.
+    unsafe { (draw.entry)(&mut ctx, draw.args.as_ptr()) };
+    let bound = (ctx.bound_set != 0).then_some(ctx.bound);
+    let error = (ctx.error != 0).then_some((ctx.error, ctx.error_site));
+    (bound, error)
+}
+
+/// An inclusive rectangle of tile indices: (tx0, ty0, tx1, ty1).
+pub(super) type TileRect = (usize, usize, usize, usize);
 
 /// Where a draw's argument block lives.
 #[derive(Clone, Copy)]

@@ -13,13 +13,13 @@
 
 use std::sync::Arc;
 
-use crate::abi::VariantKey;
+use crate::abi::{Kernel, KernelError, TierUpWatch, VariantKey};
 use crate::ir::FuncId;
-use crate::jit::{Jit, JitError, Kernel, TierUpWatch};
+use crate::jit::Jit;
 
 /// Something that turns (primitive, key) into a callable kernel.
 pub trait KernelSource {
-    fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, JitError>;
+    fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, KernelError>;
 
     /// The background compiler that will upgrade the kernels handed out, if any: while it
     /// has a compile pending the renderer runs on one thread fewer than its pool has
@@ -30,7 +30,7 @@ pub trait KernelSource {
 }
 
 impl KernelSource for Jit {
-    fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, JitError> {
+    fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, KernelError> {
         Jit::kernel(self, func, key)
     }
 

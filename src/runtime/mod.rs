@@ -9,7 +9,9 @@
 //! - [`value`]: API values and their encoding into argument words.
 //! - [`api`]: `begin` / `rast_param` / `material` / `material_interp` / `sequence_point` /
 //!   `vertex` / `end`, the current transform, instances and their argument blocks.
-//! - [`frame`]: binning, parallel tile rendering, the [`Frame`] and its images.
+//! - [`frame`]: the [`Frame`]'s buffers (depth, G-buffer planes, colours), their layout, the
+//!   shading pass over them and its images.
+//! - [`render`]: the render loop: compiling, binning, parallel tile rendering.
 //! - `expand`: runs a primitive that only calls primitives once and bins its calls instead.
 //! - [`pool`]: render thread pools, each thread on a core of its own.
 //! - `tiergate`: leaves a tiered JIT's background compiler a thread while it compiles.
@@ -28,6 +30,7 @@ pub mod geometry;
 pub mod kernels;
 pub mod pool;
 pub mod registry;
+pub mod render;
 pub mod shading;
 mod tiergate;
 pub mod transform;
@@ -37,8 +40,9 @@ pub use api::{
     ApiIssue, Instance, RenderOptions, Renderer, ShadingParam, Target, EXPAND_BUDGET_WORDS, MAX_FRAME_BYTES,
     MAX_IMAGE_SIDE, RENDER_THREAD_STACK,
 };
-pub use frame::{describe_key, Frame, KernelReport, ParamPlanes, RenderOutput, RenderReport, RenderStats};
+pub use frame::{Frame, ParamPlanes};
 pub use kernels::KernelSource;
 pub use pool::render_pool;
 pub use registry::Registry;
+pub use render::{describe_key, KernelReport, RenderOutput, RenderReport, RenderStats};
 pub use value::Value;

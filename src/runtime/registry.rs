@@ -114,7 +114,7 @@ impl Registry {
             if picked.len() < parsed.len() {
                 let mut picked_diags = Diagnostics::new();
                 let picked: Vec<&Parsed> = picked.into_iter().map(|k| &parsed[k]).collect();
-                if let Some(registry) = check_parsed(sources, &picked, &mut picked_diags) {
+                if let Some(registry) = check_parsed(&picked, &mut picked_diags) {
                     if !picked_diags.has_errors() {
                         diags.extend(picked_diags);
                         return Some(registry);
@@ -122,7 +122,7 @@ impl Registry {
                 }
             }
         }
-        check_parsed(sources, &parsed.iter().collect::<Vec<_>>(), diags)
+        check_parsed(&parsed.iter().collect::<Vec<_>>(), diags)
     }
 
     /// Compile already loaded files as one program.
@@ -178,7 +178,7 @@ struct Parsed {
 }
 
 /// Check parsed files as one program, as [`crate::compile`] checks the files it parses.
-fn check_parsed(sources: &SourceMap, parsed: &[&Parsed], diags: &mut Diagnostics) -> Option<Registry> {
+fn check_parsed(parsed: &[&Parsed], diags: &mut Diagnostics) -> Option<Registry> {
     for p in parsed {
         diags.extend(p.diags.clone());
     }
@@ -186,7 +186,7 @@ fn check_parsed(sources: &SourceMap, parsed: &[&Parsed], diags: &mut Diagnostics
         return None;
     }
     let modules: Vec<&ast::Module> = parsed.iter().map(|p| &p.module).collect();
-    let program = crate::check::check(&modules, sources, diags);
+    let program = crate::check::check(&modules, diags);
     if diags.has_errors() {
         return None;
     }

@@ -22,13 +22,13 @@
 //!
 //! Invariant: the gate decides which thread runs a job and when, never what a job computes;
 //! results come back in job order, so a frame is bit for bit the same gated or not.
-//! Where it sits: `frame::Renderer::render_into`, around the expansion and bound pass and
+//! Where it sits: `render::Renderer::render_into`, around the expansion and bound pass and
 //! around the tiles.
 
 use std::sync::{Condvar, Mutex};
 use std::time::Duration;
 
-use crate::jit::{TierUpActivity, TierUpWatch};
+use crate::abi::{TierUpActivity, TierUpWatch};
 
 /// How long a loop waiting for a permit sleeps before it asks the compiler again.
 pub(super) const POLL: Duration = Duration::from_millis(1);

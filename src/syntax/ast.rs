@@ -13,6 +13,7 @@
 //! of a 224-byte `memcpy` (library parse -12% instructions).
 
 use crate::diag::Span;
+pub use crate::ops::{BinOp, UnaryOp};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Ident {
@@ -294,29 +295,6 @@ impl Expr {
             | ExprKind::Error => {}
         }
     }
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum UnaryOp {
-    Neg,
-    Not,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum BinOp {
-    Add,
-    Sub,
-    Mul,
-    Div,
-    Rem,
-    Lt,
-    Le,
-    Gt,
-    Ge,
-    Eq,
-    Ne,
-    And,
-    Or,
 }
 
 #[derive(Clone, Debug, PartialEq)]

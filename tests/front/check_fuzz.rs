@@ -110,7 +110,7 @@ proptest! {
         let mut parse_diags = Diagnostics::new();
         let module = primflow::syntax::parse(id, sources.text(id), &mut parse_diags);
         let mut check_diags = Diagnostics::new();
-        let _ = primflow::check::check(&[&module], &sources, &mut check_diags);
+        let _ = primflow::check::check(&[&module], &mut check_diags);
         let _ = check_diags.render(&sources);
     }
 }

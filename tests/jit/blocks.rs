@@ -13,10 +13,11 @@ use crate::jit_util;
 use std::sync::Arc;
 
 use jit_util::*;
+use primflow::abi::Kernel;
 use primflow::abi::{TileCtx, ERR_NONE, MODE_RENDER};
 use primflow::ir::Variability::Varying;
 use primflow::ir::*;
-use primflow::jit::{Jit, Kernel};
+use primflow::jit::Jit;
 
 /// Tile size: 3 blocks of 16 and a partial one across, 4 blocks of 8 and a partial one down.
 const TW: usize = 60;

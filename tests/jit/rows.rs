@@ -14,10 +14,11 @@ use crate::jit_util;
 use std::sync::Arc;
 
 use jit_util::*;
+use primflow::abi::Kernel;
 use primflow::abi::{TileCtx, ERR_NONE, MODE_RENDER};
 use primflow::ir::Variability::{Uniform, Varying};
 use primflow::ir::*;
-use primflow::jit::{Jit, Kernel};
+use primflow::jit::Jit;
 
 /// Tile size: several 16x8 blocks and partial ones in both directions.
 const TW: usize = 60;

@@ -108,7 +108,7 @@ fn tier_0_compiles_a_different_kernel_than_tier_1() {
 /// Hands out the kernels it was given: a tiered JIT's tier-0 kernels, kept after their
 /// tier-1 twins exist.
 struct Kernels(
-    std::collections::HashMap<(primflow::ir::FuncId, primflow::abi::VariantKey), Arc<primflow::jit::Kernel>>,
+    std::collections::HashMap<(primflow::ir::FuncId, primflow::abi::VariantKey), Arc<primflow::abi::Kernel>>,
 );
 
 impl KernelSource for Kernels {
@@ -116,11 +116,11 @@ impl KernelSource for Kernels {
         &mut self,
         func: primflow::ir::FuncId,
         key: &primflow::abi::VariantKey,
-    ) -> Result<Arc<primflow::jit::Kernel>, primflow::jit::JitError> {
+    ) -> Result<Arc<primflow::abi::Kernel>, primflow::abi::KernelError> {
         self.0
             .get(&(func, key.clone()))
             .cloned()
-            .ok_or_else(|| primflow::jit::JitError {
+            .ok_or_else(|| primflow::abi::KernelError {
                 message: "not handed in".into(),
             })
     }

@@ -2,10 +2,10 @@
 //! real `TileCtx` backed by `Vec` buffers.
 #![allow(dead_code)]
 
+use primflow::abi::Kernel;
 use primflow::abi::{Binding, BindingKind, TileCtx, VariantKey, DEFAULT_FUEL, MODE_RENDER};
 use primflow::diag::Span;
 use primflow::ir::*;
-use primflow::jit::Kernel;
 
 pub const W: usize = 16;
 pub const H: usize = 8;

@@ -13,10 +13,11 @@ use common::{example_scene, library_and_sources};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use primflow::abi::TierUpActivity;
 use primflow::bench::{fill_scene, same_frame, small_scene};
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
-use primflow::jit::{Jit, Tier, TierUpActivity};
+use primflow::jit::{Jit, Tier};
 use primflow::runtime::{KernelSource, RenderOutput, Renderer};
 
 /// Small scenes with many tiles (16 px) and, for `small`, more than one bound-pass job.

@@ -16,12 +16,12 @@
 use std::sync::Arc;
 
 use primflow::abi::{ArgLayout, KernelFn, TileCtx, VariantKey, ERR_INDEX, MODE_BOUND};
+use primflow::abi::{Kernel, KernelError};
 use primflow::diag::{SourceMap, Span};
 use primflow::ir::{
     ConstValue, Elem, FixedFormat, FuncId, FuncKind, Function, Local, LocalId, LocalKind, Param, ParamRole, ParamSpace,
     Program, Scalar, Type, Variability,
 };
-use primflow::jit::{JitError, Kernel};
 use primflow::runtime::{KernelSource, Renderer};
 
 pub fn float_array(dims: &[u32]) -> Type {
@@ -286,7 +286,7 @@ impl TestKernels {
 }
 
 impl KernelSource for TestKernels {
-    fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, JitError> {
+    fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, KernelError> {
         self.requests.push((func, key.clone()));
         let layout = ArgLayout::new(&self.program, func, key);
         let name = self.program.func(func).name.as_str();
@@ -300,7 +300,7 @@ impl KernelSource for TestKernels {
             "faulty" => Some(faulty_kernel as KernelFn),
             _ => None,
         };
-        let entry = entry.ok_or_else(|| JitError {
+        let entry = entry.ok_or_else(|| KernelError {
             message: format!("no test kernel for `{name}`"),
         })?;
         Ok(Arc::new(Kernel {

@@ -1,4 +1,4 @@
-//! The contract between JIT kernels and the runtime: the variant key, the per-tile context
+//! The calling convention of a kernel: the variant key, the per-tile context
 //! a kernel reads and writes, and the layout of a primitive instance's argument block.
 //!
 //! A kernel is `extern "C" fn(ctx: *mut TileCtx, args: *const u32)`. It touches only the
