@@ -24,6 +24,7 @@ pub mod diag;
 pub mod handwritten;
 pub mod ir;
 pub mod jit;
+pub mod limits;
 pub mod pipeline;
 pub mod runtime;
 pub mod scene;
