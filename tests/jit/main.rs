@@ -13,6 +13,7 @@ mod blocks;
 mod builtins;
 mod calls;
 mod dead_setup;
+mod deep_programs;
 mod disassembly;
 mod edges;
 mod error_order;
