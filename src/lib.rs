@@ -25,6 +25,7 @@ pub mod diag;
 pub mod handwritten;
 pub mod ir;
 pub mod jit;
+pub mod limits;
 pub mod ops;
 pub mod pipeline;
 pub mod runtime;

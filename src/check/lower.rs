@@ -22,6 +22,7 @@ use crate::ir::{
     self, ArmKind, BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, FuncKind, InterpArm, Local, LocalId, LocalKind,
     LoopId, ParamRole, Place, Scalar, SiteId, Space, Stmt, StmtKind, Type, Variability,
 };
+use crate::limits::{MAX_CALL_DEPTH, MAX_NESTING};
 use crate::syntax::ast;
 
 use super::types::{self, convert, scalar_of, type_name};
@@ -71,6 +72,12 @@ pub struct FnLower<'g, 'a> {
     /// Helpers whose body was lowered here without a diagnostic the sink did not already
     /// hold and within the inlining budget (see [`super::check_helper`]).
     pub lowered_cleanly: Vec<usize>,
+    /// Expression and statement levels (and two per inlined call) open now, counted
+    /// through inlined helpers: the depth of this pass's own recursion, kept within
+    /// [`MAX_NESTING`].
+    nesting: u32,
+    /// E0111 was reported for this function.
+    nesting_reported: bool,
 }
 
 /// Most helper calls inlined into one function.
@@ -276,7 +283,39 @@ impl<'g, 'a> FnLower<'g, 'a> {
             outermost_call: Span::default(),
             report_budget: true,
             lowered_cleanly: vec![],
+            nesting: 0,
+            nesting_reported: false,
         }
+    }
+
+    // ---- depth ------------------------------------------------------------------------
+
+    /// Open `levels` levels of nesting for the construct at `span`; false (after E0111,
+    /// once per function) when that goes past [`MAX_NESTING`]: the caller then lowers
+    /// nothing below it and does not call [`Self::leave`].
+    fn enter(&mut self, levels: u32, span: Span) -> bool {
+        if self.nesting + levels > MAX_NESTING {
+            if !self.nesting_reported && self.report_budget {
+                self.nesting_reported = true;
+                self.sink.push(
+                    err(
+                        "E0111",
+                        format!("nested too deeply after inlining helpers (more than {MAX_NESTING} levels)"),
+                        span,
+                        "this is past the limit",
+                    )
+                    .secondary(self.outermost_call, "in the helpers inlined for this call")
+                    .help("expressions, statements and helper calls nest through every helper a call inlines"),
+                );
+            }
+            return false;
+        }
+        self.nesting += levels;
+        true
+    }
+
+    fn leave(&mut self, levels: u32) {
+        self.nesting -= levels;
     }
 
     // ---- locals, scopes, ids ----------------------------------------------------------
@@ -369,6 +408,13 @@ impl<'g, 'a> FnLower<'g, 'a> {
     }
 
     fn stmt(&mut self, s: &ast::Stmt, out: &mut Vec<Stmt>) {
+        if self.enter(1, s.span) {
+            self.stmt_nested(s, out);
+            self.leave(1);
+        }
+    }
+
+    fn stmt_nested(&mut self, s: &ast::Stmt, out: &mut Vec<Stmt>) {
         use ast::StmtKind as K;
         match &s.kind {
             K::Error => {}
@@ -1193,6 +1239,36 @@ impl<'g, 'a> FnLower<'g, 'a> {
             }
             return None;
         }
+        // A chain of helpers inlines one inside another; past the limit, stop before this
+        // pass recurses into the callee.
+        if self.inline.len() as u32 >= MAX_CALL_DEPTH {
+            if self.report_budget {
+                let mut chain: Vec<&str> = self
+                    .inline
+                    .iter()
+                    .map(|f| g.sigs[f.helper].item.name.name.as_str())
+                    .collect();
+                chain.push(helper_name);
+                let n = chain.len();
+                let shown = if n > 6 {
+                    format!("{} -> ... -> {}", chain[..3].join(" -> "), chain[n - 3..].join(" -> "))
+                } else {
+                    chain.join(" -> ")
+                };
+                let mut d = err(
+                    "E0110",
+                    format!("helper calls nested too deeply (more than {MAX_CALL_DEPTH})"),
+                    span,
+                    format!("this call would inline `{helper_name}` as helper {n} of a chain"),
+                )
+                .help(format!("the chain of calls: {shown}"));
+                if self.outermost_call != span {
+                    d = d.secondary(self.outermost_call, "the chain starts with this call");
+                }
+                self.sink.push(d);
+            }
+            return None;
+        }
         if sig.ret.is_none() && !as_statement {
             self.sink.push(
                 err(
@@ -1359,8 +1435,13 @@ impl<'g, 'a> FnLower<'g, 'a> {
         let saved_interp = std::mem::replace(&mut self.in_interpolation, false);
         let diags_before = self.sink.items.len();
         let mut body = vec![];
-        self.stmts_in_scope(&sig.item.body.stmts, &mut body);
-        if self.sink.items.len() == diags_before && self.inlined <= INLINE_BUDGET {
+        // The body is lowered two levels deeper than the call (the inlining and its loop).
+        let entered = self.enter(2, span);
+        if entered {
+            self.stmts_in_scope(&sig.item.body.stmts, &mut body);
+            self.leave(2);
+        }
+        if entered && self.sink.items.len() == diags_before && self.inlined <= INLINE_BUDGET {
             self.lowered_cleanly.push(idx);
         }
         // Falling off the end leaves the helper too (unless it just returned).
@@ -1460,6 +1541,15 @@ impl<'g, 'a> FnLower<'g, 'a> {
     }
 
     pub fn expr(&mut self, e: &ast::Expr, pre: &mut Vec<Stmt>) -> Option<Expr> {
+        if !self.enter(1, e.span) {
+            return None;
+        }
+        let v = self.expr_nested(e, pre);
+        self.leave(1);
+        v
+    }
+
+    fn expr_nested(&mut self, e: &ast::Expr, pre: &mut Vec<Stmt>) -> Option<Expr> {
         use ast::ExprKind as K;
         let span = e.span;
         match &e.kind {

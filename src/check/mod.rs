@@ -442,18 +442,33 @@ struct CycleSearch<'g, 'a> {
 }
 
 impl CycleSearch<'_, '_> {
+    /// Visit everything reachable from `v` (on top of `self.stack`), depth first. Iterative:
+    /// a chain of helpers calling each other is as long as the file allows, and each one
+    /// is a level of this search. `next[k]`: the edge of `self.stack[k]` to look at next.
     fn visit(&mut self, v: usize, sink: &mut Sink) {
+        let base = self.stack.len() - 1;
         self.state[v] = 1;
-        for &(w, span) in &self.edges[v] {
-            if self.state[w] == 1 {
-                self.report(w, v, span, sink);
-            } else if self.state[w] == 0 {
-                self.stack.push((w, span));
-                self.visit(w, sink);
+        let mut next: Vec<usize> = vec![0];
+        while let Some(&(u, _)) = self.stack.get(base + next.len() - 1) {
+            let k = next.len() - 1;
+            let Some(&(w, span)) = self.edges[u].get(next[k]) else {
+                self.state[u] = 2;
+                next.pop();
+                if next.is_empty() {
+                    break;
+                }
                 self.stack.pop();
+                continue;
+            };
+            next[k] += 1;
+            if self.state[w] == 1 {
+                self.report(w, u, span, sink);
+            } else if self.state[w] == 0 {
+                self.state[w] = 1;
+                self.stack.push((w, span));
+                next.push(0);
             }
         }
-        self.state[v] = 2;
     }
 
     /// The call at `span` from `v` back to `w` (on the stack) closes the cycle w -> ... -> v -> w.

@@ -297,6 +297,104 @@ impl Expr {
     }
 }
 
+impl Expr {
+    /// [`Expr::for_each_child`] with mutable access (the depth limits cut subtrees off).
+    pub fn for_each_child_mut<'e>(&'e mut self, mut f: impl FnMut(&'e mut Expr)) {
+        match &mut self.kind {
+            ExprKind::Unary { expr, .. } => f(expr),
+            ExprKind::Binary { lhs, rhs, .. } => {
+                f(lhs);
+                f(rhs);
+            }
+            ExprKind::Ternary { cond, then, otherwise } => {
+                f(cond);
+                f(then);
+                f(otherwise);
+            }
+            ExprKind::Call { args, .. } | ExprKind::Construct { args, .. } | ExprKind::List(args) => {
+                args.iter_mut().for_each(f)
+            }
+            ExprKind::Index { base, index } => {
+                f(base);
+                f(index);
+            }
+            ExprKind::Int(_)
+            | ExprKind::Float(_)
+            | ExprKind::Bool(_)
+            | ExprKind::Str(_)
+            | ExprKind::Name(_)
+            | ExprKind::Error => {}
+        }
+    }
+
+    /// Move this node's sub-expressions to `out`, leaving it an `Error` leaf.
+    fn take_children(&mut self, out: &mut Vec<Expr>) {
+        match &mut self.kind {
+            ExprKind::Int(_)
+            | ExprKind::Float(_)
+            | ExprKind::Bool(_)
+            | ExprKind::Str(_)
+            | ExprKind::Name(_)
+            | ExprKind::Error => return,
+            _ => {}
+        }
+        match std::mem::replace(&mut self.kind, ExprKind::Error) {
+            ExprKind::Unary { expr, .. } => out.push(*expr),
+            ExprKind::Binary { lhs, rhs, .. } => out.extend([*lhs, *rhs]),
+            ExprKind::Ternary { cond, then, otherwise } => out.extend([*cond, *then, *otherwise]),
+            ExprKind::Call { args, .. } | ExprKind::Construct { args, .. } | ExprKind::List(args) => out.extend(args),
+            ExprKind::Index { base, index } => out.extend([*base, *index]),
+            _ => {}
+        }
+    }
+}
+
+/// Freed without recursion: the parser drops whole trees when it recovers from a syntax
+/// error, before the depth limits are checked, and a sum of 100,000 terms is a chain of
+/// 100,000 boxes (the derived drop takes a frame per box).
+impl Drop for Expr {
+    fn drop(&mut self) {
+        let mut pending = Vec::new();
+        self.take_children(&mut pending);
+        while let Some(mut e) = pending.pop() {
+            // `e` goes as a leaf: its own drop finds nothing to take.
+            e.take_children(&mut pending);
+        }
+    }
+}
+
+impl Stmt {
+    /// Move the statements nested in this one to `out` (its expressions stay; they free
+    /// themselves without recursion).
+    fn take_nested(&mut self, out: &mut Vec<Stmt>) {
+        match &mut self.kind {
+            StmtKind::If { then, otherwise, .. } => {
+                out.append(&mut then.stmts);
+                if let Some(o) = otherwise {
+                    out.append(&mut o.stmts);
+                }
+            }
+            StmtKind::For { body, .. } | StmtKind::While { body, .. } | StmtKind::Block(body) => {
+                out.append(&mut body.stmts)
+            }
+            StmtKind::Interpolation { arms } => arms.iter_mut().for_each(|a| out.append(&mut a.body)),
+            // `for` headers hold simple statements only.
+            _ => {}
+        }
+    }
+}
+
+/// Freed without recursion, as [`Expr`]: 100,000 nested blocks parse into a chain.
+impl Drop for Stmt {
+    fn drop(&mut self) {
+        let mut pending = Vec::new();
+        self.take_nested(&mut pending);
+        while let Some(mut s) = pending.pop() {
+            s.take_nested(&mut pending);
+        }
+    }
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub enum ExprKind {
     Int(i64),

@@ -36,9 +36,15 @@ pub fn int_lit(file: FileId, l: usize, r: usize, value: i64) -> Expr {
 }
 
 /// The body of an `if`/`while`/`for`: a block as written, or a single statement wrapped.
-pub fn as_block(s: Stmt) -> Block {
-    match s.kind {
-        StmtKind::Block(b) => b,
+pub fn as_block(mut s: Stmt) -> Block {
+    match &mut s.kind {
+        StmtKind::Block(b) => std::mem::replace(
+            b,
+            Block {
+                stmts: vec![],
+                span: b.span,
+            },
+        ),
         _ => {
             let span = s.span;
             Block { stmts: vec![s], span }

@@ -4,11 +4,13 @@
 //! Syntax errors have codes `E00xx`. The grammar recovers at statement (`;`) and item (`}`)
 //! boundaries, so one parse reports several errors; an unrecoverable error (end of file in
 //! the middle of an item) still returns the items parsed before it. After this point every
-//! node has a span and names are as written: nothing is resolved yet.
+//! node has a span and names are as written: nothing is resolved yet, and the tree is within
+//! the depth limits of [`crate::limits`] ([`limits::enforce`]).
 
 pub mod ast;
 pub mod build;
 pub mod lexer;
+pub mod limits;
 
 lalrpop_util::lalrpop_mod!(
     #[allow(clippy::all, unused_parens, unused_imports)]
@@ -24,6 +26,17 @@ use lexer::{LexError, Tok};
 /// Parse one source file. Never panics; on syntax errors the returned module holds what
 /// could be recovered (with `Error` nodes) and `diags` holds the errors.
 pub fn parse(file: FileId, text: &str, diags: &mut Diagnostics) -> ast::Module {
+    if let Some(d) = limits::source_too_large(file, text) {
+        diags.push(d);
+        return ast::Module::default();
+    }
+    let mut module = parse_unchecked(file, text, diags);
+    limits::enforce(&mut module, diags);
+    module
+}
+
+/// [`parse`] without the limits: the tree may be of any depth.
+fn parse_unchecked(file: FileId, text: &str, diags: &mut Diagnostics) -> ast::Module {
     let mut tokens = lexer::lex(file, text, diags);
     let mut recovered = Vec::new();
     let mut extra = Vec::new();
@@ -48,13 +61,21 @@ pub fn parse(file: FileId, text: &str, diags: &mut Diagnostics) -> ast::Module {
 
 /// Parse a single expression (tests and tools).
 pub fn parse_expr(file: FileId, text: &str, diags: &mut Diagnostics) -> Option<ast::Expr> {
+    if let Some(d) = limits::source_too_large(file, text) {
+        diags.push(d);
+        return None;
+    }
     let mut tokens = lexer::lex(file, text, diags);
     let mut recovered = Vec::new();
     let mut extra = Vec::new();
     let result = grammar::ExprParser::new().parse(file, &mut recovered, &mut extra, &mut tokens);
     tokens.for_each(drop);
     match result {
-        Ok(e) if recovered.is_empty() => Some(e),
+        Ok(mut e) if recovered.is_empty() => {
+            let before = diags.error_count();
+            limits::enforce_expr(&mut e, diags);
+            (diags.error_count() == before).then_some(e)
+        }
         Ok(_) => {
             for r in recovered {
                 diags.push(parse_error(file, text, r.error));

@@ -11,6 +11,7 @@ mod calls;
 #[path = "../common/mod.rs"]
 mod common;
 mod dead_setup;
+mod deep_programs;
 mod disassembly;
 mod edges;
 mod error_order;
