@@ -8,4 +8,5 @@ mod check_errors;
 mod check_fuzz;
 mod check_ok;
 mod check_passes;
+mod diag_limits;
 mod parse;
