@@ -3,11 +3,12 @@
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
-#[path = "../common/mod.rs"]
-mod common;
 mod accuracy_cli;
 mod accuracy_knobs;
 mod bench_effects;
 mod bench_llvmpipe;
 mod bench_scene;
 mod cli_run;
+#[path = "../common/mod.rs"]
+mod common;
+mod output_files;
