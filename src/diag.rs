@@ -8,6 +8,7 @@
 
 use std::fmt;
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 /// Index of a file in the [`SourceMap`].
 pub type FileId = u32;
@@ -53,6 +54,47 @@ pub struct SourceFile {
     pub name: String,
     pub path: Option<PathBuf>,
     pub text: String,
+    /// Byte offset of each line's start (the first is 0), built on first use: every
+    /// diagnostic's line and column is a binary search in it, not a scan of the text, so
+    /// reporting n problems in a file costs n log n rather than n times the file's size.
+    line_starts: OnceLock<Vec<u32>>,
+}
+
+impl SourceFile {
+    /// Byte offset of each line's start; a line ends after its `\n` (or at the end of text).
+    pub fn line_starts(&self) -> &[u32] {
+        self.line_starts.get_or_init(|| line_starts_of(&self.text))
+    }
+    /// 0-based index of the line holding byte `offset` (offsets past the end: the last line).
+    pub fn line_index(&self, offset: usize) -> usize {
+        let starts = self.line_starts();
+        starts.partition_point(|&s| s as usize <= offset) - 1
+    }
+    /// Byte range of line `line` without its line break.
+    pub fn line_range(&self, line: usize) -> (usize, usize) {
+        let starts = self.line_starts();
+        let start = starts[line] as usize;
+        let mut end = starts.get(line + 1).map_or(self.text.len(), |&s| s as usize);
+        let bytes = self.text.as_bytes();
+        if end > start && bytes[end - 1] == b'\n' {
+            end -= 1;
+            if end > start && bytes[end - 1] == b'\r' {
+                end -= 1;
+            }
+        }
+        (start, end)
+    }
+}
+
+fn line_starts_of(text: &str) -> Vec<u32> {
+    std::iter::once(0)
+        .chain(
+            text.bytes()
+                .enumerate()
+                .filter(|&(_, b)| b == b'\n')
+                .map(|(i, _)| i as u32 + 1),
+        )
+        .collect()
 }
 
 /// All source files of a compilation (the prims/ directory, user directories, a scene file).
@@ -70,6 +112,7 @@ impl SourceMap {
             name: name.into(),
             path: None,
             text: text.into(),
+            line_starts: OnceLock::new(),
         });
         (self.files.len() - 1) as FileId
     }
@@ -87,12 +130,12 @@ impl SourceMap {
     }
     /// 1-based line and column (in characters) of a byte offset.
     pub fn line_col(&self, file: FileId, offset: u32) -> (usize, usize) {
-        let text = self.text(file);
-        let offset = (offset as usize).min(text.len());
-        let before = &text[..floor_char_boundary(text, offset)];
-        let line = before.matches('\n').count() + 1;
-        let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-        (line, col)
+        let file = self.file(file);
+        let text = &file.text;
+        let offset = floor_char_boundary(text, (offset as usize).min(text.len()));
+        let line = file.line_index(offset);
+        let start = file.line_starts()[line] as usize;
+        (line + 1, text[start..offset].chars().count() + 1)
     }
     /// `file:line:col` of the start of a span.
     pub fn location(&self, span: Span) -> String {
@@ -108,13 +151,13 @@ fn floor_char_boundary(s: &str, mut i: usize) -> usize {
     i
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Severity {
     Error,
     Warning,
 }
 
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct Label {
     pub span: Span,
     pub message: String,
@@ -122,7 +165,7 @@ pub struct Label {
     pub primary: bool,
 }
 
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct Diagnostic {
     pub severity: Severity,
     /// Stable code, e.g. `E0101`. Listed in docs/language.md.
@@ -187,8 +230,15 @@ impl Diagnostic {
     /// Render rustc-style with miette: `error[E0101]: message`, `--> file:line:col`, the
     /// underlined source and the labels. Labels in other files than the primary one are
     /// listed by location below.
+    ///
+    /// Miette is shown only the lines around the labels (through [`Snippet`], with the file's
+    /// line index), never asked to scan the whole file. When a line it would show is longer
+    /// than [`LONG_LINE`] bytes, only the primary label's line is shown, cut to a window
+    /// around the label: a column past 65,535 made miette's graphical renderer panic, and a
+    /// generated line of megabytes is no help on a terminal. Labels outside that window are
+    /// listed by location like labels in other files.
     pub fn render(&self, sources: &SourceMap) -> String {
-        use miette::{GraphicalReportHandler, GraphicalTheme, LabeledSpan, MietteDiagnostic, NamedSource};
+        use miette::{GraphicalReportHandler, GraphicalTheme, LabeledSpan, MietteDiagnostic};
         let Some(primary) = self.primary_span() else {
             let kind = if self.is_error() { "error" } else { "warning" };
             let mut s = format!("{kind}[{}]: {}\n", self.code, self.message);
@@ -198,24 +248,24 @@ impl Diagnostic {
             return s;
         };
         let file = sources.file(primary.file);
+        let snippet = Snippet::new(file, primary, &self.labels);
         let mut labels = Vec::new();
         let mut elsewhere = Vec::new();
         for l in &self.labels {
-            if l.span.file == primary.file {
-                let start = (l.span.start as usize).min(file.text.len());
-                let len = (l.span.len()).min(file.text.len() - start);
-                let msg = if l.message.is_empty() {
-                    None
-                } else {
-                    Some(l.message.clone())
-                };
-                labels.push(if l.primary {
-                    LabeledSpan::new_primary_with_span(msg, (start, len))
-                } else {
-                    LabeledSpan::new_with_span(msg, (start, len))
-                });
-            } else {
-                elsewhere.push(format!("{}: {}", sources.location(l.span), l.message));
+            match snippet.place(l) {
+                Some((start, len)) => {
+                    let msg = if l.message.is_empty() {
+                        None
+                    } else {
+                        Some(l.message.clone())
+                    };
+                    labels.push(if l.primary {
+                        LabeledSpan::new_primary_with_span(msg, (start, len))
+                    } else {
+                        LabeledSpan::new_with_span(msg, (start, len))
+                    });
+                }
+                None => elsewhere.push(format!("{}: {}", sources.location(l.span), l.message)),
             }
         }
         let mut help = self.help.clone().unwrap_or_default();
@@ -235,26 +285,228 @@ impl Diagnostic {
         if !help.is_empty() {
             d = d.with_help(help);
         }
-        let report = miette::Report::new(d).with_source_code(NamedSource::new(file.name.clone(), file.text.clone()));
+        let report = miette::Report::new(d).with_source_code(snippet);
         let mut out = String::new();
         let handler = GraphicalReportHandler::new_themed(GraphicalTheme::unicode_nocolor()).with_width(100);
         if handler.render_report(&mut out, report.as_ref()).is_err() {
-            out = format!(
-                "{}[{}]: {} at {}\n",
-                if self.is_error() { "error" } else { "warning" },
-                self.code,
-                self.message,
-                sources.location(primary)
-            );
+            out = self.render_plain(sources);
         }
         out
     }
+
+    /// `error[E0101]: message at file:line:col`: the rendering when the graphical one fails.
+    pub fn render_plain(&self, sources: &SourceMap) -> String {
+        let kind = if self.is_error() { "error" } else { "warning" };
+        match self.primary_span() {
+            Some(at) => format!("{kind}[{}]: {} at {}\n", self.code, self.message, sources.location(at)),
+            None => format!("{kind}[{}]: {}\n", self.code, self.message),
+        }
+    }
 }
+
+/// Lines longer than this many bytes are shown cut to a window around the primary label
+/// (see [`Diagnostic::render`]).
+pub const LONG_LINE: usize = 400;
+/// Bytes of a long line shown on each side of the primary label, and at most of the label.
+const WINDOW_SIDE: usize = 60;
+const WINDOW_LABEL: usize = 120;
+/// Marks a cut end of a long line.
+const CUT: &str = "…";
+
+/// The source text miette is shown for one diagnostic: the whole file (answered from its line
+/// index), or one window of a long line (`window` set). Offsets given to miette are in
+/// `text`; the line and column it prints are the file's.
+struct Snippet {
+    file: FileId,
+    name: String,
+    text: std::sync::Arc<str>,
+    /// Line starts of `text`.
+    starts: std::sync::Arc<[u32]>,
+    /// The window of a long line, when `text` is one.
+    window: Option<Window>,
+}
+
+/// A window of one long line.
+#[derive(Clone, Copy)]
+struct Window {
+    /// Byte range of the window in the file.
+    start: usize,
+    end: usize,
+    /// The line it is on (0-based).
+    line: usize,
+    /// Characters of the line before `start`.
+    chars_before: usize,
+    /// Bytes of [`CUT`] before the window in the snippet's text.
+    prefix: usize,
+}
+
+impl Snippet {
+    fn new(file: &SourceFile, primary: Span, labels: &[Label]) -> Snippet {
+        let text = &file.text;
+        let clamp = |o: u32| floor_char_boundary(text, (o as usize).min(text.len()));
+        // The lines miette would show: each label's lines and one line of context each side.
+        let last_line = file.line_starts().len() - 1;
+        let long = labels.iter().filter(|l| l.span.file == primary.file).any(|l| {
+            let first = file.line_index(clamp(l.span.start)).saturating_sub(1);
+            let last = (file.line_index(clamp(l.span.end)) + 1).min(last_line);
+            // A label over thousands of lines is shown cut by the window too.
+            last - first > 1000 || (first..=last).any(|i| file.line_range(i).1 - file.line_range(i).0 > LONG_LINE)
+        });
+        if !long {
+            return Snippet {
+                file: primary.file,
+                name: file.name.clone(),
+                text: text.as_str().into(),
+                starts: file.line_starts().into(),
+                window: None,
+            };
+        }
+        let (p_start, p_end) = (clamp(primary.start), clamp(primary.end));
+        let line = file.line_index(p_start);
+        let (line_start, line_end) = file.line_range(line);
+        let p_start = p_start.min(line_end);
+        let shown_end = p_end.clamp(p_start, line_end).min(p_start + WINDOW_LABEL);
+        let start = floor_char_boundary(text, p_start.saturating_sub(WINDOW_SIDE).max(line_start));
+        let end = ceil_char_boundary(text, (shown_end + WINDOW_SIDE).min(line_end));
+        let mut shown = String::new();
+        if start > line_start {
+            shown.push_str(CUT);
+        }
+        let prefix = shown.len();
+        shown.push_str(&text[start..end]);
+        if end < line_end {
+            shown.push_str(CUT);
+        }
+        Snippet {
+            file: primary.file,
+            name: file.name.clone(),
+            starts: vec![0].into(),
+            text: shown.into(),
+            window: Some(Window {
+                start,
+                end,
+                line,
+                chars_before: text[line_start..start].chars().count(),
+                prefix,
+            }),
+        }
+    }
+
+    /// Where label `l` goes in `text` as (offset, length), or `None` when it is not shown
+    /// (another file, or outside the window).
+    fn place(&self, l: &Label) -> Option<(usize, usize)> {
+        if l.span.file != self.file {
+            return None;
+        }
+        let (start, end) = (l.span.start as usize, l.span.end as usize);
+        match self.window {
+            None => {
+                let file_len = self.text.len();
+                let start = start.min(file_len);
+                Some((start, end.min(file_len).saturating_sub(start)))
+            }
+            Some(w) => {
+                // The primary label always shows (cut to the window); others only when they
+                // start inside it.
+                if !l.primary && !(w.start <= start && start < w.end.max(w.start + 1)) {
+                    return None;
+                }
+                let start = start.clamp(w.start, w.end);
+                let end = end.clamp(start, w.end);
+                Some((start - w.start + w.prefix, end - start))
+            }
+        }
+    }
+
+    /// 0-based line index in `text` of byte `offset`.
+    fn line_of(&self, offset: usize) -> usize {
+        self.starts.partition_point(|&s| s as usize <= offset) - 1
+    }
+
+    /// End of line `line` of `text` after its line break.
+    fn line_end(&self, line: usize) -> usize {
+        self.starts.get(line + 1).map_or(self.text.len(), |&s| s as usize)
+    }
+}
+
+impl miette::SourceCode for Snippet {
+    /// What miette's `[u8]` implementation answers (the same contents, lines and columns),
+    /// from the line index instead of a scan from the start of the file.
+    fn read_span<'a>(
+        &'a self,
+        span: &miette::SourceSpan,
+        context_lines_before: usize,
+        context_lines_after: usize,
+    ) -> Result<Box<dyn miette::SpanContents<'a> + 'a>, miette::MietteError> {
+        let (start, len) = (span.offset(), span.len());
+        let end = start + len;
+        if end > self.text.len() {
+            return Err(miette::MietteError::OutOfBounds);
+        }
+        let first_label_line = self.line_of(start);
+        let last_label_line = self.line_of(end.saturating_sub(1).max(start));
+        let first = first_label_line.saturating_sub(context_lines_before);
+        let last = (last_label_line + context_lines_after).min(self.starts.len() - 1);
+        let data_start = if context_lines_before == 0 {
+            start
+        } else {
+            self.starts[first] as usize
+        };
+        let data_end = if context_lines_after == 0 {
+            end
+        } else {
+            self.line_end(last)
+        };
+        // Miette counts line breaks from the start of the source up to the end of the data.
+        let breaks_before_end = self.starts.partition_point(|&s| (s as usize) <= data_end) - 1;
+        let (line, column, line_count) = match self.window {
+            None => {
+                let column = if context_lines_before == 0 {
+                    self.text[self.starts[first_label_line] as usize..start].chars().count()
+                } else {
+                    0
+                };
+                (first.min(first_label_line), column, breaks_before_end)
+            }
+            Some(w) => {
+                let column = if context_lines_before == 0 {
+                    w.chars_before + self.text[w.prefix.min(start)..start.max(w.prefix)].chars().count()
+                } else {
+                    0
+                };
+                (w.line, column, w.line + breaks_before_end)
+            }
+        };
+        Ok(Box::new(miette::MietteSpanContents::new_named(
+            self.name.clone(),
+            &self.text.as_bytes()[data_start..data_end],
+            (data_start, data_end - data_start).into(),
+            line,
+            column,
+            line_count,
+        )))
+    }
+}
+
+fn ceil_char_boundary(s: &str, mut i: usize) -> usize {
+    while i < s.len() && !s.is_char_boundary(i) {
+        i += 1;
+    }
+    i
+}
+
+/// The most errors a [`Diagnostics`] sink keeps. The next one is replaced by an `E0099`
+/// "too many errors" at its place, and any after it are only counted ([`Diagnostics::error_count`]
+/// still tells them all): a generated file with a mistake on every line reports a screenful,
+/// not a million lines.
+pub const MAX_ERRORS: usize = 1000;
 
 /// A sink of diagnostics: every stage pushes here and goes on where it can.
 #[derive(Clone, Debug, Default)]
 pub struct Diagnostics {
     pub items: Vec<Diagnostic>,
+    /// Errors pushed (kept or not).
+    errors: usize,
 }
 
 impl Diagnostics {
@@ -262,16 +514,38 @@ impl Diagnostics {
         Diagnostics::default()
     }
     pub fn push(&mut self, d: Diagnostic) {
+        if d.is_error() {
+            self.errors += 1;
+            if self.errors > MAX_ERRORS {
+                if self.errors == MAX_ERRORS + 1 {
+                    let mut notice = Diagnostic::error(
+                        "E0099",
+                        format!("too many errors: the first {MAX_ERRORS} are shown; this one and any after it are counted only"),
+                    );
+                    if let Some(at) = d.primary_span() {
+                        notice = notice.primary(at, format!("error {} was [{}] {}", MAX_ERRORS + 1, d.code, d.message));
+                    }
+                    self.items.push(notice);
+                }
+                return;
+            }
+        }
         self.items.push(d);
     }
     pub fn extend(&mut self, other: Diagnostics) {
-        self.items.extend(other.items);
+        for d in other.items {
+            self.push(d);
+        }
+        // Errors `other` itself only counted.
+        self.errors += other.errors.saturating_sub(MAX_ERRORS + 1);
     }
     pub fn has_errors(&self) -> bool {
-        self.items.iter().any(|d| d.is_error())
+        self.errors > 0 || self.items.iter().any(|d| d.is_error())
     }
+    /// Errors reported, including those past [`MAX_ERRORS`] that were only counted.
     pub fn error_count(&self) -> usize {
-        self.items.iter().filter(|d| d.is_error()).count()
+        let kept = self.items.iter().filter(|d| d.is_error()).count();
+        kept.max(self.errors)
     }
     /// `code@line:col` per diagnostic, for compact test assertions.
     pub fn codes_at(&self, sources: &SourceMap) -> Vec<String> {

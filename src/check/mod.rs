@@ -64,21 +64,32 @@ pub fn check(modules: &[&ast::Module], diags: &mut Diagnostics) -> ir::Program {
     }
     let mut items = sink.items;
     items.sort_by_key(|d| d.primary_span().map(|s| (s.file, s.start)));
-    diags.items.extend(items);
+    for d in items {
+        diags.push(d);
+    }
     program
 }
 
-/// A diagnostics collector that keeps the first of identical diagnostics.
+/// A diagnostics collector that keeps the first of identical diagnostics (looked up in a
+/// hash set: a linear search made reporting n errors cost n^2).
 #[derive(Default)]
 pub struct Sink {
     pub items: Vec<Diagnostic>,
+    seen: std::collections::HashSet<Diagnostic>,
+    errors: usize,
 }
 
 impl Sink {
     pub fn push(&mut self, d: Diagnostic) {
-        if !self.items.contains(&d) {
+        if !self.seen.contains(&d) {
+            self.errors += usize::from(d.is_error());
+            self.seen.insert(d.clone());
             self.items.push(d);
         }
+    }
+    /// Errors kept so far.
+    pub fn error_count(&self) -> usize {
+        self.errors
     }
 }
 
@@ -719,9 +730,9 @@ fn lower_function(
         loops: n_loops,
         uses_spaces,
     };
-    let errors_before = sink.items.iter().filter(|d| d.is_error()).count();
+    let errors_before = sink.error_count();
     variability::analyze(&mut f, &infos, roles, sink);
-    let variability_errors = sink.items.iter().filter(|d| d.is_error()).count() > errors_before;
+    let variability_errors = sink.error_count() > errors_before;
     match kind {
         FuncKind::Primitive => {
             let mut d = Diagnostics::new();

@@ -348,6 +348,26 @@ pub fn parse_key(spec: &str, program: &Program) -> Result<VariantKey, String> {
 }
 
 fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+    // Every output path is checked (format, directory) before anything is loaded or rendered.
+    let mut targets: Vec<(&Path, &'static str)> = vec![(&args.output, "image")];
+    if let Some(path) = &args.depth {
+        targets.push((path, "depth image"));
+    }
+    for pair in args.param.chunks(2) {
+        if let [_, path] = pair {
+            targets.push((Path::new(path), "parameter image"));
+        }
+    }
+    let outputs = match OutputFiles::claim(&targets) {
+        Ok(outputs) => outputs,
+        Err(problems) => {
+            for p in problems {
+                let _ = writeln!(err, "error: {p}");
+            }
+            let _ = writeln!(err, "error: nothing rendered, no file written");
+            return 1;
+        }
+    };
     // The render threads start (thread creation, the CPU topology read for pinning: ~0.5 ms)
     // while this thread loads the scene and the library.
     // (Where no helper thread can start, the pool is made in place below.)
@@ -413,26 +433,28 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
         return 1;
     }
     let frame = &result.frame;
-    let mut written = vec![];
-    let mut failures = vec![];
-    let mut save = |path: &Path, what: &str, r: image::ImageResult<()>| match r {
-        Ok(()) => written.push(path.display().to_string()),
-        Err(e) => failures.push(format!("cannot write the {what} to `{}`: {e}", path.display())),
-    };
-    save(&args.output, "image", frame.to_rgb8().save(&args.output));
-    if let Some(path) = &args.depth {
-        save(path, "depth image", frame.depth_image().save(path));
+    // All images first, then all files: a bad `--param` name writes nothing.
+    let mut images = vec![image::DynamicImage::ImageRgb8(frame.to_rgb8())];
+    if args.depth.is_some() {
+        images.push(image::DynamicImage::ImageLuma16(frame.depth_image()));
     }
-    let mut param_errors = vec![];
+    let mut failures = vec![];
     for pair in args.param.chunks(2) {
-        let [name, path] = pair else { continue };
-        let path = Path::new(path);
+        let [name, _] = pair else { continue };
         match frame.param_image(name) {
-            Ok(img) => save(path, "parameter image", img.save(path)),
-            Err(message) => param_errors.push(format!("--param {name}: {message}")),
+            Ok(img) => images.push(image::DynamicImage::ImageRgb8(img)),
+            Err(message) => failures.push(format!("--param {name}: {message}")),
         }
     }
-    failures.extend(param_errors);
+    let mut written = vec![];
+    if failures.is_empty() {
+        match outputs.commit(images) {
+            Ok(files) => written = files,
+            Err(e) => failures.push(e),
+        }
+    } else {
+        failures.push("no file written".to_string());
+    }
     for f in &failures {
         let _ = writeln!(err, "error: {f}");
     }
@@ -460,6 +482,82 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
         0
     } else {
         1
+    }
+}
+
+/// The image files `render` writes, claimed before rendering and written whole or not at all.
+///
+/// [`OutputFiles::claim`] checks every path before any work: the format (PNG only) from the
+/// file name, and the directory, by creating an empty temporary file next to the target
+/// (`.NAME.primflow-PID-N.tmp`). [`OutputFiles::commit`] writes each image into its temporary
+/// file and only then renames them into place, so an existing file is never truncated by a
+/// refused or failed render, and a bad `--depth` / `--param` path fails before the main image
+/// is written. Temporary files still there when this is dropped are removed.
+struct OutputFiles {
+    /// (target, its temporary file, what it is) per output, in the order given.
+    files: Vec<(PathBuf, PathBuf, &'static str)>,
+}
+
+impl OutputFiles {
+    fn claim(targets: &[(&Path, &'static str)]) -> Result<OutputFiles, Vec<String>> {
+        let mut files = OutputFiles { files: vec![] };
+        let mut problems = vec![];
+        for &(path, what) in targets {
+            if image::ImageFormat::from_path(path).ok() != Some(image::ImageFormat::Png) {
+                problems.push(format!(
+                    "cannot write the {what} to `{}`: only PNG is supported (the name must end in .png)",
+                    path.display()
+                ));
+                continue;
+            }
+            let name = path
+                .file_name()
+                .map(|n| n.to_string_lossy().to_string())
+                .unwrap_or_default();
+            // Unique per process and claim (tests render in parallel in one process).
+            static CLAIMS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+            let claim = CLAIMS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let temp = path.with_file_name(format!(".{name}.primflow-{}-{claim}.tmp", std::process::id()));
+            match std::fs::File::create(&temp) {
+                Ok(_) => files.files.push((path.to_path_buf(), temp, what)),
+                Err(e) => problems.push(format!("cannot write the {what} to `{}`: {e}", path.display())),
+            }
+        }
+        if problems.is_empty() {
+            Ok(files)
+        } else {
+            Err(problems)
+        }
+    }
+
+    /// Write `images` (one per claimed file, in order) to the temporary files, then rename
+    /// them all into place. On an error nothing has been renamed, except when a rename itself
+    /// fails after others succeeded.
+    fn commit(mut self, images: Vec<image::DynamicImage>) -> Result<Vec<String>, String> {
+        for ((path, temp, what), img) in self.files.iter().zip(&images) {
+            img.save_with_format(temp, image::ImageFormat::Png)
+                .map_err(|e| format!("cannot write the {what} to `{}`: {e}", path.display()))?;
+        }
+        let files = std::mem::take(&mut self.files);
+        let mut written = vec![];
+        for (i, (path, temp, what)) in files.iter().enumerate() {
+            if let Err(e) = std::fs::rename(temp, path) {
+                for (_, left, _) in &files[i..] {
+                    let _ = std::fs::remove_file(left);
+                }
+                return Err(format!("cannot write the {what} to `{}`: {e}", path.display()));
+            }
+            written.push(path.display().to_string());
+        }
+        Ok(written)
+    }
+}
+
+impl Drop for OutputFiles {
+    fn drop(&mut self) {
+        for (_, temp, _) in &self.files {
+            let _ = std::fs::remove_file(temp);
+        }
     }
 }
 

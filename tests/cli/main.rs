@@ -11,3 +11,4 @@ mod bench_scene;
 mod cli_run;
 #[path = "../common/mod.rs"]
 mod common;
+mod output_files;

@@ -9,4 +9,5 @@ mod check_fuzz;
 mod check_ok;
 mod check_passes;
 mod limits;
+mod diag_limits;
 mod parse;
