@@ -1,6 +1,6 @@
 //! The front end: lexer and grammar (`parse`), the checker's diagnostics (`check_errors`, `check_ok`,
 //! with insta snapshots under `snapshots/`), its passes over the IR (`check_passes`) and a fuzz of
-//! mutated sources (`check_fuzz`).
+//! mutated sources (`check_fuzz`), and the IR validator's rules (`valid`).
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
@@ -9,3 +9,4 @@ mod check_fuzz;
 mod check_ok;
 mod check_passes;
 mod parse;
+mod valid;
