@@ -4,7 +4,10 @@
 //! [`Function`]. Helper functions do not survive into the IR: the checker inlines each call
 //! (a one-trip [`Stmt::Loop`] whose `return` is a `Break`), so recursion is rejected there.
 //!
-//! Rules that hold for a checked program (codegen relies on them and asserts none):
+//! Rules that hold for a checked program. Codegen relies on them and asserts none: the
+//! validator [`valid`] states each as a [`valid::Rule`] and checks it after the checker and
+//! after every pass that rewrites a function (`forward`, the JIT's `unroll`) in test and
+//! debug builds, so a pass that breaks one is an internal compiler error, not a miscompile:
 //! - Every [`Expr`] has a concrete [`Type`] and a [`Variability`]. An expression is varying
 //!   iff one of its operands is. Operands of `Binary` have the same scalar element (the
 //!   checker inserts `Convert`), and the same shape, except that one side may be a scalar
@@ -18,14 +21,20 @@
 //! - Each function is split into `setup` (uniform statements run once per primitive
 //!   instance per tile) and `pixel` (run once per pixel group, varying values as vectors,
 //!   uniform values as scalars); see [`split`].
-//! - Indexing carries a [`SiteId`]: codegen clamps the index into range and records a
-//!   runtime error at that site, so no program reads or writes outside its storage (an
-//!   index [`range`] proves in range at every occurrence of its site needs neither).
+//! - Indexing carries a [`SiteId`] of `Program::sites`: codegen clamps the index into range
+//!   and records a runtime error at that site, so no program reads or writes outside its
+//!   storage (an index [`range`] proves in range at every occurrence of its site needs
+//!   neither). Locals, loop ids and callees are in range; `break`/`continue` leave an
+//!   enclosing loop.
+//! - A primitive call passes one argument per callee parameter, of its type, uniform, and
+//!   X, Y, Z as the caller's own; `interpolator_return` and `interpolation` occur only where
+//!   [`valid`] says.
 
 pub mod forward;
 pub mod print;
 pub mod range;
 pub mod split;
+pub mod valid;
 
 use crate::diag::Span;
 pub use crate::ops::{BinOp, UnaryOp};
