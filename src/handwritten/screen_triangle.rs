@@ -28,6 +28,17 @@ pub(crate) struct Setup<const T: usize> {
     pub fa: [f32; 3],
     pub fb: [f32; 3],
     pub fc: [f32; 3],
+    /// Float edges: whether each is top-left (a tie `e == 0` keeps the pixel).
+    pub ftl: [bool; 3],
+    /// Over 1024 px with every vertex within 2^24 px: the edges in exact integers on the
+    /// global 1/16 grid (the prim's two-limb `limb_sign`, here in i64): `wa * (16 x - gx) +
+    /// wb * (16 y - gy) + wtl > 0`.
+    pub wide: bool,
+    pub wa: [i64; 3],
+    pub wb: [i64; 3],
+    pub wtl: [i64; 3],
+    pub gx: [i64; 3],
+    pub gy: [i64; 3],
     pub z: [f32; 3],
     /// Planes of the linear parameters (a, b, c per component).
     pub la: [f32; T],
@@ -134,9 +145,16 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32, e: Extent) -> Optio
     let sv = |v: usize, c: usize| f32::from_bits(unsafe { word(args, sv_at + v * 4 + c) });
     let data = |v: usize, c: usize| f32::from_bits(unsafe { word(args, data_at + v * T + c) });
     let Extent {
-        ox, oy, max_x, max_y, ..
+        ox,
+        oy,
+        max_x,
+        max_y,
+        min_x,
+        min_y,
     } = e;
     let exact = max_x - ox < 1024.0 && max_y - oy < 1024.0;
+    const WIDE_LIMIT: f32 = 16777216.0;
+    let wide = !exact && min_x > -WIDE_LIMIT && max_x < WIDE_LIMIT && min_y > -WIDE_LIMIT && max_y < WIDE_LIMIT;
     let mut vx = [0i32; 3];
     let mut vy = [0i32; 3];
     let mut px = [0f32; 3];
@@ -147,7 +165,18 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32, e: Extent) -> Optio
         px[i] = ox + vx[i] as f32 / 16.0;
         py[i] = oy + vy[i] as f32 / 16.0;
     }
-    if !exact {
+    // The wide path's vertices on the global 1/16 grid (the prim splits them into limbs;
+    // i64 holds them whole).
+    let (mut gx, mut gy) = ([0i64; 3], [0i64; 3]);
+    if wide {
+        for i in 0..3 {
+            let (fx, fy) = ((sv(i, 0) * 16.0).round_ties_even(), (sv(i, 1) * 16.0).round_ties_even());
+            gx[i] = fx as i64;
+            gy[i] = fy as i64;
+            px[i] = fx / 16.0;
+            py[i] = fy / 16.0;
+        }
+    } else if !exact {
         for i in 0..3 {
             px[i] = sv(i, 0);
             py[i] = sv(i, 1);
@@ -156,24 +185,45 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32, e: Extent) -> Optio
     let (dx1, dy1) = (px[1] - px[0], py[1] - py[0]);
     let (dx2, dy2) = (px[2] - px[0], py[2] - py[0]);
     let det = dx1 * dy2 - dx2 * dy1;
-    if det == 0.0 || !(det.abs() < 1e30) {
+    let mut orient: i32 = if det > 0.0 { 1 } else { -1 };
+    if wide {
+        let exact_det = (gx[1] - gx[0]) * (gy[2] - gy[0]) - (gx[2] - gx[0]) * (gy[1] - gy[0]);
+        orient = exact_det.signum() as i32;
+        if orient == 0 {
+            return None;
+        }
+    } else if det == 0.0 || !(det.abs() < 1e30) {
         return None;
     }
-    let orient: i32 = if det > 0.0 { 1 } else { -1 };
     let (mut ea, mut eb, mut ec) = ([0i32; 3], [0i32; 3], [0i32; 3]);
     let (mut fa, mut fb, mut fc) = ([0f32; 3], [0f32; 3], [0f32; 3]);
+    let (mut wa, mut wb, mut wtl) = ([0i64; 3], [0i64; 3], [0i64; 3]);
+    let mut ftl = [false; 3];
     for i in 0..3 {
         let j = (i + 1) % 3;
         ea[i] = (-orient).wrapping_mul(vy[j].wrapping_sub(vy[i]));
         eb[i] = orient.wrapping_mul(vx[j].wrapping_sub(vx[i]));
         let top_left = if ea[i] > 0 || (ea[i] == 0 && eb[i] < 0) { 1 } else { 0 };
         ec[i] = top_left - (ea[i].wrapping_mul(vx[i]).wrapping_add(eb[i].wrapping_mul(vy[i])));
-        fa[i] = (-orient) as f32 * (py[j] - py[i]);
-        fb[i] = orient as f32 * (px[j] - px[i]);
-        fc[i] = -(fa[i] * px[i] + fb[i] * py[i]);
-        if top_left == 0 {
-            fc[i] = fc[i] - fc[i].abs() * 1e-7 - 1e-30;
+        if wide {
+            wa[i] = -i64::from(orient) * (gy[j] - gy[i]);
+            wb[i] = i64::from(orient) * (gx[j] - gx[i]);
+            wtl[i] = i64::from(wa[i] > 0 || (wa[i] == 0 && wb[i] < 0));
         }
+        // The float edge from its endpoints in canonical order, then oriented (as the prim).
+        let (lo, hi) = if px[j] < px[i] || (px[j] == px[i] && py[j] < py[i]) {
+            (j, i)
+        } else {
+            (i, j)
+        };
+        let a = -(py[hi] - py[lo]);
+        let b = px[hi] - px[lo];
+        let c = -(a * px[lo] + b * py[lo]);
+        let sign = if lo == i { orient } else { -orient } as f32;
+        fa[i] = sign * a;
+        fb[i] = sign * b;
+        fc[i] = sign * c;
+        ftl[i] = fa[i] > 0.0 || (fa[i] == 0.0 && fb[i] < 0.0);
     }
     // The planes go through the vertices as given, not as snapped (as in
     // prims/screen_triangle.prim): the values belong to those positions. Degenerate as
@@ -214,6 +264,13 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32, e: Extent) -> Optio
         fa,
         fb,
         fc,
+        ftl,
+        wide,
+        wa,
+        wb,
+        wtl,
+        gx,
+        gy,
         z: [za, zb, zc],
         la: [0.0; T],
         lb: [0.0; T],
@@ -369,6 +426,24 @@ pub(crate) unsafe fn depth_test8<const COUNT: bool>(
     mask
 }
 
+/// The wide path's edge tests at the pixel centre (x, y): exact, in i64 (|wa| <= 2^29 and
+/// |16 x - gx| <= 2^29, so nothing overflows), as the prim's two-limb `limb_sign` is.
+#[inline]
+pub(crate) fn wide_inside<const T: usize>(s: &Setup<T>, x: f32, y: f32) -> bool {
+    let (sx, sy) = ((x * 16.0) as i64, (y * 16.0) as i64);
+    (0..3).all(|i| s.wa[i] * (sx - s.gx[i]) + s.wb[i] * (sy - s.gy[i]) + s.wtl[i] > 0)
+}
+
+/// The float path's edge tests: outside, or on a non-top-left edge, fails (a NaN edge
+/// value keeps the pixel, as the prim returns only on `e < 0 || (e == 0 && !top_left)`).
+#[inline]
+pub(crate) fn float_inside<const T: usize>(s: &Setup<T>, x: f32, y: f32) -> bool {
+    (0..3).all(|i| {
+        let e = s.fa[i] * x + s.fb[i] * y + s.fc[i];
+        !(e < 0.0 || (e == 0.0 && !s.ftl[i]))
+    })
+}
+
 /// Portable scalar kernel.
 ///
 /// # Safety
@@ -401,9 +476,10 @@ pub unsafe extern "C" fn scalar<const P: usize, const L: usize, const T: usize, 
                         .wrapping_add(s.ec[i])
                         > 0
                 })
+            } else if s.wide {
+                wide_inside(&s, x, y)
             } else {
-                // The prim returns when `e <= 0`: a NaN edge value keeps the pixel.
-                (0..3).all(|i| !(s.fa[i] * x + s.fb[i] * y + s.fc[i] <= 0.0))
+                float_inside(&s, x, y)
             };
             if !inside {
                 continue;
@@ -490,6 +566,13 @@ pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, co
                     let e = _mm256_add_epi32(_mm256_mullo_epi32(_mm256_set1_epi32(s.ea[i]), sx), erow[i]);
                     mask = _mm256_and_si256(mask, _mm256_cmpgt_epi32(e, zero_i));
                 }
+            } else if s.wide {
+                // Rare (triangles over 1024 px): the exact i64 test per lane.
+                let lanes: [i32; 8] =
+                    std::array::from_fn(|k| -i32::from(wide_inside(&s, (px + k as i32) as f32 + 0.5, y)));
+                // SAFETY: an unaligned load of 8 i32 from a local array.
+                let lanes = unsafe { _mm256_loadu_si256(lanes.as_ptr() as *const __m256i) };
+                mask = _mm256_and_si256(mask, lanes);
             } else {
                 for i in 0..3 {
                     // (a*x + b*y) + c, in the prim's order (not re-associated: bit-equal).
@@ -497,8 +580,14 @@ pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, co
                         _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(s.fa[i]), x), fby[i]),
                         _mm256_set1_ps(s.fc[i]),
                     );
-                    // !(e <= 0), as the prim returns: a NaN edge value keeps the pixel.
-                    mask = _mm256_and_si256(mask, _mm256_castps_si256(_mm256_cmp_ps::<_CMP_NLE_UQ>(e, zero)));
+                    // As the prim returns: !(e < 0) on a top-left edge, !(e <= 0) on another
+                    // (a NaN edge value keeps the pixel).
+                    let keep = if s.ftl[i] {
+                        _mm256_cmp_ps::<_CMP_NLT_UQ>(e, zero)
+                    } else {
+                        _mm256_cmp_ps::<_CMP_NLE_UQ>(e, zero)
+                    };
+                    mask = _mm256_and_si256(mask, _mm256_castps_si256(keep));
                 }
             }
             if _mm256_testz_si256(mask, mask) != 0 {
@@ -706,11 +795,20 @@ macro_rules! sse_kernel {
                             for e in &edge {
                                 live = _mm_and_si128(live, _mm_cmpgt_epi32(*e, _mm_setzero_si128()));
                             }
+                        } else if s.wide {
+                            // Rare (triangles over 1024 px): the exact i64 test per lane.
+                            let lanes: [i32; 4] =
+                                std::array::from_fn(|k| -i32::from(wide_inside(&s, (gx + k as i32) as f32 + 0.5, y)));
+                            // SAFETY: an unaligned load of 4 i32 from a local array.
+                            let lanes = unsafe { _mm_loadu_si128(lanes.as_ptr() as *const __m128i) };
+                            live = _mm_and_si128(live, lanes);
                         } else {
                             for i in 0..3 {
                                 let e = plane(splat(s.fa[i]), x, fby[i], splat(s.fc[i]));
-                                // !(e <= 0), as the prim returns: NaN keeps the pixel.
-                                live = _mm_and_si128(live, _mm_castps_si128(_mm_cmpnle_ps(e, zero)));
+                                // As the prim returns: !(e < 0) on a top-left edge, !(e <= 0)
+                                // on another (NaN keeps the pixel).
+                                let keep = if s.ftl[i] { _mm_cmpnlt_ps(e, zero) } else { _mm_cmpnle_ps(e, zero) };
+                                live = _mm_and_si128(live, _mm_castps_si128(keep));
                             }
                         }
                     }

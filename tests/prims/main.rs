@@ -7,6 +7,7 @@
 mod common;
 mod handwritten_shapes;
 mod handwritten_twins;
+mod hard_cases;
 mod interpolators;
 mod library;
 mod nurb;
