@@ -10,7 +10,7 @@
 //! - [`planes`]: interpolation data, arms, inlined interpolators, G-buffer planes;
 //! - [`call`]: primitive calls;
 //! - [`spill`]: the uniform frame the pixel loops read the setup's values from;
-//! - [`loops`]: the pixel passes, the block walk, rows and groups;
+//! - [`loops`]: the pixel passes, rows and groups, and [`walk`] the block walk;
 //! - the analyses they consult: [`hoist`], [`affine`], [`block`], [`unswitch`], [`bounds`],
 //!   [`dead`], [`init`], [`flat`]; and [`outline`], which splits a tier-0 kernel in two.
 //!
@@ -56,6 +56,7 @@ mod spill;
 mod stmt;
 mod storage;
 mod unswitch;
+mod walk;
 
 pub(crate) use outline::pixel_signature;
 

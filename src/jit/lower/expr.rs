@@ -197,71 +197,12 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         let sc = elem_scalar(&e.ty);
         match &e.kind {
-            ExprKind::Const(c) => {
-                let key = match *c {
-                    ConstValue::Float(x) => VnKey::Const(0, x.to_bits(), sc),
-                    ConstValue::Int(i) => VnKey::Const(1, i as u32, sc),
-                    ConstValue::Bool(x) => VnKey::Const(2, x as u32, sc),
-                    ConstValue::Fixed(i) => VnKey::Const(3, i as u32, sc),
-                };
-                if let Some(v) = self.numbered(key) {
-                    return Ok(Val::one(v, sc, false));
-                }
-                let v = match *c {
-                    ConstValue::Float(x) => self.f32const_here(x),
-                    ConstValue::Int(i) | ConstValue::Fixed(i) => self.iconst_here(types::I32, i as i64),
-                    ConstValue::Bool(x) => self.iconst_here(types::I8, x as i64),
-                };
-                // A constant of one scalar type used as another (defensive): convert.
-                let from = match c {
-                    ConstValue::Float(_) => Scalar::Float,
-                    ConstValue::Int(_) => Scalar::Int,
-                    ConstValue::Bool(_) => Scalar::Bool,
-                    ConstValue::Fixed(_) => sc,
-                };
-                let v = fixed::convert(&mut self.b, from, sc, v);
-                self.number(key, v);
-                Ok(Val::one(v, sc, false))
-            }
+            ExprKind::Const(c) => self.eval_const(c, sc),
             ExprKind::Local(_) | ExprKind::Index { .. } => {
                 let acc = self.resolve(e)?;
                 self.read(acc)
             }
-            ExprKind::Unary { op, expr } => {
-                let v = self.eval(expr)?;
-                let code = if *op == UnaryOp::Neg { VN_NEG } else { VN_NOT };
-                let comps = v
-                    .comps
-                    .iter()
-                    .map(|&c| {
-                        let key = VnKey::Op(code, v.scalar, c, c);
-                        if let Some(r) = self.numbered(key) {
-                            return r;
-                        }
-                        let r = match (op, v.scalar) {
-                            (UnaryOp::Neg, Scalar::Float) => self.b.ins().fneg(c),
-                            (UnaryOp::Neg, Scalar::Fixed(f)) => fixed::neg(&mut self.b, f, c),
-                            (UnaryOp::Neg, _) => self.b.ins().ineg(c),
-                            (UnaryOp::Not, _) => {
-                                let c = fixed::convert(&mut self.b, v.scalar, Scalar::Bool, c);
-                                if v.varying {
-                                    self.b.ins().bnot(c)
-                                } else {
-                                    self.b.ins().bxor_imm_s(c, 1)
-                                }
-                            }
-                        };
-                        self.number(key, r);
-                        r
-                    })
-                    .collect();
-                let scalar = if *op == UnaryOp::Not { Scalar::Bool } else { v.scalar };
-                Ok(Val {
-                    comps,
-                    scalar,
-                    varying: v.varying,
-                })
-            }
+            ExprKind::Unary { op, expr } => self.eval_unary(op, expr),
             ExprKind::Binary { op, lhs, rhs } => {
                 let a = self.eval(lhs)?;
                 let c = match op {
@@ -273,169 +214,12 @@ impl<'a, 'b> Lower<'a, 'b> {
                 };
                 self.binary(*op, a, c)
             }
-            ExprKind::Convert(inner) => {
-                let v = self.eval(inner)?;
-                let mut comps: Vec<ir::Value> = v
-                    .comps
-                    .iter()
-                    .map(|&c| match (v.scalar, sc, crate::jit::value::iconst_i32(&self.b, c)) {
-                        // An int constant as a float (`float({1, 0, 0, 0})`): the constant
-                        // itself (`as` rounds to nearest like `fcvt_from_sint`), shared like
-                        // any other constant at tier 0, instead of a conversion at run time.
-                        (Scalar::Int, Scalar::Float, Some(i)) => {
-                            let x = i as f32;
-                            let key = VnKey::Const(0, x.to_bits(), Scalar::Float);
-                            self.numbered(key).unwrap_or_else(|| {
-                                let f = self.f32const_here(x);
-                                self.number(key, f);
-                                f
-                            })
-                        }
-                        _ if v.scalar == sc => c,
-                        // A varying float whose lanes are proven finite and in the target's
-                        // range converts without the saturation fix-ups
-                        // (`fixed::convert_bounded`). Shared with an unbounded conversion
-                        // of the same value: the value is in the bound, where both agree.
-                        _ => self.convert_here(inner, v.scalar, sc, c, v.varying),
-                    })
-                    .collect();
-                // A number converted to interpolation data stands for that number in every
-                // component of the current view (the checker's zero-initialisation and
-                // broadcasts).
-                if e.ty.elem == Elem::Interp && inner.ty.elem != Elem::Interp && comps.len() == 1 {
-                    let offs = self.comp_offsets(e.ty.elem, e.ty.fixed_len(), true);
-                    let n = offs.len();
-                    self.give_back_offsets(offs);
-                    comps = vec![comps[0]; n];
-                }
-                Ok(Val {
-                    comps,
-                    scalar: sc,
-                    varying: v.varying,
-                })
-            }
-            ExprKind::Select { cond, then, otherwise } => {
-                let c = self.eval(cond)?;
-                let cb = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
-                let t = self.eval_guarded(then, c.varying, cb, true)?;
-                let o = self.eval_guarded(otherwise, c.varying, cb, false)?;
-                let (t, o) = self.unify(t, o)?;
-                if !c.varying {
-                    // A uniform condition picks whole values, vectors too: a scalar `select`
-                    // (a test and a move) instead of splatting the condition to a lane mask
-                    // and blending (eight instructions per group for `a != 0 ? x : y`).
-                    // `unify` left both arms equally varying.
-                    let comps = t
-                        .comps
-                        .iter()
-                        .zip(&o.comps)
-                        .map(|(&x, &y)| self.b.ins().select(cb, x, y))
-                        .collect();
-                    return Ok(Val {
-                        comps,
-                        scalar: t.scalar,
-                        varying: t.varying,
-                    });
-                }
-                let t = self.make_varying(t);
-                let o = self.make_varying(o);
-                let m = splat(&mut self.b, Scalar::Bool, cb);
-                let comps = t
-                    .comps
-                    .iter()
-                    .zip(&o.comps)
-                    .map(|(&x, &y)| blend(&mut self.b, m, x, y))
-                    .collect();
-                Ok(Val {
-                    comps,
-                    scalar: t.scalar,
-                    varying: true,
-                })
-            }
+            ExprKind::Convert(inner) => self.eval_convert(e, inner, sc),
+            ExprKind::Select { cond, then, otherwise } => self.eval_select(cond, then, otherwise),
             ExprKind::Builtin { func, args } => self.builtin(*func, args, e),
-            ExprKind::List(items) => {
-                let mut vals = vec![];
-                for it in items {
-                    vals.push(self.eval(it)?);
-                }
-                let varying = vals.iter().any(|v| v.varying);
-                let mut comps = vec![];
-                for v in vals {
-                    let v = Val {
-                        comps: v
-                            .comps
-                            .iter()
-                            .map(|&c| fixed::convert(&mut self.b, v.scalar, sc, c))
-                            .collect(),
-                        scalar: sc,
-                        varying: v.varying,
-                    };
-                    let v = if varying { self.make_varying(v) } else { v };
-                    comps.extend(v.comps);
-                }
-                Ok(Val {
-                    comps,
-                    scalar: sc,
-                    varying,
-                })
-            }
-            ExprKind::Splat(item) => {
-                let v = self.eval(item)?;
-                let one: Vec<ir::Value> = v
-                    .comps
-                    .iter()
-                    .map(|&c| fixed::convert(&mut self.b, v.scalar, sc, c))
-                    .collect();
-                Ok(Val {
-                    comps: one.repeat(e.ty.fixed_len() as usize),
-                    scalar: sc,
-                    varying: v.varying,
-                })
-            }
-            ExprKind::MatMul { lhs, rhs } => {
-                let a = self.eval(lhs)?;
-                let c = self.eval(rhs)?;
-                let (n, m) = match lhs.ty.dims.as_slice() {
-                    [n, m] => (*n as usize, *m as usize),
-                    _ => return err("matrix product with a non-2-D left side"),
-                };
-                let k = match rhs.ty.dims.as_slice() {
-                    [r] if *r as usize == m => None,
-                    [r, k] if *r as usize == m => Some(*k as usize),
-                    _ => return err("matrix product with mismatched shapes"),
-                };
-                // Only the variability is unified: the operands' lengths differ by design
-                // (n*m and m*k components), which `unify` would reject.
-                let (a, c) = if a.varying != c.varying {
-                    (self.make_varying(a), self.make_varying(c))
-                } else {
-                    (a, c)
-                };
-                let a = self.float_val(a);
-                let c = self.float_val(c);
-                let kk = k.unwrap_or(1);
-                let mut comps = vec![];
-                for i in 0..n {
-                    for j in 0..kk {
-                        let mut acc = None;
-                        for t in 0..m {
-                            let x = a.comps[i * m + t];
-                            let y = c.comps[t * kk + j];
-                            let p = self.b.ins().fmul(x, y);
-                            acc = Some(match acc {
-                                None => p,
-                                Some(s) => self.b.ins().fadd(s, p),
-                            });
-                        }
-                        comps.push(acc.unwrap_or_else(|| zero(&mut self.b, Scalar::Float, a.varying)));
-                    }
-                }
-                Ok(Val {
-                    comps,
-                    scalar: Scalar::Float,
-                    varying: a.varying,
-                })
-            }
+            ExprKind::List(items) => self.eval_list(items, sc),
+            ExprKind::Splat(item) => self.eval_splat(e, item, sc),
+            ExprKind::MatMul { lhs, rhs } => self.eval_matmul(lhs, rhs),
             ExprKind::SeqCount => {
                 let n = self.b.ins().load(types::I32, args_flags(), self.args, 0);
                 Ok(Val::one(n, Scalar::Int, false))
@@ -445,6 +229,243 @@ impl<'a, 'b> Lower<'a, 'b> {
                 Ok(Val::one(on, Scalar::Bool, false))
             }
         }
+    }
+
+    /// A constant, numbered per block at tier 0.
+    fn eval_const(&mut self, c: &ConstValue, sc: Scalar) -> Res<Val> {
+        let key = match *c {
+            ConstValue::Float(x) => VnKey::Const(0, x.to_bits(), sc),
+            ConstValue::Int(i) => VnKey::Const(1, i as u32, sc),
+            ConstValue::Bool(x) => VnKey::Const(2, x as u32, sc),
+            ConstValue::Fixed(i) => VnKey::Const(3, i as u32, sc),
+        };
+        if let Some(v) = self.numbered(key) {
+            return Ok(Val::one(v, sc, false));
+        }
+        let v = match *c {
+            ConstValue::Float(x) => self.f32const_here(x),
+            ConstValue::Int(i) | ConstValue::Fixed(i) => self.iconst_here(types::I32, i as i64),
+            ConstValue::Bool(x) => self.iconst_here(types::I8, x as i64),
+        };
+        // A constant of one scalar type used as another (defensive): convert.
+        let from = match c {
+            ConstValue::Float(_) => Scalar::Float,
+            ConstValue::Int(_) => Scalar::Int,
+            ConstValue::Bool(_) => Scalar::Bool,
+            ConstValue::Fixed(_) => sc,
+        };
+        let v = fixed::convert(&mut self.b, from, sc, v);
+        self.number(key, v);
+        Ok(Val::one(v, sc, false))
+    }
+
+    /// `-x` and `!x`, component by component.
+    fn eval_unary(&mut self, op: &UnaryOp, expr: &'a Expr) -> Res<Val> {
+        let v = self.eval(expr)?;
+        let code = if *op == UnaryOp::Neg { VN_NEG } else { VN_NOT };
+        let comps = v
+            .comps
+            .iter()
+            .map(|&c| {
+                let key = VnKey::Op(code, v.scalar, c, c);
+                if let Some(r) = self.numbered(key) {
+                    return r;
+                }
+                let r = match (op, v.scalar) {
+                    (UnaryOp::Neg, Scalar::Float) => self.b.ins().fneg(c),
+                    (UnaryOp::Neg, Scalar::Fixed(f)) => fixed::neg(&mut self.b, f, c),
+                    (UnaryOp::Neg, _) => self.b.ins().ineg(c),
+                    (UnaryOp::Not, _) => {
+                        let c = fixed::convert(&mut self.b, v.scalar, Scalar::Bool, c);
+                        if v.varying {
+                            self.b.ins().bnot(c)
+                        } else {
+                            self.b.ins().bxor_imm_s(c, 1)
+                        }
+                    }
+                };
+                self.number(key, r);
+                r
+            })
+            .collect();
+        let scalar = if *op == UnaryOp::Not { Scalar::Bool } else { v.scalar };
+        Ok(Val {
+            comps,
+            scalar,
+            varying: v.varying,
+        })
+    }
+
+    /// A conversion of `inner` to `e`'s type (scalar `sc`).
+    fn eval_convert(&mut self, e: &'a Expr, inner: &'a Expr, sc: Scalar) -> Res<Val> {
+        let v = self.eval(inner)?;
+        let mut comps: Vec<ir::Value> = v
+            .comps
+            .iter()
+            .map(|&c| match (v.scalar, sc, crate::jit::value::iconst_i32(&self.b, c)) {
+                // An int constant as a float (`float({1, 0, 0, 0})`): the constant
+                // itself (`as` rounds to nearest like `fcvt_from_sint`), shared like
+                // any other constant at tier 0, instead of a conversion at run time.
+                (Scalar::Int, Scalar::Float, Some(i)) => {
+                    let x = i as f32;
+                    let key = VnKey::Const(0, x.to_bits(), Scalar::Float);
+                    self.numbered(key).unwrap_or_else(|| {
+                        let f = self.f32const_here(x);
+                        self.number(key, f);
+                        f
+                    })
+                }
+                _ if v.scalar == sc => c,
+                // A varying float whose lanes are proven finite and in the target's
+                // range converts without the saturation fix-ups
+                // (`fixed::convert_bounded`). Shared with an unbounded conversion
+                // of the same value: the value is in the bound, where both agree.
+                _ => self.convert_here(inner, v.scalar, sc, c, v.varying),
+            })
+            .collect();
+        // A number converted to interpolation data stands for that number in every
+        // component of the current view (the checker's zero-initialisation and
+        // broadcasts).
+        if e.ty.elem == Elem::Interp && inner.ty.elem != Elem::Interp && comps.len() == 1 {
+            let offs = self.comp_offsets(e.ty.elem, e.ty.fixed_len(), true);
+            let n = offs.len();
+            self.give_back_offsets(offs);
+            comps = vec![comps[0]; n];
+        }
+        Ok(Val {
+            comps,
+            scalar: sc,
+            varying: v.varying,
+        })
+    }
+
+    /// `cond ? then : otherwise`: both arms evaluated (errors only where taken), then selected.
+    fn eval_select(&mut self, cond: &'a Expr, then: &'a Expr, otherwise: &'a Expr) -> Res<Val> {
+        let c = self.eval(cond)?;
+        let cb = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
+        let t = self.eval_guarded(then, c.varying, cb, true)?;
+        let o = self.eval_guarded(otherwise, c.varying, cb, false)?;
+        let (t, o) = self.unify(t, o)?;
+        if !c.varying {
+            // A uniform condition picks whole values, vectors too: a scalar `select`
+            // (a test and a move) instead of splatting the condition to a lane mask
+            // and blending (eight instructions per group for `a != 0 ? x : y`).
+            // `unify` left both arms equally varying.
+            let comps = t
+                .comps
+                .iter()
+                .zip(&o.comps)
+                .map(|(&x, &y)| self.b.ins().select(cb, x, y))
+                .collect();
+            return Ok(Val {
+                comps,
+                scalar: t.scalar,
+                varying: t.varying,
+            });
+        }
+        let t = self.make_varying(t);
+        let o = self.make_varying(o);
+        let m = splat(&mut self.b, Scalar::Bool, cb);
+        let comps = t
+            .comps
+            .iter()
+            .zip(&o.comps)
+            .map(|(&x, &y)| blend(&mut self.b, m, x, y))
+            .collect();
+        Ok(Val {
+            comps,
+            scalar: t.scalar,
+            varying: true,
+        })
+    }
+
+    /// A list literal: its items' components converted to `sc`, one after the other.
+    fn eval_list(&mut self, items: &'a [Expr], sc: Scalar) -> Res<Val> {
+        let mut vals = vec![];
+        for it in items {
+            vals.push(self.eval(it)?);
+        }
+        let varying = vals.iter().any(|v| v.varying);
+        let mut comps = vec![];
+        for v in vals {
+            let v = Val {
+                comps: v
+                    .comps
+                    .iter()
+                    .map(|&c| fixed::convert(&mut self.b, v.scalar, sc, c))
+                    .collect(),
+                scalar: sc,
+                varying: v.varying,
+            };
+            let v = if varying { self.make_varying(v) } else { v };
+            comps.extend(v.comps);
+        }
+        Ok(Val {
+            comps,
+            scalar: sc,
+            varying,
+        })
+    }
+
+    /// `item` repeated over every element of `e`'s type.
+    fn eval_splat(&mut self, e: &'a Expr, item: &'a Expr, sc: Scalar) -> Res<Val> {
+        let v = self.eval(item)?;
+        let one: Vec<ir::Value> = v
+            .comps
+            .iter()
+            .map(|&c| fixed::convert(&mut self.b, v.scalar, sc, c))
+            .collect();
+        Ok(Val {
+            comps: one.repeat(e.ty.fixed_len() as usize),
+            scalar: sc,
+            varying: v.varying,
+        })
+    }
+
+    /// A matrix product (`n x m` by `m` or `m x k`), as sums of products in index order.
+    fn eval_matmul(&mut self, lhs: &'a Expr, rhs: &'a Expr) -> Res<Val> {
+        let a = self.eval(lhs)?;
+        let c = self.eval(rhs)?;
+        let (n, m) = match lhs.ty.dims.as_slice() {
+            [n, m] => (*n as usize, *m as usize),
+            _ => return err("matrix product with a non-2-D left side"),
+        };
+        let k = match rhs.ty.dims.as_slice() {
+            [r] if *r as usize == m => None,
+            [r, k] if *r as usize == m => Some(*k as usize),
+            _ => return err("matrix product with mismatched shapes"),
+        };
+        // Only the variability is unified: the operands' lengths differ by design
+        // (n*m and m*k components), which `unify` would reject.
+        let (a, c) = if a.varying != c.varying {
+            (self.make_varying(a), self.make_varying(c))
+        } else {
+            (a, c)
+        };
+        let a = self.float_val(a);
+        let c = self.float_val(c);
+        let kk = k.unwrap_or(1);
+        let mut comps = vec![];
+        for i in 0..n {
+            for j in 0..kk {
+                let mut acc = None;
+                for t in 0..m {
+                    let x = a.comps[i * m + t];
+                    let y = c.comps[t * kk + j];
+                    let p = self.b.ins().fmul(x, y);
+                    acc = Some(match acc {
+                        None => p,
+                        Some(s) => self.b.ins().fadd(s, p),
+                    });
+                }
+                comps.push(acc.unwrap_or_else(|| zero(&mut self.b, Scalar::Float, a.varying)));
+            }
+        }
+        Ok(Val {
+            comps,
+            scalar: Scalar::Float,
+            varying: a.varying,
+        })
     }
 
     pub(crate) fn float_val(&mut self, v: Val) -> Val {

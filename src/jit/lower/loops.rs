@@ -25,9 +25,10 @@
 use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, Block, InstBuilder};
 use cranelift_frontend::Variable;
 
+use super::walk::BlockWalk;
 use super::{
-    block, dead, elem_scalar, err, unswitch, Lower, PassRect, PixelState, Res, Storage, ALL_LANE_BITS, BLOCK_H,
-    BLOCK_W, DEPTH_FORMAT, SMALL_RECT, UNROLL,
+    block, dead, elem_scalar, err, unswitch, Lower, PassRect, PixelState, Res, Storage, ALL_LANE_BITS, DEPTH_FORMAT,
+    UNROLL,
 };
 use crate::abi::{BindingKind, MODE_BOUND};
 use crate::ir::{Elem, Function, ParamRole, Scalar, StmtKind};
@@ -165,241 +166,10 @@ impl<'a, 'b> Lower<'a, 'b> {
             return self.pixel_rows(f, rect, [lo_y, hi_y], [gx_start, hi_x], None, loops_done);
         }
 
-        // Blocks of BLOCK_W x BLOCK_H pixels; per block, interval facts choose: skip, the
-        // pass variant (decidable guards dropped) or the full pixel code.
-        // A pass rectangle under SMALL_RECT pixels (a small triangle's) runs the full code
-        // without block facts: evaluating them costs more than they can save there.
-        let w = self.b.ins().isub(hi_x, lo_x);
-        let h = self.b.ins().isub(hi_y, lo_y);
-        let w64 = self.b.ins().sextend(types::I64, w);
-        let h64 = self.b.ins().sextend(types::I64, h);
-        let area = self.b.ins().imul(w64, h64);
-        let small_rect = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, area, SMALL_RECT);
-        // Shape of the walk, block row by block row:
-        // - `row_stage` evaluates the prefix terms that depend on uniforms and Y alone, once
-        //   for the block row ([`block`] caches them); the block loop after it evaluates
-        //   only the X-dependent rest per block.
-        // - Consecutive pass blocks of a block row run as one *span* (one row prologue per
-        //   pixel row for the whole run, not per block): a pass block extends the pending
-        //   span; a dead or full block, or the row's end, first flushes it. `after` says
-        //   what follows the flush: 0 the next block row, 1 the next block (dead), 2 the
-        //   full code on this block.
-        // - The full code runs outside the block loop (`full_entry`, one instance for the
-        //   blocks and for small rectangles) and comes back to `brow_resume`, which
-        //   re-evaluates the row stage: the block loop's values then need no merging, and
-        //   full blocks are few (a primitive's edges).
-        // - The walk starts *coarse*: the whole rectangle as one block (one block row, one
-        //   block), so a tile entirely inside or outside the primitive costs one evaluation.
-        //   When the coarse block is neither dead nor passing, the walk restarts with
-        //   BLOCK_W x BLOCK_H blocks.
-        let by = self.declare_var(types::I32);
-        let coarse = self.declare_var(types::I8);
-        let bw = self.declare_var(types::I32);
-        let bh = self.declare_var(types::I32);
-        let yes = self.iconst_here(types::I8, 1);
-        self.b.def_var(coarse, yes);
-        let rect_w = self.b.ins().isub(hi_x, gx_start);
-        let rect_h = self.b.ins().isub(hi_y, lo_y);
-        self.b.def_var(bw, rect_w);
-        self.b.def_var(bh, rect_h);
-        let bxv = self.declare_var(types::I32);
-        let span_lo = self.declare_var(types::I32);
-        let span_hi = self.declare_var(types::I32);
-        let after = self.declare_var(types::I32);
-        // The full run's rectangle and where it returns: 0 the block after it, 1 the end.
-        let full_ys = [self.declare_var(types::I32), self.declare_var(types::I32)];
-        let full_gs = [self.declare_var(types::I32), self.declare_var(types::I32)];
-        let full_then = self.declare_var(types::I32);
-        self.b.def_var(by, lo_y);
-        let brow_hdr = self.b.create_block();
-        let brow_body = self.b.create_block();
-        let brow_resume = self.b.create_block();
-        let brow_next = self.b.create_block();
-        let small_full = self.b.create_block();
-        let row_stage = self.b.create_block();
-        let blk_hdr = self.b.create_block();
-        let blk_body = self.b.create_block();
-        let blk_next = self.b.create_block();
-        let blk_choose = self.b.create_block();
-        let blk_full = self.b.create_block();
-        let blk_extend = self.b.create_block();
-        let row_end = self.b.create_block();
-        let to_full = self.b.create_block();
-        let to_dead = self.b.create_block();
-        let flush = self.b.create_block();
-        let flush_run = self.b.create_block();
-        let flush_done = self.b.create_block();
-        let after_flush = self.b.create_block();
-        let after_not_end = self.b.create_block();
-        let full_entry = self.b.create_block();
-        let full_done = self.b.create_block();
-        let full_resume = self.b.create_block();
-        let refine = self.b.create_block();
-        let to_full_fine = self.b.create_block();
-        self.b.ins().jump(brow_hdr, &[]);
-
-        self.b.switch_to_block(brow_hdr);
-        let y = self.b.use_var(by);
-        let done = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, y, hi_y);
-        self.b.ins().brif(done, loops_done, &[], brow_body, &[]);
-
-        self.b.switch_to_block(brow_body);
-        self.b.def_var(bxv, gx_start);
-        self.b.ins().jump(brow_resume, &[]);
-
-        self.b.switch_to_block(brow_resume);
-        let y = self.b.use_var(by);
-        let h = self.b.use_var(bh);
-        let y_end = self.b.ins().iadd(y, h);
-        let y_end = self.b.ins().smin(y_end, hi_y);
-        let x = self.b.use_var(bxv);
-        self.b.def_var(span_lo, x);
-        self.b.def_var(span_hi, x);
-        self.b.ins().brif(small_rect, small_full, &[], row_stage, &[]);
-
-        // A small rectangle: the full code over all of it, once.
-        self.b.switch_to_block(small_full);
-        self.b.def_var(full_ys[0], lo_y);
-        self.b.def_var(full_ys[1], hi_y);
-        self.b.def_var(full_gs[0], gx_start);
-        self.b.def_var(full_gs[1], hi_x);
-        let one = self.iconst_here(types::I32, 1);
-        self.b.def_var(full_then, one);
-        self.b.ins().jump(full_entry, &[]);
-
-        // Centres of the first and last live pixels, computed as the pixel code computes X
-        // and Y (int -> float, + 0.5), so the endpoints are bit-identical.
-        let centre = |l: &mut Self, i: ir::Value| {
-            let f = l.b.ins().fcvt_from_sint(types::F32, i);
-            let half = l.b.ins().f32const(0.5);
-            l.b.ins().fadd(f, half)
-        };
-        self.b.switch_to_block(row_stage);
-        let y_last = self.b.ins().iadd_imm_s(y_end, -1);
-        let ys = [centre(self, y), centre(self, y_last)];
-        let row_cache = self.block_cache_row(f, &prefix, ys)?;
-        self.b.ins().jump(blk_hdr, &[]);
-
-        self.b.switch_to_block(blk_hdr);
-        let x = self.b.use_var(bxv);
-        let done = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, x, hi_x);
-        self.b.ins().brif(done, row_end, &[], blk_body, &[]);
-
-        self.b.switch_to_block(blk_body);
-        let x = self.b.use_var(bxv);
-        let w = self.b.use_var(bw);
-        let x_end = self.b.ins().iadd(x, w);
-        let x_end = self.b.ins().smin(x_end, hi_x);
-        let x_first = self.b.ins().smax(x, lo_x);
-        let x_last = self.b.ins().iadd_imm_s(x_end, -1);
-        let xs = [centre(self, x_first), centre(self, x_last)];
-        let facts = self.block_facts(f, &prefix, &row_cache, xs, ys)?;
-        self.b.ins().brif(facts.dead, to_dead, &[], blk_choose, &[]);
-        self.b.switch_to_block(blk_choose);
-        self.b.ins().brif(facts.pass, blk_extend, &[], to_full_fine, &[]);
-
-        // Neither dead nor passing: the coarse block is refined (nothing is pending then),
-        // a fine block runs the full code.
-        self.b.switch_to_block(to_full_fine);
-        let c = self.b.use_var(coarse);
-        self.b.ins().brif(c, refine, &[], to_full, &[]);
-        self.b.switch_to_block(refine);
-        let no = self.iconst_here(types::I8, 0);
-        self.b.def_var(coarse, no);
-        let fine_w = self.iconst_here(types::I32, BLOCK_W as i64);
-        let fine_h = self.iconst_here(types::I32, BLOCK_H as i64);
-        self.b.def_var(bw, fine_w);
-        self.b.def_var(bh, fine_h);
-        self.b.ins().jump(brow_body, &[]);
-
-        // A pass block: start the span here if none is pending, and extend it to this
-        // block's end (blocks are visited left to right, so the span stays contiguous).
-        self.b.switch_to_block(blk_extend);
-        let lo = self.b.use_var(span_lo);
-        let hi = self.b.use_var(span_hi);
-        let empty = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, lo, hi);
-        let lo = self.b.ins().select(empty, x, lo);
-        self.b.def_var(span_lo, lo);
-        self.b.def_var(span_hi, x_end);
-        self.b.ins().jump(blk_next, &[]);
-
-        for (blk, code) in [(row_end, 0), (to_dead, 1), (to_full, 2)] {
-            self.b.switch_to_block(blk);
-            let c = self.iconst_here(types::I32, code);
-            self.b.def_var(after, c);
-            self.b.ins().jump(flush, &[]);
-        }
-
-        self.b.switch_to_block(flush);
-        let lo = self.b.use_var(span_lo);
-        let hi = self.b.use_var(span_hi);
-        let pending = self.b.ins().icmp(IntCC::SignedLessThan, lo, hi);
-        self.b.ins().brif(pending, flush_run, &[], after_flush, &[]);
-        self.b.switch_to_block(flush_run);
-        self.pixel_rows(
-            f,
-            rect,
-            [y, y_end],
-            [lo, hi],
-            Some((&prefix, &facts.decidable)),
-            flush_done,
-        )?;
-        self.b.switch_to_block(flush_done);
-        let hi = self.b.use_var(span_hi);
-        self.b.def_var(span_lo, hi);
-        self.b.ins().jump(after_flush, &[]);
-
-        self.b.switch_to_block(after_flush);
-        let a = self.b.use_var(after);
-        let at_end = self.b.ins().icmp_imm_s(IntCC::Equal, a, 0);
-        self.b.ins().brif(at_end, brow_next, &[], after_not_end, &[]);
-        self.b.switch_to_block(after_not_end);
-        let is_dead = self.b.ins().icmp_imm_s(IntCC::Equal, a, 1);
-        self.b.ins().brif(is_dead, blk_next, &[], blk_full, &[]);
-
-        self.b.switch_to_block(blk_next);
-        let x = self.b.use_var(bxv);
-        let w = self.b.use_var(bw);
-        let x = self.b.ins().iadd(x, w);
-        self.b.def_var(bxv, x);
-        self.b.ins().jump(blk_hdr, &[]);
-
-        // A full block: leave the block loop for the full code.
-        self.b.switch_to_block(blk_full);
-        let x = self.b.use_var(bxv);
-        let w = self.b.use_var(bw);
-        let x_end = self.b.ins().iadd(x, w);
-        let x_end = self.b.ins().smin(x_end, hi_x);
-        self.b.def_var(full_ys[0], y);
-        self.b.def_var(full_ys[1], y_end);
-        self.b.def_var(full_gs[0], x);
-        self.b.def_var(full_gs[1], x_end);
-        let zero = self.iconst_here(types::I32, 0);
-        self.b.def_var(full_then, zero);
-        self.b.ins().jump(full_entry, &[]);
-
-        self.b.switch_to_block(full_entry);
-        let fys = [self.b.use_var(full_ys[0]), self.b.use_var(full_ys[1])];
-        let fgs = [self.b.use_var(full_gs[0]), self.b.use_var(full_gs[1])];
-        self.pixel_rows(f, rect, fys, fgs, None, full_done)?;
-
-        self.b.switch_to_block(full_done);
-        let then = self.b.use_var(full_then);
-        self.b.ins().brif(then, loops_done, &[], full_resume, &[]);
-        self.b.switch_to_block(full_resume);
-        let x = self.b.use_var(bxv);
-        let w = self.b.use_var(bw);
-        let x = self.b.ins().iadd(x, w);
-        self.b.def_var(bxv, x);
-        self.b.ins().jump(brow_resume, &[]);
-
-        self.b.switch_to_block(brow_next);
-        let y = self.b.use_var(by);
-        let h = self.b.use_var(bh);
-        let y = self.b.ins().iadd(y, h);
-        self.b.def_var(by, y);
-        self.b.ins().jump(brow_hdr, &[]);
-        Ok(())
+        // The block walk (see [`super::walk`]): blocks of BLOCK_W x BLOCK_H pixels, the
+        // pass variant over spans of passing blocks, the full code over the others.
+        let walk = BlockWalk::new(self, [lo_y, hi_y], [gx_start, hi_x], lo_x, loops_done);
+        walk.emit(self, f, rect, &prefix)
     }
 
     /// Rows [ys[0], ys[1]) x groups starting at gs[0] (tile-aligned) up to gs[1], `UNROLL`
@@ -598,37 +368,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let Some(base) = frame_base else {
             return err("uniform frame missing");
         };
-        let edge_mask = |l: &mut Self| {
-            let [lo, hi] = [0, 16].map(|k| l.b.ins().load(F32X4, args_flags(), base, (l.x_range_at + k) as i32));
-            let ge = l.b.ins().fcmp(FloatCC::GreaterThan, x_f, lo);
-            let lt = l.b.ins().fcmp(FloatCC::LessThan, x_f, hi);
-            l.b.ins().band(ge, lt)
-        };
-        let mask = if self.flat {
-            // Flat pixel code: every group computes its lane mask, in the block it starts
-            // in (no branch, so no block boundary). A group with no live lane (only when
-            // the pass is empty in x) then runs for no lane, which changes nothing there.
-            edge_mask(self)
-        } else {
-            let grp_run = self.b.create_block();
-            let mask = self.b.append_block_param(grp_run, I32X4);
-            let edge = self.b.create_block();
-            // Lanes outside [lo_x, hi_x) start dead. Only a group at either end of the
-            // rectangle has such lanes: one unsigned compare tells the others apart.
-            let d = self.b.ins().isub(g, rect.lo_x);
-            let interior = self.b.ins().icmp(IntCC::UnsignedLessThan, d, rect.interior_lim);
-            let all = mask_const(&mut self.b, true);
-            self.b.ins().brif(interior, grp_run, &[all.into()], edge, &[]);
-
-            self.b.switch_to_block(edge);
-            let edge_mask = edge_mask(self);
-            let any = self.b.ins().vany_true(edge_mask);
-            let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
-            self.b.ins().brif(none, next, &[], grp_run, &[edge_mask.into()]);
-
-            self.b.switch_to_block(grp_run);
-            mask
-        };
+        let mask = self.group_lane_mask(rect, g, x_f, base, next);
         let alive = self.declare_var(I32X4);
         let exec = self.declare_var(I32X4);
         let z_written = self.declare_var(I32X4);
@@ -660,7 +400,87 @@ impl<'a, 'b> Lower<'a, 'b> {
             z_raw,
             varying_depth: 0,
         });
-        // Bind the primitive's X, Y, Z in its declared types.
+        self.bind_pixel_params(f, x_f, y_f, z_raw);
+        for r in 0..self.group_resets.len() {
+            let (init, work, bytes) = self.group_resets[r];
+            self.copy_slot(init, work, bytes);
+        }
+        if self.flat {
+            self.flat_group_locals(f);
+        }
+        // Guard facts hold within one group body only (not in row prologues).
+        self.guard_facts.clear();
+        match pass {
+            None => self.stmts(&f.pixel)?,
+            Some((prefix, decidable)) => {
+                let mut live = std::collections::HashSet::new();
+                self.live_pixel_locals(&f.pixel[prefix.len..], &mut live);
+                self.prefix_without_guards(&prefix.stmts, &prefix.stmts, decidable, &live)?;
+                self.stmts(&f.pixel[prefix.len..])?;
+            }
+        }
+        self.guard_facts.clear();
+        self.b.ins().jump(group_end, &[]);
+
+        self.end_group(f, group_end, z_written, z_raw, tile_idx, next)?;
+        self.pix = None;
+        Ok(())
+    }
+
+    /// The lanes of the group starting at `g` that lie inside the pass rectangle, as the
+    /// group's first block sees them. Tier 1 branches: an interior group starts all ones
+    /// and a group with no live lane goes to `next`; flat (tier 0) code always computes the
+    /// mask. `base`: the uniform frame's address.
+    fn group_lane_mask(
+        &mut self,
+        rect: &PassRect,
+        g: ir::Value,
+        x_f: ir::Value,
+        base: ir::Value,
+        next: Block,
+    ) -> ir::Value {
+        if self.flat {
+            // Flat pixel code: every group computes its lane mask, in the block it starts
+            // in (no branch, so no block boundary). A group with no live lane (only when
+            // the pass is empty in x) then runs for no lane, which changes nothing there.
+            self.edge_lane_mask(base, x_f)
+        } else {
+            let grp_run = self.b.create_block();
+            let mask = self.b.append_block_param(grp_run, I32X4);
+            let edge = self.b.create_block();
+            // Lanes outside [lo_x, hi_x) start dead. Only a group at either end of the
+            // rectangle has such lanes: one unsigned compare tells the others apart.
+            let d = self.b.ins().isub(g, rect.lo_x);
+            let interior = self.b.ins().icmp(IntCC::UnsignedLessThan, d, rect.interior_lim);
+            let all = mask_const(&mut self.b, true);
+            self.b.ins().brif(interior, grp_run, &[all.into()], edge, &[]);
+
+            self.b.switch_to_block(edge);
+            let edge_mask = self.edge_lane_mask(base, x_f);
+            let any = self.b.ins().vany_true(edge_mask);
+            let none = self.b.ins().icmp_imm_s(IntCC::Equal, any, 0);
+            self.b.ins().brif(none, next, &[], grp_run, &[edge_mask.into()]);
+
+            self.b.switch_to_block(grp_run);
+            mask
+        }
+    }
+
+    /// `lo_x < X < hi_x` per lane, the bounds' splats read from the uniform frame at `base`.
+    fn edge_lane_mask(&mut self, base: ir::Value, x_f: ir::Value) -> ir::Value {
+        let [lo, hi] = [0, 16].map(|k| {
+            self.b
+                .ins()
+                .load(F32X4, args_flags(), base, (self.x_range_at + k) as i32)
+        });
+        let ge = self.b.ins().fcmp(FloatCC::GreaterThan, x_f, lo);
+        let lt = self.b.ins().fcmp(FloatCC::LessThan, x_f, hi);
+        self.b.ins().band(ge, lt)
+    }
+
+    /// Bind the primitive's X, Y, Z in its declared types (Z from the depth buffer's raw
+    /// values, when loaded).
+    fn bind_pixel_params(&mut self, f: &'a Function, x_f: ir::Value, y_f: ir::Value, z_raw: Option<ir::Value>) {
         for (i, p) in f.params.iter().enumerate() {
             let local = f.local(p.local);
             let Elem::Scalar(sc) = local.ty.elem else { continue };
@@ -686,30 +506,21 @@ impl<'a, 'b> Lower<'a, 'b> {
                 _ => {}
             }
         }
-        for r in 0..self.group_resets.len() {
-            let (init, work, bytes) = self.group_resets[r];
-            self.copy_slot(init, work, bytes);
-        }
-        if self.flat {
-            self.flat_group_locals(f);
-        }
-        // Guard facts hold within one group body only (not in row prologues).
-        self.guard_facts.clear();
-        match pass {
-            None => self.stmts(&f.pixel)?,
-            Some((prefix, decidable)) => {
-                let mut live = std::collections::HashSet::new();
-                self.live_pixel_locals(&f.pixel[prefix.len..], &mut live);
-                self.prefix_without_guards(&prefix.stmts, &prefix.stmts, decidable, &live)?;
-                self.stmts(&f.pixel[prefix.len..])?;
-            }
-        }
-        self.guard_facts.clear();
-        self.b.ins().jump(group_end, &[]);
+    }
 
-        // End of group: write Z back for the lanes that assigned it. Nothing else writes
-        // the depth buffer during the group, so the depth loaded at its start is the old
-        // value to blend with; when every lane assigned Z it is a plain store.
+    /// Fill the group's end block `group_end`: write Z back for the lanes that assigned it
+    /// (`z_written`), then go on at `next`. Nothing else writes the depth buffer during the
+    /// group, so the depth loaded at its start (`z_raw`) is the old value to blend with;
+    /// when every lane assigned Z it is a plain store.
+    fn end_group(
+        &mut self,
+        f: &'a Function,
+        group_end: Block,
+        z_written: Variable,
+        z_raw: Option<ir::Value>,
+        tile_idx: ir::Value,
+        next: Block,
+    ) -> Res<()> {
         self.b.switch_to_block(group_end);
         if let (Some(zp), Some(z_old)) = (f.param_by_role(ParamRole::Z), z_raw) {
             let zi = f.params.iter().position(|p| p.role == ParamRole::Z).unwrap_or(0);
@@ -729,7 +540,6 @@ impl<'a, 'b> Lower<'a, 'b> {
                 self.store_depth(zvar, zsc, Some((written, z_old)), tile_idx);
                 self.count_writes(written, tile_idx);
                 self.b.ins().jump(next, &[]);
-                self.pix = None;
                 return Ok(());
             }
             // The written lanes' bits (`vmovmskps`): all four and none are compares of one
@@ -757,7 +567,6 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.count_writes(written, tile_idx);
         }
         self.b.ins().jump(next, &[]);
-        self.pix = None;
         Ok(())
     }
 
