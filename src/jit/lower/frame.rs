@@ -1,0 +1,235 @@
+//! The kernel's frame: its exits, `ctx` access, bound mode and the recording of run-time
+//! errors.
+//!
+//! Every kernel has the signature `fn(ctx, args)`. Its entry (built by
+//! [`super::lower_kernel`]) checks the stack and, in a tiered JIT, jumps to the tier-1 entry
+//! once there is one; [`Lower::finish_function`] fills its exits: `return` goes to
+//! `Lower::exit`, which stores the fuel left into `ctx.fuel` and returns.
+//!
+//! Bound mode: `bound` unions its rectangle into `ctx.bound` and sets the pass rectangle
+//! ([`Lower::lower_bound`]); a kernel whose setup ran no `bound` records the viewport.
+//!
+//! Errors: a run-time error (an index out of range, out of fuel) is recorded in `ctx.error`
+//! and `ctx.error_site` only if no error came first ([`Lower::record_error`]), so `ctx` holds
+//! the invocation's first error. In tier 1 the record sits in a cold block. In tier 0 an
+//! error of the setup code is kept in a variable instead (`pending_error`,
+//! [`Lower::defer_error`]) and reaches `ctx.error` at the setup's exits and before
+//! primitive calls ([`Lower::flush_errors`]), so `ctx` holds the invocation's first error
+//! wherever anyone can read it.
+
+use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, InstBuilder};
+
+use super::{collect_setup_index_sites, const_int, Lower, Res, PENDING_CODE_SHIFT};
+use crate::abi::MODE_BOUND;
+use crate::ir::{Expr, Scalar, SiteId, Stmt};
+use crate::jit::fixed;
+use crate::jit::value::{ctx_off, mem_flags};
+
+impl<'a, 'b> Lower<'a, 'b> {
+    /// End the function being lowered where its code ends: jump to the exit, fill the
+    /// setup's error exit (the kernel's only) and the exit. The kernel of an outlined pixel
+    /// function ends at the call (see [`super::outline`]), the pixel function here.
+    pub(super) fn finish_function(&mut self) {
+        self.b.ins().jump(self.exit, &[]);
+        if let Some(setup_exit) = self.setup_exit.take() {
+            // Every jump here was lowered by now: sealed, it knows whether any exists.
+            self.b.switch_to_block(setup_exit);
+            self.seal_now(setup_exit);
+            if self.b.is_unreachable() {
+                // No early exit: a jump from here would make this block a predecessor of
+                // the exit whose variables read as undefined (see `jump_live`).
+                self.b.ins().trap(ir::TrapCode::unwrap_user(1));
+            } else {
+                self.flush_errors();
+                self.b.ins().jump(self.exit, &[]);
+            }
+        }
+        self.return_at_exit();
+    }
+
+    /// Fill the exit block: store the fuel left to `ctx` and return.
+    pub(super) fn return_at_exit(&mut self) {
+        self.b.switch_to_block(self.exit);
+        let fuel = self.b.use_var(self.fuel);
+        self.store_ctx(fuel, ctx_off::FUEL);
+        self.b.ins().return_(&[]);
+    }
+
+    pub(super) fn load_ctx(&mut self, ty: ir::Type, off: i32) -> ir::Value {
+        self.b.ins().load(ty, mem_flags(), self.ctx, off)
+    }
+
+    pub(super) fn store_ctx(&mut self, v: ir::Value, off: i32) {
+        self.b.ins().store(mem_flags(), v, self.ctx, off);
+    }
+
+    /// Record `code` at `site` if no error was recorded yet and `cond` (i8) holds.
+    pub(super) fn record_error(&mut self, code: u32, site: u32, cond: Option<ir::Value>) {
+        let old = self.load_ctx(types::I32, ctx_off::ERROR);
+        let mut first = self.b.ins().icmp_imm_s(IntCC::Equal, old, 0);
+        for c in cond.into_iter().chain(self.error_guard) {
+            first = self.b.ins().band(first, c);
+        }
+        // Flat pixel code also runs statements no lane executes (see [`flat`]); tier 1
+        // runs them only when some lane does, and only then can they fail.
+        if self.flat {
+            if let Some(e) = self.exec() {
+                let any = self.b.ins().vany_true(e);
+                first = self.b.ins().band(first, any);
+            }
+        }
+        let code_v = self.iconst_here(types::I32, code as i64);
+        let new = self.b.ins().select(first, code_v, old);
+        self.store_ctx(new, ctx_off::ERROR);
+        let old_site = self.load_ctx(types::I32, ctx_off::ERROR_SITE);
+        let site_v = self.iconst_here(types::I32, site as i32 as i64);
+        let new_site = self.b.ins().select(first, site_v, old_site);
+        self.store_ctx(new_site, ctx_off::ERROR_SITE);
+    }
+
+    /// Record `code` (ERR_INDEX or ERR_FUEL) at `site` if no error was recorded yet and
+    /// `cond` (i8) holds. In the tier-0 setup code of a kernel that defers them, only
+    /// `pending_error` changes: a select keeps the first error (~4 instructions instead of
+    /// two loads, two stores and ~10 more; ~60 index sites and ~80 loops of the NURB setup
+    /// record one).
+    pub(super) fn defer_error(&mut self, code: u32, site: SiteId, cond: Option<ir::Value>) {
+        let site_plus_one = i64::from(site.0) + 1;
+        if !self.deferring_errors || site_plus_one >= 1 << PENDING_CODE_SHIFT {
+            // Not deferred: after the deferred ones, which came first.
+            if self.deferring_errors {
+                self.flush_errors();
+            }
+            return self.record_error(code, site.0, cond);
+        }
+        let bad = match (cond, self.error_guard) {
+            (Some(c), Some(g)) => Some(self.b.ins().band(c, g)),
+            (c, g) => c.or(g),
+        };
+        let pending = self.b.use_var(self.pending_error);
+        let error = self
+            .b
+            .ins()
+            .iconst(types::I32, i64::from(code) << PENDING_CODE_SHIFT | site_plus_one);
+        let candidate = match bad {
+            Some(c) => self.b.ins().select(c, error, pending),
+            None => error,
+        };
+        // An earlier error (pending != 0) stays.
+        let new = self.b.ins().select(pending, pending, candidate);
+        self.b.def_var(self.pending_error, new);
+    }
+
+    /// Put the setup's deferred error into `ctx.error` / `ctx.error_site` unless an error
+    /// is already there (one recorded earlier: by a callee, a call too deep, or before the
+    /// kernel ran). Called wherever the error state can be observed or an error that is
+    /// not deferred be recorded: the setup's exits and its end, and before primitive calls
+    /// (the callee, or the expand recorder, runs with `ctx`), so the first error of the run
+    /// wins across kinds.
+    pub(super) fn flush_errors(&mut self) {
+        if !self.defer_errors {
+            return;
+        }
+        let pending = self.b.use_var(self.pending_error);
+        let old = self.load_ctx(types::I32, ctx_off::ERROR);
+        let zero = self.iconst_here(types::I32, 0);
+        // The pending error if it is to be recorded now, else 0.
+        let first = self.b.ins().select(old, zero, pending);
+        // `first` is 0 where `old` is not: the OR keeps `old` then.
+        let code = self.b.ins().ushr_imm_u(first, i64::from(PENDING_CODE_SHIFT));
+        let new = self.b.ins().bor(old, code);
+        self.store_ctx(new, ctx_off::ERROR);
+        let old_site = self.load_ctx(types::I32, ctx_off::ERROR_SITE);
+        let site = self.b.ins().band_imm_u(first, (1i64 << PENDING_CODE_SHIFT) - 1);
+        let site = self.b.ins().iadd_imm_s(site, -1);
+        let new_site = self.b.ins().select(first, site, old_site);
+        self.store_ctx(new_site, ctx_off::ERROR_SITE);
+    }
+
+    /// Whether lowering `setup` may record an index error: some index site is neither a
+    /// constant inside a fixed array nor proven in range (mirrors [`Self::index_access`]).
+    /// Kernels without one (screen_triangle, the sphere, ...) keep their code unchanged.
+    pub(super) fn setup_may_fail_index(&mut self, setup: &'a [Stmt]) -> bool {
+        let mut sites = vec![];
+        collect_setup_index_sites(self.frame().func, setup, &mut sites);
+        sites
+            .into_iter()
+            .any(|(static_len, index, site)| match (static_len, const_int(index)) {
+                (Some(len), Some(k)) => k < 0 || k >= i64::from(len),
+                _ => !self.site_proven(site),
+            })
+    }
+
+    /// Union a rectangle into `ctx.bound` (bound mode only; the caller checks for NaN).
+    /// `go`: only if this holds; the fields are then rewritten with their own values
+    /// otherwise (branch-free, for tier 0's setup: one block fewer).
+    pub(super) fn union_bound(&mut self, r: [ir::Value; 4], go: Option<ir::Value>) {
+        let set = self.load_ctx(types::I32, ctx_off::BOUND_SET);
+        let has = self.b.ins().icmp_imm_s(IntCC::NotEqual, set, 0);
+        for (i, &v) in r.iter().enumerate() {
+            let off = ctx_off::BOUND + 4 * i as i32;
+            let cur = self.load_ctx(types::F32, off);
+            let merged = if i < 2 {
+                self.b.ins().fmin(cur, v)
+            } else {
+                self.b.ins().fmax(cur, v)
+            };
+            let new = self.b.ins().select(has, merged, v);
+            let new = match go {
+                Some(go) => self.b.ins().select(go, new, cur),
+                None => new,
+            };
+            self.store_ctx(new, off);
+        }
+        let one = self.iconst_here(types::I32, 1);
+        let one = match go {
+            Some(go) => self.b.ins().select(go, one, set),
+            None => one,
+        };
+        self.store_ctx(one, ctx_off::BOUND_SET);
+    }
+
+    /// `bound(...)`. `then_done`: nothing after it in the setup matters to a bound run
+    /// (see `body`), so in bound mode the kernel returns right after recording it.
+    pub(super) fn lower_bound(&mut self, es: &'a [Expr; 4], then_done: bool) -> Res<()> {
+        let mut r = [self.f32const_here(0.0); 4];
+        for (i, e) in es.iter().enumerate() {
+            let v = self.eval_uniform(e)?;
+            r[i] = fixed::convert(&mut self.b, v.scalar, Scalar::Float, v.comps[0]);
+        }
+        let mut nan = self.b.ins().fcmp(FloatCC::Unordered, r[0], r[1]);
+        let n2 = self.b.ins().fcmp(FloatCC::Unordered, r[2], r[3]);
+        nan = self.b.ins().bor(nan, n2);
+        let mode = self.load_ctx(types::I32, ctx_off::MODE);
+        let is_bound = self.b.ins().icmp_imm_s(IntCC::Equal, mode, MODE_BOUND as i64);
+        let skip = self.b.ins().bnot(nan);
+        let go = self.b.ins().band(is_bound, skip);
+        if self.tier0() {
+            // Tier 0: no block for the union (see `union_bound`) and no early end of a
+            // bound run (blocks cost tier 0 more compile time than the bound run saves).
+            self.union_bound(r, Some(go));
+        } else {
+            let union_blk = self.b.create_block();
+            let after = self.b.create_block();
+            self.b.ins().brif(go, union_blk, &[], after, &[]);
+            self.b.switch_to_block(union_blk);
+            self.union_bound(r, None);
+            if then_done {
+                self.b.ins().jump(self.exit, &[]);
+                // The NaN bound of a bound run is not recorded, and nothing else is either.
+                let render = self.b.create_block();
+                self.b.switch_to_block(after);
+                self.b.ins().brif(is_bound, self.exit, &[], render, &[]);
+                self.b.switch_to_block(render);
+            } else {
+                self.b.ins().jump(after, &[]);
+                self.b.switch_to_block(after);
+            }
+        }
+        for (i, &v) in r.iter().enumerate() {
+            self.b.def_var(self.bound_vars[i], v);
+        }
+        let yes = self.iconst_here(types::I8, 1);
+        self.b.def_var(self.has_bound, yes);
+        Ok(())
+    }
+}
