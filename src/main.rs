@@ -2,7 +2,7 @@
 
 /// mimalloc: the JIT's compiles allocate and free many small vectors (Cranelift's, ours);
 /// with glibc's malloc that was ~5 % of a tier-0 compile's instructions, and mimalloc made
-/// compiles ~4-7 % faster (docs/performance.md, "Session 23").
+/// compiles ~4-7 % faster (docs/performance.md, "The release binary: LTO, mimalloc, transparent huge pages off").
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 

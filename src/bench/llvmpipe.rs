@@ -1,4 +1,4 @@
-//! Mesa's llvmpipe measured live, beside the JIT, on the workloads issue 5 compares with it.
+//! Mesa's llvmpipe measured live, beside the JIT, on the workloads it can draw the same way.
 //!
 //! Issue 5 gives llvmpipe's figures (fill, small triangles, spheres) as measured on "this
 //! machine kind", but machines change under a project (the development host went from a

@@ -44,7 +44,7 @@ pub struct BenchOptions {
     pub runs: usize,
     pub progress: bool,
     /// A primflow binary to run as `primflow llvmpipe-worker`, timing Mesa's llvmpipe on the
-    /// workloads issue 5 has llvmpipe figures for ([`llvmpipe`]); `None`: the issue's
+    /// workloads with reference llvmpipe figures ([`llvmpipe`]); `None`: the reference
     /// figures alone.
     pub llvmpipe: Option<std::path::PathBuf>,
 }
@@ -255,8 +255,8 @@ struct Workload {
     /// The hand-written forms that exist for it (screen_triangle, polygon and sphere have all
     /// three, NURB surface scalar and AVX2); empty: the JIT's figures are shown alone.
     handwritten: &'static [Flavor],
-    /// The same geometry for llvmpipe, `SIZE` pixels square, for the workloads issue 5 has
-    /// llvmpipe figures for (see [`llvmpipe`]).
+    /// The same geometry for llvmpipe, `SIZE` pixels square, for the workloads with
+    /// reference llvmpipe figures (see [`llvmpipe`]).
     gl: Option<Box<dyn Fn() -> GlScene>>,
 }
 
@@ -1661,7 +1661,7 @@ pub fn format_effects(series: &EffectsSeries) -> String {
 // ---------------------------------------------------------------------------------------
 
 /// Mesa llvmpipe (LLVM JIT, 8-wide AVX2, one rasterizer thread) on the same workloads, as
-/// stated in issue 5: (workload, figure, unit). Units: `Mpix/s` = depth writes (hit pixels)
+/// measured on another machine (the reference figures): (workload, figure, unit). Units: `Mpix/s` = depth writes (hit pixels)
 /// per second, `Mprim/s` = primitives per second.
 pub const LLVMPIPE: [(&str, f64, &str); 6] = [
     ("fill perspective_linear K=4", 746.0, "Mpix/s"),
@@ -1815,7 +1815,7 @@ fn format_scaling_and_llvmpipe(report: &BenchReport) -> String {
         s.push_str(&format!(
             "\nagainst Mesa llvmpipe, one thread: measured here ({}; one rasterizer thread, the same geometry, \
              frames interleaved with the JIT's; its pixels: samples passing its depth test, over the JIT's depth \
-             writes) and issue 5's figures (8-wide AVX2, one rasterizer thread, \"this machine kind\"); the \
+             writes) and the reference figures measured on another machine (8-wide AVX2, one rasterizer thread, \"this machine kind\"); the \
              fastest hand-written kernel beside them:\n",
             report.llvmpipe_status
         ));

@@ -174,7 +174,7 @@ pub struct AccuracyArgs {
 /// allocator, mimalloc, asks for them on its arenas (`madvise`), and the kernel zeroes a
 /// whole 2 MiB page at the first touch of each: a process's first compiles touch ~50, which
 /// on the 2-vCPU VM was 40 % of a first NURB compile's time and most of `primflow render`'s
-/// system time, for no measured gain in a frame's time (docs/performance.md, "Session 25").
+/// system time, for no measured gain in a frame's time (docs/performance.md, "The release binary: LTO, mimalloc, transparent huge pages off").
 /// The binary calls this first thing; the setting is the process's (`PR_SET_THP_DISABLE`),
 /// so it also holds for memory mimalloc reserved before `main`. Returns whether it took.
 pub fn disable_transparent_huge_pages() -> bool {

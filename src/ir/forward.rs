@@ -5,7 +5,7 @@
 //! `nurb_de_boor(u_knots, ..., row_points, ...)` starts with `knots = u_knots` (16 floats)
 //! and `points = row_points` (64 floats): a load and a store per component, per call. In the
 //! NURB tessellation these copies were a fifth of the JIT's setup instructions
-//! (docs/performance.md, `nurbjit`). Scalar copies are not touched (they are SSA moves).
+//! (docs/performance.md, "Unrolling constant-trip loops; forwarding array copies"). Scalar copies are not touched (they are SSA moves).
 //!
 //! The rule (sound without any alias analysis, because the IR has no references: a local
 //! changes only by an assignment naming it): in a statement list, `d = s` (both whole

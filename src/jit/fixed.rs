@@ -227,7 +227,7 @@ pub fn f32x4_to_u32_sat(b: &mut FunctionBuilder, scaled: ir::Value) -> ir::Value
         // `maxps(r, 0)` and then [`rounded_nonneg_to_u32_sat`] is six and gives the same
         // values, but measured worse: with `0.0` used once instead of twice, regalloc2
         // spilled it in sphere's pixel loop and reloaded it at its four other uses there
-        // (sphere +1.1 % JIT instructions per frame; branch zbound, docs/performance.md).
+        // (sphere +1.1 % JIT instructions per frame).
         let zero = f32_like(b, r, 0.0);
         let low = max_ps(b, r, zero);
         let low = b.ins().x86_cvtt2dq(I32X4, low);
@@ -254,8 +254,8 @@ pub fn f32x4_to_u32_sat(b: &mut FunctionBuilder, scaled: ir::Value) -> ir::Value
 
 /// x86_64: `r`, rounded to an integer (`nearest`), not NaN and not below -0.0, to raw u32
 /// lanes saturated at u32::MAX, in five instructions. For every such r this equals
-/// [`f32x4_to_u32_sat`]'s result (checked for every f32 input, scratch model of the x86
-/// instructions, branch zbound).
+/// [`f32x4_to_u32_sat`]'s result (checked for every f32 input against a scratch model of
+/// the x86 instructions).
 ///
 /// Why it is exact, with `low = cvttps2dq(r)` and
 /// `high = cvttps2dq(minps(r - 2^32, -1.0))`, the result `pmaxsd(low, high)` (signed):

@@ -46,7 +46,7 @@ pub fn row_stride(width: u32) -> u32 {
 /// 1 MiB apart) those stores all fall in one set of the L1 and L2 caches (sets are indexed
 /// by address bits below 4 KiB and 128 KiB). Sixteen planes plus the depth buffer are more
 /// lines than a set has ways, so every group evicted the lines the next group of the row
-/// writes: 2.7x the frame time at K = 16 (docs/performance.md, `k16`). An odd line count
+/// writes: 2.7x the frame time at K = 16 (docs/performance.md, "G-buffer plane stride"). An odd line count
 /// between planes puts plane `p`'s lines `17 p` sets further on in any power-of-two set
 /// count, so up to 64 planes' row segments (4 lines each at the default tile side) sit in
 /// different L1 sets; at most 63 lines (~4 KiB) of padding per plane.

@@ -464,7 +464,7 @@ fn tile_grid(opts: &RenderOptions) -> Vec<Tile> {
 /// bound, or `None`: exactly the tiles in which a kernel's render call runs a pixel
 /// (`pass_range` in the JIT takes the same pixels). In f64 `x - 0.5` and its floor and ceil
 /// are exact for every clamped f32 bound, so no margin is needed; a one-pixel margin each way
-/// (until session 20) sent a 20-pixel triangle to 1.29 tiles on average where 1.2 hold a
+/// would send a 20-pixel triangle to 1.29 tiles on average where 1.2 hold a
 /// pixel of it, each extra call paying the whole setup for no pixel.
 fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<TileRect> {
     if bound.iter().any(|v| v.is_nan()) {

@@ -1,4 +1,4 @@
-//! The benchmark's effects series (`primflow bench`, issue 5): its frames differ exactly the
+//! The benchmark's effects series (`primflow bench`): its frames differ exactly the
 //! way each effect says (fog blends every pixel towards the fog colour by the distance of
 //! the nearest layer, the checker halves the base colour on odd squares and leaves the rest,
 //! lights change the colour), the thread count changes nothing, a frame with no effect shows
@@ -242,7 +242,7 @@ fn report_has_effects_thread_figures_and_llvmpipe_rows() {
     let table = format_table(&report);
     assert!(table.contains("example scenes to first pixel"), "{table}");
     assert!(table.contains("thread scaling"), "{table}");
-    // No llvmpipe worker asked for: the issue's figures stand alone.
+    // No llvmpipe worker asked for: the reference figures stand alone.
     assert!(table.contains("issue's figure   88.0: JIT"), "{table}");
     assert!(table.contains("llvmpipe here: -"), "{table}");
     assert!(table.contains("hand-written best"), "{table}");

@@ -1,4 +1,4 @@
-//! llvmpipe measured live beside the JIT (`primflow bench`, issue 5): the worker draws the
+//! llvmpipe measured live beside the JIT (`primflow bench`): the worker draws the
 //! workloads' own geometry — the same pixels pass its depth test as the JIT writes — and
 //! the report sets its figures beside the JIT's. Where the host has no Mesa EGL the bench
 //! must say so and carry on; this machine image has it, and there every assertion about

@@ -1,7 +1,7 @@
 //! The front end: lexer and grammar (`parse`), the checker's diagnostics (`check_errors`, `check_ok`,
 //! with insta snapshots under `snapshots/`), its passes over the IR (`check_passes`) and a fuzz of
-//! mutated sources (`check_fuzz`) and the depth and size limits (`limits`).
-//! mutated sources (`check_fuzz`), and the IR validator's rules (`valid`).
+//! mutated sources (`check_fuzz`), the depth and size limits (`limits`), long-line diagnostics
+//! and the error cap (`diag_limits`), and the IR validator's rules (`valid`).
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
@@ -9,7 +9,7 @@ mod check_errors;
 mod check_fuzz;
 mod check_ok;
 mod check_passes;
-mod limits;
 mod diag_limits;
+mod limits;
 mod parse;
 mod valid;

@@ -33,7 +33,7 @@ use crate::jit::fixed;
 
 /// Uniform conditions decided on one path through the unswitching tree. Each doubles the
 /// pixel loops' code (less the untaken sides); measured for screen_triangle (one
-/// condition), see docs/performance.md, section `unswitch`.
+/// condition), see docs/performance.md, "Unswitching (`unswitch.rs`)".
 pub(super) const MAX_UNSWITCHED: usize = 2;
 
 /// Address of a condition: the key of [`Lower::unswitched`].
