@@ -8,6 +8,7 @@ mod common;
 mod clip;
 mod face;
 mod factor;
+mod far_camera;
 mod geometry_explain;
 mod geometry_render;
 mod lighting;
