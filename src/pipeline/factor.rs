@@ -133,6 +133,21 @@ fn max_abs(m: &DMat4) -> f64 {
     m.to_cols_array().iter().fold(0.0f64, |a, &b| a.max(b.abs()))
 }
 
+/// Whether `v` is singular to working precision: `|det v|` at most 1e-12 of Hadamard's bound
+/// on it, the product of the row lengths, *and* of the column lengths. Either bound alone
+/// depends on where the world's origin is: a camera at (1e6, 1e6, 0) puts 1e6 translations in
+/// two rows of V and makes the row bound 1e12 times |det v| for a perfectly regular view (the
+/// same camera at (1e6, 0, 0) has one such row and passed). The column bound holds the
+/// translation in one column, so the two together are only both small for a matrix that is
+/// close to singular whichever way it is scaled.
+pub fn is_numerically_singular(v: &DMat4) -> bool {
+    let det = v.determinant().abs();
+    let by_rows: f64 = (0..4).map(|r| v.row(r).length()).product();
+    let by_cols: f64 = (0..4).map(|c| v.col(c).length()).product();
+    // Written so that NaN counts as singular.
+    !(det > 1e-12 * by_rows.min(by_cols))
+}
+
 /// Factors `clip_from_world` with the default tolerance.
 pub fn factor_view(clip_from_world: &DMat4) -> Result<ViewFactors, NotFactorizable> {
     factor_view_with_tolerance(clip_from_world, DEFAULT_TOLERANCE)
@@ -145,9 +160,7 @@ pub fn factor_view_with_tolerance(v: &DMat4, tolerance: f64) -> Result<ViewFacto
         return Err(NotFactorizable::NonFinite);
     }
     let rows = [v.row(0), v.row(1), v.row(2), v.row(3)];
-    let hadamard: f64 = rows.iter().map(|r| r.length()).product();
-    let det = v.determinant();
-    if hadamard == 0.0 || det.abs() <= 1e-12 * hadamard {
+    if is_numerically_singular(v) {
         return Err(NotFactorizable::Singular);
     }
     let inv = v.inverse();

@@ -8,6 +8,7 @@ mod clip;
 mod common;
 mod face;
 mod factor;
+mod far_camera;
 mod geometry_explain;
 mod geometry_render;
 mod lighting;
