@@ -137,19 +137,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 let mut comps = vec![];
                 for i in 0..vs[0].comps.len() {
                     let (x, y) = (vs[0].comps[i], vs[1].comps[i]);
-                    comps.push(match func {
-                        Builtin::Min => self.b.ins().fmin(x, y),
-                        Builtin::Max => self.b.ins().fmax(x, y),
-                        Builtin::Atan2 => self.call_libm(LibmFn::Atan2, &[x, y])?,
-                        Builtin::Pow => self.call_libm(LibmFn::Pow, &[x, y])?,
-                        _ => {
-                            // step(edge, x) = x < edge ? 0 : 1
-                            let lt = self.b.ins().fcmp(FloatCC::LessThan, y, x);
-                            let zero = self.fconst_like(x, 0.0);
-                            let one = self.fconst_like(x, 1.0);
-                            self.fsel(lt, zero, one)
-                        }
-                    });
+                    comps.push(self.binary_float(func, x, y)?);
                 }
                 Ok(self.fl(comps, vs[0].varying))
             }
@@ -158,33 +146,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 let mut comps = vec![];
                 for i in 0..vs[0].comps.len() {
                     let (x, y, z) = (vs[0].comps[i], vs[1].comps[i], vs[2].comps[i]);
-                    comps.push(match func {
-                        Builtin::Clamp => {
-                            let m = self.b.ins().fmax(x, y);
-                            self.b.ins().fmin(m, z)
-                        }
-                        Builtin::Mix => {
-                            let d = self.b.ins().fsub(y, x);
-                            let p = self.b.ins().fmul(d, z);
-                            self.b.ins().fadd(x, p)
-                        }
-                        _ => {
-                            // smoothstep(e0, e1, x): t = clamp((x-e0)/(e1-e0), 0, 1); t*t*(3-2t)
-                            let num = self.b.ins().fsub(z, x);
-                            let den = self.b.ins().fsub(y, x);
-                            let t = self.b.ins().fdiv(num, den);
-                            let zero = self.fconst_like(x, 0.0);
-                            let one = self.fconst_like(x, 1.0);
-                            let t = self.b.ins().fmax(t, zero);
-                            let t = self.b.ins().fmin(t, one);
-                            let two = self.fconst_like(x, 2.0);
-                            let three = self.fconst_like(x, 3.0);
-                            let tt = self.b.ins().fmul(t, t);
-                            let t2 = self.b.ins().fmul(two, t);
-                            let k = self.b.ins().fsub(three, t2);
-                            self.b.ins().fmul(tt, k)
-                        }
-                    });
+                    comps.push(self.ternary_float(func, x, y, z));
                 }
                 Ok(self.fl(comps, vs[0].varying))
             }
@@ -245,6 +207,54 @@ impl<'a, 'b> Lower<'a, 'b> {
                 // Inverse transpose of to_from_from = transpose of from_from_to.
                 let m = self.space_matrix(from, to);
                 self.apply_3x3(m, &vals[0], true)
+            }
+        }
+    }
+
+    /// One component of a two-operand float built-in (min, max, atan2, pow, step).
+    fn binary_float(&mut self, func: Builtin, x: ir::Value, y: ir::Value) -> Res<ir::Value> {
+        Ok(match func {
+            Builtin::Min => self.b.ins().fmin(x, y),
+            Builtin::Max => self.b.ins().fmax(x, y),
+            Builtin::Atan2 => self.call_libm(LibmFn::Atan2, &[x, y])?,
+            Builtin::Pow => self.call_libm(LibmFn::Pow, &[x, y])?,
+            _ => {
+                // step(edge, x) = x < edge ? 0 : 1
+                let lt = self.b.ins().fcmp(FloatCC::LessThan, y, x);
+                let zero = self.fconst_like(x, 0.0);
+                let one = self.fconst_like(x, 1.0);
+                self.fsel(lt, zero, one)
+            }
+        })
+    }
+
+    /// One component of a three-operand float built-in (clamp, mix, smoothstep).
+    fn ternary_float(&mut self, func: Builtin, x: ir::Value, y: ir::Value, z: ir::Value) -> ir::Value {
+        match func {
+            Builtin::Clamp => {
+                let m = self.b.ins().fmax(x, y);
+                self.b.ins().fmin(m, z)
+            }
+            Builtin::Mix => {
+                let d = self.b.ins().fsub(y, x);
+                let p = self.b.ins().fmul(d, z);
+                self.b.ins().fadd(x, p)
+            }
+            _ => {
+                // smoothstep(e0, e1, x): t = clamp((x-e0)/(e1-e0), 0, 1); t*t*(3-2t)
+                let num = self.b.ins().fsub(z, x);
+                let den = self.b.ins().fsub(y, x);
+                let t = self.b.ins().fdiv(num, den);
+                let zero = self.fconst_like(x, 0.0);
+                let one = self.fconst_like(x, 1.0);
+                let t = self.b.ins().fmax(t, zero);
+                let t = self.b.ins().fmin(t, one);
+                let two = self.fconst_like(x, 2.0);
+                let three = self.fconst_like(x, 3.0);
+                let tt = self.b.ins().fmul(t, t);
+                let t2 = self.b.ins().fmul(two, t);
+                let k = self.b.ins().fsub(three, t2);
+                self.b.ins().fmul(tt, k)
             }
         }
     }
