@@ -41,7 +41,6 @@ pub(crate) const fn params_at(t: usize) -> usize {
 /// Float literals of the prim, converted as the front end converts them (parsed as f64,
 /// then rounded to f32).
 const LIMIT: f32 = 1e30f64 as f32;
-const TINY: f32 = 1e-30f64 as f32;
 const MARGIN: f32 = 1e-3f64 as f32;
 
 /// Everything the per-pixel code needs, computed once per sphere as the prim does.
@@ -60,6 +59,9 @@ pub(crate) struct SphereSetup<const T: usize> {
     pub n0w: f32,
     pub n1w: f32,
     pub inv_cw: f32,
+    /// The reference point relative to the centre (zero unless the sphere reaches the eye
+    /// plane, where the prim measures from device (0, 0, 0.5)).
+    pub d0: [f32; 3],
     pub r2: f32,
     pub a: f32,
     pub normal_x: [f32; 3],
@@ -93,7 +95,7 @@ impl<const T: usize> SphereSetup<T> {
     /// projection, with the prim's operations (the JIT evaluates them once per row too).
     #[inline(always)]
     pub(crate) fn row_terms(&self, dy: f32) -> RowTerms {
-        let delta_row = self.g1.map(|g| dy * g);
+        let delta_row: [f32; 3] = std::array::from_fn(|c| self.d0[c] + dy * self.g1[c]);
         let delta_w_row = self.inv_cw + dy * self.n1w;
         let along_row: [f32; 3] = std::array::from_fn(|c| delta_w_row * self.gamma[c] - self.gamma_w * delta_row[c]);
         let across_row = cross3(self.gamma, delta_row);
@@ -222,10 +224,21 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32) -> Option<SphereSet
     if cw <= -w_reach {
         return None;
     }
-    if !(cw.abs() > TINY) {
-        return None;
-    }
-    let (sx, sy, zc) = (center_device[0] / cw, center_device[1] / cw, center_device[2] / cw);
+    // The reference point of pixel offsets and depths: the centre's projection while the
+    // sphere is clear of the eye plane, device (0, 0, 0.5) once it reaches it (as the prim).
+    let (sx, sy, zc, inv_cw, d0) = if cw > w_reach {
+        (
+            center_device[0] / cw,
+            center_device[1] / cw,
+            center_device[2] / cw,
+            1.0 / cw,
+            [0.0f32; 3],
+        )
+    } else {
+        let p0 = apply_point(&object_from_device, [0.0, 0.0, 0.5, 1.0]);
+        let d0: [f32; 3] = std::array::from_fn(|c| p0[c] - center[c] * p0[3]);
+        (0.0, 0.0, 0.5, p0[3], d0)
+    };
 
     let lead = cw2 - w_reach * w_reach;
     let mut bound = None;
@@ -272,7 +285,8 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32) -> Option<SphereSet
         gamma_w,
         n0w,
         n1w: n1[3],
-        inv_cw: 1.0 / cw,
+        inv_cw,
+        d0,
         r2,
         a,
         normal_x,
