@@ -16,7 +16,9 @@
 //!    reports the variability errors; after this point every expression, loop and local
 //!    has its final variability;
 //! 6. **split** — [`ir::split::split_checked`] moves per-pixel statements of primitives
-//!    into `pixel`; an interpolator's whole body is its pixel part.
+//!    into `pixel`; an interpolator's whole body is its pixel part;
+//! 7. **validate** (test and debug builds) — [`ir::valid::validate`] checks the rules code
+//!    generation relies on; a broken one is an internal compiler error (E0900).
 //!
 //! Diagnostics are collected in a [`Sink`] that drops exact duplicates (a helper's type
 //! error is found once standalone and again at every call site it is inlined at) and
@@ -60,6 +62,13 @@ pub fn check(modules: &[&ast::Module], diags: &mut Diagnostics) -> ir::Program {
                 let f = lower_function(&g, idx, &roles, &mut sink, &mut program.sites, &mut lowered_cleanly);
                 program.functions.push(f);
             }
+        }
+    }
+    // After this point the program obeys every rule of `ir::valid` (checked in test and
+    // debug builds; a broken rule is a bug of the checker, reported as one).
+    if cfg!(debug_assertions) && !sink.items.iter().any(|d| d.is_error()) {
+        if let Err(e) = ir::valid::validate(&program) {
+            sink.push(Diagnostic::error("E0900", format!("internal compiler error: {e}")).primary(e.span, "here"));
         }
     }
     let mut items = sink.items;

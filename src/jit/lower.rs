@@ -454,6 +454,9 @@ pub(crate) fn lower_kernel<'b>(
     if program.functions.get(func_id.0 as usize).is_none() {
         return err(format!("no function {}", func_id.0));
     }
+    if let Some(e) = &body.invalid {
+        return Err(e.clone());
+    }
     let f: &Function = &body.function;
     if f.kind != FuncKind::Primitive {
         return err(format!(

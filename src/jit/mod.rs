@@ -189,6 +189,9 @@ type Bodies = Arc<Mutex<HashMap<FuncId, Arc<Body>>>>;
 /// every variant, both tiers and every JIT sharing the body reuse the result.
 struct Body {
     function: Function,
+    /// Test and debug builds: the IR rule the passes broke (see [`crate::ir::valid`]), as
+    /// the internal compiler error every kernel of this body reports.
+    invalid: Option<JitError>,
     /// Index sites proven in range ([`crate::ir::range`]); ~20 % of a NURB tier-0 compile.
     proven_sites: std::sync::OnceLock<HashSet<crate::ir::SiteId>>,
 }
@@ -208,10 +211,27 @@ fn body_of(bodies: &Bodies, program: &Program, unroll_loops: bool, func: FuncId)
     if let Some(body) = lock().get(&func) {
         return body.clone();
     }
-    // Whole-array copies forwarded first (`crate::ir::forward`), then unrolled.
+    // Whole-array copies forwarded first (`crate::ir::forward`), then unrolled; each
+    // result validated in test and debug builds.
+    let check = |pass: &str, f: &Function| {
+        let e = crate::ir::valid::validate_function(program, f).err()?;
+        Some(JitError {
+            message: format!("internal compiler error: IR invalid after {pass}: {e}"),
+        })
+    };
     let f = crate::ir::forward::forward_copies(program.func(func));
+    let mut invalid = if cfg!(debug_assertions) {
+        check("forward", &f)
+    } else {
+        None
+    };
+    let function = if unroll_loops { unroll::unroll_function(f) } else { f };
+    if cfg!(debug_assertions) && unroll_loops && invalid.is_none() {
+        invalid = check("unroll", &function);
+    }
     let body = Arc::new(Body {
-        function: if unroll_loops { unroll::unroll_function(f) } else { f },
+        function,
+        invalid,
         proven_sites: Default::default(),
     });
     // Another thread may have made it meanwhile: the first one stays.

@@ -112,5 +112,8 @@ proptest! {
         let mut check_diags = Diagnostics::new();
         let _ = primflow::check::check(&[&module], &mut check_diags);
         let _ = check_diags.render(&sources);
+        // Whatever the checker accepts obeys the IR validator's rules (`ir::valid`).
+        let ice = diags.items.iter().chain(&check_diags.items).find(|d| d.code == "E0900");
+        prop_assert!(ice.is_none(), "{:?}", ice);
     }
 }

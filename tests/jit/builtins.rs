@@ -28,7 +28,16 @@ fn run(outs: impl Fn(&Expr) -> Vec<Expr>, spaces: Option<[[f32; 16]; 6]>) -> Vec
     let (x, _y, _z) = fb.xyz();
     fb.f.uses_spaces = spaces.is_some();
     let outs = outs(&x);
-    let flat: Vec<Expr> = outs.into_iter().collect();
+    // Aggregates as their components, so the list's items share one type (the checker's
+    // lists do; `primflow::ir::valid` checks it). Site 0: constant indices, never out of range.
+    let several = outs.len() > 1;
+    let flat: Vec<Expr> = outs
+        .into_iter()
+        .flat_map(|o| match o.ty.dims.first() {
+            Some(&n) if several => (0..n as i32).map(|i| index(o.clone(), ic(i), 0)).collect(),
+            _ => vec![o],
+        })
+        .collect();
     let n: u32 = flat.iter().map(|e| e.ty.fixed_len()).sum();
     // Concatenate: a list of scalars, or one aggregate.
     let value = if flat.len() == 1 {
@@ -36,8 +45,8 @@ fn run(outs: impl Fn(&Expr) -> Vec<Expr>, spaces: Option<[[f32; 16]; 6]>) -> Vec
     } else {
         list(flat)
     };
-    fb.f.pixel = vec![interp_return(value)];
-    let mut jit = Jit::new(Arc::new(program(vec![fb.f], 0))).unwrap();
+    fb.f.pixel = vec![arm("linear", vec![interp_return(value)])];
+    let mut jit = Jit::new(Arc::new(program(vec![fb.f], 1))).unwrap();
     let k = jit.kernel(FuncId(0), &kind_key(&[("linear", n)])).unwrap();
     assert!(k.warnings.is_empty(), "{:?}", k.warnings);
     let mut args: Vec<u32> = vec![1];

@@ -35,7 +35,7 @@ fn run_outputs(params: &[f64], outputs: impl Fn(&[Expr], &Expr) -> Vec<Expr>) ->
         .collect();
     let outs = outputs(&ps, &x);
     let n = outs.len();
-    fb.f.pixel = vec![interp_return(list(outs))];
+    fb.f.pixel = vec![arm("linear", vec![interp_return(list(outs))])];
     let mut jit = Jit::new(Arc::new(program(vec![fb.f], 1))).unwrap();
     let k = jit.kernel(FuncId(0), &kind_key(&[("linear", n as u32)])).unwrap();
     assert!(k.warnings.is_empty(), "{:?}", k.warnings);

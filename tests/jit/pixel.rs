@@ -191,7 +191,7 @@ fn varying_scatter_into_local_array_respects_mask() {
     let xi = conv(x.clone(), Scalar::Int);
     let slot = bin(BinOp::Rem, xi, ic(4));
     fb.f.pixel = vec![
-        assign(&arr, fc(0.0)),
+        assign(&arr, e(ExprKind::Splat(Box::new(fc(0.0))), arr.ty.clone(), Uniform)),
         // Only lanes with X < 8 write 1 into arr[X % 4].
         if_(
             bin(BinOp::Lt, x, fc(8.0)),

@@ -221,6 +221,17 @@ pub fn ret() -> Stmt {
 pub fn interp_return(x: Expr) -> Stmt {
     s(StmtKind::InterpolatorReturn(Some(x)))
 }
+/// `interpolation { kind: body }`: one named arm (`interpolator_return(e)` of a primitive
+/// stands in one, see `primflow::ir::valid`).
+pub fn arm(kind: &str, body: Vec<Stmt>) -> Stmt {
+    s(StmtKind::Interpolation {
+        arms: vec![InterpArm {
+            kind: ArmKind::Named(kind.into()),
+            body,
+            span: Span::default(),
+        }],
+    })
+}
 pub fn bound(r: [Expr; 4]) -> Stmt {
     s(StmtKind::Bound(Box::new(r)))
 }
