@@ -11,7 +11,7 @@
 use std::sync::Arc;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use primflow::bench::{fill_scene, same_frame, shape_scenes, small_scene};
+use primflow::workload::{fill_scene, same_frame, shape_scenes, small_scene};
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::handwritten::{Flavor, Handwritten};
 use primflow::ir::Program;

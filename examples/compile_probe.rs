@@ -87,7 +87,7 @@ fn probe() {
         "linear" => Some("linear"),
         _ => Some("perspective_linear"),
     };
-    let mut scene = primflow::bench::fill_scene(&program, 64, 1, kind, if kind.is_none() { 0 } else { k });
+    let mut scene = primflow::workload::fill_scene(&program, 64, 1, kind, if kind.is_none() { 0 } else { k });
     // `scene=FILE`: the first instance of a scene file instead.
     if let Some(path) = args.iter().find_map(|a| a.strip_prefix("scene=")) {
         let mut sources = SourceMap::new();
@@ -100,7 +100,7 @@ fn probe() {
     // (`sphere implicit`, `sphere lit`, `polygon`, `nurb`).
     if let Some(name) = args.iter().find_map(|a| a.strip_prefix("shape=")) {
         let name = name.replace('_', " ");
-        scene = primflow::bench::shape_scenes(&program, 64, 4, 1)
+        scene = primflow::workload::shape_scenes(&program, 64, 4, 1)
             .into_iter()
             .find(|(n, _, _)| n.contains(name.as_str()))
             .map(|(_, r, _)| r)
@@ -279,11 +279,11 @@ fn speed(program: &Arc<primflow::ir::Program>, rounds: usize) {
     let scenes = [
         (
             "fill perspective_linear K=4",
-            primflow::bench::fill_scene(program, 512, 20, Some("perspective_linear"), 4),
+            primflow::workload::fill_scene(program, 512, 20, Some("perspective_linear"), 4),
         ),
         (
             "small perspective_linear K=4",
-            primflow::bench::small_scene(program, 512, 20000, 4),
+            primflow::workload::small_scene(program, 512, 20000, 4),
         ),
     ];
     for (name, r) in &scenes {
@@ -300,7 +300,7 @@ fn speed(program: &Arc<primflow::ir::Program>, rounds: usize) {
         let reference = pool.install(|| r.render(sources[0].1.as_mut())).frame;
         for (i, (n, s)) in sources.iter_mut().enumerate() {
             let f = pool.install(|| r.render(s.as_mut())).frame;
-            assert!(primflow::bench::same_frame(&reference, &f), "{name}: {n} differs");
+            assert!(primflow::workload::same_frame(&reference, &f), "{name}: {n} differs");
             let _ = i;
         }
         for _ in 0..rounds {

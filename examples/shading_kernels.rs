@@ -7,7 +7,7 @@
 //! Prints, per effect set, the median shading time of each kernel, ns per shaded pixel, the
 //! ratios to the reference, and the largest per-channel difference from the reference.
 
-use primflow::bench::{effects_scene, EFFECT_SETS};
+use primflow::workload::{effects_scene, EFFECT_SETS};
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::jit::Jit;
 use primflow::runtime::shading::ShadingKernel;

@@ -18,7 +18,7 @@
 
 use std::time::{Duration, Instant};
 
-use primflow::bench::fill_scene;
+use primflow::workload::fill_scene;
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::jit::Jit;
 use primflow::runtime::{render_pool, Frame, Registry, RenderStats};

@@ -14,7 +14,8 @@
 //!
 //! Beside the stages: [`accuracy`] measures error against an f64 reference renderer versus
 //! time for each accuracy knob (`primflow accuracy`); [`ops`] holds the operator enums the
-//! AST and the IR share.
+//! AST and the IR share; [`workload`] the deterministic scenes that bench, accuracy and the
+//! tests draw.
 
 pub mod abi;
 pub mod accuracy;
@@ -32,6 +33,7 @@ pub mod runtime;
 pub mod scene;
 pub mod syntax;
 pub mod testing;
+pub mod workload;
 
 use diag::{Diagnostics, FileId, SourceMap};
 

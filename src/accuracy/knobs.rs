@@ -15,7 +15,7 @@
 
 use glam::{DMat4, DVec3, Mat4, Vec3};
 
-use crate::bench::Lcg;
+use crate::workload::Lcg;
 use crate::pipeline::factor::factor_view;
 use crate::pipeline::lighting::{Eye, Light, LightKind, LightingSetup, Material, Sample};
 use crate::pipeline::transform::{look_at_matrix, perspective_matrix};

@@ -38,27 +38,7 @@ use std::time::Instant;
 
 use glow::HasContext;
 
-use super::Tri;
-
-/// The geometry of a workload as llvmpipe draws it.
-pub(crate) enum GlScene {
-    /// Screen triangles on a `size` x `size` target with `k` parameters per vertex,
-    /// interpolated as the JIT's `interpolation` kind (`None`: no parameters).
-    Triangles {
-        size: u32,
-        tris: Vec<Tri>,
-        k: usize,
-        interpolation: Option<&'static str>,
-    },
-    /// Spheres (eye-space centre, radius) seen through a perspective camera (vertical field
-    /// of view in degrees, near, far), shaded by their normal or lit.
-    Spheres {
-        size: u32,
-        camera: (f32, f32, f32),
-        spheres: Vec<([f32; 3], f32)>,
-        lit: bool,
-    },
-}
+use crate::workload::{GlScene, Tri};
 
 /// One timed llvmpipe frame.
 #[derive(Clone, Copy, Debug)]

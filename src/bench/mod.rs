@@ -22,13 +22,16 @@ use crate::diag::{Diagnostics, SourceMap};
 use crate::handwritten::{Flavor, Handwritten};
 use crate::ir::Program;
 use crate::jit::Jit;
-use crate::runtime::shading::{Fog, SceneLight, SurfaceMaterial, Texture};
-use crate::runtime::{render_pool, Frame, KernelSource, Registry, Renderer, Value};
+use crate::runtime::{render_pool, Frame, KernelSource, Registry, Renderer};
 
 mod llvmpipe;
 mod scene;
+use crate::workload::{
+    bind, effects_scene, layers_for, same_frame, scene, submit, tri_with_params, workloads, EffectSet, GlScene, Lcg,
+    Workload, ALL_FLAVORS, EFFECT_SETS, SIZE,
+};
 pub use llvmpipe::worker as llvmpipe_worker;
-use llvmpipe::{GlScene, Llvmpipe};
+use llvmpipe::Llvmpipe;
 pub use scene::{
     example_scenes_to_first_pixel, format_scene_report, run_scene, scene_to_first_pixel, SceneBenchOptions,
     SceneBenchReport, SceneToFirstPixel, SCENE_TTFP_RUNS,
@@ -245,312 +248,6 @@ pub struct BenchReport {
     pub llvmpipe_status: String,
 }
 
-const SIZE: u32 = 512;
-
-/// One benchmark scene: instances submitted to a renderer.
-struct Workload {
-    name: String,
-    build: Box<dyn Fn(&mut Renderer)>,
-    primitives: usize,
-    /// The hand-written forms that exist for it (screen_triangle, polygon and sphere have all
-    /// three, NURB surface scalar and AVX2); empty: the JIT's figures are shown alone.
-    handwritten: &'static [Flavor],
-    /// The same geometry for llvmpipe, `SIZE` pixels square, for the workloads with
-    /// reference llvmpipe figures (see [`llvmpipe`]).
-    gl: Option<Box<dyn Fn() -> GlScene>>,
-}
-
-const ALL_FLAVORS: [Flavor; 3] = [Flavor::Scalar, Flavor::Sse, Flavor::Avx2];
-
-/// (name, interpolation kind) of the four shading parameters of the fill and small workloads.
-fn bind(r: &mut Renderer, kind: Option<&str>, k: usize) {
-    if let Some(kind) = kind {
-        for c in 0..k {
-            r.material_interp(&format!("p{c}"), kind, &[])
-                .expect("bench scene: material_interp");
-        }
-    }
-}
-
-/// A screen_triangle of a workload: its `screen_vertex` (pixels, depth in [0, 1] with
-/// larger nearer, w) and its `k` shading parameters at each vertex (vertex-major).
-#[derive(Clone, Debug)]
-pub(crate) struct Tri {
-    pub v: [[f32; 4]; 3],
-    pub params: Vec<f32>,
-}
-
-/// The triangle `v` with `k` parameters per vertex, drawn from `rng` in the order the
-/// workloads have always drawn them.
-fn tri_with_params(v: [[f32; 4]; 3], k: usize, rng: &mut Lcg) -> Tri {
-    Tri {
-        v,
-        params: (0..3 * k).map(|_| rng.next() as f32).collect(),
-    }
-}
-
-fn submit(r: &mut Renderer, t: &Tri, k: usize) {
-    r.begin("screen_triangle").expect("bench scene: begin");
-    r.rast_param("screen_vertex", &Value(t.v.iter().flatten().copied().collect()))
-        .expect("bench scene: rast_param");
-    for vertex in 0..3 {
-        for c in 0..k {
-            r.material(&format!("p{c}"), &Value(vec![t.params[vertex * k + c]]))
-                .expect("bench scene: material");
-        }
-        r.sequence_point().expect("bench scene: sequence_point");
-    }
-    r.end().expect("bench scene: end");
-}
-
-/// The `fill` triangles at `size` x `size`: full-viewport quads back to front (every pixel
-/// passes), per-vertex w in [1, 3].
-fn fill_tris(layers: usize, size: u32, k: usize) -> Vec<Tri> {
-    let mut rng = Lcg(1);
-    let s = size as f32;
-    let mut tris = vec![];
-    for layer in 0..layers {
-        let z = (layer + 1) as f32 / (layers + 1) as f32;
-        let mut corner = |x: f32, y: f32| [x, y, z, 1.0 + 2.0 * rng.next() as f32];
-        let q = [corner(0.0, 0.0), corner(s, 0.0), corner(s, s), corner(0.0, s)];
-        tris.push(tri_with_params([q[0], q[1], q[2]], k, &mut rng));
-        tris.push(tri_with_params([q[0], q[2], q[3]], k, &mut rng));
-    }
-    tris
-}
-
-/// The `small` triangles at `size` x `size`: 20 px area, random centre and rotation, back to
-/// front.
-fn small_tris(count: usize, size: u32, k: usize) -> Vec<Tri> {
-    let mut rng = Lcg(2);
-    // Equilateral, area 20: side^2 * sqrt(3)/4 = 20.
-    let radius = (20.0f64 * 4.0 / 3f64.sqrt()).sqrt() / 3f64.sqrt();
-    (0..count)
-        .map(|i| {
-            let z = (i + 1) as f32 / (count + 1) as f32;
-            let size = f64::from(size);
-            let (cx, cy) = (rng.next() * size, rng.next() * size);
-            let a = rng.next() * std::f64::consts::TAU;
-            let v = std::array::from_fn(|j| {
-                let t = a + j as f64 * std::f64::consts::TAU / 3.0;
-                [
-                    (cx + radius * t.cos()) as f32,
-                    (cy + radius * t.sin()) as f32,
-                    z,
-                    1.0 + 2.0 * rng.next() as f32,
-                ]
-            });
-            tri_with_params(v, k, &mut rng)
-        })
-        .collect()
-}
-
-/// A workload of screen_triangles and its llvmpipe twin.
-fn triangles(
-    name: String,
-    kind: Option<&'static str>,
-    k: usize,
-    handwritten: &'static [Flavor],
-    make: impl Fn(u32) -> Vec<Tri> + Clone + 'static,
-    primitives: usize,
-) -> Workload {
-    let for_gl = make.clone();
-    Workload {
-        name,
-        primitives,
-        handwritten,
-        build: Box::new(move |r| {
-            bind(r, kind, k);
-            for t in make(r.options.width) {
-                submit(r, &t, k);
-            }
-        }),
-        gl: Some(Box::new(move || GlScene::Triangles {
-            size: SIZE,
-            tris: for_gl(SIZE),
-            k,
-            interpolation: kind,
-        })),
-    }
-}
-
-/// `fill`: full-viewport quads drawn back to front (every pixel passes), per-vertex w in [1, 3].
-fn fill(layers: usize, kind: Option<&'static str>, k: usize) -> Workload {
-    let label = kind.unwrap_or("none");
-    triangles(
-        format!("fill {label} K={k}"),
-        kind,
-        k,
-        &ALL_FLAVORS,
-        move |size| fill_tris(layers, size, k),
-        layers * 2,
-    )
-}
-
-/// `small`: triangles of 20 px area, random centre and rotation, back to front.
-fn small(count: usize, k: usize) -> Workload {
-    triangles(
-        format!("small perspective_linear K={k}"),
-        Some("perspective_linear"),
-        k,
-        &ALL_FLAVORS,
-        move |size| small_tris(count, size, k),
-        count,
-    )
-}
-
-/// The sphere workloads' camera (vertical field of view in degrees, near, far) and spheres
-/// (eye-space centre, radius).
-const SPHERE_CAMERA: (f32, f32, f32) = (50.0, 1.0, 100.0);
-fn sphere_list() -> Vec<([f32; 3], f32)> {
-    let mut rng = Lcg(4);
-    (0..20)
-        .map(|i| {
-            let (x, y) = ((i % 5) as f64 * 2.2 - 4.4, (i / 5) as f64 * 2.0 - 3.0);
-            let z = -8.0 - rng.next() * 2.0;
-            ([x as f32, y as f32, z as f32], 1.2 + 0.3 * rng.next() as f32)
-        })
-        .collect()
-}
-
-/// `sphere`: 20 spheres filling most of the viewport, per-pixel quadrics, normal returned
-/// through the `implicit` interpolation.
-fn spheres() -> Workload {
-    Workload {
-        name: "sphere implicit N".into(),
-        primitives: 20,
-        handwritten: &ALL_FLAVORS,
-        build: Box::new(|r| {
-            let (fovy, near, far) = SPHERE_CAMERA;
-            r.perspective(fovy, near, far);
-            r.material_interp("N", "implicit", &[])
-                .expect("bench scene: material_interp");
-            r.material("N", &Value(vec![0.0, 0.0, 1.0]))
-                .expect("bench scene: material");
-            for (center, radius) in sphere_list() {
-                r.begin("sphere").expect("bench scene: begin");
-                r.rast_param("center", &Value(center.to_vec()))
-                    .expect("bench scene: center");
-                r.rast_param("radius", &Value(vec![radius]))
-                    .expect("bench scene: radius");
-                r.end().expect("bench scene: end");
-            }
-        }),
-        gl: Some(Box::new(|| GlScene::Spheres {
-            size: SIZE,
-            camera: SPHERE_CAMERA,
-            spheres: sphere_list(),
-            lit: false,
-        })),
-    }
-}
-
-/// `polygon hither`: quads (4 float parameters, perspective_linear) half of which cross the
-/// hither plane and are clipped in the language.
-fn polygons(count: usize) -> Workload {
-    Workload {
-        name: "polygon hither K=4".into(),
-        primitives: count,
-        handwritten: &ALL_FLAVORS,
-        gl: None,
-        build: Box::new(move |r| {
-            r.perspective(60.0, 1.0, 100.0);
-            bind(r, Some("perspective_linear"), 4);
-            let mut rng = Lcg(5);
-            for _ in 0..count {
-                let (cx, cy) = (rng.next() * 8.0 - 4.0, rng.next() * 8.0 - 4.0);
-                // Near corners at z = -0.5 (in front of the eye, behind the hither plane at 1).
-                let (z_near, z_far) = (-0.5 - rng.next(), -6.0 - 4.0 * rng.next());
-                r.begin("polygon").expect("bench scene: begin");
-                for (x, y, z) in [
-                    (cx, cy, z_far),
-                    (cx + 2.0, cy, z_far),
-                    (cx + 2.0, cy + 2.0, z_near),
-                    (cx, cy + 2.0, z_near),
-                ] {
-                    for c in 0..4 {
-                        r.material(&format!("p{c}"), &Value(vec![rng.next() as f32]))
-                            .expect("bench scene: material");
-                    }
-                    r.vertex(x as f32, y as f32, z as f32, 1.0)
-                        .expect("bench scene: vertex");
-                }
-                r.end().expect("bench scene: end");
-            }
-        }),
-    }
-}
-
-/// `nurb`: bicubic patches tessellated to 0.5 px in the language.
-fn nurbs(count: usize) -> Workload {
-    Workload {
-        name: "nurb bicubic tol=0.5".into(),
-        primitives: count,
-        handwritten: &[Flavor::Scalar, Flavor::Avx2],
-        gl: None,
-        build: Box::new(move |r| {
-            r.perspective(50.0, 1.0, 100.0);
-            let mut rng = Lcg(6);
-            for _ in 0..count {
-                let (cx, cy, cz) = (rng.next() * 8.0 - 4.0, rng.next() * 6.0 - 3.0, -10.0 - rng.next() * 4.0);
-                r.begin("nurb_surface").expect("bench scene: begin");
-                r.rast_param("tolerance", &Value(vec![0.5]))
-                    .expect("bench scene: tolerance");
-                for j in 0..4 {
-                    for i in 0..4 {
-                        r.rast_param("weight", &Value(vec![1.0])).expect("bench scene: weight");
-                        let bump = rng.next() * 1.5 - 0.75;
-                        let (x, y, z) = (cx + i as f64 * 0.8, cy + j as f64 * 0.8, cz + bump);
-                        r.vertex(x as f32, y as f32, z as f32, 1.0)
-                            .expect("bench scene: vertex");
-                    }
-                }
-                r.end().expect("bench scene: end");
-            }
-        }),
-    }
-}
-
-/// Layers of the fill workloads and of the effects series.
-fn layers_for(quick: bool) -> usize {
-    if quick {
-        20
-    } else {
-        100
-    }
-}
-
-fn workloads(quick: bool) -> Vec<Workload> {
-    let layers = layers_for(quick);
-    let small_count = if quick { 20_000 } else { 200_000 };
-    vec![
-        fill(layers, Some("perspective_linear"), 4),
-        fill(layers, Some("linear"), 4),
-        fill(layers, None, 0),
-        small(small_count, 4),
-        fill(layers, Some("perspective_linear"), 1),
-        fill(layers, Some("perspective_linear"), 16),
-        small(small_count, 0),
-        spheres(),
-        spheres_lit(),
-        polygons(if quick { 500 } else { 5_000 }),
-        nurbs(if quick { 20 } else { 50 }),
-    ]
-}
-
-/// A tiny deterministic generator, so every run benchmarks (and `accuracy` measures) the
-/// same scene.
-pub(crate) struct Lcg(pub(crate) u64);
-impl Lcg {
-    pub(crate) fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 /// The built-in library, with every primitive the workloads draw (a binary moved away from
 /// its `prims/` directory has none: an error, not a panic while building a scene).
 fn library(sources: &mut SourceMap) -> Result<Arc<Program>, String> {
@@ -617,46 +314,6 @@ struct FrameParts {
     setup_ms: f64,
     tiles_ms: f64,
     shade_ms: f64,
-}
-
-/// A `size` x `size` renderer holding workload `w`'s primitives.
-fn scene(program: &Arc<Program>, size: u32, w: &Workload, count_writes: bool) -> Renderer {
-    let mut r = Renderer::new(program.clone());
-    r.set_image_size(size, size).expect("bench scene: image size");
-    r.options.count_writes = count_writes;
-    (w.build)(&mut r);
-    r
-}
-
-/// The `fill` workload (full-viewport quads back to front) at `size` x `size`; the criterion
-/// benches use it too.
-pub fn fill_scene(program: &Arc<Program>, size: u32, layers: usize, kind: Option<&'static str>, k: usize) -> Renderer {
-    scene(program, size, &fill(layers, kind, k), false)
-}
-
-/// The `small` workload (20 px triangles, perspective_linear) at `size` x `size`.
-pub fn small_scene(program: &Arc<Program>, size: u32, count: usize, k: usize) -> Renderer {
-    scene(program, size, &small(count, k), false)
-}
-
-/// The workloads of the other built-in primitives at `size` x `size` — `sphere implicit N`,
-/// `sphere lit`, `polygon hither` (`polygons` quads) and `nurb` (`patches` patches) — each
-/// with its name and the hand-written forms that exist for it; the criterion benches use them.
-pub fn shape_scenes(
-    program: &Arc<Program>,
-    size: u32,
-    polygons_count: usize,
-    patches: usize,
-) -> Vec<(String, Renderer, &'static [Flavor])> {
-    [spheres(), spheres_lit(), polygons(polygons_count), nurbs(patches)]
-        .into_iter()
-        .map(|w| (w.name.clone(), scene(program, size, &w, false), w.handwritten))
-        .collect()
-}
-
-/// Bit-for-bit equal depth and shading-parameter planes.
-pub fn same_frame(a: &Frame, b: &Frame) -> bool {
-    a.same_buffers(b)
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -773,44 +430,8 @@ fn measure(
 ) -> Result<WorkloadResult, String> {
     let threads = all.current_num_threads();
     bar.inc_length((5 + runs) as u64);
-    // The JIT's first frame may run tier-0 kernels; the tier-1 ones must agree with it bit
-    // for bit, and the timed runs below use them.
-    let (reference, stats) = render(r, &mut src.jit, one)?;
-    let draws = stats.instances - stats.expanded_instances + stats.expanded_calls;
-    src.jit.wait_for_tier_up();
-    if !same_frame(&reference, &render(r, &mut src.jit, one)?.0) {
-        return Err(format!("{name}: the JIT's tier-1 frame differs from its tier-0 frame"));
-    }
-    if !same_frame(&reference, &render(r, &mut src.tier0, one)?.0) {
-        return Err(format!(
-            "{name}: the JIT's tier-0-only frame differs from its tiered one"
-        ));
-    }
-    bar.inc(1);
-    for &flavor in forms {
-        if !same_frame(&reference, &render(r, src.handwritten(flavor), one)?.0) {
-            return Err(format!(
-                "{name}: the hand-written {} kernel's frame differs from the JIT's",
-                row_name(KernelKind::Handwritten(flavor), false)
-            ));
-        }
-    }
-    bar.inc(2);
-    // A scene of calling primitives (polygon, NURB) also times the per-tile path, where the
-    // caller's setup reruns in every tile (`RenderOptions::expand_calls` off): the
-    // before/after of expansion, checked equal first.
-    let expands = r
-        .instances()
-        .iter()
-        .any(|inst| crate::abi::expands(r.program(), inst.func));
-    if expands {
-        r.options.expand_calls = false;
-        let per_tile = render(r, &mut src.jit, one);
-        r.options.expand_calls = true;
-        if !same_frame(&reference, &per_tile?.0) {
-            return Err(format!("{name}: the per-tile frame differs from the expanded one"));
-        }
-    }
+    let (reference, draws, expands) = frames_agree(name, r, forms, src, one)?;
+    bar.inc(3);
     r.options.count_writes = true;
     let counted = render(r, &mut src.jit, one);
     r.options.count_writes = false;
@@ -883,34 +504,7 @@ fn measure(
     if !frames.iter().all(|f| f.width == 0 || same_frame(&reference, f)) {
         return Err(format!("{name}: a frame rendered into reused buffers differs"));
     }
-    let timings: Vec<KernelTiming> = times
-        .into_iter()
-        .enumerate()
-        .filter(|(_, t)| !t.is_empty())
-        .map(|(i, t)| {
-            let part = |f: fn(&FrameParts) -> f64| median(t.iter().map(f).collect());
-            let ms = part(|p| p.ms);
-            let (kind, all_threads) = ROWS[i];
-            // llvmpipe's throughput by its own count of the pixels it wrote.
-            let pixels = match (kind, gl_firsts[usize::from(all_threads)]) {
-                (KernelKind::Llvmpipe, Some(first)) => first.samples,
-                _ => pixels,
-            };
-            KernelTiming {
-                kind,
-                kernel: row_name(kind, all_threads),
-                threads: if all_threads { threads } else { 1 },
-                median_ms: ms,
-                min_ms: t.iter().map(|p| p.ms).fold(f64::INFINITY, f64::min),
-                runs_ms: t.iter().map(|p| p.ms).collect(),
-                setup_ms: part(|p| p.setup_ms),
-                tiles_ms: part(|p| p.tiles_ms),
-                shade_ms: part(|p| p.shade_ms),
-                mpixels_per_s: pixels as f64 / ms / 1e3,
-                mprims_per_s: primitives as f64 / ms / 1e3,
-            }
-        })
-        .collect();
+    let timings = kernel_timings(times, pixels, &gl_firsts, primitives, threads);
     let row = |kind: KernelKind, n: usize| timings.iter().find(|t| t.kind == kind && t.threads == n);
     let over_jit =
         |kind: KernelKind| row(kind, 1).map(|t| row(KernelKind::Jit, 1).map_or(f64::NAN, |jit| paired_ratio(t, jit)));
@@ -957,6 +551,95 @@ fn measure(
         },
         timings,
     })
+}
+
+/// Render workload `name` with every source [`measure`] times and check the frames agree
+/// bit for bit: the JIT's tier-1 and tier-0 kernels, the hand-written `forms`, and for a
+/// scene of calling primitives the per-tile path (`RenderOptions::expand_calls` off). The
+/// JIT's first frame (the reference), the number of draws and whether the scene expands.
+fn frames_agree(
+    name: &str,
+    r: &mut Renderer,
+    forms: &[Flavor],
+    src: &mut Sources,
+    one: &rayon::ThreadPool,
+) -> Result<(Frame, usize, bool), String> {
+    // The JIT's first frame may run tier-0 kernels; the tier-1 ones must agree with it bit
+    // for bit, and the timed runs below use them.
+    let (reference, stats) = render(r, &mut src.jit, one)?;
+    let draws = stats.instances - stats.expanded_instances + stats.expanded_calls;
+    src.jit.wait_for_tier_up();
+    if !same_frame(&reference, &render(r, &mut src.jit, one)?.0) {
+        return Err(format!("{name}: the JIT's tier-1 frame differs from its tier-0 frame"));
+    }
+    if !same_frame(&reference, &render(r, &mut src.tier0, one)?.0) {
+        return Err(format!(
+            "{name}: the JIT's tier-0-only frame differs from its tiered one"
+        ));
+    }
+    for &flavor in forms {
+        if !same_frame(&reference, &render(r, src.handwritten(flavor), one)?.0) {
+            return Err(format!(
+                "{name}: the hand-written {} kernel's frame differs from the JIT's",
+                row_name(KernelKind::Handwritten(flavor), false)
+            ));
+        }
+    }
+    // A scene of calling primitives (polygon, NURB) also times the per-tile path, where the
+    // caller's setup reruns in every tile (`RenderOptions::expand_calls` off): the
+    // before/after of expansion, checked equal first.
+    let expands = r
+        .instances()
+        .iter()
+        .any(|inst| crate::abi::expands(r.program(), inst.func));
+    if expands {
+        r.options.expand_calls = false;
+        let per_tile = render(r, &mut src.jit, one);
+        r.options.expand_calls = true;
+        if !same_frame(&reference, &per_tile?.0) {
+            return Err(format!("{name}: the per-tile frame differs from the expanded one"));
+        }
+    }
+    Ok((reference, draws, expands))
+}
+
+/// One [`KernelTiming`] per row that ran: medians of the timed rounds, throughput by the
+/// JIT's count of depth writes `pixels` (llvmpipe's by its own first frame's samples).
+fn kernel_timings(
+    times: [Vec<FrameParts>; ROWS.len()],
+    pixels: u64,
+    gl_firsts: &[Option<llvmpipe::GlFrame>; 2],
+    primitives: usize,
+    threads: usize,
+) -> Vec<KernelTiming> {
+    times
+        .into_iter()
+        .enumerate()
+        .filter(|(_, t)| !t.is_empty())
+        .map(|(i, t)| {
+            let part = |f: fn(&FrameParts) -> f64| median(t.iter().map(f).collect());
+            let ms = part(|p| p.ms);
+            let (kind, all_threads) = ROWS[i];
+            // llvmpipe's throughput by its own count of the pixels it wrote.
+            let pixels = match (kind, gl_firsts[usize::from(all_threads)]) {
+                (KernelKind::Llvmpipe, Some(first)) => first.samples,
+                _ => pixels,
+            };
+            KernelTiming {
+                kind,
+                kernel: row_name(kind, all_threads),
+                threads: if all_threads { threads } else { 1 },
+                median_ms: ms,
+                min_ms: t.iter().map(|p| p.ms).fold(f64::INFINITY, f64::min),
+                runs_ms: t.iter().map(|p| p.ms).collect(),
+                setup_ms: part(|p| p.setup_ms),
+                tiles_ms: part(|p| p.tiles_ms),
+                shade_ms: part(|p| p.shade_ms),
+                mpixels_per_s: pixels as f64 / ms / 1e3,
+                mprims_per_s: primitives as f64 / ms / 1e3,
+            }
+        })
+        .collect()
 }
 
 /// Compile time of `func`'s variant `key` at both tiers on fresh JITs (see [`CompileTiming`]),
@@ -1318,152 +1001,6 @@ pub fn format_workload(w: &WorkloadResult, threads: usize) -> String {
 // The effects series: what the deferred shading pass costs, effect by effect.
 // ---------------------------------------------------------------------------------------
 
-/// Which deferred-shading effects one frame of the effects series turns on.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-pub struct EffectSet {
-    /// Number of lights (half directional, half positional); 0 = unlit.
-    pub lights: usize,
-    pub fog: bool,
-    pub texture: bool,
-}
-
-/// The frames of the effects series, in report order: none, each effect alone, all.
-pub const EFFECT_SETS: [(&str, EffectSet); 5] = [
-    (
-        "none (colour = Cs)",
-        EffectSet {
-            lights: 0,
-            fog: false,
-            texture: false,
-        },
-    ),
-    (
-        "8 lights",
-        EffectSet {
-            lights: 8,
-            fog: false,
-            texture: false,
-        },
-    ),
-    (
-        "fog",
-        EffectSet {
-            lights: 0,
-            fog: true,
-            texture: false,
-        },
-    ),
-    (
-        "texture",
-        EffectSet {
-            lights: 0,
-            fog: false,
-            texture: true,
-        },
-    ),
-    (
-        "8 lights + fog + texture",
-        EffectSet {
-            lights: 8,
-            fog: true,
-            texture: true,
-        },
-    ),
-];
-
-/// The fog colour of the effects series (tests check colours move towards it).
-pub const EFFECTS_FOG_COLOUR: [f64; 3] = [0.6, 0.7, 0.9];
-
-/// The scene of the effects series: `layers` full-viewport quads drawn back to front (the
-/// `fill` workload's geometry, device coordinates, every pixel visible), with a colour `Cs`,
-/// a normal `N` and texture coordinates `st` interpolated perspective-correctly; then the
-/// effects of `set`. Every set renders the same primitives with the same kernel, so frames
-/// differ only in the shading pass.
-pub fn effects_scene(program: &Arc<Program>, size: u32, layers: usize, set: EffectSet) -> Renderer {
-    let mut r = Renderer::new(program.clone());
-    r.set_image_size(size, size).expect("bench scene: image size");
-    for name in ["Cs", "N", "st"] {
-        r.material_interp(name, "perspective_linear", &[])
-            .expect("bench scene: material_interp");
-    }
-    let s = size as f32;
-    let mut rng = Lcg(7);
-    for layer in 0..layers {
-        let z = (layer + 1) as f32 / (layers + 1) as f32;
-        let corners = [(0.0, 0.0), (s, 0.0), (s, s), (0.0, s)];
-        let w: Vec<f32> = (0..4).map(|_| 1.0 + 2.0 * rng.next() as f32).collect();
-        let mut corner_values = vec![];
-        for (c, &(x, y)) in corners.iter().enumerate() {
-            let cs = [0.3 + 0.7 * rng.next(), 0.3 + 0.7 * rng.next(), 0.3 + 0.7 * rng.next()];
-            let n = [rng.next() - 0.5, rng.next() - 0.5, 1.0];
-            let st = [(c == 1 || c == 2) as u8 as f64, (c >= 2) as u8 as f64];
-            corner_values.push(([x, y, z, w[c]], cs, n, st));
-        }
-        for tri in [[0, 1, 2], [0, 2, 3]] {
-            r.begin("screen_triangle").expect("bench scene: begin");
-            let v: Vec<f32> = tri.iter().flat_map(|&c| corner_values[c].0).collect();
-            r.rast_param("screen_vertex", &Value(v))
-                .expect("bench scene: rast_param");
-            for &c in &tri {
-                let (_, cs, n, st) = corner_values[c];
-                for (name, value) in [("Cs", &cs[..]), ("N", &n[..]), ("st", &st[..])] {
-                    r.material(name, &Value(value.iter().map(|&x| x as f32).collect()))
-                        .expect("bench scene: material");
-                }
-                r.sequence_point().expect("bench scene: sequence_point");
-            }
-            r.end().expect("bench scene: end");
-        }
-    }
-    let setup = &mut r.shading_setup;
-    setup.front = SurfaceMaterial {
-        ka: 1.0,
-        kd: 0.8,
-        ks: 0.5,
-        shininess: 16.0,
-        specular_colour: [1.0; 3],
-    };
-    let f = f64::from(size);
-    for i in 0..set.lights {
-        let t = i as f64 / set.lights.max(1) as f64 * std::f64::consts::TAU;
-        let colour = [
-            0.5 + 0.5 * t.cos(),
-            0.5 + 0.5 * (t + 2.1).cos(),
-            0.5 + 0.5 * (t + 4.2).cos(),
-        ]
-        .map(|c| c * 0.3);
-        setup.lights.push(if i % 2 == 0 {
-            SceneLight::Directional {
-                towards_light: [t.cos() * 0.5, t.sin() * 0.5, 1.0],
-                colour,
-            }
-        } else {
-            SceneLight::Positional {
-                position: [f * (0.5 + 0.4 * t.cos()), f * (0.5 + 0.4 * t.sin()), 2.0],
-                colour,
-                attenuation: [1.0, 0.0, 0.0],
-            }
-        });
-    }
-    if set.fog {
-        // Device coordinates: distance from the eye is 1 - z (the nearest layer is at
-        // z = layers / (layers + 1)), so fog from 0 to 0.5 tints every visible pixel.
-        setup.fog = Some(Fog {
-            colour: EFFECTS_FOG_COLOUR,
-            start: 0.0,
-            end: 0.5,
-        });
-    }
-    if set.texture {
-        setup.texture = Some(Texture {
-            param: "st".into(),
-            scale: 8.0,
-            dark: 0.5,
-        });
-    }
-    r
-}
-
 /// One frame of the effects series, timed (medians over the interleaved runs).
 #[derive(Clone, Debug, Serialize)]
 pub struct EffectsRow {
@@ -1745,36 +1282,6 @@ pub fn llvmpipe_comparisons(results: &[WorkloadResult]) -> Vec<LlvmpipeCompariso
             })
         })
         .collect()
-}
-
-/// `sphere lit`: the sphere workload with one light and a specular highlight, so the timed
-/// frame includes the deferred shading pass (llvmpipe's sphere figure is a lit fragment
-/// shader). Built from [`spheres`] so it shares its geometry and kernels.
-fn spheres_lit() -> Workload {
-    let mut w = spheres();
-    w.name = "sphere lit (diffuse + specular)".into();
-    w.gl = Some(Box::new(|| GlScene::Spheres {
-        size: SIZE,
-        camera: SPHERE_CAMERA,
-        spheres: sphere_list(),
-        lit: true,
-    }));
-    let geometry = std::mem::replace(&mut w.build, Box::new(|_| {}));
-    w.build = Box::new(move |r| {
-        geometry(r);
-        r.shading_setup.front = SurfaceMaterial {
-            ka: 1.0,
-            kd: 0.8,
-            ks: 0.5,
-            shininess: 32.0,
-            specular_colour: [1.0; 3],
-        };
-        r.shading_setup.lights.push(SceneLight::Directional {
-            towards_light: [0.4, 0.6, 1.0],
-            colour: [1.0; 3],
-        });
-    });
-    w
 }
 
 /// Per workload: JIT one thread, all threads, and the ratio, by medians and by the fastest

@@ -18,12 +18,13 @@ use serde::Serialize;
 
 use super::{
     compile_timing, format_compile, format_workload, measure, progress_bar, workload_header, CompileTiming, Machine,
-    Sources, WorkloadResult, ALL_FLAVORS,
+    Sources, WorkloadResult,
 };
 use crate::diag::{Diagnostics, SourceMap};
 use crate::handwritten::Flavor;
 use crate::jit::Jit;
 use crate::runtime::{render_pool, KernelSource};
+use crate::workload::ALL_FLAVORS;
 
 /// One scene's time to first pixel, and where it went.
 #[derive(Clone, Debug, Serialize)]

@@ -813,7 +813,7 @@ mod tests {
                 let out = r.render(&mut source);
                 assert!(out.diags.items.is_empty(), "{name}: {:?}", out.diags.items);
                 assert!(
-                    crate::bench::same_frame(&reference.frame, &out.frame),
+                    crate::workload::same_frame(&reference.frame, &out.frame),
                     "{name}, normal {normal}: the frame differs from the scalar kernel's"
                 );
                 assert_eq!(

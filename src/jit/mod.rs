@@ -1151,7 +1151,7 @@ mod tests {
         let program = crate::runtime::Registry::load(&mut sources, &[], &[], &mut diags)
             .expect("library")
             .program;
-        let r = crate::bench::fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
+        let r = crate::workload::fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
         let inst = &r.instances()[0];
         let mut jit = Jit::tiered(program.clone()).unwrap();
         let tier0 = jit.kernel(inst.func, &inst.key).unwrap();

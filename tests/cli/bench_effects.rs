@@ -10,10 +10,8 @@ use crate::common;
 use std::sync::Arc;
 
 use indicatif::ProgressBar;
-use primflow::bench::{
-    effects_scene, effects_series, format_effects, format_table, run, BenchOptions, EffectSet, EFFECTS_FOG_COLOUR,
-    EFFECT_SETS,
-};
+use primflow::bench::{effects_series, format_effects, format_table, run, BenchOptions};
+use primflow::workload::{effects_scene, EffectSet, EFFECTS_FOG_COLOUR, EFFECT_SETS};
 use primflow::ir::Program;
 use primflow::jit::Jit;
 use primflow::runtime::{Frame, Renderer};
@@ -147,7 +145,7 @@ fn effects_scene_runs_one_kernel_for_every_set() {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let out = pool.install(|| r.render(&mut jit));
         assert!(
-            primflow::bench::same_frame(&reference, &out.frame),
+            primflow::workload::same_frame(&reference, &out.frame),
             "{name}: G-buffer differs"
         );
         assert_eq!(out.effects.lit, s.lights > 0, "{name}");

@@ -217,7 +217,7 @@ pub fn all_tiers(program: &Arc<Program>, r: &Renderer, what: &str) -> Frame {
         frames.push(out.frame);
     }
     for f in &frames[1..] {
-        assert!(primflow::bench::same_frame(&frames[0], f), "{what}: tiers differ");
+        assert!(primflow::workload::same_frame(&frames[0], f), "{what}: tiers differ");
     }
     frames.swap_remove(0)
 }

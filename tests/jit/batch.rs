@@ -50,7 +50,7 @@ fn a_batch_compiled_in_parallel_renders_what_a_one_thread_pool_renders() {
         }
         for (f, threads) in frames[1..].iter().zip([2, 4]) {
             assert!(
-                primflow::bench::same_frame(&frames[0], f),
+                primflow::workload::same_frame(&frames[0], f),
                 "{tier:?}: {threads} threads differ from one"
             );
         }

@@ -7,7 +7,7 @@
 
 use crate::common;
 
-use primflow::bench::same_frame;
+use primflow::workload::same_frame;
 use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Frame, Renderer, Value};
 

@@ -67,7 +67,7 @@ fn frame_slot_accesses_are_not_counted_as_spills() {
 #[test]
 fn tier_0_screen_triangle_spills_and_every_spill_line_is_an_instruction() {
     let program = common::library();
-    let scene = primflow::bench::fill_scene(&program, 64, 1, Some("perspective_linear"), 4);
+    let scene = primflow::workload::fill_scene(&program, 64, 1, Some("perspective_linear"), 4);
     let inst = &scene.instances()[0];
     for tier in [Tier::Fast, Tier::Optimised] {
         let jit = Jit::at_tier(program.clone(), tier).unwrap();

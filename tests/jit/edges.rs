@@ -127,7 +127,7 @@ fn awkward_triangles_match_the_hand_written_kernel_pixel_for_pixel() {
         for (name, mut jit) in jits(&program) {
             let frame = render_with(&r, &mut jit, 1);
             assert!(
-                primflow::bench::same_frame(&frame, &reference),
+                primflow::workload::same_frame(&frame, &reference),
                 "{name}: triangle {k} {tri:?} differs from the hand-written kernel"
             );
             assert_eq!(

@@ -253,7 +253,7 @@ fn small_and_large_triangles_match_the_hand_written_kernel_through_both_edge_pat
     for (name, mut jit) in jits(&program) {
         let frame = render_with(&r, &mut jit, 1);
         assert!(
-            primflow::bench::same_frame(&frame, &reference),
+            primflow::workload::same_frame(&frame, &reference),
             "{name}: differs from the hand-written kernel"
         );
     }

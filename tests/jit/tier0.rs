@@ -11,7 +11,7 @@ use crate::common;
 
 use std::sync::Arc;
 
-use primflow::bench::same_frame;
+use primflow::workload::same_frame;
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
@@ -340,7 +340,7 @@ fn screen_triangle_float_coverage_and_snapped_planes_agree_across_tiers() {
 fn the_jit_reports_compile_cost_in_thread_cpu_time() {
     let mut sources = SourceMap::new();
     let program = library(&mut sources);
-    let r = primflow::bench::fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
+    let r = primflow::workload::fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
     let inst = &r.instances()[0];
     let mut tiered = Jit::tiered(program.clone()).unwrap();
     assert!(

@@ -10,7 +10,7 @@ use crate::common;
 use common::{example_scene, library_and_sources};
 use std::sync::Arc;
 
-use primflow::bench::{fill_scene, same_frame, small_scene};
+use primflow::workload::{fill_scene, same_frame, small_scene};
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};

@@ -8,7 +8,7 @@ use crate::common;
 
 use std::sync::Arc;
 
-use primflow::bench::same_frame;
+use primflow::workload::same_frame;
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, JitOptions, Tier};
@@ -134,7 +134,7 @@ fn unrolling_removes_the_constant_loops_code() {
     assert!(unrolled.lines().count() < kept.lines().count());
 
     // The screen triangle: its constant loops go, and so do the stack slots of its arrays.
-    let fill = primflow::bench::fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
+    let fill = primflow::workload::fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
     let inst = &fill.instances()[0];
     let kept = jit(&program, false, Tier::Optimised)
         .clif(inst.func, &inst.key)

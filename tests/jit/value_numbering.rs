@@ -9,7 +9,7 @@ use crate::common;
 
 use std::sync::Arc;
 
-use primflow::bench::same_frame;
+use primflow::workload::same_frame;
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::runtime::{Renderer, Value};

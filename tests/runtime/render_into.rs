@@ -8,7 +8,7 @@ use crate::common;
 use std::sync::Arc;
 
 use common::*;
-use primflow::bench::{effects_scene, EffectSet};
+use primflow::workload::{effects_scene, EffectSet};
 use primflow::ir::Program;
 use primflow::jit::Jit;
 use primflow::runtime::shading::ShadingKernel;

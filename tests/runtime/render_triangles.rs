@@ -254,7 +254,7 @@ fn non_finite_and_degenerate_triangles_draw_nothing() {
 #[test]
 fn small_triangles_render_the_same_whatever_the_tile_size() {
     let program = library();
-    let mut r = primflow::bench::small_scene(&program, 96, 2000, 4);
+    let mut r = primflow::workload::small_scene(&program, 96, 2000, 4);
     // Corners on pixel centres and on tile edges (8 and 16 divide 32, 64; 24 divides 48).
     for (i, x) in [31.5f32, 32.0, 32.5, 47.5, 48.0, 63.5, 64.0, 64.5]
         .into_iter()
@@ -286,7 +286,7 @@ fn small_triangles_render_the_same_whatever_the_tile_size() {
     for tile in [8, 16, 24] {
         r.set_tile_size(tile).unwrap();
         let tiled = render(&r, 2);
-        assert!(primflow::bench::same_frame(&tiled, &whole), "{tile} px tiles");
+        assert!(primflow::workload::same_frame(&tiled, &whole), "{tile} px tiles");
     }
 }
 

@@ -14,7 +14,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use primflow::abi::TierUpActivity;
-use primflow::bench::{fill_scene, same_frame, small_scene};
+use primflow::workload::{fill_scene, same_frame, small_scene};
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
