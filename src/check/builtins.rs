@@ -107,12 +107,12 @@ pub fn lower(name: &str, args: Vec<Expr>, span: Span) -> Result<Option<Expr>, Bu
             float(shape)
         }
     };
-    Ok(Some(Expr {
-        kind: ExprKind::Builtin { func, args: floats },
+    Ok(Some(Expr::new(
+        ExprKind::Builtin { func, args: floats },
         ty,
-        var: Variability::Uniform,
+        Variability::Uniform,
         span,
-    }))
+    )))
 }
 
 fn shape_error(name: &str, args: &[Expr], span: Span, want: &str) -> BuiltinError {
@@ -130,10 +130,10 @@ fn expand(v: Expr, dims: &[u32]) -> Expr {
         return v;
     }
     let span = v.span;
-    Expr {
-        kind: ExprKind::Splat(Box::new(v)),
-        ty: Type::array(Elem::Scalar(Scalar::Float), dims.to_vec()),
-        var: Variability::Uniform,
+    Expr::new(
+        ExprKind::Splat(Box::new(v)),
+        Type::array(Elem::Scalar(Scalar::Float), dims.to_vec()),
+        Variability::Uniform,
         span,
-    }
+    )
 }

@@ -157,12 +157,12 @@ fn build(values: &[ConstValue], dims: &[u32], s: Scalar, span: Span) -> Expr {
                     build(&values[lo..hi], &dims[1..], s, span)
                 })
                 .collect();
-            Expr {
-                kind: ExprKind::List(items),
-                ty: Type::array(Elem::Scalar(s), dims.to_vec()),
-                var: Variability::Uniform,
+            Expr::new(
+                ExprKind::List(items),
+                Type::array(Elem::Scalar(s), dims.to_vec()),
+                Variability::Uniform,
                 span,
-            }
+            )
         }
     }
 }

@@ -111,12 +111,7 @@ fn arity_error(what: &str, callee: &ast::Ident, sig: &Signature, given: usize, s
 }
 
 fn mk(kind: ExprKind, ty: Type, span: Span) -> Expr {
-    Expr {
-        kind,
-        ty,
-        var: Variability::Uniform,
-        span,
-    }
+    Expr::new(kind, ty, Variability::Uniform, span)
 }
 
 fn stmt(kind: StmtKind, span: Span) -> Stmt {

@@ -16,7 +16,8 @@
 //!    reports the variability errors; after this point every expression, loop and local
 //!    has its final variability;
 //! 6. **split** — [`ir::split::split_checked`] moves per-pixel statements of primitives
-//!    into `pixel`; an interpolator's whole body is its pixel part;
+//!    into `pixel`; an interpolator's whole body is its pixel part; then
+//!    [`ir::number::renumber`] gives each expression its id;
 //! 7. **validate** (test and debug builds) — [`ir::valid::validate`] checks the rules code
 //!    generation relies on; a broken one is an internal compiler error (E0900).
 //!
@@ -737,6 +738,7 @@ fn lower_function(
         setup: body,
         pixel: vec![],
         loops: n_loops,
+        exprs: 0,
         uses_spaces,
     };
     let errors_before = sink.error_count();
@@ -755,5 +757,6 @@ fn lower_function(
         }
         FuncKind::Interpolator => f.pixel = std::mem::take(&mut f.setup),
     }
+    ir::number::renumber(&mut f);
     f
 }

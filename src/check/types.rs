@@ -93,12 +93,7 @@ pub fn zero_const(s: Scalar) -> ConstValue {
 
 /// A constant expression of a scalar type.
 pub fn const_expr(c: ConstValue, s: Scalar, span: crate::diag::Span) -> Expr {
-    Expr {
-        kind: ExprKind::Const(c),
-        ty: Type::scalar(s),
-        var: Variability::Uniform,
-        span,
-    }
+    Expr::new(ExprKind::Const(c), Type::scalar(s), Variability::Uniform, span)
 }
 
 /// Raw bits of `v` in format `f`: rounded to nearest, saturated to the format's range.
@@ -169,12 +164,7 @@ pub fn convert(e: Expr, to: Scalar) -> Expr {
         Elem::Scalar(s) => {
             if let ExprKind::Const(c) = e.kind {
                 if let Some(c2) = convert_const(c, s, to) {
-                    return Expr {
-                        kind: ExprKind::Const(c2),
-                        ty: Type::scalar(to),
-                        var: e.var,
-                        span: e.span,
-                    };
+                    return Expr::new(ExprKind::Const(c2), Type::scalar(to), e.var, e.span);
                 }
             }
             let ty = Type {
@@ -182,12 +172,8 @@ pub fn convert(e: Expr, to: Scalar) -> Expr {
                 dims: e.ty.dims.clone(),
                 per_seq: e.ty.per_seq,
             };
-            Expr {
-                var: e.var,
-                span: e.span,
-                ty,
-                kind: ExprKind::Convert(Box::new(e)),
-            }
+            let (var, span) = (e.var, e.span);
+            Expr::new(ExprKind::Convert(Box::new(e)), ty, var, span)
         }
         Elem::Interp => e,
     }

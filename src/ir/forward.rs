@@ -19,8 +19,9 @@
 //! Lists are visited outside-in, so chains (`knots = u_knots; ... k2 = knots`) collapse.
 //!
 //! Invariants kept: the output is a checked program in the sense of [`crate::ir`] (same
-//! locals, sites, loops, parameters); only `Assign` statements are removed and only
-//! `Local` expressions renamed.
+//! locals, sites, loops, parameters, its expressions numbered afresh by
+//! [`super::number::renumber`]); only `Assign` statements are removed and only `Local`
+//! expressions renamed.
 
 use super::{Expr, ExprKind, Function, LocalId, LocalKind, Place, Stmt, StmtKind};
 
@@ -34,6 +35,8 @@ pub fn forward_copies(f: &Function) -> Function {
     let mut fw = Forwarder { f, counts };
     fw.list(&mut out.setup);
     fw.list(&mut out.pixel);
+    // The dropped copies took their expressions' ids with them.
+    super::number::renumber(&mut out);
     out
 }
 

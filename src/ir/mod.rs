@@ -8,6 +8,11 @@
 //! validator [`valid`] states each as a [`valid::Rule`] and checks it after the checker and
 //! after every pass that rewrites a function (`forward`, the JIT's `unroll`) in test and
 //! debug builds, so a pass that breaks one is an internal compiler error, not a miscompile:
+//! - Every [`Expr`] of a function has an [`ExprId`] of its own, and the ids are exactly
+//!   `0..Function::exprs` in pre-order ([`number`]): the key of the JIT's side tables, as a
+//!   [`LoopId`] is a loop's (each names one `Loop` statement). An id names an expression of
+//!   its own function only. The checker numbers every function, and so does every pass
+//!   that adds, drops or copies expressions.
 //! - Every [`Expr`] has a concrete [`Type`] and a [`Variability`]. An expression is varying
 //!   iff one of its operands is. Operands of `Binary` have the same scalar element (the
 //!   checker inserts `Convert`), and the same shape, except that one side may be a scalar
@@ -31,6 +36,7 @@
 //!   [`valid`] says.
 
 pub mod forward;
+pub mod number;
 pub mod print;
 pub mod range;
 pub mod split;
@@ -48,6 +54,15 @@ pub struct LoopId(pub u32);
 /// A place that can fail at run time (an index out of range, a loop out of fuel).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct SiteId(pub u32);
+/// An expression of one function: the key of the analyses' side tables (see the module doc).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct ExprId(pub u32);
+
+impl ExprId {
+    /// The id of an expression built outside a numbered function; [`number::renumber`]
+    /// replaces it.
+    pub const UNSET: ExprId = ExprId(u32::MAX);
+}
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Variability {
@@ -265,6 +280,8 @@ pub struct Function {
     pub pixel: Vec<Stmt>,
     /// Number of `LoopId`s used (ids are 0..loops).
     pub loops: u32,
+    /// Number of expressions: their ids are 0..exprs (see [`number`]).
+    pub exprs: u32,
     /// The function uses `transform(...)` between named spaces, so its arguments carry the
     /// space matrices.
     pub uses_spaces: bool,
@@ -305,9 +322,21 @@ pub struct Expr {
     pub ty: Type,
     pub var: Variability,
     pub span: Span,
+    pub id: ExprId,
 }
 
 impl Expr {
+    /// An expression not numbered yet ([`ExprId::UNSET`]).
+    pub fn new(kind: ExprKind, ty: Type, var: Variability, span: Span) -> Expr {
+        Expr {
+            kind,
+            ty,
+            var,
+            span,
+            id: ExprId::UNSET,
+        }
+    }
+
     /// Call `f` on each direct sub-expression, in evaluation order. The one place that
     /// knows the shape of every `ExprKind`; walks that treat all children alike recurse
     /// through it.
@@ -387,6 +416,61 @@ pub fn for_each_stmt<'s>(stmts: &'s [Stmt], f: &mut dyn FnMut(&'s Stmt)) {
             }
             StmtKind::Interpolation { arms } => arms.iter().for_each(|a| for_each_stmt(&a.body, f)),
             _ => {}
+        }
+    }
+}
+
+/// [`for_each_stmt`] for rewriting.
+pub fn for_each_stmt_mut(stmts: &mut [Stmt], f: &mut dyn FnMut(&mut Stmt)) {
+    for s in stmts {
+        f(s);
+        match &mut s.kind {
+            StmtKind::If { then, otherwise, .. } => {
+                for_each_stmt_mut(then, f);
+                for_each_stmt_mut(otherwise, f);
+            }
+            StmtKind::Loop { body, step, .. } => {
+                for_each_stmt_mut(body, f);
+                for_each_stmt_mut(step, f);
+            }
+            StmtKind::Interpolation { arms } => arms.iter_mut().for_each(|a| for_each_stmt_mut(&mut a.body, f)),
+            _ => {}
+        }
+    }
+}
+
+impl Stmt {
+    /// Call `f` on each expression `self` holds itself (not those of the statements inside
+    /// it): a place's indices, then the assigned value; a condition; the arguments of
+    /// `bound` and of a call; an interpolator's value.
+    pub fn for_each_expr<'s>(&'s self, mut f: impl FnMut(&'s Expr)) {
+        match &self.kind {
+            StmtKind::Assign { place, value } => {
+                place.indices.iter().for_each(|(i, _)| f(i));
+                f(value);
+            }
+            StmtKind::If { cond, .. } => f(cond),
+            StmtKind::Loop { cond, .. } => cond.iter().for_each(f),
+            StmtKind::InterpolatorReturn(e) => e.iter().for_each(f),
+            StmtKind::Bound(es) => es.iter().for_each(f),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(f),
+            StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::Interpolation { .. } => {}
+        }
+    }
+
+    /// [`Stmt::for_each_expr`] for rewriting.
+    pub fn for_each_expr_mut(&mut self, mut f: impl FnMut(&mut Expr)) {
+        match &mut self.kind {
+            StmtKind::Assign { place, value } => {
+                place.indices.iter_mut().for_each(|(i, _)| f(i));
+                f(value);
+            }
+            StmtKind::If { cond, .. } => f(cond),
+            StmtKind::Loop { cond, .. } => cond.iter_mut().for_each(f),
+            StmtKind::InterpolatorReturn(e) => e.iter_mut().for_each(f),
+            StmtKind::Bound(es) => es.iter_mut().for_each(f),
+            StmtKind::CallPrimitive { args, .. } => args.iter_mut().for_each(f),
+            StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::Interpolation { .. } => {}
         }
     }
 }

@@ -112,14 +112,14 @@ struct Analysis<'a> {
     /// In a round whose states are not final (a loop's ascending rounds, and everything
     /// nested in them): sites are not judged.
     quiet: bool,
-    /// Per loop statement (by address: one entry per occurrence in the tree), the head it
-    /// last reached a fixpoint at while `quiet`: the next quiet visit starts from it joined
-    /// with its entry, so a nested loop takes one round per visit instead of being solved
-    /// from scratch in every round of every loop around it.
-    heads: HashMap<usize, Vec<Stored>>,
-    /// Per loop statement, per state position: is the local a counter of the loop (see
+    /// Per loop (by id: each names one loop statement), the head it last reached a fixpoint
+    /// at while `quiet`: the next quiet visit starts from it joined with its entry, so a
+    /// nested loop takes one round per visit instead of being solved from scratch in every
+    /// round of every loop around it.
+    heads: HashMap<LoopId, Vec<Stored>>,
+    /// Per loop, per state position: is the local a counter of the loop (see
     /// `counters_in`)?
-    counters: HashMap<usize, Vec<bool>>,
+    counters: HashMap<LoopId, Vec<bool>>,
 }
 
 /// The smallest state both `a` and `b` are in (in place in `a`'s vector: joins run at
@@ -250,7 +250,7 @@ impl Analysis<'_> {
             }
             StmtKind::Loop {
                 id, cond, body, step, ..
-            } => self.lower_loop(s as *const Stmt as usize, *id, cond.as_ref(), body, step, st),
+            } => self.lower_loop(*id, cond.as_ref(), body, step, st),
             StmtKind::Break(id) | StmtKind::Continue(id) => {
                 let is_break = matches!(s.kind, StmtKind::Break(_));
                 if let Some(frame) = self.loops.iter_mut().rev().find(|l| l.id == *id) {
@@ -290,7 +290,7 @@ impl Analysis<'_> {
         }
     }
 
-    /// The state after a loop (`key`: the loop statement's address).
+    /// The state after loop `id`.
     ///
     /// Ascending rounds from the entry (widening a bound that still moves from the third
     /// round on) reach a head `h` with `next = entry ⊔ F(h) ⊆ h`; then `next` is inductive too
@@ -299,15 +299,7 @@ impl Analysis<'_> {
     /// at 2^31 - 1). The ascending rounds are quiet; sites are judged in one more round from
     /// `next`, whose states cover every trip. A quiet visit (inside another loop's ascending
     /// rounds) returns the last ascending round's exit and skips that round.
-    fn lower_loop(
-        &mut self,
-        key: usize,
-        id: LoopId,
-        cond: Option<&Expr>,
-        body: &[Stmt],
-        step: &[Stmt],
-        entry: State,
-    ) -> State {
+    fn lower_loop(&mut self, id: LoopId, cond: Option<&Expr>, body: &[Stmt], step: &[Stmt], entry: State) -> State {
         let judging = !self.quiet;
         if judging {
             // A fresh solve: heads cached by earlier ascending rounds came from larger
@@ -315,11 +307,11 @@ impl Analysis<'_> {
             self.heads.clear();
         }
         self.quiet = true;
-        let mut head = match (self.heads.get(&key), &entry) {
+        let mut head = match (self.heads.get(&id), &entry) {
             (Some(cached), Some(_)) => join(entry.clone(), Some(cached.clone())),
             _ => entry.clone(),
         };
-        let counters = match self.counters.get(&key) {
+        let counters = match self.counters.get(&id) {
             Some(c) => c.clone(),
             None => {
                 let mut c = vec![false; self.slots.len()];
@@ -328,7 +320,7 @@ impl Analysis<'_> {
                 let c: Vec<bool> = (0..self.slots.len())
                     .filter_map(|l| self.slots[l].map(|_| c[l]))
                     .collect();
-                self.counters.insert(key, c.clone());
+                self.counters.insert(id, c.clone());
                 c
             }
         };
@@ -372,7 +364,7 @@ impl Analysis<'_> {
             }
         };
         if let Some(h) = &narrowed {
-            self.heads.insert(key, h.clone());
+            self.heads.insert(id, h.clone());
         }
         self.quiet = !judging;
         if !judging {

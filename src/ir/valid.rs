@@ -15,7 +15,8 @@
 //!
 //! The rules, by theme (the module doc of [`crate::ir`] states them in prose):
 //! - **index facts**: locals, loop ids, sites and callees in range; each loop id belongs
-//!   to one loop; `break`/`continue` leave an enclosing loop; parameter `i` is local `i`;
+//!   to one loop; expression ids are dense (`0..exprs`, one expression each);
+//!   `break`/`continue` leave an enclosing loop; parameter `i` is local `i`;
 //! - **types**: each expression's type follows from its operands exactly as the checker
 //!   builds it (`Binary` operands of one scalar element and shape, or a scalar broadcast;
 //!   conversions between numbers; built-ins on floats of the shapes they take), an
@@ -58,6 +59,8 @@ pub enum Rule {
     LoopIdInRange,
     /// Each `LoopId` is the id of at most one `Loop` statement.
     LoopIdUnique,
+    /// Expression ids are exactly `0..function.exprs`, each the id of one expression.
+    ExprIdsDense,
     /// `break` and `continue` name a loop that encloses them.
     JumpTarget,
     /// Parameter i is `LocalId(i)`, whose kind is `Param(i)`; no other local is a parameter.
@@ -170,6 +173,7 @@ impl Rule {
             SiteInRange => "every site id is in range",
             LoopIdInRange => "every loop id is in range",
             LoopIdUnique => "each loop id belongs to one loop",
+            ExprIdsDense => "expression ids are 0..exprs, one expression each",
             JumpTarget => "break/continue leave an enclosing loop",
             ParamLayout => "parameter i is local i, of kind Param(i)",
             CallCallee => "a primitive call names a primitive",
@@ -270,6 +274,7 @@ pub fn validate_function(program: &Program, f: &Function) -> Res {
     };
     v.params()?;
     v.loop_ids()?;
+    v.expr_ids()?;
     v.loop_ctl = control_loops(f);
     if f.kind == FuncKind::Interpolator {
         if let Some(s) = f.setup.first() {
@@ -600,6 +605,37 @@ impl<'a> Validator<'a> {
             return self.fail(rule, stmt_node(s), s.span, detail);
         }
         self.loop_varying = flags;
+        Ok(())
+    }
+
+    fn expr_ids(&self) -> Res {
+        let f = self.f;
+        let mut seen = vec![false; f.exprs as usize];
+        let mut count = 0;
+        let mut found: Option<(&Expr, String)> = None;
+        super::number::for_each_expr(f, &mut |e| {
+            count += 1;
+            if found.is_some() {
+                return;
+            }
+            match seen.get_mut(e.id.0 as usize) {
+                None => found = Some((e, format!("id {} of {}", e.id.0, f.exprs))),
+                Some(true) => found = Some((e, format!("id {} is given twice", e.id.0))),
+                Some(slot) => *slot = true,
+            }
+        });
+        if let Some((e, detail)) = found {
+            return self.fail(Rule::ExprIdsDense, expr_node(e), e.span, detail);
+        }
+        // Unique and in range: dense when there are as many expressions as ids.
+        if count != f.exprs {
+            return self.fail(
+                Rule::ExprIdsDense,
+                "function",
+                f.span,
+                format!("{count} expressions numbered 0..{}", f.exprs),
+            );
+        }
         Ok(())
     }
 

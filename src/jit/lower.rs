@@ -35,8 +35,8 @@ use super::value::{cl_type, ctx_off, mem_flags, Val, VnTable, F32X4};
 use super::{Body, JitError};
 use crate::abi::{ArgLayout, BindingKind, ParamSlot, VariantKey, ERR_STACK};
 use crate::ir::{
-    ConstValue, Elem, Expr, ExprKind, FixedFormat, FuncId, FuncKind, Function, LocalId, LoopId, Program, Scalar,
-    SiteId, Stmt, StmtKind, Type, UnaryOp,
+    ConstValue, Elem, Expr, ExprId, ExprKind, FixedFormat, FuncId, FuncKind, Function, LocalId, LoopId, Program,
+    Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp,
 };
 
 mod affine;
@@ -160,6 +160,8 @@ struct LoopCtx {
 /// One function being lowered: the primitive itself, or a shared interpolator inlined into it.
 struct Frame<'a> {
     func: &'a Function,
+    /// `func`'s id in the program.
+    id: FuncId,
     slots: Vec<ParamSlot>,
     fixed_words: u32,
     storage: Vec<Storage>,
@@ -336,11 +338,10 @@ pub(crate) struct Lower<'a, 'b> {
     /// Pixel locals no group reads, because only carried terms (see [`affine`]) or only row
     /// terms (see [`hoist`]) read them: their assignment is not lowered in a group.
     unread_in_groups: std::collections::HashSet<LocalId>,
-    /// Addresses of the expressions in those locals' values (their row terms are not
-    /// stored per row).
-    unstored_terms: std::collections::HashSet<usize>,
-    /// In the group being lowered: each carried term's value (by address).
-    carry_now: Vec<(usize, ir::Value)>,
+    /// The expressions in those locals' values (their row terms are not stored per row).
+    unstored_terms: std::collections::HashSet<ExprId>,
+    /// In the group being lowered: each carried term's value.
+    carry_now: Vec<(ExprId, ir::Value)>,
     /// Scalar frame reads of the current group -> the byte offset of their splat.
     splat_src: std::collections::HashMap<ir::Value, u32>,
     /// The setup's store of each word's splat, by the splat's byte offset (see
@@ -349,9 +350,9 @@ pub(crate) struct Lower<'a, 'b> {
     splat_stores: Vec<(u32, ir::Inst)>,
     splats_read: std::collections::HashSet<u32>,
     /// Frame words only one side of the first unswitched condition reads (tier 1, see
-    /// `defer_frame_stores`): that condition's key and the stores left to its sides'
+    /// `defer_frame_stores`): that condition's id and the stores left to its sides'
     /// dispatch blocks.
-    deferred_frame: Option<(usize, Vec<DeferredStore>)>,
+    deferred_frame: Option<(ExprId, Vec<DeferredStore>)>,
     /// A 16-byte slot that stores to planes the frame does not have go to.
     scratch: StackSlot,
     /// Per binding component: its G-buffer plane's base address (see `plane_table`).
@@ -384,12 +385,12 @@ pub(crate) struct Lower<'a, 'b> {
     /// Tier 0: the locals live code reads; setup assignments to others are not lowered
     /// (see [`dead`]). `None`: every assignment is lowered.
     setup_live: Option<Vec<bool>>,
-    /// Uniform conditions of the pixel code decided for the copy of the pixel loops being
-    /// lowered, by address (see [`unswitch`]); empty outside the pixel loops and in tier 0.
-    unswitched: std::collections::HashMap<usize, bool>,
-    /// Bounds of float locals per function being lowered (by address), computed when its
-    /// first varying float -> int or fixed conversion is lowered (see [`bounds`]).
-    local_bounds: std::collections::HashMap<usize, bounds::LocalBounds>,
+    /// Uniform conditions of the primitive's pixel code decided for the copy of the pixel
+    /// loops being lowered (see [`unswitch`]); empty outside the pixel loops and in tier 0.
+    unswitched: std::collections::HashMap<ExprId, bool>,
+    /// Bounds of float locals per function being lowered, computed when its first varying
+    /// float -> int or fixed conversion is lowered (see [`bounds`]).
+    local_bounds: std::collections::HashMap<FuncId, bounds::LocalBounds>,
     /// What the pixel code's guards say about float locals at the statement being lowered
     /// (see [`bounds`]); empty outside a group body.
     guard_facts: bounds::GuardFacts,
@@ -633,7 +634,13 @@ impl<'a, 'b> Lower<'a, 'b> {
         let no = self.iconst_here(types::I8, 0);
         self.b.def_var(self.has_bound, no);
 
-        let frame = self.make_frame(f, self.layout.params.clone(), self.layout.fixed_words, None)?;
+        let frame = self.make_frame(
+            f,
+            self.func_id,
+            self.layout.params.clone(),
+            self.layout.fixed_words,
+            None,
+        )?;
         self.frames.push(frame);
         if self.tier0() {
             let mut live = vec![false; f.locals.len()];

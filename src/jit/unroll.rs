@@ -33,8 +33,9 @@
 //! records unchanged (`tests/jit_unroll.rs`).
 //!
 //! Invariants kept: the output is a checked program in the sense of [`crate::ir`] (same
-//! locals, sites, loop ids, parameter layout); a folded expression is a uniform constant of
-//! the expression's own type.
+//! locals, sites, loop ids, parameter layout, its expressions numbered afresh by
+//! [`crate::ir::number::renumber`]); a folded expression is a uniform constant of the
+//! expression's own type.
 
 use std::collections::HashMap;
 
@@ -72,6 +73,8 @@ pub(crate) fn unroll_function(mut f: Function) -> Function {
     let pixel = u.stmts(pixel, &mut env);
     f.setup = setup;
     f.pixel = pixel;
+    // Unrolled bodies are copies, and folding drops operands.
+    crate::ir::number::renumber(&mut f);
     f
 }
 
@@ -451,12 +454,12 @@ mod tests {
     use crate::ir::Type;
 
     fn int(v: i32) -> Expr {
-        Expr {
-            kind: ExprKind::Const(ConstValue::Int(v)),
-            ty: Type::int(),
-            var: Variability::Uniform,
-            span: Span::default(),
-        }
+        Expr::new(
+            ExprKind::Const(ConstValue::Int(v)),
+            Type::int(),
+            Variability::Uniform,
+            Span::default(),
+        )
     }
 
     fn bin(op: BinOp, a: Expr, c: Expr) -> Expr {
@@ -468,16 +471,16 @@ mod tests {
         } else {
             Type::int()
         };
-        Expr {
-            kind: ExprKind::Binary {
+        Expr::new(
+            ExprKind::Binary {
                 op,
                 lhs: Box::new(a),
                 rhs: Box::new(c),
             },
             ty,
-            var: Variability::Uniform,
-            span: Span::default(),
-        }
+            Variability::Uniform,
+            Span::default(),
+        )
     }
 
     fn folded(e: &Expr) -> Option<ConstValue> {

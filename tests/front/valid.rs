@@ -129,12 +129,7 @@ fn func<'p>(p: &'p mut Program, name: &str) -> &'p mut Function {
 }
 
 fn e(kind: ExprKind, ty: Type, var: Variability) -> Expr {
-    Expr {
-        kind,
-        ty,
-        var,
-        span: Span::default(),
-    }
+    Expr::new(kind, ty, var, Span::default())
 }
 
 fn st(kind: StmtKind) -> Stmt {
@@ -258,12 +253,20 @@ fn is_binary(x: &Expr, want: BinOp) -> bool {
     matches!(x.kind, ExprKind::Binary { op, .. } if op == want)
 }
 
-/// `base()` broken by `breaking` is rejected with `rule`, named in the message.
+/// `base()` broken by `breaking`, its expressions numbered again (as every pass leaves
+/// them), is rejected with `rule`, named in the message.
 #[track_caller]
 fn rejects(rule: Rule, breaking: impl FnOnce(&mut Program)) {
     let mut p = base();
     breaking(&mut p);
-    match validate(&p) {
+    p.functions.iter_mut().for_each(number::renumber);
+    rejected_with(rule, &p);
+}
+
+/// `p` is rejected with `rule`, named in the message.
+#[track_caller]
+fn rejected_with(rule: Rule, p: &Program) {
+    match validate(p) {
         Ok(()) => panic!("{rule:?}: the broken program validates"),
         Err(err) => {
             assert_eq!(err.rule, rule, "{err}");
@@ -318,6 +321,31 @@ fn loop_id_unique() {
             },
         );
     });
+}
+
+#[test]
+fn expr_ids_dense() {
+    // Not numbered again after the edit.
+    let breakings: [fn(&mut Program); 3] = [
+        // An expression added without numbering it.
+        |p| {
+            let f = func(p, "base");
+            let acc = place(f, "acc");
+            f.setup.push(st(StmtKind::Assign {
+                place: acc,
+                value: fc(1.0),
+            }));
+        },
+        // Two expressions with one id.
+        |p| edit_expr(p, false, |x| x.id == ExprId(1), |x| x.id = ExprId(0)),
+        // An id no expression has.
+        |p| func(p, "base").exprs += 1,
+    ];
+    for breaking in breakings {
+        let mut p = base();
+        breaking(&mut p);
+        rejected_with(Rule::ExprIdsDense, &p);
+    }
 }
 
 #[test]

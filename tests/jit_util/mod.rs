@@ -34,6 +34,7 @@ impl Fb {
                 setup: vec![],
                 pixel: vec![],
                 loops: 0,
+                exprs: 0,
                 uses_spaces: false,
             },
         }
@@ -85,12 +86,7 @@ impl Fb {
 }
 
 pub fn e(kind: ExprKind, ty: Type, var: Variability) -> Expr {
-    Expr {
-        kind,
-        ty,
-        var,
-        span: Span::default(),
-    }
+    Expr::new(kind, ty, var, Span::default())
 }
 pub fn s(kind: StmtKind) -> Stmt {
     Stmt {
@@ -236,7 +232,9 @@ pub fn bound(r: [Expr; 4]) -> Stmt {
     s(StmtKind::Bound(Box::new(r)))
 }
 
-pub fn program(funcs: Vec<Function>, sites: usize) -> Program {
+/// The program of `funcs`, their expressions numbered.
+pub fn program(mut funcs: Vec<Function>, sites: usize) -> Program {
+    funcs.iter_mut().for_each(number::renumber);
     Program {
         functions: funcs,
         sites: vec![Span::default(); sites],

@@ -49,6 +49,7 @@ impl FnBuilder {
                 setup: vec![],
                 pixel: vec![],
                 loops: 0,
+                exprs: 0,
                 uses_spaces: false,
             },
         }

@@ -49,7 +49,7 @@ use std::collections::{HashMap, HashSet};
 use cranelift_codegen::ir::{self, types, InstBuilder};
 
 use crate::ir::{
-    BinOp, ConstValue, Elem, Expr, ExprKind, Function, LocalId, ParamRole, Scalar, Stmt, StmtKind, UnaryOp,
+    BinOp, ConstValue, Elem, Expr, ExprId, ExprKind, Function, LocalId, ParamRole, Scalar, Stmt, StmtKind, UnaryOp,
 };
 
 use super::super::value::{mem_flags, splat, Val, I32X4};
@@ -69,9 +69,9 @@ pub(super) struct Carried<'a> {
 /// The carried values of one pixel loop (see `Lower::pixel_rows`).
 #[derive(Default)]
 pub(super) struct CarryLoop {
-    /// Per carried expression the loop reads: its key (address), the variable carrying
-    /// it through the groups of a row, its step's offset.
-    pub group: Vec<(usize, cranelift_frontend::Variable, u32)>,
+    /// Per carried expression the loop reads: its id, the variable carrying it through
+    /// the groups of a row, its step's offset.
+    pub group: Vec<(ExprId, cranelift_frontend::Variable, u32)>,
     /// The values at the rows' first group of the expressions also carried from row to
     /// row (see [`RowCarry`]).
     pub rows: RowCarry,
@@ -84,9 +84,9 @@ pub(super) struct CarryLoop {
 #[derive(Default, Clone)]
 pub(super) struct RowCarry {
     pub slot: Option<ir::StackSlot>,
-    /// Per expression: its key (address), its offset in `slot`, its row step's offset in
-    /// the uniform frame.
-    pub items: Vec<(usize, u32, u32)>,
+    /// Per expression: its id, its offset in `slot`, its row step's offset in the uniform
+    /// frame.
+    pub items: Vec<(ExprId, u32, u32)>,
 }
 
 /// How an int expression depends on the pixel column.
@@ -281,7 +281,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         for (l, value) in locals {
             if all_reads.get(&l) == term_reads.get(&l) {
                 self.unread_in_groups.insert(l);
-                collect_keys(value, &mut self.unstored_terms);
+                super::block::expr_keys(value, &mut self.unstored_terms);
             }
         }
     }
@@ -562,13 +562,13 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// The carried expressions a pixel loop's variant reads (`only`; `None`: all).
-    fn carried_in(&self, only: Option<&HashSet<usize>>) -> Vec<(&'a Expr, u32, Option<u32>)> {
+    fn carried_in(&self, only: Option<&HashSet<ExprId>>) -> Vec<(&'a Expr, u32, Option<u32>)> {
         if self.uniform_frame.is_none() {
             return vec![];
         }
         self.carried
             .iter()
-            .filter(|c| only.is_none_or(|set| set.contains(&(c.expr as *const Expr as usize))))
+            .filter(|c| only.is_none_or(|set| set.contains(&c.expr.id)))
             .map(|c| (c.expr, c.step_offset, c.row_step_offset))
             .collect()
     }
@@ -586,13 +586,13 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// Entry of a pixel loop (rows from `y0`, groups from `g0`): the value at the first
     /// group of the first row of every carried expression that is affine in the row too,
     /// in variables the row prologue reads and `carry_next_row` advances. Returns
-    /// (key, row variable, row step offset) per such expression.
+    /// (id, row variable, row step offset) per such expression.
     pub(super) fn carry_rows_start(
         &mut self,
         f: &'a Function,
         g0: ir::Value,
         y0: ir::Value,
-        only: Option<&HashSet<usize>>,
+        only: Option<&HashSet<ExprId>>,
     ) -> Res<RowCarry> {
         let picked: Vec<(&'a Expr, u32)> = self
             .carried_in(only)
@@ -632,7 +632,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             let at = 16 * i as u32;
             let addr = self.slot_addr(slot);
             self.b.ins().store(mem_flags(), v, addr, at as i32);
-            out.items.push((expr as *const Expr as usize, at, row_offset));
+            out.items.push((expr.id, at, row_offset));
         }
         self.prologue_frame = None;
         Ok(out)
@@ -647,7 +647,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         f: &'a Function,
         x0_f: ir::Value,
         y_f: ir::Value,
-        only: Option<&HashSet<usize>>,
+        only: Option<&HashSet<ExprId>>,
         rows: &RowCarry,
     ) -> Res<CarryLoop> {
         let picked = self.carried_in(only);
@@ -665,8 +665,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let addr = self.uniform_frame.map(|(fs, _)| self.slot_addr(fs));
         self.prologue_frame = addr.map(|a| (a, false));
         for (expr, offset, _) in picked {
-            let key = expr as *const Expr as usize;
-            let v = match (rows.slot, rows.items.iter().find(|r| r.0 == key)) {
+            let v = match (rows.slot, rows.items.iter().find(|r| r.0 == expr.id)) {
                 (Some(slot), Some(&(_, at, _))) => {
                     let addr = self.slot_addr(slot);
                     Ok(self.b.ins().load(I32X4, mem_flags(), addr, at as i32))
@@ -682,7 +681,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             };
             let var = self.declare_var(I32X4);
             self.b.def_var(var, v);
-            out.group.push((key, var, offset));
+            out.group.push((expr.id, var, offset));
         }
         self.prologue_frame = None;
         Ok(out)
@@ -725,8 +724,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         if self.carry_now.is_empty() || self.pix.is_none() || self.frames.len() != 1 {
             return None;
         }
-        let key = e as *const Expr as usize;
-        let &(_, v) = self.carry_now.iter().find(|(k, _)| *k == key)?;
+        let &(_, v) = self.carry_now.iter().find(|(k, _)| *k == e.id)?;
         Some(Val {
             comps: vec![v],
             scalar: Scalar::Int,
@@ -783,10 +781,4 @@ fn count_stmt_reads(stmts: &[Stmt], out: &mut HashMap<LocalId, u32>) {
             StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
         }
     }
-}
-
-/// The addresses of `e` and every subexpression.
-fn collect_keys(e: &Expr, out: &mut HashSet<usize>) {
-    out.insert(e as *const Expr as usize);
-    e.for_each_child(|c| collect_keys(c, out));
 }

@@ -34,7 +34,9 @@ use std::collections::{HashMap, HashSet};
 use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, InstBuilder};
 
 use super::{elem_scalar, Lower, Res};
-use crate::ir::{BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, Function, LocalId, Scalar, Stmt, StmtKind, UnaryOp};
+use crate::ir::{
+    BinOp, Builtin, ConstValue, Elem, Expr, ExprId, ExprKind, Function, LocalId, Scalar, Stmt, StmtKind, UnaryOp,
+};
 use crate::jit::fixed;
 
 /// One statement of the guard prefix.
@@ -69,7 +71,7 @@ pub(super) struct Prefix<'a> {
 /// Find the guard prefix of `f`'s pixel statements (see the module comment). A uniform `if`
 /// whose condition `decided` fixes (see [`super::unswitch`]) contributes the statements of
 /// the side it takes, inline.
-pub(super) fn prefix<'a>(f: &'a Function, decided: &HashMap<usize, bool>) -> Prefix<'a> {
+pub(super) fn prefix<'a>(f: &'a Function, decided: &HashMap<ExprId, bool>) -> Prefix<'a> {
     let mut stmts = vec![];
     let mut guards = 0;
     let mut len = 0;
@@ -92,11 +94,11 @@ fn classify_into<'a>(
     f: &'a Function,
     s: &'a Stmt,
     guards: &mut usize,
-    decided: &HashMap<usize, bool>,
+    decided: &HashMap<ExprId, bool>,
     out: &mut Vec<PStmt<'a>>,
 ) -> bool {
     if let StmtKind::If { cond, then, otherwise } = &s.kind {
-        if let Some(&on) = decided.get(&key(cond)) {
+        if let Some(&on) = decided.get(&cond.id) {
             let taken = if on { then } else { otherwise };
             return taken.iter().all(|t| classify_into(f, t, guards, decided, out));
         }
@@ -110,7 +112,12 @@ fn classify_into<'a>(
     }
 }
 
-fn classify<'a>(f: &'a Function, s: &'a Stmt, guards: &mut usize, decided: &HashMap<usize, bool>) -> Option<PStmt<'a>> {
+fn classify<'a>(
+    f: &'a Function,
+    s: &'a Stmt,
+    guards: &mut usize,
+    decided: &HashMap<ExprId, bool>,
+) -> Option<PStmt<'a>> {
     match &s.kind {
         StmtKind::Assign { place, value } => {
             let local = f.locals.get(place.local.0 as usize)?;
@@ -215,17 +222,13 @@ pub(super) enum Stage {
     Block,
 }
 
-/// Abstract values computed at an earlier stage, keyed by the expression's address (each
-/// prefix expression sits at one program point, so one walk gives it one value).
+/// Abstract values computed at an earlier stage, keyed by the expression's id (each prefix
+/// expression sits at one program point, so one walk gives it one value).
 #[derive(Clone, Default)]
 pub(super) struct AbsCache {
-    values: HashMap<usize, Abs>,
+    values: HashMap<ExprId, Abs>,
     /// The uniform conditions of the prefix's `if`s (i8), computed at [`Stage::Row`].
-    conds: HashMap<usize, ir::Value>,
-}
-
-fn key(e: &Expr) -> usize {
-    e as *const Expr as usize
+    conds: HashMap<ExprId, ir::Value>,
 }
 
 /// What the interval evaluation knows while it walks the prefix.
@@ -375,13 +378,13 @@ impl<'a> Lower<'a, '_> {
                     // the row stage. Before the block stage such a condition is not
                     // known, and neither are the locals its sides assign.
                     let cacheable = !reads_any(cond, &env.pixel_assigned);
-                    let c = match cache.conds.get(&key(cond)) {
+                    let c = match cache.conds.get(&cond.id) {
                         Some(&c) => Some(c),
                         None if cacheable || block => {
                             let c = self.eval_uniform(cond)?;
                             let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
                             if cacheable {
-                                cache.conds.insert(key(cond), c);
+                                cache.conds.insert(cond.id, c);
                             }
                             Some(c)
                         }
@@ -446,8 +449,8 @@ impl<'a> Lower<'a, '_> {
         let mut sides = vec![];
         for (branch, start) in [(then, then_blk), (otherwise, else_blk)] {
             self.b.switch_to_block(start);
-            let before_values: HashSet<usize> = cache.values.keys().copied().collect();
-            let before_conds: HashSet<usize> = cache.conds.keys().copied().collect();
+            let before_values: HashSet<ExprId> = cache.values.keys().copied().collect();
+            let before_conds: HashSet<ExprId> = cache.conds.keys().copied().collect();
             let mut side_env = env.clone();
             let mut side_flags = Flags { dead: None, pass: None };
             self.abs_stmts(branch, &mut side_env, cache, &mut side_flags, decidable)?;
@@ -682,12 +685,12 @@ impl<'a> Lower<'a, '_> {
     /// The abstract value of `e`, or `None` when it needs a range a later stage has (X, or
     /// Y before [`Stage::Row`]). Every value computed is cached, so a later stage reuses it.
     fn abs_expr(&mut self, e: &'a Expr, env: &BlockEnv, cache: &mut AbsCache) -> Res<Option<Abs>> {
-        if let Some(v) = cache.values.get(&key(e)) {
+        if let Some(v) = cache.values.get(&e.id) {
             return Ok(Some(v.clone()));
         }
         let v = self.abs_expr_uncached(e, env, cache)?;
         if let Some(v) = &v {
-            cache.values.insert(key(e), v.clone());
+            cache.values.insert(e.id, v.clone());
         }
         Ok(v)
     }
@@ -1038,7 +1041,7 @@ impl<'a> Lower<'a, '_> {
     }
 }
 
-/// The expressions (by address) the pass variant lowers: what [`Lower::prefix_without_guards`]
+/// The expressions the pass variant lowers: what [`Lower::prefix_without_guards`]
 /// emits, then `rest` (the pixel statements after the prefix). The row prologue of a pass
 /// span evaluates only the hoisted row terms among them: the Y terms of dropped guards
 /// (screen_triangle's `int(Y * 16) - int(oy * 16)` and float edge terms) cost every pixel
@@ -1048,14 +1051,14 @@ pub(super) fn pass_exprs(
     rest: &[Stmt],
     decidable: &[bool],
     live: &HashSet<LocalId>,
-    decided: &HashMap<usize, bool>,
-) -> HashSet<usize> {
+    decided: &HashMap<ExprId, bool>,
+) -> HashSet<ExprId> {
     fn prefix(
         all: &[PStmt<'_>],
         stmts: &[PStmt<'_>],
         decidable: &[bool],
         live: &HashSet<LocalId>,
-        out: &mut HashSet<usize>,
+        out: &mut HashSet<ExprId>,
     ) {
         for s in stmts {
             match s {
@@ -1082,22 +1085,22 @@ pub(super) fn pass_exprs(
     out
 }
 
-/// Addresses of `e` and all its subexpressions.
-fn expr_keys(e: &Expr, out: &mut HashSet<usize>) {
-    out.insert(key(e));
+/// The ids of `e` and all its subexpressions.
+pub(super) fn expr_keys(e: &Expr, out: &mut HashSet<ExprId>) {
+    out.insert(e.id);
     e.for_each_child(|c| expr_keys(c, out));
 }
 
-/// Addresses of every expression in `stmts`, but for the untaken side (and the condition)
-/// of each `if` that `decided` fixes (see [`super::unswitch`]).
-pub(super) fn stmt_keys(stmts: &[Stmt], decided: &HashMap<usize, bool>, out: &mut HashSet<usize>) {
+/// The ids of every expression in `stmts`, but for the untaken side (and the condition) of
+/// each `if` that `decided` fixes (see [`super::unswitch`]).
+pub(super) fn stmt_keys(stmts: &[Stmt], decided: &HashMap<ExprId, bool>, out: &mut HashSet<ExprId>) {
     for s in stmts {
         match &s.kind {
             StmtKind::Assign { place, value } => {
                 place.indices.iter().for_each(|(i, _)| expr_keys(i, out));
                 expr_keys(value, out);
             }
-            StmtKind::If { cond, then, otherwise } => match decided.get(&key(cond)) {
+            StmtKind::If { cond, then, otherwise } => match decided.get(&cond.id) {
                 Some(&on) => stmt_keys(if on { then } else { otherwise }, decided, out),
                 None => {
                     expr_keys(cond, out);
@@ -1205,8 +1208,8 @@ enum Shape {
 enum Carry {
     Flag { dead: bool },
     Local(LocalId),
-    Value(usize),
-    Cond(usize),
+    Value(ExprId),
+    Cond(ExprId),
 }
 
 /// An abstract value's SSA parts (block parameters carry them).
@@ -1245,8 +1248,8 @@ fn same_shape(a: &Abs, b: &Abs) -> bool {
 
 /// Remove and return the entries of `map` whose keys are not in `before`, sorted by key
 /// (so the join's parameters come in a deterministic order).
-fn take_new<V>(map: &mut HashMap<usize, V>, before: &HashSet<usize>) -> Vec<(usize, V)> {
-    let mut new_keys: Vec<usize> = map.keys().filter(|k| !before.contains(k)).copied().collect();
+fn take_new<V>(map: &mut HashMap<ExprId, V>, before: &HashSet<ExprId>) -> Vec<(ExprId, V)> {
+    let mut new_keys: Vec<ExprId> = map.keys().filter(|k| !before.contains(k)).copied().collect();
     new_keys.sort_unstable();
     new_keys
         .into_iter()

@@ -15,7 +15,7 @@
 use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, InstBuilder};
 
 use super::{bounds, elem_scalar, err, exact_reciprocal, float_const, speculable_expr, Lower, Res};
-use crate::ir::{BinOp, ConstValue, Elem, Expr, ExprKind, Function, LocalId, Scalar, UnaryOp};
+use crate::ir::{BinOp, ConstValue, Elem, Expr, ExprKind, LocalId, Scalar, UnaryOp};
 use crate::jit::fixed;
 use crate::jit::libm::LibmFn;
 use crate::jit::value::{args_flags, blend, splat, zero, Val, VnKey, F32X4, VN_NEG, VN_NOT};
@@ -90,11 +90,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         let Some(frame) = self.frames.last() else {
             return (None, false);
         };
-        let f = frame.func;
+        let (f, id) = (frame.func, frame.id);
         let depth = self.frames.len() - 1;
         let table = self
             .local_bounds
-            .entry(f as *const Function as usize)
+            .entry(id)
             .or_insert_with(|| bounds::LocalBounds::of_function(f));
         let whole = table.expr(e).map(|b| (b.lo, b.hi));
         let here = table.expr_here(e, &self.guard_facts, depth);

@@ -19,8 +19,8 @@
 //! block (neither changes while the pixel loops run), *row locals* and constant-index
 //! elements of one-dimensional row locals, and it is scalar, an array of float or int
 //! scalars (one component per element), or interpolation_data (one component per view
-//! component). Expressions are keyed by address together with the interpolation view they
-//! were collected under.
+//! component). Expressions are keyed by id together with the interpolation view they were
+//! collected under.
 //!
 //! A row local is a varying local of the pixel code assigned once, whole, by a top-level
 //! statement, from a row-invariant value (`float dy = Y - sy;`): every read sees that value,
@@ -114,7 +114,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let terms: Vec<&'a Expr> = self
             .hoists
             .iter()
-            .filter(|h| !h.per_run && counted.insert(h.expr as *const Expr as usize))
+            .filter(|h| !h.per_run && counted.insert(h.expr.id))
             .map(|h| h.expr)
             .collect();
         let locals: Vec<(LocalId, &'a Expr)> = self.row_locals.iter().map(|(&l, &v)| (l, v)).collect();

@@ -447,7 +447,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 }
             }
         }
-        let frame = self.make_frame(f, slots, at, Some(bi))?;
+        let frame = self.make_frame(f, id, slots, at, Some(bi))?;
         // X, Y, Z of the interpolator: this pixel's, in the interpolator's declared types.
         let (x_f, y_f, z_raw) = {
             let p = self.pix.as_ref().expect("pixel context");

@@ -20,7 +20,7 @@ use cranelift_codegen::ir::{self, InstBuilder, StackSlot, StackSlotData, StackSl
 use cranelift_frontend::Variable;
 
 use super::{block, dead, elem_scalar, err, mark_local, unswitch, DeferredStore, Lower, Res, Storage};
-use crate::ir::{Elem, Expr, Function, ParamRole, Scalar, StmtKind};
+use crate::ir::{Elem, Expr, ExprId, Function, ParamRole, Scalar, StmtKind};
 use crate::jit::fixed;
 use crate::jit::value::{args_flags, cl_type, mem_flags, splat, Val};
 
@@ -171,7 +171,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         &mut self,
         f: &'a Function,
         y_f: ir::Value,
-        only: Option<&std::collections::HashSet<usize>>,
+        only: Option<&std::collections::HashSet<ExprId>>,
     ) -> Res<()> {
         let (Some((fs, _)), false) = (self.uniform_frame, self.hoists.is_empty()) else {
             return Ok(());
@@ -192,8 +192,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         let mut stored = Ok(());
         for k in 0..self.hoists.len() {
             let h = &self.hoists[k];
-            let key = h.expr as *const Expr as usize;
-            let skip = h.per_run || only.is_some_and(|set| !set.contains(&key)) || self.unstored_terms.contains(&key);
+            let id = h.expr.id;
+            let skip = h.per_run || only.is_some_and(|set| !set.contains(&id)) || self.unstored_terms.contains(&id);
             if !skip {
                 stored = self.store_hoist(fs, k);
                 if stored.is_err() {
@@ -338,14 +338,14 @@ impl<'a, 'b> Lower<'a, 'b> {
             deferred.insert(i, in_then[i]);
         }
         if !deferred.is_empty() {
-            self.deferred_frame = Some((unswitch::cond_key(cond), vec![]));
+            self.deferred_frame = Some((cond.id, vec![]));
         }
         deferred
     }
 
     /// In the dispatch block of side `on` of the condition `cond` (`unswitched_loops`): the
     /// frame stores `defer_frame_stores` left for that side, splats included.
-    pub(in crate::jit) fn store_deferred_frame(&mut self, cond: usize, on: bool) {
+    pub(in crate::jit) fn store_deferred_frame(&mut self, cond: ExprId, on: bool) {
         let Some((key, locals)) = self.deferred_frame.take() else {
             return;
         };

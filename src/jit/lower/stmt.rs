@@ -17,8 +17,7 @@ use cranelift_codegen::ir::{self, condcodes::IntCC, Block, InstBuilder};
 use cranelift_frontend::Variable;
 
 use super::{
-    const_index_in_range, dead, err, flat, key_constant, quiet_stmt, speculable_expr, unswitch, LoopCtx, Lower, Res,
-    Storage,
+    const_index_in_range, dead, err, flat, key_constant, quiet_stmt, speculable_expr, LoopCtx, Lower, Res, Storage,
 };
 use crate::abi::ERR_FUEL;
 use crate::ir::{for_each_assign, Expr, Function, LocalId, LoopId, Scalar, SiteId, Stmt, StmtKind};
@@ -204,9 +203,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             return Ok(());
         }
-        // A condition decided before the pixel loops (tier 1, see [`unswitch`]): this copy
-        // of the loops holds the side it takes only.
-        if let Some(&on) = self.unswitched.get(&unswitch::cond_key(cond)) {
+        // A condition of the primitive decided before the pixel loops (tier 1, see
+        // [`unswitch`]): this copy of the loops holds the side it takes only.
+        if let (1, Some(&on)) = (self.frames.len(), self.unswitched.get(&cond.id)) {
             return self.stmts(if on { then } else { otherwise });
         }
         let c = self.eval(cond)?;

@@ -25,7 +25,7 @@ use super::{
     Res, Root, Storage, MAX_LOCAL_VAR_WORDS, MAX_VAR_WORDS, ZERO_LOOP_BYTES,
 };
 use crate::abi::{type_words, ParamSlot, ERR_INDEX};
-use crate::ir::{Elem, Expr, ExprKind, Function, LocalId, ParamRole, Place, Scalar, SiteId};
+use crate::ir::{Elem, Expr, ExprKind, FuncId, Function, LocalId, ParamRole, Place, Scalar, SiteId};
 use crate::jit::fixed;
 use crate::jit::value::{
     args_flags, blend, cl_type, comp_bytes, mask_const, mem_flags, splat, zero, Val, VnKey, I32X4,
@@ -49,6 +49,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     pub(super) fn make_frame(
         &mut self,
         f: &'a Function,
+        id: FuncId,
         slots: Vec<ParamSlot>,
         fixed_words: u32,
         interp_binding: Option<usize>,
@@ -117,6 +118,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         Ok(Frame {
             func: f,
+            id,
             slots,
             fixed_words,
             storage,

@@ -13,10 +13,12 @@
 //!   error: evaluating it before the loops, even when no group runs, has no effect) and
 //!   reads no local the pixel code assigns (so every group would compute the same value).
 //!   Its value before the loops is then bit-identical to the one each group computed.
-//! - Decided conditions live in [`Lower::unswitched`], keyed by the condition's address (one
-//!   program point each). Everything that lowers or walks pixel statements in the loops
-//!   consults it: [`Lower::lower_if`], the guard prefix ([`super::block::prefix`]) and the
-//!   row terms a copy evaluates ([`super::block::pass_exprs`], [`full_code_exprs`]).
+//! - Decided conditions live in [`Lower::unswitched`], keyed by the condition's [`ExprId`]
+//!   (one program point of the primitive each). Everything that lowers or walks the
+//!   primitive's pixel statements in the loops consults it: [`Lower::lower_if`] (not in an
+//!   inlined interpolator, whose ids are its own), the guard prefix
+//!   ([`super::block::prefix`]) and the row terms a copy evaluates
+//!   ([`super::block::pass_exprs`], [`full_code_exprs`]).
 //! - At most [`MAX_UNSWITCHED`] conditions are decided on any path (copies of the pixel
 //!   loops at most 2^MAX_UNSWITCHED), in pre-order of the conditions still reachable under
 //!   the ones already decided: a nested `if` is unswitched only inside the side that
@@ -28,7 +30,7 @@ use cranelift_codegen::ir::{Block, InstBuilder};
 
 use super::{block, key_constant, Lower, Res};
 use crate::abi::VariantKey;
-use crate::ir::{Expr, Function, LocalId, Scalar, Stmt, StmtKind};
+use crate::ir::{Expr, ExprId, Function, LocalId, Scalar, Stmt, StmtKind};
 use crate::jit::fixed;
 
 /// Uniform conditions decided on one path through the unswitching tree. Each doubles the
@@ -36,26 +38,18 @@ use crate::jit::fixed;
 /// condition), see docs/performance.md, "Unswitching (`unswitch.rs`)".
 pub(super) const MAX_UNSWITCHED: usize = 2;
 
-/// Address of a condition: the key of [`Lower::unswitched`].
-pub(super) fn cond_key(e: &Expr) -> usize {
-    e as *const Expr as usize
-}
-
 /// The first (pre-order) unswitchable condition of `stmts` not decided in `decided`,
 /// looking only into the sides that `decided` and the variant key leave reachable.
 pub(super) fn next_condition<'a>(
     stmts: &'a [Stmt],
-    decided: &HashMap<usize, bool>,
+    decided: &HashMap<ExprId, bool>,
     assigned: &HashSet<LocalId>,
     key: &VariantKey,
 ) -> Option<&'a Expr> {
     for s in stmts {
         let found = match &s.kind {
             StmtKind::If { cond, then, otherwise } => {
-                let fixed = decided
-                    .get(&cond_key(cond))
-                    .copied()
-                    .or_else(|| key_constant(cond, key));
+                let fixed = decided.get(&cond.id).copied().or_else(|| key_constant(cond, key));
                 match fixed {
                     Some(on) => next_condition(if on { then } else { otherwise }, decided, assigned, key),
                     None if unswitchable(cond, assigned) => Some(cond),
@@ -87,9 +81,9 @@ fn unswitchable(cond: &Expr, assigned: &HashSet<LocalId>) -> bool {
         && !cond.reads_any(&|l| assigned.contains(&l))
 }
 
-/// Addresses of the expressions the full pixel code lowers when the conditions in
-/// `decided` are fixed (the untaken sides left out): the row terms a copy evaluates.
-pub(super) fn full_code_exprs(f: &Function, decided: &HashMap<usize, bool>) -> HashSet<usize> {
+/// The expressions the full pixel code lowers when the conditions in `decided` are fixed
+/// (the untaken sides left out): the row terms a copy evaluates.
+pub(super) fn full_code_exprs(f: &Function, decided: &HashMap<ExprId, bool>) -> HashSet<ExprId> {
     let mut out = HashSet::new();
     block::stmt_keys(&f.pixel, decided, &mut out);
     out
@@ -122,11 +116,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         for (side, on) in sides.into_iter().zip([true, false]) {
             self.b.switch_to_block(side);
             if depth == 0 {
-                self.store_deferred_frame(cond_key(cond), on);
+                self.store_deferred_frame(cond.id, on);
             }
-            self.unswitched.insert(cond_key(cond), on);
+            self.unswitched.insert(cond.id, on);
             let r = self.unswitched_loops(f, depth + 1, loops);
-            self.unswitched.remove(&cond_key(cond));
+            self.unswitched.remove(&cond.id);
             r?;
         }
         Ok(())
