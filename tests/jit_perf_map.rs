@@ -4,7 +4,7 @@
 //! tier 1 told apart, and a tier-0 kernel's outlined pixel loops as `<kernel>_pixels`. One test in its own binary: it sets an environment variable for the
 //! whole process.
 
-mod common;
+mod support;
 
 use primflow::abi::VariantKey;
 use primflow::jit::{Jit, Tier};
@@ -16,7 +16,7 @@ fn perf_map_names_each_kernel_by_primitive_and_tier() {
     let map = std::path::PathBuf::from(format!("/tmp/perf-{}.map", std::process::id()));
     let _ = std::fs::remove_file(&map);
 
-    let program = common::library();
+    let program = support::library();
     let polygon = program.find("polygon").unwrap();
     let key = VariantKey::default();
     for tier in [Tier::Fast, Tier::Optimised] {

@@ -11,11 +11,11 @@
 //! 512 KiB thread can be given a finished thread's larger stack from glibc's stack cache,
 //! and the frame then fits (seen when this test ran inside the grouped `jit` binary).
 
-mod common;
+mod support;
 
 use std::sync::Arc;
 
-use common::rect_scene as scene;
+use support::rect_scene as scene;
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
@@ -43,7 +43,7 @@ primitive calls_big(float rect[4]; float z; varying float X, Y; inout varying fi
 const BIG_AT: &str = "W0801@2:11";
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    common::library_with(sources, &[("big.prim", SOURCE)])
+    support::library_with(sources, &[("big.prim", SOURCE)])
 }
 
 /// Render on one thread with a `stack` byte stack: the depth inside the rectangle and the

@@ -5,7 +5,7 @@
 //! `Cs` and runs no shading code; and the report has a row per effect set, the thread
 //! figures and the llvmpipe comparison. Outcomes only: nothing here asserts a timing.
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
@@ -65,7 +65,7 @@ fn frames(program: &Arc<Program>) -> Vec<(&'static str, Frame)> {
 
 #[test]
 fn each_effect_changes_the_colours_the_way_it_should() {
-    let program = common::library();
+    let program = support::library();
     let frames = frames(&program);
     let none = &frames[0].1;
     let find = |name: &str| &frames.iter().find(|(n, _)| *n == name).unwrap().1;
@@ -135,7 +135,7 @@ fn each_effect_changes_the_colours_the_way_it_should() {
 fn effects_scene_runs_one_kernel_for_every_set() {
     // Every set renders the same primitives with the same kernel: same depth and G-buffer,
     // and a frame's effects are the set's.
-    let program = common::library();
+    let program = support::library();
     let mut jit = Jit::new(program.clone()).unwrap();
     let none = effects_scene(&program, SIZE, LAYERS, set("none (colour = Cs)"));
     let (reference, stats) = render(&none, &mut jit, 1);
@@ -158,7 +158,7 @@ fn effects_scene_runs_one_kernel_for_every_set() {
 
 #[test]
 fn series_table_has_a_row_per_effect_set() {
-    let program = common::library();
+    let program = support::library();
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
     let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
     let series = effects_series(&program, SIZE, LAYERS, 1, &one, &two, &ProgressBar::hidden()).unwrap();

@@ -5,11 +5,11 @@
 //! the JIT's), a primitive from a user directory gets the JIT's rows alone, and a broken
 //! scene is refused with its diagnostics. Outcomes only: nothing here asserts a timing.
 
-use crate::common;
+use crate::support;
 
 use std::path::{Path, PathBuf};
 
-use common::cli;
+use support::cli;
 use primflow::bench::{format_scene_report, run_scene, KernelKind, SceneBenchOptions};
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::handwritten::Flavor;

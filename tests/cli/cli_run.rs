@@ -1,11 +1,11 @@
 //! The command line: exit codes and messages of `check` and `render` on bad input, and the
 //! `--key` syntax. (Rendering real scenes end to end needs the checker and the JIT.)
 
-use crate::common;
+use crate::support;
 
 use std::path::PathBuf;
 
-use common::cli;
+use support::cli;
 use primflow::abi::{Binding, BindingKind};
 use primflow::cli::parse_key;
 use primflow::ir::Program;

@@ -9,6 +9,6 @@ mod bench_effects;
 mod bench_llvmpipe;
 mod bench_scene;
 mod cli_run;
-#[path = "../common/mod.rs"]
-mod common;
 mod output_files;
+#[path = "../support/mod.rs"]
+mod support;

@@ -2,7 +2,7 @@
 //! are checked before the scene is rendered, images go to a temporary file beside the target
 //! and are renamed into place, and a failure on one output writes none of them.
 
-use crate::common::cli;
+use crate::support::cli;
 
 use std::path::{Path, PathBuf};
 

@@ -12,4 +12,6 @@ mod check_passes;
 mod diag_limits;
 mod limits;
 mod parse;
+#[path = "../support/mod.rs"]
+mod support;
 mod valid;

@@ -8,6 +8,8 @@ use primflow::diag::{Diagnostics, SourceMap, Span};
 use primflow::ir::valid::{validate, validate_function, Rule};
 use primflow::ir::*;
 
+use crate::support::jit::{e, fc, ic, s as st};
+
 fn prim_files(dir: &Path) -> Vec<PathBuf> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
         .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
@@ -126,29 +128,6 @@ fn base() -> Program {
 fn func<'p>(p: &'p mut Program, name: &str) -> &'p mut Function {
     let id = p.find(name).expect("function");
     &mut p.functions[id.0 as usize]
-}
-
-fn e(kind: ExprKind, ty: Type, var: Variability) -> Expr {
-    Expr::new(kind, ty, var, Span::default())
-}
-
-fn st(kind: StmtKind) -> Stmt {
-    Stmt {
-        kind,
-        span: Span::default(),
-    }
-}
-
-fn fc(x: f32) -> Expr {
-    e(
-        ExprKind::Const(ConstValue::Float(x)),
-        Type::float(),
-        Variability::Uniform,
-    )
-}
-
-fn ic(i: i32) -> Expr {
-    e(ExprKind::Const(ConstValue::Int(i)), Type::int(), Variability::Uniform)
 }
 
 /// A read of `name` (a local of `f`) with its type and variability.

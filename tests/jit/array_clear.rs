@@ -8,11 +8,11 @@
 //! and a dynamic index that may leave the array (clamped, W0801 at its line:col). A uniform
 //! `if (r == stop) break;` and an early `return` put dead blocks in the loop.
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
-use common::{rect_depth_and_codes as run, rect_scene as scene};
+use support::{rect_depth_and_codes as run, rect_scene as scene};
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::Tier;
@@ -46,7 +46,7 @@ primitive flat(float rect[4]; float z; varying float X, Y; inout varying fixed<3
 const OFF_SITE: &str = "W0801@11:43";
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    common::library_with(sources, &[("cleared.prim", SOURCE)])
+    support::library_with(sources, &[("cleared.prim", SOURCE)])
 }
 
 /// What the language says `cleared` computes: per round `a` is all zeros but `a[r]`, so
@@ -132,7 +132,7 @@ primitive interp_cleared(float rect[4]; int rounds;
 #[test]
 fn interpolation_data_arrays_declared_in_a_loop_read_zero_in_both_tiers() {
     let mut sources = SourceMap::new();
-    let program = common::library_with(&mut sources, &[("interp_cleared.prim", INTERP_SOURCE)]);
+    let program = support::library_with(&mut sources, &[("interp_cleared.prim", INTERP_SOURCE)]);
     let colour = [0.25f32, 0.5, 2.0];
     for rounds in [0, 1, 7, 19] {
         let mut r = primflow::runtime::Renderer::new(program.clone());

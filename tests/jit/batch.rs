@@ -3,12 +3,12 @@
 //! kernels are the same as a one-thread pool's, and a function of the batch that fails
 //! fails the batch, which then defines nothing.
 
-use crate::common;
-use crate::jit_util;
+use crate::support;
+use crate::support::raw_depth;
 
 use std::sync::Arc;
 
-use jit_util::*;
+use crate::support::jit::*;
 use primflow::abi::{ERR_NONE, MODE_BOUND};
 use primflow::ir::*;
 use primflow::jit::{Jit, JitOptions, Tier};
@@ -18,8 +18,8 @@ use primflow::jit::{Jit, JitOptions, Tier};
 /// reporting its batch's wall time and CPU time.
 #[test]
 fn a_batch_compiled_in_parallel_renders_what_a_one_thread_pool_renders() {
-    let (mut sources, program) = common::library_and_sources();
-    let r = common::example_scene(&mut sources, &program, "nurb_surface.scene");
+    let (mut sources, program) = support::library_and_sources();
+    let r = support::example_scene(&mut sources, &program, "nurb_surface.scene");
     for tier in [Tier::Fast, Tier::Optimised] {
         let mut frames = vec![];
         for threads in [1, 2, 4] {
@@ -31,7 +31,7 @@ fn a_batch_compiled_in_parallel_renders_what_a_one_thread_pool_renders() {
                 },
             )
             .unwrap();
-            frames.push(common::render_with(&r, &mut jit, threads));
+            frames.push(support::render_with(&r, &mut jit, threads));
             let nurb = program.find("nurb_surface").unwrap();
             let inst = r.instances().iter().find(|i| i.func == nurb).unwrap();
             let cost = jit.compile_cost(nurb, &inst.key).expect("compiled");

@@ -3,11 +3,10 @@
 
 #![allow(clippy::needless_range_loop, clippy::type_complexity)]
 
-use crate::jit_util;
 
 use std::sync::Arc;
 
-use jit_util::*;
+use crate::support::jit::*;
 use primflow::abi::ERR_NONE;
 use primflow::ir::*;
 use primflow::jit::Jit;

@@ -1,11 +1,11 @@
 //! Primitive calls (argument blocks built by the caller, call depth) and the bare
 //! `interpolator_return;` with Constant and Shared bindings (inlined interpolators).
 
-use crate::jit_util;
 
 use std::sync::Arc;
 
-use jit_util::*;
+use crate::support::jit::*;
+use crate::support::raw_depth;
 use primflow::abi::{Binding, BindingKind, VariantKey, ERR_CALL_DEPTH, ERR_NONE, MODE_BOUND};
 use primflow::ir::*;
 use primflow::jit::Jit;

@@ -5,7 +5,7 @@
 //! assignments are only found live in later rounds. Stopping early would drop them, and
 //! tier 0 would render different depths from tier 1.
 
-use crate::common;
+use crate::support;
 
 use primflow::workload::same_frame;
 use primflow::jit::{Jit, Tier};
@@ -49,7 +49,7 @@ fn render(program: &std::sync::Arc<primflow::ir::Program>, n: f32, tier: Tier) -
 #[test]
 fn loop_carried_setup_values_stay_live_at_tier_0() {
     let mut sources = primflow::diag::SourceMap::new();
-    let program = common::library_with(&mut sources, &[("carried.prim", CARRIED)]);
+    let program = support::library_with(&mut sources, &[("carried.prim", CARRIED)]);
     let mut tier1 = vec![];
     for n in [0.0, 1.0, 2.0, 5.0] {
         let fast = render(&program, n, Tier::Fast);

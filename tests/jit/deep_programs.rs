@@ -8,7 +8,7 @@
 //! Issue 39, item 3: `X*X*...*X` with 2,000 factors passed the checker and tier 0 and
 //! overflowed the tier-1 thread; 2,000 factors are now E0014 (tests/front/limits.rs).
 
-use crate::common;
+use crate::support;
 
 use primflow::jit::{Jit, Tier};
 use primflow::limits::{MAX_BLOCK_DEPTH, MAX_CALL_DEPTH, MAX_EXPR_DEPTH};
@@ -42,8 +42,8 @@ fn depths(text: String) -> Vec<u32> {
         .unwrap();
     pool.install(move || {
         let mut sources = primflow::diag::SourceMap::new();
-        let program = common::library_with(&mut sources, &[("deep.prim", &text)]);
-        let r = common::rect_scene(&program, "deep", &[("z", 1.0 / 65536.0)]);
+        let program = support::library_with(&mut sources, &[("deep.prim", &text)]);
+        let r = support::rect_scene(&program, "deep", &[("z", 1.0 / 65536.0)]);
         [Tier::Fast, Tier::Optimised]
             .into_iter()
             .map(|tier| {

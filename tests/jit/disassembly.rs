@@ -4,7 +4,7 @@
 //! allocator's spill slots from the kernel's own stack slots (the uniform frame, the
 //! argument blocks of calls), which print alike.
 
-use crate::common;
+use crate::support;
 
 use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Renderer, Value};
@@ -37,7 +37,7 @@ fn slot_lines(text: &str) -> (usize, usize) {
 #[test]
 fn frame_slot_accesses_are_not_counted_as_spills() {
     let mut sources = primflow::diag::SourceMap::new();
-    let program = common::library_with(&mut sources, &[("framed.prim", FRAMED)]);
+    let program = support::library_with(&mut sources, &[("framed.prim", FRAMED)]);
     let mut r = Renderer::new(program.clone());
     r.set_image_size(40, 24).unwrap();
     r.begin("framed").unwrap();
@@ -66,7 +66,7 @@ fn frame_slot_accesses_are_not_counted_as_spills() {
 
 #[test]
 fn tier_0_screen_triangle_spills_and_every_spill_line_is_an_instruction() {
-    let program = common::library();
+    let program = support::library();
     let scene = primflow::workload::fill_scene(&program, 64, 1, Some("perspective_linear"), 4);
     let inst = &scene.instances()[0];
     for tier in [Tier::Fast, Tier::Optimised] {

@@ -7,8 +7,8 @@
 //! (Written for the row-span experiment of docs/performance.md `rowspan`, which was not
 //! merged; they hold for any way the compiler skips pixels.)
 
-use crate::common;
-use common::*;
+use crate::support;
+use support::*;
 
 use std::sync::Arc;
 

@@ -16,11 +16,11 @@
 //!   the call runs with the caller's context (calls are not expanded here), so whichever
 //!   error came first is the invocation's one error.
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
-use common::{rect_depth_and_codes, rect_scene};
+use support::{rect_depth_and_codes, rect_scene};
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::Tier;
@@ -139,7 +139,7 @@ fn site(primitive: &str, line_text: &str, index: &str) -> String {
 }
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    common::library_with(sources, &[("order.prim", SOURCE)])
+    support::library_with(sources, &[("order.prim", SOURCE)])
 }
 
 /// Renders `prim` with `params` at both tiers (calls made directly, not expanded): the

@@ -5,7 +5,7 @@
 //! reciprocal is subnormal) stay divisions. Checked in uniform code (setup) and in pixel
 //! code, on every tier, and in the CLIF.
 
-use crate::common;
+use crate::support;
 
 use primflow::diag::SourceMap;
 use primflow::jit::{Jit, Tier};
@@ -46,8 +46,8 @@ const DIVISORS: [f32; 7] = [16.0, 0.5, -4.0, 3.0, 0.0, 1.0, 1.7014118e38];
 #[test]
 fn division_by_constants_matches_rust_bit_for_bit_in_every_tier() {
     let mut sources = SourceMap::new();
-    let program = common::library_with(&mut sources, &[("division.prim", DIVISION)]);
-    let num = common::special_floats();
+    let program = support::library_with(&mut sources, &[("division.prim", DIVISION)]);
+    let num = support::special_floats();
     let want: Vec<f32> = DIVISORS.iter().flat_map(|&c| num.iter().map(move |&n| n / c)).collect();
     let mut r = Renderer::new(program.clone());
     r.set_image_size(16, 7).unwrap();
@@ -57,7 +57,7 @@ fn division_by_constants_matches_rust_bit_for_bit_in_every_tier() {
     r.rast_param("num", &Value(num.to_vec())).unwrap();
     r.rast_param("want", &Value(want)).unwrap();
     r.end().unwrap();
-    let frame = common::all_tiers(&program, &r, "division");
+    let frame = support::all_tiers(&program, &r, "division");
     let all_good = (0.875f64 * 4294967296.0) as u32;
     for y in 0..7 {
         for x in 0..16 {
@@ -75,7 +75,7 @@ fn division_by_constants_matches_rust_bit_for_bit_in_every_tier() {
 #[test]
 fn only_powers_of_two_with_normal_reciprocals_become_multiplies() {
     let mut sources = SourceMap::new();
-    let program = common::library_with(&mut sources, &[("division.prim", DIVISION)]);
+    let program = support::library_with(&mut sources, &[("division.prim", DIVISION)]);
     let mut r = Renderer::new(program.clone());
     r.begin("division").unwrap();
     r.end().unwrap();

@@ -3,7 +3,7 @@
 //! is read must stay a copy; the inlined helpers' by-value array parameters (the NURB
 //! surface's `points`, `knots`) must go.
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
@@ -53,7 +53,7 @@ fn expected(n: usize) -> f32 {
 fn library(sources: &mut SourceMap) -> Arc<Program> {
     let flat = "primitive flat(float rect[4]; float z; varying float X, Y; inout varying fixed<32,32> Z)\n\
                 { bound(rect[0], rect[1], rect[2], rect[3]); Z = z; }\n";
-    common::library_with(sources, &[("copies.prim", COPIES), ("flat.prim", flat)])
+    support::library_with(sources, &[("copies.prim", COPIES), ("flat.prim", flat)])
 }
 
 fn depth(program: &Arc<Program>, prim: &str, param: (&str, f32), tier: Tier) -> u32 {

@@ -6,7 +6,7 @@
 //! out depends on the trip counts), and a loop whose bound is an argument. A frame that does
 //! not run out must show the exact trip count.
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
@@ -46,7 +46,7 @@ const INNER: &str = "W0801@9:9";
 const FREE: &str = "W0801@19:5";
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    common::library_with(sources, &[("fuel.prim", LOOPS)])
+    support::library_with(sources, &[("fuel.prim", LOOPS)])
 }
 
 /// Depth at a pixel inside the rectangle and the run-time diagnostics, for each tier.

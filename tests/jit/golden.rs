@@ -15,7 +15,7 @@ use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
 
-use crate::common;
+use crate::support;
 
 /// docs/language.md's first example, as a user would write it.
 const DISC: &str = "primitive disc(float cx, cy, r; float depth = 0.5;
@@ -46,26 +46,26 @@ const K4: &str = "perspective_linear:1,perspective_linear:1,perspective_linear:1
 
 #[test]
 fn screen_triangle_k4_tier0() {
-    let text = stages(&common::library(), "screen_triangle", K4, Tier::Fast);
+    let text = stages(&support::library(), "screen_triangle", K4, Tier::Fast);
     insta::assert_snapshot!("screen_triangle_k4_tier0", text);
 }
 
 #[test]
 fn screen_triangle_k4_tier1() {
-    let text = stages(&common::library(), "screen_triangle", K4, Tier::Optimised);
+    let text = stages(&support::library(), "screen_triangle", K4, Tier::Optimised);
     insta::assert_snapshot!("screen_triangle_k4_tier1", text);
 }
 
 #[test]
 fn sphere_implicit_normal_tier1() {
-    let text = stages(&common::library(), "sphere", "implicit:3", Tier::Optimised);
+    let text = stages(&support::library(), "sphere", "implicit:3", Tier::Optimised);
     insta::assert_snapshot!("sphere_implicit_tier1", text);
 }
 
 #[test]
 fn user_disc_tier0_and_tier1() {
     let mut sources = SourceMap::new();
-    let program = common::library_with(&mut sources, &[("disc.prim", DISC)]);
+    let program = support::library_with(&mut sources, &[("disc.prim", DISC)]);
     let text = format!(
         "{}\n{}",
         stages(&program, "disc", "", Tier::Fast),

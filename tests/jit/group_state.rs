@@ -5,7 +5,7 @@
 //! group's last value into the next. Every case renders with both tiers, checks every pixel
 //! of the rectangle against the value one pixel computes alone, and compares the tiers.
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
@@ -51,7 +51,7 @@ primitive counters(
 "#;
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    common::library_with(sources, &[("counters.prim", COUNTERS)])
+    support::library_with(sources, &[("counters.prim", COUNTERS)])
 }
 
 fn render(program: &Arc<Program>, tier: Tier, rect: [f32; 4], form: i32, n: i32, k: i32) -> Frame {

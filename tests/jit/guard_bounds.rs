@@ -11,14 +11,14 @@
 //! varying `if`, an `int(...)` after the guard (one `cvttps2dq` once the guard bounds its
 //! operand); and screen_triangle itself, whose depth guard the block walk's pass variant
 //! drops. Every frame renders with tier 0, tier 1 and tier 1 without unrolling, bit-identical
-//! (`common::all_tiers`), and each pixel's depth is checked against a reference computed
+//! (`support::all_tiers`), and each pixel's depth is checked against a reference computed
 //! here: the saturating conversion in f64 (round half to even, NaN -> 0, clamp to u32).
 
 // The expected-value closures spell each guard as the primitive's source does
 // (`z >= 0 && z <= 1`), NaN behaviour included, rather than as a range.
 #![allow(clippy::manual_range_contains)]
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
@@ -167,7 +167,7 @@ fn sources() -> Vec<(String, String)> {
 fn library(sources: &mut SourceMap) -> Arc<Program> {
     let user = self::sources();
     let user: Vec<(&str, &str)> = user.iter().map(|(n, t)| (n.as_str(), t.as_str())).collect();
-    common::library_with(sources, &user)
+    support::library_with(sources, &user)
 }
 
 fn scene(program: &Arc<Program>, case: usize) -> Renderer {
@@ -190,7 +190,7 @@ fn guarded_depth_matches_the_saturating_reference_in_every_tier() {
     let program = library(&mut sources);
     let vals = values();
     for (case, (what, _, expected)) in CASES.iter().enumerate() {
-        let frame = common::all_tiers(&program, &scene(&program, case), what);
+        let frame = support::all_tiers(&program, &scene(&program, case), what);
         let (mut kept, mut retired) = (0, 0);
         for py in 0..H {
             for px in 0..W {
@@ -249,9 +249,9 @@ fn the_reference_conversion_has_the_documented_corners() {
 #[test]
 fn screen_triangle_depth_at_the_conversion_corners() {
     const S: u32 = 64;
-    let program = common::library();
+    let program = support::library();
     let v2 = [[0.5, 0.5], [63.5, 2.0], [3.0, 63.0]];
-    let coverage = common::reference_coverage(v2.map(|p| p.map(f64::from)), S, S);
+    let coverage = support::reference_coverage(v2.map(|p| p.map(f64::from)), S, S);
     let zs = [
         0.0,
         f32::from_bits(1),
@@ -268,11 +268,11 @@ fn screen_triangle_depth_at_the_conversion_corners() {
     ];
     for z in zs {
         let what = format!("z = {z:e}");
-        let mut r = common::renderer(&program, S, S, false);
+        let mut r = support::renderer(&program, S, S, false);
         r.material_interp("p0", "perspective_linear", &[]).unwrap();
         let v = v2.map(|p| [p[0], p[1], z, 1.0]);
-        common::screen_triangle(&mut r, v, &[("p0", [vec![0.25], vec![0.25], vec![0.25]])]);
-        let frame = common::all_tiers(&program, &r, &what);
+        support::screen_triangle(&mut r, v, &[("p0", [vec![0.25], vec![0.25], vec![0.25]])]);
+        let frame = support::all_tiers(&program, &r, &what);
         let drawn = (0.0..=1.0).contains(&z);
         let mut covered = 0;
         for py in 0..S {
@@ -311,7 +311,7 @@ fn a_guard_fact_drops_the_conversions_nan_fixup_and_an_assignment_ends_it() {
     let narrowed = prim("narrowed", "");
     let reassigned = prim("reassigned", "z = z * 1;");
     let mut sources = SourceMap::new();
-    let program = common::library_with(
+    let program = support::library_with(
         &mut sources,
         &[
             ("narrowed.prim", narrowed.as_str()),

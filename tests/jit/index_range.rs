@@ -5,11 +5,11 @@
 //! the nearest end of the array, and the run-time error at the indexing site exactly when
 //! some index leaves the array.
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
-use common::{rect_depth_and_codes as run, rect_scene as scene};
+use support::{rect_depth_and_codes as run, rect_scene as scene};
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::ir::range::proven_index_sites;
 use primflow::ir::Program;
@@ -138,7 +138,7 @@ const RISE_SITE: &str = "W0801@79:17";
 const WINDOW_SITE: &str = "W0801@64:19";
 
 fn library(sources: &mut SourceMap, len: usize) -> Arc<Program> {
-    common::library_with(sources, &[("ranged.prim", &source(len))])
+    support::library_with(sources, &[("ranged.prim", &source(len))])
 }
 
 /// What the language says a loop over [lo, hi) reads: each index clamped into the array,

@@ -8,7 +8,7 @@
 //! at both tiers, with unrolling on and off. Once fuel has run out a flat helper still runs
 //! where its loop would have been left at once (the exception unroll.rs documents).
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
@@ -63,7 +63,7 @@ primitive helpers(float rect[4]; float d[3]; int n; varying float X, Y; inout va
 const SPIN: &str = "W0801@28:5";
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    common::library_with(sources, &[("helpers.prim", HELPERS)])
+    support::library_with(sources, &[("helpers.prim", HELPERS)])
 }
 
 fn scene(program: &Arc<Program>, d: [f32; 3], n: i32) -> Renderer {

@@ -8,7 +8,7 @@
 //! value (the copy holds its value from before the call) and passed for two inout
 //! parameters (the last write-back wins).
 
-use crate::common;
+use crate::support;
 
 use primflow::diag::SourceMap;
 use primflow::runtime::{Renderer, Value};
@@ -87,7 +87,7 @@ fn reference_depth(d: [f32; 3], x: u32) -> u32 {
 #[test]
 fn inout_parameters_give_what_copies_give() {
     let mut sources = SourceMap::new();
-    let program = common::library_with(&mut sources, &[("inouts.prim", PRIM)]);
+    let program = support::library_with(&mut sources, &[("inouts.prim", PRIM)]);
     // Small values, and d[0] past 100 after the first bump (both early returns taken).
     for d in [[1.0, 2.0, 3.0], [-4.5, 0.5, 7.0], [99.5, 0.5, 1.0]] {
         let mut r = Renderer::new(program.clone());
@@ -95,6 +95,6 @@ fn inout_parameters_give_what_copies_give() {
         r.begin("inouts").unwrap();
         r.rast_param("d", &Value(d.to_vec())).unwrap();
         r.end().unwrap();
-        common::assert_depth_in_every_jit(&r, &format!("d={d:?}"), |x, _| reference_depth(d, x));
+        support::assert_depth_in_every_jit(&r, &format!("d={d:?}"), |x, _| reference_depth(d, x));
     }
 }

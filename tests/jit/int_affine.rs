@@ -10,7 +10,7 @@
 //! rasterizer. Images have odd sizes and tiles of several sizes, so groups are ragged and
 //! rows start at several offsets.
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
@@ -155,7 +155,7 @@ fn encoded(n: i32) -> u32 {
 }
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    common::library_with(sources, &[("affine.prim", AFFINE)])
+    support::library_with(sources, &[("affine.prim", AFFINE)])
 }
 
 fn scene(program: &Arc<Program>, mode: u32, size: (u32, u32), tile: u32, rect: [f32; 4]) -> Renderer {
@@ -201,7 +201,7 @@ fn carried_int_expressions_match_the_wrapping_reference_in_every_tier() {
     let program = library(&mut sources);
     let size = (67, 29);
     // The cleared depth: a pixel no primitive writes (an empty pass rectangle).
-    let empty = common::all_tiers(
+    let empty = support::all_tiers(
         &program,
         &scene(&program, 0, size, 16, [-9.0, -9.0, -8.0, -8.0]),
         "empty",
@@ -214,7 +214,7 @@ fn carried_int_expressions_match_the_wrapping_reference_in_every_tier() {
             (32, [13.0, 7.5, 18.7, 9.9]),
         ] {
             let what = format!("mode {mode}, tile {tile}, rect {rect:?}");
-            let frame = common::all_tiers(&program, &scene(&program, mode, size, tile, rect), &what);
+            let frame = support::all_tiers(&program, &scene(&program, mode, size, tile, rect), &what);
             let written = check(&frame, mode, size, rect, cleared, &what);
             assert!(written > 0, "{what}: no pixel written");
         }
@@ -231,7 +231,7 @@ fn long_rows_stay_exact() {
     let rect = [0.0, 0.0, 1.0e9, 1.0e9];
     for mode in [0, 4, 5, 6, 9] {
         let what = format!("wide mode {mode}");
-        let frame = common::all_tiers(&program, &scene(&program, mode, size, 64, rect), &what);
+        let frame = support::all_tiers(&program, &scene(&program, mode, size, 64, rect), &what);
         // A pixel the code returns at keeps the cleared depth, 0.
         check(&frame, mode, size, rect, 0, &what);
     }
@@ -241,7 +241,7 @@ fn long_rows_stay_exact() {
 /// parameters: coverage equals the 64-bit reference rasterizer on every tier.
 #[test]
 fn screen_triangles_cover_the_reference_pixels_with_any_parameter_count() {
-    let program = common::library();
+    let program = support::library();
     let (w, h) = (53, 41);
     let triangles: [[[f32; 4]; 3]; 4] = [
         [[3.2, 4.9, 0.5, 1.0], [49.7, 11.3, 0.5, 1.0], [17.1, 38.8, 0.5, 1.0]],
@@ -251,7 +251,7 @@ fn screen_triangles_cover_the_reference_pixels_with_any_parameter_count() {
     ];
     for k in [0usize, 4, 16] {
         for tri in &triangles {
-            let mut r = common::renderer(&program, w, h, false);
+            let mut r = support::renderer(&program, w, h, false);
             r.set_tile_size(16).unwrap();
             for c in 0..k {
                 r.material_interp(&format!("p{c}"), "perspective_linear", &[]).unwrap();
@@ -260,11 +260,11 @@ fn screen_triangles_cover_the_reference_pixels_with_any_parameter_count() {
                 .map(|c| (format!("p{c}"), [0, 1, 2].map(|i| vec![(i * 7 + c) as f32 * 0.125])))
                 .collect();
             let named: Vec<(&str, [Vec<f32>; 3])> = params.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
-            common::screen_triangle(&mut r, *tri, &named);
+            support::screen_triangle(&mut r, *tri, &named);
             let what = format!("K={k} {tri:?}");
-            let frame = common::all_tiers(&program, &r, &what);
+            let frame = support::all_tiers(&program, &r, &what);
             let v = tri.map(|p| [p[0] as f64, p[1] as f64]);
-            let want = common::reference_coverage(v, w, h);
+            let want = support::reference_coverage(v, w, h);
             for py in 0..h {
                 for px in 0..w {
                     let got = frame.written(px, py);

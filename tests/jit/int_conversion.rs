@@ -9,7 +9,7 @@
 //! frames bit-identical, and each pixel against a reference computed here with the
 //! primitive's own f32 operations.
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
@@ -64,7 +64,7 @@ const MODES: u32 = 11;
 const K: f32 = 1e30;
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    common::library_with(sources, &[("conversions.prim", CONVERSIONS)])
+    support::library_with(sources, &[("conversions.prim", CONVERSIONS)])
 }
 
 fn scene(program: &Arc<Program>, mode: u32) -> Renderer {
@@ -125,7 +125,7 @@ fn conversions_match_the_saturating_reference_in_every_tier() {
     let mut saturated = [0usize; MODES as usize];
     for mode in 0..MODES {
         let what = format!("mode {mode}");
-        let frame = common::all_tiers(&program, &scene(&program, mode), &what);
+        let frame = support::all_tiers(&program, &scene(&program, mode), &what);
         for py in 0..H {
             for px in 0..W {
                 let (x, y) = (px as f32 + 0.5, py as f32 + 0.5);
@@ -188,7 +188,7 @@ primitive unproven(float rect[4]; float k; varying float X, Y; inout varying fix
 }
 "#;
     let mut sources = SourceMap::new();
-    let program = common::library_with(&mut sources, &[("proven.prim", proven), ("unproven.prim", unproven)]);
+    let program = support::library_with(&mut sources, &[("proven.prim", proven), ("unproven.prim", unproven)]);
     for (name, want_sat) in [("proven", 0), ("unproven", 1)] {
         let mut r = Renderer::new(program.clone());
         r.set_image_size(16, 8).unwrap();

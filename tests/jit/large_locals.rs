@@ -6,11 +6,11 @@
 //! sum is past the limit, and a kernel calling one of them: both tiers draw the exact depth
 //! and report nothing.
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
-use common::{rect_depth_and_codes, rect_scene};
+use support::{rect_depth_and_codes, rect_scene};
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::Tier;
@@ -52,7 +52,7 @@ primitive flat(float rect[4]; float z; varying float X, Y; inout varying fixed<3
 "#;
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    common::library_with(sources, &[("wide.prim", SOURCE)])
+    support::library_with(sources, &[("wide.prim", SOURCE)])
 }
 
 #[test]

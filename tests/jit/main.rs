@@ -1,4 +1,4 @@
-//! The JIT: kernels compiled from hand-built IR (`jit_util`) and from the library (`common`), run on
+//! The JIT: kernels compiled from hand-built IR (`support::jit`) and from the library (`support`), run on
 //! real tile contexts and checked pixel by pixel against Rust references, at both tiers.
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
@@ -8,8 +8,6 @@ mod batch;
 mod blocks;
 mod builtins;
 mod calls;
-#[path = "../common/mod.rs"]
-mod common;
 mod dead_setup;
 mod deep_programs;
 mod disassembly;
@@ -28,8 +26,6 @@ mod inlined_helpers;
 mod inout_helpers;
 mod int_affine;
 mod int_conversion;
-#[path = "../jit_util/mod.rs"]
-mod jit_util;
 mod large_locals;
 mod multiply_by_one;
 mod outline;
@@ -39,6 +35,8 @@ mod rows;
 mod setup;
 mod setup_split;
 mod splat;
+#[path = "../support/mod.rs"]
+mod support;
 mod tier0;
 mod tiers;
 mod uniform_operands;

@@ -4,7 +4,7 @@
 //! must agree with Rust's product bit for bit. Checked in uniform code (setup) and in
 //! pixel code, on every tier, and in the CLIF.
 
-use crate::common;
+use crate::support;
 
 use primflow::diag::SourceMap;
 use primflow::jit::{Jit, Tier};
@@ -49,8 +49,8 @@ primitive unit_transform(varying float X, Y; inout varying fixed<32,32> Z)
 #[test]
 fn multiplying_by_one_gives_the_operand_bit_for_bit_in_every_tier() {
     let mut sources = SourceMap::new();
-    let program = common::library_with(&mut sources, &[("times_one.prim", TIMES_ONE)]);
-    let num = common::special_floats();
+    let program = support::library_with(&mut sources, &[("times_one.prim", TIMES_ONE)]);
+    let num = support::special_floats();
     // What Rust computes, so the test says what the fold must keep.
     for n in num {
         assert!(n * 1.0 == n || n.is_nan(), "{n}");
@@ -66,7 +66,7 @@ fn multiplying_by_one_gives_the_operand_bit_for_bit_in_every_tier() {
     // Pixel (x, y) checks operand x in form y: depth 0.375 = its pixel code wrong, 0.75 =
     // the setup's loop over every pair wrong, 0.25 = both.
     let all_good = (0.875f64 * 4294967296.0) as u32;
-    common::assert_depth_in_every_jit(&r, "times_one_prim", |_, _| all_good);
+    support::assert_depth_in_every_jit(&r, "times_one_prim", |_, _| all_good);
 }
 
 /// The CLIF lines that multiply by the constant 1: an `fmul` with an operand defined by
@@ -91,7 +91,7 @@ fn multiplies_by_one(clif: &str) -> Vec<&str> {
 #[test]
 fn no_multiply_by_one_is_emitted() {
     let mut sources = SourceMap::new();
-    let program = common::library_with(&mut sources, &[("times_one.prim", TIMES_ONE)]);
+    let program = support::library_with(&mut sources, &[("times_one.prim", TIMES_ONE)]);
     for prim in ["times_one_prim", "unit_transform"] {
         let mut r = Renderer::new(program.clone());
         r.begin(prim).unwrap();

@@ -3,11 +3,11 @@
 
 #![allow(clippy::needless_range_loop, clippy::type_complexity)]
 
-use crate::jit_util;
 
 use std::sync::Arc;
 
-use jit_util::*;
+use crate::support::jit::*;
+use crate::support::raw_depth;
 use primflow::abi::{ERR_FUEL, ERR_INDEX, ERR_NONE, MODE_BOUND};
 use primflow::ir::Variability::{Uniform, Varying};
 use primflow::ir::*;

@@ -5,7 +5,7 @@
 //! operations, bit for bit, on every tier, including locals that must NOT be treated so:
 //! one assigned twice, one assigned inside a branch, and one that reads X.
 
-use crate::common;
+use crate::support;
 
 use primflow::diag::SourceMap;
 use primflow::runtime::{Renderer, Value};
@@ -50,7 +50,7 @@ fn expected(sy: f32, g: [f32; 3], x: f32, y: f32) -> u32 {
 #[test]
 fn row_terms_through_locals_match_a_reference_on_every_tier() {
     let mut sources = SourceMap::new();
-    let program = common::library_with(&mut sources, &[("row_locals.prim", PRIM)]);
+    let program = support::library_with(&mut sources, &[("row_locals.prim", PRIM)]);
     let (w, h) = (23u32, 19u32);
     let g = [0.3f32, -0.7, 0.11];
     let sy = 7.3f32;
@@ -63,7 +63,7 @@ fn row_terms_through_locals_match_a_reference_on_every_tier() {
     r.rast_param("sy", &Value(vec![sy])).unwrap();
     r.rast_param("g", &Value(g.to_vec())).unwrap();
     r.end().unwrap();
-    let frame = common::all_tiers(&program, &r, "row locals");
+    let frame = support::all_tiers(&program, &r, "row locals");
     for y in 0..h {
         for x in 0..w {
             let want = expected(sy, g, x as f32 + 0.5, y as f32 + 0.5);
@@ -155,7 +155,7 @@ fn expected_builtins(sy: f32, g: [f32; 3], x: f32, y: f32) -> u32 {
 #[test]
 fn row_terms_through_builtins_and_row_local_elements_match_a_reference_on_every_tier() {
     let mut sources = SourceMap::new();
-    let program = common::library_with(&mut sources, &[("row_builtins.prim", BUILTINS)]);
+    let program = support::library_with(&mut sources, &[("row_builtins.prim", BUILTINS)]);
     let (w, h) = (23u32, 19u32);
     let g = [0.3f32, -0.7, 0.11];
     let sy = 7.3f32;
@@ -168,7 +168,7 @@ fn row_terms_through_builtins_and_row_local_elements_match_a_reference_on_every_
     r.rast_param("sy", &Value(vec![sy])).unwrap();
     r.rast_param("g", &Value(g.to_vec())).unwrap();
     r.end().unwrap();
-    let frame = common::all_tiers(&program, &r, "row built-ins");
+    let frame = support::all_tiers(&program, &r, "row built-ins");
     for y in 0..h {
         for x in 0..w {
             let want = expected_builtins(sy, g, x as f32 + 0.5, y as f32 + 0.5);

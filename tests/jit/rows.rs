@@ -9,11 +9,11 @@
 
 #![allow(clippy::needless_range_loop)]
 
-use crate::jit_util;
 
 use std::sync::Arc;
 
-use jit_util::*;
+use crate::support::jit::*;
+use crate::support::raw_depth;
 use primflow::abi::Kernel;
 use primflow::abi::{TileCtx, ERR_NONE, MODE_RENDER};
 use primflow::ir::Variability::{Uniform, Varying};

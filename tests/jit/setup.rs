@@ -5,8 +5,8 @@
 //! Every test renders user primitives (source below) through the runtime and compares the
 //! pixels written, or the diagnostics, with what the source says.
 
-use crate::common;
-use common::*;
+use crate::support;
+use support::*;
 
 use std::sync::Arc;
 
@@ -243,7 +243,7 @@ fn small_and_large_triangles_match_the_hand_written_kernel_through_both_edge_pat
                 rng.range(1.0, 3.0) as f32,
             ]
         });
-        let c: [Vec<f32>; 3] = std::array::from_fn(|_| vec![rng.next_f64() as f32]);
+        let c: [Vec<f32>; 3] = std::array::from_fn(|_| vec![rng.next() as f32]);
         screen_triangle(&mut r, v, &[("c", c)]);
     }
     let mut sse = Handwritten::new(program.clone(), Flavor::Sse);

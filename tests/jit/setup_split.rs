@@ -8,11 +8,11 @@
 //! keeps one function; each case renders both tiers and compares with the value computed
 //! here and drawn by `flat`.
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
-use common::{rect_depth_and_codes, rect_scene};
+use support::{rect_depth_and_codes, rect_scene};
 use primflow::abi::VariantKey;
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
@@ -114,7 +114,7 @@ fn site(source: &str, text: &str, index: &str) -> String {
 }
 
 fn library(sources: &mut SourceMap, source: &str) -> Arc<Program> {
-    common::library_with(sources, &[("split.prim", source)])
+    support::library_with(sources, &[("split.prim", source)])
 }
 
 /// Functions in `prim`'s printed CLIF at `tier`.

@@ -5,7 +5,7 @@
 //! unrolling on and off; uniform splats in the setup code, varying ones (`X`) and zero
 //! arrays that later turn varying in the pixel code, 1-D and 2-D, float, int and fixed.
 
-use crate::common;
+use crate::support;
 
 use primflow::diag::SourceMap;
 use primflow::runtime::{Renderer, Value};
@@ -49,7 +49,7 @@ fn reference_depth(k: f64, x: u32) -> u32 {
 #[test]
 fn splats_give_every_element_the_value() {
     let mut sources = SourceMap::new();
-    let program = common::library_with(&mut sources, &[("splats.prim", PRIM)]);
+    let program = support::library_with(&mut sources, &[("splats.prim", PRIM)]);
     for (k, at) in [(0.5, 7), (3.25, 199), (-1.75, 1)] {
         let mut r = Renderer::new(program.clone());
         r.set_image_size(16, 2).unwrap();
@@ -57,6 +57,6 @@ fn splats_give_every_element_the_value() {
         r.rast_param("k", &Value(vec![k])).unwrap();
         r.rast_param("at", &Value(vec![at as f32])).unwrap();
         r.end().unwrap();
-        common::assert_depth_in_every_jit(&r, &format!("k={k} at={at}"), |x, _| reference_depth(f64::from(k), x));
+        support::assert_depth_in_every_jit(&r, &format!("k={k} at={at}"), |x, _| reference_depth(f64::from(k), x));
     }
 }

@@ -7,7 +7,7 @@
 //! the errors code for code. Also: the JIT reports what a compile cost in thread CPU time
 //! (`Jit::compile_cost`).
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
@@ -191,7 +191,7 @@ primitive two_forms(
 "#;
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    common::library_with(
+    support::library_with(
         sources,
         &[
             ("branchy.prim", BRANCHY),

@@ -5,9 +5,9 @@
 //! spheres, NURB patches, the geometry pipeline) and the benchmark's fill and small-triangle
 //! workloads.
 
-use crate::common;
+use crate::support;
 
-use common::{example_scene, library_and_sources};
+use support::{example_scene, library_and_sources};
 use std::sync::Arc;
 
 use primflow::workload::{fill_scene, same_frame, small_scene};

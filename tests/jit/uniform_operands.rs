@@ -8,7 +8,7 @@
 //! same f32 operations, bit for bit, on every tier, for both values of the condition. Also:
 //! tier 1 stores the splat of a frame word only when a group loads it.
 
-use crate::common;
+use crate::support;
 
 use primflow::diag::SourceMap;
 use primflow::runtime::{Renderer, Value};
@@ -61,7 +61,7 @@ fn expected(a: f32, g: [f32; 3], x: f32, y: f32) -> u32 {
 #[test]
 fn uniform_conditions_and_frame_words_in_pixel_code_match_a_reference_on_every_tier() {
     let mut sources = SourceMap::new();
-    let program = common::library_with(&mut sources, &[("uniform_operands.prim", PRIM)]);
+    let program = support::library_with(&mut sources, &[("uniform_operands.prim", PRIM)]);
     let (w, h) = (21u32, 10u32);
     let g = [0.375f32, -0.8125, 0.15625];
     let mut r = Renderer::new(program.clone());
@@ -75,7 +75,7 @@ fn uniform_conditions_and_frame_words_in_pixel_code_match_a_reference_on_every_t
         r.rast_param("g", &Value(g.to_vec())).unwrap();
         r.end().unwrap();
     }
-    let frame = common::all_tiers(&program, &r, "uniform operands");
+    let frame = support::all_tiers(&program, &r, "uniform operands");
     for y in 0..h {
         for x in 0..w {
             let a = if y < 5 { 1.0 } else { 0.0 };
@@ -116,7 +116,7 @@ fn splat_stores(clif: &str) -> usize {
 #[test]
 fn only_words_a_group_reads_are_splatted_to_the_frame() {
     let mut sources = SourceMap::new();
-    let program = common::library_with(&mut sources, &[("frame_splats.prim", FRAME_SPLATS)]);
+    let program = support::library_with(&mut sources, &[("frame_splats.prim", FRAME_SPLATS)]);
     let (w, h) = (13u32, 6u32);
     let (a, b, c) = (0.75f32, -1.5f32, 3.0f32);
     let mut r = Renderer::new(program.clone());
@@ -129,7 +129,7 @@ fn only_words_a_group_reads_are_splatted_to_the_frame() {
     }
     r.end().unwrap();
     let (in_groups, in_rows, d) = (a + 1.0, b * 0.5, 0.25f32);
-    common::assert_depth_in_every_jit(&r, "frame splats", |x, y| {
+    support::assert_depth_in_every_jit(&r, "frame splats", |x, y| {
         let (x, y) = (x as f32 + 0.5, y as f32 + 0.5);
         let z = (x * in_groups + y * in_rows + d) * 0.0009765625;
         (z * 4294967296.0).round_ties_even() as u32

@@ -4,7 +4,7 @@
 //! source sites) with unrolling on and off, and unrolling must actually remove the loops'
 //! code.
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
@@ -52,7 +52,7 @@ primitive loops(
 "#;
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    common::library_with(sources, &[("loops.prim", LOOPS)])
+    support::library_with(sources, &[("loops.prim", LOOPS)])
 }
 
 fn scene(program: &Arc<Program>, n: i32, spin: i32, over: i32) -> Renderer {

@@ -7,7 +7,7 @@
 //! are stored in that side's dispatch block (`Lower::defer_frame_stores`): with the sides
 //! swapped, every test here fails.
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
@@ -77,7 +77,7 @@ const W: u32 = 40;
 const H: u32 = 24;
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    common::library_with(sources, &[("unswitchy.prim", UNSWITCHY)])
+    support::library_with(sources, &[("unswitchy.prim", UNSWITCHY)])
 }
 
 fn scene(program: &Arc<Program>, mode: f32, shade: f32) -> Renderer {
@@ -137,7 +137,7 @@ fn each_side_of_unswitched_uniform_ifs_renders_as_the_reference() {
     for mode in [1.0f32, -1.0] {
         for shade in [0.5f32, 1.5, 3.5] {
             let what = format!("mode {mode} shade {shade}");
-            let frame = common::all_tiers(&program, &scene(&program, mode, shade), &what);
+            let frame = support::all_tiers(&program, &scene(&program, mode, shade), &what);
             let mut written = 0;
             for y in 0..H {
                 for x in 0..W {
@@ -174,7 +174,7 @@ fn draws_taking_different_sides_share_one_kernel() {
         r.rast_param("shade", &Value(vec![3.5])).unwrap();
         r.end().unwrap();
     }
-    let frame = common::all_tiers(&program, &r, "two draws");
+    let frame = support::all_tiers(&program, &r, "two draws");
     for y in 0..H {
         for x in 0..W {
             assert_eq!(frame.written(x, y), covered(x, y), "pixel ({x}, {y})");
@@ -193,7 +193,7 @@ fn draws_taking_different_sides_share_one_kernel() {
 /// the exact reference rasterizer.
 #[test]
 fn screen_triangle_exact_and_float_sides_match_tier_0() {
-    let program = common::library();
+    let program = support::library();
     let (w, h) = (64u32, 48u32);
     let small = [[3.3f32, 2.7, 0.5, 1.0], [41.6, 9.1, 0.5, 1.0], [17.2, 39.8, 0.5, 1.0]];
     let huge = [
@@ -202,12 +202,12 @@ fn screen_triangle_exact_and_float_sides_match_tier_0() {
         [70.5, 47.0, 0.25, 1.0],
     ];
     for (name, v) in [("small", small), ("huge", huge)] {
-        let mut r = common::renderer(&program, w, h, false);
+        let mut r = support::renderer(&program, w, h, false);
         r.set_tile_size(16).unwrap();
-        common::screen_triangle(&mut r, v, &[]);
+        support::screen_triangle(&mut r, v, &[]);
         let mut frames = vec![];
-        for (tier_name, mut jit) in common::jits(&program) {
-            let f = common::render_with(&r, &mut jit, 1);
+        for (tier_name, mut jit) in support::jits(&program) {
+            let f = support::render_with(&r, &mut jit, 1);
             frames.push((tier_name, f));
         }
         assert!(same_frame(&frames[0].1, &frames[1].1), "{name}: tiers differ");
@@ -218,7 +218,7 @@ fn screen_triangle_exact_and_float_sides_match_tier_0() {
             .count();
         if name == "small" {
             let v64 = v.map(|p| [p[0] as f64, p[1] as f64]);
-            let want = common::reference_coverage(v64, w, h);
+            let want = support::reference_coverage(v64, w, h);
             for y in 0..h {
                 for x in 0..w {
                     assert_eq!(

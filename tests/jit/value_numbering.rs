@@ -5,7 +5,7 @@
 //! same bits but different types (int 1, float 1.0, `true`, two fixed formats). Each against
 //! an exact reference, tier 0 against tier 1 (which does not number values).
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
@@ -42,7 +42,7 @@ primitive cse(float rect[4]; float x, y; varying float X, Y; inout varying fixed
 "#;
 
 fn library(sources: &mut SourceMap) -> Arc<Program> {
-    common::library_with(sources, &[("cse.prim", CSE)])
+    support::library_with(sources, &[("cse.prim", CSE)])
 }
 
 #[test]
@@ -57,9 +57,9 @@ fn repeated_expressions_are_shared_only_where_their_operands_are_the_same_values
     r.rast_param("x", &Value(vec![x])).unwrap();
     r.rast_param("y", &Value(vec![y])).unwrap();
     r.end().unwrap();
-    let frames: Vec<_> = common::jits(&program)
+    let frames: Vec<_> = support::jits(&program)
         .into_iter()
-        .map(|(name, mut jit)| (name, common::render_with(&r, &mut jit, 1)))
+        .map(|(name, mut jit)| (name, support::render_with(&r, &mut jit, 1)))
         .collect();
     assert!(same_frame(&frames[0].1, &frames[1].1), "tier 0 and tier 1 differ");
     // a = c = 3, b = 5, d = 10, ones = 5; p = r = 2X, q = 2X + 4: 27 + 6X, every term a

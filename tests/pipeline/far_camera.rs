@@ -2,7 +2,7 @@
 //! `look_at 1e6 1e6 0 ...` gave W0704 "view transform is singular", the same camera at
 //! (1e6, 0, 0) did not). The singularity test must not depend on where the origin is.
 
-use crate::common::cli;
+use crate::support::cli;
 
 use glam::{DMat4, DVec3};
 use primflow::pipeline::factor::{factor_view, is_numerically_singular, NotFactorizable};

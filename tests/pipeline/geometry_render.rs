@@ -2,7 +2,7 @@
 //! w <= 0 crossings, huge coordinates against an f64 coverage reference, model clip planes,
 //! trivial reject / accept and the variant key they select.
 
-use crate::common;
+use crate::support;
 
 use glam::{DMat4, DVec4};
 use primflow::runtime::{Frame, Renderer};
@@ -22,8 +22,8 @@ fn covered(frame: &Frame) -> usize {
 
 /// Camera at the origin looking down -z, 90 degree fov, near 1, far 100.
 fn perspective_renderer(count_writes: bool) -> Renderer {
-    let program = common::library();
-    let mut r = common::renderer(&program, W, H, count_writes);
+    let program = support::library();
+    let mut r = support::renderer(&program, W, H, count_writes);
     r.perspective_checked(90.0, 1.0, 100.0).unwrap();
     r.material_interp("Cs", "perspective_linear", &[]).unwrap();
     r.material("Cs", &[1.0, 0.5, 0.25].into()).unwrap();
@@ -51,7 +51,7 @@ fn small_zero_and_negative_w_vertices_render_only_the_part_in_front() {
     ] {
         let mut r = perspective_renderer(true);
         triangle(&mut r, [[-2.0, -1.0, -3.0, 1.0], [2.0, -1.0, -3.0, 1.0], apex]);
-        let frame = common::render(&r, 2);
+        let frame = support::render(&r, 2);
         no_nan_or_inf(&frame);
         let n = covered(&frame);
         assert!(n > 0, "apex {apex:?}: the in-front part must render");
@@ -79,7 +79,7 @@ fn a_triangle_reaching_behind_the_eye_draws_its_near_clipped_part() {
     let mut r = perspective_renderer(true);
     let tri: [[f32; 3]; 3] = [[-2.0, -1.0, -3.0], [2.0, -1.0, -3.0], [0.0, 1.0, 5.0]];
     triangle(&mut r, tri.map(|p| [p[0], p[1], p[2], 1.0]));
-    let frame = common::render(&r, 2);
+    let frame = support::render(&r, 2);
     no_nan_or_inf(&frame);
     // Reference: the triangle clipped to z <= -1 (the near plane) in camera space, in f64,
     // then projected.
@@ -183,7 +183,7 @@ fn inside_f64(v: &[[f64; 2]; 3], px: f64, py: f64) -> bool {
 fn huge_coordinates_cover_what_the_f64_reference_covers_within_one_pixel() {
     // Clip space = camera space under this view: x_c = x, y_c = y, z_c = z, w = w. Vertices
     // at 30000 w (and -1e5) with w from 0.2 to 16.
-    let program = common::library();
+    let program = support::library();
     let cases: [[[f64; 4]; 3]; 3] = [
         [
             [-30000.0 * 0.2, -0.1, 0.5 * 0.2, 0.2],
@@ -198,14 +198,14 @@ fn huge_coordinates_cover_what_the_f64_reference_covers_within_one_pixel() {
         ],
     ];
     for case in cases {
-        let mut r = common::renderer(&program, W, H, true);
+        let mut r = support::renderer(&program, W, H, true);
         r.view_matrix(DMat4::IDENTITY).unwrap();
         r.begin("triangle").unwrap();
         for p in case {
             r.vertex(p[0] as f32, p[1] as f32, p[2] as f32, p[3] as f32).unwrap();
         }
         r.end().unwrap();
-        let frame = common::render(&r, 2);
+        let frame = support::render(&r, 2);
         no_nan_or_inf(&frame);
         // Reference: the device-space triangle in f64 (every w > 0 here, so the divide is
         // the true projection).
@@ -242,9 +242,9 @@ fn huge_coordinates_cover_what_the_f64_reference_covers_within_one_pixel() {
 
 #[test]
 fn a_model_clip_plane_and_its_negation_cover_every_pixel_exactly_once() {
-    let program = common::library();
+    let program = support::library();
     let render_half = |plane: Option<[f64; 4]>| {
-        let mut r = common::renderer(&program, W, H, true);
+        let mut r = support::renderer(&program, W, H, true);
         r.perspective_checked(70.0, 0.5, 20.0).unwrap();
         r.look_at([0.3, 0.5, 3.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0]).unwrap();
         r.rotate(30.0, [0.0, 1.0, 0.0]).unwrap();
@@ -271,7 +271,7 @@ fn a_model_clip_plane_and_its_negation_cover_every_pixel_exactly_once() {
     submit(&mut both);
     let mut whole = render_half(None);
     submit(&mut whole);
-    let (a, b) = (common::render(&both, 2), common::render(&whole, 2));
+    let (a, b) = (support::render(&both, 2), support::render(&whole, 2));
     let mut count = 0;
     for y in 0..H {
         for x in 0..W {
@@ -284,15 +284,15 @@ fn a_model_clip_plane_and_its_negation_cover_every_pixel_exactly_once() {
     // Each half alone covers part of it.
     let mut half = render_half(Some(plane));
     submit(&mut half);
-    let h = common::render(&half, 1);
+    let h = support::render(&half, 1);
     let n = covered(&h) as u32;
     assert!(n > 0 && n < count, "{n} of {count}");
 }
 
 #[test]
 fn backface_culling_happens_in_device_space() {
-    let program = common::library();
-    let mut r = common::renderer(&program, W, H, false);
+    let program = support::library();
+    let mut r = support::renderer(&program, W, H, false);
     r.perspective_checked(90.0, 1.0, 10.0).unwrap();
     r.set_cull(primflow::pipeline::face::CullMode::Back);
     // Counter-clockwise on screen (front) and its mirror (back).
@@ -310,8 +310,8 @@ fn backface_culling_happens_in_device_space() {
 
 #[test]
 fn ill_behaved_views_warn_and_never_panic() {
-    let program = common::library();
-    let mut r = common::renderer(&program, W, H, false);
+    let program = support::library();
+    let mut r = support::renderer(&program, W, H, false);
     // A singular view.
     let mut v = DMat4::IDENTITY;
     v.z_axis = DVec4::ZERO;
@@ -326,7 +326,7 @@ fn ill_behaved_views_warn_and_never_panic() {
         "{warnings:?}"
     );
     // A singular model matrix: normals by the cofactor matrix, a warning.
-    let mut r = common::renderer(&program, W, H, false);
+    let mut r = support::renderer(&program, W, H, false);
     r.perspective_checked(60.0, 1.0, 10.0).unwrap();
     r.scale([1.0, 0.0, 1.0]).unwrap();
     triangle(
@@ -338,7 +338,7 @@ fn ill_behaved_views_warn_and_never_panic() {
         warnings.iter().any(|w| w.contains("model transform is singular")),
         "{warnings:?}"
     );
-    let frame = common::render(&r, 1);
+    let frame = support::render(&r, 1);
     no_nan_or_inf(&frame);
 }
 
@@ -346,7 +346,7 @@ fn ill_behaved_views_warn_and_never_panic() {
 /// named by its warning, and the frame holds no NaN or infinity.
 #[test]
 fn projective_model_non_factorizable_view_and_double_pyramid_are_named_and_survived() {
-    let program = common::library();
+    let program = support::library();
     let tri = [[-0.5, -0.5, -3.0, 1.0], [0.5, -0.5, -3.0, 1.0], [0.0, 0.5, -3.0, 1.0]];
     let reversed_perspective = |near: f64, far: f64| {
         // z_c = a z_e + b, w_c = -z_e: depth 1 at z_e = -near, 0 at z_e = -far.
@@ -386,7 +386,7 @@ fn projective_model_non_factorizable_view_and_double_pyramid_are_named_and_survi
         ),
     ];
     for (expected, setup) in cases {
-        let mut r = common::renderer(&program, W, H, true);
+        let mut r = support::renderer(&program, W, H, true);
         // Lit, so the lighting space matters (an unlit scene does not warn about it).
         r.shading_setup
             .lights
@@ -405,7 +405,7 @@ fn projective_model_non_factorizable_view_and_double_pyramid_are_named_and_survi
             warnings.iter().any(|w| w.contains(expected)),
             "{expected}: {warnings:?}"
         );
-        let frame = common::render(&r, 1);
+        let frame = support::render(&r, 1);
         no_nan_or_inf(&frame);
         assert!(
             frame.write_count_values().unwrap().iter().all(|&c| c <= 1),

@@ -4,12 +4,12 @@
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
 mod clip;
-#[path = "../common/mod.rs"]
-mod common;
 mod face;
 mod factor;
 mod far_camera;
 mod geometry_explain;
 mod geometry_render;
 mod lighting;
+#[path = "../support/mod.rs"]
+mod support;
 mod transform;

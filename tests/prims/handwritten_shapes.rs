@@ -6,8 +6,8 @@
 //! turned model matrix; two NURB patches sharing an edge, with a normal and a linear
 //! parameter, and patches crossing the hither plane (the polygon's clip path).
 
-use crate::common;
-use common::*;
+use crate::support;
+use support::*;
 
 use std::sync::Arc;
 

@@ -1,8 +1,8 @@
 //! Each hand-written kernel and its JIT twin produce the same buffers on the same scene
 //! (the benchmark's precondition), bit for bit.
 
-use crate::common;
-use common::*;
+use crate::support;
+use support::*;
 use primflow::handwritten::{Flavor, Handwritten};
 use primflow::runtime::{Frame, Renderer, Value};
 
@@ -169,7 +169,7 @@ fn sse_screen_triangle_matches_jit_bit_for_bit() {
                         rng.range(cx - size, cx + size).floor() + 0.5,
                         rng.range(cy - size, cy + size).floor() + 0.5,
                     ),
-                    1 => (rng.grid(cx - size, cx + size), rng.grid(cy - size, cy + size)),
+                    1 => (grid(&mut rng, cx - size, cx + size), grid(&mut rng, cy - size, cy + size)),
                     _ => (rng.range(cx - size, cx + size), rng.range(cy - size, cy + size)),
                 };
                 // Depths across the whole range: both conversion paths (below and above
@@ -219,7 +219,7 @@ fn polygon_scene(program: &std::sync::Arc<primflow::ir::Program>, persp: usize, 
         r.begin("polygon").unwrap();
         for &(x, y, z) in points {
             for c in 0..persp {
-                r.material(&format!("p{c}"), &Value(vec![rng.next_f64() as f32]))
+                r.material(&format!("p{c}"), &Value(vec![rng.next() as f32]))
                     .unwrap();
             }
             for c in 0..lin {
@@ -233,7 +233,7 @@ fn polygon_scene(program: &std::sync::Arc<primflow::ir::Program>, persp: usize, 
     for k in 0..120 {
         let (cx, cy) = (rng.range(-4.0, 4.0), rng.range(-3.0, 3.0));
         let size = rng.range(0.3, 2.5);
-        let (z_far, z_near) = (-3.0 - 6.0 * rng.next_f64(), -0.2 - rng.next_f64());
+        let (z_far, z_near) = (-3.0 - 6.0 * rng.next(), -0.2 - rng.next());
         let z_near = if k % 2 == 0 { z_near } else { z_far + 1.0 };
         polygon(
             &mut r,

@@ -6,8 +6,8 @@
 //! Families: shared edges at every size (including triangles far over the 1,024 px exact
 //! integer path), spheres crossing the eye plane.
 
-use crate::common;
-use common::*;
+use crate::support;
+use support::*;
 
 use std::sync::Arc;
 

@@ -3,8 +3,8 @@
 //! screen point and depth, and both match its formula in f64; the solid-space interpolator
 //! on a sphere gives back the sphere's surface point; the planar one is linear on a triangle.
 
-use crate::common;
-use common::*;
+use crate::support;
+use support::*;
 
 use glam::Mat4;
 use primflow::runtime::{transform, Frame, Renderer, Value};

@@ -3,8 +3,6 @@
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
-#[path = "../common/mod.rs"]
-mod common;
 mod handwritten_shapes;
 mod handwritten_twins;
 mod hard_cases;
@@ -13,3 +11,5 @@ mod library;
 mod nurb;
 mod polygon;
 mod sphere;
+#[path = "../support/mod.rs"]
+mod support;

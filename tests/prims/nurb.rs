@@ -3,8 +3,8 @@
 //! sharing a curved edge without gaps or double writes, the normals, and the rejection of
 //! bad weights and knots.
 
-use crate::common;
-use common::*;
+use crate::support;
+use support::*;
 
 use std::sync::Arc;
 

@@ -3,8 +3,8 @@
 //! polygon, perspective-correct values and depth at every covered pixel, in particular at
 //! the clip edge), and a quad split along either diagonal covering the same pixels once.
 
-use crate::common;
-use common::*;
+use crate::support;
+use support::*;
 
 use glam::{Mat4, Vec4};
 use primflow::runtime::{Renderer, Value};

@@ -5,8 +5,8 @@
 //! plane, one stretched in the corner of a very wide view, and one under an orthographic
 //! camera.
 
-use crate::common;
-use common::*;
+use crate::support;
+use support::*;
 
 use glam::{DMat4, DVec3, Mat4};
 use primflow::runtime::{transform, Value};

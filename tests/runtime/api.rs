@@ -1,13 +1,12 @@
 //! The primitive API: argument blocks laid out per `abi::ArgLayout`, value conversion,
 //! sequence points, bindings, and the errors and warnings of bad calls.
 
-use crate::runtime_support;
 
 use glam::{Mat4, Vec3};
 use primflow::abi::{ArgLayout, Binding, BindingKind, ParamSlot};
 use primflow::diag::SourceMap;
 use primflow::runtime::{Renderer, Target, Value};
-use runtime_support::*;
+use crate::support::kernels::*;
 
 fn renderer() -> Renderer {
     let mut sources = SourceMap::new();

@@ -7,8 +7,8 @@
 //! out of range at run time, or have pixel code of their own (never expanded); and the
 //! hand-written polygon and NURB kernels, which record their calls the same way.
 
-use crate::common;
-use common::*;
+use crate::support;
+use support::*;
 
 use std::sync::Arc;
 
@@ -145,7 +145,7 @@ fn written(out: &RenderOutput) -> usize {
 /// Three sequence points with `s` (a linear float) and `c` (a perspective_linear colour).
 fn three_points(r: &mut Renderer, rng: &mut Lcg) {
     for _ in 0..3 {
-        r.material("c", &Value((0..3).map(|_| rng.next_f64() as f32).collect()))
+        r.material("c", &Value((0..3).map(|_| rng.next() as f32).collect()))
             .unwrap();
         r.material("s", &Value(vec![rng.range(-1.0, 1.0) as f32])).unwrap();
         r.sequence_point().unwrap();
@@ -188,7 +188,7 @@ fn polygons_through_the_hither_plane_are_bit_identical_expanded() {
             (cx + 2.0, cy + 2.0, z_near),
             (cx, cy + 2.0, z_near),
         ] {
-            r.material("c", &Value((0..4).map(|_| rng.next_f64() as f32).collect()))
+            r.material("c", &Value((0..4).map(|_| rng.next() as f32).collect()))
                 .unwrap();
             r.vertex(x as f32, y as f32, z as f32, 1.0).unwrap();
         }
@@ -287,7 +287,7 @@ fn triangles_expand_through_polygon_in_two_levels() {
         r.begin("triangle").unwrap();
         let (cx, cy, cz) = (rng.range(-2.0, 1.0), rng.range(-1.5, 1.0), rng.range(-6.0, -2.0));
         for k in 0..3 {
-            r.material("c", &Value((0..3).map(|_| rng.next_f64() as f32).collect()))
+            r.material("c", &Value((0..3).map(|_| rng.next() as f32).collect()))
                 .unwrap();
             r.material("s", &Value(vec![rng.range(-1.0, 1.0) as f32])).unwrap();
             let (dx, dy) = [(0.0, 0.0), (1.5, 0.2), (0.3, 1.4)][k];

@@ -2,20 +2,20 @@
 //! (at 16384 x 16384 each G-buffer plane is 1 GiB: wide shading parameters would otherwise
 //! abort the process when the allocation fails), and the same scene at a small size renders.
 
-use crate::common;
+use crate::support;
 
 use primflow::jit::Jit;
 use primflow::runtime::{Frame, MAX_FRAME_BYTES, MAX_IMAGE_SIDE};
 
 /// One triangle carrying eight 64-component shading parameters (512 planes).
 fn wide_scene(side: u32) -> primflow::runtime::Renderer {
-    let program = common::library();
-    let mut r = common::renderer(&program, side, side, false);
+    let program = support::library();
+    let mut r = support::renderer(&program, side, side, false);
     let wide: Vec<(String, [Vec<f32>; 3])> = (0..8)
         .map(|p| (format!("P{p}"), std::array::from_fn(|v| vec![0.25 * v as f32; 64])))
         .collect();
     let params: Vec<(&str, [Vec<f32>; 3])> = wide.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
-    common::screen_triangle(
+    support::screen_triangle(
         &mut r,
         [[1.0, 1.0, 0.5, 1.0], [60.0, 4.0, 0.5, 1.0], [20.0, 50.0, 0.5, 1.0]],
         &params,
@@ -45,7 +45,7 @@ fn a_frame_over_the_byte_limit_is_refused_with_e0803() {
 #[test]
 fn the_same_scene_at_a_small_size_renders_every_plane() {
     let r = wide_scene(64);
-    let frame = common::render(&r, 2);
+    let frame = support::render(&r, 2);
     assert_eq!(frame.num_planes(), 512);
     // `constant` by default: the value current at `end`, vertex 2's (0.5), in every plane.
     for p in 0..8 {

@@ -5,9 +5,9 @@
 //! kernels serve) at a size whose planes would otherwise be a multiple of
 //! 4 KiB apart, at a ragged size, and into a reused frame of another size.
 
-use crate::common;
+use crate::support;
 
-use common::*;
+use support::*;
 use primflow::handwritten::{Flavor, Handwritten};
 use primflow::jit::Jit;
 use primflow::runtime::{Frame, Renderer};

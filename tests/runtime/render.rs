@@ -1,11 +1,11 @@
 //! The renderer with hand-written ABI kernels: depth order, tiling and binning, thread-count
 //! independence, write counts, hostile bounds, run-time error reports, images.
 
-use crate::runtime_support;
 
 use primflow::diag::SourceMap;
 use primflow::runtime::{RenderOutput, Renderer};
-use runtime_support::*;
+use crate::support::kernels::*;
+use crate::support::raw_depth;
 
 fn setup(width: u32, height: u32, tile: u32) -> (SourceMap, Renderer) {
     let mut sources = SourceMap::new();
@@ -40,8 +40,8 @@ fn nearer_rect_wins_whatever_the_submission_order() {
         assert_eq!(f.color_at(20, 15), [0.0, 1.0, 0.0], "overlap: near");
         assert_eq!(f.color_at(30, 15), [0.0, 1.0, 0.0], "near only");
         assert_eq!(f.color_at(38, 28), [0.0, 0.0, 1.0], "background");
-        assert_eq!(f.depth_at(20, 15), Some(depth_raw(0.7)));
-        assert_eq!(f.depth_at(7, 7), Some(depth_raw(0.3)));
+        assert_eq!(f.depth_at(20, 15), Some(raw_depth(f64::from(0.7f32))));
+        assert_eq!(f.depth_at(7, 7), Some(raw_depth(f64::from(0.3f32))));
         assert_eq!(f.depth_at(38, 28), Some(0));
         assert_eq!(f.param_at("Cs", 20, 15), Some(vec![0.0, 1.0, 0.0]));
         assert_eq!(out.stats.instances, 2);
@@ -191,7 +191,7 @@ fn depth_and_parameter_images() {
     let out = render(&r);
     let f = &out.frame;
     let depth = f.depth_image();
-    assert_eq!(depth.get_pixel(1, 1).0[0], (depth_raw(0.25) >> 16) as u16);
+    assert_eq!(depth.get_pixel(1, 1).0[0], (raw_depth(f64::from(0.25f32)) >> 16) as u16);
     assert!(
         depth.get_pixel(5, 1).0[0] > depth.get_pixel(1, 1).0[0],
         "nearer is brighter"

@@ -3,11 +3,11 @@
 //! scene, another size, more planes, write counts, shaded colours) and whatever the thread
 //! count.
 
-use crate::common;
+use crate::support;
 
 use std::sync::Arc;
 
-use common::*;
+use support::*;
 use primflow::workload::{effects_scene, EffectSet};
 use primflow::ir::Program;
 use primflow::jit::Jit;

@@ -1,8 +1,8 @@
 //! End-to-end tests of screen_triangle through the whole stack (parse, check, JIT, runtime):
 //! exact coverage, shared edges, interpolation against analytic values, determinism.
 
-use crate::common;
-use common::*;
+use crate::support;
+use support::*;
 
 /// Every pixel of a covered area has exactly the write count the reference gives it.
 fn assert_counts(frame: &primflow::runtime::Frame, expected: &[u32]) {
@@ -93,7 +93,7 @@ fn random_triangles_match_the_exact_rasterizer() {
         let scale = [4.0, 20.0, 70.0][case % 3];
         let (cx, cy) = (rng.range(-5.0, w as f64 + 5.0), rng.range(-5.0, h as f64 + 5.0));
         let v: Vec<[f64; 2]> = (0..3)
-            .map(|_| [rng.grid(cx - scale, cx + scale), rng.grid(cy - scale, cy + scale)])
+            .map(|_| [grid(&mut rng, cx - scale, cx + scale), grid(&mut rng, cy - scale, cy + scale)])
             .collect();
         let v = [v[0], v[1], v[2]];
         let mut r = renderer(&program, w, h, false);
@@ -204,7 +204,7 @@ fn same_scene_same_bytes_whatever_the_thread_count() {
                 rng.range(0.5, 3.0) as f32,
             ];
         }
-        let c = |rng: &mut Lcg| vec![rng.next_f64() as f32, rng.next_f64() as f32, rng.next_f64() as f32];
+        let c = |rng: &mut Lcg| vec![rng.next() as f32, rng.next() as f32, rng.next() as f32];
         let colours = [c(&mut rng), c(&mut rng), c(&mut rng)];
         screen_triangle(&mut r, v, &[("Cs", colours)]);
     }

@@ -1,14 +1,14 @@
 //! The scene format: parsing, error locations, calls made on the renderer, and a property
 //! test that mutated scenes never panic the reader or the renderer.
 
-use crate::runtime_support;
 
 use primflow::abi::BindingKind;
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::runtime::{Renderer, Value};
 use primflow::scene::{self, CommandKind};
 use proptest::prelude::*;
-use runtime_support::*;
+use crate::support::kernels::*;
+use crate::support::raw_depth;
 
 /// Parse and apply `text` against the test program; returns the renderer and diagnostics
 /// as `code@line:col`.
@@ -52,7 +52,7 @@ fn a_scene_of_rects_renders() {
     assert_eq!(f.color_at(5, 5), [1.0, 0.0, 0.0]);
     assert_eq!(f.color_at(15, 5), [0.0, 1.0, 0.0]);
     assert_eq!(f.color_at(25, 5), [0.0, 1.0, 0.0]);
-    assert_eq!(f.depth_at(5, 5), Some(depth_raw(0.25)));
+    assert_eq!(f.depth_at(5, 5), Some(raw_depth(f64::from(0.25f32))));
 }
 
 #[test]

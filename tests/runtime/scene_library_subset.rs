@@ -2,7 +2,7 @@
 //! `primflow render` uses): every example scene and every prims/tests scene renders the
 //! same frame, bit for bit, as with the whole library, from fewer files where it can.
 
-use crate::common;
+use crate::support;
 
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::jit::{Jit, Tier};
@@ -27,7 +27,7 @@ fn render(path: &str, subset: bool) -> (Frame, usize) {
     primflow::scene::apply(&scene, &mut r, &mut diags);
     assert!(!diags.has_errors(), "{path}: {}", diags.render(&sources));
     let mut jit = Jit::at_tier(registry.program.clone(), Tier::Fast).unwrap();
-    (common::render_with(&r, &mut jit, 2), registry.files.len())
+    (support::render_with(&r, &mut jit, 2), registry.files.len())
 }
 
 #[test]

@@ -9,7 +9,7 @@
 //! on at most 2% of covered pixels. The AVX-512, AVX2 and portable builds are bit-identical
 //! (same IEEE operations in the same order, no fused multiply-add).
 
-use crate::common;
+use crate::support;
 
 use std::f64::consts::PI;
 
@@ -22,8 +22,8 @@ const H: u32 = 72;
 const CHANNEL_BOUND: f32 = 1.0 / 4096.0;
 
 fn base_renderer(eye: [f64; 3], near: f64, far: f64) -> Renderer {
-    let program = common::library();
-    let mut r = common::renderer(&program, W, H, false);
+    let program = support::library();
+    let mut r = support::renderer(&program, W, H, false);
     r.perspective_checked(60.0, near, far).unwrap();
     r.look_at(eye, [0.0, 0.0, 0.0], [0.0, 1.0, 0.0]).unwrap();
     r.shading_setup.front = SurfaceMaterial {
@@ -98,7 +98,7 @@ fn frames(r: &mut Renderer) -> (Frame, Frame, Frame) {
     r.take_warnings();
     let mut run = |k: ShadingKernel| {
         r.shading_setup.kernel = k;
-        common::render(r, 2)
+        support::render(r, 2)
     };
     let (reference, simd, portable) = (
         run(ShadingKernel::ReferenceF64),
@@ -287,8 +287,8 @@ fn world_and_device_spaces_parallel_views_and_distinguish_match_the_f64_referenc
     }
     // A parallel (orthographic) view: the eye is a direction; facing from the rasterizer
     // (`distinguish`) rather than from the normal.
-    let program = common::library();
-    let mut r = common::renderer(&program, W, H, false);
+    let program = support::library();
+    let mut r = support::renderer(&program, W, H, false);
     r.ortho_checked([-1.3, 1.3, -1.3, 1.3], 0.5, 10.0).unwrap();
     r.look_at([0.4, 0.6, 3.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0]).unwrap();
     r.set_distinguish(true);

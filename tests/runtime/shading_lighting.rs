@@ -4,7 +4,7 @@
 //! figure 2; the error is printed). Also: a scene with no effects runs no shading code, and
 //! front/back materials, fog and texture change exactly the pixels they should.
 
-use crate::common;
+use crate::support;
 
 use std::f64::consts::PI;
 
@@ -16,8 +16,8 @@ const H: u32 = 64;
 
 /// A strong perspective (wide field of view, close camera) with two lights.
 fn lit_renderer(space: LightingSpaceChoice) -> Renderer {
-    let program = common::library();
-    let mut r = common::renderer(&program, W, H, false);
+    let program = support::library();
+    let mut r = support::renderer(&program, W, H, false);
     r.perspective_checked(100.0, 0.2, 20.0).unwrap();
     r.look_at([0.4, 0.6, 1.8], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0]).unwrap();
     r.shading_setup.lights = vec![
@@ -130,7 +130,7 @@ fn patch(r: &mut Renderer, n: usize) {
 }
 
 fn render(r: &Renderer) -> Frame {
-    common::render(r, 2)
+    support::render(r, 2)
 }
 
 /// Largest per-channel difference over the pixels both frames shaded, and how many.
@@ -194,8 +194,8 @@ fn lighting_in_lc_equals_wc_and_dc_differs_on_a_lit_bicubic_patch() {
 
 #[test]
 fn a_scene_without_effects_runs_no_shading_and_shows_cs() {
-    let program = common::library();
-    let mut r = common::renderer(&program, W, H, false);
+    let program = support::library();
+    let mut r = support::renderer(&program, W, H, false);
     r.perspective_checked(60.0, 0.5, 10.0).unwrap();
     r.material("Cs", &[0.25, 0.5, 0.75].into()).unwrap();
     lit_triangle(

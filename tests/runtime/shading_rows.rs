@@ -8,7 +8,7 @@
 //! Bound as in tests/runtime/shading_fast.rs: every shaded channel within 1/4096 of
 //! `ShadingKernel::ReferenceF64`, the 8-bit image off by one on at most 2% of covered pixels.
 
-use crate::common;
+use crate::support;
 
 use std::f64::consts::PI;
 
@@ -23,8 +23,8 @@ const CHANNEL_BOUND: f32 = 1.0 / 4096.0;
 /// A lit sphere filling most of a `W x H` view (so the row tails are covered), four lights
 /// (directional and positional), a highlight of `shininess`.
 fn sphere_scene(shininess: f64) -> Renderer {
-    let program = common::library();
-    let mut r = common::renderer(&program, W, H, false);
+    let program = support::library();
+    let mut r = support::renderer(&program, W, H, false);
     r.perspective_checked(60.0, 0.2, 20.0).unwrap();
     r.look_at([0.2, 0.3, 1.4], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0]).unwrap();
     r.shading_setup.front = SurfaceMaterial {
@@ -82,7 +82,7 @@ fn sphere_scene(shininess: f64) -> Renderer {
 fn frame(r: &mut Renderer, kernel: ShadingKernel, threads: usize) -> Frame {
     r.take_warnings();
     r.shading_setup.kernel = kernel;
-    common::render(r, threads)
+    support::render(r, threads)
 }
 
 /// Asserts the bound between the reference and the fast frame; returns (covered pixels,

@@ -7,9 +7,9 @@
 //! thread work once the compile has landed; and nothing waits forever (stalled, held,
 //! detached or dropped worker). Assertions are on frames and counts, never on timings.
 
-use crate::common;
+use crate::support;
 
-use common::{example_scene, library_and_sources};
+use support::{example_scene, library_and_sources};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 

@@ -1,6 +1,12 @@
-//! Helpers shared by the rendering tests: the library, a renderer, screen triangles, and an
-//! exact 64-bit integer reference rasterizer.
+//! The one support module every test binary includes (`#[path = "../support/mod.rs"]`):
+//! the library, a renderer, screen triangles, an exact 64-bit integer reference rasterizer,
+//! the depth conversion and the generator here; [`jit`] builds IR by hand and runs kernels
+//! on a real tile context; [`kernels`] holds hand-written ABI kernels that drive the runtime
+//! without the JIT.
 #![allow(dead_code)]
+
+pub mod jit;
+pub mod kernels;
 
 use std::sync::Arc;
 
@@ -170,23 +176,13 @@ pub fn barycentric(v: [[f64; 2]; 3], x: f64, y: f64) -> [f64; 3] {
     [1.0 - l1 - l2, l1, l2]
 }
 
-/// A small deterministic generator (tests must not depend on a seed-less RNG).
-pub struct Lcg(pub u64);
-impl Lcg {
-    pub fn next_f64(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next_f64()
-    }
-    /// A value on the 1/16 grid in [lo, hi).
-    pub fn grid(&mut self, lo: f64, hi: f64) -> f64 {
-        (self.range(lo, hi) * 16.0).floor() / 16.0
-    }
+/// The tests' deterministic generator is the workloads' (tests must not depend on a
+/// seed-less RNG).
+pub use primflow::workload::Lcg;
+
+/// A value of `rng` on the 1/16 grid in [lo, hi).
+pub fn grid(rng: &mut Lcg, lo: f64, hi: f64) -> f64 {
+    (rng.range(lo, hi) * 16.0).floor() / 16.0
 }
 
 /// The control points of two 4 x 4 bicubic patches side by side sharing their curved middle
@@ -272,4 +268,10 @@ pub fn example_scene(sources: &mut SourceMap, program: &Arc<Program>, name: &str
     primflow::scene::load_into(sources, file, &mut r, &mut diags);
     assert!(!diags.has_errors(), "{name}: {}", diags.render(sources));
     r
+}
+
+/// The depth buffer's raw value (`fixed<32,32>`, larger is nearer) of a depth in [0, 1]:
+/// round(z * 2^32), saturated.
+pub fn raw_depth(z: f64) -> u32 {
+    (z * 4294967296.0).round().clamp(0.0, 4294967295.0) as u32
 }

@@ -184,10 +184,6 @@ pub fn program(sources: &mut SourceMap) -> Arc<Program> {
     })
 }
 
-/// Raw depth of a float in [0, 1): round(d * 2^32) saturated.
-pub fn depth_raw(d: f32) -> u32 {
-    (f64::from(d) * 4294967296.0).round().clamp(0.0, 4294967295.0) as u32
-}
 
 /// The `rect` kernel; `OFF` is the word offset of its `rect` parameter (depth and color
 /// follow), `COUNT` whether the key counts writes.
@@ -198,7 +194,7 @@ unsafe extern "C" fn rect_kernel<const OFF: usize, const COUNT: bool>(ctx: *mut 
     let word = |i: usize| unsafe { *args.add(i) };
     let f = |i: usize| f32::from_bits(word(i));
     let rect = [f(OFF), f(OFF + 1), f(OFF + 2), f(OFF + 3)];
-    let depth = depth_raw(f(OFF + 4));
+    let depth = super::raw_depth(f64::from(f(OFF + 4)));
     let color = [f(OFF + 5), f(OFF + 6), f(OFF + 7)];
     if ctx.mode == MODE_BOUND {
         if rect.iter().any(|v| v.is_nan()) {

@@ -319,8 +319,3 @@ impl Tile {
         self.gbuf[p * W * H + y * W + x]
     }
 }
-
-/// Raw depth for a float Z in [0,1].
-pub fn raw_depth(z: f64) -> u32 {
-    (z * 4294967296.0).round().clamp(0.0, 4294967295.0) as u32
-}
