@@ -453,6 +453,9 @@ impl<const T: usize> TriangleSink<T> {
 
 /// The whole prim for `T` components (`NORMAL`: components 0..3 are the implicit normal).
 ///
+/// One function because it mirrors `prims/nurb_surface.prim` operation for operation (see
+/// the module doc): kept in the prim's order, it reads side by side with the prim.
+///
 /// # Safety
 /// `ctx` valid, `args` the nurb_surface argument block for T components, `triangle` a
 /// screen_triangle kernel for the same components.

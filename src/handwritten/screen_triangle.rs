@@ -132,6 +132,9 @@ pub(crate) unsafe fn extent_in_tile<const T: usize>(ctx: &mut TileCtx, args: *co
 /// The rest of the prim's uniform part, after its `bound(...)`. `None` when the triangle
 /// draws nothing.
 ///
+/// One function because it mirrors `prims/screen_triangle.prim`'s setup operation for
+/// operation (see the module doc): kept in the prim's order, it reads side by side with it.
+///
 /// Inlined into each kernel so the SIMD ones round with their own instructions (SSE4.1's
 /// `roundss`) rather than baseline x86-64's libm calls (`floorf`, `rintf`): on the small
 /// triangles workload the AVX2 kernel retires 29 % fewer instructions so.

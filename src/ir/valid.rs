@@ -43,7 +43,7 @@ use std::fmt;
 
 use super::{
     ArmKind, BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, FuncKind, Function, LocalId, LocalKind, LoopId, Param,
-    ParamRole, Program, Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp, Variability,
+    ParamRole, Place, Program, Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp, Variability,
 };
 use crate::diag::Span;
 
@@ -687,44 +687,7 @@ impl<'a> Validator<'a> {
     fn stmt(&mut self, s: &'a Stmt) -> Res {
         let f = self.f;
         match &s.kind {
-            StmtKind::Assign { place, value } => {
-                self.root(value)?;
-                let local = self.local(place.local, stmt_node(s), place.span)?;
-                if let Some(p) = self.param_of(place.local) {
-                    self.check_stmt(p.role == ParamRole::Z, Rule::AssignReadOnly, s, || {
-                        format!("assignment to parameter `{}`", p.name)
-                    })?;
-                }
-                let mut ty = local.ty.clone();
-                let mut index_var = Variability::Uniform;
-                for (i, site) in &place.indices {
-                    self.root(i)?;
-                    self.site(*site, stmt_node(s), place.span)?;
-                    self.check(
-                        i.ty == Type::int() && (!ty.dims.is_empty() || ty.per_seq),
-                        Rule::IndexType,
-                        i,
-                        || format!("index of type {:?} into a place of type {:?}", i.ty, ty),
-                    )?;
-                    ty = ty.element();
-                    index_var = index_var.join(i.var);
-                }
-                self.check_stmt(ty == value.ty, Rule::AssignType, s, || {
-                    format!("a value of type {:?} assigned to a place of type {:?}", value.ty, ty)
-                })?;
-                if !local.var.is_varying() {
-                    self.check_stmt(
-                        !value.var.is_varying() && !index_var.is_varying(),
-                        Rule::VaryingIntoUniform,
-                        s,
-                        || format!("a varying value or index into uniform `{}`", local.name),
-                    )?;
-                    self.check_stmt(self.conds.is_empty(), Rule::UniformUnderVaryingControl, s, || {
-                        format!("uniform `{}` assigned under varying control flow", local.name)
-                    })?;
-                }
-                Ok(())
-            }
+            StmtKind::Assign { place, value } => self.assign(s, place, value),
             StmtKind::If { cond, then, otherwise } => {
                 self.condition(cond)?;
                 let pushed = cond.var.is_varying();
@@ -801,33 +764,7 @@ impl<'a> Validator<'a> {
                 }
                 Ok(())
             }
-            StmtKind::InterpolatorReturn(v) => {
-                self.check_stmt(self.pixel, Rule::InterpolatorReturnPlacement, s, || {
-                    "`interpolator_return` in the setup part".into()
-                })?;
-                let placed = match (f.kind, v) {
-                    (FuncKind::Interpolator, v) => v.is_some(),
-                    (FuncKind::Primitive, None) => self.arm != Some(false),
-                    (FuncKind::Primitive, Some(_)) => self.arm.is_some(),
-                };
-                self.check_stmt(placed, Rule::InterpolatorReturnPlacement, s, || {
-                    format!(
-                        "`interpolator_return` {} value in {:?} (arm {:?})",
-                        if v.is_some() { "with a" } else { "without a" },
-                        f.kind,
-                        self.arm
-                    )
-                })?;
-                if let Some(e) = v {
-                    self.root(e)?;
-                    let ok = match e.ty.elem {
-                        Elem::Interp => f.kind == FuncKind::Primitive && e.ty.dims.is_empty(),
-                        Elem::Scalar(sc) => sc == Scalar::Float,
-                    };
-                    self.check(ok, Rule::InterpolatorReturnType, e, || format!("stores a {:?}", e.ty))?;
-                }
-                Ok(())
-            }
+            StmtKind::InterpolatorReturn(v) => self.interpolator_return(s, v.as_ref()),
             StmtKind::Bound(args) => {
                 self.check_stmt(f.kind == FuncKind::Primitive, Rule::InterpolatorBody, s, || {
                     "`bound` in an interpolator".into()
@@ -843,6 +780,77 @@ impl<'a> Validator<'a> {
             }
             StmtKind::CallPrimitive { callee, args } => self.call(s, *callee, args),
         }
+    }
+
+    /// An assignment: its place's local, read-only parameters, index types, the value's
+    /// type, and what a uniform local may be assigned.
+    fn assign(&mut self, s: &'a Stmt, place: &'a Place, value: &'a Expr) -> Res {
+        self.root(value)?;
+        let local = self.local(place.local, stmt_node(s), place.span)?;
+        if let Some(p) = self.param_of(place.local) {
+            self.check_stmt(p.role == ParamRole::Z, Rule::AssignReadOnly, s, || {
+                format!("assignment to parameter `{}`", p.name)
+            })?;
+        }
+        let mut ty = local.ty.clone();
+        let mut index_var = Variability::Uniform;
+        for (i, site) in &place.indices {
+            self.root(i)?;
+            self.site(*site, stmt_node(s), place.span)?;
+            self.check(
+                i.ty == Type::int() && (!ty.dims.is_empty() || ty.per_seq),
+                Rule::IndexType,
+                i,
+                || format!("index of type {:?} into a place of type {:?}", i.ty, ty),
+            )?;
+            ty = ty.element();
+            index_var = index_var.join(i.var);
+        }
+        self.check_stmt(ty == value.ty, Rule::AssignType, s, || {
+            format!("a value of type {:?} assigned to a place of type {:?}", value.ty, ty)
+        })?;
+        if !local.var.is_varying() {
+            self.check_stmt(
+                !value.var.is_varying() && !index_var.is_varying(),
+                Rule::VaryingIntoUniform,
+                s,
+                || format!("a varying value or index into uniform `{}`", local.name),
+            )?;
+            self.check_stmt(self.conds.is_empty(), Rule::UniformUnderVaryingControl, s, || {
+                format!("uniform `{}` assigned under varying control flow", local.name)
+            })?;
+        }
+        Ok(())
+    }
+
+    /// `interpolator_return`: where it may stand, with or without a value, and its type.
+    fn interpolator_return(&mut self, s: &'a Stmt, v: Option<&'a Expr>) -> Res {
+        let f = self.f;
+        self.check_stmt(self.pixel, Rule::InterpolatorReturnPlacement, s, || {
+            "`interpolator_return` in the setup part".into()
+        })?;
+        let placed = match (f.kind, v) {
+            (FuncKind::Interpolator, v) => v.is_some(),
+            (FuncKind::Primitive, None) => self.arm != Some(false),
+            (FuncKind::Primitive, Some(_)) => self.arm.is_some(),
+        };
+        self.check_stmt(placed, Rule::InterpolatorReturnPlacement, s, || {
+            format!(
+                "`interpolator_return` {} value in {:?} (arm {:?})",
+                if v.is_some() { "with a" } else { "without a" },
+                f.kind,
+                self.arm
+            )
+        })?;
+        if let Some(e) = v {
+            self.root(e)?;
+            let ok = match e.ty.elem {
+                Elem::Interp => f.kind == FuncKind::Primitive && e.ty.dims.is_empty(),
+                Elem::Scalar(sc) => sc == Scalar::Float,
+            };
+            self.check(ok, Rule::InterpolatorReturnType, e, || format!("stores a {:?}", e.ty))?;
+        }
+        Ok(())
     }
 
     fn call(&mut self, s: &'a Stmt, callee: super::FuncId, args: &'a [Expr]) -> Res {
