@@ -11,12 +11,12 @@
 use std::sync::Arc;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use primflow::workload::{fill_scene, same_frame, shape_scenes, small_scene};
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::handwritten::{Flavor, Handwritten};
 use primflow::ir::Program;
 use primflow::jit::Jit;
 use primflow::runtime::{KernelSource, Registry, Renderer};
+use primflow::workload::{fill_scene, same_frame, shape_scenes, small_scene};
 
 const SIZE: u32 = 256;
 

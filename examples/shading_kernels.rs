@@ -7,11 +7,11 @@
 //! Prints, per effect set, the median shading time of each kernel, ns per shaded pixel, the
 //! ratios to the reference, and the largest per-channel difference from the reference.
 
-use primflow::workload::{effects_scene, EFFECT_SETS};
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::jit::Jit;
 use primflow::runtime::shading::ShadingKernel;
 use primflow::runtime::Registry;
+use primflow::workload::{effects_scene, EFFECT_SETS};
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal));

@@ -18,10 +18,10 @@
 
 use std::time::{Duration, Instant};
 
-use primflow::workload::fill_scene;
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::jit::Jit;
 use primflow::runtime::{render_pool, Frame, Registry, RenderStats};
+use primflow::workload::fill_scene;
 
 fn arg<T: std::str::FromStr>(i: usize, default: T) -> T {
     std::env::args().nth(i).and_then(|s| s.parse().ok()).unwrap_or(default)

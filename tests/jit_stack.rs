@@ -15,11 +15,11 @@ mod support;
 
 use std::sync::Arc;
 
-use support::rect_scene as scene;
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
 use primflow::runtime::Renderer;
+use support::rect_scene as scene;
 
 const SOURCE: &str = r#"
 primitive big(float rect[4]; float z; varying float X, Y; inout varying fixed<32,32> Z)

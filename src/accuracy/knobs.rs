@@ -15,11 +15,11 @@
 
 use glam::{DMat4, DVec3, Mat4, Vec3};
 
-use crate::workload::Lcg;
 use crate::pipeline::factor::factor_view;
 use crate::pipeline::lighting::{Eye, Light, LightKind, LightingSetup, Material, Sample};
 use crate::pipeline::transform::{look_at_matrix, perspective_matrix};
 use crate::runtime::{Frame, Renderer, Value};
+use crate::workload::Lcg;
 
 use super::reference::{self, ray_sphere, RefFrame};
 use super::scene::{Camera, Interp, Item, ParamSpec, Patch, Scene, Sphere, Triangle};

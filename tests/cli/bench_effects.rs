@@ -11,10 +11,10 @@ use std::sync::Arc;
 
 use indicatif::ProgressBar;
 use primflow::bench::{effects_series, format_effects, format_table, run, BenchOptions};
-use primflow::workload::{effects_scene, EffectSet, EFFECTS_FOG_COLOUR, EFFECT_SETS};
 use primflow::ir::Program;
 use primflow::jit::Jit;
 use primflow::runtime::{Frame, Renderer};
+use primflow::workload::{effects_scene, EffectSet, EFFECTS_FOG_COLOUR, EFFECT_SETS};
 
 const SIZE: u32 = 32;
 const LAYERS: usize = 2;

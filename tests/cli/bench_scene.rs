@@ -9,11 +9,11 @@ use crate::support;
 
 use std::path::{Path, PathBuf};
 
-use support::cli;
 use primflow::bench::{format_scene_report, run_scene, KernelKind, SceneBenchOptions};
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::handwritten::Flavor;
 use primflow::jit::Jit;
+use support::cli;
 
 fn temp_dir(tag: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("primflow-bench-scene-{tag}-{}", std::process::id()));

@@ -5,10 +5,10 @@ use crate::support;
 
 use std::path::PathBuf;
 
-use support::cli;
 use primflow::abi::{Binding, BindingKind};
 use primflow::cli::parse_key;
 use primflow::ir::Program;
+use support::cli;
 
 fn temp_file(name: &str, text: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("primflow-cli-{}", std::process::id()));

@@ -12,10 +12,10 @@ use crate::support;
 
 use std::sync::Arc;
 
-use support::{rect_depth_and_codes as run, rect_scene as scene};
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::Tier;
+use support::{rect_depth_and_codes as run, rect_scene as scene};
 
 const SOURCE: &str = r#"
 primitive cleared(float rect[4]; int rounds, off, stop; varying float X, Y; inout varying fixed<32,32> Z)

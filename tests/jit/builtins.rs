@@ -3,7 +3,6 @@
 
 #![allow(clippy::needless_range_loop, clippy::type_complexity)]
 
-
 use std::sync::Arc;
 
 use crate::support::jit::*;

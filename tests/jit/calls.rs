@@ -1,7 +1,6 @@
 //! Primitive calls (argument blocks built by the caller, call depth) and the bare
 //! `interpolator_return;` with Constant and Shared bindings (inlined interpolators).
 
-
 use std::sync::Arc;
 
 use crate::support::jit::*;

@@ -7,9 +7,9 @@
 
 use crate::support;
 
-use primflow::workload::same_frame;
 use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Frame, Renderer, Value};
+use primflow::workload::same_frame;
 
 /// `acc` reads `prev` before the body assigns it, and `prev` reads `cur` before the body
 /// assigns that: three rounds of the walk (n is a parameter, so the loop is not unrolled).

@@ -20,10 +20,10 @@ use crate::support;
 
 use std::sync::Arc;
 
-use support::{rect_depth_and_codes, rect_scene};
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::Tier;
+use support::{rect_depth_and_codes, rect_scene};
 
 const SOURCE: &str = r#"
 primitive two_sites(float rect[4]; int i, j; varying float X, Y; inout varying fixed<32,32> Z)

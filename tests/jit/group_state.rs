@@ -9,11 +9,11 @@ use crate::support;
 
 use std::sync::Arc;
 
-use primflow::workload::same_frame;
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Frame, Renderer, Value};
+use primflow::workload::same_frame;
 
 /// Three ways a uniform local is assigned in the pixel part: a top-level `for` whose
 /// `i = 0` the split hoists into the setup (it is uniform and nothing before it in the

@@ -9,12 +9,12 @@ use crate::support;
 
 use std::sync::Arc;
 
-use support::{rect_depth_and_codes as run, rect_scene as scene};
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::ir::range::proven_index_sites;
 use primflow::ir::Program;
 use primflow::jit::Tier;
 use primflow::runtime::Registry;
+use support::{rect_depth_and_codes as run, rect_scene as scene};
 
 /// The elements of every test array: a[i] = (i + 1) / 64, exact in f32 and in Z's fixed point.
 fn element(i: i64) -> f32 {

@@ -6,7 +6,6 @@
 
 #![allow(clippy::needless_range_loop)]
 
-
 use std::sync::Arc;
 
 use crate::support::jit::*;

@@ -12,11 +12,11 @@ use crate::support;
 
 use std::sync::Arc;
 
-use support::{rect_depth_and_codes, rect_scene};
 use primflow::abi::VariantKey;
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
+use support::{rect_depth_and_codes, rect_scene};
 
 /// Rounds of `churn` in each half: enough to put the setup over the split size.
 const ROUNDS: usize = 40;

@@ -11,11 +11,11 @@ use crate::support;
 
 use std::sync::Arc;
 
-use primflow::workload::same_frame;
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Frame, Renderer, Value};
+use primflow::workload::same_frame;
 
 /// Setup code with nested uniform `if`s that only assign (if-converted by both tiers), a local
 /// read on a path where nothing assigned it (zero), a dynamically indexed store inside an

@@ -7,14 +7,14 @@
 
 use crate::support;
 
-use support::{example_scene, library_and_sources};
 use std::sync::Arc;
+use support::{example_scene, library_and_sources};
 
-use primflow::workload::{fill_scene, same_frame, small_scene};
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Frame, KernelSource, Renderer};
+use primflow::workload::{fill_scene, same_frame, small_scene};
 
 fn render(r: &Renderer, source: &mut dyn KernelSource) -> Frame {
     let out = r.render(source);

@@ -8,11 +8,11 @@ use crate::support;
 
 use std::sync::Arc;
 
-use primflow::workload::same_frame;
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, JitOptions, Tier};
 use primflow::runtime::{Renderer, Value};
+use primflow::workload::same_frame;
 
 const LOOPS: &str = r#"
 primitive loops(

@@ -11,10 +11,10 @@ use crate::support;
 
 use std::sync::Arc;
 
-use primflow::workload::same_frame;
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::runtime::{Renderer, Value};
+use primflow::workload::same_frame;
 
 /// Two coverage forms chosen by a uniform `if` on an expression of arguments (no local),
 /// the block walk's guard prefix under it; after the guards, nested uniform `if`s, a

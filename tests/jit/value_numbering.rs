@@ -9,10 +9,10 @@ use crate::support;
 
 use std::sync::Arc;
 
-use primflow::workload::same_frame;
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::runtime::{Renderer, Value};
+use primflow::workload::same_frame;
 
 const CSE: &str = r#"
 primitive cse(float rect[4]; float x, y; varying float X, Y; inout varying fixed<32,32> Z)

@@ -2,9 +2,9 @@
 //! (the benchmark's precondition), bit for bit.
 
 use crate::support;
-use support::*;
 use primflow::handwritten::{Flavor, Handwritten};
 use primflow::runtime::{Frame, Renderer, Value};
+use support::*;
 
 fn frames_equal(a: &Frame, b: &Frame, what: &str) {
     assert_eq!(a.depth_values(), b.depth_values(), "{what}: depth differs");
@@ -169,7 +169,10 @@ fn sse_screen_triangle_matches_jit_bit_for_bit() {
                         rng.range(cx - size, cx + size).floor() + 0.5,
                         rng.range(cy - size, cy + size).floor() + 0.5,
                     ),
-                    1 => (grid(&mut rng, cx - size, cx + size), grid(&mut rng, cy - size, cy + size)),
+                    1 => (
+                        grid(&mut rng, cx - size, cx + size),
+                        grid(&mut rng, cy - size, cy + size),
+                    ),
                     _ => (rng.range(cx - size, cx + size), rng.range(cy - size, cy + size)),
                 };
                 // Depths across the whole range: both conversion paths (below and above
@@ -219,8 +222,7 @@ fn polygon_scene(program: &std::sync::Arc<primflow::ir::Program>, persp: usize, 
         r.begin("polygon").unwrap();
         for &(x, y, z) in points {
             for c in 0..persp {
-                r.material(&format!("p{c}"), &Value(vec![rng.next() as f32]))
-                    .unwrap();
+                r.material(&format!("p{c}"), &Value(vec![rng.next() as f32])).unwrap();
             }
             for c in 0..lin {
                 r.material(&format!("l{c}"), &Value(vec![rng.range(-1.0, 1.0) as f32]))

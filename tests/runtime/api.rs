@@ -1,12 +1,11 @@
 //! The primitive API: argument blocks laid out per `abi::ArgLayout`, value conversion,
 //! sequence points, bindings, and the errors and warnings of bad calls.
 
-
+use crate::support::kernels::*;
 use glam::{Mat4, Vec3};
 use primflow::abi::{ArgLayout, Binding, BindingKind, ParamSlot};
 use primflow::diag::SourceMap;
 use primflow::runtime::{Renderer, Target, Value};
-use crate::support::kernels::*;
 
 fn renderer() -> Renderer {
     let mut sources = SourceMap::new();

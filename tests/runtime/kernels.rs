@@ -2,11 +2,10 @@
 //! in first-use order, once per render, whatever order the instances come in (keys are
 //! interned as instances are added, not compared or hashed per instance per frame).
 
-
+use crate::support::kernels::*;
 use primflow::abi::{BindingKind, VariantKey};
 use primflow::diag::SourceMap;
 use primflow::runtime::{Renderer, Value};
-use crate::support::kernels::*;
 
 fn setup() -> (SourceMap, Renderer) {
     let mut sources = SourceMap::new();

@@ -7,10 +7,10 @@
 
 use crate::support;
 
-use support::*;
 use primflow::handwritten::{Flavor, Handwritten};
 use primflow::jit::Jit;
 use primflow::runtime::{Frame, Renderer};
+use support::*;
 
 const PARAMS: usize = 16;
 

@@ -1,11 +1,10 @@
 //! The renderer with hand-written ABI kernels: depth order, tiling and binning, thread-count
 //! independence, write counts, hostile bounds, run-time error reports, images.
 
-
-use primflow::diag::SourceMap;
-use primflow::runtime::{RenderOutput, Renderer};
 use crate::support::kernels::*;
 use crate::support::raw_depth;
+use primflow::diag::SourceMap;
+use primflow::runtime::{RenderOutput, Renderer};
 
 fn setup(width: u32, height: u32, tile: u32) -> (SourceMap, Renderer) {
     let mut sources = SourceMap::new();

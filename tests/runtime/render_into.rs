@@ -7,12 +7,12 @@ use crate::support;
 
 use std::sync::Arc;
 
-use support::*;
-use primflow::workload::{effects_scene, EffectSet};
 use primflow::ir::Program;
 use primflow::jit::Jit;
 use primflow::runtime::shading::ShadingKernel;
 use primflow::runtime::{Frame, Renderer};
+use primflow::workload::{effects_scene, EffectSet};
+use support::*;
 
 /// Every field of two frames, floats compared by their bits.
 fn assert_same(a: &Frame, b: &Frame, what: &str) {

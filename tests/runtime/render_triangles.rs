@@ -93,7 +93,12 @@ fn random_triangles_match_the_exact_rasterizer() {
         let scale = [4.0, 20.0, 70.0][case % 3];
         let (cx, cy) = (rng.range(-5.0, w as f64 + 5.0), rng.range(-5.0, h as f64 + 5.0));
         let v: Vec<[f64; 2]> = (0..3)
-            .map(|_| [grid(&mut rng, cx - scale, cx + scale), grid(&mut rng, cy - scale, cy + scale)])
+            .map(|_| {
+                [
+                    grid(&mut rng, cx - scale, cx + scale),
+                    grid(&mut rng, cy - scale, cy + scale),
+                ]
+            })
             .collect();
         let v = [v[0], v[1], v[2]];
         let mut r = renderer(&program, w, h, false);

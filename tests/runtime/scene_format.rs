@@ -1,14 +1,13 @@
 //! The scene format: parsing, error locations, calls made on the renderer, and a property
 //! test that mutated scenes never panic the reader or the renderer.
 
-
+use crate::support::kernels::*;
+use crate::support::raw_depth;
 use primflow::abi::BindingKind;
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::runtime::{Renderer, Value};
 use primflow::scene::{self, CommandKind};
 use proptest::prelude::*;
-use crate::support::kernels::*;
-use crate::support::raw_depth;
 
 /// Parse and apply `text` against the test program; returns the renderer and diagnostics
 /// as `code@line:col`.

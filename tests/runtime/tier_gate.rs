@@ -9,16 +9,16 @@
 
 use crate::support;
 
-use support::{example_scene, library_and_sources};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use support::{example_scene, library_and_sources};
 
 use primflow::abi::TierUpActivity;
-use primflow::workload::{fill_scene, same_frame, small_scene};
 use primflow::diag::SourceMap;
 use primflow::ir::Program;
 use primflow::jit::{Jit, Tier};
 use primflow::runtime::{KernelSource, RenderOutput, Renderer};
+use primflow::workload::{fill_scene, same_frame, small_scene};
 
 /// Small scenes with many tiles (16 px) and, for `small`, more than one bound-pass job.
 fn scenes(sources: &mut SourceMap, program: &Arc<Program>) -> Vec<(String, Renderer)> {

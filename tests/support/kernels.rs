@@ -184,7 +184,6 @@ pub fn program(sources: &mut SourceMap) -> Arc<Program> {
     })
 }
 
-
 /// The `rect` kernel; `OFF` is the word offset of its `rect` parameter (depth and color
 /// follow), `COUNT` whether the key counts writes.
 unsafe extern "C" fn rect_kernel<const OFF: usize, const COUNT: bool>(ctx: *mut TileCtx, args: *const u32) {
