@@ -7,9 +7,11 @@
 //! 2. [`check`] — name resolution, types, fixed-point formats, uniform/varying inference;
 //!    lowers the AST to the typed [`ir`], inlining helper functions.
 //! 3. [`ir::split`] — splits each function into its uniform setup and its pixel part.
-//! 4. [`jit`] — specialises a function for a [`abi::VariantKey`] and compiles it with
+//! 4. [`mid`] — the middle end: the passes that need no code generator (loop unrolling,
+//!    range analysis, dead setup code, ...), whose tables the JIT's lowering consults.
+//! 5. [`jit`] — specialises a function for a [`abi::VariantKey`] and compiles it with
 //!    Cranelift into a kernel over groups of pixels.
-//! 5. [`runtime`] — tiles, depth buffer, G-buffer, shading, the primitive API; [`scene`]
+//! 6. [`runtime`] — tiles, depth buffer, G-buffer, shading, the primitive API; [`scene`]
 //!    reads the text scene format into API calls.
 //!
 //! Beside the stages: [`accuracy`] measures error against an f64 reference renderer versus
@@ -27,6 +29,7 @@ pub mod handwritten;
 pub mod ir;
 pub mod jit;
 pub mod limits;
+pub mod mid;
 pub mod ops;
 pub mod pipeline;
 pub mod runtime;

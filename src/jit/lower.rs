@@ -38,17 +38,14 @@ use crate::ir::{
     ConstValue, Elem, Expr, ExprId, ExprKind, FixedFormat, FuncId, FuncKind, Function, LocalId, LoopId, Program,
     Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp,
 };
+use crate::mid::{bounds, dead, flat, init};
 
 mod affine;
 mod block;
-mod bounds;
 mod call;
-mod dead;
 mod expr;
-mod flat;
 mod frame;
 mod hoist;
-mod init;
 mod loops;
 mod outline;
 mod planes;
@@ -450,7 +447,7 @@ pub(crate) fn lower_kernel<'b>(
     block_culling: bool,
     upgrade: Option<*const std::sync::atomic::AtomicUsize>,
 ) -> Res<Lowered> {
-    // `body` is `func_id`'s function, possibly rewritten by IR passes (`super::unroll`);
+    // `body` is `func_id`'s function, possibly rewritten by IR passes (`crate::mid::unroll`);
     // callees and interpolators come from `program`.
     if program.functions.get(func_id.0 as usize).is_none() {
         return err(format!("no function {}", func_id.0));

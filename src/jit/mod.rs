@@ -58,7 +58,6 @@ mod builtin;
 mod fixed;
 pub mod libm;
 mod lower;
-mod unroll;
 mod value;
 
 use std::cell::RefCell;
@@ -78,6 +77,7 @@ use cranelift_module::{default_libcall_names, Linkage, Module};
 
 use crate::abi::{ArgLayout, Kernel, KernelFn, TierUpHold, TierUpWatch, VariantKey};
 use crate::ir::{FuncId, Function, Program};
+use crate::mid::unroll;
 use libm::LibmFn;
 use lower::{Linker, Res};
 

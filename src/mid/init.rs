@@ -26,7 +26,7 @@ use crate::ir::{Elem, Expr, Function, LocalId, Stmt, StmtKind};
 
 /// Per local of `f`: may a read of it run before a whole assignment has stored every word
 /// of it (so its stack slot must start zeroed)? `true` for every local not tracked.
-pub(super) fn read_before_assigned(f: &Function) -> Vec<bool> {
+pub(crate) fn read_before_assigned(f: &Function) -> Vec<bool> {
     let tracked: Vec<bool> = f
         .locals
         .iter()

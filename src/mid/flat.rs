@@ -30,7 +30,7 @@ use crate::ir::{Function, Program, Stmt, StmtKind};
 /// Whether tier 0 may lower `f`'s pixel code for `key` flat (see the module doc): no
 /// uniform loop and no assignment to a uniform local in it, nor in any shared interpolator
 /// the key binds (those are inlined into the pixel code).
-pub(super) fn pixel_code_is_flattenable(program: &Program, f: &Function, key: &VariantKey) -> bool {
+pub(crate) fn pixel_code_is_flattenable(program: &Program, f: &Function, key: &VariantKey) -> bool {
     if !stmts_are_flattenable(f, &f.pixel) {
         return false;
     }
@@ -62,7 +62,7 @@ fn stmts_are_flattenable(f: &Function, stmts: &[Stmt]) -> bool {
 /// (No loops: a `break` or `continue` under the `if` would leave a uniform loop; no
 /// `interpolation`: its stores are masked, but the construct is rare under a uniform `if`
 /// and is kept on the branching path.)
-pub(super) fn maskable_stmts(f: &Function, stmts: &[Stmt]) -> bool {
+pub(crate) fn maskable_stmts(f: &Function, stmts: &[Stmt]) -> bool {
     stmts.iter().all(|s| match &s.kind {
         StmtKind::Assign { place, .. } => f.locals.get(place.local.0 as usize).is_some_and(|l| l.var.is_varying()),
         StmtKind::If { then, otherwise, .. } => maskable_stmts(f, then) && maskable_stmts(f, otherwise),
