@@ -7,9 +7,14 @@
 //! 2. [`check`] — name resolution, types, fixed-point formats, uniform/varying inference;
 //!    lowers the AST to the typed [`ir`], inlining helper functions.
 //! 3. [`ir::split`] — splits each function into its uniform setup and its pixel part.
-//! 4. [`jit`] — specialises a function for a [`abi::VariantKey`] and compiles it with
-//!    Cranelift into a kernel over groups of pixels.
-//! 5. [`runtime`] — tiles, depth buffer, G-buffer, shading, the primitive API; [`scene`]
+//! 4. [`mid`] — the middle end, the passes that need no code generator: a function's body
+//!    as lowered (array copies forwarded, constant-trip loops unrolled), and per function,
+//!    variant key and tier a plan of every analysis the lowering consults (where locals
+//!    live, range analysis, dead setup code, row and carried terms, unswitching, the
+//!    block-culling guards).
+//! 5. [`jit`] — lowers a function from its plan, specialised for a [`abi::VariantKey`], and
+//!    compiles it with Cranelift into a kernel over groups of pixels.
+//! 6. [`runtime`] — tiles, depth buffer, G-buffer, shading, the primitive API; [`scene`]
 //!    reads the text scene format into API calls.
 //!
 //! Beside the stages: [`accuracy`] measures error against an f64 reference renderer versus
@@ -27,6 +32,7 @@ pub mod handwritten;
 pub mod ir;
 pub mod jit;
 pub mod limits;
+pub mod mid;
 pub mod ops;
 pub mod pipeline;
 pub mod runtime;

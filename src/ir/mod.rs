@@ -6,7 +6,7 @@
 //!
 //! Rules that hold for a checked program. Codegen relies on them and asserts none: the
 //! validator [`valid`] states each as a [`valid::Rule`] and checks it after the checker and
-//! after every pass that rewrites a function (`forward`, the JIT's `unroll`) in test and
+//! after every pass that rewrites a function (`forward`, `mid::unroll`) in test and
 //! debug builds, so a pass that breaks one is an internal compiler error, not a miscompile:
 //! - Every [`Expr`] of a function has an [`ExprId`] of its own, and the ids are exactly
 //!   `0..Function::exprs` in pre-order ([`number`]): the key of the JIT's side tables, as a

@@ -5,8 +5,8 @@
 //! operands. Analyses key side tables by id (a hash map, or a vector of `exprs` entries).
 //!
 //! [`renumber`] assigns them. The checker runs it on every function it lowers, and so does
-//! every pass that adds, drops or copies expressions (`super::forward`, the JIT's
-//! `unroll`); an expression built elsewhere has [`ExprId::UNSET`] until then. The
+//! every pass that adds, drops or copies expressions (`super::forward`,
+//! `mid::unroll`); an expression built elsewhere has [`ExprId::UNSET`] until then. The
 //! validator checks the ids (`valid::Rule::ExprIdsDense`).
 
 use super::{for_each_stmt, for_each_stmt_mut, Expr, ExprId, Function, Stmt};

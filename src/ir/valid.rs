@@ -7,11 +7,11 @@
 //!
 //! Where it runs (in builds with debug assertions, which the `tests` profile has): at the
 //! end of [`crate::check::check`] (after lowering, variability and [`super::split`]), and
-//! where the JIT makes a kernel body, after [`super::forward`] and after
-//! `jit::unroll`. A failure there is reported as an internal compiler error (a diagnostic
-//! from the checker, a `JitError` from the JIT), never a panic. Release builds skip it:
-//! the back end may assume what the validator proved, and the checker's output is
-//! validated by every test build.
+//! where the middle end makes a kernel body ([`crate::mid::body`]), after
+//! [`super::forward`] and after `mid::unroll`. A failure there is reported as an internal
+//! compiler error (a diagnostic from the checker, a `JitError` from the JIT), never a
+//! panic. Release builds skip it: the back end may assume what the validator proved, and
+//! the checker's output is validated by every test build.
 //!
 //! The rules, by theme (the module doc of [`crate::ir`] states them in prose):
 //! - **index facts**: locals, loop ids, sites and callees in range; each loop id belongs

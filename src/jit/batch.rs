@@ -466,6 +466,7 @@ impl<'j> BatchWork<'j> {
     ) -> Res<(ArgLayout, Vec<String>, bool)> {
         let layout = ArgLayout::new(self.program, f, self.key);
         let body = super::body_of(self.bodies, self.program, self.unroll_loops, f);
+        let plan = crate::mid::plan(self.program, f, &body, self.key, self.tier)?;
         func.signature = kernel_signature(self.isa);
         func.name = UserFuncName::user(0, f.0);
         pixels.name = UserFuncName::user(PIXELS_NAMESPACE, f.0);
@@ -475,8 +476,7 @@ impl<'j> BatchWork<'j> {
         });
         let lowered = lower::lower_kernel(
             self.program,
-            f,
-            &body,
+            &plan,
             self.key,
             &layout,
             func,
@@ -484,7 +484,6 @@ impl<'j> BatchWork<'j> {
             Some((pixels, &mut pctx)),
             linker,
             self.isa.frontend_config(),
-            self.tier == Tier::Optimised,
             upgrade.map(|w| w as *const AtomicUsize),
         );
         // A lowering error leaves the builder contexts mid-function; the next kernel must

@@ -335,7 +335,7 @@ pub fn convert(b: &mut FunctionBuilder, from: Scalar, to: Scalar, v: ir::Value) 
 }
 
 /// [`convert`] of a float vector whose every lane is known to be a non-NaN value in
-/// `[lo, hi]` (`source_bound`, from `lower::bounds`; an end may be infinite): when
+/// `[lo, hi]` (`source_bound`, from `mid::bounds`; an end may be infinite): when
 /// truncating (to int) or rounding and scaling (to a signed fixed format) cannot leave the
 /// target's range, the result is one `cvttps2dq` (after the scaling and rounding) instead
 /// of the saturating sequence, whose NaN and overflow fix-ups cost seven more instructions

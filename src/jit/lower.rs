@@ -1,18 +1,23 @@
 //! IR -> CLIF: builds the Cranelift function of one primitive specialised for one variant key.
 //!
-//! [`lower_kernel`] builds one [`Lower`], the state of one kernel's lowering, and
-//! [`Lower::body`] gives the top-level order: the setup as scalar code, then the pixel
-//! part's loops. `Lower`'s methods live by concept in the child modules:
+//! [`lower_kernel`] builds one [`Lower`], the state of one kernel's lowering, from the
+//! middle end's [`Plan`] for the (function, key, tier) ([`crate::mid::plan`]: every analysis
+//! the lowering consults, computed before it starts), and [`Lower::body`] gives the
+//! top-level order: the setup as scalar code, then the pixel part's loops. `Lower`'s
+//! methods live by concept in the child modules:
 //! - [`frame`]: the kernel's exits, `ctx`, bound mode, run-time errors and their deferral;
 //! - [`stmt`]: statements and the lane masks of pixel code; loops, fuel;
 //! - [`expr`]: expressions, operators, conversions, value numbering;
 //! - [`storage`]: where locals live (frames), places and accesses, index checks;
 //! - [`planes`]: interpolation data, arms, inlined interpolators, G-buffer planes;
 //! - [`call`]: primitive calls;
-//! - [`spill`]: the uniform frame the pixel loops read the setup's values from;
-//! - [`loops`]: the pixel passes, rows and groups, and [`walk`] the block walk;
-//! - the analyses they consult: [`hoist`], [`affine`], [`block`], [`unswitch`], [`bounds`],
-//!   [`dead`], [`init`], [`flat`]; and [`outline`], which splits a tier-0 kernel in two.
+//! - [`spill`]: the uniform frame the pixel loops read the setup's values from, and the
+//!   row terms hoisted into it;
+//! - [`loops`]: the pixel passes, the copies of the loops unswitching plans, rows and
+//!   groups, and [`walk`] the block walk;
+//! - [`block`]: the block walk's interval evaluation of the guard prefix; [`carry`]: the
+//!   int terms carried along a row;
+//! - [`outline`]: tier 0's split of a kernel in two functions.
 //!
 //! Shape of every kernel (`fn(ctx, args)`):
 //! 1. `setup` as scalar code: uniform values are `f32`/`i32`/`i8` SSA variables; `bound`
@@ -32,30 +37,26 @@ use cranelift_frontend::{FunctionBuilder, Variable};
 use super::fixed;
 use super::libm::LibmFn;
 use super::value::{cl_type, ctx_off, mem_flags, Val, VnTable, F32X4};
-use super::{Body, JitError};
+use super::JitError;
 use crate::abi::{ArgLayout, BindingKind, ParamSlot, VariantKey, ERR_STACK};
 use crate::ir::{
-    ConstValue, Elem, Expr, ExprId, ExprKind, FixedFormat, FuncId, FuncKind, Function, LocalId, LoopId, Program,
-    Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp,
+    ConstValue, Elem, Expr, ExprId, ExprKind, FixedFormat, FuncId, Function, LocalId, LoopId, Program, Scalar, Stmt,
+    StmtKind, Type,
 };
+use crate::mid::pred::{const_index_in_range, const_int, key_constant, speculable_expr};
+use crate::mid::{bounds, PixelPlan, Plan, Tier};
 
-mod affine;
 mod block;
-mod bounds;
 mod call;
-mod dead;
+mod carry;
 mod expr;
-mod flat;
 mod frame;
-mod hoist;
-mod init;
 mod loops;
 mod outline;
 mod planes;
 mod spill;
 mod stmt;
 mod storage;
-mod unswitch;
 mod walk;
 
 pub(crate) use outline::pixel_signature;
@@ -122,12 +123,6 @@ const ZERO_LOOP_BYTES: u32 = 256;
 
 /// The format depth values have in the depth buffer.
 const DEPTH_FORMAT: FixedFormat = FixedFormat { bits: 32, frac: 32 };
-
-/// Most components a local kept in SSA variables may have, and most such components a
-/// kernel may have in all its frames (see [`Lower::take_var_words`]); the rest live on the
-/// stack. The built-in primitives' largest register local has 64.
-const MAX_LOCAL_VAR_WORDS: u32 = 1024;
-const MAX_VAR_WORDS: u32 = 16384;
 
 /// Where a local lives.
 #[derive(Clone)]
@@ -299,8 +294,8 @@ pub(crate) struct Lower<'a, 'b> {
     /// flushing it again changes nothing.
     pending_error: Variable,
     /// The kernel defers its setup's index and fuel errors into `pending_error` (its setup
-    /// has index sites that may fail; see [`Self::setup_may_fail_index`]), so they are
-    /// flushed wherever the error state can be observed ([`Self::flush_errors`]).
+    /// has index sites that may fail; see [`crate::mid::sites::setup_may_fail_index`]), so
+    /// they are flushed wherever the error state can be observed ([`Self::flush_errors`]).
     defer_errors: bool,
     /// Lowering setup code of such a kernel: errors go to `pending_error`.
     deferring_errors: bool,
@@ -311,35 +306,22 @@ pub(crate) struct Lower<'a, 'b> {
     /// first into the second (see `spill_uniforms`).
     group_resets: Vec<(StackSlot, StackSlot, u32)>,
     /// Byte offset of the uniform frame's vector section (word `w` splatted at
-    /// `vec_section + 16 * w`; see [`hoist`]).
+    /// `vec_section + 16 * w`; see [`crate::mid::spill`]).
     vec_section: u32,
     /// Byte offset in the uniform frame of the render pass's lo_x and hi_x, as f32x4 splats.
     x_range_at: u32,
-    /// Row-invariant pixel terms evaluated once per row into the frame's row section.
-    hoists: Vec<hoist::Hoist<'a>>,
-    /// Pixel locals with a row-invariant value, by their defining expression (see [`hoist`]).
-    row_locals: std::collections::HashMap<LocalId, &'a Expr>,
+    /// What the middle end planned for this kernel (see [`crate::mid`]).
+    plan: &'a Plan<'a>,
+    /// In the pixel loops: the copy being lowered (see [`crate::mid::unswitch`]).
+    copy: Option<&'a crate::mid::unswitch::LoopsCopy<'a>>,
     /// While a row term is evaluated in the row prologue: read row locals as their values.
     substitute_row_locals: bool,
     /// The row locals' values already computed in the current row prologue, with the block
     /// they were computed in: a local read by several row terms is evaluated once per row.
     row_local_values: std::collections::HashMap<LocalId, (ir::Block, Val)>,
-    /// Int terms affine in the pixel column, carried along the row (see [`affine`]).
-    carried: Vec<affine::Carried<'a>>,
-    /// Pixel locals the carried terms read, by their single defining value (see [`affine`]).
-    affine_defs: std::collections::HashMap<LocalId, &'a Expr>,
-    /// The primitive's X while `carried` is not empty.
-    affine_x: Option<LocalId>,
-    /// The primitive's Y when carried terms may be affine in the row too.
-    affine_y: Option<LocalId>,
-    /// Outside the groups, while carried terms are evaluated (see [`affine`]): the uniform
+    /// Outside the groups, while carried terms are evaluated (see [`carry`]): the uniform
     /// frame's address, and whether the row section holds the current row's terms.
     prologue_frame: Option<(ir::Value, bool)>,
-    /// Pixel locals no group reads, because only carried terms (see [`affine`]) or only row
-    /// terms (see [`hoist`]) read them: their assignment is not lowered in a group.
-    unread_in_groups: std::collections::HashSet<LocalId>,
-    /// The expressions in those locals' values (their row terms are not stored per row).
-    unstored_terms: std::collections::HashSet<ExprId>,
     /// In the group being lowered: each carried term's value.
     carry_now: Vec<(ExprId, ir::Value)>,
     /// Scalar frame reads of the current group -> the byte offset of their splat.
@@ -350,8 +332,8 @@ pub(crate) struct Lower<'a, 'b> {
     splat_stores: Vec<(u32, ir::Inst)>,
     splats_read: std::collections::HashSet<u32>,
     /// Frame words only one side of the first unswitched condition reads (tier 1, see
-    /// `defer_frame_stores`): that condition's id and the stores left to its sides'
-    /// dispatch blocks.
+    /// [`crate::mid::spill::deferred_stores`]): that condition's id and the stores left to
+    /// its sides' dispatch blocks.
     deferred_frame: Option<(ExprId, Vec<DeferredStore>)>,
     /// A 16-byte slot that stores to planes the frame does not have go to.
     scratch: StackSlot,
@@ -373,26 +355,15 @@ pub(crate) struct Lower<'a, 'b> {
     /// Local components given SSA variables so far, in all frames (see
     /// [`Self::take_var_words`]).
     var_words: u32,
-    /// The primitive's body as shared by the JITs of its program (`body` in
-    /// [`lower_kernel`]), with its index sites proven in range at every occurrence
-    /// ([`crate::ir::range`]: indexed without clamp or error record). The analysis runs
-    /// when the first index that is not a constant is lowered: most kernels, their loops
-    /// unrolled, have none, and it was ~2% of a tier-0 compile of screen_triangle.
-    shared_body: &'a Body,
-    /// Tier 0: the pixel code is lowered *flat*, without a group's early exits (see
-    /// [`flat`]).
+    /// Tier 0, lowering the pixel part: it is lowered *flat*, without a group's early exits
+    /// (see [`crate::mid::flat`]).
     flat: bool,
-    /// Tier 0: the locals live code reads; setup assignments to others are not lowered
-    /// (see [`dead`]). `None`: every assignment is lowered.
-    setup_live: Option<Vec<bool>>,
     /// Uniform conditions of the primitive's pixel code decided for the copy of the pixel
-    /// loops being lowered (see [`unswitch`]); empty outside the pixel loops and in tier 0.
+    /// loops being lowered (see [`crate::mid::unswitch`]); empty outside the pixel loops and
+    /// in tier 0.
     unswitched: std::collections::HashMap<ExprId, bool>,
-    /// Bounds of float locals per function being lowered, computed when its first varying
-    /// float -> int or fixed conversion is lowered (see [`bounds`]).
-    local_bounds: std::collections::HashMap<FuncId, bounds::LocalBounds>,
     /// What the pixel code's guards say about float locals at the statement being lowered
-    /// (see [`bounds`]); empty outside a group body.
+    /// (see [`crate::mid::bounds`]); empty outside a group body.
     guard_facts: bounds::GuardFacts,
     /// Blocks sealed as soon as they were created (a guard's continuation, see
     /// `varying_guard_return`); `seal_blocks_from` skips them.
@@ -424,7 +395,8 @@ pub(crate) struct Lowered {
     pub outlined: bool,
 }
 
-/// Lower `func_id` for `key` into `func` (whose signature is already the kernel's).
+/// Lower the primitive of `plan` (the middle end's plan for it, `key` and the tier) into
+/// `func` (whose signature is already the kernel's).
 ///
 /// `pixels`: where tier 0 may put the pixel loops, as a function of their own (see
 /// [`outline`]; [`Lowered::outlined`] says whether it did).
@@ -438,8 +410,7 @@ pub(crate) struct Lowered {
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn lower_kernel<'b>(
     program: &Program,
-    func_id: FuncId,
-    body: &Body,
+    plan: &Plan,
     key: &VariantKey,
     layout: &ArgLayout,
     func: &'b mut ir::Function,
@@ -447,24 +418,13 @@ pub(crate) fn lower_kernel<'b>(
     pixels: Option<(&'b mut ir::Function, &'b mut cranelift_frontend::FunctionBuilderContext)>,
     linker: &'b mut dyn Linker,
     frontend: cranelift_codegen::isa::TargetFrontendConfig,
-    block_culling: bool,
     upgrade: Option<*const std::sync::atomic::AtomicUsize>,
 ) -> Res<Lowered> {
-    // `body` is `func_id`'s function, possibly rewritten by IR passes (`super::unroll`);
-    // callees and interpolators come from `program`.
-    if program.functions.get(func_id.0 as usize).is_none() {
-        return err(format!("no function {}", func_id.0));
-    }
-    if let Some(e) = &body.invalid {
-        return Err(e.clone());
-    }
-    let f: &Function = &body.function;
-    if f.kind != FuncKind::Primitive {
-        return err(format!(
-            "`{}` is an interpolator, not a primitive: it has no kernel",
-            f.name
-        ));
-    }
+    // The plan's function is the primitive's body as the middle end rewrote it (forwarded
+    // and unrolled); callees and interpolators come from `program`.
+    let f: &Function = plan.function;
+    let func_id = plan.func;
+    let block_culling = plan.tier == Tier::Optimised;
     let mut b = FunctionBuilder::new(func, fctx);
     let entry = b.create_block();
     b.append_block_params_for_function_params(entry);
@@ -528,18 +488,12 @@ pub(crate) fn lower_kernel<'b>(
         group_resets: vec![],
         vec_section: 0,
         x_range_at: 0,
-        hoists: vec![],
-        row_locals: std::collections::HashMap::new(),
+        plan,
+        copy: None,
         substitute_row_locals: false,
         row_local_values: std::collections::HashMap::new(),
-        carried: vec![],
-        affine_defs: std::collections::HashMap::new(),
-        affine_x: None,
-        affine_y: None,
         prologue_frame: None,
         carry_now: vec![],
-        unread_in_groups: std::collections::HashSet::new(),
-        unstored_terms: std::collections::HashSet::new(),
         splat_src: std::collections::HashMap::new(),
         splat_stores: vec![],
         splats_read: std::collections::HashSet::new(),
@@ -551,11 +505,8 @@ pub(crate) fn lower_kernel<'b>(
         error_guard: None,
         vn: VnTable::default(),
         var_words: 0,
-        shared_body: body,
         flat: false,
-        setup_live: None,
         unswitched: std::collections::HashMap::new(),
-        local_bounds: std::collections::HashMap::new(),
         guard_facts: bounds::GuardFacts::default(),
         sealed_early: std::collections::HashSet::new(),
         dead_blocks: std::collections::HashSet::new(),
@@ -564,7 +515,11 @@ pub(crate) fn lower_kernel<'b>(
         warnings: vec![],
         var_types,
         // Tier 0 only, and only a kernel with pixel loops or a setup worth splitting.
-        outline: outline::Outline::new(pixels.filter(|_| !block_culling), f),
+        outline: outline::Outline::new(
+            pixels.filter(|_| !block_culling),
+            f,
+            plan.setup_split.as_ref().map(|s| s.at),
+        ),
         setup_exit: None,
         func_id,
         frontend,
@@ -642,12 +597,6 @@ impl<'a, 'b> Lower<'a, 'b> {
             None,
         )?;
         self.frames.push(frame);
-        if self.tier0() {
-            let mut live = vec![false; f.locals.len()];
-            self.live_pixel_flags(&f.pixel, &mut live);
-            let removable = |s: &Stmt| self.speculable_stmts(std::slice::from_ref(s), &mut usize::MAX.clone());
-            self.setup_live = Some(dead::live_setup_locals(&f.setup, live, &removable));
-        }
         // Setup errors are deferred into a variable (see `defer_error`): the setup's early
         // exits go through `setup_exit`, which flushes it, and so does the end of the
         // setup; from there on errors are recorded in `ctx` directly and the variable is
@@ -656,7 +605,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         // (deferring there too: CLIF -11 %, NURB frame -0.6 % by instructions, but the
         // out-of-fuel blocks then store nothing to `ctx`, which `tests/jit_unroll.rs`
         // counts to see loops).
-        let setup_exit = self.tier0() && self.setup_may_fail_index(&f.setup);
+        let setup_exit = self.tier0() && self.plan.setup_may_fail_index;
         self.setup_exit = setup_exit.then(|| {
             let none = self.iconst_here(types::I32, 0);
             self.b.def_var(self.pending_error, none);
@@ -672,7 +621,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.exit = self.kernel_exit;
         }
         if !f.pixel.is_empty() {
-            self.flat = self.tier0() && flat::pixel_code_is_flattenable(self.program, f, self.key);
+            self.flat = self.pixel_plan()?.flat;
             self.pixel_passes(f, pending_return)?;
         } else if let Some(p) = pending_return {
             self.return_if(p);
@@ -681,21 +630,28 @@ impl<'a, 'b> Lower<'a, 'b> {
         Ok(())
     }
 
+    /// The plan of the pixel part (the pixel loops are lowered only when there is one).
+    fn pixel_plan(&self) -> Res<&'a PixelPlan<'a>> {
+        match &self.plan.pixel {
+            Some(p) => Ok(p),
+            None => err("no pixel part planned"),
+        }
+    }
+
+    /// The plan's row and per-run terms (none without a pixel part).
+    fn hoists(&self) -> &'a [crate::mid::hoist::Hoist<'a>] {
+        self.plan.pixel.as_ref().map_or(&[], |p| &p.hoists)
+    }
+
     /// Compiling for tier 0 (`Tier::Fast`): besides skipping block culling, the lowering
     /// then emits less CLIF and fewer blocks where that costs run time only in the one
-    /// frame tier 0 serves (each use says what it skips; the larger ones are [`flat`]
-    /// pixel code, [`dead`] setup code and [`Self::setup_stmts`]), and numbers values while
+    /// frame tier 0 serves (each use says what it skips; the larger ones are
+    /// [`crate::mid::flat`] pixel code, [`crate::mid::dead`] setup code and
+    /// [`Self::setup_stmts`]), and numbers values while
     /// lowering ([`Self::numbered`]) where tier 1 leaves that to Cranelift's e-graph. Results are
     /// bit-identical either way (`tests/jit_tiers.rs`, `tests/jit_tier0.rs`).
     fn tier0(&self) -> bool {
         !self.block_culling
-    }
-}
-
-/// Flag `l` in a per-local table.
-fn mark_local(out: &mut [bool], l: LocalId) {
-    if let Some(x) = out.get_mut(l.0 as usize) {
-        *x = true;
     }
 }
 
@@ -717,35 +673,6 @@ fn word_of(b: &mut FunctionBuilder, sc: Scalar, c: ir::Value) -> ir::Value {
     match sc {
         Scalar::Bool => b.ins().uextend(types::I32, c),
         _ => c,
-    }
-}
-
-/// Whether `index` is a constant within `ty`'s outer fixed dimension (indexing then records
-/// no error).
-fn const_index_in_range(ty: &Type, index: &Expr) -> bool {
-    !ty.per_seq
-        && ty
-            .dims
-            .first()
-            .is_some_and(|&n| const_int(index).is_some_and(|k| k >= 0 && k < n as i64))
-}
-
-/// Whether evaluating `e` has no effect but its value (no error record, no control flow), so
-/// it may run when the language would not evaluate it (tier 0's if-conversion).
-fn speculable_expr(e: &Expr) -> bool {
-    match &e.kind {
-        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => true,
-        ExprKind::Index { base, index, .. } => const_index_in_range(&base.ty, index) && speculable_expr(base),
-        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => speculable_expr(expr),
-        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
-            speculable_expr(lhs) && speculable_expr(rhs)
-        }
-        ExprKind::Select { cond, then, otherwise } => {
-            speculable_expr(cond) && speculable_expr(then) && speculable_expr(otherwise)
-        }
-        ExprKind::Builtin { args, .. } => args.iter().all(speculable_expr),
-        ExprKind::List(items) => items.iter().all(speculable_expr),
-        ExprKind::Splat(item) => speculable_expr(item),
     }
 }
 
@@ -789,137 +716,6 @@ fn all_zero_bits(e: &Expr) -> bool {
         // Every conversion (to interpolation data too: a broadcast) keeps zero bits zero.
         ExprKind::Convert(inner) => all_zero_bits(inner),
         _ => false,
-    }
-}
-
-fn const_int(e: &Expr) -> Option<i64> {
-    match &e.kind {
-        ExprKind::Const(ConstValue::Int(i)) => Some(*i as i64),
-        ExprKind::Unary { op: UnaryOp::Neg, expr } => const_int(expr).map(|v| -v),
-        _ => None,
-    }
-}
-
-/// An index site: the static length of the array it indexes (`None`: a sequence, or not
-/// an array), its index and its site.
-type IndexSite<'a> = (Option<u32>, &'a Expr, SiteId);
-
-/// The static length [`Lower::index_access`] checks an index of a `ty` value against.
-fn static_len_of(ty: &Type) -> Option<u32> {
-    if ty.per_seq {
-        None
-    } else {
-        ty.dims.first().copied()
-    }
-}
-
-/// Every index site of `stmts` (setup statements of `f`): in places (`a[i] = ...`, the
-/// local's type indexed one dimension per site) and in expressions.
-fn collect_setup_index_sites<'a>(f: &'a Function, stmts: &'a [Stmt], out: &mut Vec<IndexSite<'a>>) {
-    fn expr<'a>(e: &'a Expr, out: &mut Vec<IndexSite<'a>>) {
-        if let ExprKind::Index { base, index, site } = &e.kind {
-            out.push((static_len_of(&base.ty), index, *site));
-        }
-        e.for_each_child(|c| expr(c, out));
-    }
-    for s in stmts {
-        match &s.kind {
-            StmtKind::Assign { place, value } => {
-                if let Some(local) = f.locals.get(place.local.0 as usize) {
-                    let mut ty = local.ty.clone();
-                    for (index, site) in &place.indices {
-                        out.push((static_len_of(&ty), index, *site));
-                        expr(index, out);
-                        ty = ty.element();
-                    }
-                }
-                expr(value, out);
-            }
-            StmtKind::If { cond, then, otherwise } => {
-                expr(cond, out);
-                collect_setup_index_sites(f, then, out);
-                collect_setup_index_sites(f, otherwise, out);
-            }
-            StmtKind::Loop { cond, body, step, .. } => {
-                if let Some(c) = cond {
-                    expr(c, out);
-                }
-                collect_setup_index_sites(f, body, out);
-                collect_setup_index_sites(f, step, out);
-            }
-            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| collect_setup_index_sites(f, &a.body, out)),
-            StmtKind::InterpolatorReturn(Some(e)) => expr(e, out),
-            StmtKind::Bound(args) => args.iter().for_each(|a| expr(a, out)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr(a, out)),
-            StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
-        }
-    }
-}
-
-/// Marks locals indexed with a non-constant index: they live in stack slots.
-fn mark_dynamic_stmt(s: &Stmt, dynamic: &mut [bool]) {
-    match &s.kind {
-        StmtKind::Assign { place, value } => {
-            for (i, _) in &place.indices {
-                if const_int(i).is_none() {
-                    if let Some(d) = dynamic.get_mut(place.local.0 as usize) {
-                        *d = true;
-                    }
-                }
-                mark_dynamic_expr(i, dynamic);
-            }
-            mark_dynamic_expr(value, dynamic);
-        }
-        StmtKind::If { cond, then, otherwise } => {
-            mark_dynamic_expr(cond, dynamic);
-            then.iter().chain(otherwise).for_each(|s| mark_dynamic_stmt(s, dynamic));
-        }
-        StmtKind::Loop { cond, body, step, .. } => {
-            if let Some(c) = cond {
-                mark_dynamic_expr(c, dynamic);
-            }
-            body.iter().chain(step).for_each(|s| mark_dynamic_stmt(s, dynamic));
-        }
-        StmtKind::Interpolation { arms } => {
-            arms.iter()
-                .flat_map(|a| a.body.iter())
-                .for_each(|s| mark_dynamic_stmt(s, dynamic));
-        }
-        StmtKind::InterpolatorReturn(Some(e)) => mark_dynamic_expr(e, dynamic),
-        StmtKind::Bound(es) => es.iter().for_each(|e| mark_dynamic_expr(e, dynamic)),
-        StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| mark_dynamic_expr(e, dynamic)),
-        StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::InterpolatorReturn(None) => {}
-    }
-}
-
-fn mark_dynamic_expr(e: &Expr, dynamic: &mut [bool]) {
-    if let ExprKind::Index { base, index, .. } = &e.kind {
-        if const_int(index).is_none() {
-            if let Some(d) = root_local(base).and_then(|l| dynamic.get_mut(l.0 as usize)) {
-                *d = true;
-            }
-        }
-    }
-    e.for_each_child(|c| mark_dynamic_expr(c, dynamic));
-}
-
-fn root_local(e: &Expr) -> Option<LocalId> {
-    match &e.kind {
-        ExprKind::Local(l) => Some(*l),
-        ExprKind::Index { base, .. } => root_local(base),
-        _ => None,
-    }
-}
-
-/// The value of a condition fixed by the variant key: `clipping()` or `!clipping()`.
-fn key_constant(cond: &Expr, key: &VariantKey) -> Option<bool> {
-    match &cond.kind {
-        ExprKind::ClipFlag => Some(!key.trivial_accept),
-        ExprKind::Unary {
-            op: crate::ir::UnaryOp::Not,
-            expr,
-        } => key_constant(expr, key).map(|v| !v),
-        _ => None,
     }
 }
 

@@ -40,8 +40,11 @@
 //! otherwise), so every entry point a JIT hands out stays callable for the life of the
 //! process, beyond the `KernelSource` contract; the worker's too, after it has ended.
 //!
-//! Before lowering, [`unroll`] unrolls uniform loops with a compile-time trip count
-//! ([`JitOptions::unroll_loops`]).
+//! Before lowering, the middle end ([`crate::mid`]) makes each function's body once
+//! ([`crate::mid::body`]: whole-array copies forwarded, uniform loops with a compile-time
+//! trip count unrolled when [`JitOptions::unroll_loops`]), kept per program in
+//! [`SHARED_BODIES`], and plans each kernel ([`crate::mid::plan`]: one plan per function,
+//! variant key and tier), which the lowering consults instead of running analyses itself.
 //!
 //! Compiles reuse per-thread Cranelift contexts, and each kernel's cost is recorded in wall
 //! and thread CPU time ([`Jit::compile_cost`], [`CompileCost`]); [`Jit::clif`] and
@@ -58,7 +61,6 @@ mod builtin;
 mod fixed;
 pub mod libm;
 mod lower;
-mod unroll;
 mod value;
 
 use std::cell::RefCell;
@@ -77,7 +79,8 @@ use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, Linkage, Module};
 
 use crate::abi::{ArgLayout, Kernel, KernelFn, TierUpHold, TierUpWatch, VariantKey};
-use crate::ir::{FuncId, Function, Program};
+use crate::ir::{FuncId, Program};
+use crate::mid::Body;
 use libm::LibmFn;
 use lower::{Linker, Res};
 
@@ -153,21 +156,14 @@ type CacheKey = (FuncId, VariantKey);
 /// leaked on purpose, like the code that reads them (compiled code is never freed).
 type UpgradeWord = (CacheKey, &'static AtomicUsize);
 
-/// How much work the code generator spends on a kernel.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Tier {
-    /// Tier 0: regalloc2's single-pass register allocator, `opt_level=none`, no block-level culling. Compiles
-    /// several times faster; the kernel runs slower (mostly spills).
-    Fast,
-    /// Tier 1: the backtracking register allocator and block-level culling.
-    Optimised,
-}
+pub use crate::mid::Tier;
 
 /// How a [`Jit`] compiles.
 #[derive(Clone, Debug)]
 pub struct JitOptions {
     pub tier: Tier,
-    /// Unroll uniform loops with a compile-time trip count before lowering (see [`unroll`]).
+    /// Unroll uniform loops with a compile-time trip count before lowering (see
+    /// [`crate::mid::unroll`]).
     pub unroll_loops: bool,
 }
 
@@ -180,28 +176,11 @@ impl Default for JitOptions {
     }
 }
 
-/// Kernel bodies as lowered, by function: each after [`unroll::unroll_function`] (when
-/// unrolling), made on first use.
+/// Kernel bodies as lowered ([`crate::mid::body`]: forwarded, then unrolled when
+/// unrolling), by function, made on first use. A body does not depend on the variant key
+/// or the tier, so every variant, both tiers and every JIT sharing the body reuse it and
+/// the analyses it keeps.
 type Bodies = Arc<Mutex<HashMap<FuncId, Arc<Body>>>>;
-
-/// One kernel body as lowered, with what the analyses of it found, each computed by the
-/// first compile that needs it: a body does not depend on the variant key or the tier, so
-/// every variant, both tiers and every JIT sharing the body reuse the result.
-struct Body {
-    function: Function,
-    /// Test and debug builds: the IR rule the passes broke (see [`crate::ir::valid`]), as
-    /// the internal compiler error every kernel of this body reports.
-    invalid: Option<JitError>,
-    /// Index sites proven in range ([`crate::ir::range`]); ~20 % of a NURB tier-0 compile.
-    proven_sites: std::sync::OnceLock<HashSet<crate::ir::SiteId>>,
-}
-
-impl Body {
-    fn proven_sites(&self) -> &HashSet<crate::ir::SiteId> {
-        self.proven_sites
-            .get_or_init(|| crate::ir::range::proven_index_sites(&self.function))
-    }
-}
 
 /// `func`'s body as lowered, from `bodies` (made and kept there on first use).
 /// Made outside the lock: a batch's functions are lowered in parallel (`batch`), and the
@@ -211,29 +190,7 @@ fn body_of(bodies: &Bodies, program: &Program, unroll_loops: bool, func: FuncId)
     if let Some(body) = lock().get(&func) {
         return body.clone();
     }
-    // Whole-array copies forwarded first (`crate::ir::forward`), then unrolled; each
-    // result validated in test and debug builds.
-    let check = |pass: &str, f: &Function| {
-        let e = crate::ir::valid::validate_function(program, f).err()?;
-        Some(JitError {
-            message: format!("internal compiler error: IR invalid after {pass}: {e}"),
-        })
-    };
-    let f = crate::ir::forward::forward_copies(program.func(func));
-    let mut invalid = if cfg!(debug_assertions) {
-        check("forward", &f)
-    } else {
-        None
-    };
-    let function = if unroll_loops { unroll::unroll_function(f) } else { f };
-    if cfg!(debug_assertions) && unroll_loops && invalid.is_none() {
-        invalid = check("unroll", &function);
-    }
-    let body = Arc::new(Body {
-        function,
-        invalid,
-        proven_sites: Default::default(),
-    });
+    let body = Arc::new(crate::mid::body(program, func, unroll_loops));
     // Another thread may have made it meanwhile: the first one stays.
     lock().entry(func).or_insert(body).clone()
 }
@@ -993,10 +950,10 @@ impl Jit {
         let mut pfctx = FunctionBuilderContext::new();
         let mut linker = PrintLinker { isa: &self.isa };
         let body = self.body(func);
+        let plan = crate::mid::plan(&self.program, func, &body, key, self.options.tier)?;
         let lowered = lower::lower_kernel(
             &self.program,
-            func,
-            &body,
+            &plan,
             key,
             &layout,
             &mut f,
@@ -1004,7 +961,6 @@ impl Jit {
             Some((&mut pf, &mut pfctx)),
             &mut linker,
             self.isa.frontend_config(),
-            self.options.tier == Tier::Optimised,
             // The shape a tiered JIT compiles, with a word no worker ever fills.
             self.tier_up.as_ref().map(|_| {
                 static PRINTED_ONLY: AtomicUsize = AtomicUsize::new(0);

@@ -1,5 +1,5 @@
 //! Uniform stack arrays cleared by a loop and without an entry clear (`Lower::zero_stack_bytes`,
-//! `src/jit/lower/init.rs`), and dead code after `break`/`return` ending in a trap
+//! `src/mid/init.rs`), and dead code after `break`/`return` ending in a trap
 //! (`Lower::jump_live`): the frame must be what the language says in both tiers.
 //!
 //! `cleared` declares `float a[103]` (412 bytes: a clear loop of 64-byte trips, one 16-byte

@@ -1,9 +1,9 @@
-//! Block-level culling (src/jit/lower/block.rs): a kernel whose pixel part opens with
-//! coverage tests runs them per block by interval arithmetic, skipping blocks no lane
-//! survives and dropping the tests in blocks every lane passes. Whatever the blocks decide,
-//! every pixel must come out exactly as the per-pixel semantics say: these tests render
-//! tiles larger than one block (with a partial last block row and column and a pass
-//! rectangle that starts mid-group) and compare every pixel with an f32 / wrapping-i32
+//! Block-level culling (src/mid/block.rs, src/jit/lower/block.rs): a kernel whose pixel
+//! part opens with coverage tests runs them per block by interval arithmetic, skipping
+//! blocks no lane survives and dropping the tests in blocks every lane passes. Whatever the
+//! blocks decide, every pixel must come out exactly as the per-pixel semantics say: these
+//! tests render tiles larger than one block (with a partial last block row and column and a
+//! pass rectangle that starts mid-group) and compare every pixel with an f32 / wrapping-i32
 //! reference evaluated in Rust in the same operation order.
 
 #![allow(clippy::needless_range_loop)]

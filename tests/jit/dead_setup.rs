@@ -1,4 +1,4 @@
-//! Tier 0 does not lower setup assignments nothing live reads (src/jit/lower/dead.rs). Its
+//! Tier 0 does not lower setup assignments nothing live reads (src/mid/dead.rs). Its
 //! walk goes last statement to first and stops after one round unless an assignment it
 //! skipped as dead turned out to be read above it: in a loop kept as a loop, a value
 //! assigned at the bottom of the body is read at the top of the next trip, so those

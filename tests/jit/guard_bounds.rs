@@ -1,4 +1,4 @@
-//! Bounds refined by guards (src/jit/lower/bounds.rs, `GuardFacts`): after `if (c) return;`
+//! Bounds refined by guards (src/mid/bounds.rs, `GuardFacts`): after `if (c) return;`
 //! in pixel code every lane still executing has `c` false, so a float local compared with
 //! constants there (`!(z >= 0 && z <= 1)`) is known non-NaN and in range until it is
 //! assigned again, and its conversion to `fixed<32,32>` drops the fix-ups for NaN and

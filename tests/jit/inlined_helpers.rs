@@ -1,4 +1,4 @@
-//! Inlined helper calls (src/jit/unroll.rs `one_trip`): the checker inlines every helper call
+//! Inlined helper calls (src/mid/unroll.rs `one_trip`): the checker inlines every helper call
 //! as a one-trip loop whose `return` is a `break`; a helper whose only `return` is its last
 //! statement is lowered as straight-line code (no loop, no fuel check). These tests pin down
 //! that doing so changes no pixel and no run-time error: helpers in setup and pixel code,

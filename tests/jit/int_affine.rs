@@ -1,14 +1,14 @@
 //! Int expressions affine in the pixel column, carried along the row by tier 1
-//! (src/jit/lower/affine.rs), against a per-pixel reference computed here with Rust's
-//! wrapping integer operations and f32 conversions, on every tier (tier 0 evaluates every
-//! expression where it stands). Cases: the exact conversions `int(X * c)` for c = 16, 2, 3,
-//! 512, 4096 and negative c, conversions that are not carried (c = 257, 0.5, a float local
-//! holding X), products by uniform ints near i32::MAX (wrapping coefficients), a local
-//! reassigned later, X under a varying `if`, a local read by itself, a local read both in a
-//! carried expression and in a loop (its assignment must stay), and screen triangles'
-//! exact edge tests with 0, 4 and 16 shading parameters against the 64-bit reference
-//! rasterizer. Images have odd sizes and tiles of several sizes, so groups are ragged and
-//! rows start at several offsets.
+//! (src/mid/affine.rs, src/jit/lower/carry.rs), against a per-pixel reference computed here
+//! with Rust's wrapping integer operations and f32 conversions, on every tier (tier 0
+//! evaluates every expression where it stands). Cases: the exact conversions `int(X * c)`
+//! for c = 16, 2, 3, 512, 4096 and negative c, conversions that are not carried (c = 257,
+//! 0.5, a float local holding X), products by uniform ints near i32::MAX (wrapping
+//! coefficients), a local reassigned later, X under a varying `if`, a local read by itself,
+//! a local read both in a carried expression and in a loop (its assignment must stay), and
+//! screen triangles' exact edge tests with 0, 4 and 16 shading parameters against the
+//! 64-bit reference rasterizer. Images have odd sizes and tiles of several sizes, so groups
+//! are ragged and rows start at several offsets.
 
 use crate::support;
 

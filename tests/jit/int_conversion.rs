@@ -1,5 +1,5 @@
 //! Float -> int and float -> fixed conversions in pixel code whose operand is proven finite
-//! and in range (src/jit/lower/bounds.rs) lower to one `cvttps2dq` without the saturation
+//! and in range (src/mid/bounds.rs) lower to one `cvttps2dq` without the saturation
 //! fix-ups (`fixed::convert_bounded`). These tests pin down that the proof is only used
 //! where it holds: proven conversions give the values the saturating form gives, and
 //! conversions of values that can be out of range or NaN in pixel code (a huge uniform

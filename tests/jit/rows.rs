@@ -1,4 +1,4 @@
-//! The pixel loops' row structure (src/jit/lower.rs, src/jit/lower/hoist.rs) on a primitive
+//! The pixel loops' row structure (src/jit/lower/loops.rs, src/mid/hoist.rs) on a primitive
 //! that is not screen_triangle: Y-only terms hoisted per row (a uniform frame local times Y,
 //! interpolation data times Y, an int conversion of Y), uniform operations feeding varying
 //! ones (evaluated per row, not per group), X carried from group to group,

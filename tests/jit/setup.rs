@@ -1,9 +1,9 @@
 //! The JIT's per-primitive setup and per-draw block walk (src/jit/lower.rs `body`,
-//! `lower_bound`; src/jit/lower/block.rs): a bound run ends right after `bound` only when
-//! nothing after it can widen the bound or record an error; block facts take one side of a
-//! uniform `if` of the guard prefix; a pass span evaluates only the row terms it reads.
-//! Every test renders user primitives (source below) through the runtime and compares the
-//! pixels written, or the diagnostics, with what the source says.
+//! `lower_bound`; src/mid/block.rs, src/jit/lower/block.rs): a bound run ends right after
+//! `bound` only when nothing after it can widen the bound or record an error; block facts
+//! take one side of a uniform `if` of the guard prefix; a pass span evaluates only the row
+//! terms it reads. Every test renders user primitives (source below) through the runtime
+//! and compares the pixels written, or the diagnostics, with what the source says.
 
 use crate::support;
 use support::*;

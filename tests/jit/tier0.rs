@@ -50,7 +50,7 @@ primitive branchy(
 }
 "#;
 
-/// Pixel code tier 0 lowers *flat* (src/jit/lower/flat.rs: no early exit when a group's
+/// Pixel code tier 0 lowers *flat* (src/mid/flat.rs: no early exit when a group's
 /// last lane retires, uniform `if`s run as masked ones): a varying guard, a uniform `if`
 /// with a guard and a uniform-indexed read that may fail on one side and a varying `if` on
 /// the other. The failing read must report an error exactly when tier 1 runs it for some
@@ -101,7 +101,7 @@ primitive loopy(
 }
 "#;
 
-/// Setup code tier 0 does not lower (src/jit/lower/dead.rs) next to code it must keep: a
+/// Setup code tier 0 does not lower (src/mid/dead.rs) next to code it must keep: a
 /// chain of values nothing reads, and a store into an array nothing reads whose index may
 /// fail (its run-time error is an effect). Also a guard tier 0 defers past speculative
 /// setup code (`Lower::setup_stmts`).

@@ -1,4 +1,4 @@
-//! Loop unrolling before lowering (src/jit/unroll.rs): a primitive with constant-trip loops
+//! Loop unrolling before lowering (src/mid/unroll.rs): a primitive with constant-trip loops
 //! (unrolled) and loops whose trip count is a run-time value (kept) must render the same
 //! frame and report the same run-time errors (out-of-range index, out of fuel, at the same
 //! source sites) with unrolling on and off, and unrolling must actually remove the loops'

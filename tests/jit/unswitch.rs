@@ -1,4 +1,4 @@
-//! Unswitching of the pixel loops (src/jit/lower/unswitch.rs): tier 1 decides a uniform
+//! Unswitching of the pixel loops (src/mid/unswitch.rs): tier 1 decides a uniform
 //! `if` of the pixel code once per draw and lowers the pixel loops once per side. Every
 //! case renders with both tiers (tier 0 never unswitches: it is the reference lowering)
 //! and compares the frames bit for bit, and checks each pixel against a reference

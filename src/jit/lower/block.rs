@@ -4,13 +4,11 @@
 //! rasterizers do it, but derived from the pixel-centric source.
 //!
 //! Two halves:
-//! - [`prefix`] (compile time) finds the *guard prefix* of a primitive's pixel part: the
-//!   leading statements that are assignments of pure expressions to varying scalar locals,
-//!   `if (c) return;` guards on varying conditions, and `if` on uniform conditions whose
-//!   branches are themselves such statements. It stops at the first statement with an effect
-//!   a skipped block would lose (a Z or G-buffer write, a loop that spends fuel, an index
-//!   that may record an error, ...). Nothing in the prefix has an effect, so a block where
-//!   every lane leaves at a guard does nothing at all.
+//! - [`crate::mid::block::prefix`] (compile time, in the plan) finds the *guard prefix* of a
+//!   primitive's pixel part: leading assignments of pure expressions to varying scalar
+//!   locals, `if (c) return;` guards on varying conditions, and uniform `if`s of such
+//!   statements; nothing in it has an effect, so a block where every lane leaves at a guard
+//!   does nothing at all.
 //! - [`Lower::block_facts`] (run time, once per block) re-evaluates the prefix over the
 //!   block's pixel rectangle with interval arithmetic emitted as scalar CLIF, and yields two
 //!   flags: `dead` (some guard fires for every lane that reaches it) and `pass` (no
@@ -19,6 +17,8 @@
 //!   ones, and those whose only varying input is Y) into an [`AbsCache`]; per block only
 //!   the X-dependent rest is computed. (Measured: recomputing everything per block was 1020
 //!   instructions per block for screen_triangle, a third of a fill frame's kernel work.)
+//!   Which guards are decidable ([`BlockFacts::decidable`]) comes out of this evaluation:
+//!   a guard is decidable when the evaluator models its condition.
 //!
 //! Soundness: every float operation used (+, -, *, /, conversions, abs/min/max/floor/ceil)
 //! is monotone in each operand once rounded (round-to-nearest is monotone), so evaluating
@@ -34,157 +34,9 @@ use std::collections::{HashMap, HashSet};
 use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, InstBuilder};
 
 use super::{elem_scalar, Lower, Res};
-use crate::ir::{
-    BinOp, Builtin, ConstValue, Elem, Expr, ExprId, ExprKind, Function, LocalId, Scalar, Stmt, StmtKind, UnaryOp,
-};
+use crate::ir::{BinOp, Builtin, Elem, Expr, ExprId, ExprKind, Function, LocalId, Scalar, UnaryOp};
 use crate::jit::fixed;
-
-/// One statement of the guard prefix.
-pub(super) enum PStmt<'a> {
-    /// `local = value` for a varying scalar local: kept in both variants.
-    Assign {
-        stmt: &'a Stmt,
-        local: LocalId,
-        value: &'a Expr,
-    },
-    /// `if (cond) return;` with a varying `cond`; `id` numbers guards in pre-order.
-    Guard { stmt: &'a Stmt, cond: &'a Expr, id: usize },
-    /// `if (cond) {..} else {..}` on a uniform `cond`, both sides prefix statements.
-    UniformIf {
-        cond: &'a Expr,
-        then: Vec<PStmt<'a>>,
-        otherwise: Vec<PStmt<'a>>,
-    },
-    /// `return` under uniform control: every lane that gets here retires.
-    Kill(&'a Stmt),
-}
-
-/// The guard prefix of a primitive's pixel part.
-pub(super) struct Prefix<'a> {
-    pub stmts: Vec<PStmt<'a>>,
-    /// How many top-level pixel statements the prefix covers.
-    pub len: usize,
-    /// Number of guards (ids 0..guards).
-    pub guards: usize,
-}
-
-/// Find the guard prefix of `f`'s pixel statements (see the module comment). A uniform `if`
-/// whose condition `decided` fixes (see [`super::unswitch`]) contributes the statements of
-/// the side it takes, inline.
-pub(super) fn prefix<'a>(f: &'a Function, decided: &HashMap<ExprId, bool>) -> Prefix<'a> {
-    let mut stmts = vec![];
-    let mut guards = 0;
-    let mut len = 0;
-    for s in &f.pixel {
-        let mut n = guards;
-        let mut out = vec![];
-        if !classify_into(f, s, &mut n, decided, &mut out) {
-            break;
-        }
-        guards = n;
-        stmts.append(&mut out);
-        len += 1;
-    }
-    Prefix { len, stmts, guards }
-}
-
-/// Append `s`'s prefix statements to `out` (several when `s` is a decided `if`); false
-/// when `s` is not a prefix statement.
-fn classify_into<'a>(
-    f: &'a Function,
-    s: &'a Stmt,
-    guards: &mut usize,
-    decided: &HashMap<ExprId, bool>,
-    out: &mut Vec<PStmt<'a>>,
-) -> bool {
-    if let StmtKind::If { cond, then, otherwise } = &s.kind {
-        if let Some(&on) = decided.get(&cond.id) {
-            let taken = if on { then } else { otherwise };
-            return taken.iter().all(|t| classify_into(f, t, guards, decided, out));
-        }
-    }
-    match classify(f, s, guards, decided) {
-        Some(p) => {
-            out.push(p);
-            true
-        }
-        None => false,
-    }
-}
-
-fn classify<'a>(
-    f: &'a Function,
-    s: &'a Stmt,
-    guards: &mut usize,
-    decided: &HashMap<ExprId, bool>,
-) -> Option<PStmt<'a>> {
-    match &s.kind {
-        StmtKind::Assign { place, value } => {
-            let local = f.locals.get(place.local.0 as usize)?;
-            let is_param = f.params.iter().any(|p| p.local == place.local);
-            let scalar_ok = matches!(local.ty.elem, Elem::Scalar(_)) && local.ty.dims.is_empty() && !local.ty.per_seq;
-            (place.indices.is_empty() && !is_param && scalar_ok && local.var.is_varying() && pure(value)).then_some(
-                PStmt::Assign {
-                    stmt: s,
-                    local: place.local,
-                    value,
-                },
-            )
-        }
-        StmtKind::If { cond, then, otherwise } => {
-            if !pure(cond) {
-                return None;
-            }
-            if cond.var.is_varying() {
-                let is_guard = otherwise.is_empty() && then.len() == 1 && matches!(then[0].kind, StmtKind::Return);
-                if !is_guard {
-                    return None;
-                }
-                let id = *guards;
-                *guards += 1;
-                return Some(PStmt::Guard { stmt: s, cond, id });
-            }
-            let mut then_p = vec![];
-            let mut otherwise_p = vec![];
-            let ok = then.iter().all(|t| classify_into(f, t, guards, decided, &mut then_p))
-                && otherwise
-                    .iter()
-                    .all(|t| classify_into(f, t, guards, decided, &mut otherwise_p));
-            ok.then_some(PStmt::UniformIf {
-                cond,
-                then: then_p,
-                otherwise: otherwise_p,
-            })
-        }
-        StmtKind::Return => Some(PStmt::Kill(s)),
-        _ => None,
-    }
-}
-
-/// No effect when evaluated: no index that may be out of range (which records an error).
-pub(super) fn pure(e: &Expr) -> bool {
-    match &e.kind {
-        ExprKind::Index { base, index, .. } => {
-            let in_range = match (&index.kind, base.ty.per_seq, base.ty.dims.first()) {
-                (ExprKind::Const(ConstValue::Int(k)), false, Some(&len)) => *k >= 0 && (*k as i64) < len as i64,
-                _ => false,
-            };
-            in_range && pure(base)
-        }
-        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) | ExprKind::Splat(expr) => pure(expr),
-        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => pure(lhs) && pure(rhs),
-        ExprKind::Select { cond, then, otherwise } => pure(cond) && pure(then) && pure(otherwise),
-        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().all(pure),
-        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => true,
-    }
-}
-
-/// Locals assigned anywhere in `stmts` (their values change between pixel groups).
-pub(super) fn assigned_locals(stmts: &[Stmt], out: &mut HashSet<LocalId>) {
-    crate::ir::for_each_assign(stmts, &mut |place, _| {
-        out.insert(place.local);
-    });
-}
+use crate::mid::block::{no_effect_in_pass, PStmt, Prefix};
 
 fn reads_any(e: &Expr, set: &HashSet<LocalId>) -> bool {
     e.reads_any(&|l| set.contains(&l))
@@ -233,12 +85,12 @@ pub(super) struct AbsCache {
 
 /// What the interval evaluation knows while it walks the prefix.
 #[derive(Clone)]
-pub(super) struct BlockEnv {
+pub(super) struct BlockEnv<'a> {
     /// Values of the varying locals the prefix assigned so far; `None`: not computable at
     /// this stage (it depends on X, or on Y before [`Stage::Row`]).
     locals: HashMap<LocalId, Option<Abs>>,
     /// Locals assigned anywhere in the pixel part: their uniform value is not the block's.
-    pixel_assigned: std::rc::Rc<HashSet<LocalId>>,
+    pixel_assigned: &'a HashSet<LocalId>,
     /// The pixel-centre ranges of the block, when the stage knows them.
     x: Option<Abs>,
     y: Option<Abs>,
@@ -271,9 +123,8 @@ impl<'a> Lower<'a, '_> {
         stage: Stage,
         x: Option<[ir::Value; 2]>,
         y: Option<[ir::Value; 2]>,
-    ) -> BlockEnv {
-        let mut pixel_assigned = HashSet::new();
-        assigned_locals(&f.pixel, &mut pixel_assigned);
+    ) -> Res<BlockEnv<'a>> {
+        let pixel_assigned = &self.pixel_plan()?.assigned;
         let role = |r| f.params.iter().find(|q| q.role == r).map(|q| q.local);
         let x_local = role(crate::ir::ParamRole::X).filter(|l| elem_scalar(&f.local(*l).ty) == Scalar::Float);
         let y_local = role(crate::ir::ParamRole::Y).filter(|l| elem_scalar(&f.local(*l).ty) == Scalar::Float);
@@ -284,21 +135,21 @@ impl<'a> Lower<'a, '_> {
             })
         };
         let (x, y) = (range(x), range(y));
-        BlockEnv {
+        Ok(BlockEnv {
             locals: HashMap::new(),
-            pixel_assigned: std::rc::Rc::new(pixel_assigned),
+            pixel_assigned,
             x,
             y,
             x_local,
             y_local,
             stage,
-        }
+        })
     }
 
     /// Once per block row (pixel centres y in [y_lo, y_hi]): the prefix's subexpressions
     /// whose only varying input is Y, and its uniform ones.
     pub(super) fn block_cache_row(&mut self, f: &'a Function, p: &Prefix<'a>, y: [ir::Value; 2]) -> Res<AbsCache> {
-        let mut env = self.block_env(f, Stage::Row, None, Some(y));
+        let mut env = self.block_env(f, Stage::Row, None, Some(y))?;
         let mut cache = AbsCache::default();
         let mut flags = Flags { dead: None, pass: None };
         let mut decidable = vec![false; p.guards];
@@ -317,7 +168,7 @@ impl<'a> Lower<'a, '_> {
         x: [ir::Value; 2],
         y: [ir::Value; 2],
     ) -> Res<BlockFacts> {
-        let mut env = self.block_env(f, Stage::Block, Some(x), Some(y));
+        let mut env = self.block_env(f, Stage::Block, Some(x), Some(y))?;
         let mut cache = row.clone();
         let mut flags = Flags { dead: None, pass: None };
         let mut decidable = vec![false; p.guards];
@@ -336,7 +187,7 @@ impl<'a> Lower<'a, '_> {
     fn abs_stmts(
         &mut self,
         stmts: &[PStmt<'a>],
-        env: &mut BlockEnv,
+        env: &mut BlockEnv<'a>,
         cache: &mut AbsCache,
         flags: &mut Flags,
         decidable: &mut [bool],
@@ -377,7 +228,7 @@ impl<'a> Lower<'a, '_> {
                     // (its value is the one the previous group left); others once, at
                     // the row stage. Before the block stage such a condition is not
                     // known, and neither are the locals its sides assign.
-                    let cacheable = !reads_any(cond, &env.pixel_assigned);
+                    let cacheable = !reads_any(cond, env.pixel_assigned);
                     let c = match cache.conds.get(&cond.id) {
                         Some(&c) => Some(c),
                         None if cacheable || block => {
@@ -435,7 +286,7 @@ impl<'a> Lower<'a, '_> {
         c: ir::Value,
         then: &[PStmt<'a>],
         otherwise: &[PStmt<'a>],
-        env: &mut BlockEnv,
+        env: &mut BlockEnv<'a>,
         cache: &mut AbsCache,
         flags: &mut Flags,
         decidable: &mut [bool],
@@ -684,7 +535,7 @@ impl<'a> Lower<'a, '_> {
 
     /// The abstract value of `e`, or `None` when it needs a range a later stage has (X, or
     /// Y before [`Stage::Row`]). Every value computed is cached, so a later stage reuses it.
-    fn abs_expr(&mut self, e: &'a Expr, env: &BlockEnv, cache: &mut AbsCache) -> Res<Option<Abs>> {
+    fn abs_expr(&mut self, e: &'a Expr, env: &BlockEnv<'a>, cache: &mut AbsCache) -> Res<Option<Abs>> {
         if let Some(v) = cache.values.get(&e.id) {
             return Ok(Some(v.clone()));
         }
@@ -695,7 +546,7 @@ impl<'a> Lower<'a, '_> {
         Ok(v)
     }
 
-    fn abs_expr_uncached(&mut self, e: &'a Expr, env: &BlockEnv, cache: &mut AbsCache) -> Res<Option<Abs>> {
+    fn abs_expr_uncached(&mut self, e: &'a Expr, env: &BlockEnv<'a>, cache: &mut AbsCache) -> Res<Option<Abs>> {
         let sc = elem_scalar(&e.ty);
         let scalar_shape = e.ty.dims.is_empty() && !e.ty.per_seq && matches!(e.ty.elem, Elem::Scalar(_));
         if !scalar_shape {
@@ -703,7 +554,7 @@ impl<'a> Lower<'a, '_> {
         }
         // A uniform value is one point. (One reading a local the pixel code assigns changes
         // from group to group: it is evaluated structurally below, its leaves unknown.)
-        if !e.var.is_varying() && !reads_any(e, &env.pixel_assigned) && !matches!(sc, Scalar::Fixed(_)) {
+        if !e.var.is_varying() && !reads_any(e, env.pixel_assigned) && !matches!(sc, Scalar::Fixed(_)) {
             let v = self.eval_uniform(e)?;
             return Ok(Some(self.abs_point(v.scalar, v.comps[0])));
         }
@@ -989,7 +840,7 @@ impl<'a> Lower<'a, '_> {
     /// The pixel statements of the *pass* variant: the prefix with its decidable guards
     /// dropped (the block facts proved they fire for no lane), then the rest as written.
     /// `live` holds the locals the pass variant reads after the prefix (see
-    /// [`pass_live_locals`]).
+    /// [`crate::mid::unswitch::LoopsCopy::rest_live`]).
     pub(super) fn prefix_without_guards(
         &mut self,
         all: &[PStmt<'a>],
@@ -1039,154 +890,6 @@ impl<'a> Lower<'a, '_> {
         }
         Ok(())
     }
-}
-
-/// The expressions the pass variant lowers: what [`Lower::prefix_without_guards`]
-/// emits, then `rest` (the pixel statements after the prefix). The row prologue of a pass
-/// span evaluates only the hoisted row terms among them: the Y terms of dropped guards
-/// (screen_triangle's `int(Y * 16) - int(oy * 16)` and float edge terms) cost every pixel
-/// row of a span for nothing.
-pub(super) fn pass_exprs(
-    all: &[PStmt<'_>],
-    rest: &[Stmt],
-    decidable: &[bool],
-    live: &HashSet<LocalId>,
-    decided: &HashMap<ExprId, bool>,
-) -> HashSet<ExprId> {
-    fn prefix(
-        all: &[PStmt<'_>],
-        stmts: &[PStmt<'_>],
-        decidable: &[bool],
-        live: &HashSet<LocalId>,
-        out: &mut HashSet<ExprId>,
-    ) {
-        for s in stmts {
-            match s {
-                PStmt::Assign { value, .. } => expr_keys(value, out),
-                PStmt::Guard { cond, id, .. } => {
-                    if !decidable[*id] {
-                        expr_keys(cond, out);
-                    }
-                }
-                PStmt::UniformIf { cond, then, otherwise } => {
-                    if !no_effect_in_pass(all, s, decidable, live) {
-                        expr_keys(cond, out);
-                        prefix(all, then, decidable, live, out);
-                        prefix(all, otherwise, decidable, live, out);
-                    }
-                }
-                PStmt::Kill(_) => {}
-            }
-        }
-    }
-    let mut out = HashSet::new();
-    prefix(all, all, decidable, live, &mut out);
-    stmt_keys(rest, decided, &mut out);
-    out
-}
-
-/// The ids of `e` and all its subexpressions.
-pub(super) fn expr_keys(e: &Expr, out: &mut HashSet<ExprId>) {
-    out.insert(e.id);
-    e.for_each_child(|c| expr_keys(c, out));
-}
-
-/// The ids of every expression in `stmts`, but for the untaken side (and the condition) of
-/// each `if` that `decided` fixes (see [`super::unswitch`]).
-pub(super) fn stmt_keys(stmts: &[Stmt], decided: &HashMap<ExprId, bool>, out: &mut HashSet<ExprId>) {
-    for s in stmts {
-        match &s.kind {
-            StmtKind::Assign { place, value } => {
-                place.indices.iter().for_each(|(i, _)| expr_keys(i, out));
-                expr_keys(value, out);
-            }
-            StmtKind::If { cond, then, otherwise } => match decided.get(&cond.id) {
-                Some(&on) => stmt_keys(if on { then } else { otherwise }, decided, out),
-                None => {
-                    expr_keys(cond, out);
-                    stmt_keys(then, decided, out);
-                    stmt_keys(otherwise, decided, out);
-                }
-            },
-            StmtKind::Loop { cond, body, step, .. } => {
-                cond.iter().for_each(|c| expr_keys(c, out));
-                stmt_keys(body, decided, out);
-                stmt_keys(step, decided, out);
-            }
-            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| stmt_keys(&a.body, decided, out)),
-            StmtKind::InterpolatorReturn(e) => e.iter().for_each(|e| expr_keys(e, out)),
-            StmtKind::Bound(es) => es.iter().for_each(|e| expr_keys(e, out)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr_keys(a, out)),
-            StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
-        }
-    }
-}
-
-/// Locals assigned by prefix statements (recursively).
-fn prefix_assigned(stmts: &[PStmt<'_>], out: &mut HashSet<LocalId>) {
-    for s in stmts {
-        match s {
-            PStmt::Assign { local, .. } => {
-                out.insert(*local);
-            }
-            PStmt::UniformIf { then, otherwise, .. } => {
-                prefix_assigned(then, out);
-                prefix_assigned(otherwise, out);
-            }
-            PStmt::Guard { .. } | PStmt::Kill(_) => {}
-        }
-    }
-}
-
-/// Locals the pass variant's prefix reads outside `skip` (an `if` of the prefix): the values
-/// of assignments, the conditions of the guards it keeps and of uniform `if`s.
-fn prefix_reads(stmts: &[PStmt<'_>], skip: &PStmt<'_>, decidable: &[bool], out: &mut HashSet<LocalId>) {
-    for s in stmts {
-        if std::ptr::eq(s, skip) {
-            continue;
-        }
-        match s {
-            PStmt::Assign { value, .. } => crate::ir::split::expr_reads(value, out),
-            PStmt::Guard { cond, id, .. } => {
-                if !decidable[*id] {
-                    crate::ir::split::expr_reads(cond, out);
-                }
-            }
-            PStmt::UniformIf { cond, then, otherwise } => {
-                crate::ir::split::expr_reads(cond, out);
-                prefix_reads(then, skip, decidable, out);
-                prefix_reads(otherwise, skip, decidable, out);
-            }
-            PStmt::Kill(_) => {}
-        }
-    }
-}
-
-/// `s` (a uniform `if` of the prefix) does nothing in the pass variant: every guard in it
-/// is dropped, it kills no lane, and no local it assigns is read outside it (`live`: the
-/// locals the pixel code after the prefix uses).
-fn no_effect_in_pass(all: &[PStmt<'_>], s: &PStmt<'_>, decidable: &[bool], live: &HashSet<LocalId>) -> bool {
-    fn only_dropped(stmts: &[PStmt<'_>], decidable: &[bool]) -> bool {
-        stmts.iter().all(|s| match s {
-            PStmt::Assign { .. } => true,
-            PStmt::Guard { id, .. } => decidable[*id],
-            PStmt::Kill(_) => false,
-            PStmt::UniformIf { then, otherwise, .. } => {
-                only_dropped(then, decidable) && only_dropped(otherwise, decidable)
-            }
-        })
-    }
-    let PStmt::UniformIf { then, otherwise, .. } = s else {
-        return false;
-    };
-    if !only_dropped(then, decidable) || !only_dropped(otherwise, decidable) {
-        return false;
-    }
-    let mut assigned = HashSet::new();
-    prefix_assigned(std::slice::from_ref(s), &mut assigned);
-    let mut reads = live.clone();
-    prefix_reads(all, s, decidable, &mut reads);
-    assigned.is_disjoint(&reads)
 }
 
 /// A value carried from the sides of a branching uniform `if` to its join.

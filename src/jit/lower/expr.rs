@@ -3,9 +3,9 @@
 //!
 //! Operators go through [`Lower::binary`] / [`Lower::binop`] (operands brought to one form
 //! and length first, [`Lower::unify`]), conversions through [`Lower::convert_here`]
-//! (bounded float -> int conversions skip their saturation fix-ups, see [`super::bounds`]),
+//! (bounded float -> int conversions skip their saturation fix-ups, see [`crate::mid::bounds`]),
 //! built-ins through `super::super::builtin`. A pixel term hoisted per row or carried along
-//! it is read back instead of evaluated ([`Lower::hoisted`], [`super::affine`]).
+//! it is read back instead of evaluated ([`Lower::hoisted`], [`super::carry`]).
 //!
 //! Tier 0 numbers constants, pure operations and address arithmetic per block while
 //! lowering ([`Lower::numbered`]); tier 1 leaves that to Cranelift's e-graph. Both tiers
@@ -14,7 +14,7 @@
 
 use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, InstBuilder};
 
-use super::{bounds, elem_scalar, err, exact_reciprocal, float_const, speculable_expr, Lower, Res};
+use super::{elem_scalar, err, exact_reciprocal, float_const, speculable_expr, Lower, Res};
 use crate::ir::{BinOp, ConstValue, Elem, Expr, ExprKind, LocalId, Scalar, UnaryOp};
 use crate::jit::fixed;
 use crate::jit::libm::LibmFn;
@@ -81,7 +81,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         v
     }
 
-    /// The bound of float expression `e` of the function being lowered (see [`bounds`]),
+    /// The bound of float expression `e` of the function being lowered (see
+    /// [`crate::mid::bounds`]; the plan has the bounds of every function the kernel lowers),
     /// as (lo, hi), at the statement being lowered: every executing lane's value is a
     /// non-NaN f32 within it (an end may be infinite). The flag is true when the guards
     /// before this statement narrowed it: such a bound holds here only, not wherever the
@@ -90,12 +91,15 @@ impl<'a, 'b> Lower<'a, 'b> {
         let Some(frame) = self.frames.last() else {
             return (None, false);
         };
-        let (f, id) = (frame.func, frame.id);
+        let id = frame.id;
         let depth = self.frames.len() - 1;
-        let table = self
-            .local_bounds
-            .entry(id)
-            .or_insert_with(|| bounds::LocalBounds::of_function(f));
+        let Some(table) = self.plan.bounds(id) else {
+            debug_assert!(
+                false,
+                "the plan has no bounds for the function of a float -> int conversion"
+            );
+            return (None, false);
+        };
         let whole = table.expr(e).map(|b| (b.lo, b.hi));
         let here = table.expr_here(e, &self.guard_facts, depth);
         (here, here != whole)
@@ -135,7 +139,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// a row local), evaluated from its defining expression once per prologue (the same
     /// operations every time, so reusing them changes no bit).
     pub(super) fn row_local_value(&mut self, l: LocalId) -> Option<Res<Val>> {
-        let &value = self.row_locals.get(&l)?;
+        let &value = self.plan.pixel.as_ref()?.row_locals.get(&l)?;
         let block = self.b.current_block();
         if let Some((at, v)) = self.row_local_values.get(&l) {
             if Some(*at) == block {
@@ -152,7 +156,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// While a row prologue substitutes row locals: element `k` of a one-dimensional row
-    /// local (`along[1]`), from the local's value (see `hoist.rs`). `None` for anything else.
+    /// local (`along[1]`), from the local's value (see [`crate::mid::hoist`]). `None` for
+    /// anything else.
     pub(super) fn row_local_element(&mut self, e: &'a Expr) -> Option<Res<Val>> {
         let ExprKind::Index { base, index, .. } = &e.kind else {
             return None;

@@ -19,9 +19,9 @@
 
 use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, InstBuilder};
 
-use super::{collect_setup_index_sites, const_int, Lower, Res, PENDING_CODE_SHIFT};
+use super::{Lower, Res, PENDING_CODE_SHIFT};
 use crate::abi::MODE_BOUND;
-use crate::ir::{Expr, Scalar, SiteId, Stmt};
+use crate::ir::{Expr, Scalar, SiteId};
 use crate::jit::fixed;
 use crate::jit::value::{ctx_off, mem_flags};
 
@@ -70,7 +70,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         for c in cond.into_iter().chain(self.error_guard) {
             first = self.b.ins().band(first, c);
         }
-        // Flat pixel code also runs statements no lane executes (see [`flat`]); tier 1
+        // Flat pixel code also runs statements no lane executes (see [`crate::mid::flat`]); tier 1
         // runs them only when some lane does, and only then can they fail.
         if self.flat {
             if let Some(e) = self.exec() {
@@ -143,20 +143,6 @@ impl<'a, 'b> Lower<'a, 'b> {
         let site = self.b.ins().iadd_imm_s(site, -1);
         let new_site = self.b.ins().select(first, site, old_site);
         self.store_ctx(new_site, ctx_off::ERROR_SITE);
-    }
-
-    /// Whether lowering `setup` may record an index error: some index site is neither a
-    /// constant inside a fixed array nor proven in range (mirrors [`Self::index_access`]).
-    /// Kernels without one (screen_triangle, the sphere, ...) keep their code unchanged.
-    pub(super) fn setup_may_fail_index(&mut self, setup: &'a [Stmt]) -> bool {
-        let mut sites = vec![];
-        collect_setup_index_sites(self.frame().func, setup, &mut sites);
-        sites
-            .into_iter()
-            .any(|(static_len, index, site)| match (static_len, const_int(index)) {
-                (Some(len), Some(k)) => k < 0 || k >= i64::from(len),
-                _ => !self.site_proven(site),
-            })
     }
 
     /// Union a rectangle into `ctx.bound` (bound mode only; the caller checks for NaN).

@@ -16,24 +16,24 @@
 //! terms once per block row) and skips blocks no lane survives, and runs blocks every lane
 //! passes with a variant of the pixel code without those tests; consecutive pass blocks of
 //! a block row run as one span, the others run the full code. Per row, the pixel terms
-//! that depend on Y alone are evaluated once ([`super::hoist`]); X steps by 4.0 per group;
+//! that depend on Y alone are evaluated once ([`crate::mid::hoist`]); X steps by 4.0 per group;
 //! only the groups at the rectangle's ends build a lane mask (the others start all ones).
 //! Tier 1 first decides up to two uniform `if`s of the pixel code whose conditions no group
-//! can change, once per draw, and lowers the loops once per side ([`super::unswitch`]).
+//! can change, once per draw, and lowers the loops once per side ([`crate::mid::unswitch`]
+//! plans the copies, [`Lower::unswitched_loops`] emits them).
 //! Z is written back at the end of a group for the lanes that assigned it.
 
 use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, Block, InstBuilder};
 use cranelift_frontend::Variable;
 
 use super::walk::BlockWalk;
-use super::{
-    block, dead, elem_scalar, err, unswitch, Lower, PassRect, PixelState, Res, Storage, ALL_LANE_BITS, DEPTH_FORMAT,
-    UNROLL,
-};
+use super::{elem_scalar, err, Lower, PassRect, PixelState, Res, Storage, ALL_LANE_BITS, DEPTH_FORMAT, UNROLL};
 use crate::abi::{BindingKind, MODE_BOUND};
 use crate::ir::{Elem, Function, ParamRole, Scalar, StmtKind};
 use crate::jit::fixed;
 use crate::jit::value::{args_flags, ctx_off, mask_const, mem_flags, zero, F32X4, I32X4};
+use crate::mid::block::Prefix;
+use crate::mid::unswitch::Loops;
 
 impl<'a, 'b> Lower<'a, 'b> {
     /// The pixel loops (render mode) or the viewport bound (bound mode).
@@ -46,7 +46,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         // read: a few dozen stores, once per primitive.)
         let early_frame = self.tier0();
         if early_frame {
-            self.spill_uniforms(f);
+            self.spill_uniforms(f)?;
         }
         // After the frame stores (stores to the kernel's own stack only), so the values
         // they store die in the block that computed them.
@@ -82,7 +82,7 @@ impl<'a, 'b> Lower<'a, 'b> {
 
         self.b.switch_to_block(render_blk);
         if !early_frame {
-            self.spill_uniforms(f);
+            self.spill_uniforms(f)?;
         }
         // Tier 0: from here on into the pixel function, if there is one (see [`outline`]).
         self.begin_outlined_pixels()?;
@@ -139,8 +139,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         };
         let loops_done = self.b.create_block();
         // One copy of the loops per combination of the uniform conditions decided before
-        // them (tier 1; see [`unswitch`]).
-        self.unswitched_loops(f, 0, &mut |l: &mut Self| {
+        // them (tier 1; see [`crate::mid::unswitch`]).
+        let copies = &self.pixel_plan()?.loops;
+        self.unswitched_loops(copies, 0, &mut |l: &mut Self| {
             l.pixel_loops(f, &rect, [lo_y, hi_y], [gx_start, hi_x], loops_done)
         })?;
         self.b.switch_to_block(loops_done);
@@ -149,7 +150,8 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// The pixel loops over the pass rectangle (rows `ys`, groups from `gs[0]`, tile-aligned,
     /// to `gs[1]`): plain rows, or the block walk when the pixel code opens with guards.
-    /// Ends by jumping to `loops_done`; lowered under the conditions in `self.unswitched`.
+    /// Ends by jumping to `loops_done`; lowered as the copy `self.copy`, under the conditions
+    /// in `self.unswitched`.
     pub(super) fn pixel_loops(
         &mut self,
         f: &'a Function,
@@ -161,15 +163,17 @@ impl<'a, 'b> Lower<'a, 'b> {
         let [lo_y, hi_y] = ys;
         let [gx_start, hi_x] = gs;
         let lo_x = rect.lo_x;
-        let prefix = block::prefix(f, &self.unswitched);
-        if prefix.guards == 0 || !self.block_culling {
+        let Some(copy) = self.copy else {
+            return err("pixel loops outside a planned copy");
+        };
+        let Some(prefix) = &copy.prefix else {
             return self.pixel_rows(f, rect, [lo_y, hi_y], [gx_start, hi_x], None, loops_done);
-        }
+        };
 
         // The block walk (see [`super::walk`]): blocks of BLOCK_W x BLOCK_H pixels, the
         // pass variant over spans of passing blocks, the full code over the others.
         let walk = BlockWalk::new(self, [lo_y, hi_y], [gx_start, hi_x], lo_x, loops_done);
-        walk.emit(self, f, rect, &prefix)
+        walk.emit(self, f, rect, prefix)
     }
 
     /// Rows [ys[0], ys[1]) x groups starting at gs[0] (tile-aligned) up to gs[1], `UNROLL`
@@ -181,26 +185,28 @@ impl<'a, 'b> Lower<'a, 'b> {
         rect: &PassRect,
         ys: [ir::Value; 2],
         gs: [ir::Value; 2],
-        pass: Option<(&block::Prefix<'a>, &[bool])>,
+        pass: Option<(&Prefix<'a>, &[bool])>,
         done: Block,
     ) -> Res<()> {
         let first_block = self.b.func.dfg.num_blocks();
         // The row terms this variant reads (a pass span drops guards, and their terms).
         // So does a copy of the loops for decided conditions (their untaken sides).
-        let used_exprs = match pass {
-            Some((prefix, decidable)) => {
-                let mut live = std::collections::HashSet::new();
-                self.live_pixel_locals(&f.pixel[prefix.len..], &mut live);
-                Some(block::pass_exprs(
+        // Which guards a pass span drops is the block evaluation's answer (`decidable`), so
+        // its expressions are asked for here.
+        let pass_exprs;
+        let used_exprs = match (pass, self.copy) {
+            (Some((prefix, decidable)), Some(copy)) => {
+                pass_exprs = crate::mid::block::pass_exprs(
                     &prefix.stmts,
                     &f.pixel[prefix.len..],
                     decidable,
-                    &live,
+                    &copy.rest_live,
                     &self.unswitched,
-                ))
+                );
+                Some(&pass_exprs)
             }
-            None if !self.unswitched.is_empty() => Some(unswitch::full_code_exprs(f, &self.unswitched)),
-            None => None,
+            (Some(_), None) => return err("a pass span outside a planned copy"),
+            (None, copy) => copy.and_then(|c| c.full_exprs.as_ref()),
         };
         let py = self.declare_var(types::I32);
         let gx = self.declare_var(types::I32);
@@ -223,7 +229,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             let yf = self.b.ins().fadd(yf, half);
             self.b.def_var(yf_var, yf);
         }
-        let row_carry = self.carry_rows_start(f, gs[0], ys[0], used_exprs.as_ref())?;
+        let row_carry = self.carry_rows_start(f, gs[0], ys[0], used_exprs)?;
         let row_hdr = self.b.create_block();
         let row_body = self.b.create_block();
         let row_next = self.b.create_block();
@@ -242,7 +248,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let row_base = self.b.use_var(row_base_var);
         let yf = self.b.use_var(yf_var);
         let y_f = self.b.ins().splat(F32X4, yf);
-        self.row_hoists(f, y_f, used_exprs.as_ref())?;
+        self.row_hoists(f, y_f, used_exprs)?;
         self.b.def_var(gx, gs[0]);
         // X of the group's lanes, carried across the row: centre of the first group's
         // lanes (int -> float, + 0.5, as the pixel's X is defined), then + 4.0 per group.
@@ -251,8 +257,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         let x0_f = self.lane_centres(gs[0]);
         self.b.def_var(xv, x0_f);
         // Int terms affine in the column: their value at the first group, carried (see
-        // [`affine`]); after the row hoists, which define Y's variable the same way.
-        let carry = self.carry_prologue(f, x0_f, y_f, used_exprs.as_ref(), &row_carry)?;
+        // [`super::carry`]); after the row hoists, which define Y's variable the same way.
+        let carry = self.carry_prologue(f, x0_f, y_f, used_exprs, &row_carry)?;
         self.b.ins().jump(grp_hdr, &[]);
 
         self.b.switch_to_block(grp_hdr);
@@ -349,7 +355,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         g: ir::Value,
         row_base: ir::Value,
         xy_f: [ir::Value; 2],
-        pass: Option<(&block::Prefix<'a>, &[bool])>,
+        pass: Option<(&Prefix<'a>, &[bool])>,
         next: Block,
     ) -> Res<()> {
         let [x_f, y_f] = xy_f;
@@ -406,16 +412,17 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.copy_slot(init, work, bytes);
         }
         if self.flat {
-            self.flat_group_locals(f);
+            self.flat_group_locals(f)?;
         }
         // Guard facts hold within one group body only (not in row prologues).
         self.guard_facts.clear();
         match pass {
             None => self.stmts(&f.pixel)?,
             Some((prefix, decidable)) => {
-                let mut live = std::collections::HashSet::new();
-                self.live_pixel_locals(&f.pixel[prefix.len..], &mut live);
-                self.prefix_without_guards(&prefix.stmts, &prefix.stmts, decidable, &live)?;
+                let Some(copy) = self.copy else {
+                    return err("a pass span outside a planned copy");
+                };
+                self.prefix_without_guards(&prefix.stmts, &prefix.stmts, decidable, &copy.rest_live)?;
                 self.stmts(&f.pixel[prefix.len..])?;
             }
         }
@@ -611,28 +618,20 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// single-pass allocator moves and spills at every loop edge. No lane reads what an
     /// earlier group left (a local is declared, so assigned, before any read of it in the
     /// same group), so the values the pixels see are the same.
-    pub(super) fn flat_group_locals(&mut self, f: &'a Function) {
-        let assigned = dead::assigned_flags(&f.pixel, f.locals.len());
-        // A local the setup assigns keeps the setup's value until the pixel code assigns it.
-        let in_setup = dead::assigned_flags(&f.setup, f.locals.len());
+    pub(super) fn flat_group_locals(&mut self, f: &'a Function) -> Res<()> {
         let mut zeros: std::collections::HashMap<Scalar, ir::Value> = std::collections::HashMap::new();
-        for (i, local) in f.locals.iter().enumerate() {
-            if !local.var.is_varying() || !assigned[i] || in_setup[i] {
-                continue;
-            }
-            if f.params.iter().any(|p| p.local.0 as usize == i) {
-                continue;
-            }
+        for &i in &self.pixel_plan()?.zeroed {
             let Storage::Vars(vars) = &self.frames[0].storage[i] else {
                 continue;
             };
             let vars = vars.clone();
-            let sc = elem_scalar(&local.ty);
+            let sc = elem_scalar(&f.locals[i].ty);
             let z = *zeros.entry(sc).or_insert_with(|| zero(&mut self.b, sc, true));
             for v in vars {
                 self.b.def_var(v, z);
             }
         }
+        Ok(())
     }
 
     /// Pixels [lo, hi) of the tile range [t0, t1) whose centres lie in [bmin, bmax].
@@ -694,5 +693,41 @@ impl<'a, 'b> Lower<'a, 'b> {
         let base = self.b.ins().load(types::I64, args_flags(), self.ctx, ptr_off);
         let bytes = self.b.ins().ishl_imm_u(idx, 2);
         self.b.ins().iadd(base, bytes)
+    }
+
+    /// Lower the copies of the pixel loops `copies` plans (`loops` lowers one copy, the one
+    /// in `self.copy`; every copy ends by jumping to the block the caller continues in): a
+    /// decided condition is evaluated once, in the current block, and each side's dispatch
+    /// block goes on with the copies for that side. `depth`: conditions decided on the way.
+    pub(super) fn unswitched_loops(
+        &mut self,
+        copies: &'a Loops<'a>,
+        depth: usize,
+        loops: &mut dyn FnMut(&mut Self) -> Res<()>,
+    ) -> Res<()> {
+        let (cond, sides) = match copies {
+            Loops::Copy(copy) => {
+                self.copy = Some(copy);
+                let r = loops(self);
+                self.copy = None;
+                return r;
+            }
+            Loops::Split { cond, sides } => (*cond, sides),
+        };
+        let c = self.eval_uniform(cond)?;
+        let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
+        let blocks: [Block; 2] = [self.b.create_block(), self.b.create_block()];
+        self.b.ins().brif(c, blocks[0], &[], blocks[1], &[]);
+        for ((block, on), side) in blocks.into_iter().zip([true, false]).zip(sides.iter()) {
+            self.b.switch_to_block(block);
+            if depth == 0 {
+                self.store_deferred_frame(cond.id, on);
+            }
+            self.unswitched.insert(cond.id, on);
+            let r = self.unswitched_loops(side, depth + 1, loops);
+            self.unswitched.remove(&cond.id);
+            r?;
+        }
+        Ok(())
     }
 }

@@ -18,7 +18,7 @@
 //!
 //! A kernel without pixel loops whose setup is large (NURB's tessellation, ~4 400
 //! instructions in one function) is split the same way before the top-level setup
-//! statement that halves it best ([`setup_split_point`], [`Lower::begin_outlined_setup`]):
+//! statement that halves it best ([`crate::mid::split`], [`Lower::begin_outlined_setup`]):
 //! the second function runs the rest of the setup. Its locals are the kernel's, so the
 //! SSA variables of locals both halves use are stored after the slot addresses in the
 //! table and defined from there at the second function's entry; the kernel's deferred
@@ -50,8 +50,8 @@ use cranelift_codegen::entity::EntityRef;
 use cranelift_codegen::ir::{self, types, AbiParam, InstBuilder, StackSlot, StackSlotData, StackSlotKind};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 
-use super::{dead, stack_check, Lower, Res, Storage};
-use crate::ir::{Expr, ExprKind, Function, Stmt, StmtKind};
+use super::{err, stack_check, Lower, Res, Storage};
+use crate::ir::Function;
 use crate::jit::value::{ctx_off, mem_flags};
 
 /// Where the second function goes (see the module doc).
@@ -61,7 +61,7 @@ pub(crate) struct Outline<'b> {
     /// reaches them; `None`: the kernel is lowered as one function.
     target: Option<(&'b mut ir::Function, &'b mut FunctionBuilderContext)>,
     /// A kernel without pixel loops: the top-level setup statement its second function
-    /// starts with ([`setup_split_point`]).
+    /// starts with ([`crate::mid::split`]).
     pub setup_split: Option<usize>,
     /// Slots numbered below this are the kernel's (placeholders in the second function).
     inherited: u32,
@@ -72,10 +72,16 @@ pub(crate) struct Outline<'b> {
 }
 
 impl<'b> Outline<'b> {
-    /// Split `f`'s kernel into `target` where it pays (`None`: lower it as one function).
-    pub fn new(target: Option<(&'b mut ir::Function, &'b mut FunctionBuilderContext)>, f: &Function) -> Outline<'b> {
+    /// Split `f`'s kernel into `target` where it pays (`None`: lower it as one function):
+    /// before its pixel loops, or without any before top-level setup statement `split_at`
+    /// (the plan's [`crate::mid::split::SetupSplit`]).
+    pub fn new(
+        target: Option<(&'b mut ir::Function, &'b mut FunctionBuilderContext)>,
+        f: &Function,
+        split_at: Option<usize>,
+    ) -> Outline<'b> {
         let setup_split = match (&target, f.pixel.is_empty()) {
-            (Some(_), true) => setup_split_point(&f.setup),
+            (Some(_), true) => split_at,
             _ => None,
         };
         let wanted = !f.pixel.is_empty() || setup_split.is_some();
@@ -85,64 +91,6 @@ impl<'b> Outline<'b> {
             ..Default::default()
         }
     }
-}
-
-/// A setup this large (in [`stmt_size`] units) is split when the kernel has no pixel
-/// loops: NURB's is ~4 900, polygon's ~500.
-const SPLIT_SETUP_SIZE: usize = 2000;
-
-/// Tier 0, a kernel without pixel loops (NURB tessellation, any primitive that only calls
-/// others): the top-level setup statement that halves the setup most evenly by size, if
-/// the setup is large enough and neither half is under a quarter of it. Each half is then
-/// a function of its own, compiled side by side like a kernel and its pixel loops.
-pub(super) fn setup_split_point(setup: &[Stmt]) -> Option<usize> {
-    let sizes: Vec<usize> = setup.iter().map(stmt_size).collect();
-    let total: usize = sizes.iter().sum();
-    if total < SPLIT_SETUP_SIZE {
-        return None;
-    }
-    let mut before: usize = 0;
-    let mut best: Option<(usize, usize)> = None;
-    for (i, &s) in sizes.iter().enumerate() {
-        let imbalance = before.abs_diff(total - before);
-        if i > 0 && best.is_none_or(|(_, b)| imbalance < b) {
-            best = Some((i, imbalance));
-        }
-        before += s;
-    }
-    let (i, imbalance) = best?;
-    (imbalance <= total / 2).then_some(i)
-}
-
-/// A statement's size with the statements inside it: the components their expressions
-/// compute (an operation on a point counts four), a rough measure of the CLIF it lowers to.
-fn stmt_size(s: &Stmt) -> usize {
-    let mut size = 0;
-    crate::ir::for_each_stmt(std::slice::from_ref(s), &mut |s| {
-        size += 1 + match &s.kind {
-            StmtKind::Assign { place, value } => {
-                expr_size(value) + place.indices.iter().map(|(i, _)| expr_size(i)).sum::<usize>()
-            }
-            StmtKind::If { cond, .. } => expr_size(cond),
-            StmtKind::Loop { cond, .. } => cond.as_ref().map_or(0, expr_size),
-            StmtKind::InterpolatorReturn(e) => e.as_ref().map_or(0, expr_size),
-            StmtKind::Bound(es) => es.iter().map(expr_size).sum(),
-            StmtKind::CallPrimitive { args, .. } => args.iter().map(expr_size).sum(),
-            StmtKind::Interpolation { .. } | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => 0,
-        };
-    });
-    size
-}
-
-fn expr_size(e: &Expr) -> usize {
-    // A local's value is its variables or its address (an index computes the element);
-    // whole arrays beyond 16 components are cleared and copied by loops.
-    let mut n = match e.kind {
-        ExprKind::Local(_) => 1,
-        _ => e.ty.fixed_len().clamp(1, 16) as usize,
-    };
-    e.for_each_child(|c| n += expr_size(c));
-    n
 }
 
 /// The pixel function's signature: `(ctx, args, slots, x_lo, y_lo, x_hi, y_hi)`.
@@ -180,12 +128,15 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// locals both halves use are carried through the slot table; the kernel's deferred
     /// errors are flushed first (they come before any the second half records), and the
     /// second function defers its own into its own setup exit.
-    pub(super) fn begin_outlined_setup(&mut self, f: &'a Function, split: usize) -> Res<()> {
-        let before = dead::mentioned_flags(&f.setup[..split], f.locals.len());
-        let after = dead::mentioned_flags(&f.setup[split..], f.locals.len());
+    pub(super) fn begin_outlined_setup(&mut self, split: usize) -> Res<()> {
+        let plan = self.plan;
+        let shared = match &plan.setup_split {
+            Some(s) if s.at == split => &s.shared,
+            _ => return err("a setup split the plan does not have"),
+        };
         let mut carried = vec![];
         for (i, st) in self.frames[0].storage.iter().enumerate() {
-            if before[i] && after[i] {
+            if shared.get(i).copied().unwrap_or(false) {
                 match st {
                     Storage::Vars(vars) => carried.extend(vars.iter().copied()),
                     Storage::Z(var) => carried.push(*var),

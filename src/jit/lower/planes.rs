@@ -2,7 +2,7 @@
 //!
 //! Interpolation data is specialised away: an interpolation_data value is just the float
 //! components of the current *view* (all Kind-bound components outside an `interpolation`
-//! arm, the arm's kind's inside; [`Lower::arm_view`]). An arm the variant key gives
+//! arm, the arm's kind's inside; [`crate::mid::view::arm_view`]). An arm the variant key gives
 //! nothing to do is not lowered. Shared interpolators are inlined at a bare
 //! `interpolator_return;` as a one-trip masked loop whose `return` is a break
 //! ([`Lower::inline_interpolator`]).
@@ -15,11 +15,12 @@
 
 use cranelift_codegen::ir::{self, condcodes::IntCC, types, InstBuilder, StackSlotData, StackSlotKind};
 
-use super::{elem_scalar, err, mark_local, ArmInfo, LoopCtx, Lower, Res, Storage, ALL_LANE_BITS, DEPTH_FORMAT};
+use super::{elem_scalar, err, ArmInfo, LoopCtx, Lower, Res, Storage, ALL_LANE_BITS, DEPTH_FORMAT};
 use crate::abi::{interpolator_arg_words, type_words, BindingKind, ParamSlot};
-use crate::ir::{ArmKind, Elem, Expr, FuncKind, LocalId, ParamRole, Scalar, Stmt, StmtKind};
+use crate::ir::{Elem, Expr, FuncKind, ParamRole, Scalar};
 use crate::jit::fixed;
 use crate::jit::value::{args_flags, blend, ctx_off, mask_const, mem_flags, zero, Val, F32X4, I32X4};
+use crate::mid::view;
 
 impl<'a, 'b> Lower<'a, 'b> {
     pub(super) fn kind_offsets(&self) -> Vec<(usize, u32, u32)> {
@@ -43,15 +44,9 @@ impl<'a, 'b> Lower<'a, 'b> {
     pub(super) fn interpolation(&mut self, arms: &'a [crate::ir::InterpArm]) -> Res<()> {
         // In setup code the construct only computes (figure 8: interpolation data of new
         // vertices); `interpolator_return` there is refused by `interpolator_return` itself.
-        let named: Vec<&str> = arms
-            .iter()
-            .filter_map(|a| match &a.kind {
-                ArmKind::Named(k) => Some(k.as_str()),
-                ArmKind::Default => None,
-            })
-            .collect();
+        let named = view::named_kinds(arms);
         for arm in arms {
-            let Some((view, bindings)) = self.arm_view(arms, &named, arm) else {
+            let Some((view, bindings)) = view::arm_view(self.key, &named, arm) else {
                 continue;
             };
             let saved_view = std::mem::replace(&mut self.view, view);
@@ -62,95 +57,6 @@ impl<'a, 'b> Lower<'a, 'b> {
             r?;
         }
         Ok(())
-    }
-
-    /// The interpolation-data view and the bindings of `arm` under this key, or `None` if
-    /// the key gives the arm nothing to do (it is not lowered). `named`: the arms' kinds.
-    pub(super) fn arm_view(
-        &self,
-        _arms: &[crate::ir::InterpArm],
-        named: &[&str],
-        arm: &crate::ir::InterpArm,
-    ) -> Option<(Vec<u32>, Vec<usize>)> {
-        let has_other = self
-            .key
-            .bindings
-            .iter()
-            .any(|b| matches!(b.kind, BindingKind::Shared(_) | BindingKind::Constant));
-        let mut view = vec![];
-        let mut bindings = vec![];
-        let mut ic = 0;
-        for (i, b) in self.key.bindings.iter().enumerate() {
-            if let BindingKind::Kind(k) = &b.kind {
-                let serves = match &arm.kind {
-                    ArmKind::Named(n) => n == k,
-                    ArmKind::Default => !named.contains(&k.as_str()),
-                };
-                if serves {
-                    view.extend(ic..ic + b.components);
-                    bindings.push(i);
-                }
-                ic += b.components;
-            }
-        }
-        let needed = !view.is_empty() || (arm.kind == ArmKind::Default && has_other);
-        needed.then_some((view, bindings))
-    }
-
-    /// Every local read or assigned by `stmts` as this key lowers them (arms the key gives
-    /// nothing to do are skipped, like [`Self::interpolation`] skips them).
-    pub(super) fn live_pixel_locals(&self, stmts: &[Stmt], out: &mut std::collections::HashSet<LocalId>) {
-        self.visit_live_pixel_locals(stmts, &mut |l| {
-            out.insert(l);
-        });
-    }
-
-    /// [`Self::live_pixel_locals`] as a flag per local (tier 0's analyses: a HashSet cost
-    /// more than the walk itself).
-    pub(super) fn live_pixel_flags(&self, stmts: &[Stmt], out: &mut [bool]) {
-        self.visit_live_pixel_locals(stmts, &mut |l| mark_local(out, l));
-    }
-
-    pub(super) fn visit_live_pixel_locals(&self, stmts: &[Stmt], out: &mut dyn FnMut(LocalId)) {
-        for s in stmts {
-            match &s.kind {
-                StmtKind::Assign { place, value } => {
-                    out(place.local);
-                    place.indices.iter().for_each(|(i, _)| i.for_each_local(out));
-                    value.for_each_local(out);
-                }
-                StmtKind::If { cond, then, otherwise } => {
-                    cond.for_each_local(out);
-                    self.visit_live_pixel_locals(then, out);
-                    self.visit_live_pixel_locals(otherwise, out);
-                }
-                StmtKind::Loop { cond, body, step, .. } => {
-                    if let Some(c) = cond {
-                        c.for_each_local(out);
-                    }
-                    self.visit_live_pixel_locals(body, out);
-                    self.visit_live_pixel_locals(step, out);
-                }
-                StmtKind::Interpolation { arms } => {
-                    let named: Vec<&str> = arms
-                        .iter()
-                        .filter_map(|a| match &a.kind {
-                            ArmKind::Named(k) => Some(k.as_str()),
-                            ArmKind::Default => None,
-                        })
-                        .collect();
-                    for arm in arms {
-                        if self.arm_view(arms, &named, arm).is_some() {
-                            self.visit_live_pixel_locals(&arm.body, out);
-                        }
-                    }
-                }
-                StmtKind::InterpolatorReturn(Some(e)) => e.for_each_local(out),
-                StmtKind::Bound(es) => es.iter().for_each(|e| e.for_each_local(out)),
-                StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| e.for_each_local(out)),
-                StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::InterpolatorReturn(None) => {}
-            }
-        }
     }
 
     /// Store a varying f32x4 into G-buffer component `g` (global binding component index)

@@ -7,20 +7,22 @@
 //! also holds, per word, a splatted f32x4/i32x4 copy (its *vector section*), the render
 //! pass's X range as splats, the results of uniform terms evaluated once per run
 //! ([`Lower::run_hoists`]) and the *row section* the row prologue fills with the pixel
-//! terms that depend on Y alone ([`super::hoist`]; read back by [`Lower::hoisted`]).
+//! terms that depend on Y alone ([`crate::mid::hoist`]; read back by [`Lower::hoisted`]).
+//! Which local goes where, and every offset, is the plan's ([`crate::mid::spill`]); this
+//! module stores and reads.
 //!
 //! Invariants: the pixel loops read setup values only through the frame, other stack slots
 //! and the pass rectangle (which is what lets tier 0 put them in a function of their own,
 //! [`super::outline`]); a splat no group reads is removed once the pixel code is lowered
 //! ([`Lower::drop_unread_splats`]); in tier 1 a frame word only one side of the first
 //! unswitched condition reads is stored by that side's dispatch block
-//! ([`Lower::defer_frame_stores`]).
+//! ([`Lower::store_deferred_frame`]).
 
 use cranelift_codegen::ir::{self, InstBuilder, StackSlot, StackSlotData, StackSlotKind};
 use cranelift_frontend::Variable;
 
-use super::{block, dead, elem_scalar, err, mark_local, unswitch, DeferredStore, Lower, Res, Storage};
-use crate::ir::{Elem, Expr, ExprId, Function, ParamRole, Scalar, StmtKind};
+use super::{elem_scalar, err, DeferredStore, Lower, Res, Storage};
+use crate::ir::{Elem, Expr, ExprId, Function, LocalId, ParamRole, Scalar};
 use crate::jit::fixed;
 use crate::jit::value::{args_flags, cl_type, mem_flags, splat, Val};
 
@@ -39,58 +41,31 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// into `vbroadcastss mem` and merges repeats, but cannot hoist them out of the group
     /// loop (their address is defined in it). Locals the pixel part assigns get a stack
     /// slot of their own with ordinary loads and stores.
-    pub(super) fn spill_uniforms(&mut self, f: &'a Function) {
-        let pixel_assigned = dead::assigned_flags(&f.pixel, f.locals.len());
-        // Uniform locals the variant's pixel code never touches (e.g. the `linear` planes
-        // when only perspective_linear parameters are bound) are not stored: their setup
-        // computations are then dead and Cranelift drops them.
-        let mut pixel_used = vec![false; f.locals.len()];
-        self.live_pixel_flags(&f.pixel, &mut pixel_used);
-        let frame = &self.frames[0];
-        let mut moves = vec![];
-        for (i, st) in frame.storage.iter().enumerate() {
-            let Storage::Vars(vars) = st else { continue };
-            let local = &f.locals[i];
-            let is_pixel_param = f
-                .params
-                .iter()
-                .any(|p| p.local.0 as usize == i && matches!(p.role, ParamRole::X | ParamRole::Y | ParamRole::Z));
-            if local.var.is_varying() || is_pixel_param || vars.is_empty() || !pixel_used[i] {
-                continue;
-            }
-            moves.push((i, vars.clone(), pixel_assigned[i]));
-        }
-        let frozen_words: u32 = moves.iter().filter(|m| !m.2).map(|m| m.1.len() as u32).sum();
-        // Words first, so the hoisting analysis sees which locals live in the frame.
-        let mut next_word = 0;
+    pub(super) fn spill_uniforms(&mut self, f: &'a Function) -> Res<()> {
+        let pix = self.pixel_plan()?;
+        let layout = &pix.frame;
+        // The locals that move, with their variables (the plan's words in the frame, or
+        // `None` for a slot of their own).
         let mut placed = vec![];
-        for (i, vars, assigned) in moves {
-            let at = (!assigned).then(|| {
-                let at = next_word;
-                next_word += vars.len() as u32;
+        for &(i, at) in &layout.placed {
+            let Some(Storage::Vars(vars)) = self.frames[0].storage.get(i) else {
+                return err("a spilled local is not in SSA variables");
+            };
+            let vars = vars.clone();
+            if let Some(at) = at {
                 self.frames[0].storage[i] = Storage::Frame(at);
-                at
-            });
+            }
             placed.push((i, vars, at));
         }
-        self.vec_section = (4 * frozen_words).div_ceil(16) * 16;
-        let row_section = self.vec_section + 16 * frozen_words;
-        self.row_locals = self.collect_row_locals(f);
-        self.hoists = self.collect_hoists(f, row_section);
-        let carry_section = row_section + self.hoists.iter().map(|h| 16 * h.comps).sum::<u32>();
-        if !self.tier0() {
-            self.carried = self.collect_carried(f, carry_section);
+        let pixel_assigned = |i: usize| pix.assigned.contains(&LocalId(i as u32));
+        let deferred = layout.deferred.as_ref().map(|(_, sides)| sides);
+        if let Some((cond, _)) = &layout.deferred {
+            self.deferred_frame = Some((*cond, vec![]));
         }
-        self.mark_row_locals_unread_in_groups(f);
-        let deferred = self.defer_frame_stores(f, &placed);
-        let carried_end = self
-            .carried
-            .iter()
-            .map(|c| c.row_step_offset.unwrap_or(c.step_offset) + 16)
-            .fold(carry_section, u32::max);
-        // Last, the render pass's x range as two splats (see `pixel_group`).
-        self.x_range_at = carried_end.div_ceil(16) * 16;
-        let frame_bytes = self.x_range_at + 32;
+        self.vec_section = layout.vec_section;
+        // Last in the frame, the render pass's x range as two splats (see `pixel_group`).
+        self.x_range_at = layout.x_range_at;
+        let frame_bytes = layout.bytes;
         let frame_slot =
             self.b
                 .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, frame_bytes, 4));
@@ -103,7 +78,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let mut deferred_stores = vec![];
         for (i, vars, at) in placed {
             let sc = elem_scalar(&f.locals[i].ty);
-            if let (Some(&on), Some(first_word)) = (deferred.get(&i), at) {
+            if let (Some(&on), Some(first_word)) = (deferred.and_then(|d| d.get(&i)), at) {
                 deferred_stores.push(DeferredStore {
                     on,
                     vars,
@@ -137,7 +112,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         // aside here and every group starts from it (`reset_group_locals`).
         for (i, st) in self.frames[0].storage.iter().enumerate() {
             let Storage::Stack(slot) = *st else { continue };
-            if f.locals[i].var.is_varying() || !pixel_assigned[i] {
+            if f.locals[i].var.is_varying() || !pixel_assigned(i) {
                 continue;
             }
             let bytes = self.b.func.sized_stack_slots[slot].size;
@@ -162,10 +137,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         let pa = self.slot_addr(ptr_slot);
         self.b.ins().store(mem_flags(), addr, pa, 0);
         self.uniform_frame = Some((frame_slot, ptr_slot));
+        Ok(())
     }
 
     /// Row prologue: evaluate the hoisted terms for row centre `y_f` into the frame's row
-    /// section (see [`super::hoist`]), with the operations the group code would use.
+    /// section (see [`crate::mid::hoist`]), with the operations the group code would use.
     /// `only`: the expressions the loop's variant lowers (a pass span's; `None`: all).
     pub(super) fn row_hoists(
         &mut self,
@@ -173,7 +149,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         y_f: ir::Value,
         only: Option<&std::collections::HashSet<ExprId>>,
     ) -> Res<()> {
-        let (Some((fs, _)), false) = (self.uniform_frame, self.hoists.is_empty()) else {
+        let (Some((fs, _)), false) = (self.uniform_frame, self.hoists().is_empty()) else {
             return Ok(());
         };
         if let Some(p) = f.param_by_role(ParamRole::Y) {
@@ -190,10 +166,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.prologue_frame = Some((addr, false));
         self.row_local_values.clear();
         let mut stored = Ok(());
-        for k in 0..self.hoists.len() {
-            let h = &self.hoists[k];
+        let unstored = &self.pixel_plan()?.unstored_terms;
+        for k in 0..self.hoists().len() {
+            let h = &self.hoists()[k];
             let id = h.expr.id;
-            let skip = h.per_run || only.is_some_and(|set| !set.contains(&id)) || self.unstored_terms.contains(&id);
+            let skip = h.per_run || only.is_some_and(|set| !set.contains(&id)) || unstored.contains(&id);
             if !skip {
                 stored = self.store_hoist(fs, k);
                 if stored.is_err() {
@@ -212,8 +189,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         let Some((fs, _)) = self.uniform_frame else {
             return Ok(());
         };
-        for k in 0..self.hoists.len() {
-            if self.hoists[k].per_run {
+        for k in 0..self.hoists().len() {
+            if self.hoists()[k].per_run {
                 self.store_hoist(fs, k)?;
             }
         }
@@ -224,7 +201,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// uniform frame `fs`.
     pub(super) fn store_hoist(&mut self, fs: StackSlot, k: usize) -> Res<()> {
         let (expr, view, offset, comps) = {
-            let h = &self.hoists[k];
+            let h = &self.hoists()[k];
             (h.expr, h.view.clone(), h.offset, h.comps)
         };
         let saved = std::mem::replace(&mut self.view, view);
@@ -258,7 +235,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             return None;
         }
         let h = self
-            .hoists
+            .hoists()
             .iter()
             .find(|h| std::ptr::eq(h.expr, e) && h.view == self.view && (rows_ready || h.per_run))?;
         let (offset, comps, scalar) = (h.offset, h.comps, h.scalar);
@@ -271,76 +248,6 @@ impl<'a, 'b> Lower<'a, 'b> {
             scalar,
             varying: true,
         })
-    }
-
-    /// Tier 1: the frame locals (of `placed`, by local index) that only one side of the
-    /// pixel code's first unswitched condition reads, with that side (`true`: then), when
-    /// the condition is a top-level statement of the pixel code. Their stores are left to
-    /// the side's dispatch block (`store_deferred_frame`), so Cranelift computes them only
-    /// on the path that reads them: screen_triangle's float edges, read only when the
-    /// triangle is not `exact`, were computed and stored in every render call.
-    ///
-    /// A local some other reader needs before the dispatch stays in setup: a per-run row
-    /// term, a carried term (its steps are evaluated once per run) or the definition of a
-    /// local either reads; so does one read outside the condition's sides (its row terms and
-    /// block facts are pixel code too) or in the condition itself.
-    pub(super) fn defer_frame_stores(
-        &mut self,
-        f: &'a Function,
-        placed: &[(usize, Vec<Variable>, Option<u32>)],
-    ) -> std::collections::HashMap<usize, bool> {
-        let mut deferred = std::collections::HashMap::new();
-        if self.tier0() {
-            return deferred;
-        }
-        let mut assigned = std::collections::HashSet::new();
-        block::assigned_locals(&f.pixel, &mut assigned);
-        let Some(cond) = unswitch::next_condition(&f.pixel, &std::collections::HashMap::new(), &assigned, self.key)
-        else {
-            return deferred;
-        };
-        let Some(at) = f
-            .pixel
-            .iter()
-            .position(|s| matches!(&s.kind, StmtKind::If { cond: c, .. } if std::ptr::eq(c, cond)))
-        else {
-            return deferred;
-        };
-        let StmtKind::If { then, otherwise, .. } = &f.pixel[at].kind else {
-            return deferred;
-        };
-        let n = f.locals.len();
-        let mut outside = vec![false; n];
-        self.visit_live_pixel_locals(&f.pixel[..at], &mut |l| mark_local(&mut outside, l));
-        self.visit_live_pixel_locals(&f.pixel[at + 1..], &mut |l| mark_local(&mut outside, l));
-        cond.for_each_local(&mut |l| mark_local(&mut outside, l));
-        let early: Vec<&Expr> = self
-            .hoists
-            .iter()
-            .filter(|h| h.per_run)
-            .map(|h| h.expr)
-            .chain(self.carried.iter().map(|c| c.expr))
-            .chain(self.affine_defs.values().copied())
-            .chain(self.row_locals.values().copied())
-            .collect();
-        for e in early {
-            e.for_each_local(&mut |l| mark_local(&mut outside, l));
-        }
-        let mut in_then = vec![false; n];
-        let mut in_else = vec![false; n];
-        self.visit_live_pixel_locals(then, &mut |l| mark_local(&mut in_then, l));
-        self.visit_live_pixel_locals(otherwise, &mut |l| mark_local(&mut in_else, l));
-        for (i, _, word) in placed {
-            let i = *i;
-            if word.is_none() || outside[i] || in_then[i] == in_else[i] {
-                continue;
-            }
-            deferred.insert(i, in_then[i]);
-        }
-        if !deferred.is_empty() {
-            self.deferred_frame = Some((cond.id, vec![]));
-        }
-        deferred
     }
 
     /// In the dispatch block of side `on` of the condition `cond` (`unswitched_loops`): the

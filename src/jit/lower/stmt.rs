@@ -5,7 +5,7 @@
 //! runs for, always a subset of `alive`). A varying `if` runs both sides under their masks,
 //! skipping a side with no lane ([`Lower::lower_if`]); varying loops keep a loop mask and
 //! run until it is empty ([`Lower::varying_loop`]); break/continue/return remove lanes.
-//! Tier 0 lowers flat pixel code without those early exits ([`super::flat`]), and may
+//! Tier 0 lowers flat pixel code without those early exits ([`crate::mid::flat`]), and may
 //! if-convert short setup `if`s ([`Lower::if_converted`]).
 //!
 //! Invariants: every loop trip spends fuel ([`Lower::spend_fuel`]; kept in a variable,
@@ -16,9 +16,7 @@
 use cranelift_codegen::ir::{self, condcodes::IntCC, Block, InstBuilder};
 use cranelift_frontend::Variable;
 
-use super::{
-    const_index_in_range, dead, err, flat, key_constant, quiet_stmt, speculable_expr, LoopCtx, Lower, Res, Storage,
-};
+use super::{err, key_constant, quiet_stmt, speculable_expr, LoopCtx, Lower, Res, Storage};
 use crate::abi::ERR_FUEL;
 use crate::ir::{for_each_assign, Expr, Function, LocalId, LoopId, Scalar, SiteId, Stmt, StmtKind};
 use crate::jit::fixed;
@@ -119,7 +117,9 @@ impl<'a, 'b> Lower<'a, 'b> {
                 if self.pix.is_some()
                     && self.frames.len() == 1
                     && place.indices.is_empty()
-                    && self.unread_in_groups.contains(&place.local)
+                    && self
+                        .pixel_plan()
+                        .is_ok_and(|p| p.unread_in_groups.contains(&place.local))
                 {
                     return Ok(());
                 }
@@ -181,9 +181,9 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// Tier 0: `s`, an assignment to `local` in the primitive's setup, computes a value no
-    /// live code reads and has no other effect (see [`dead`]).
+    /// live code reads and has no other effect (see [`crate::mid::dead`]).
     pub(super) fn dead_setup_assign(&self, s: &Stmt, local: LocalId) -> bool {
-        let Some(live) = &self.setup_live else {
+        let Some(live) = &self.plan.setup_live else {
             return false;
         };
         let mut budget = usize::MAX;
@@ -204,7 +204,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             return Ok(());
         }
         // A condition of the primitive decided before the pixel loops (tier 1, see
-        // [`unswitch`]): this copy of the loops holds the side it takes only.
+        // [`crate::mid::unswitch`]): this copy of the loops holds the side it takes only.
         if let (1, Some(&on)) = (self.frames.len(), self.unswitched.get(&cond.id)) {
             return self.stmts(if on { then } else { otherwise });
         }
@@ -213,11 +213,8 @@ impl<'a, 'b> Lower<'a, 'b> {
             let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
             // Tier 0, flat pixel code: a uniform `if` whose sides run under masks as well
             // as after a branch is lowered like a varying one, with the condition splatted
-            // to every lane: no blocks for its sides (see [`flat`]).
-            if self.flat
-                && self.frames.len() == 1
-                && flat::maskable_stmts(self.frames[0].func, then)
-                && flat::maskable_stmts(self.frames[0].func, otherwise)
+            // to every lane: no blocks for its sides (see [`crate::mid::flat`]).
+            if self.flat && self.frames.len() == 1 && self.pixel_plan().is_ok_and(|p| p.maskable_ifs.contains(&cond.id))
             {
                 if let Some(entry) = self.exec() {
                     let m = splat(&mut self.b, Scalar::Bool, c);
@@ -274,7 +271,7 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// `if (c) then else otherwise` for the lanes of `entry`, with `c` a lane mask: each
     /// side runs under its mask and is skipped when no lane takes it (flat pixel code runs
-    /// both sides whatever the masks: see [`flat`]).
+    /// both sides whatever the masks: see [`crate::mid::flat`]).
     pub(super) fn masked_if(
         &mut self,
         entry: ir::Value,
@@ -371,7 +368,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 if let Some(p) = pending.take() {
                     self.return_if(p);
                 }
-                self.begin_outlined_setup(f, i)?;
+                self.begin_outlined_setup(i)?;
             }
             if let Some(cond) = self.deferrable_guard(s) {
                 let c = self.eval_uniform(cond)?;
@@ -426,40 +423,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.speculable_stmts(then, &mut budget) && self.speculable_stmts(otherwise, &mut budget)
     }
 
+    /// See [`crate::mid::pred::speculable_stmts`], for the frame being lowered.
     pub(super) fn speculable_stmts(&self, stmts: &[Stmt], budget: &mut usize) -> bool {
-        stmts.iter().all(|s| {
-            if *budget == 0 {
-                return false;
-            }
-            *budget -= 1;
-            match &s.kind {
-                StmtKind::Assign { place, value } => {
-                    let fr = self.frame();
-                    let Some(local) = fr.func.locals.get(place.local.0 as usize) else {
-                        return false;
-                    };
-                    if !place.indices.is_empty() {
-                        let mut ty = local.ty.clone();
-                        for (idx, _) in &place.indices {
-                            if !const_index_in_range(&ty, idx) {
-                                return false;
-                            }
-                            ty = ty.element();
-                        }
-                    }
-                    matches!(fr.storage.get(place.local.0 as usize), Some(Storage::Vars(_)))
-                        && !local.var.is_varying()
-                        && speculable_expr(value)
-                }
-                StmtKind::If { cond, then, otherwise } => {
-                    key_constant(cond, self.key).is_none()
-                        && speculable_expr(cond)
-                        && self.speculable_stmts(then, budget)
-                        && self.speculable_stmts(otherwise, budget)
-                }
-                _ => false,
-            }
-        })
+        let fr = self.frame();
+        let in_vars = |l: LocalId| matches!(fr.storage.get(l.0 as usize), Some(Storage::Vars(_)));
+        crate::mid::pred::speculable_stmts(fr.func, self.key, &in_vars, stmts, budget)
     }
 
     /// Lower `if (c) then else otherwise` (checked by [`Self::if_convertible`]) without
@@ -467,8 +435,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// assigned variable selects its `then` or `otherwise` value by `c`.
     pub(super) fn if_converted(&mut self, c: ir::Value, then: &'a [Stmt], otherwise: &'a [Stmt]) -> Res<()> {
         let mut locals = vec![];
-        dead::visit_assigned(then, &mut |l| locals.push(l));
-        dead::visit_assigned(otherwise, &mut |l| locals.push(l));
+        for_each_assign(then, &mut |p, _| locals.push(p.local));
+        for_each_assign(otherwise, &mut |p, _| locals.push(p.local));
         locals.sort_unstable_by_key(|l| l.0);
         locals.dedup();
         let mut vars = vec![];
@@ -520,7 +488,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         };
         self.b.def_var(alive_var, alive);
         self.set_exec(stay);
-        // Flat pixel code goes on with no lane left (see [`flat`]).
+        // Flat pixel code goes on with no lane left (see [`crate::mid::flat`]).
         if self.flat {
             return Ok(());
         }
@@ -807,7 +775,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.def_var(alive_var, alive);
         let none = mask_const(&mut self.b, false);
         self.set_exec(none);
-        // Flat pixel code goes on with no lane left (see [`flat`]).
+        // Flat pixel code goes on with no lane left (see [`crate::mid::flat`]).
         if self.flat {
             return Ok(());
         }

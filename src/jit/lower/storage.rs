@@ -5,7 +5,9 @@
 //! component, up to `MAX_LOCAL_VAR_WORDS` per local and `MAX_VAR_WORDS` per kernel), in
 //! stack slots (locals indexed with a non-constant index: 4 bytes per uniform component,
 //! 16 per varying one), in the uniform frame (see [`super::spill`]), or are the primitive's
-//! Z or a parameter read from the argument block ([`super::Storage`]).
+//! Z or a parameter read from the argument block ([`super::Storage`]). The primitive's
+//! frame takes the homes the plan gives ([`crate::mid::homes`]); an inlined interpolator's
+//! locals take SSA variables from what the kernel's budget has left when it is inlined.
 //!
 //! An [`super::Access`] is a (possibly indexed) value not yet loaded: [`Lower::resolve`]
 //! builds one from an expression, [`Lower::index_access`] applies an index,
@@ -15,14 +17,14 @@
 //! Safety invariant: every index is clamped into its array, and the error recorded (in
 //! tier 1 from a cold block; see [`super::frame`]), unless [`crate::ir::range`] proved it
 //! in range. A stack array some read may reach before it is assigned is zeroed at kernel
-//! entry ([`super::init`]), so no run reads stale stack memory.
+//! entry ([`crate::mid::init`]), so no run reads stale stack memory.
 
 use cranelift_codegen::ir::{self, condcodes::IntCC, types, InstBuilder, StackSlot, StackSlotData, StackSlotKind};
 use cranelift_frontend::Variable;
 
 use super::{
-    all_zero_bits, const_int, elem_scalar, err, init, mark_dynamic_stmt, Access, AccessTy, Dyn, Frame, I32X4_or, Lower,
-    Res, Root, Storage, MAX_LOCAL_VAR_WORDS, MAX_VAR_WORDS, ZERO_LOOP_BYTES,
+    all_zero_bits, const_int, elem_scalar, err, Access, AccessTy, Dyn, Frame, I32X4_or, Lower, Res, Root, Storage,
+    ZERO_LOOP_BYTES,
 };
 use crate::abi::{type_words, ParamSlot, ERR_INDEX};
 use crate::ir::{Elem, Expr, ExprKind, FuncId, Function, LocalId, ParamRole, Place, Scalar, SiteId};
@@ -31,6 +33,7 @@ use crate::jit::value::{
     args_flags, blend, cl_type, comp_bytes, mask_const, mem_flags, splat, zero, Val, VnKey, I32X4,
 };
 use crate::jit::JitError;
+use crate::mid::homes::{Home, MAX_LOCAL_VAR_WORDS, MAX_VAR_WORDS};
 
 impl<'a, 'b> Lower<'a, 'b> {
     /// Whether a local of `words` components may live in SSA variables (one each), counted
@@ -54,17 +57,17 @@ impl<'a, 'b> Lower<'a, 'b> {
         fixed_words: u32,
         interp_binding: Option<usize>,
     ) -> Res<Frame<'a>> {
-        let mut dynamic = vec![false; f.locals.len()];
-        for s in f.setup.iter().chain(f.pixel.iter()) {
-            mark_dynamic_stmt(s, &mut dynamic);
-        }
-        // The primitive's own frame: only arrays some read may reach before a whole
-        // assignment are cleared at entry (see [`init`]); an inlined interpolator's frame
-        // clears all of its arrays.
-        let entry_clear = if interp_binding.is_none() {
-            Some(init::read_before_assigned(f))
-        } else {
-            None
+        // The primitive's own frame: the homes the plan gives, where only arrays some read
+        // may reach before a whole assignment are cleared at entry (see
+        // [`crate::mid::init`]). An inlined interpolator's frame: its locals indexed with a
+        // non-constant index on the stack, the others in SSA variables while the kernel's
+        // budget lasts; it clears all of its arrays.
+        let plan = self.plan;
+        let homes = interp_binding.is_none().then_some(&plan.homes);
+        let dynamic: &[bool] = match (homes, plan.interpolators.get(&id)) {
+            (Some(_), _) => &[],
+            (None, Some(g)) => &g.dynamic,
+            (None, None) => return err(format!("shared interpolator `{}` is not in the plan", f.name)),
         };
         let mut storage = Vec::with_capacity(f.locals.len());
         for (i, local) in f.locals.iter().enumerate() {
@@ -80,14 +83,22 @@ impl<'a, 'b> Lower<'a, 'b> {
                         return err(format!("local `{}` has a per-sequence-point type", local.name));
                     }
                     let n = type_words(&local.ty, self.n_interp);
-                    if dynamic[i] || !self.take_var_words(n) {
+                    let (on_stack, clear) = match homes.map(|h| h.locals[i]) {
+                        Some(Home::Stack { clear }) => (true, clear),
+                        Some(_) => (false, false),
+                        None => (
+                            dynamic.get(i).copied().unwrap_or(false) || !self.take_var_words(n),
+                            true,
+                        ),
+                    };
+                    if on_stack {
                         let bytes = n.max(1) * comp_bytes(varying);
                         let slot =
                             self.b
                                 .create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, bytes, 4));
                         // Zero it so no run reads stale stack memory, unless every read
                         // comes after a whole assignment.
-                        if entry_clear.as_ref().is_none_or(|c| c.get(i).copied().unwrap_or(true)) {
+                        if clear {
                             let addr = self.slot_addr(slot);
                             self.zero_stack_bytes(addr, 0, bytes);
                         }
@@ -115,6 +126,9 @@ impl<'a, 'b> Lower<'a, 'b> {
                 }
             };
             storage.push(st);
+        }
+        if let Some(h) = homes {
+            self.var_words += h.var_words;
         }
         Ok(Frame {
             func: f,
@@ -324,9 +338,14 @@ impl<'a, 'b> Lower<'a, 'b> {
         })
     }
 
-    /// Is `site` of the primitive's own body proven in range (see `proven_sites`)?
+    /// Is `site` of the primitive's own body proven in range (see
+    /// [`crate::mid::Plan::proven_sites`])?
     pub(super) fn site_proven(&mut self, site: SiteId) -> bool {
-        self.shared_body.proven_sites().contains(&site)
+        debug_assert!(
+            self.plan.proven_sites.is_some(),
+            "the plan judged no index site (mid::sites::needs_range), the lowering asks about one"
+        );
+        self.plan.proven_sites.is_some_and(|p| p.contains(&site))
     }
 
     /// A uniform index `idx` into `len` elements (`last` = `len - 1`), clamped, with

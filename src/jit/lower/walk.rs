@@ -29,9 +29,10 @@
 use cranelift_codegen::ir::{self, condcodes::IntCC, types, Block, InstBuilder};
 use cranelift_frontend::Variable;
 
-use super::block::{AbsCache, BlockFacts, Prefix};
+use super::block::{AbsCache, BlockFacts};
 use super::{Lower, PassRect, Res, BLOCK_H, BLOCK_W, SMALL_RECT};
 use crate::ir::Function;
+use crate::mid::block::Prefix;
 
 /// The variables and blocks of one block walk over rows `[lo_y, hi_y)` and groups from
 /// `gx_start` to `hi_x` (see the module doc for what each is).

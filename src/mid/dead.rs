@@ -15,7 +15,7 @@ use crate::ir::{Expr, LocalId, Stmt, StmtKind};
 /// The locals read by live code (indexed by local), given `live`, the locals the pixel
 /// code reads or assigns as lowered, and `removable` (whether an assignment statement may
 /// be skipped when its local is dead).
-pub(super) fn live_setup_locals(setup: &[Stmt], mut live: Vec<bool>, removable: &dyn Fn(&Stmt) -> bool) -> Vec<bool> {
+pub(crate) fn live_setup_locals(setup: &[Stmt], mut live: Vec<bool>, removable: &dyn Fn(&Stmt) -> bool) -> Vec<bool> {
     // Statements are walked last to first, so in straight-line code an assignment is met
     // after the reads that make its local live, and one round finds everything unless an
     // assignment skipped as dead has its local read above it (a reused local, a loop whose
@@ -87,12 +87,12 @@ fn walk(stmts: &[Stmt], live: &mut [bool], skipped: &mut Vec<LocalId>, removable
 /// Calls `f` for each assignment in `stmts` (nested ones too) with the local it assigns
 /// (whole or in part); a local assigned twice is passed twice. Tier 0's per-kernel walks
 /// collect into flags or a sorted list with it: a HashSet per walk cost more than the walk.
-pub(super) fn visit_assigned(stmts: &[Stmt], f: &mut dyn FnMut(LocalId)) {
+pub(crate) fn visit_assigned(stmts: &[Stmt], f: &mut dyn FnMut(LocalId)) {
     crate::ir::for_each_assign(stmts, &mut |place, _| f(place.local));
 }
 
 /// The locals `stmts` assigns, as a flag per local (`locals` of them).
-pub(super) fn assigned_flags(stmts: &[Stmt], locals: usize) -> Vec<bool> {
+pub(crate) fn assigned_flags(stmts: &[Stmt], locals: usize) -> Vec<bool> {
     let mut out = vec![false; locals];
     visit_assigned(stmts, &mut |l| {
         if let Some(x) = out.get_mut(l.0 as usize) {
@@ -103,7 +103,7 @@ pub(super) fn assigned_flags(stmts: &[Stmt], locals: usize) -> Vec<bool> {
 }
 
 /// The locals `stmts` reads or assigns anywhere, as a flag per local (`locals` of them).
-pub(super) fn mentioned_flags(stmts: &[Stmt], locals: usize) -> Vec<bool> {
+pub(crate) fn mentioned_flags(stmts: &[Stmt], locals: usize) -> Vec<bool> {
     // Nothing removable: one round marks every read and every assigned local.
     live_setup_locals(stmts, vec![false; locals], &|_| false)
 }

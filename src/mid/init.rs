@@ -1,12 +1,12 @@
 //! Which uniform stack arrays of a primitive must be zeroed at kernel entry.
 //!
-//! Every local kept in a stack slot (indexed with a non-constant index) used to be cleared
-//! when its frame was made, so no run could read stale stack memory. Most such arrays are
-//! cleared again where they are declared (a declaration without initialiser is an
-//! all-zero assignment in the IR) before anything reads them, so the entry clear is dead:
-//! it was half of the NURB kernel's 2240 vector stores (its tessellation arrays, ~21 KB).
-//! [`read_before_assigned`] finds the arrays some read may reach before a whole
-//! assignment on some path; only those keep the entry clear.
+//! No run may read stale stack memory, so a local kept in a stack slot (indexed with a
+//! non-constant index) must be zero when read before anything assigned it. Most such arrays
+//! are cleared where they are declared (a declaration without initialiser is an all-zero
+//! assignment in the IR) before anything reads them, and clearing them at entry too would
+//! be dead work: half of the NURB kernel's 2240 vector stores (its tessellation arrays,
+//! ~21 KB). [`read_before_assigned`] finds the arrays some read may reach before a whole
+//! assignment on some path; only those are cleared at entry.
 //!
 //! The walk is a forward "definitely assigned" analysis over the IR in lowering order
 //! (setup, then the pixel part): a *whole* assignment (no indices) of a tracked local
@@ -26,7 +26,7 @@ use crate::ir::{Elem, Expr, Function, LocalId, Stmt, StmtKind};
 
 /// Per local of `f`: may a read of it run before a whole assignment has stored every word
 /// of it (so its stack slot must start zeroed)? `true` for every local not tracked.
-pub(super) fn read_before_assigned(f: &Function) -> Vec<bool> {
+pub(crate) fn read_before_assigned(f: &Function) -> Vec<bool> {
     let tracked: Vec<bool> = f
         .locals
         .iter()

@@ -3,9 +3,9 @@
 //!
 //! A group is 4 pixels of one row, so a varying expression whose only varying input is Y
 //! (`b * Y` of a plane `a*X + b*Y + c`, `int(Y * 16) - int(oy * 16)`) has the same value in
-//! every group of a row. [`Lower::collect_hoists`] finds, at compile time, the *maximal*
+//! every group of a row. [`Scope::collect_hoists`] finds, at compile time, the *maximal*
 //! such subexpressions of the pixel code that contain an operation; the row prologue of
-//! every pixel loop evaluates each once per row with the same operations the group would
+//! every pixel loop (the JIT's `Lower::row_hoists`) evaluates each once per row with the same operations the group would
 //! use and stores it in the *row section* of the uniform frame; the group reads it back
 //! instead of computing it. A uniform operation feeding a varying one (`int(oy * 16)`)
 //! goes to the row section too, but is evaluated once per kernel run, after setup. Only the hoisted subterm moves: the sums around it stay in
@@ -29,22 +29,30 @@
 //! defining expression (an element by that expression's component: the same operations
 //! again, so the same bits), each local once per prologue; the group reads the stored term
 //! and never the local. Only hoisting sees row locals (the carried terms of
-//! [`super::affine`] keep their own notion of substitutable locals).
+//! [`super::affine`] keep their own notion of substitutable locals). A row local every read
+//! of which is inside a row term is not assigned in the groups at all
+//! ([`row_locals_unread`]).
 //!
 //! The uniform frame also gets a *vector section*: a slot of 16 bytes per non-bool word,
 //! holding its splat, written once per kernel run. A uniform read in a group that feeds a
 //! varying operation then loads the splat (`vmulps xmm, xmm, [base + off]`) instead of
 //! broadcasting the scalar in every group. Only the splats some group loads are stored
 //! (`Lower::drop_unread_splats`).
+//!
+//! The analysis is made over a [`Scope`]: the key (the views of `interpolation` arms),
+//! which uniform locals stay put while the pixel loops run (in the uniform frame or the
+//! argument block, see [`super::spill`]) and the row locals found so far.
 
 use std::collections::{HashMap, HashSet};
 
-use crate::ir::{BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, Function, LocalId, Scalar, Stmt, StmtKind, UnaryOp};
-
-use super::{Lower, Storage};
+use super::view;
+use crate::abi::VariantKey;
+use crate::ir::{
+    BinOp, Builtin, ConstValue, Elem, Expr, ExprId, ExprKind, Function, LocalId, Scalar, Stmt, StmtKind, UnaryOp,
+};
 
 /// One hoisted expression: where its components live in the row section.
-pub(super) struct Hoist<'a> {
+pub(crate) struct Hoist<'a> {
     pub expr: &'a Expr,
     /// The interpolation view it is evaluated under.
     pub view: Vec<u32>,
@@ -57,23 +65,59 @@ pub(super) struct Hoist<'a> {
     pub per_run: bool,
 }
 
-/// The locals `f`'s pixel code assigns, and its Y parameter unless the pixel code assigns it
-/// (then nothing is row-invariant through Y).
-fn pixel_assigned_and_y(f: &Function) -> (HashSet<LocalId>, Option<LocalId>) {
-    let mut assigned = HashSet::new();
-    super::block::assigned_locals(&f.pixel, &mut assigned);
-    let y = f
-        .param_by_role(crate::ir::ParamRole::Y)
-        .map(|p| p.local)
-        .filter(|l| !assigned.contains(l));
-    (assigned, y)
+/// What row invariance is judged against (see the module comment).
+pub(crate) struct Scope<'s, 'a> {
+    pub key: &'s VariantKey,
+    /// The key's interpolated components (the view outside `interpolation` arms).
+    pub n_interp: u32,
+    /// Per local of the primitive: a uniform value that stays put while the pixel loops run
+    /// (a word of the uniform frame, or a parameter in the argument block).
+    pub resident: &'s [bool],
+    /// The row locals, once found ([`Self::collect_row_locals`]).
+    pub row_locals: HashMap<LocalId, &'a Expr>,
 }
 
-impl<'a, 'b> Lower<'a, 'b> {
+/// `f`'s Y parameter unless the pixel code assigns it (`assigned`; then nothing is
+/// row-invariant through Y).
+fn unassigned_y(f: &Function, assigned: &HashSet<LocalId>) -> Option<LocalId> {
+    f.param_by_role(crate::ir::ParamRole::Y)
+        .map(|p| p.local)
+        .filter(|l| !assigned.contains(l))
+}
+
+/// Row locals whose every read is inside a row term (`along` of the sphere, read only by
+/// the terms `dot(along, along)` and `dot(along, along_x)`): the terms substitute the
+/// local's value, so no group reads the local. Its assignment is left out of the groups
+/// and its own value not stored per row, as for the locals only carried terms read
+/// (marked in `unread` and `unstored`, see [`super::affine::mark_unread_in_groups`]).
+pub(crate) fn row_locals_unread<'a>(
+    f: &Function,
+    hoists: &[Hoist<'a>],
+    rows: &HashMap<LocalId, &'a Expr>,
+    unread: &mut HashSet<LocalId>,
+    unstored: &mut HashSet<ExprId>,
+) {
+    // Each term once, whatever the views it was collected under.
+    let mut counted = HashSet::new();
+    let terms: Vec<&'a Expr> = hoists
+        .iter()
+        .filter(|h| !h.per_run && counted.insert(h.expr.id))
+        .map(|h| h.expr)
+        .collect();
+    let locals: Vec<(LocalId, &'a Expr)> = rows.iter().map(|(&l, &v)| (l, v)).collect();
+    super::affine::mark_unread_in_groups(f, terms, locals, unread, unstored);
+}
+
+impl<'s, 'a> Scope<'s, 'a> {
     /// The row locals of `f`'s pixel code (see the module comment), each with its defining
-    /// expression; a row local's value may read earlier ones.
-    pub(super) fn collect_row_locals(&self, f: &'a Function) -> HashMap<LocalId, &'a Expr> {
-        let (assigned, y) = pixel_assigned_and_y(f);
+    /// expression; a row local's value may read earlier ones. `assigned`: the locals the
+    /// pixel code assigns.
+    pub(crate) fn collect_row_locals(
+        &self,
+        f: &'a Function,
+        assigned: &HashSet<LocalId>,
+    ) -> HashMap<LocalId, &'a Expr> {
+        let y = unassigned_y(f, assigned);
         let mut pixel_assignments: HashMap<LocalId, u32> = HashMap::new();
         crate::ir::for_each_assign(&f.pixel, &mut |place, _| {
             *pixel_assignments.entry(place.local).or_default() += 1;
@@ -97,38 +141,27 @@ impl<'a, 'b> Lower<'a, 'b> {
                 && pixel_assignments.get(&l) == Some(&1)
                 && !setup_assigned.contains(&l)
                 && !params.contains(&l);
-            if candidate && self.row_invariant_in(f, value, y, &assigned, Some(&rows)) {
+            if candidate && self.row_invariant_in(f, value, y, assigned, Some(&rows)) {
                 rows.insert(l, value);
             }
         }
         rows
     }
 
-    /// Row locals whose every read is inside a row term (`along` of the sphere, read only by
-    /// the terms `dot(along, along)` and `dot(along, along_x)`): the terms substitute the
-    /// local's value, so no group reads the local. Its assignment is left out of the groups
-    /// and its own value not stored per row, as for the locals only carried terms read.
-    pub(super) fn mark_row_locals_unread_in_groups(&mut self, f: &'a Function) {
-        // Each term once, whatever the views it was collected under.
-        let mut counted = HashSet::new();
-        let terms: Vec<&'a Expr> = self
-            .hoists
-            .iter()
-            .filter(|h| !h.per_run && counted.insert(h.expr.id))
-            .map(|h| h.expr)
-            .collect();
-        let locals: Vec<(LocalId, &'a Expr)> = self.row_locals.iter().map(|(&l, &v)| (l, v)).collect();
-        self.mark_unread_in_groups(f, terms, locals);
-    }
-
     /// The maximal row-invariant varying subexpressions of `f`'s pixel code, in the order
     /// met, with the view each is lowered under; offsets start at `first_offset`.
-    pub(super) fn collect_hoists(&self, f: &'a Function, first_offset: u32) -> Vec<Hoist<'a>> {
-        let (assigned, y) = pixel_assigned_and_y(f);
+    /// `assigned`: the locals the pixel code assigns.
+    pub(crate) fn collect_hoists(
+        &self,
+        f: &'a Function,
+        assigned: &HashSet<LocalId>,
+        first_offset: u32,
+    ) -> Vec<Hoist<'a>> {
+        let y = unassigned_y(f, assigned);
         let mut out = vec![];
         let view: Vec<u32> = (0..self.n_interp).collect();
         let mut next = first_offset;
-        self.hoists_in(f, &f.pixel, &view, y, &assigned, &mut out, &mut next);
+        self.hoists_in(f, &f.pixel, &view, y, assigned, &mut out, &mut next);
         out
     }
 
@@ -152,15 +185,9 @@ impl<'a, 'b> Lower<'a, 'b> {
                     self.hoists_in(f, otherwise, view, y, assigned, out, next);
                 }
                 StmtKind::Interpolation { arms } => {
-                    let named: Vec<&str> = arms
-                        .iter()
-                        .filter_map(|a| match &a.kind {
-                            crate::ir::ArmKind::Named(k) => Some(k.as_str()),
-                            crate::ir::ArmKind::Default => None,
-                        })
-                        .collect();
+                    let named = view::named_kinds(arms);
                     for arm in arms {
-                        if let Some((arm_view, _)) = self.arm_view(arms, &named, arm) {
+                        if let Some((arm_view, _)) = view::arm_view(self.key, &named, arm) {
                             self.hoists_in(f, &arm.body, &arm_view, y, assigned, out, next);
                         }
                     }
@@ -303,7 +330,7 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// `e` has the same value in every group of a row (see the module comment), without
     /// row locals (the carried terms' test).
-    pub(super) fn row_invariant(
+    pub(crate) fn row_invariant(
         &self,
         f: &Function,
         e: &Expr,
@@ -344,10 +371,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 !local.var.is_varying()
                     && !assigned.contains(l)
                     && !local.ty.per_seq
-                    && matches!(
-                        self.frames[0].storage.get(l.0 as usize),
-                        Some(Storage::Frame(_) | Storage::Args)
-                    )
+                    && self.resident.get(l.0 as usize).copied().unwrap_or(false)
             }
             ExprKind::Index { base, index, .. } => {
                 let in_range = match (&index.kind, base.ty.per_seq, base.ty.dims.first()) {

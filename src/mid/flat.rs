@@ -23,14 +23,23 @@
 //! - a failed array index records a run-time error: in flat pixel code the record is
 //!   further conditioned on some lane executing the access (`Lower::record_error`), which
 //!   is exactly when tier 1 runs it.
+//!
+//! Flat code also starts every group with the varying locals the pixel code assigns (and
+//! the setup does not) at zero ([`zeroed_locals`]): assigned under masks, they would
+//! otherwise carry the previous group's value through the loops, and no lane reads it (a
+//! local is declared, so assigned, before any read of it in the same group).
 
+use std::collections::HashSet;
+
+use super::dead;
+use super::homes::{Home, Homes};
 use crate::abi::{BindingKind, VariantKey};
-use crate::ir::{Function, Program, Stmt, StmtKind};
+use crate::ir::{ExprId, Function, Program, Stmt, StmtKind};
 
 /// Whether tier 0 may lower `f`'s pixel code for `key` flat (see the module doc): no
 /// uniform loop and no assignment to a uniform local in it, nor in any shared interpolator
 /// the key binds (those are inlined into the pixel code).
-pub(super) fn pixel_code_is_flattenable(program: &Program, f: &Function, key: &VariantKey) -> bool {
+pub(crate) fn pixel_code_is_flattenable(program: &Program, f: &Function, key: &VariantKey) -> bool {
     if !stmts_are_flattenable(f, &f.pixel) {
         return false;
     }
@@ -62,11 +71,41 @@ fn stmts_are_flattenable(f: &Function, stmts: &[Stmt]) -> bool {
 /// (No loops: a `break` or `continue` under the `if` would leave a uniform loop; no
 /// `interpolation`: its stores are masked, but the construct is rare under a uniform `if`
 /// and is kept on the branching path.)
-pub(super) fn maskable_stmts(f: &Function, stmts: &[Stmt]) -> bool {
+pub(crate) fn maskable_stmts(f: &Function, stmts: &[Stmt]) -> bool {
     stmts.iter().all(|s| match &s.kind {
         StmtKind::Assign { place, .. } => f.locals.get(place.local.0 as usize).is_some_and(|l| l.var.is_varying()),
         StmtKind::If { then, otherwise, .. } => maskable_stmts(f, then) && maskable_stmts(f, otherwise),
         StmtKind::Return => true,
         _ => false,
     })
+}
+
+/// The conditions (by id) of the `if`s of `stmts` (flat pixel code of `f`), nested ones
+/// too, whose both sides are [`maskable_stmts`].
+pub(crate) fn maskable_ifs(f: &Function, stmts: &[Stmt], out: &mut HashSet<ExprId>) {
+    crate::ir::for_each_stmt(stmts, &mut |s| {
+        if let StmtKind::If { cond, then, otherwise } = &s.kind {
+            if maskable_stmts(f, then) && maskable_stmts(f, otherwise) {
+                out.insert(cond.id);
+            }
+        }
+    });
+}
+
+/// The varying locals (by index, in order) a group of flat pixel code starts at zero: the
+/// ones the pixel code assigns and the setup does not (a local the setup assigns keeps the
+/// setup's value until the pixel code assigns it), parameters aside, that live in SSA
+/// variables (`homes`).
+pub(crate) fn zeroed_locals(f: &Function, homes: &Homes) -> Vec<usize> {
+    let assigned = dead::assigned_flags(&f.pixel, f.locals.len());
+    let in_setup = dead::assigned_flags(&f.setup, f.locals.len());
+    (0..f.locals.len())
+        .filter(|&i| {
+            f.locals[i].var.is_varying()
+                && assigned[i]
+                && !in_setup[i]
+                && !f.params.iter().any(|p| p.local.0 as usize == i)
+                && matches!(homes.locals.get(i), Some(Home::Vars(_)))
+        })
+        .collect()
 }

@@ -6,7 +6,7 @@
 //! a stack slot addressed with a clamped dynamic index, an error record per access and a
 //! fuel check per trip; that was about half of the kernel's CLIF and most of the register
 //! allocator's time (docs/performance.md). After this pass every such index is a constant,
-//! `lower::mark_dynamic_stmt` keeps the array in SSA variables and the clamping, error
+//! [`super::homes::dynamic_locals`] leaves the array in SSA variables and the clamping, error
 //! records and fuel checks are gone.
 //!
 //! The pass walks each statement list forward with an environment of *known* locals: uniform

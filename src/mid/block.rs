@@ -1,0 +1,316 @@
+//! Block-level culling, its compile-time half: the *guard prefix* of a primitive's pixel
+//! part ([`prefix`]) and the expressions each variant of the pixel code lowers
+//! ([`pass_exprs`]). The run-time half, the interval evaluation of the prefix over a block
+//! of pixels, is the JIT's (`jit::lower::block`).
+//!
+//! The guard prefix is the leading statements that are assignments of pure expressions to
+//! varying scalar locals, `if (c) return;` guards on varying conditions, and `if` on uniform
+//! conditions whose branches are themselves such statements. It stops at the first
+//! statement with an effect a skipped block would lose (a Z or G-buffer write, a loop that
+//! spends fuel, an index that may record an error, ...).
+//!
+//! Invariants: nothing in the prefix has an effect ([`pure`] expressions, assignments to
+//! varying locals that are not parameters, guards that only retire lanes), so a block where
+//! every lane leaves at a guard does nothing at all, and a variant that drops a guard the
+//! block facts proved never fires computes what the full code computes. Guards are numbered
+//! in pre-order (`PStmt::Guard::id`); a uniform `if` whose condition is decided for the
+//! copy of the loops being planned ([`super::unswitch`]) contributes its taken side inline.
+
+use std::collections::{HashMap, HashSet};
+
+use crate::ir::{ConstValue, Elem, Expr, ExprId, ExprKind, Function, LocalId, Stmt, StmtKind};
+
+/// One statement of the guard prefix.
+pub(crate) enum PStmt<'a> {
+    /// `local = value` for a varying scalar local: kept in both variants.
+    Assign {
+        stmt: &'a Stmt,
+        local: LocalId,
+        value: &'a Expr,
+    },
+    /// `if (cond) return;` with a varying `cond`; `id` numbers guards in pre-order.
+    Guard { stmt: &'a Stmt, cond: &'a Expr, id: usize },
+    /// `if (cond) {..} else {..}` on a uniform `cond`, both sides prefix statements.
+    UniformIf {
+        cond: &'a Expr,
+        then: Vec<PStmt<'a>>,
+        otherwise: Vec<PStmt<'a>>,
+    },
+    /// `return` under uniform control: every lane that gets here retires.
+    Kill(&'a Stmt),
+}
+
+/// The guard prefix of a primitive's pixel part.
+pub(crate) struct Prefix<'a> {
+    pub stmts: Vec<PStmt<'a>>,
+    /// How many top-level pixel statements the prefix covers.
+    pub len: usize,
+    /// Number of guards (ids 0..guards).
+    pub guards: usize,
+}
+
+/// Find the guard prefix of `f`'s pixel statements (see the module comment). A uniform `if`
+/// whose condition `decided` fixes (see [`super::unswitch`]) contributes the statements of
+/// the side it takes, inline.
+pub(crate) fn prefix<'a>(f: &'a Function, decided: &HashMap<ExprId, bool>) -> Prefix<'a> {
+    let mut stmts = vec![];
+    let mut guards = 0;
+    let mut len = 0;
+    for s in &f.pixel {
+        let mut n = guards;
+        let mut out = vec![];
+        if !classify_into(f, s, &mut n, decided, &mut out) {
+            break;
+        }
+        guards = n;
+        stmts.append(&mut out);
+        len += 1;
+    }
+    Prefix { len, stmts, guards }
+}
+
+/// Append `s`'s prefix statements to `out` (several when `s` is a decided `if`); false
+/// when `s` is not a prefix statement.
+fn classify_into<'a>(
+    f: &'a Function,
+    s: &'a Stmt,
+    guards: &mut usize,
+    decided: &HashMap<ExprId, bool>,
+    out: &mut Vec<PStmt<'a>>,
+) -> bool {
+    if let StmtKind::If { cond, then, otherwise } = &s.kind {
+        if let Some(&on) = decided.get(&cond.id) {
+            let taken = if on { then } else { otherwise };
+            return taken.iter().all(|t| classify_into(f, t, guards, decided, out));
+        }
+    }
+    match classify(f, s, guards, decided) {
+        Some(p) => {
+            out.push(p);
+            true
+        }
+        None => false,
+    }
+}
+
+fn classify<'a>(
+    f: &'a Function,
+    s: &'a Stmt,
+    guards: &mut usize,
+    decided: &HashMap<ExprId, bool>,
+) -> Option<PStmt<'a>> {
+    match &s.kind {
+        StmtKind::Assign { place, value } => {
+            let local = f.locals.get(place.local.0 as usize)?;
+            let is_param = f.params.iter().any(|p| p.local == place.local);
+            let scalar_ok = matches!(local.ty.elem, Elem::Scalar(_)) && local.ty.dims.is_empty() && !local.ty.per_seq;
+            (place.indices.is_empty() && !is_param && scalar_ok && local.var.is_varying() && pure(value)).then_some(
+                PStmt::Assign {
+                    stmt: s,
+                    local: place.local,
+                    value,
+                },
+            )
+        }
+        StmtKind::If { cond, then, otherwise } => {
+            if !pure(cond) {
+                return None;
+            }
+            if cond.var.is_varying() {
+                let is_guard = otherwise.is_empty() && then.len() == 1 && matches!(then[0].kind, StmtKind::Return);
+                if !is_guard {
+                    return None;
+                }
+                let id = *guards;
+                *guards += 1;
+                return Some(PStmt::Guard { stmt: s, cond, id });
+            }
+            let mut then_p = vec![];
+            let mut otherwise_p = vec![];
+            let ok = then.iter().all(|t| classify_into(f, t, guards, decided, &mut then_p))
+                && otherwise
+                    .iter()
+                    .all(|t| classify_into(f, t, guards, decided, &mut otherwise_p));
+            ok.then_some(PStmt::UniformIf {
+                cond,
+                then: then_p,
+                otherwise: otherwise_p,
+            })
+        }
+        StmtKind::Return => Some(PStmt::Kill(s)),
+        _ => None,
+    }
+}
+
+/// No effect when evaluated: no index that may be out of range (which records an error).
+pub(crate) fn pure(e: &Expr) -> bool {
+    match &e.kind {
+        ExprKind::Index { base, index, .. } => {
+            let in_range = match (&index.kind, base.ty.per_seq, base.ty.dims.first()) {
+                (ExprKind::Const(ConstValue::Int(k)), false, Some(&len)) => *k >= 0 && (*k as i64) < len as i64,
+                _ => false,
+            };
+            in_range && pure(base)
+        }
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) | ExprKind::Splat(expr) => pure(expr),
+        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => pure(lhs) && pure(rhs),
+        ExprKind::Select { cond, then, otherwise } => pure(cond) && pure(then) && pure(otherwise),
+        ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().all(pure),
+        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => true,
+    }
+}
+
+/// Locals assigned anywhere in `stmts` (their values change between pixel groups).
+pub(crate) fn assigned_locals(stmts: &[Stmt], out: &mut HashSet<LocalId>) {
+    crate::ir::for_each_assign(stmts, &mut |place, _| {
+        out.insert(place.local);
+    });
+}
+
+/// The expressions the pass variant lowers: what `Lower::prefix_without_guards`
+/// emits, then `rest` (the pixel statements after the prefix). The row prologue of a pass
+/// span evaluates only the hoisted row terms among them: the Y terms of dropped guards
+/// (screen_triangle's `int(Y * 16) - int(oy * 16)` and float edge terms) cost every pixel
+/// row of a span for nothing.
+pub(crate) fn pass_exprs(
+    all: &[PStmt<'_>],
+    rest: &[Stmt],
+    decidable: &[bool],
+    live: &HashSet<LocalId>,
+    decided: &HashMap<ExprId, bool>,
+) -> HashSet<ExprId> {
+    fn prefix(
+        all: &[PStmt<'_>],
+        stmts: &[PStmt<'_>],
+        decidable: &[bool],
+        live: &HashSet<LocalId>,
+        out: &mut HashSet<ExprId>,
+    ) {
+        for s in stmts {
+            match s {
+                PStmt::Assign { value, .. } => expr_keys(value, out),
+                PStmt::Guard { cond, id, .. } => {
+                    if !decidable[*id] {
+                        expr_keys(cond, out);
+                    }
+                }
+                PStmt::UniformIf { cond, then, otherwise } => {
+                    if !no_effect_in_pass(all, s, decidable, live) {
+                        expr_keys(cond, out);
+                        prefix(all, then, decidable, live, out);
+                        prefix(all, otherwise, decidable, live, out);
+                    }
+                }
+                PStmt::Kill(_) => {}
+            }
+        }
+    }
+    let mut out = HashSet::new();
+    prefix(all, all, decidable, live, &mut out);
+    stmt_keys(rest, decided, &mut out);
+    out
+}
+
+/// The ids of `e` and all its subexpressions.
+pub(crate) fn expr_keys(e: &Expr, out: &mut HashSet<ExprId>) {
+    out.insert(e.id);
+    e.for_each_child(|c| expr_keys(c, out));
+}
+
+/// The ids of every expression in `stmts`, but for the untaken side (and the condition) of
+/// each `if` that `decided` fixes (see [`super::unswitch`]).
+pub(crate) fn stmt_keys(stmts: &[Stmt], decided: &HashMap<ExprId, bool>, out: &mut HashSet<ExprId>) {
+    for s in stmts {
+        match &s.kind {
+            StmtKind::Assign { place, value } => {
+                place.indices.iter().for_each(|(i, _)| expr_keys(i, out));
+                expr_keys(value, out);
+            }
+            StmtKind::If { cond, then, otherwise } => match decided.get(&cond.id) {
+                Some(&on) => stmt_keys(if on { then } else { otherwise }, decided, out),
+                None => {
+                    expr_keys(cond, out);
+                    stmt_keys(then, decided, out);
+                    stmt_keys(otherwise, decided, out);
+                }
+            },
+            StmtKind::Loop { cond, body, step, .. } => {
+                cond.iter().for_each(|c| expr_keys(c, out));
+                stmt_keys(body, decided, out);
+                stmt_keys(step, decided, out);
+            }
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| stmt_keys(&a.body, decided, out)),
+            StmtKind::InterpolatorReturn(e) => e.iter().for_each(|e| expr_keys(e, out)),
+            StmtKind::Bound(es) => es.iter().for_each(|e| expr_keys(e, out)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr_keys(a, out)),
+            StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
+        }
+    }
+}
+
+/// Locals assigned by prefix statements (recursively).
+fn prefix_assigned(stmts: &[PStmt<'_>], out: &mut HashSet<LocalId>) {
+    for s in stmts {
+        match s {
+            PStmt::Assign { local, .. } => {
+                out.insert(*local);
+            }
+            PStmt::UniformIf { then, otherwise, .. } => {
+                prefix_assigned(then, out);
+                prefix_assigned(otherwise, out);
+            }
+            PStmt::Guard { .. } | PStmt::Kill(_) => {}
+        }
+    }
+}
+
+/// Locals the pass variant's prefix reads outside `skip` (an `if` of the prefix): the values
+/// of assignments, the conditions of the guards it keeps and of uniform `if`s.
+fn prefix_reads(stmts: &[PStmt<'_>], skip: &PStmt<'_>, decidable: &[bool], out: &mut HashSet<LocalId>) {
+    for s in stmts {
+        if std::ptr::eq(s, skip) {
+            continue;
+        }
+        match s {
+            PStmt::Assign { value, .. } => crate::ir::split::expr_reads(value, out),
+            PStmt::Guard { cond, id, .. } => {
+                if !decidable[*id] {
+                    crate::ir::split::expr_reads(cond, out);
+                }
+            }
+            PStmt::UniformIf { cond, then, otherwise } => {
+                crate::ir::split::expr_reads(cond, out);
+                prefix_reads(then, skip, decidable, out);
+                prefix_reads(otherwise, skip, decidable, out);
+            }
+            PStmt::Kill(_) => {}
+        }
+    }
+}
+
+/// `s` (a uniform `if` of the prefix) does nothing in the pass variant: every guard in it
+/// is dropped, it kills no lane, and no local it assigns is read outside it (`live`: the
+/// locals the pixel code after the prefix uses).
+pub(crate) fn no_effect_in_pass(all: &[PStmt<'_>], s: &PStmt<'_>, decidable: &[bool], live: &HashSet<LocalId>) -> bool {
+    fn only_dropped(stmts: &[PStmt<'_>], decidable: &[bool]) -> bool {
+        stmts.iter().all(|s| match s {
+            PStmt::Assign { .. } => true,
+            PStmt::Guard { id, .. } => decidable[*id],
+            PStmt::Kill(_) => false,
+            PStmt::UniformIf { then, otherwise, .. } => {
+                only_dropped(then, decidable) && only_dropped(otherwise, decidable)
+            }
+        })
+    }
+    let PStmt::UniformIf { then, otherwise, .. } = s else {
+        return false;
+    };
+    if !only_dropped(then, decidable) || !only_dropped(otherwise, decidable) {
+        return false;
+    }
+    let mut assigned = HashSet::new();
+    prefix_assigned(std::slice::from_ref(s), &mut assigned);
+    let mut reads = live.clone();
+    prefix_reads(all, s, decidable, &mut reads);
+    assigned.is_disjoint(&reads)
+}

@@ -1,0 +1,103 @@
+//! Predicates on IR nodes that the passes and the lowering both ask: constant indices,
+//! speculable expressions and statements, conditions the variant key decides.
+//!
+//! Invariant: each answers from the node (with the key, and for statements which locals
+//! live in SSA variables) alone, the same at every use, so a pass's table and the lowering
+//! that consults it mean the same thing by "speculable" or "constant".
+
+use crate::abi::VariantKey;
+use crate::ir::{ConstValue, Expr, ExprKind, Function, LocalId, Stmt, StmtKind, Type, UnaryOp};
+
+/// `e` as an int constant: a literal, or the negation of one.
+pub(crate) fn const_int(e: &Expr) -> Option<i64> {
+    match &e.kind {
+        ExprKind::Const(ConstValue::Int(i)) => Some(*i as i64),
+        ExprKind::Unary { op: UnaryOp::Neg, expr } => const_int(expr).map(|v| -v),
+        _ => None,
+    }
+}
+
+/// Whether `index` is a constant within `ty`'s outer fixed dimension (indexing then records
+/// no error).
+pub(crate) fn const_index_in_range(ty: &Type, index: &Expr) -> bool {
+    !ty.per_seq
+        && ty
+            .dims
+            .first()
+            .is_some_and(|&n| const_int(index).is_some_and(|k| k >= 0 && k < n as i64))
+}
+
+/// Whether evaluating `e` has no effect but its value (no error record, no control flow), so
+/// it may run when the language would not evaluate it (tier 0's if-conversion).
+pub(crate) fn speculable_expr(e: &Expr) -> bool {
+    match &e.kind {
+        ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => true,
+        ExprKind::Index { base, index, .. } => const_index_in_range(&base.ty, index) && speculable_expr(base),
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => speculable_expr(expr),
+        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
+            speculable_expr(lhs) && speculable_expr(rhs)
+        }
+        ExprKind::Select { cond, then, otherwise } => {
+            speculable_expr(cond) && speculable_expr(then) && speculable_expr(otherwise)
+        }
+        ExprKind::Builtin { args, .. } => args.iter().all(speculable_expr),
+        ExprKind::List(items) => items.iter().all(speculable_expr),
+        ExprKind::Splat(item) => speculable_expr(item),
+    }
+}
+
+/// Whether `stmts` (uniform code of `f`) only assign, from speculable expressions at
+/// constant in-range indices, uniform locals kept in SSA variables (`in_vars`), under `if`s
+/// the key does not decide whose conditions are speculable: running them where the language
+/// would not changes nothing but those variables. `budget`: statements still allowed (each
+/// one met costs one; none left answers false).
+pub(crate) fn speculable_stmts(
+    f: &Function,
+    key: &VariantKey,
+    in_vars: &dyn Fn(LocalId) -> bool,
+    stmts: &[Stmt],
+    budget: &mut usize,
+) -> bool {
+    stmts.iter().all(|s| {
+        if *budget == 0 {
+            return false;
+        }
+        *budget -= 1;
+        match &s.kind {
+            StmtKind::Assign { place, value } => {
+                let Some(local) = f.locals.get(place.local.0 as usize) else {
+                    return false;
+                };
+                if !place.indices.is_empty() {
+                    let mut ty = local.ty.clone();
+                    for (idx, _) in &place.indices {
+                        if !const_index_in_range(&ty, idx) {
+                            return false;
+                        }
+                        ty = ty.element();
+                    }
+                }
+                in_vars(place.local) && !local.var.is_varying() && speculable_expr(value)
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                key_constant(cond, key).is_none()
+                    && speculable_expr(cond)
+                    && speculable_stmts(f, key, in_vars, then, budget)
+                    && speculable_stmts(f, key, in_vars, otherwise, budget)
+            }
+            _ => false,
+        }
+    })
+}
+
+/// The value of a condition fixed by the variant key: `clipping()` or `!clipping()`.
+pub(crate) fn key_constant(cond: &Expr, key: &VariantKey) -> Option<bool> {
+    match &cond.kind {
+        ExprKind::ClipFlag => Some(!key.trivial_accept),
+        ExprKind::Unary {
+            op: crate::ir::UnaryOp::Not,
+            expr,
+        } => key_constant(expr, key).map(|v| !v),
+        _ => None,
+    }
+}

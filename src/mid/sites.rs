@@ -1,0 +1,100 @@
+//! Index sites: which bodies the range analysis ([`crate::ir::range`]) has something to
+//! prove in, and whether a setup may record an index error.
+//!
+//! The lowering checks an index (clamps it and records `ERR_INDEX` when it is out of
+//! range) unless it is a constant inside a fixed-size array, or the range analysis proved
+//! its site in range. So the analysis is asked only about the other sites: a body without
+//! one ([`needs_range`] false: most kernels once their loops are unrolled) never runs it.
+//!
+//! Invariant: [`index_sites`] lists every site the lowering may check, with the static
+//! length it checks against (`Lower::index_access`: places indexed one dimension per site,
+//! expressions at their base's type).
+
+use std::collections::HashSet;
+
+use super::pred::const_int;
+use crate::ir::{Expr, ExprKind, Function, SiteId, Stmt, StmtKind, Type};
+
+/// An index site: the static length of the array it indexes (`None`: a sequence, or not
+/// an array), its index and its site.
+pub(crate) type IndexSite<'a> = (Option<u32>, &'a Expr, SiteId);
+
+/// The static length the lowering checks an index of a `ty` value against.
+fn static_len_of(ty: &Type) -> Option<u32> {
+    if ty.per_seq {
+        None
+    } else {
+        ty.dims.first().copied()
+    }
+}
+
+/// A site whose index is a constant inside its fixed-size array: never checked.
+fn constant_in_fixed(site: &IndexSite<'_>) -> bool {
+    site.0.is_some() && const_int(site.1).is_some()
+}
+
+/// Every index site of `stmts` (statements of `f`): in places (`a[i] = ...`, the local's
+/// type indexed one dimension per site) and in expressions.
+pub(crate) fn index_sites<'a>(f: &'a Function, stmts: &'a [Stmt], out: &mut Vec<IndexSite<'a>>) {
+    fn expr<'a>(e: &'a Expr, out: &mut Vec<IndexSite<'a>>) {
+        if let ExprKind::Index { base, index, site } = &e.kind {
+            out.push((static_len_of(&base.ty), index, *site));
+        }
+        e.for_each_child(|c| expr(c, out));
+    }
+    for s in stmts {
+        match &s.kind {
+            StmtKind::Assign { place, value } => {
+                if let Some(local) = f.locals.get(place.local.0 as usize) {
+                    let mut ty = local.ty.clone();
+                    for (index, site) in &place.indices {
+                        out.push((static_len_of(&ty), index, *site));
+                        expr(index, out);
+                        ty = ty.element();
+                    }
+                }
+                expr(value, out);
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                expr(cond, out);
+                index_sites(f, then, out);
+                index_sites(f, otherwise, out);
+            }
+            StmtKind::Loop { cond, body, step, .. } => {
+                if let Some(c) = cond {
+                    expr(c, out);
+                }
+                index_sites(f, body, out);
+                index_sites(f, step, out);
+            }
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| index_sites(f, &a.body, out)),
+            StmtKind::InterpolatorReturn(Some(e)) => expr(e, out),
+            StmtKind::Bound(args) => args.iter().for_each(|a| expr(a, out)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr(a, out)),
+            StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
+        }
+    }
+}
+
+/// Whether `f` has a site the lowering may ask the range analysis about: one whose index
+/// is not a constant inside a fixed-size array.
+pub(crate) fn needs_range(f: &Function) -> bool {
+    let mut sites = vec![];
+    index_sites(f, &f.setup, &mut sites);
+    index_sites(f, &f.pixel, &mut sites);
+    !sites.iter().all(constant_in_fixed)
+}
+
+/// Whether lowering `f`'s setup may record an index error: some index site is neither a
+/// constant inside a fixed array nor proven in range (`proven`; `None`: no site needs a
+/// proof). Mirrors `Lower::index_access`.
+pub(crate) fn setup_may_fail_index(f: &Function, proven: Option<&HashSet<SiteId>>) -> bool {
+    let mut sites = vec![];
+    index_sites(f, &f.setup, &mut sites);
+    sites
+        .into_iter()
+        .any(|(static_len, index, site)| match (static_len, const_int(index)) {
+            (Some(len), Some(k)) => k < 0 || k >= i64::from(len),
+            _ => !proven.is_some_and(|p| p.contains(&site)),
+        })
+}

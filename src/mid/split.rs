@@ -1,0 +1,90 @@
+//! Tier 0, a kernel without pixel loops: where its setup is split into two functions
+//! compiled side by side (`jit::lower::outline` carries the split out).
+//!
+//! A tier-0 compile is what a scene's first frame waits for, and a large setup in one
+//! function (NURB's tessellation, ~4 400 CLIF instructions) is compiled by one thread. So
+//! a setup of at least [`SPLIT_SETUP_SIZE`] (in [`stmt_size`] units, a rough measure of
+//! the CLIF a statement lowers to) is split before the top-level statement that halves it
+//! most evenly, when neither half is under a quarter of it ([`setup_split`]).
+//!
+//! Invariant: the split falls between top-level setup statements, so both halves are
+//! statement lists of the setup as written; [`SetupSplit::shared`] flags every local both
+//! halves mention, the ones whose SSA variables must go from the first function to the
+//! second.
+
+use super::dead;
+use crate::ir::{Expr, ExprKind, Function, Stmt, StmtKind};
+
+/// A setup this large (in [`stmt_size`] units) is split when the kernel has no pixel
+/// loops: NURB's is ~4 900, polygon's ~500.
+const SPLIT_SETUP_SIZE: usize = 2000;
+
+/// Where a setup is split.
+pub(crate) struct SetupSplit {
+    /// The top-level setup statement the second function starts with.
+    pub at: usize,
+    /// Per local: both halves read or assign it.
+    pub shared: Vec<bool>,
+}
+
+/// The split of `f`'s setup, if it is large enough and splits evenly enough (see the
+/// module doc).
+pub(crate) fn setup_split(f: &Function) -> Option<SetupSplit> {
+    let at = setup_split_point(&f.setup)?;
+    let before = dead::mentioned_flags(&f.setup[..at], f.locals.len());
+    let after = dead::mentioned_flags(&f.setup[at..], f.locals.len());
+    let shared = before.iter().zip(&after).map(|(b, a)| *b && *a).collect();
+    Some(SetupSplit { at, shared })
+}
+
+/// The top-level setup statement that halves the setup most evenly by size, if the setup
+/// is large enough and neither half is under a quarter of it.
+fn setup_split_point(setup: &[Stmt]) -> Option<usize> {
+    let sizes: Vec<usize> = setup.iter().map(stmt_size).collect();
+    let total: usize = sizes.iter().sum();
+    if total < SPLIT_SETUP_SIZE {
+        return None;
+    }
+    let mut before: usize = 0;
+    let mut best: Option<(usize, usize)> = None;
+    for (i, &s) in sizes.iter().enumerate() {
+        let imbalance = before.abs_diff(total - before);
+        if i > 0 && best.is_none_or(|(_, b)| imbalance < b) {
+            best = Some((i, imbalance));
+        }
+        before += s;
+    }
+    let (i, imbalance) = best?;
+    (imbalance <= total / 2).then_some(i)
+}
+
+/// A statement's size with the statements inside it: the components their expressions
+/// compute (an operation on a point counts four), a rough measure of the CLIF it lowers to.
+fn stmt_size(s: &Stmt) -> usize {
+    let mut size = 0;
+    crate::ir::for_each_stmt(std::slice::from_ref(s), &mut |s| {
+        size += 1 + match &s.kind {
+            StmtKind::Assign { place, value } => {
+                expr_size(value) + place.indices.iter().map(|(i, _)| expr_size(i)).sum::<usize>()
+            }
+            StmtKind::If { cond, .. } => expr_size(cond),
+            StmtKind::Loop { cond, .. } => cond.as_ref().map_or(0, expr_size),
+            StmtKind::InterpolatorReturn(e) => e.as_ref().map_or(0, expr_size),
+            StmtKind::Bound(es) => es.iter().map(expr_size).sum(),
+            StmtKind::CallPrimitive { args, .. } => args.iter().map(expr_size).sum(),
+            StmtKind::Interpolation { .. } | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => 0,
+        };
+    });
+    size
+}
+
+fn expr_size(e: &Expr) -> usize {
+    // A local's value is its variables or its address (an index computes the element);
+    // whole arrays beyond 16 components are cleared and copied by loops.
+    let mut n = match e.kind {
+        ExprKind::Local(_) => 1,
+        _ => e.ty.fixed_len().clamp(1, 16) as usize,
+    };
+    e.for_each_child(|c| n += expr_size(c));
+    n
+}
