@@ -8,7 +8,7 @@ use crate::jit_util;
 use std::sync::Arc;
 
 use jit_util::*;
-use primflow::abi::{ERR_FUEL, ERR_INDEX, ERR_NONE, MODE_BOUND};
+use primflow::abi::{ErrorSlot, ERR_FUEL, ERR_INDEX, ERR_NONE, MODE_BOUND};
 use primflow::ir::Variability::{Uniform, Varying};
 use primflow::ir::*;
 use primflow::jit::Jit;
@@ -109,7 +109,8 @@ fn varying_while_runs_each_lane_to_its_own_count() {
 }
 
 /// `while (X > 0) { }` never ends: the fuel runs out, ERR_FUEL is recorded at the loop's
-/// site and the kernel carries on after the loop and returns.
+/// site (and counted once: later loop heads find the fuel spent) and the kernel carries on
+/// after the loop and returns.
 #[test]
 fn endless_varying_loop_runs_out_of_fuel() {
     let mut fb = Fb::new("forever", FuncKind::Primitive);
@@ -122,12 +123,13 @@ fn endless_varying_loop_runs_out_of_fuel() {
     let ctx = tile.run(&k, &[1], primflow::abi::MODE_RENDER, 1000);
     assert_eq!(ctx.error, ERR_FUEL);
     assert_eq!(ctx.error_site, 3);
-    assert_eq!(ctx.fuel, 0);
+    assert_eq!(ctx.fuel, u64::MAX);
+    assert_eq!(tile.error_count(ErrorSlot::Fuel(SiteId(3)), 4), 1);
     // After the first group exhausts the fuel, every later loop leaves at once.
     assert_eq!(tile.depth_at(15, 7), raw_depth(0.25));
 }
 
-/// A uniform endless loop in setup also stops on fuel.
+/// A uniform endless loop in setup also stops on fuel, which it marks spent (-1).
 #[test]
 fn endless_uniform_loop_in_setup_runs_out_of_fuel() {
     let mut fb = Fb::new("spin", FuncKind::Primitive);
@@ -137,7 +139,8 @@ fn endless_uniform_loop_in_setup_runs_out_of_fuel() {
     let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
     let mut tile = Tile::new(0);
     let ctx = tile.run(&k, &[1], primflow::abi::MODE_RENDER, 50);
-    assert_eq!((ctx.error, ctx.error_site, ctx.fuel), (ERR_FUEL, 0, 0));
+    assert_eq!((ctx.error, ctx.error_site, ctx.fuel), (ERR_FUEL, 0, u64::MAX));
+    assert_eq!(tile.error_count(ErrorSlot::Fuel(SiteId(0)), 1), 1);
 }
 
 fn index_prim(varying_index: bool) -> Function {

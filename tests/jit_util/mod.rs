@@ -3,7 +3,7 @@
 #![allow(dead_code)]
 
 use primflow::abi::Kernel;
-use primflow::abi::{Binding, BindingKind, TileCtx, VariantKey, DEFAULT_FUEL, MODE_RENDER};
+use primflow::abi::{Binding, BindingKind, ErrorSlot, TileCtx, VariantKey, DEFAULT_FUEL, MODE_RENDER};
 use primflow::diag::Span;
 use primflow::ir::*;
 
@@ -269,7 +269,14 @@ pub struct Tile {
     pub planes: usize,
     pub x0: i32,
     pub y0: i32,
+    /// The run-time error counts of every run on this tile, setup and pixel code alike
+    /// (`TileCtx::setup_counts`, `pixel_counts`): room for programs of up to
+    /// `ERROR_SLOTS` slots (`abi::count_slots`).
+    pub errors: Vec<u64>,
 }
+
+/// Error count slots a [`Tile`] has room for.
+pub const ERROR_SLOTS: usize = 1 << 16;
 
 impl Tile {
     pub fn new(planes: usize) -> Tile {
@@ -280,7 +287,12 @@ impl Tile {
             planes,
             x0: 0,
             y0: 0,
+            errors: vec![0; ERROR_SLOTS],
         }
+    }
+    /// The count of `slot` (of a program with `sites` sites) over the runs so far.
+    pub fn error_count(&self, slot: ErrorSlot, sites: usize) -> u64 {
+        self.errors[slot.index(sites)]
     }
     pub fn ctx(&mut self, mode: u32, fuel: u64) -> TileCtx {
         TileCtx {
@@ -295,6 +307,8 @@ impl Tile {
             num_planes: self.planes as u32,
             write_count: self.counts.as_mut_ptr(),
             fuel,
+            setup_counts: self.errors.as_mut_ptr(),
+            pixel_counts: self.errors.as_mut_ptr(),
             ..TileCtx::new(mode, 64, 32)
         }
     }

@@ -8,6 +8,7 @@ mod api;
 #[path = "../common/mod.rs"]
 mod common;
 mod e2e;
+mod error_counts;
 mod expand;
 mod frame_budget;
 mod kernels;

@@ -13,7 +13,7 @@
 //! `break`, `continue` or `return` goes to blocks no path reaches ([`Lower::jump_live`]),
 //! and jumps from there are not emitted.
 
-use cranelift_codegen::ir::{self, condcodes::IntCC, Block, InstBuilder};
+use cranelift_codegen::ir::{self, condcodes::IntCC, types, Block, InstBuilder};
 use cranelift_frontend::Variable;
 
 use super::{
@@ -568,10 +568,14 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().band_not(m, c)
     }
 
-    /// Spend one unit of fuel; out of fuel records ERR_FUEL and jumps to `exit`.
+    /// Spend one unit of fuel and go on; with none left jump to `exit`. The loop head that
+    /// finds the tank empty (0) records ERR_FUEL at `site` and marks it spent (-1); heads
+    /// that find it spent only leave, so one run counts one out-of-fuel error, at the loop
+    /// that ran out.
     pub(super) fn spend_fuel(&mut self, site: SiteId, exit: Block) {
-        let fuel = self.b.use_var(self.fuel);
-        let empty = self.b.ins().icmp_imm_s(IntCC::Equal, fuel, 0);
+        let var = self.fuel;
+        let fuel = self.b.use_var(var);
+        let empty = self.b.ins().icmp_imm_s(IntCC::SignedLessThanOrEqual, fuel, 0);
         let out_blk = self.b.create_block();
         let ok_blk = self.b.create_block();
         self.b.ins().brif(empty, out_blk, &[], ok_blk, &[]);
@@ -579,11 +583,14 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.seal_now(ok_blk);
         self.b.set_cold_block(out_blk);
         self.b.switch_to_block(out_blk);
-        self.defer_error(ERR_FUEL, site, None);
+        let first = self.b.ins().icmp_imm_s(IntCC::Equal, fuel, 0);
+        self.defer_error(ERR_FUEL, site, Some(first));
+        let spent = self.iconst_here(types::I64, -1);
+        self.b.def_var(var, spent);
         self.b.ins().jump(exit, &[]);
         self.b.switch_to_block(ok_blk);
         let less = self.b.ins().iadd_imm_s(fuel, -1);
-        self.b.def_var(self.fuel, less);
+        self.b.def_var(var, less);
     }
 
     pub(super) fn uniform_loop(
