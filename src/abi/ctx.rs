@@ -13,15 +13,33 @@
 //! straddles a row, two tiles never share a group, and a tile's last group (at a ragged
 //! right edge) stays inside the padded row (`runtime::frame`).
 //!
-//! Errors: besides the first error (`error`, `error_site`), a kernel counts every
-//! run-time error, once per execution of the failing operation, at its [`ErrorSlot`] in
-//! `setup_counts` (setup code, and what a kernel does before its setup: the stack check)
-//! or `pixel_counts` (pixel code, where one execution covers one pixel group). Both point
-//! at `count_slots(program)` `u64`s (wrapping adds). A loop out of fuel records and counts
-//! once per run: the head that finds none (0) records `ERR_FUEL`, marks the fuel spent (-1:
-//! `fuel` reads `u64::MAX` afterwards) and leaves the loop; later loop heads find it spent
-//! and leave too, recording nothing. Kernels take fuel as a signed count, so it must be at
-//! most `i64::MAX`.
+//! Limits: loops spend *fuel* and failures are *counted*, both deterministically, so that a
+//! frame is the same bit for bit, and reports the same warnings, whatever the number of
+//! threads and the tile size.
+//! - Setup fuel ([`TileCtx::fuel`]): every visit of a loop head in setup code spends one
+//!   unit; the setup of one invocation and the setups of the primitives it calls directly
+//!   share `fuel` units (`DEFAULT_FUEL`). Setup code does not depend on the tile, so every
+//!   invocation of one draw (its bound run and its render run in each tile) spends the same
+//!   fuel and runs out, if at all, at the same loop; the runtime draws nothing of a draw
+//!   whose bound run ran out (`runtime::expand`).
+//! - Pixel fuel: before its pixel loops a kernel gives every pixel group
+//!   `max(group_fuel_floor, pixel_fuel / groups)` units ([`TileCtx::group_fuel`]), where
+//!   `groups` is the number of pixel groups of its bound rectangle in the viewport (rows
+//!   times the group columns it touches, at least 1): the same in every tile. Each group
+//!   starts with that many; its loops (varying or uniform) spend one unit per visit of a
+//!   loop head. A group is never split between tiles, so what it computes does not depend
+//!   on the tiling either. A draw's pixel loops spend at most
+//!   `max(pixel_fuel, groups * group_fuel_floor)` units in all.
+//! - Out of fuel: the loop head that finds none (0) records `ERR_FUEL` at the loop, marks
+//!   the fuel spent (-1: `fuel` reads `u64::MAX` afterwards) and leaves the loop (as
+//!   `break` would, for every lane); later loop heads of the same setup run, or of the same
+//!   group, find it spent and leave too, recording nothing. Kernels take fuel as a
+//!   signed count, so a budget must be at most `i64::MAX` (the runtime caps its options).
+//! - Error counts: besides the first error (`error`, `error_site`), every run-time error is
+//!   counted, once per execution of the failing operation, at its [`ErrorSlot`] in
+//!   `setup_counts` (setup code and what a kernel does before its setup: the stack check)
+//!   or `pixel_counts` (pixel code, where one execution covers one pixel group). Both
+//!   point at `count_slots(program)` `u64`s (wrapping adds).
 //!
 //! A third mode, `MODE_EXPAND`, serves primitives that only call other primitives (no pixel
 //! code of their own, [`expands`]): the runtime runs such an instance once, its calls are
@@ -83,7 +101,9 @@ pub struct TileCtx {
     /// First run-time error (`ERR_*`) and the `SiteId` it happened at.
     pub error: u32,
     pub error_site: u32,
-    /// Loop iterations left for this invocation; `u64::MAX` (-1) once a loop found none.
+    /// Setup fuel left: loop-head visits the setup code of this invocation, and of the
+    /// primitives it calls directly, may still make (the pixel part has its own, see
+    /// `group_fuel`); `u64::MAX` (-1) once a loop found none.
     pub fuel: u64,
     /// Depth of nested primitive calls (a call deeper than `MAX_CALL_DEPTH` is an error).
     pub call_depth: u32,
@@ -110,12 +130,20 @@ pub struct TileCtx {
     /// context from [`TileCtx::new`]: set both before running a kernel.
     pub setup_counts: *mut u64,
     pub pixel_counts: *mut u64,
+    /// The pixel fuel of this draw (`DEFAULT_PIXEL_FUEL`): shared out over the pixel groups
+    /// of the kernel's bound rectangle, at least `group_fuel_floor` a group (see the module
+    /// doc). Read by kernels, never written.
+    pub pixel_fuel: u64,
+    pub group_fuel_floor: u64,
+    /// Written by a kernel whose pixel part has loops, before its pixel loops: the fuel each
+    /// of its pixel groups starts with (`max(group_fuel_floor, pixel_fuel / groups)`).
+    pub group_fuel: u64,
 }
 
 impl TileCtx {
     /// A context for a `width` x `height` viewport in `mode` with no tile yet: an empty
-    /// rectangle, null buffers, no bound, no error, full `DEFAULT_FUEL`, call depth 0, no
-    /// expansion recorder, no error counts (null: set them).
+    /// rectangle, null buffers, no bound, no error, full `DEFAULT_FUEL` and the default
+    /// pixel fuel, call depth 0, no expansion recorder, no error counts (null: set them).
     /// Bound and expand runs use it with counts; a render run first names its tile and
     /// buffers (`TileCtx { x0, .., ..TileCtx::new(MODE_RENDER, w, h) }`).
     pub fn new(mode: u32, width: u32, height: u32) -> TileCtx {
@@ -144,6 +172,9 @@ impl TileCtx {
             stack_limit: thread_stack_limit(),
             setup_counts: std::ptr::null_mut(),
             pixel_counts: std::ptr::null_mut(),
+            pixel_fuel: DEFAULT_PIXEL_FUEL,
+            group_fuel_floor: DEFAULT_GROUP_FUEL_FLOOR,
+            group_fuel: 0,
         }
     }
 }
@@ -305,7 +336,16 @@ fn stack_low_end_guess() -> usize {
 }
 
 pub const MAX_CALL_DEPTH: u32 = 16;
+/// Setup fuel of one invocation (`TileCtx::fuel`): under a second of an endless setup
+/// loop, which runs in a draw's bound run only (see the module doc).
 pub const DEFAULT_FUEL: u64 = 1 << 28;
+/// Pixel fuel of one draw (`TileCtx::pixel_fuel`): a second or two of one core's time in an
+/// endless pixel loop, at any image size up to `2^29 / DEFAULT_GROUP_FUEL_FLOOR` groups
+/// (2 Mpixels); larger bound rectangles get the floor per group.
+pub const DEFAULT_PIXEL_FUEL: u64 = 1 << 29;
+/// The least fuel a pixel group gets (`TileCtx::group_fuel_floor`): a per-pixel loop of up
+/// to ~1000 iterations never runs out, whatever the image size.
+pub const DEFAULT_GROUP_FUEL_FLOOR: u64 = 1 << 10;
 
 /// The signature of every compiled kernel.
 pub type KernelFn = unsafe extern "C" fn(ctx: *mut TileCtx, args: *const u32);

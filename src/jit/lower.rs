@@ -288,9 +288,15 @@ pub(crate) struct Lower<'a, 'b> {
     arm: Option<ArmInfo>,
     bound_vars: [Variable; 4],
     has_bound: Variable,
-    /// The fuel left (`ctx.fuel` while the kernel runs, kept in a register: loaded at entry,
-    /// stored at the exit and around direct primitive calls, whose callees spend it too).
+    /// The setup fuel left (`ctx.fuel` while the kernel runs, kept in a register: loaded at
+    /// entry, stored at the exit and around direct primitive calls, whose callees' setups
+    /// spend it too). Setup loops spend it.
     fuel: Variable,
+    /// The fuel left to the current pixel group: `ctx.group_fuel` at the start of every
+    /// group (see [`loops`]); loops of pixel code spend it. Defined only when the pixel code
+    /// has loops (`group_fuel_used`).
+    group_fuel: Variable,
+    group_fuel_used: bool,
     /// The `return` of the function's stack check that fails, before which
     /// [`Self::count_stack_error`] adds the count of `ERR_STACK` once the function is
     /// otherwise complete.
@@ -503,6 +509,7 @@ pub(crate) fn lower_kernel<'b>(
     ];
     let has_bound = declare_var(types::I8);
     let fuel = declare_var(types::I64);
+    let group_fuel = declare_var(types::I64);
     let pending_error = declare_var(types::I32);
     let scratch = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 4));
     let mut l = Lower {
@@ -524,6 +531,8 @@ pub(crate) fn lower_kernel<'b>(
         bound_vars,
         has_bound,
         fuel,
+        group_fuel,
+        group_fuel_used: false,
         stack_count: Some(stack_count),
         pending_error,
         defer_errors: false,

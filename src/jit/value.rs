@@ -213,6 +213,9 @@ pub mod ctx_off {
     pub const HEIGHT: i32 = offset_of!(TileCtx, height) as i32;
     pub const EXPAND: i32 = offset_of!(TileCtx, expand) as i32;
     pub const STACK_LIMIT: i32 = offset_of!(TileCtx, stack_limit) as i32;
+    pub const PIXEL_FUEL: i32 = offset_of!(TileCtx, pixel_fuel) as i32;
+    pub const GROUP_FUEL_FLOOR: i32 = offset_of!(TileCtx, group_fuel_floor) as i32;
+    pub const GROUP_FUEL: i32 = offset_of!(TileCtx, group_fuel) as i32;
     pub const SETUP_COUNTS: i32 = offset_of!(TileCtx, setup_counts) as i32;
     pub const PIXEL_COUNTS: i32 = offset_of!(TileCtx, pixel_counts) as i32;
 }

@@ -88,6 +88,14 @@ impl CountArrays {
     }
 }
 
+/// Whether `counts` (of `program`'s kernels) hold a loop out of fuel.
+pub(crate) fn ran_out_of_fuel(program: &Program, counts: &[(u32, u64)]) -> bool {
+    let sites = program.sites.len();
+    counts
+        .iter()
+        .any(|&(slot, _)| matches!(ErrorSlot::at(slot as usize, sites), ErrorSlot::Fuel(_)))
+}
+
 /// Where each site of `program` is: the function whose code holds it and whether in its
 /// pixel part.
 fn site_owners(program: &Program) -> Vec<Option<(FuncId, bool)>> {
@@ -172,7 +180,7 @@ pub(crate) fn report(program: &Program, counts: &[(u32, u64)], diags: &mut Diagn
             ),
             ERR_INDEX => format!("an index was out of range (clamped) {}", times(n)),
             ERR_FUEL if in_pixels => format!("a loop ran out of fuel (left early) in {}", plural(n, "pixel group")),
-            ERR_FUEL => format!("a loop ran out of fuel (left early) {}", times(n)),
+            ERR_FUEL => format!("a setup loop ran out of fuel in {} (not drawn)", plural(n, "draw")),
             ERR_CALL_DEPTH => format!(
                 "primitive calls nested too deep (more than {MAX_CALL_DEPTH}; call skipped) {}",
                 times(n)

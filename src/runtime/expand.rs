@@ -14,12 +14,16 @@
 //! Invariant: a tile runs the same kernels with the same argument blocks in the same order as
 //! it would have run through the calling instance (a call made in a tile the callee's bound
 //! misses draws nothing there, binning being conservative), so the frame is bit-identical to
-//! the per-tile path. The exceptions are limits, not pixels: a draw gets fresh fuel of its own
-//! (the per-tile path shares one invocation's fuel between the caller and all its calls), and
-//! run-time errors of the caller's setup are counted once, by the expand run.
+//! the per-tile path. The exceptions are limits, not pixels: a draw gets fresh setup fuel of
+//! its own (the per-tile path shares one invocation's setup fuel between the caller and all
+//! its calls), and run-time errors of the caller's setup are counted once, by the expand run.
 //!
-//! Errors: every expand and bound run counts its setup's run-time errors (`super::errors`:
-//! the render runs count only their pixel code's).
+//! Fuel and errors: every expand and bound run counts its setup's run-time errors
+//! (`super::errors`: the render runs count only their pixel code's). A draw whose bound run
+//! runs out of setup fuel is put in no tile: its setup would run out at the same loop in
+//! every tile (setup fuel is per invocation and the setup does not depend on the tile), so
+//! an endless setup loop costs one bound run, whatever the image size. Likewise an expand
+//! run that runs out of fuel records no draws (what it recorded is dropped).
 //!
 //! Instances are expanded and their draws bound (`MODE_BOUND`) in parallel (rayon jobs of a
 //! few hundred instances, and an instance's many calls in chunks of their own), each
@@ -46,7 +50,7 @@ use crate::abi::{
 use crate::ir::{FuncId, Program};
 
 use super::api::{Instance, RenderOptions};
-use super::errors::{CountArrays, Counts};
+use super::errors::{ran_out_of_fuel, CountArrays, Counts};
 use super::tiergate::{self, Compiler};
 
 /// Budget charged per recorded call on top of its argument words (what its bookkeeping takes).
@@ -71,7 +75,7 @@ pub(crate) struct Draw<'a> {
 /// Run a draw's kernel in bound mode: its screen bound (if it recorded one) and the
 /// run-time errors it counted.
 fn run_bound(program: &Program, draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>, Counts) {
-    let mut ctx = TileCtx::new(MODE_BOUND, opts.width, opts.height);
+    let mut ctx = context(MODE_BOUND, opts);
     ctx.call_depth = draw.call_depth;
     // Zero-size buffers: bound mode never touches them, and the empty tile rectangle
     // (x0 = x1 = 0) means even a pixel pass would cover no pixel.
@@ -96,6 +100,18 @@ fn run_bound(program: &Program, draw: &Draw, opts: &RenderOptions) -> (Option<[f
     });
     let bound = (ctx.bound_set != 0).then_some(ctx.bound);
     (bound, errors)
+}
+
+/// A context for `mode` with the frame's viewport and fuel (no tile, no buffers, no counts).
+pub(super) fn context(mode: u32, opts: &RenderOptions) -> TileCtx {
+    // Kernels take fuel as a signed count (a negative one is spent): cap at i64::MAX.
+    let cap = |fuel: u64| fuel.min(i64::MAX as u64);
+    TileCtx {
+        fuel: cap(opts.setup_fuel),
+        pixel_fuel: cap(opts.pixel_fuel),
+        group_fuel_floor: cap(opts.group_fuel_floor),
+        ..TileCtx::new(mode, opts.width, opts.height)
+    }
 }
 
 /// An inclusive rectangle of tile indices: (tx0, ty0, tx1, ty1).
@@ -144,7 +160,8 @@ pub(crate) enum Expanded {
     /// triangles, so this allocates nothing and stays small).
     Itself {
         entry: KernelFn,
-        /// The tiles its `MODE_BOUND` bound overlaps (`None`: no tile).
+        /// The tiles its `MODE_BOUND` bound overlaps (`None`: no tile, also when its bound
+        /// run ran out of setup fuel).
         tiles: Option<TileRect>,
         /// The run-time errors its bound run counted.
         errors: Box<[(u32, u64)]>,
@@ -160,7 +177,8 @@ pub(crate) struct CallDraws {
     /// Argument blocks of the recorded calls, back to back.
     pool: Vec<u32>,
     items: Vec<Item>,
-    /// The tiles each item's `MODE_BOUND` bound overlaps (`None`: no tile).
+    /// The tiles each item's `MODE_BOUND` bound overlaps (`None`: no tile, also when its
+    /// bound run ran out of setup fuel).
     tiles: Vec<Option<TileRect>>,
     /// The run-time errors the expand and bound runs counted.
     errors: Counts,
@@ -241,7 +259,7 @@ fn run_expand<'b>(
         charged: 0,
         over_budget: false,
     };
-    let mut ctx = TileCtx::new(MODE_EXPAND, opts.width, opts.height);
+    let mut ctx = context(MODE_EXPAND, opts);
     ctx.call_depth = call_depth;
     // Zero-size buffers and an empty tile, as in bound mode: nothing can be drawn.
     let mut no_depth: Vec<u32> = Vec::new();
@@ -312,7 +330,8 @@ pub(crate) fn expand_instance(
         if e.expand(kernel.entry, &inst.args, 0) {
             let bound_one = |item: &Item| {
                 let (bound, errors) = run_bound(program, &item.draw(&e.pool, inst), opts);
-                (bound.and_then(&tiles_of), errors)
+                let tiles = bound.filter(|_| !ran_out_of_fuel(program, &errors)).and_then(&tiles_of);
+                (tiles, errors)
             };
             // A tessellation's thousands of draws are bound in parallel chunks, so a thread
             // done with its own instances helps with a large patch's (one pass after the
@@ -343,7 +362,7 @@ pub(crate) fn expand_instance(
     let (bound, errors) = run_bound(program, &itself.draw(&[], inst), opts);
     Expanded::Itself {
         entry: kernel.entry,
-        tiles: bound.and_then(tiles_of),
+        tiles: bound.filter(|_| !ran_out_of_fuel(program, &errors)).and_then(tiles_of),
         errors: errors.into_boxed_slice(),
         over_budget,
     }
@@ -383,9 +402,16 @@ impl Expander<'_> {
     fn expand(&mut self, entry: KernelFn, args: &[u32], call_depth: u32) -> bool {
         let (rec, errors) = run_expand(self.program, entry, args, call_depth, self.opts, self.budget);
         self.charged += rec.charged;
+        let ran_out = ran_out_of_fuel(self.program, &errors);
         self.errors.extend(errors);
         if rec.over_budget {
             return false;
+        }
+        if ran_out {
+            // The invocation draws nothing (its setup would run out in every tile).
+            self.budget.refund(rec.charged);
+            self.charged -= rec.charged;
+            return true;
         }
         // The first recorder's words become the pool as they are (its kept calls stay where
         // they were recorded): a tessellation records megabytes, and copying them faulted

@@ -26,7 +26,8 @@
 //!    rounded up to whole groups), and a tile's kernels get a context whose buffer pointers
 //!    point into the frame at the tile's origin, with the frame's row and plane strides. A
 //!    tile task first zeroes its own rectangle of every buffer (cache-hot for its draws),
-//!    then runs its draws in order in `MODE_RENDER` with fresh fuel each; a tile no draw
+//!    then runs its draws in order in `MODE_RENDER`, each with fresh setup fuel and the
+//!    frame's pixel fuel (`abi::ctx` has the fuel rules); a tile no draw
 //!    touches is zeroed only. Tiles are disjoint, including the padding columns the rightmost
 //!    tiles' last groups reach into, so tasks write disjoint memory (`FrameTarget`). Every
 //!    pixel is computed by one tile from the same zeroed start whatever the schedule, so the
@@ -58,7 +59,7 @@ use crate::ir::{FuncId, Program};
 
 use super::api::{Instance, RenderOptions, Renderer, MAX_FRAME_BYTES, MAX_IMAGE_SIDE};
 use super::errors::{CountArrays, Counts};
-use super::expand::{expand_instance, Budget, Draw, Expanded, TileRect};
+use super::expand::{context, expand_instance, Budget, Draw, Expanded, TileRect};
 use super::frame::{plane_pitch, row_stride, tile_side, Frame, FrameTarget, ParamPlanes, Tile};
 use super::kernels::KernelSource;
 use super::shading::{Effects, Shader, ShadingSpaces};
@@ -667,7 +668,7 @@ unsafe fn render_tile(
         // own, e.g. fuel, the error or the call depth). The buffer pointers are the frame's
         // at the tile's origin (`wrapping_add`: a frame without planes or counts has empty
         // buffers, and the kernel never dereferences those).
-        let mut start = TileCtx::new(MODE_RENDER, opts.width, opts.height);
+        let mut start = context(MODE_RENDER, opts);
         start.x0 = tile.x0 as i32;
         start.y0 = tile.y0 as i32;
         start.x1 = tile.x1 as i32;

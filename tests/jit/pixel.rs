@@ -108,9 +108,9 @@ fn varying_while_runs_each_lane_to_its_own_count() {
     }
 }
 
-/// `while (X > 0) { }` never ends: the fuel runs out, ERR_FUEL is recorded at the loop's
-/// site (and counted once: later loop heads find the fuel spent) and the kernel carries on
-/// after the loop and returns.
+/// `while (X > 0) { }` never ends: each pixel group's fuel (here 10 trips: a pixel fuel of
+/// 0 and a floor of 10) runs out, ERR_FUEL is recorded at the loop's site and counted once
+/// per group, and each group carries on after the loop; the setup's fuel is not touched.
 #[test]
 fn endless_varying_loop_runs_out_of_fuel() {
     let mut fb = Fb::new("forever", FuncKind::Primitive);
@@ -120,13 +120,15 @@ fn endless_varying_loop_runs_out_of_fuel() {
     let mut jit = jit_for(vec![fb.f], 4);
     let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
     let mut tile = Tile::new(0);
+    tile.pixel_fuel = 0;
+    tile.group_fuel_floor = 10;
     let ctx = tile.run(&k, &[1], primflow::abi::MODE_RENDER, 1000);
     assert_eq!(ctx.error, ERR_FUEL);
     assert_eq!(ctx.error_site, 3);
-    assert_eq!(ctx.fuel, u64::MAX);
-    assert_eq!(tile.error_count(ErrorSlot::Fuel(SiteId(3)), 4), 1);
-    // After the first group exhausts the fuel, every later loop leaves at once.
-    assert_eq!(tile.depth_at(15, 7), raw_depth(0.25));
+    assert_eq!((ctx.fuel, ctx.group_fuel), (1000, 10));
+    // One out-of-fuel error in each of the tile's 4 x 8 groups.
+    assert_eq!(tile.error_count(ErrorSlot::Fuel(SiteId(3)), 4), 32);
+    assert!(tile.depth.iter().all(|&d| d == raw_depth(0.25)));
 }
 
 /// A uniform endless loop in setup also stops on fuel, which it marks spent (-1).

@@ -3,7 +3,10 @@
 #![allow(dead_code)]
 
 use primflow::abi::Kernel;
-use primflow::abi::{Binding, BindingKind, ErrorSlot, TileCtx, VariantKey, DEFAULT_FUEL, MODE_RENDER};
+use primflow::abi::{
+    Binding, BindingKind, ErrorSlot, TileCtx, VariantKey, DEFAULT_FUEL, DEFAULT_GROUP_FUEL_FLOOR, DEFAULT_PIXEL_FUEL,
+    MODE_RENDER,
+};
 use primflow::diag::Span;
 use primflow::ir::*;
 
@@ -269,6 +272,9 @@ pub struct Tile {
     pub planes: usize,
     pub x0: i32,
     pub y0: i32,
+    /// `TileCtx::pixel_fuel` and `group_fuel_floor` of the runs.
+    pub pixel_fuel: u64,
+    pub group_fuel_floor: u64,
     /// The run-time error counts of every run on this tile, setup and pixel code alike
     /// (`TileCtx::setup_counts`, `pixel_counts`): room for programs of up to
     /// `ERROR_SLOTS` slots (`abi::count_slots`).
@@ -287,6 +293,8 @@ impl Tile {
             planes,
             x0: 0,
             y0: 0,
+            pixel_fuel: DEFAULT_PIXEL_FUEL,
+            group_fuel_floor: DEFAULT_GROUP_FUEL_FLOOR,
             errors: vec![0; ERROR_SLOTS],
         }
     }
@@ -307,6 +315,8 @@ impl Tile {
             num_planes: self.planes as u32,
             write_count: self.counts.as_mut_ptr(),
             fuel,
+            pixel_fuel: self.pixel_fuel,
+            group_fuel_floor: self.group_fuel_floor,
             setup_counts: self.errors.as_mut_ptr(),
             pixel_counts: self.errors.as_mut_ptr(),
             ..TileCtx::new(mode, 64, 32)

@@ -1,6 +1,7 @@
 //! Every run-time error site is reported, once, with the number of times it failed
-//! (`runtime::errors`): setup code counts once per draw. The counts, like the frame, are
-//! the same for any number of threads, any tile size and either tier.
+//! (`runtime::errors`): pixel code counts once per pixel group and access, setup code once
+//! per draw. The counts, like the frame, are the same for any number of threads, any tile
+//! size and either tier.
 
 use crate::common;
 
@@ -13,6 +14,20 @@ use primflow::jit::{Jit, Tier};
 use primflow::runtime::{RenderOutput, Renderer, Value};
 
 const SOURCE: &str = r#"
+primitive three_errors(float rect[4]; varying float X, Y; inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    float a[4] = {0.125, 0.25, 0.375, 0.5};
+    int i = int(X);
+    int j = int(Y);
+    float s = a[i - 8];
+    float t = a[j - 2];
+    int n = 0;
+    while (X > 20)
+        n++;
+    Z = (s + t) / 4;
+}
+
 primitive setup_error(float rect[4]; int k; varying float X, Y; inout varying fixed<32,32> Z)
 {
     bound(rect[0], rect[1], rect[2], rect[3]);
@@ -65,6 +80,79 @@ fn render_every_way(r: &mut Renderer, sources: &SourceMap) -> RenderOutput {
         }
     }
     first.unwrap().0
+}
+
+#[test]
+fn two_index_sites_and_a_loop_out_of_fuel_are_three_counted_warnings() {
+    let mut sources = SourceMap::new();
+    let program = library(&mut sources);
+    let (w, h) = (32u32, 16u32);
+    let mut r = Renderer::new(program.clone());
+    r.set_image_size(w, h).unwrap();
+    r.options.pixel_fuel = 1 << 12;
+    r.options.group_fuel_floor = 4;
+    r.begin("three_errors").unwrap();
+    r.rast_param("rect", &Value(vec![0.0, 0.0, w as f32, h as f32]))
+        .unwrap();
+    r.end().unwrap();
+    let out = render_every_way(&mut r, &sources);
+
+    // Reference counts from the pixels: a group is four pixels of a row, columns 4g..4g+3;
+    // an access counts once for a group where it fails in some pixel.
+    let groups = |fails: &dyn Fn(u32, u32) -> bool| -> u64 {
+        let mut n = 0;
+        for y in 0..h {
+            for g in 0..w / 4 {
+                n += u64::from((0..4).any(|l| fails(4 * g + l, y)));
+            }
+        }
+        n
+    };
+    // a[i - 8] with i the column: in range for columns 8..11 only.
+    let by_column = groups(&|x, _| !(8..12).contains(&x));
+    // a[j - 2] with j the row: in range for rows 2..5 only.
+    let by_row = groups(&|_, y| !(2..6).contains(&y));
+    // `while (X > 20)` never ends for the pixels right of column 20.
+    let endless = groups(&|x, _| x as f32 + 0.5 > 20.0);
+    assert_eq!((by_column, by_row, endless), (112, 96, 48));
+
+    let codes = out.diags.codes_at(&sources);
+    assert_eq!(
+        codes,
+        [
+            site("three_errors", "i - 8"),
+            site("three_errors", "j - 2"),
+            site("three_errors", "while")
+        ]
+    );
+    let messages: Vec<&str> = out.diags.items.iter().map(|d| d.message.as_str()).collect();
+    assert!(
+        messages[0].contains(&format!("out of range (clamped) {by_column} times")),
+        "{messages:?}"
+    );
+    assert!(
+        messages[1].contains(&format!("out of range (clamped) {by_row} times")),
+        "{messages:?}"
+    );
+    assert!(
+        messages[2].contains(&format!("ran out of fuel (left early) in {endless} pixel groups")),
+        "{messages:?}"
+    );
+    assert!(
+        messages.iter().all(|m| m.starts_with("in `three_errors` at run time")),
+        "{messages:?}"
+    );
+
+    // The pixels read the clamped elements.
+    let a = [0.125f64, 0.25, 0.375, 0.5];
+    for y in 0..h {
+        for x in 0..w {
+            let s = a[(x as i64 - 8).clamp(0, 3) as usize];
+            let t = a[(y as i64 - 2).clamp(0, 3) as usize];
+            let want = ((s + t) / 4.0 * 4294967296.0) as u32;
+            assert_eq!(out.frame.depth_at(x, y), Some(want), "({x}, {y})");
+        }
+    }
 }
 
 #[test]

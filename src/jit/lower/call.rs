@@ -4,9 +4,10 @@
 //! its parameters, then the interpolation data of the bindings it passes on) and calls the
 //! callee's kernel for the same variant key directly; in `MODE_EXPAND` it hands the block to
 //! `ctx.expand` instead, and the runtime renders the call later as an instance
-//! ([`Lower::record_call`]). Around a direct call the fuel goes through `ctx.fuel` (the
-//! callee spends it too) and the call depth is checked (`ERR_CALL_DEPTH`); deferred setup
-//! errors are flushed before it, so the callee sees the caller's first error.
+//! ([`Lower::record_call`]). Around a direct call the setup fuel goes through `ctx.fuel`
+//! (the callee's setup spends it too; its pixel part has its own) and the call depth is
+//! checked (`ERR_CALL_DEPTH`); deferred setup errors are flushed before it, so the callee
+//! sees the caller's first error.
 
 use cranelift_codegen::ir::{self, condcodes::IntCC, types, InstBuilder, StackSlotData, StackSlotKind};
 
@@ -155,7 +156,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.record_call(callee, fref, base, words)?;
         self.b.ins().jump(after, &[]);
         self.b.switch_to_block(run_blk);
-        // The callee spends the same fuel: hand it over in `ctx.fuel` and take back the rest.
+        // The callee's setup spends the same fuel: hand it over in `ctx.fuel` and take back
+        // the rest.
         let fuel = self.b.use_var(self.fuel);
         self.store_ctx(fuel, ctx_off::FUEL);
         self.b.ins().call(fref, &[self.ctx, base]);

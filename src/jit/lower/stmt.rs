@@ -8,10 +8,11 @@
 //! Tier 0 lowers flat pixel code without those early exits ([`super::flat`]), and may
 //! if-convert short setup `if`s ([`Lower::if_converted`]).
 //!
-//! Invariants: every loop trip spends fuel ([`Lower::spend_fuel`]; kept in a variable,
-//! `ctx.fuel` at the exit and around primitive calls); code after an unconditional
-//! `break`, `continue` or `return` goes to blocks no path reaches ([`Lower::jump_live`]),
-//! and jumps from there are not emitted.
+//! Invariants: every loop trip spends fuel ([`Lower::spend_fuel`]): setup loops the setup
+//! fuel (kept in a variable, `ctx.fuel` at the exit and around primitive calls), loops of
+//! pixel code the fuel of their pixel group (a variable set at the start of every group,
+//! see [`super::loops`]); code after an unconditional `break`, `continue` or `return` goes
+//! to blocks no path reaches ([`Lower::jump_live`]), and jumps from there are not emitted.
 
 use cranelift_codegen::ir::{self, condcodes::IntCC, types, Block, InstBuilder};
 use cranelift_frontend::Variable;
@@ -568,12 +569,12 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().band_not(m, c)
     }
 
-    /// Spend one unit of fuel and go on; with none left jump to `exit`. The loop head that
-    /// finds the tank empty (0) records ERR_FUEL at `site` and marks it spent (-1); heads
-    /// that find it spent only leave, so one run counts one out-of-fuel error, at the loop
-    /// that ran out.
+    /// Spend one unit of fuel (the setup's, or in pixel code the group's) and go on; with
+    /// none left jump to `exit`. The loop head that finds the tank empty (0) records
+    /// ERR_FUEL at `site` and marks it spent (-1); heads that find it spent only leave, so
+    /// one run (or one pixel group) counts one out-of-fuel error, at the loop that ran out.
     pub(super) fn spend_fuel(&mut self, site: SiteId, exit: Block) {
-        let var = self.fuel;
+        let var = if self.pix.is_some() { self.group_fuel } else { self.fuel };
         let fuel = self.b.use_var(var);
         let empty = self.b.ins().icmp_imm_s(IntCC::SignedLessThanOrEqual, fuel, 0);
         let out_blk = self.b.create_block();
