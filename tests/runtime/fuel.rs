@@ -193,7 +193,7 @@ fn a_setup_that_runs_out_of_fuel_is_run_once_and_drawn_nowhere() {
     let mut sources = SourceMap::new();
     let program = library(&mut sources);
     for (w, h) in [(64u32, 32u32), (512, 256)] {
-        // Endless (the limit is never reached before the int wraps... past the fuel).
+        // 2e9 trips: far past the fuel.
         let mut r = scene(&program, "spin_setup", w, h, &[("limit", 2e9)]);
         r.options.setup_fuel = 1 << 20;
         let out = render_every_way(&mut r, &sources);
