@@ -18,10 +18,14 @@
 //! threads and the tile size.
 //! - Setup fuel ([`TileCtx::fuel`]): every visit of a loop head in setup code spends one
 //!   unit; the setup of one invocation and the setups of the primitives it calls directly
-//!   share `fuel` units (`DEFAULT_FUEL`). Setup code does not depend on the tile, so every
-//!   invocation of one draw (its bound run and its render run in each tile) spends the same
-//!   fuel and runs out, if at all, at the same loop; the runtime draws nothing of a draw
-//!   whose bound run ran out (`runtime::expand`).
+//!   share `fuel` units (`DEFAULT_FUEL`). The loop head that finds none records `ERR_FUEL`
+//!   at its loop and ends the invocation, and the invocations that called it end after
+//!   the call, with `fuel` holding `-(2 + site)` (as an `i64`) of that loop
+//!   ([`setup_fuel_ran_out`]); kernels do not count this error, the runner does from
+//!   `fuel`. Setup code does not depend on the tile, so every invocation of one draw (its
+//!   bound run and its render run in each tile) spends the same fuel and runs out, if at
+//!   all, at the same loop; the runtime draws nothing of a draw whose bound run ran out
+//!   (`runtime::expand`).
 //! - Pixel fuel: before its pixel loops a kernel gives every pixel group
 //!   `max(group_fuel_floor, pixel_fuel / groups)` units ([`TileCtx::group_fuel`]), where
 //!   `groups` is the number of pixel groups of its bound rectangle in the viewport (rows
@@ -30,16 +34,16 @@
 //!   loop head. A group is never split between tiles, so what it computes does not depend
 //!   on the tiling either. A draw's pixel loops spend at most
 //!   `max(pixel_fuel, groups * group_fuel_floor)` units in all.
-//! - Out of fuel: the loop head that finds none (0) records `ERR_FUEL` at the loop, marks
-//!   the fuel spent (-1: `fuel` reads `u64::MAX` afterwards) and leaves the loop (as
-//!   `break` would, for every lane); later loop heads of the same setup run, or of the same
-//!   group, find it spent and leave too, recording nothing. Kernels take fuel as a
-//!   signed count, so a budget must be at most `i64::MAX` (the runtime caps its options).
-//! - Error counts: besides the first error (`error`, `error_site`), every run-time error is
-//!   counted, once per execution of the failing operation, at its [`ErrorSlot`] in
-//!   `setup_counts` (setup code and what a kernel does before its setup: the stack check)
-//!   or `pixel_counts` (pixel code, where one execution covers one pixel group). Both
-//!   point at `count_slots(program)` `u64`s (wrapping adds).
+//!   A pixel group's loop head that finds none (0) records and counts `ERR_FUEL` at its
+//!   loop, marks the group's fuel spent (-1) and leaves the loop (as `break` would, for
+//!   every lane); later loop heads of the same group find it spent and leave too,
+//!   recording nothing. Kernels take fuel as a signed count, so a budget must be at most
+//!   `i64::MAX` (the runtime caps its options).
+//! - Error counts: besides the first error (`error`, `error_site`), every run-time error
+//!   but a setup loop out of fuel is counted, once per execution of the failing operation,
+//!   at its [`ErrorSlot`] in `setup_counts` (setup code and what a kernel does before its
+//!   setup: the stack check) or `pixel_counts` (pixel code, where one execution covers one
+//!   pixel group). Both point at `count_slots(program)` `u64`s (wrapping adds).
 //!
 //! A third mode, `MODE_EXPAND`, serves primitives that only call other primitives (no pixel
 //! code of their own, [`expands`]): the runtime runs such an instance once, its calls are
@@ -103,7 +107,8 @@ pub struct TileCtx {
     pub error_site: u32,
     /// Setup fuel left: loop-head visits the setup code of this invocation, and of the
     /// primitives it calls directly, may still make (the pixel part has its own, see
-    /// `group_fuel`); `u64::MAX` (-1) once a loop found none.
+    /// `group_fuel`); once a setup loop found none, `-(2 + site)` of that loop
+    /// ([`setup_fuel_ran_out`]).
     pub fuel: u64,
     /// Depth of nested primitive calls (a call deeper than `MAX_CALL_DEPTH` is an error).
     pub call_depth: u32,
@@ -177,6 +182,13 @@ impl TileCtx {
             group_fuel: 0,
         }
     }
+}
+
+/// The loop whose setup ran out of fuel in a run that left `fuel` in `TileCtx::fuel`, if
+/// one did (see the module doc).
+pub fn setup_fuel_ran_out(fuel: u64) -> Option<SiteId> {
+    let fuel = fuel as i64;
+    (fuel <= -2).then(|| SiteId((-(fuel + 2)) as u32))
 }
 
 /// Where a run-time error is counted (`TileCtx::setup_counts`, `TileCtx::pixel_counts`):

@@ -3,8 +3,10 @@
 //!
 //! A kernel counts every error it meets at the error's slot (`abi::ErrorSlot`: a site, the
 //! call-depth limit, a function's stack frame) in one of two arrays the context names:
-//! `setup_counts` for its setup code, `pixel_counts` for its pixel code (`abi::ctx`). The
-//! renderer makes the sums independent of the thread count and the tile size:
+//! `setup_counts` for its setup code, `pixel_counts` for its pixel code (`abi::ctx`); a
+//! setup loop out of fuel it leaves in `TileCtx::fuel` instead, where the bound and expand
+//! runs read it (`super::expand`). The renderer makes the sums independent of the thread
+//! count and the tile size:
 //! - Setup code does not depend on the tile, and a draw's bound run (`MODE_BOUND`) meets the
 //!   same setup errors as its render run in any tile (the bound run skips only statements
 //!   that cannot fail). So setup errors are counted in the bound runs (and in the expand
@@ -86,14 +88,6 @@ impl CountArrays {
             }
         }
     }
-}
-
-/// Whether `counts` (of `program`'s kernels) hold a loop out of fuel.
-pub(crate) fn ran_out_of_fuel(program: &Program, counts: &[(u32, u64)]) -> bool {
-    let sites = program.sites.len();
-    counts
-        .iter()
-        .any(|&(slot, _)| matches!(ErrorSlot::at(slot as usize, sites), ErrorSlot::Fuel(_)))
 }
 
 /// Where each site of `program` is: the function whose code holds it and whether in its

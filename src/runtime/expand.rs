@@ -19,7 +19,8 @@
 //! its calls), and run-time errors of the caller's setup are counted once, by the expand run.
 //!
 //! Fuel and errors: every expand and bound run counts its setup's run-time errors
-//! (`super::errors`: the render runs count only their pixel code's). A draw whose bound run
+//! (`super::errors`: the render runs count only their pixel code's), and the loop that ran
+//! out of setup fuel, which the kernel leaves in `TileCtx::fuel`. A draw whose bound run
 //! runs out of setup fuel is put in no tile: its setup would run out at the same loop in
 //! every tile (setup fuel is per invocation and the setup does not depend on the tile), so
 //! an endless setup loop costs one bound run, whatever the image size. Likewise an expand
@@ -45,12 +46,13 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use rayon::prelude::*;
 
 use crate::abi::{
-    expands, ArgLayout, Kernel, KernelFn, TileCtx, VariantKey, CALLEE_UNKNOWN, MAX_CALL_DEPTH, MODE_BOUND, MODE_EXPAND,
+    expands, setup_fuel_ran_out, ArgLayout, ErrorSlot, Kernel, KernelFn, TileCtx, VariantKey, CALLEE_UNKNOWN,
+    MAX_CALL_DEPTH, MODE_BOUND, MODE_EXPAND,
 };
 use crate::ir::{FuncId, Program};
 
 use super::api::{Instance, RenderOptions};
-use super::errors::{ran_out_of_fuel, CountArrays, Counts};
+use super::errors::{CountArrays, Counts};
 use super::tiergate::{self, Compiler};
 
 /// Budget charged per recorded call on top of its argument words (what its bookkeeping takes).
@@ -72,9 +74,9 @@ pub(crate) struct Draw<'a> {
     pub call_depth: u32,
 }
 
-/// Run a draw's kernel in bound mode: its screen bound (if it recorded one) and the
-/// run-time errors it counted.
-fn run_bound(program: &Program, draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>, Counts) {
+/// Run a draw's kernel in bound mode: its screen bound (if it recorded one), the run-time
+/// errors it counted and whether its setup ran out of fuel.
+fn run_bound(program: &Program, draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>, Counts, bool) {
     let mut ctx = context(MODE_BOUND, opts);
     ctx.call_depth = draw.call_depth;
     // Zero-size buffers: bound mode never touches them, and the empty tile rectangle
@@ -98,8 +100,19 @@ fn run_bound(program: &Program, draw: &Draw, opts: &RenderOptions) -> (Option<[f
             counts.take(&mut errors);
         }
     });
+    let ran_out = count_setup_fuel(program, &ctx, &mut errors);
     let bound = (ctx.bound_set != 0).then_some(ctx.bound);
-    (bound, errors)
+    (bound, errors, ran_out)
+}
+
+/// Whether the run that left `ctx` ran out of setup fuel; if so, its loop's count (kernels
+/// leave it to the runner, `abi::setup_fuel_ran_out`) goes to `errors`.
+fn count_setup_fuel(program: &Program, ctx: &TileCtx, errors: &mut Counts) -> bool {
+    let Some(site) = setup_fuel_ran_out(ctx.fuel) else {
+        return false;
+    };
+    errors.push((ErrorSlot::Fuel(site).index(program.sites.len()) as u32, 1));
+    true
 }
 
 /// A context for `mode` with the frame's viewport and fuel (no tile, no buffers, no counts).
@@ -242,8 +255,8 @@ unsafe extern "C" fn record_call(
     });
 }
 
-/// Run `entry` on `args` once in `MODE_EXPAND` at `call_depth`: the calls it made, and the
-/// run-time errors it counted.
+/// Run `entry` on `args` once in `MODE_EXPAND` at `call_depth`: the calls it made, the
+/// run-time errors it counted and whether its setup ran out of fuel.
 fn run_expand<'b>(
     program: &Program,
     entry: KernelFn,
@@ -251,7 +264,7 @@ fn run_expand<'b>(
     call_depth: u32,
     opts: &RenderOptions,
     budget: &'b Budget,
-) -> (Recorder<'b>, Counts) {
+) -> (Recorder<'b>, Counts, bool) {
     let mut rec = Recorder {
         words: vec![],
         calls: vec![],
@@ -283,7 +296,8 @@ fn run_expand<'b>(
             counts.take(&mut errors);
         }
     });
-    (rec, errors)
+    let ran_out = count_setup_fuel(program, &ctx, &mut errors);
+    (rec, errors, ran_out)
 }
 
 /// Expands one instance.
@@ -329,9 +343,8 @@ pub(crate) fn expand_instance(
         };
         if e.expand(kernel.entry, &inst.args, 0) {
             let bound_one = |item: &Item| {
-                let (bound, errors) = run_bound(program, &item.draw(&e.pool, inst), opts);
-                let tiles = bound.filter(|_| !ran_out_of_fuel(program, &errors)).and_then(&tiles_of);
-                (tiles, errors)
+                let (bound, errors, ran_out) = run_bound(program, &item.draw(&e.pool, inst), opts);
+                (bound.filter(|_| !ran_out).and_then(&tiles_of), errors)
             };
             // A tessellation's thousands of draws are bound in parallel chunks, so a thread
             // done with its own instances helps with a large patch's (one pass after the
@@ -359,10 +372,10 @@ pub(crate) fn expand_instance(
         args: Args::Instance,
         call_depth: 0,
     };
-    let (bound, errors) = run_bound(program, &itself.draw(&[], inst), opts);
+    let (bound, errors, ran_out) = run_bound(program, &itself.draw(&[], inst), opts);
     Expanded::Itself {
         entry: kernel.entry,
-        tiles: bound.filter(|_| !ran_out_of_fuel(program, &errors)).and_then(tiles_of),
+        tiles: bound.filter(|_| !ran_out).and_then(tiles_of),
         errors: errors.into_boxed_slice(),
         over_budget,
     }
@@ -400,9 +413,8 @@ impl Expander<'_> {
     /// Expand one invocation (`entry` on `args` at `call_depth`) into draws; false when the
     /// budget ran out.
     fn expand(&mut self, entry: KernelFn, args: &[u32], call_depth: u32) -> bool {
-        let (rec, errors) = run_expand(self.program, entry, args, call_depth, self.opts, self.budget);
+        let (rec, errors, ran_out) = run_expand(self.program, entry, args, call_depth, self.opts, self.budget);
         self.charged += rec.charged;
-        let ran_out = ran_out_of_fuel(self.program, &errors);
         self.errors.extend(errors);
         if rec.over_budget {
             return false;

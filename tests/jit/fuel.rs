@@ -1,11 +1,11 @@
 //! Fuel of uniform loops (`Lower::spend_fuel`, `Lower::uniform_loop`): every visit of a
 //! loop's head spends one unit before the condition is tested, and the first visit that
-//! finds none left records ERR_FUEL (W0801) at that loop; the runtime then draws the
-//! instance nowhere (its bound run ran out, `abi::ctx`). These tests
-//! pin that down where a change of how fuel is spent (once per loop for bounded loops, say)
+//! finds none left records ERR_FUEL (W0801) at that loop and ends the run; the runtime
+//! then draws the instance nowhere (its bound run ran out, `abi::ctx`). These tests pin
+//! that down where a change of how fuel is spent (once per loop for bounded loops, say)
 //! could move it: a loop bounded by a guard, a loop inside a loop (which of the two runs
-//! out depends on the trip counts), and a loop whose bound is an argument. A frame that does
-//! not run out must show the exact trip count.
+//! out depends on the trip counts), and a loop whose bound is an argument. A frame that
+//! does not run out must show the exact trip count.
 
 use crate::common;
 

@@ -9,7 +9,8 @@
 //!   does, at any image size; with the default budgets at 512x512 and 1920x1080 too.
 //! - Setup code: a draw whose setup runs out of fuel in its bound run draws nothing and is
 //!   run in no tile (`RenderStats::tile_invocations` is 0: the endless loop ran once, in the
-//!   bound pass, whatever the image size), through a call and through an expansion too.
+//!   bound pass, whatever the image size), through a call and through an expansion too. A
+//!   callee that runs out ends its caller's run: the warning names the callee's loop.
 
 use crate::common;
 
@@ -45,6 +46,24 @@ primitive flat(float rect[4]; float z; varying float X, Y; inout varying fixed<3
 {
     bound(rect[0], rect[1], rect[2], rect[3]);
     Z = z;
+}
+
+primitive spin_callee(float rect[4]; int limit; varying float X, Y; inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    int n = 0;
+    while (n < limit)
+        n++;
+    Z = 0.75;
+}
+
+primitive calls_a_spinner(float rect[4]; int limit, reps; varying float X, Y; inout varying fixed<32,32> Z)
+{
+    spin_callee(rect, limit, X, Y, Z);
+    int m = 0;
+    for (int k = 0; k < reps; k++)
+        m++;
+    flat(rect, m / 32.0, X, Y, Z);
 }
 
 primitive calls_then_spins(float rect[4]; int limit; varying float X, Y; inout varying fixed<32,32> Z)
@@ -244,5 +263,30 @@ fn a_caller_whose_setup_runs_out_draws_none_of_its_calls_expanded_or_not() {
                 assert_eq!(out.stats.tile_invocations, 0, "expand {expand}");
             }
         }
+    }
+}
+
+#[test]
+fn a_callee_that_runs_out_ends_its_callers_run_and_is_the_one_reported() {
+    let mut sources = SourceMap::new();
+    let program = library(&mut sources);
+    let (w, h) = (32, 16);
+    let spinner = loop_site("spin_callee");
+    // Expansion off: the caller's bound run calls the callee, which runs out; the caller's
+    // own loop (10 trips) never runs, and nothing of the caller is drawn. Expanded: the
+    // callee is a draw of its own, skipped; the caller's `flat` draws.
+    for (expand, drawn) in [(false, None), (true, Some(10 * (1 << 27)))] {
+        let mut r = scene(&program, "calls_a_spinner", w, h, &[("limit", 2e9), ("reps", 10.0)]);
+        r.options.expand_calls = expand;
+        r.options.setup_fuel = 1 << 20;
+        let out = render_every_way(&mut r, &sources);
+        assert_eq!(out.diags.codes_at(&sources), [spinner.clone()], "expand {expand}");
+        let want = drawn.unwrap_or(0u32);
+        assert!(
+            out.frame.depth_values().iter().all(|&d| d == want),
+            "expand {expand}: {:?}",
+            &out.frame.depth_values()[..4]
+        );
+        assert_eq!(out.stats.tile_invocations == 0, drawn.is_none(), "expand {expand}");
     }
 }

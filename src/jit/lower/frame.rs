@@ -15,8 +15,9 @@
 //! error of the setup code is kept in a variable instead (`pending_error`,
 //! [`Lower::defer_error`]) and reaches `ctx.error` at the setup's exits and before
 //! primitive calls ([`Lower::flush_errors`]), so `ctx` holds the invocation's first error
-//! wherever anyone can read it. Every error is also counted where it happens
-//! ([`Lower::count_error`]): one added to its slot (`abi::ErrorSlot`) of `ctx.setup_counts`
+//! wherever anyone can read it. Every error but a setup loop out of fuel (which ends the
+//! run and leaves its site in `ctx.fuel`, see [`Lower::spend_fuel`]) is also counted where
+//! it happens ([`Lower::count_error`]): one added to its slot (`abi::ErrorSlot`) of `ctx.setup_counts`
 //! (setup code) or `ctx.pixel_counts` (pixel code) per execution that fails, under the same
 //! conditions as the record (the error guard; in flat pixel code, some lane executing). At
 //! tier 0 the add is inline (a load, an add of the condition, a store), adding 0 where
@@ -88,8 +89,16 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// Record `code` at `site` if no error was recorded yet and `cond` (i8) holds; count it
     /// when `cond` holds.
     pub(super) fn record_error(&mut self, code: u32, site: u32, cond: Option<ir::Value>) {
+        self.record_error_counted(code, site, cond, true);
+    }
+
+    /// [`Self::record_error`], counting the error only when `count` (a loop of setup code
+    /// out of fuel is not counted: see [`Self::spend_fuel`]).
+    fn record_error_counted(&mut self, code: u32, site: u32, cond: Option<ir::Value>, count: bool) {
         let happened = self.error_condition(cond);
-        self.count_error(code, site, happened);
+        if count {
+            self.count_error(code, site, happened);
+        }
         let old = self.load_ctx(types::I32, ctx_off::ERROR);
         let mut first = self.b.ins().icmp_imm_s(IntCC::Equal, old, 0);
         if let Some(h) = happened {
@@ -164,19 +173,26 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// changes: a select keeps the first error (~4 instructions instead of two loads, two
     /// stores and ~10 more; ~60 index sites and ~80 loops of the NURB setup record one).
     pub(super) fn defer_error(&mut self, code: u32, site: SiteId, cond: Option<ir::Value>) {
+        self.defer_error_counted(code, site, cond, true);
+    }
+
+    /// [`Self::defer_error`], counting the error only when `count`.
+    pub(super) fn defer_error_counted(&mut self, code: u32, site: SiteId, cond: Option<ir::Value>, count: bool) {
         let site_plus_one = i64::from(site.0) + 1;
         if !self.deferring_errors || site_plus_one >= 1 << PENDING_CODE_SHIFT {
             // Not deferred: after the deferred ones, which came first.
             if self.deferring_errors {
                 self.flush_errors();
             }
-            return self.record_error(code, site.0, cond);
+            return self.record_error_counted(code, site.0, cond, count);
         }
         let bad = match (cond, self.error_guard) {
             (Some(c), Some(g)) => Some(self.b.ins().band(c, g)),
             (c, g) => c.or(g),
         };
-        self.count_error(code, site.0, bad);
+        if count {
+            self.count_error(code, site.0, bad);
+        }
         let pending = self.b.use_var(self.pending_error);
         let error = self
             .b

@@ -570,25 +570,44 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// Spend one unit of fuel (the setup's, or in pixel code the group's) and go on; with
-    /// none left jump to `exit`. The loop head that finds the tank empty (0) records
-    /// ERR_FUEL at `site` and marks it spent (-1); heads that find it spent only leave, so
-    /// one run (or one pixel group) counts one out-of-fuel error, at the loop that ran out.
+    /// none left:
+    /// - in pixel code, record ERR_FUEL at `site` if the group's fuel is empty (0), count it
+    ///   and mark the fuel spent (-1), and jump to `exit` (the loop's): a loop head that
+    ///   finds the fuel spent only leaves, so a group counts one out-of-fuel error, at the
+    ///   loop that ran out;
+    /// - in setup code, record ERR_FUEL at `site`, put `-(2 + site)` in the fuel and end
+    ///   the run (its callers end theirs after the call, see [`Self::call_primitive`]). No
+    ///   count: the runner reads the site from `ctx.fuel` (`abi::setup_fuel_ran_out`), which
+    ///   spares the setup's out-of-fuel paths (~80 in the NURB kernel) the counting code.
     pub(super) fn spend_fuel(&mut self, site: SiteId, exit: Block) {
-        let var = if self.pix.is_some() { self.group_fuel } else { self.fuel };
+        let in_pixels = self.pix.is_some();
+        let var = if in_pixels { self.group_fuel } else { self.fuel };
         let fuel = self.b.use_var(var);
         let empty = self.b.ins().icmp_imm_s(IntCC::SignedLessThanOrEqual, fuel, 0);
         let out_blk = self.b.create_block();
         let ok_blk = self.b.create_block();
+        if self.in_dead_block() {
+            // A loop no path reaches: so are its fuel paths (no jump from them is live).
+            self.dead_blocks.extend([out_blk, ok_blk]);
+        }
         self.b.ins().brif(empty, out_blk, &[], ok_blk, &[]);
         self.seal_now(out_blk);
         self.seal_now(ok_blk);
         self.b.set_cold_block(out_blk);
         self.b.switch_to_block(out_blk);
-        let first = self.b.ins().icmp_imm_s(IntCC::Equal, fuel, 0);
-        self.defer_error(ERR_FUEL, site, Some(first));
-        let spent = self.iconst_here(types::I64, -1);
-        self.b.def_var(var, spent);
-        self.b.ins().jump(exit, &[]);
+        if in_pixels {
+            let first = self.b.ins().icmp_imm_s(IntCC::Equal, fuel, 0);
+            self.defer_error(ERR_FUEL, site, Some(first));
+            let spent = self.iconst_here(types::I64, -1);
+            self.b.def_var(var, spent);
+            self.b.ins().jump(exit, &[]);
+        } else {
+            self.defer_error_counted(ERR_FUEL, site, None, false);
+            let spent = self.iconst_here(types::I64, -2 - i64::from(site.0));
+            self.b.def_var(var, spent);
+            let end = self.exit;
+            self.jump_live(end);
+        }
         self.b.switch_to_block(ok_blk);
         let less = self.b.ins().iadd_imm_s(fuel, -1);
         self.b.def_var(var, less);
