@@ -280,7 +280,7 @@ fn a_callee_that_runs_out_ends_its_callers_run_and_is_the_one_reported() {
         r.options.expand_calls = expand;
         r.options.setup_fuel = 1 << 20;
         let out = render_every_way(&mut r, &sources);
-        assert_eq!(out.diags.codes_at(&sources), [spinner.clone()], "expand {expand}");
+        assert_eq!(out.diags.codes_at(&sources), [spinner.as_str()], "expand {expand}");
         let want = drawn.unwrap_or(0u32);
         assert!(
             out.frame.depth_values().iter().all(|&d| d == want),
