@@ -13,12 +13,44 @@
 //! straddles a row, two tiles never share a group, and a tile's last group (at a ragged
 //! right edge) stays inside the padded row (`runtime::frame`).
 //!
+//! Limits: loops spend *fuel* and failures are *counted*, both deterministically, so that a
+//! frame is the same bit for bit, and reports the same warnings, whatever the number of
+//! threads and the tile size.
+//! - Setup fuel ([`TileCtx::fuel`]): every visit of a loop head in setup code spends one
+//!   unit; the setup of one invocation and the setups of the primitives it calls directly
+//!   share `fuel` units (`DEFAULT_FUEL`). The loop head that finds none records `ERR_FUEL`
+//!   at its loop and ends the invocation, and the invocations that called it end after
+//!   the call, with `fuel` holding `-(2 + site)` (as an `i64`) of that loop
+//!   ([`setup_fuel_ran_out`]); kernels do not count this error, the runner does from
+//!   `fuel`. Setup code does not depend on the tile, so every invocation of one draw (its
+//!   bound run and its render run in each tile) spends the same fuel and runs out, if at
+//!   all, at the same loop; the runtime draws nothing of a draw whose bound run ran out
+//!   (`runtime::expand`).
+//! - Pixel fuel: before its pixel loops a kernel gives every pixel group
+//!   `max(group_fuel_floor, pixel_fuel / groups)` units ([`TileCtx::group_fuel`]), where
+//!   `groups` is the number of pixel groups of its bound rectangle in the viewport (rows
+//!   times the group columns it touches, at least 1): the same in every tile. Each group
+//!   starts with that many; its loops (varying or uniform) spend one unit per visit of a
+//!   loop head. A group is never split between tiles, so what it computes does not depend
+//!   on the tiling either. A draw's pixel loops spend at most
+//!   `max(pixel_fuel, groups * group_fuel_floor)` units in all.
+//!   A pixel group's loop head that finds none (0) records and counts `ERR_FUEL` at its
+//!   loop, marks the group's fuel spent (-1) and leaves the loop (as `break` would, for
+//!   every lane); later loop heads of the same group find it spent and leave too,
+//!   recording nothing. Kernels take fuel as a signed count, so a budget must be at most
+//!   `i64::MAX` (the runtime caps its options).
+//! - Error counts: besides the first error (`error`, `error_site`), every run-time error
+//!   but a setup loop out of fuel is counted, once per execution of the failing operation,
+//!   at its [`ErrorSlot`] in `setup_counts` (setup code and what a kernel does before its
+//!   setup: the stack check) or `pixel_counts` (pixel code, where one execution covers one
+//!   pixel group). Both point at `count_slots(program)` `u64`s (wrapping adds).
+//!
 //! A third mode, `MODE_EXPAND`, serves primitives that only call other primitives (no pixel
 //! code of their own, [`expands`]): the runtime runs such an instance once, its calls are
 //! handed to `TileCtx::expand` instead of being made, and the recorded calls are bound,
 //! binned and rendered as instances of their own (see `runtime::expand`).
 
-use crate::ir::{Elem, FuncId, FuncKind, ParamRole, Program, Stmt, StmtKind, Type};
+use crate::ir::{Elem, FuncId, FuncKind, ParamRole, Program, SiteId, Stmt, StmtKind, Type};
 
 /// Pixels per group: one f32x4 per varying value.
 pub const GROUP: u32 = 4;
@@ -32,7 +64,8 @@ pub const MODE_RENDER: u32 = 1;
 /// on primitives for which [`expands`] holds.
 pub const MODE_EXPAND: u32 = 2;
 
-/// Run-time error codes a kernel can record (the first one wins).
+/// Run-time error codes a kernel can record (the first one wins in `TileCtx::error`; every
+/// one is counted at its [`ErrorSlot`]).
 pub const ERR_NONE: u32 = 0;
 pub const ERR_INDEX: u32 = 1;
 pub const ERR_FUEL: u32 = 2;
@@ -72,7 +105,10 @@ pub struct TileCtx {
     /// First run-time error (`ERR_*`) and the `SiteId` it happened at.
     pub error: u32,
     pub error_site: u32,
-    /// Loop iterations left for this invocation.
+    /// Setup fuel left: loop-head visits the setup code of this invocation, and of the
+    /// primitives it calls directly, may still make (the pixel part has its own, see
+    /// `group_fuel`); once a setup loop found none, `-(2 + site)` of that loop
+    /// ([`setup_fuel_ran_out`]).
     pub fuel: u64,
     /// Depth of nested primitive calls (a call deeper than `MAX_CALL_DEPTH` is an error).
     pub call_depth: u32,
@@ -92,13 +128,29 @@ pub struct TileCtx {
     /// local arrays (up to 65536 floats each, any number of them, calls nested 16 deep) can
     /// outgrow any thread's stack, and without the check the frame would overrun it.
     pub stack_limit: usize,
+    /// Error counts of setup code and of pixel code: `count_slots(program)` `u64`s each
+    /// (they may be the same array), indexed by [`ErrorSlot::index`]. A kernel adds to
+    /// them with wrapping adds (a kernel compiled at tier 0 also adds 0 where nothing
+    /// failed, so both must point at memory it may write whenever it runs). Null in a
+    /// context from [`TileCtx::new`]: set both before running a kernel.
+    pub setup_counts: *mut u64,
+    pub pixel_counts: *mut u64,
+    /// The pixel fuel of this draw (`DEFAULT_PIXEL_FUEL`): shared out over the pixel groups
+    /// of the kernel's bound rectangle, at least `group_fuel_floor` a group (see the module
+    /// doc). Read by kernels, never written.
+    pub pixel_fuel: u64,
+    pub group_fuel_floor: u64,
+    /// Written by a kernel whose pixel part has loops, before its pixel loops: the fuel each
+    /// of its pixel groups starts with (`max(group_fuel_floor, pixel_fuel / groups)`).
+    pub group_fuel: u64,
 }
 
 impl TileCtx {
     /// A context for a `width` x `height` viewport in `mode` with no tile yet: an empty
-    /// rectangle, null buffers, no bound, no error, full `DEFAULT_FUEL`, call depth 0, no
-    /// expansion recorder. Bound and expand runs use it as it is; a render run first names
-    /// its tile and buffers (`TileCtx { x0, .., ..TileCtx::new(MODE_RENDER, w, h) }`).
+    /// rectangle, null buffers, no bound, no error, full `DEFAULT_FUEL` and the default
+    /// pixel fuel, call depth 0, no expansion recorder, no error counts (null: set them).
+    /// Bound and expand runs use it with counts; a render run first names its tile and
+    /// buffers (`TileCtx { x0, .., ..TileCtx::new(MODE_RENDER, w, h) }`).
     pub fn new(mode: u32, width: u32, height: u32) -> TileCtx {
         TileCtx {
             x0: 0,
@@ -123,7 +175,119 @@ impl TileCtx {
             expand: None,
             expand_state: std::ptr::null_mut(),
             stack_limit: thread_stack_limit(),
+            setup_counts: std::ptr::null_mut(),
+            pixel_counts: std::ptr::null_mut(),
+            pixel_fuel: DEFAULT_PIXEL_FUEL,
+            group_fuel_floor: DEFAULT_GROUP_FUEL_FLOOR,
+            group_fuel: 0,
         }
+    }
+}
+
+/// The loop whose setup ran out of fuel in a run that left `fuel` in `TileCtx::fuel`, if
+/// one did (see the module doc).
+pub fn setup_fuel_ran_out(fuel: u64) -> Option<SiteId> {
+    let fuel = fuel as i64;
+    (fuel <= -2).then(|| SiteId((-(fuel + 2)) as u32))
+}
+
+/// Where a run-time error is counted (`TileCtx::setup_counts`, `TileCtx::pixel_counts`):
+/// index 0 counts calls skipped for depth, `1 + 2 * site` index errors and `2 + 2 * site`
+/// loops out of fuel at a `SiteId`, `1 + 2 * sites + func` stack errors of a function's
+/// kernel (`sites`: `Program::sites.len()`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ErrorSlot {
+    CallDepth,
+    Index(SiteId),
+    Fuel(SiteId),
+    Stack(FuncId),
+}
+
+impl ErrorSlot {
+    /// The slot of error `code` recorded with `site` (a `SiteId`, or for `ERR_STACK` a
+    /// `FuncId`; ignored for `ERR_CALL_DEPTH`); `None` for an unknown code.
+    pub fn of(code: u32, site: u32) -> Option<ErrorSlot> {
+        match code {
+            ERR_INDEX => Some(ErrorSlot::Index(SiteId(site))),
+            ERR_FUEL => Some(ErrorSlot::Fuel(SiteId(site))),
+            ERR_CALL_DEPTH => Some(ErrorSlot::CallDepth),
+            ERR_STACK => Some(ErrorSlot::Stack(FuncId(site))),
+            _ => None,
+        }
+    }
+
+    /// The error code counted here.
+    pub fn code(self) -> u32 {
+        match self {
+            ErrorSlot::CallDepth => ERR_CALL_DEPTH,
+            ErrorSlot::Index(_) => ERR_INDEX,
+            ErrorSlot::Fuel(_) => ERR_FUEL,
+            ErrorSlot::Stack(_) => ERR_STACK,
+        }
+    }
+
+    /// Its index in a count array of a program with `sites` sites.
+    pub fn index(self, sites: usize) -> usize {
+        match self {
+            ErrorSlot::CallDepth => 0,
+            ErrorSlot::Index(s) => 1 + 2 * s.0 as usize,
+            ErrorSlot::Fuel(s) => 2 + 2 * s.0 as usize,
+            ErrorSlot::Stack(f) => 1 + 2 * sites + f.0 as usize,
+        }
+    }
+
+    /// The slot at `index` of a count array of a program with `sites` sites.
+    pub fn at(index: usize, sites: usize) -> ErrorSlot {
+        match index {
+            0 => ErrorSlot::CallDepth,
+            i if i <= 2 * sites => {
+                let site = SiteId(((i - 1) / 2) as u32);
+                if i % 2 == 1 {
+                    ErrorSlot::Index(site)
+                } else {
+                    ErrorSlot::Fuel(site)
+                }
+            }
+            i => ErrorSlot::Stack(FuncId((i - 1 - 2 * sites) as u32)),
+        }
+    }
+}
+
+/// Length of the error count arrays of `program`'s kernels: one slot per [`ErrorSlot`].
+pub fn count_slots(program: &Program) -> usize {
+    1 + 2 * program.sites.len() + program.functions.len()
+}
+
+/// Zeroed error counts for running `program`'s kernels: hand [`ErrorCounts::ptr`] to a
+/// context as both `setup_counts` and `pixel_counts`, read them back with
+/// [`ErrorCounts::take`].
+#[derive(Clone, Debug)]
+pub struct ErrorCounts {
+    counts: Vec<u64>,
+    sites: usize,
+}
+
+impl ErrorCounts {
+    pub fn new(program: &Program) -> ErrorCounts {
+        ErrorCounts {
+            counts: vec![0; count_slots(program)],
+            sites: program.sites.len(),
+        }
+    }
+
+    pub fn ptr(&mut self) -> *mut u64 {
+        self.counts.as_mut_ptr()
+    }
+
+    /// The counts that are not zero, in slot order, each reset to zero.
+    pub fn take(&mut self) -> Vec<(ErrorSlot, u64)> {
+        let sites = self.sites;
+        self.counts
+            .iter_mut()
+            .enumerate()
+            .filter(|(_, n)| **n != 0)
+            .map(|(i, n)| (ErrorSlot::at(i, sites), std::mem::take(n)))
+            .collect()
     }
 }
 
@@ -184,7 +348,16 @@ fn stack_low_end_guess() -> usize {
 }
 
 pub const MAX_CALL_DEPTH: u32 = 16;
+/// Setup fuel of one invocation (`TileCtx::fuel`): under a second of an endless setup
+/// loop, which runs in a draw's bound run only (see the module doc).
 pub const DEFAULT_FUEL: u64 = 1 << 28;
+/// Pixel fuel of one draw (`TileCtx::pixel_fuel`): a second or two of one core's time in an
+/// endless pixel loop, at any image size up to `2^29 / DEFAULT_GROUP_FUEL_FLOOR` groups
+/// (2 Mpixels); larger bound rectangles get the floor per group.
+pub const DEFAULT_PIXEL_FUEL: u64 = 1 << 29;
+/// The least fuel a pixel group gets (`TileCtx::group_fuel_floor`): a per-pixel loop of up
+/// to ~1000 iterations never runs out, whatever the image size.
+pub const DEFAULT_GROUP_FUEL_FLOOR: u64 = 1 << 10;
 
 /// The signature of every compiled kernel.
 pub type KernelFn = unsafe extern "C" fn(ctx: *mut TileCtx, args: *const u32);
@@ -223,8 +396,8 @@ pub fn expands(program: &Program, func: FuncId) -> bool {
 }
 
 /// What a native kernel does where its primitive's source calls another primitive, as the
-/// JIT's call does: bump `call_depth` (past `MAX_CALL_DEPTH` the call is skipped and
-/// `ERR_CALL_DEPTH` recorded), then in `MODE_EXPAND` hand the call to `ctx.expand` (as
+/// JIT's call does: bump `call_depth` (past `MAX_CALL_DEPTH` the call is skipped, and
+/// `ERR_CALL_DEPTH` recorded and counted in `setup_counts`), then in `MODE_EXPAND` hand the call to `ctx.expand` (as
 /// [`CALLEE_UNKNOWN`]: rendered as recorded), in the other modes run `entry` on `args`.
 ///
 /// # Safety
@@ -239,6 +412,12 @@ pub unsafe fn call_primitive(ctx: *mut TileCtx, entry: KernelFn, args: &[u32]) {
         if c.error == ERR_NONE {
             c.error = ERR_CALL_DEPTH;
             c.error_site = u32::MAX;
+        }
+        if !c.setup_counts.is_null() {
+            let at = ErrorSlot::CallDepth.index(0);
+            // SAFETY: the context's counts hold every slot of the program (`TileCtx`), and
+            // the call-depth slot is the first.
+            unsafe { *c.setup_counts.add(at) = (*c.setup_counts.add(at)).wrapping_add(1) };
         }
     } else if c.mode == MODE_EXPAND {
         if let Some(record) = c.expand {

@@ -285,9 +285,19 @@ pub(crate) struct Lower<'a, 'b> {
     arm: Option<ArmInfo>,
     bound_vars: [Variable; 4],
     has_bound: Variable,
-    /// The fuel left (`ctx.fuel` while the kernel runs, kept in a register: loaded at entry,
-    /// stored at the exit and around direct primitive calls, whose callees spend it too).
+    /// The setup fuel left (`ctx.fuel` while the kernel runs, kept in a register: loaded at
+    /// entry, stored at the exit and around direct primitive calls, whose callees' setups
+    /// spend it too). Setup loops spend it.
     fuel: Variable,
+    /// The fuel left to the current pixel group: `ctx.group_fuel` at the start of every
+    /// group (see [`loops`]); loops of pixel code spend it. Defined only when the pixel code
+    /// has loops (`group_fuel_used`).
+    group_fuel: Variable,
+    group_fuel_used: bool,
+    /// The `return` of the function's stack check that fails, before which
+    /// [`Self::count_stack_error`] adds the count of `ERR_STACK` once the function is
+    /// otherwise complete.
+    stack_count: Option<ir::Inst>,
     /// The first run-time error of the setup code not yet in `ctx` (see
     /// [`Self::defer_error`]): `code << PENDING_CODE_SHIFT | (site + 1)`, 0 for none. Never
     /// reset: once set, a flush has put it (or an earlier error) into `ctx.error`, so
@@ -431,7 +441,7 @@ pub(crate) fn lower_kernel<'b>(
     b.switch_to_block(entry);
     let ctx = b.block_params(entry)[0];
     let args = b.block_params(entry)[1];
-    stack_check(&mut b, ctx, func_id);
+    let stack_count = stack_check(&mut b, ctx, func_id);
     if let Some(word) = upgrade {
         let word = b.ins().iconst(types::I64, word as i64);
         // An acquiring load: the worker publishes the entry after making its code executable.
@@ -460,6 +470,7 @@ pub(crate) fn lower_kernel<'b>(
     ];
     let has_bound = declare_var(types::I8);
     let fuel = declare_var(types::I64);
+    let group_fuel = declare_var(types::I64);
     let pending_error = declare_var(types::I32);
     let scratch = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 4));
     let mut l = Lower {
@@ -481,6 +492,9 @@ pub(crate) fn lower_kernel<'b>(
         bound_vars,
         has_bound,
         fuel,
+        group_fuel,
+        group_fuel_used: false,
+        stack_count: Some(stack_count),
         pending_error,
         defer_errors: false,
         deferring_errors: false,
@@ -537,6 +551,7 @@ pub(crate) fn lower_kernel<'b>(
         }
     }
     l.b.seal_all_blocks();
+    l.count_stack_error();
     let lowered = Lowered {
         warnings: std::mem::take(&mut l.warnings),
         outlined: l.outline.done,
@@ -550,8 +565,9 @@ pub(crate) fn lower_kernel<'b>(
 /// first and return. Nothing has been stored in the frame's lower part yet (the prologue
 /// saves registers at its top; spill slots lie above the explicit ones), and no call has
 /// pushed a return address at its bottom, so a frame too big for the stack is never
-/// touched. Four instructions on the path that runs.
-fn stack_check(b: &mut FunctionBuilder, ctx: ir::Value, func_id: FuncId) {
+/// touched. Four instructions on the path that runs. Returns the failing path's `return`:
+/// [`Lower::count_stack_error`] adds the error's count before it.
+fn stack_check(b: &mut FunctionBuilder, ctx: ir::Value, func_id: FuncId) -> ir::Inst {
     let sp = b.ins().get_stack_pointer(types::I64);
     let limit = b.ins().load(types::I64, mem_flags(), ctx, ctx_off::STACK_LIMIT);
     let short = b.ins().icmp(IntCC::UnsignedLessThan, sp, limit);
@@ -570,9 +586,10 @@ fn stack_check(b: &mut FunctionBuilder, ctx: ir::Value, func_id: FuncId) {
     let site = b.ins().select(first, site, old_site);
     b.ins().store(mem_flags(), code, ctx, ctx_off::ERROR);
     b.ins().store(mem_flags(), site, ctx, ctx_off::ERROR_SITE);
-    b.ins().return_(&[]);
+    let ret = b.ins().return_(&[]);
     b.switch_to_block(room);
     b.seal_block(room);
+    ret
 }
 
 impl<'a, 'b> Lower<'a, 'b> {

@@ -54,7 +54,8 @@
 //! Run-time errors a kernel records carry a `SiteId` in `TileCtx::error_site`, except
 //! `ERR_CALL_DEPTH`, which has no site and records `u32::MAX`, and `ERR_STACK` (every kernel,
 //! and every outlined pixel function, begins by comparing its stack pointer with
-//! `TileCtx::stack_limit`), which records the kernel's `FuncId`.
+//! `TileCtx::stack_limit`), which records the kernel's `FuncId`. `TileCtx::error` keeps the
+//! first; every one is also counted at its `abi::ErrorSlot` (`lower::frame`).
 
 mod batch;
 mod builtin;
@@ -1122,8 +1123,12 @@ mod tests {
             let mut ctx = crate::abi::TileCtx::new(mode, 32, 32);
             let mut no_depth: Vec<u32> = Vec::new();
             ctx.depth = no_depth.as_mut_ptr();
-            // SAFETY: bound mode with an empty tile touches no buffer (as `run_bound`); the
-            // argument block is the instance's, laid out for this kernel.
+            let mut errors = crate::abi::ErrorCounts::new(&program);
+            ctx.setup_counts = errors.ptr();
+            ctx.pixel_counts = errors.ptr();
+            // SAFETY: bound mode with an empty tile touches no buffer (as `run_bound`) but
+            // the error counts; the argument block is the instance's, laid out for this
+            // kernel.
             unsafe { (tier0.entry)(&mut ctx, inst.args.as_ptr()) };
             ctx.bound_set
         };

@@ -70,6 +70,9 @@ pub enum VnKey {
     /// A uniform index checked and clamped: the index, the array's static length (`None`:
     /// the sequence length), the error guard it was checked under.
     CheckedIndex(ir::Value, Option<u32>, Option<ir::Value>),
+    /// A pointer field of the context that no kernel writes (an error count array), by
+    /// byte offset.
+    CtxPtr(i32),
 }
 
 /// [`VnKey::Op`] codes of the unary operations (above every `BinOp`).
@@ -210,6 +213,11 @@ pub mod ctx_off {
     pub const HEIGHT: i32 = offset_of!(TileCtx, height) as i32;
     pub const EXPAND: i32 = offset_of!(TileCtx, expand) as i32;
     pub const STACK_LIMIT: i32 = offset_of!(TileCtx, stack_limit) as i32;
+    pub const PIXEL_FUEL: i32 = offset_of!(TileCtx, pixel_fuel) as i32;
+    pub const GROUP_FUEL_FLOOR: i32 = offset_of!(TileCtx, group_fuel_floor) as i32;
+    pub const GROUP_FUEL: i32 = offset_of!(TileCtx, group_fuel) as i32;
+    pub const SETUP_COUNTS: i32 = offset_of!(TileCtx, setup_counts) as i32;
+    pub const PIXEL_COUNTS: i32 = offset_of!(TileCtx, pixel_counts) as i32;
 }
 
 /// `f32x4` <-> `i32x4` reinterpretation.

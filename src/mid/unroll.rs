@@ -27,7 +27,8 @@
 //! What changes at run time: nothing in any pixel or error result, with one documented
 //! exception: an unrolled (or one-trip) loop spends no fuel, so once a kept loop has run
 //! out (W0801 reported) the code it stands for still runs where the loop would have been
-//! left at once (`tests/jit_inlined_helpers.rs`). Fuel exists so no source can hang the
+//! left at once: seen in what a pixel group draws (a draw whose setup runs out is drawn
+//! nowhere, `abi::ctx`), and in the kernel's own state (`tests/jit/inlined_helpers.rs`). Fuel exists so no source can hang the
 //! renderer; a loop with a constant trip count at most `MAX_TRIPS` cannot. Loops whose trip
 //! count is not a compile-time constant keep their fuel checks, index clamping and error
 //! records unchanged (`tests/jit_unroll.rs`).

@@ -136,6 +136,15 @@ pub struct RenderOptions {
     /// Most argument words (plus a fixed charge per call) the expansion of one frame may
     /// record; an instance whose expansion would exceed it is rendered per tile instead.
     pub expand_budget_words: usize,
+    /// Fuel of one kernel invocation's setup (`TileCtx::fuel`, `abi::DEFAULT_FUEL`): loop
+    /// trips its setup and the setups of the primitives it calls may make. A draw whose
+    /// setup runs out in its bound run is drawn nowhere (`abi::ctx` has the rules).
+    pub setup_fuel: u64,
+    /// Fuel of one draw's pixel part (`TileCtx::pixel_fuel`, `abi::DEFAULT_PIXEL_FUEL`),
+    /// shared out over the pixel groups of its bound rectangle, and the least a group gets
+    /// (`TileCtx::group_fuel_floor`, `abi::DEFAULT_GROUP_FUEL_FLOOR`).
+    pub pixel_fuel: u64,
+    pub group_fuel_floor: u64,
 }
 
 /// Default `RenderOptions::expand_budget_words`: 2^25 words (128 MiB of recorded calls).
@@ -151,6 +160,9 @@ impl Default for RenderOptions {
             background: [0.0; 3],
             expand_calls: true,
             expand_budget_words: EXPAND_BUDGET_WORDS,
+            setup_fuel: crate::abi::DEFAULT_FUEL,
+            pixel_fuel: crate::abi::DEFAULT_PIXEL_FUEL,
+            group_fuel_floor: crate::abi::DEFAULT_GROUP_FUEL_FLOOR,
         }
     }
 }

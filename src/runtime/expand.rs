@@ -14,9 +14,17 @@
 //! Invariant: a tile runs the same kernels with the same argument blocks in the same order as
 //! it would have run through the calling instance (a call made in a tile the callee's bound
 //! misses draws nothing there, binning being conservative), so the frame is bit-identical to
-//! the per-tile path. The exceptions are limits, not pixels: a draw gets fresh fuel of its own
-//! (the per-tile path shares one invocation's fuel between the caller and all its calls), and
-//! run-time errors of the caller's setup are recorded once, by the expand run.
+//! the per-tile path. The exceptions are limits, not pixels: a draw gets fresh setup fuel of
+//! its own (the per-tile path shares one invocation's setup fuel between the caller and all
+//! its calls), and run-time errors of the caller's setup are counted once, by the expand run.
+//!
+//! Fuel and errors: every expand and bound run counts its setup's run-time errors
+//! (`super::errors`: the render runs count only their pixel code's), and the loop that ran
+//! out of setup fuel, which the kernel leaves in `TileCtx::fuel`. A draw whose bound run
+//! runs out of setup fuel is put in no tile: its setup would run out at the same loop in
+//! every tile (setup fuel is per invocation and the setup does not depend on the tile), so
+//! an endless setup loop costs one bound run, whatever the image size. Likewise an expand
+//! run that runs out of fuel records no draws (what it recorded is dropped).
 //!
 //! Instances are expanded and their draws bound (`MODE_BOUND`) in parallel (rayon jobs of a
 //! few hundred instances, and an instance's many calls in chunks of their own), each
@@ -38,11 +46,13 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use rayon::prelude::*;
 
 use crate::abi::{
-    expands, ArgLayout, Kernel, KernelFn, TileCtx, VariantKey, CALLEE_UNKNOWN, MAX_CALL_DEPTH, MODE_BOUND, MODE_EXPAND,
+    expands, setup_fuel_ran_out, ArgLayout, ErrorSlot, Kernel, KernelFn, TileCtx, VariantKey, CALLEE_UNKNOWN,
+    MAX_CALL_DEPTH, MODE_BOUND, MODE_EXPAND,
 };
 use crate::ir::{FuncId, Program};
 
 use super::api::{Instance, RenderOptions};
+use super::errors::{CountArrays, Counts};
 use super::tiergate::{self, Compiler};
 
 /// Budget charged per recorded call on top of its argument words (what its bookkeeping takes).
@@ -62,14 +72,12 @@ pub(crate) struct Draw<'a> {
     pub args: &'a [u32],
     /// `TileCtx::call_depth` to run it at (0 for an instance, the call's depth for a call).
     pub call_depth: u32,
-    /// The submitted instance it comes from (its run-time errors are reported as that one's).
-    pub instance: usize,
 }
 
-/// Run a draw's kernel in bound mode: its screen bound (if it recorded one) and its
-/// run-time error.
-fn run_bound(draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>, Option<(u32, u32)>) {
-    let mut ctx = TileCtx::new(MODE_BOUND, opts.width, opts.height);
+/// Run a draw's kernel in bound mode: its screen bound (if it recorded one), the run-time
+/// errors it counted and whether its setup ran out of fuel.
+fn run_bound(program: &Program, draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>, Counts, bool) {
+    let mut ctx = context(MODE_BOUND, opts);
     ctx.call_depth = draw.call_depth;
     // Zero-size buffers: bound mode never touches them, and the empty tile rectangle
     // (x0 = x1 = 0) means even a pixel pass would cover no pixel.
@@ -79,14 +87,44 @@ fn run_bound(draw: &Draw, opts: &RenderOptions) -> (Option<[f32; 4]>, Option<(u3
     ctx.depth = no_depth.as_mut_ptr();
     ctx.gbuf = no_planes.as_mut_ptr();
     ctx.write_count = no_counts.as_mut_ptr();
-    // SAFETY: `ctx` is a valid TileCtx naming (empty) buffers that outlive the call, and
-    // `draw.args` holds at least the words the kernel's layout reads (checked when the
-    // kernel was made ready, or when the call was recorded), which is all the ABI lets a
-    // kernel read.
-    unsafe { (draw.entry)(&mut ctx, draw.args.as_ptr()) };
+    let mut errors = Counts::new();
+    CountArrays::with(program, |counts| {
+        ctx.setup_counts = counts.counts();
+        ctx.pixel_counts = counts.counts();
+        // SAFETY: `ctx` is a valid TileCtx naming (empty) buffers that outlive the call and
+        // count arrays of the program's slots, and `draw.args` holds at least the words
+        // the kernel's layout reads (checked when the kernel was made ready, or when the
+        // call was recorded), which is all the ABI lets a kernel read.
+        unsafe { (draw.entry)(&mut ctx, draw.args.as_ptr()) };
+        if ctx.error != 0 {
+            counts.take(&mut errors);
+        }
+    });
+    let ran_out = count_setup_fuel(program, &ctx, &mut errors);
     let bound = (ctx.bound_set != 0).then_some(ctx.bound);
-    let error = (ctx.error != 0).then_some((ctx.error, ctx.error_site));
-    (bound, error)
+    (bound, errors, ran_out)
+}
+
+/// Whether the run that left `ctx` ran out of setup fuel; if so, its loop's count (kernels
+/// leave it to the runner, `abi::setup_fuel_ran_out`) goes to `errors`.
+fn count_setup_fuel(program: &Program, ctx: &TileCtx, errors: &mut Counts) -> bool {
+    let Some(site) = setup_fuel_ran_out(ctx.fuel) else {
+        return false;
+    };
+    errors.push((ErrorSlot::Fuel(site).index(program.sites.len()) as u32, 1));
+    true
+}
+
+/// A context for `mode` with the frame's viewport and fuel (no tile, no buffers, no counts).
+pub(super) fn context(mode: u32, opts: &RenderOptions) -> TileCtx {
+    // Kernels take fuel as a signed count (a negative one is spent): cap at i64::MAX.
+    let cap = |fuel: u64| fuel.min(i64::MAX as u64);
+    TileCtx {
+        fuel: cap(opts.setup_fuel),
+        pixel_fuel: cap(opts.pixel_fuel),
+        group_fuel_floor: cap(opts.group_fuel_floor),
+        ..TileCtx::new(mode, opts.width, opts.height)
+    }
 }
 
 /// An inclusive rectangle of tile indices: (tx0, ty0, tx1, ty1).
@@ -135,10 +173,11 @@ pub(crate) enum Expanded {
     /// triangles, so this allocates nothing and stays small).
     Itself {
         entry: KernelFn,
-        /// The tiles its `MODE_BOUND` bound overlaps (`None`: no tile).
+        /// The tiles its `MODE_BOUND` bound overlaps (`None`: no tile, also when its bound
+        /// run ran out of setup fuel).
         tiles: Option<TileRect>,
-        /// (error code, site) of its bound run.
-        error: Option<(u32, u32)>,
+        /// The run-time errors its bound run counted.
+        errors: Box<[(u32, u64)]>,
         /// Its expansion exceeded the budget (it is drawn per tile instead).
         over_budget: bool,
     },
@@ -151,10 +190,11 @@ pub(crate) struct CallDraws {
     /// Argument blocks of the recorded calls, back to back.
     pool: Vec<u32>,
     items: Vec<Item>,
-    /// The tiles each item's `MODE_BOUND` bound overlaps (`None`: no tile).
+    /// The tiles each item's `MODE_BOUND` bound overlaps (`None`: no tile, also when its
+    /// bound run ran out of setup fuel).
     tiles: Vec<Option<TileRect>>,
-    /// (error code, site) of the expand and bound runs, in order.
-    errors: Vec<(u32, u32)>,
+    /// The run-time errors the expand and bound runs counted.
+    errors: Counts,
 }
 
 /// One call recorded by [`record_call`].
@@ -215,15 +255,16 @@ unsafe extern "C" fn record_call(
     });
 }
 
-/// Run `entry` on `args` once in `MODE_EXPAND` at `call_depth`: the calls it made, and its
-/// run-time error.
+/// Run `entry` on `args` once in `MODE_EXPAND` at `call_depth`: the calls it made, the
+/// run-time errors it counted and whether its setup ran out of fuel.
 fn run_expand<'b>(
+    program: &Program,
     entry: KernelFn,
     args: &[u32],
     call_depth: u32,
     opts: &RenderOptions,
     budget: &'b Budget,
-) -> (Recorder<'b>, Option<(u32, u32)>) {
+) -> (Recorder<'b>, Counts, bool) {
     let mut rec = Recorder {
         words: vec![],
         calls: vec![],
@@ -231,7 +272,7 @@ fn run_expand<'b>(
         charged: 0,
         over_budget: false,
     };
-    let mut ctx = TileCtx::new(MODE_EXPAND, opts.width, opts.height);
+    let mut ctx = context(MODE_EXPAND, opts);
     ctx.call_depth = call_depth;
     // Zero-size buffers and an empty tile, as in bound mode: nothing can be drawn.
     let mut no_depth: Vec<u32> = Vec::new();
@@ -242,12 +283,21 @@ fn run_expand<'b>(
     ctx.write_count = no_counts.as_mut_ptr();
     ctx.expand = Some(record_call);
     ctx.expand_state = (&mut rec as *mut Recorder).cast::<c_void>();
-    // SAFETY: `ctx` names (empty) buffers that outlive the call and a recorder that is not
-    // touched otherwise until the call returns; `args` is at least as long as the kernel's
-    // layout reads (checked by the renderer for instances, by `Expander::fits` for calls).
-    unsafe { entry(&mut ctx, args.as_ptr()) };
-    let error = (ctx.error != 0).then_some((ctx.error, ctx.error_site));
-    (rec, error)
+    let mut errors = Counts::new();
+    CountArrays::with(program, |counts| {
+        ctx.setup_counts = counts.counts();
+        ctx.pixel_counts = counts.counts();
+        // SAFETY: `ctx` names (empty) buffers that outlive the call, count arrays of the
+        // program's slots and a recorder that is not touched otherwise until the call
+        // returns; `args` is at least as long as the kernel's layout reads (checked by the
+        // renderer for instances, by `Expander::fits` for calls).
+        unsafe { entry(&mut ctx, args.as_ptr()) };
+        if ctx.error != 0 {
+            counts.take(&mut errors);
+        }
+    });
+    let ran_out = count_setup_fuel(program, &ctx, &mut errors);
+    (rec, errors, ran_out)
 }
 
 /// Expands one instance.
@@ -258,7 +308,7 @@ struct Expander<'p> {
     key: &'p VariantKey,
     pool: Vec<u32>,
     items: Vec<Item>,
-    errors: Vec<(u32, u32)>,
+    errors: Counts,
     /// Words this instance took from the budget (refunded if it falls back).
     charged: usize,
     /// Layouts of recorded callees under the key, to check each block's length.
@@ -293,8 +343,8 @@ pub(crate) fn expand_instance(
         };
         if e.expand(kernel.entry, &inst.args, 0) {
             let bound_one = |item: &Item| {
-                let (bound, error) = run_bound(&item.draw(&e.pool, inst, 0), opts);
-                (bound.and_then(&tiles_of), error)
+                let (bound, errors, ran_out) = run_bound(program, &item.draw(&e.pool, inst), opts);
+                (bound.filter(|_| !ran_out).and_then(&tiles_of), errors)
             };
             // A tessellation's thousands of draws are bound in parallel chunks, so a thread
             // done with its own instances helps with a large patch's (one pass after the
@@ -322,11 +372,11 @@ pub(crate) fn expand_instance(
         args: Args::Instance,
         call_depth: 0,
     };
-    let (bound, error) = run_bound(&itself.draw(&[], inst, 0), opts);
+    let (bound, errors, ran_out) = run_bound(program, &itself.draw(&[], inst), opts);
     Expanded::Itself {
         entry: kernel.entry,
-        tiles: bound.and_then(tiles_of),
-        error,
+        tiles: bound.filter(|_| !ran_out).and_then(tiles_of),
+        errors: errors.into_boxed_slice(),
         over_budget,
     }
 }
@@ -338,7 +388,6 @@ impl Draw<'_> {
         entry: no_draw,
         args: &[],
         call_depth: 0,
-        instance: 0,
     };
 }
 
@@ -346,8 +395,8 @@ impl Draw<'_> {
 unsafe extern "C" fn no_draw(_ctx: *mut TileCtx, _args: *const u32) {}
 
 impl Item {
-    /// This item of instance `inst` (number `index`) whose recorded blocks are in `pool`.
-    fn draw<'a>(&self, pool: &'a [u32], inst: &'a Instance, index: usize) -> Draw<'a> {
+    /// This item of instance `inst` whose recorded blocks are in `pool`.
+    fn draw<'a>(&self, pool: &'a [u32], inst: &'a Instance) -> Draw<'a> {
         let args = match self.args {
             Args::Instance => inst.args.as_slice(),
             Args::Pool { start, len } => &pool[start..start + len],
@@ -356,7 +405,6 @@ impl Item {
             entry: self.entry,
             args,
             call_depth: self.call_depth,
-            instance: index,
         }
     }
 }
@@ -365,11 +413,17 @@ impl Expander<'_> {
     /// Expand one invocation (`entry` on `args` at `call_depth`) into draws; false when the
     /// budget ran out.
     fn expand(&mut self, entry: KernelFn, args: &[u32], call_depth: u32) -> bool {
-        let (rec, error) = run_expand(entry, args, call_depth, self.opts, self.budget);
+        let (rec, errors, ran_out) = run_expand(self.program, entry, args, call_depth, self.opts, self.budget);
         self.charged += rec.charged;
-        self.errors.extend(error);
+        self.errors.extend(errors);
         if rec.over_budget {
             return false;
+        }
+        if ran_out {
+            // The invocation draws nothing (its setup would run out in every tile).
+            self.budget.refund(rec.charged);
+            self.charged -= rec.charged;
+            return true;
         }
         // The first recorder's words become the pool as they are (its kept calls stay where
         // they were recorded): a tessellation records megabytes, and copying them faulted
@@ -462,10 +516,10 @@ impl Expanded {
         matches!(self, Expanded::Itself { over_budget: true, .. })
     }
 
-    /// (error code, site) of the expand and bound runs, in order.
-    pub fn errors(&self) -> &[(u32, u32)] {
+    /// The run-time errors the expand and bound runs counted.
+    pub fn errors(&self) -> &[(u32, u64)] {
         match self {
-            Expanded::Itself { error, .. } => error.as_slice(),
+            Expanded::Itself { errors, .. } => errors,
             Expanded::Calls(calls) => &calls.errors,
         }
     }
@@ -478,16 +532,15 @@ impl Expanded {
         }
     }
 
-    /// Draw `i` (below [`Self::len`]) of instance `inst`, number `index`.
-    pub fn draw<'a>(&'a self, i: usize, inst: &'a Instance, index: usize) -> Draw<'a> {
+    /// Draw `i` (below [`Self::len`]) of instance `inst`.
+    pub fn draw<'a>(&'a self, i: usize, inst: &'a Instance) -> Draw<'a> {
         match self {
             Expanded::Itself { entry, .. } => Draw {
                 entry: *entry,
                 args: &inst.args,
                 call_depth: 0,
-                instance: index,
             },
-            Expanded::Calls(calls) => calls.items[i].draw(&calls.pool, inst, index),
+            Expanded::Calls(calls) => calls.items[i].draw(&calls.pool, inst),
         }
     }
 }

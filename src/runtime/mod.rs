@@ -13,6 +13,7 @@
 //!   shading pass over them and its images.
 //! - [`render`]: the render loop: compiling, binning, parallel tile rendering.
 //! - `expand`: runs a primitive that only calls primitives once and bins its calls instead.
+//! - `errors`: where kernel runs count their run-time errors, and the W0801 warnings.
 //! - [`pool`]: render thread pools, each thread on a core of its own.
 //! - `tiergate`: leaves a tiered JIT's background compiler a thread while it compiles.
 //! - [`geometry`]: the geometry pipeline at `end`: clip codes, trivial reject / accept,
@@ -24,6 +25,7 @@
 //! - [`kernels`]: the [`KernelSource`] seam between renderer and JIT.
 
 pub mod api;
+mod errors;
 mod expand;
 pub mod frame;
 pub mod geometry;

@@ -26,7 +26,8 @@
 //!    rounded up to whole groups), and a tile's kernels get a context whose buffer pointers
 //!    point into the frame at the tile's origin, with the frame's row and plane strides. A
 //!    tile task first zeroes its own rectangle of every buffer (cache-hot for its draws),
-//!    then runs its draws in order in `MODE_RENDER` with fresh fuel each; a tile no draw
+//!    then runs its draws in order in `MODE_RENDER`, each with fresh setup fuel and the
+//!    frame's pixel fuel (`abi::ctx` has the fuel rules); a tile no draw
 //!    touches is zeroed only. Tiles are disjoint, including the padding columns the rightmost
 //!    tiles' last groups reach into, so tasks write disjoint memory (`FrameTarget`). Every
 //!    pixel is computed by one tile from the same zeroed start whatever the schedule, so the
@@ -35,7 +36,8 @@
 //!    a caller's [`Frame`] (no allocation, no page faults on fresh buffers) and
 //!    [`Renderer::render`] is it on an empty frame.
 //! 4. Kernel run-time errors become warnings at the failing site of the primitive source,
-//!    once per (site, error), in tile order.
+//!    one per site with the number of times it failed, in site order ([`super::errors`]:
+//!    setup errors are counted in the bound and expand runs, pixel errors in the tiles).
 //!
 //! With a kernel source that upgrades its kernels in the background (a tiered JIT,
 //! `KernelSource::tier_up`), the frame holds that compiler from before step 1 until a grace
@@ -48,16 +50,16 @@
 //! Then the deferred shading pass over the frame (`Frame::shade` in [`super::frame`]) when
 //! the scene turns an effect on.
 
-use std::collections::BTreeSet;
 use std::sync::Arc;
 use std::time::Instant;
 
-use crate::abi::{Kernel, TileCtx, VariantKey, ERR_CALL_DEPTH, ERR_FUEL, ERR_INDEX, ERR_STACK, MODE_RENDER};
+use crate::abi::{Kernel, TileCtx, VariantKey, MODE_RENDER};
 use crate::diag::{Diagnostic, Diagnostics};
 use crate::ir::{FuncId, Program};
 
 use super::api::{Instance, RenderOptions, Renderer, MAX_FRAME_BYTES, MAX_IMAGE_SIDE};
-use super::expand::{expand_instance, Budget, Draw, Expanded, TileRect};
+use super::errors::{CountArrays, Counts};
+use super::expand::{context, expand_instance, Budget, Draw, Expanded, TileRect};
 use super::frame::{plane_pitch, row_stride, tile_side, Frame, FrameTarget, ParamPlanes, Tile};
 use super::kernels::KernelSource;
 use super::shading::{Effects, Shader, ShadingSpaces};
@@ -257,7 +259,7 @@ impl Renderer {
         // turned into the tiles it overlaps. Then binning, in instance order.
         let tiles = tile_grid(opts);
         let tiles_x = opts.width.div_ceil(opts.tile_size) as usize;
-        let mut errors: Vec<(usize, u32, u32)> = vec![];
+        let mut errors = Counts::new();
         let instances = self.instances();
         let budget = Budget::new(opts.expand_budget_words);
         // While the source's background compiler (a tiered JIT's tier 1) has a compile
@@ -283,13 +285,13 @@ impl Renderer {
         stats.add_gated(gated);
         drop(ready);
         let mut draws = 0;
-        for (i, e) in expanded.iter().enumerate() {
+        for e in &expanded {
             let Some(e) = e else { continue };
             draws += e.len();
             stats.expanded_instances += usize::from(e.expanded());
             stats.expanded_calls += if e.expanded() { e.len() } else { 0 };
             stats.expand_over_budget += usize::from(e.over_budget());
-            errors.extend(e.errors().iter().map(|&(code, site)| (i, code, site)));
+            errors.extend_from_slice(e.errors());
         }
         // A few chunks per thread, so that a thread slowed by other work is helped out.
         let chunks = match rayon::current_num_threads() {
@@ -303,8 +305,8 @@ impl Renderer {
         let tiles_started = Instant::now();
         stats.setup_micros = micros_between(started, tiles_started);
 
-        // 3. Tiles in parallel, each rendering into its own part of the frame; errors kept in
-        // tile order.
+        // 3. Tiles in parallel, each rendering into its own part of the frame, each counting
+        // its pixel code's run-time errors.
         frame.reset(
             opts,
             num_planes,
@@ -319,7 +321,7 @@ impl Renderer {
         let (tile_errors, gated) = tiergate::run_items(compiler, tiles.len(), 1, |t| {
             // SAFETY: each tile index is run once (`tiles` holds each tile once), and
             // `target` is the frame reset for this grid.
-            unsafe { render_tile(&tiles[t], slices[t], opts, target) }
+            unsafe { render_tile(&program, &tiles[t], slices[t], opts, target) }
         });
         stats.add_gated(gated);
         errors.extend(tile_errors.into_iter().flatten());
@@ -351,8 +353,8 @@ impl Renderer {
         }
         stats.shade_micros = shade_started.elapsed().as_micros() as u64;
 
-        // 4. Run-time errors, once per (site, code), in a thread-independent order.
-        report_runtime_errors(&program, &errors, instances, &mut diags);
+        // 4. Run-time errors, one warning per site with its count, in site order.
+        super::errors::report(&program, &errors, &mut diags);
         stats.render_micros = started.elapsed().as_micros() as u64;
         RenderReport {
             stats,
@@ -587,7 +589,7 @@ impl<'a> Bins<'a> {
             let mut runs = runs[c].lock().unwrap_or_else(|e| e.into_inner());
             let mut filled = vec![0usize; tiles];
             each(ranges[c].clone(), &mut |t, e, d, i| {
-                runs[t][filled[t]] = e.draw(d, &instances[i], i);
+                runs[t][filled[t]] = e.draw(d, &instances[i]);
                 filled[t] += 1;
             });
         };
@@ -637,67 +639,76 @@ fn chunk_ranges(
     ranges
 }
 
-/// Zero `tile`'s part of the frame and render its draws into it; returns the tile's run-time
-/// errors (instance, code, site) in order.
+/// Zero `tile`'s part of the frame and render its draws into it; returns the run-time
+/// errors the tile's pixel code counted (its setup code's are counted in the bound runs,
+/// see [`super::errors`]).
 ///
 /// # Safety
 /// `target` names the buffers of a frame reset for `opts`'s tile grid, `tile` is a tile of
 /// that grid, and no other task renders `tile` meanwhile ([`FrameTarget`]'s invariant).
 unsafe fn render_tile(
+    program: &Program,
     tile: &Tile,
     bin: &[Draw],
     opts: &RenderOptions,
     target: FrameTarget<'_>,
-) -> Vec<(usize, u32, u32)> {
+) -> Counts {
     // Every tile starts from zeroed buffers, exactly as if freshly allocated; a tile no draw
     // touches is just that. Cleared here, right before the draws, the rectangle is in cache
     // when they run.
     // SAFETY: the caller's contract.
     unsafe { target.clear(tile) };
+    let mut errors = Counts::new();
     if bin.is_empty() {
-        return vec![];
+        return errors;
     }
     let origin = tile.y0 as usize * target.stride + tile.x0 as usize;
-    let mut errors = vec![];
-    // Every draw starts from this context (a copy: a kernel may change any field of its
-    // own, e.g. fuel, the error or the call depth). The buffer pointers are the frame's at
-    // the tile's origin (`wrapping_add`: a frame without planes or counts has empty
-    // buffers, and the kernel never dereferences those).
-    let mut start = TileCtx::new(MODE_RENDER, opts.width, opts.height);
-    start.x0 = tile.x0 as i32;
-    start.y0 = tile.y0 as i32;
-    start.x1 = tile.x1 as i32;
-    start.y1 = tile.y1 as i32;
-    start.stride = target.stride as u32;
-    start.depth = target.depth.wrapping_add(origin);
-    start.gbuf = target.planes.wrapping_add(origin);
-    start.plane_stride = target.plane_pitch as u32;
-    start.num_planes = target.num_planes as u32;
-    start.write_count = target.counts.wrapping_add(origin);
-    // Draw j + PREFETCH_AHEAD's arguments are asked for while draw j runs; draw 1's now.
-    if let Some(second) = bin.get(1).filter(|_| PREFETCH_AHEAD > 1) {
-        prefetch(second.args);
-    }
-    for (j, draw) in bin.iter().enumerate() {
-        if let Some(ahead) = bin.get(j + PREFETCH_AHEAD) {
-            prefetch(ahead.args);
+    CountArrays::with(program, |counts| {
+        // Every draw starts from this context (a copy: a kernel may change any field of its
+        // own, e.g. fuel, the error or the call depth). The buffer pointers are the frame's
+        // at the tile's origin (`wrapping_add`: a frame without planes or counts has empty
+        // buffers, and the kernel never dereferences those).
+        let mut start = context(MODE_RENDER, opts);
+        start.x0 = tile.x0 as i32;
+        start.y0 = tile.y0 as i32;
+        start.x1 = tile.x1 as i32;
+        start.y1 = tile.y1 as i32;
+        start.stride = target.stride as u32;
+        start.depth = target.depth.wrapping_add(origin);
+        start.gbuf = target.planes.wrapping_add(origin);
+        start.plane_stride = target.plane_pitch as u32;
+        start.num_planes = target.num_planes as u32;
+        start.write_count = target.counts.wrapping_add(origin);
+        start.setup_counts = counts.scratch();
+        start.pixel_counts = counts.counts();
+        let mut failed = false;
+        // Draw j + PREFETCH_AHEAD's arguments are asked for while draw j runs; draw 1's now.
+        if let Some(second) = bin.get(1).filter(|_| PREFETCH_AHEAD > 1) {
+            prefetch(second.args);
         }
-        let mut ctx = TileCtx {
-            call_depth: draw.call_depth,
-            ..start
-        };
-        // SAFETY: the context names the tile's rectangle of the frame's buffers, which this
-        // task alone owns ([`FrameTarget`]): the kernel addresses `(y - y0) * stride + (x -
-        // x0)` for y in `y0..y1` and x in whole groups from `x0` up to `x1`, i.e. inside the
-        // rectangle, in the depth buffer, in each of the `num_planes` planes `plane_stride`
-        // apart, and (only when compiled with count_writes == opts.count_writes, i.e. when
-        // the frame has them) in the write counts. The argument block is long enough for the
-        // kernel's layout (checked in `render_into` and when calls were recorded).
-        unsafe { (draw.entry)(&mut ctx, draw.args.as_ptr()) };
-        if ctx.error != 0 {
-            errors.push((draw.instance, ctx.error, ctx.error_site));
+        for (j, draw) in bin.iter().enumerate() {
+            if let Some(ahead) = bin.get(j + PREFETCH_AHEAD) {
+                prefetch(ahead.args);
+            }
+            let mut ctx = TileCtx {
+                call_depth: draw.call_depth,
+                ..start
+            };
+            // SAFETY: the context names the tile's rectangle of the frame's buffers, which
+            // this task alone owns ([`FrameTarget`]): the kernel addresses `(y - y0) * stride
+            // + (x - x0)` for y in `y0..y1` and x in whole groups from `x0` up to `x1`, i.e.
+            // inside the rectangle, in the depth buffer, in each of the `num_planes` planes
+            // `plane_stride` apart, and (only when compiled with count_writes ==
+            // opts.count_writes, i.e. when the frame has them) in the write counts; and count
+            // arrays of the program's slots. The argument block is long enough for the
+            // kernel's layout (checked in `render_into` and when calls were recorded).
+            unsafe { (draw.entry)(&mut ctx, draw.args.as_ptr()) };
+            failed |= ctx.error != 0;
         }
-    }
+        if failed {
+            counts.take(&mut errors);
+        }
+    });
     errors
 }
 
@@ -730,39 +741,6 @@ fn prefetch(args: &[u32]) {
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = args;
-}
-
-fn report_runtime_errors(
-    program: &Program,
-    errors: &[(usize, u32, u32)],
-    instances: &[Instance],
-    diags: &mut Diagnostics,
-) {
-    let mut seen = BTreeSet::new();
-    for &(i, code, site) in errors {
-        if !seen.insert((site, code)) {
-            continue;
-        }
-        let what = match code {
-            ERR_INDEX => "an index was out of range (clamped)",
-            ERR_FUEL => "a loop ran out of fuel (left early)",
-            ERR_CALL_DEPTH => "primitive calls nested too deep (call skipped)",
-            ERR_STACK => "its stack frame (local arrays) did not fit in the rendering thread's stack (not run)",
-            _ => "an unknown run-time error",
-        };
-        let name = &program.func(instances[i].func).name;
-        let mut d = Diagnostic::warning("W0801", format!("in `{name}` at run time: {what}"));
-        // A stack error's site is the primitive whose frame did not fit (a caller's
-        // instance may have called it).
-        let span = match code {
-            ERR_STACK => program.functions.get(site as usize).map(|f| f.span),
-            _ => program.sites.get(site as usize).copied(),
-        };
-        if let Some(span) = span {
-            d = d.primary(span, what);
-        }
-        diags.push(d);
-    }
 }
 
 #[cfg(test)]
@@ -902,7 +880,7 @@ mod tests {
                     Expanded::Itself {
                         entry: kernel,
                         tiles: (i % 7 != 0).then_some(rect),
-                        error: None,
+                        errors: Box::new([]),
                         over_budget: false,
                     }
                 })
@@ -910,17 +888,16 @@ mod tests {
             .collect();
         let tiles = tiles_x * tiles_y;
         let key = |b: &Bins<'_>| {
-            let draws: Vec<(usize, u32)> = b.draws.iter().map(|d| (d.instance, d.args[0])).collect();
+            let draws: Vec<u32> = b.draws.iter().map(|d| d.args[0]).collect();
             (b.start.clone(), draws)
         };
         let total: usize = expanded.iter().flatten().map(Expanded::len).sum();
         let (serial, _) = Bins::new(&expanded, &instances, tiles, tiles_x, &[0..instances.len()], None);
         let want = key(&serial);
-        // Every tile's list is in instance order and names each draw's own arguments.
+        // Every tile's list is in instance order (each instance's block holds its number).
         for t in 0..tiles {
             let list = &want.1[want.0[t]..want.0[t + 1]];
-            assert!(list.windows(2).all(|w| w[0].0 < w[1].0), "tile {t}");
-            assert!(list.iter().all(|&(i, a)| i as u32 == a));
+            assert!(list.windows(2).all(|w| w[0] < w[1]), "tile {t}");
         }
         assert!(want.1.len() > 30_000, "draws span several tiles");
         let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
@@ -938,7 +915,7 @@ mod tests {
         let itself = || Expanded::Itself {
             entry: kernel,
             tiles: None,
-            error: None,
+            errors: Box::new([]),
             over_budget: false,
         };
         // (instances, chunks asked for, tiles, ranges): 4/5 of the instances have a draw.

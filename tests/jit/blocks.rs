@@ -83,6 +83,7 @@ fn render(k: &Kernel, case: &Case, x0: i32, y0: i32) -> Vec<u32> {
     let mut depth = vec![0u32; STRIDE * TH];
     let mut gbuf = vec![0f32; 4];
     let mut counts = vec![0u32; STRIDE * TH];
+    let mut errors = vec![0u64; ERROR_SLOTS];
     let mut ctx = TileCtx {
         x0,
         y0,
@@ -94,10 +95,12 @@ fn render(k: &Kernel, case: &Case, x0: i32, y0: i32) -> Vec<u32> {
         plane_stride: 0,
         num_planes: 0,
         write_count: counts.as_mut_ptr(),
+        setup_counts: errors.as_mut_ptr(),
+        pixel_counts: errors.as_mut_ptr(),
         ..TileCtx::new(MODE_RENDER, 4096, 4096)
     };
-    // SAFETY: ctx points at live buffers of stride * rows elements; args has the layout's
-    // length for one sequence point.
+    // SAFETY: ctx points at live buffers of stride * rows elements and error counts for
+    // the program's slots; args has the layout's length for one sequence point.
     unsafe { (k.entry)(&mut ctx, args.as_ptr()) };
     assert_eq!(ctx.error, ERR_NONE);
     depth

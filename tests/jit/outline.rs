@@ -1,8 +1,9 @@
 //! Tier 0 compiles a kernel's pixel loops as a function of their own, which the kernel
 //! calls (src/jit/lower/outline.rs). What crosses that call must be what one function
-//! would have: the fuel the pixel loops spend (the kernel stores it in `ctx` at its exit,
-//! where a caller reads it), the run-time errors they record, and every pixel. Tier 1
-//! compiles one function; each case runs both and compares.
+//! would have: the fuel (the setup's stays in `ctx.fuel`; every pixel group gets its share
+//! of the pixel fuel, which the pixel function computes into `ctx.group_fuel`), the
+//! run-time errors the loops record and count, and every pixel. Tier 1 compiles one
+//! function; each case runs both and compares.
 
 #![allow(clippy::needless_range_loop)]
 
@@ -10,7 +11,7 @@ use std::sync::Arc;
 
 use crate::support::jit::*;
 use crate::support::raw_depth;
-use primflow::abi::{ERR_FUEL, ERR_NONE, MODE_RENDER};
+use primflow::abi::{ErrorSlot, TileCtx, ERR_FUEL, ERR_NONE, MODE_RENDER};
 use primflow::ir::Variability::Varying;
 use primflow::ir::*;
 use primflow::jit::{Jit, Tier};
@@ -39,9 +40,16 @@ fn counting(endless: bool) -> Function {
     fb.f
 }
 
-/// Run `f`'s kernel over a 16x8 tile with `fuel` at tier 0 and tier 1: each tier's context
-/// afterwards and tile.
-fn both_tiers(f: Function, fuel: u64) -> Vec<(primflow::abi::TileCtx, Tile)> {
+/// The setup fuel of the runs (the setups here have no loops: it stays).
+const SETUP_FUEL: u64 = 100_000;
+
+/// Groups of the runs' bound rectangle: no `bound`, so the 64x32 viewport's.
+const GROUPS: u64 = 64 / 4 * 32;
+
+/// Run `f`'s kernel over the 16x8 tile at the origin with `group_fuel` loop trips a pixel
+/// group (`pixel_fuel` of that many per group of the viewport, floor 1) at tier 0 and tier
+/// 1: each tier's context afterwards and tile.
+fn both_tiers(f: Function, group_fuel: u64) -> Vec<(TileCtx, Tile)> {
     let program = Arc::new(program(vec![f], 1));
     [Tier::Fast, Tier::Optimised]
         .into_iter()
@@ -49,7 +57,9 @@ fn both_tiers(f: Function, fuel: u64) -> Vec<(primflow::abi::TileCtx, Tile)> {
             let mut jit = Jit::at_tier(program.clone(), tier).unwrap();
             let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
             let mut tile = Tile::new(0);
-            let ctx = tile.run(&k, &[1], MODE_RENDER, fuel);
+            tile.pixel_fuel = group_fuel * GROUPS;
+            tile.group_fuel_floor = 1;
+            let ctx = tile.run(&k, &[1], MODE_RENDER, SETUP_FUEL);
             (ctx, tile)
         })
         .collect()
@@ -75,16 +85,17 @@ fn the_pixel_function_is_tier_0s_only() {
 }
 
 #[test]
-fn fuel_the_pixel_function_spends_is_the_kernels() {
-    let start = 100_000;
-    let runs = both_tiers(counting(false), start);
+fn the_pixel_function_gives_every_group_its_share_of_the_pixel_fuel() {
+    let runs = both_tiers(counting(false), 100);
     for (tier, (ctx, tile)) in runs.iter().enumerate() {
         assert_eq!(ctx.error, ERR_NONE, "tier {tier}");
-        // Every group's loop visits its head at least once per row of 4 pixels.
-        assert!(ctx.fuel < start - 8 * 4, "tier {tier}: fuel {}", ctx.fuel);
+        assert_eq!(ctx.group_fuel, 100, "tier {tier}");
+        // The pixel loops spend their groups' fuel, not the setup's.
+        assert_eq!(ctx.fuel, SETUP_FUEL, "tier {tier}");
         for y in 0..8 {
             for x in 0..16 {
-                // i stops at the first integer >= x + 0.5, i.e. x + 1.
+                // i stops at the first integer >= x + 0.5, i.e. x + 1 (the last group's
+                // loop head is visited 17 times, well within its 100).
                 assert_eq!(
                     tile.depth_at(x, y),
                     raw_depth((x + 1) as f64 / 32.0),
@@ -93,19 +104,19 @@ fn fuel_the_pixel_function_spends_is_the_kernels() {
             }
         }
     }
-    // Spent in the pixel function, handed back to the kernel, stored at its exit.
-    assert_eq!(runs[0].0.fuel, runs[1].0.fuel);
     assert_eq!(runs[0].1.depth, runs[1].1.depth);
 }
 
 #[test]
 fn running_out_of_fuel_in_the_pixel_function_is_the_kernels_error() {
-    let runs = both_tiers(counting(true), 1000);
+    let runs = both_tiers(counting(true), 10);
     for (tier, (ctx, tile)) in runs.iter().enumerate() {
         assert_eq!(ctx.error, ERR_FUEL, "tier {tier}");
         assert_eq!(ctx.error_site, 0, "tier {tier}");
-        assert_eq!(ctx.fuel, 0, "tier {tier}");
-        // Every later loop leaves at once; the statement after it still runs.
+        assert_eq!(ctx.fuel, SETUP_FUEL, "tier {tier}");
+        // Counted once in each of the tile's 4 x 8 groups (each ran out once).
+        assert_eq!(tile.error_count(ErrorSlot::Fuel(SiteId(0)), 1), 32, "tier {tier}");
+        // The loop is left; the statement after it still runs.
         assert_eq!(tile.depth_at(15, 7), raw_depth(0.25), "tier {tier}");
     }
     assert_eq!(runs[0].1.depth, runs[1].1.depth);

@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use crate::support::jit::*;
 use crate::support::raw_depth;
-use primflow::abi::{ERR_FUEL, ERR_INDEX, ERR_NONE, MODE_BOUND};
+use primflow::abi::{setup_fuel_ran_out, ErrorSlot, ERR_FUEL, ERR_INDEX, ERR_NONE, MODE_BOUND};
 use primflow::ir::Variability::{Uniform, Varying};
 use primflow::ir::*;
 use primflow::jit::Jit;
@@ -107,8 +107,9 @@ fn varying_while_runs_each_lane_to_its_own_count() {
     }
 }
 
-/// `while (X > 0) { }` never ends: the fuel runs out, ERR_FUEL is recorded at the loop's
-/// site and the kernel carries on after the loop and returns.
+/// `while (X > 0) { }` never ends: each pixel group's fuel (here 10 trips: a pixel fuel of
+/// 0 and a floor of 10) runs out, ERR_FUEL is recorded at the loop's site and counted once
+/// per group, and each group carries on after the loop; the setup's fuel is not touched.
 #[test]
 fn endless_varying_loop_runs_out_of_fuel() {
     let mut fb = Fb::new("forever", FuncKind::Primitive);
@@ -118,15 +119,19 @@ fn endless_varying_loop_runs_out_of_fuel() {
     let mut jit = jit_for(vec![fb.f], 4);
     let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
     let mut tile = Tile::new(0);
+    tile.pixel_fuel = 0;
+    tile.group_fuel_floor = 10;
     let ctx = tile.run(&k, &[1], primflow::abi::MODE_RENDER, 1000);
     assert_eq!(ctx.error, ERR_FUEL);
     assert_eq!(ctx.error_site, 3);
-    assert_eq!(ctx.fuel, 0);
-    // After the first group exhausts the fuel, every later loop leaves at once.
-    assert_eq!(tile.depth_at(15, 7), raw_depth(0.25));
+    assert_eq!((ctx.fuel, ctx.group_fuel), (1000, 10));
+    // One out-of-fuel error in each of the tile's 4 x 8 groups.
+    assert_eq!(tile.error_count(ErrorSlot::Fuel(SiteId(3)), 4), 32);
+    assert!(tile.depth.iter().all(|&d| d == raw_depth(0.25)));
 }
 
-/// A uniform endless loop in setup also stops on fuel.
+/// A uniform endless loop in setup also stops on fuel: the run ends with the loop's site in
+/// the fuel, -(2 + site), for the runner to count (the kernel counts nothing).
 #[test]
 fn endless_uniform_loop_in_setup_runs_out_of_fuel() {
     let mut fb = Fb::new("spin", FuncKind::Primitive);
@@ -136,7 +141,10 @@ fn endless_uniform_loop_in_setup_runs_out_of_fuel() {
     let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
     let mut tile = Tile::new(0);
     let ctx = tile.run(&k, &[1], primflow::abi::MODE_RENDER, 50);
-    assert_eq!((ctx.error, ctx.error_site, ctx.fuel), (ERR_FUEL, 0, 0));
+    assert_eq!((ctx.error, ctx.error_site), (ERR_FUEL, 0));
+    assert_eq!(ctx.fuel, -2i64 as u64);
+    assert_eq!(setup_fuel_ran_out(ctx.fuel), Some(SiteId(0)));
+    assert_eq!(tile.error_count(ErrorSlot::Fuel(SiteId(0)), 1), 0);
 }
 
 fn index_prim(varying_index: bool) -> Function {

@@ -116,9 +116,12 @@ fn render(kernel: &Kernel, case: &Case, x0: i32, y0: i32) -> (Vec<u32>, Vec<f32>
     let mut depth = vec![0u32; TW * TH];
     let mut gbuf = vec![-7.0f32; TW * TH];
     let mut counts = vec![0u32; TW * TH];
+    let mut errors = vec![0u64; ERROR_SLOTS];
     let mut ctx = tile_ctx(x0, y0, &mut depth, &mut gbuf, &mut counts, 1);
-    // SAFETY: ctx points at live buffers of TW * TH elements (one plane); args has the
-    // layout's length for one sequence point.
+    ctx.setup_counts = errors.as_mut_ptr();
+    ctx.pixel_counts = errors.as_mut_ptr();
+    // SAFETY: ctx points at live buffers of TW * TH elements (one plane) and error counts
+    // for the program's slots; args has the layout's length for one sequence point.
     unsafe { (kernel.entry)(&mut ctx, args.as_ptr()) };
     assert_eq!(ctx.error, ERR_NONE);
     (depth, gbuf)
@@ -267,9 +270,12 @@ fn check_split(flag: bool, k: i32, lo: f32, bound: [f32; 4], x0: i32, y0: i32) -
     let mut depth = vec![0u32; TW * TH];
     let mut gbuf = vec![0f32; 4];
     let mut counts = vec![0u32; TW * TH];
+    let mut errors = vec![0u64; ERROR_SLOTS];
     let mut ctx = tile_ctx(x0, y0, &mut depth, &mut gbuf, &mut counts, 0);
-    // SAFETY: ctx points at live buffers of TW * TH elements (no planes); args has the
-    // layout's length for one sequence point.
+    ctx.setup_counts = errors.as_mut_ptr();
+    ctx.pixel_counts = errors.as_mut_ptr();
+    // SAFETY: ctx points at live buffers of TW * TH elements (no planes) and error counts
+    // for the program's slots; args has the layout's length for one sequence point.
     unsafe { (kernel.entry)(&mut ctx, args.as_ptr()) };
     assert_eq!(ctx.error, ERR_NONE);
     let [bx0, by0, bx1, by1] = bound;

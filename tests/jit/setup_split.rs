@@ -2,9 +2,9 @@
 //! (src/jit/lower/outline.rs): the kernel runs the first half and calls the second with
 //! the SSA variables both halves use stored in the slot table. What crosses that call must
 //! be what one function would have: every carried value (ints, floats, bools, the
-//! components of a register array, the X, Y, Z handed to primitive calls), the first
-//! run-time error of either half (the kernel's deferred errors are flushed before the
-//! call), the fuel, a `return` in the second half and the primitives it calls. Tier 1
+//! components of a register array, the X, Y, Z handed to primitive calls), the run-time
+//! errors of either half (each counted; the kernel's deferred first error is flushed
+//! before the call), the fuel, a `return` in the second half and the primitives it calls. Tier 1
 //! keeps one function; each case renders both tiers and compares with the value computed
 //! here and drawn by `flat`.
 
@@ -164,15 +164,12 @@ fn both_halves_compute_what_one_function_would() {
         let bad_j = !(0..4).contains(&j) && stop == 0;
         // 3e8 trips > 2^28 (the default fuel): the loop runs out.
         let out_of_fuel = n > 100_000_000 && stop == 0;
-        let want_errors: Vec<String> = if bad_i {
-            vec![in_first.clone()]
-        } else if bad_j {
-            vec![in_second.clone()]
-        } else if out_of_fuel {
-            vec![fuel.clone()]
-        } else {
-            vec![]
-        };
+        // Every failing site, in source order.
+        let want_errors: Vec<String> = [(bad_i, &in_first), (bad_j, &in_second), (out_of_fuel, &fuel)]
+            .into_iter()
+            .filter(|(bad, _)| *bad)
+            .map(|(_, site)| site.clone())
+            .collect();
         let params = [("i", i as f32), ("j", j as f32), ("n", n as f32), ("stop", stop as f32)];
         let mut r = rect_scene(&program, "split_setup", &params);
         r.options.expand_calls = false;
@@ -184,7 +181,9 @@ fn both_halves_compute_what_one_function_would() {
         assert_eq!(runs[0], runs[1], "{case}: the tiers differ");
         assert_eq!(runs[0].1, want_errors, "{case}: errors");
         if out_of_fuel {
-            continue; // the run ended in the loop: the depth is the first call's
+            // A draw whose setup runs out of fuel is drawn nowhere.
+            assert_eq!(runs[0].0, 0, "{case}: depth");
+            continue;
         }
         let z = if stop != 0 { 0.96875 } else { expected_z(i, j, n as f32) };
         let reference = rect_scene(&program, "flat", &[("z", z)]);

@@ -134,6 +134,24 @@ fn same_either_way(
     let expanded_two = render_mode(r, source, true, 2);
     assert_same_frame(&expanded, &per_tile, &format!("{what}: expanded vs per tile"));
     assert_same_frame(&expanded_two, &expanded, &format!("{what}: expanded, 2 threads vs 1"));
+    // The run-time errors too, counts included (setup errors count once per draw).
+    let report = |out: &RenderOutput| -> Vec<String> {
+        out.diags
+            .items
+            .iter()
+            .map(|d| format!("{} {}", d.code, d.message))
+            .collect()
+    };
+    assert_eq!(
+        report(&expanded),
+        report(&per_tile),
+        "{what}: errors, expanded vs per tile"
+    );
+    assert_eq!(
+        report(&expanded_two),
+        report(&expanded),
+        "{what}: errors, 2 threads vs 1"
+    );
     assert_eq!(per_tile.stats.expanded_instances, 0, "{what}: expansion off");
     (expanded, per_tile)
 }

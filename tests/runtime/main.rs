@@ -6,8 +6,10 @@
 
 mod api;
 mod e2e;
+mod error_counts;
 mod expand;
 mod frame_budget;
+mod fuel;
 mod kernels;
 mod plane_layout;
 mod render;

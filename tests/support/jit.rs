@@ -3,7 +3,10 @@
 #![allow(dead_code)]
 
 use primflow::abi::Kernel;
-use primflow::abi::{Binding, BindingKind, TileCtx, VariantKey, DEFAULT_FUEL, MODE_RENDER};
+use primflow::abi::{
+    Binding, BindingKind, ErrorSlot, TileCtx, VariantKey, DEFAULT_FUEL, DEFAULT_GROUP_FUEL_FLOOR, DEFAULT_PIXEL_FUEL,
+    MODE_RENDER,
+};
 use primflow::diag::Span;
 use primflow::ir::*;
 
@@ -267,7 +270,17 @@ pub struct Tile {
     pub planes: usize,
     pub x0: i32,
     pub y0: i32,
+    /// `TileCtx::pixel_fuel` and `group_fuel_floor` of the runs.
+    pub pixel_fuel: u64,
+    pub group_fuel_floor: u64,
+    /// The run-time error counts of every run on this tile, setup and pixel code alike
+    /// (`TileCtx::setup_counts`, `pixel_counts`): room for programs of up to
+    /// `ERROR_SLOTS` slots (`abi::count_slots`).
+    pub errors: Vec<u64>,
 }
+
+/// Error count slots a [`Tile`] has room for.
+pub const ERROR_SLOTS: usize = 1 << 16;
 
 impl Tile {
     pub fn new(planes: usize) -> Tile {
@@ -278,7 +291,14 @@ impl Tile {
             planes,
             x0: 0,
             y0: 0,
+            pixel_fuel: DEFAULT_PIXEL_FUEL,
+            group_fuel_floor: DEFAULT_GROUP_FUEL_FLOOR,
+            errors: vec![0; ERROR_SLOTS],
         }
+    }
+    /// The count of `slot` (of a program with `sites` sites) over the runs so far.
+    pub fn error_count(&self, slot: ErrorSlot, sites: usize) -> u64 {
+        self.errors[slot.index(sites)]
     }
     pub fn ctx(&mut self, mode: u32, fuel: u64) -> TileCtx {
         TileCtx {
@@ -293,6 +313,10 @@ impl Tile {
             num_planes: self.planes as u32,
             write_count: self.counts.as_mut_ptr(),
             fuel,
+            pixel_fuel: self.pixel_fuel,
+            group_fuel_floor: self.group_fuel_floor,
+            setup_counts: self.errors.as_mut_ptr(),
+            pixel_counts: self.errors.as_mut_ptr(),
             ..TileCtx::new(mode, 64, 32)
         }
     }

@@ -15,12 +15,12 @@
 
 use std::sync::Arc;
 
-use primflow::abi::{ArgLayout, KernelFn, TileCtx, VariantKey, ERR_INDEX, MODE_BOUND};
+use primflow::abi::{ArgLayout, ErrorSlot, KernelFn, TileCtx, VariantKey, ERR_INDEX, MODE_BOUND};
 use primflow::abi::{Kernel, KernelError};
 use primflow::diag::{SourceMap, Span};
 use primflow::ir::{
     ConstValue, Elem, FixedFormat, FuncId, FuncKind, Function, Local, LocalId, LocalKind, Param, ParamRole, ParamSpace,
-    Program, Scalar, Type, Variability,
+    Program, Scalar, SiteId, Type, Variability,
 };
 use primflow::runtime::{KernelSource, Renderer};
 
@@ -251,7 +251,8 @@ macro_rules! rect_table {
 }
 rect_table!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25 26 27 28 29 30 31 32);
 
-/// Covers the viewport (no bound recorded: the JIT would union the viewport) and fails.
+/// Covers the viewport (no bound recorded: the JIT would union the viewport) and fails in
+/// its render runs: an index error at site 0, recorded and counted as pixel code's.
 unsafe extern "C" fn faulty_kernel(ctx: *mut TileCtx, _args: *const u32) {
     // SAFETY (test kernel): ctx is valid for the call.
     let ctx = unsafe { &mut *ctx };
@@ -264,6 +265,10 @@ unsafe extern "C" fn faulty_kernel(ctx: *mut TileCtx, _args: *const u32) {
         ctx.error = ERR_INDEX;
         ctx.error_site = 0;
     }
+    // An index slot's position does not depend on the program's site count.
+    let at = ErrorSlot::Index(SiteId(0)).index(0);
+    // SAFETY: the runtime's count arrays hold every slot of the program, which has site 0.
+    unsafe { *ctx.pixel_counts.add(at) += 1 };
 }
 
 /// The test kernel source: `rect` and `faulty`; anything else fails to "compile".

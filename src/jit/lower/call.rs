@@ -4,9 +4,10 @@
 //! its parameters, then the interpolation data of the bindings it passes on) and calls the
 //! callee's kernel for the same variant key directly; in `MODE_EXPAND` it hands the block to
 //! `ctx.expand` instead, and the runtime renders the call later as an instance
-//! ([`Lower::record_call`]). Around a direct call the fuel goes through `ctx.fuel` (the
-//! callee spends it too) and the call depth is checked (`ERR_CALL_DEPTH`); deferred setup
-//! errors are flushed before it, so the callee sees the caller's first error.
+//! ([`Lower::record_call`]). Around a direct call the setup fuel goes through `ctx.fuel`
+//! (the callee's setup spends it too; its pixel part has its own; a callee that ran out
+//! ends the caller's run too) and the call depth is checked (`ERR_CALL_DEPTH`); deferred
+//! setup errors are flushed before it, so the callee sees the caller's first error.
 
 use cranelift_codegen::ir::{self, condcodes::IntCC, types, InstBuilder, StackSlotData, StackSlotKind};
 
@@ -155,7 +156,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.record_call(callee, fref, base, words)?;
         self.b.ins().jump(after, &[]);
         self.b.switch_to_block(run_blk);
-        // The callee spends the same fuel: hand it over in `ctx.fuel` and take back the rest.
+        // The callee's setup spends the same fuel: hand it over in `ctx.fuel` and take back
+        // the rest.
         let fuel = self.b.use_var(self.fuel);
         self.store_ctx(fuel, ctx_off::FUEL);
         self.b.ins().call(fref, &[self.ctx, base]);
@@ -166,6 +168,20 @@ impl<'a, 'b> Lower<'a, 'b> {
         let d = self.load_ctx(types::I32, ctx_off::CALL_DEPTH);
         let d = self.b.ins().iadd_imm_s(d, -1);
         self.store_ctx(d, ctx_off::CALL_DEPTH);
+        // A callee whose setup ran out of fuel ended its run with the fuel spent (negative,
+        // see [`Self::spend_fuel`]): the caller's run ends too, leaving the fuel as it is.
+        let fuel = self.b.use_var(self.fuel);
+        let spent = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, fuel, 0);
+        let go_on = self.b.create_block();
+        if self.in_dead_block() {
+            self.dead_blocks.insert(go_on);
+            self.b.ins().trap(ir::TrapCode::unwrap_user(1));
+        } else {
+            self.b.ins().brif(spent, self.exit, &[], go_on, &[]);
+            self.live_targets.insert(self.exit);
+        }
+        self.seal_now(go_on);
+        self.b.switch_to_block(go_on);
         Ok(())
     }
 

@@ -15,15 +15,22 @@
 //! error of the setup code is kept in a variable instead (`pending_error`,
 //! [`Lower::defer_error`]) and reaches `ctx.error` at the setup's exits and before
 //! primitive calls ([`Lower::flush_errors`]), so `ctx` holds the invocation's first error
-//! wherever anyone can read it.
+//! wherever anyone can read it. Every error but a setup loop out of fuel (which ends the
+//! run and leaves its site in `ctx.fuel`, see [`Lower::spend_fuel`]) is also counted where
+//! it happens ([`Lower::count_error`]): one added to its slot (`abi::ErrorSlot`) of `ctx.setup_counts`
+//! (setup code) or `ctx.pixel_counts` (pixel code) per execution that fails, under the same
+//! conditions as the record (the error guard; in flat pixel code, some lane executing). At
+//! tier 0 the add is inline (a load, an add of the condition, a store), adding 0 where
+//! nothing failed; at tier 1 it sits with the record.
 
+use cranelift_codegen::cursor::{Cursor, FuncCursor};
 use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, InstBuilder};
 
 use super::{Lower, Res, PENDING_CODE_SHIFT};
-use crate::abi::MODE_BOUND;
+use crate::abi::{ErrorSlot, MODE_BOUND};
 use crate::ir::{Expr, Scalar, SiteId};
 use crate::jit::fixed;
-use crate::jit::value::{ctx_off, mem_flags};
+use crate::jit::value::{args_flags, ctx_off, mem_flags, VnKey};
 
 impl<'a, 'b> Lower<'a, 'b> {
     /// End the function being lowered where its code ends: jump to the exit, fill the
@@ -47,6 +54,22 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.return_at_exit();
     }
 
+    /// Count `ERR_STACK` in `ctx.setup_counts` (`abi::ErrorSlot::Stack` of the kernel's
+    /// function) on the stack check's failing path, before its `return`. Added once the
+    /// function being lowered is otherwise complete, so its values are numbered after all
+    /// others and the rest of the printed CLIF reads as without it.
+    pub(super) fn count_stack_error(&mut self) {
+        let Some(ret) = self.stack_count.take() else { return };
+        let slot = ErrorSlot::Stack(self.func_id).index(self.program.sites.len());
+        let Ok(offset) = i32::try_from(8 * slot) else { return };
+        let ctx = self.ctx;
+        let mut pos = FuncCursor::new(self.b.func).at_inst(ret);
+        let counts = pos.ins().load(types::I64, mem_flags(), ctx, ctx_off::SETUP_COUNTS);
+        let n = pos.ins().load(types::I64, mem_flags(), counts, offset);
+        let n = pos.ins().iadd_imm_s(n, 1);
+        pos.ins().store(mem_flags(), n, counts, offset);
+    }
+
     /// Fill the exit block: store the fuel left to `ctx` and return.
     pub(super) fn return_at_exit(&mut self) {
         self.b.switch_to_block(self.exit);
@@ -63,20 +86,23 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().store(mem_flags(), v, self.ctx, off);
     }
 
-    /// Record `code` at `site` if no error was recorded yet and `cond` (i8) holds.
+    /// Record `code` at `site` if no error was recorded yet and `cond` (i8) holds; count it
+    /// when `cond` holds.
     pub(super) fn record_error(&mut self, code: u32, site: u32, cond: Option<ir::Value>) {
+        self.record_error_counted(code, site, cond, true);
+    }
+
+    /// [`Self::record_error`], counting the error only when `count` (a loop of setup code
+    /// out of fuel is not counted: see [`Self::spend_fuel`]).
+    fn record_error_counted(&mut self, code: u32, site: u32, cond: Option<ir::Value>, count: bool) {
+        let happened = self.error_condition(cond);
+        if count {
+            self.count_error(code, site, happened);
+        }
         let old = self.load_ctx(types::I32, ctx_off::ERROR);
         let mut first = self.b.ins().icmp_imm_s(IntCC::Equal, old, 0);
-        for c in cond.into_iter().chain(self.error_guard) {
-            first = self.b.ins().band(first, c);
-        }
-        // Flat pixel code also runs statements no lane executes (see [`crate::mid::flat`]); tier 1
-        // runs them only when some lane does, and only then can they fail.
-        if self.flat {
-            if let Some(e) = self.exec() {
-                let any = self.b.ins().vany_true(e);
-                first = self.b.ins().band(first, any);
-            }
+        if let Some(h) = happened {
+            first = self.b.ins().band(first, h);
         }
         let code_v = self.iconst_here(types::I32, code as i64);
         let new = self.b.ins().select(first, code_v, old);
@@ -87,24 +113,86 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.store_ctx(new_site, ctx_off::ERROR_SITE);
     }
 
+    /// When an error whose own condition is `cond` (i8; `None`: always) happens: `cond`,
+    /// the error guard, and in flat pixel code some lane executing (flat code also runs
+    /// statements no lane executes, see [`crate::mid::flat`]; tier 1 runs them only when some
+    /// lane does, and only then can they fail). `None`: always.
+    pub(super) fn error_condition(&mut self, cond: Option<ir::Value>) -> Option<ir::Value> {
+        let mut happened = cond;
+        let mut and = |l: &mut Self, c: ir::Value| {
+            happened = Some(match happened {
+                Some(h) => l.b.ins().band(h, c),
+                None => c,
+            });
+        };
+        if let Some(g) = self.error_guard {
+            and(self, g);
+        }
+        if self.flat {
+            if let Some(e) = self.exec() {
+                let any = self.b.ins().vany_true(e);
+                and(self, any);
+            }
+        }
+        happened
+    }
+
+    /// Add one to the count of error `code` at `site` (`abi::ErrorSlot::of`) when
+    /// `happened` (i8, 0 or 1; `None`: always) holds: in `ctx.setup_counts` from setup code,
+    /// in `ctx.pixel_counts` from pixel code. The caller has applied the error guard and
+    /// the lanes ([`Self::error_condition`]).
+    pub(super) fn count_error(&mut self, code: u32, site: u32, happened: Option<ir::Value>) {
+        let sites = self.program.sites.len();
+        let Some(offset) = ErrorSlot::of(code, site).and_then(|slot| i32::try_from(8 * slot.index(sites)).ok()) else {
+            // Not a countable error, or a slot beyond any program's (2^28 sites).
+            return;
+        };
+        let field = if self.pix.is_some() {
+            ctx_off::PIXEL_COUNTS
+        } else {
+            ctx_off::SETUP_COUNTS
+        };
+        // The arrays never change while the kernel runs: one load per block at tier 0.
+        let base = self.once_per_block(VnKey::CtxPtr(field), |l| {
+            l.b.ins().load(types::I64, args_flags(), l.ctx, field)
+        });
+        let old = self.b.ins().load(types::I64, mem_flags(), base, offset);
+        let new = match happened {
+            Some(h) => {
+                let one = self.b.ins().uextend(types::I64, h);
+                self.b.ins().iadd(old, one)
+            }
+            None => self.b.ins().iadd_imm_s(old, 1),
+        };
+        self.b.ins().store(mem_flags(), new, base, offset);
+    }
+
     /// Record `code` (ERR_INDEX or ERR_FUEL) at `site` if no error was recorded yet and
-    /// `cond` (i8) holds. In the tier-0 setup code of a kernel that defers them, only
-    /// `pending_error` changes: a select keeps the first error (~4 instructions instead of
-    /// two loads, two stores and ~10 more; ~60 index sites and ~80 loops of the NURB setup
-    /// record one).
+    /// `cond` (i8) holds, and count it when `cond` holds. In the tier-0 setup code of a
+    /// kernel that defers them, the count is added and otherwise only `pending_error`
+    /// changes: a select keeps the first error (~4 instructions instead of two loads, two
+    /// stores and ~10 more; ~60 index sites and ~80 loops of the NURB setup record one).
     pub(super) fn defer_error(&mut self, code: u32, site: SiteId, cond: Option<ir::Value>) {
+        self.defer_error_counted(code, site, cond, true);
+    }
+
+    /// [`Self::defer_error`], counting the error only when `count`.
+    pub(super) fn defer_error_counted(&mut self, code: u32, site: SiteId, cond: Option<ir::Value>, count: bool) {
         let site_plus_one = i64::from(site.0) + 1;
         if !self.deferring_errors || site_plus_one >= 1 << PENDING_CODE_SHIFT {
             // Not deferred: after the deferred ones, which came first.
             if self.deferring_errors {
                 self.flush_errors();
             }
-            return self.record_error(code, site.0, cond);
+            return self.record_error_counted(code, site.0, cond, count);
         }
         let bad = match (cond, self.error_guard) {
             (Some(c), Some(g)) => Some(self.b.ins().band(c, g)),
             (c, g) => c.or(g),
         };
+        if count {
+            self.count_error(code, site.0, bad);
+        }
         let pending = self.b.use_var(self.pending_error);
         let error = self
             .b

@@ -22,14 +22,21 @@
 //! can change, once per draw, and lowers the loops once per side ([`crate::mid::unswitch`]
 //! plans the copies, [`Lower::unswitched_loops`] emits them).
 //! Z is written back at the end of a group for the lanes that assigned it.
+//!
+//! Fuel: when the pixel code has loops ([`pixel_code_has_loops`]), the kernel stores the
+//! fuel each group gets in `ctx.group_fuel` before the loops (`Lower::store_group_fuel`:
+//! the draw's `ctx.pixel_fuel` over the groups of its bound rectangle, at least
+//! `ctx.group_fuel_floor`; see `abi::ctx`), and every group starts by loading it into the
+//! group's fuel variable, which its loops spend ([`Lower::spend_fuel`]). The setup's fuel
+//! (`ctx.fuel`) is not touched by the pixel part.
 
 use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, Block, InstBuilder};
 use cranelift_frontend::Variable;
 
 use super::walk::BlockWalk;
 use super::{elem_scalar, err, Lower, PassRect, PixelState, Res, Storage, ALL_LANE_BITS, DEPTH_FORMAT, UNROLL};
-use crate::abi::{BindingKind, MODE_BOUND};
-use crate::ir::{Elem, Function, ParamRole, Scalar, StmtKind};
+use crate::abi::{BindingKind, VariantKey, MODE_BOUND};
+use crate::ir::{Elem, Function, ParamRole, Program, Scalar, Stmt, StmtKind};
 use crate::jit::fixed;
 use crate::jit::value::{args_flags, ctx_off, mask_const, mem_flags, zero, F32X4, I32X4};
 use crate::mid::block::Prefix;
@@ -99,6 +106,10 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.b.use_var(self.bound_vars[2]),
             self.b.use_var(self.bound_vars[3]),
         ];
+        self.group_fuel_used = pixel_code_has_loops(self.program, f, self.key);
+        if self.group_fuel_used {
+            self.store_group_fuel(bx);
+        }
         let (lo_x, hi_x) = self.pass_range(bx[0], bx[2], x0, x1);
         let (lo_y, hi_y) = self.pass_range(bx[1], bx[3], y0, y1);
         // Any NaN component: the pass rectangle is empty.
@@ -407,6 +418,10 @@ impl<'a, 'b> Lower<'a, 'b> {
             varying_depth: 0,
         });
         self.bind_pixel_params(f, x_f, y_f, z_raw);
+        if self.group_fuel_used {
+            let fuel = self.load_ctx(types::I64, ctx_off::GROUP_FUEL);
+            self.b.def_var(self.group_fuel, fuel);
+        }
         for r in 0..self.group_resets.len() {
             let (init, work, bytes) = self.group_resets[r];
             self.copy_slot(init, work, bytes);
@@ -634,6 +649,36 @@ impl<'a, 'b> Lower<'a, 'b> {
         Ok(())
     }
 
+    /// Store the fuel each pixel group of this draw starts with in `ctx.group_fuel`:
+    /// `max(ctx.group_fuel_floor, ctx.pixel_fuel / groups)`, where `groups` is the number of
+    /// pixel groups of the bound rectangle `bx` in the viewport (its pixels whose centres
+    /// lie in the bound, as [`Self::pass_range`] takes them, clamped to `ctx.width` x
+    /// `ctx.height`: rows times the group columns those pixels touch, at least 1). It
+    /// depends on neither the tile nor the order tiles run in.
+    fn store_group_fuel(&mut self, bx: [ir::Value; 4]) {
+        let zero = self.iconst_here(types::I32, 0);
+        let w = self.load_ctx(types::I32, ctx_off::WIDTH);
+        let h = self.load_ctx(types::I32, ctx_off::HEIGHT);
+        let (lo_x, hi_x) = self.pass_range(bx[0], bx[2], zero, w);
+        let (lo_y, hi_y) = self.pass_range(bx[1], bx[3], zero, h);
+        // Groups start at multiples of 4 (tiles start at them too).
+        let end = self.b.ins().iadd_imm_s(hi_x, 3);
+        let end = self.b.ins().ushr_imm_u(end, 2);
+        let start = self.b.ins().ushr_imm_u(lo_x, 2);
+        let cols = self.b.ins().isub(end, start);
+        let rows = self.b.ins().isub(hi_y, lo_y);
+        let cols = self.b.ins().uextend(types::I64, cols);
+        let rows = self.b.ins().uextend(types::I64, rows);
+        let groups = self.b.ins().imul(rows, cols);
+        let one = self.iconst_here(types::I64, 1);
+        let groups = self.b.ins().umax(groups, one);
+        let budget = self.load_ctx(types::I64, ctx_off::PIXEL_FUEL);
+        let share = self.b.ins().udiv(budget, groups);
+        let floor = self.load_ctx(types::I64, ctx_off::GROUP_FUEL_FLOOR);
+        let fuel = self.b.ins().umax(share, floor);
+        self.store_ctx(fuel, ctx_off::GROUP_FUEL);
+    }
+
     /// Pixels [lo, hi) of the tile range [t0, t1) whose centres lie in [bmin, bmax].
     /// Clamped in float first so huge or infinite bounds cannot overflow the conversion.
     pub(super) fn pass_range(
@@ -730,4 +775,22 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         Ok(())
     }
+}
+
+/// Whether `f`'s pixel code for `key` may spend fuel: it has a loop, or a shared
+/// interpolator the key binds (inlined into the pixel code) has one.
+pub(super) fn pixel_code_has_loops(program: &Program, f: &Function, key: &VariantKey) -> bool {
+    fn loops(stmts: &[Stmt]) -> bool {
+        let mut found = false;
+        crate::ir::for_each_stmt(stmts, &mut |s| found |= matches!(s.kind, StmtKind::Loop { .. }));
+        found
+    }
+    loops(&f.pixel)
+        || key.bindings.iter().any(|b| match &b.kind {
+            BindingKind::Shared(name) => program.find(name).is_some_and(|id| {
+                let g = program.func(id);
+                loops(&g.setup) || loops(&g.pixel)
+            }),
+            BindingKind::Kind(_) | BindingKind::Constant => false,
+        })
 }

@@ -38,9 +38,10 @@
 //!   slot's address from the `slots` table the kernel passes (word `n` the address of
 //!   slot `n`, every slot of the kernel: which ones the second function reads is known only
 //!   after the kernel is finished).
-//! - The fuel goes through `ctx.fuel` around the call; run-time errors of the pixel code
-//!   go to `ctx` directly, as in the kernel (the setup's deferred errors are flushed
-//!   before the split).
+//! - The setup fuel goes through `ctx.fuel` around the call (the pixel loops spend their
+//!   groups' fuel, from `ctx.group_fuel`); run-time errors of the pixel code are recorded
+//!   and counted in `ctx` directly, as in the kernel (the setup's deferred errors are
+//!   flushed before the split).
 //!
 //! Results are bit-identical to the single function (the same instructions on the same
 //! values; `tests/jit_tier0.rs` and `tests/jit_tiers.rs` compare tiers). Tier 1 keeps one
@@ -205,6 +206,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.def_var(self.fuel, fuel);
         self.finish_function();
         self.b.seal_all_blocks();
+        self.count_stack_error();
 
         // The second function, lowered by this `Lower` from here on.
         func.signature = pixel_signature(self.b.func.signature.call_conv);
@@ -236,7 +238,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.vn.forget();
         self.outline.inherited = inherited;
         self.outline.table = Some(params[2]);
-        stack_check(&mut self.b, self.ctx, self.func_id);
+        self.stack_count = Some(stack_check(&mut self.b, self.ctx, self.func_id));
         for (k, &p) in params[3..7].iter().enumerate() {
             self.b.def_var(self.bound_vars[k], p);
         }

@@ -8,12 +8,13 @@
 //! Tier 0 lowers flat pixel code without those early exits ([`crate::mid::flat`]), and may
 //! if-convert short setup `if`s ([`Lower::if_converted`]).
 //!
-//! Invariants: every loop trip spends fuel ([`Lower::spend_fuel`]; kept in a variable,
-//! `ctx.fuel` at the exit and around primitive calls); code after an unconditional
-//! `break`, `continue` or `return` goes to blocks no path reaches ([`Lower::jump_live`]),
-//! and jumps from there are not emitted.
+//! Invariants: every loop trip spends fuel ([`Lower::spend_fuel`]): setup loops the setup
+//! fuel (kept in a variable, `ctx.fuel` at the exit and around primitive calls), loops of
+//! pixel code the fuel of their pixel group (a variable set at the start of every group,
+//! see [`super::loops`]); code after an unconditional `break`, `continue` or `return` goes
+//! to blocks no path reaches ([`Lower::jump_live`]), and jumps from there are not emitted.
 
-use cranelift_codegen::ir::{self, condcodes::IntCC, Block, InstBuilder};
+use cranelift_codegen::ir::{self, condcodes::IntCC, types, Block, InstBuilder};
 use cranelift_frontend::Variable;
 
 use super::{err, key_constant, quiet_stmt, speculable_expr, LoopCtx, Lower, Res, Storage};
@@ -535,22 +536,48 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().band_not(m, c)
     }
 
-    /// Spend one unit of fuel; out of fuel records ERR_FUEL and jumps to `exit`.
+    /// Spend one unit of fuel (the setup's, or in pixel code the group's) and go on; with
+    /// none left:
+    /// - in pixel code, record ERR_FUEL at `site` if the group's fuel is empty (0), count it
+    ///   and mark the fuel spent (-1), and jump to `exit` (the loop's): a loop head that
+    ///   finds the fuel spent only leaves, so a group counts one out-of-fuel error, at the
+    ///   loop that ran out;
+    /// - in setup code, record ERR_FUEL at `site`, put `-(2 + site)` in the fuel and end
+    ///   the run (its callers end theirs after the call, see [`Self::call_primitive`]). No
+    ///   count: the runner reads the site from `ctx.fuel` (`abi::setup_fuel_ran_out`), which
+    ///   spares the setup's out-of-fuel paths (~80 in the NURB kernel) the counting code.
     pub(super) fn spend_fuel(&mut self, site: SiteId, exit: Block) {
-        let fuel = self.b.use_var(self.fuel);
-        let empty = self.b.ins().icmp_imm_s(IntCC::Equal, fuel, 0);
+        let in_pixels = self.pix.is_some();
+        let var = if in_pixels { self.group_fuel } else { self.fuel };
+        let fuel = self.b.use_var(var);
+        let empty = self.b.ins().icmp_imm_s(IntCC::SignedLessThanOrEqual, fuel, 0);
         let out_blk = self.b.create_block();
         let ok_blk = self.b.create_block();
+        if self.in_dead_block() {
+            // A loop no path reaches: so are its fuel paths (no jump from them is live).
+            self.dead_blocks.extend([out_blk, ok_blk]);
+        }
         self.b.ins().brif(empty, out_blk, &[], ok_blk, &[]);
         self.seal_now(out_blk);
         self.seal_now(ok_blk);
         self.b.set_cold_block(out_blk);
         self.b.switch_to_block(out_blk);
-        self.defer_error(ERR_FUEL, site, None);
-        self.b.ins().jump(exit, &[]);
+        if in_pixels {
+            let first = self.b.ins().icmp_imm_s(IntCC::Equal, fuel, 0);
+            self.defer_error(ERR_FUEL, site, Some(first));
+            let spent = self.iconst_here(types::I64, -1);
+            self.b.def_var(var, spent);
+            self.b.ins().jump(exit, &[]);
+        } else {
+            self.defer_error_counted(ERR_FUEL, site, None, false);
+            let spent = self.iconst_here(types::I64, -2 - i64::from(site.0));
+            self.b.def_var(var, spent);
+            let end = self.exit;
+            self.jump_live(end);
+        }
         self.b.switch_to_block(ok_blk);
         let less = self.b.ins().iadd_imm_s(fuel, -1);
-        self.b.def_var(self.fuel, less);
+        self.b.def_var(var, less);
     }
 
     pub(super) fn uniform_loop(

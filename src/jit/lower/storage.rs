@@ -360,8 +360,9 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// guard (or after an unguarded check), it is the first check's clamped value, since
     /// that check fails whenever this one would, and first, and the first error is the one
     /// kept (the NURB tessellation's de Boor loops checked each index up to five times in
-    /// a row; -6 % of its tier-0 instructions). Not in flat pixel code, where a record also
-    /// depends on the lanes executing.
+    /// a row; -6 % of its tier-0 instructions); only its count is added (a compare and
+    /// the add). Not in flat pixel code, where a record also depends on the lanes
+    /// executing.
     pub(super) fn checked_uniform_index(&mut self, idx: ir::Value, static_len: Option<u32>, site: SiteId) -> ir::Value {
         if self.tier0() {
             let key = VnKey::CheckedIndex(idx, static_len, self.error_guard);
@@ -371,6 +372,15 @@ impl<'a, 'b> Lower<'a, 'b> {
                     .numbered(key)
                     .or_else(|| self.numbered(VnKey::CheckedIndex(idx, static_len, None)));
                 if let Some(c) = earlier {
+                    // This access fails whenever the earlier one did, whose record stands
+                    // for it; its own count is added here.
+                    let len = match static_len {
+                        Some(n) => self.iconst_here(types::I32, i64::from(n)),
+                        None => self.seq_len(),
+                    };
+                    let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
+                    let happened = self.error_condition(Some(bad));
+                    self.count_error(ERR_INDEX, site.0, happened);
                     return c;
                 }
             }
