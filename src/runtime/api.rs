@@ -33,14 +33,14 @@ use glam::{DMat4, DVec3, DVec4, Mat4};
 
 use crate::abi::{interpolator_arg_words, ArgLayout, Binding, BindingKind, ParamSlot, VariantKey};
 use crate::diag::Severity;
-use crate::ir::{FuncId, FuncKind, ParamRole, Program};
+use crate::ir::{FuncId, FuncKind, Function, ParamRole, Program};
 
 use super::geometry::{self, ClipOutcome, GeometryState};
 use super::shading::ShadingSetup;
 use super::value::{encode, encode_default, EncodeError, Value};
 use crate::ir::ParamSpace;
 use crate::pipeline::face::{CullMode, Facing};
-use crate::pipeline::transform::TransformError;
+use crate::pipeline::transform::{NormalMatrix, TransformError};
 use crate::pipeline::{GeometryType, Warning};
 
 /// The reserved shading parameter that carries a facet's facing to shading (`distinguish`).
@@ -1081,58 +1081,19 @@ impl Renderer {
             geometry::note(&mut warnings, Warning::SingularModel);
         }
 
-        // Which words belong to which parameter (per sequence point for Seq slots).
-        let spans_of = |slot: &ParamSlot| -> Vec<(usize, usize)> {
-            match slot {
-                ParamSlot::Pixel => vec![],
-                ParamSlot::Fixed { offset, words } => vec![(*offset as usize, *words as usize)],
-                ParamSlot::Seq { seq_offset, words } => {
-                    let base = layout.fixed_words as usize + n_seq * *seq_offset as usize;
-                    (0..n_seq)
-                        .map(|i| (base + i * *words as usize, *words as usize))
-                        .collect()
-                }
-            }
-        };
-        let floats = |args: &[u32], at: usize, n: usize| -> Vec<f32> {
-            args.get(at..at + n)
-                .map(|w| w.iter().map(|&b| f32::from_bits(b)).collect())
-                .unwrap_or_default()
-        };
-
-        // Normals and vectors to lighting coordinates.
-        for (p, slot) in f.params.iter().zip(&layout.params) {
-            let chunk = match p.space {
-                ParamSpace::Normal | ParamSpace::Vector => 3,
-                _ => continue,
-            };
-            for (at, words) in spans_of(slot) {
-                for c in (0..words / chunk).map(|k| at + k * chunk) {
-                    let v = floats(&inst.args, c, 3);
-                    let Ok(v) = <[f32; 3]>::try_from(v) else { continue };
-                    let out = match p.space {
-                        ParamSpace::Normal => geometry::normal_to_lighting(&normals, v, &mut warnings),
-                        _ => geometry::vector_to_lighting(&lighting_from_object, v),
-                    };
-                    write_words(&mut inst.args, c, &out.map(f32::to_bits));
-                }
-            }
-        }
-
-        // A facet: the only per-sequence-point parameters are `point vertex[]` and
-        // interpolation data, and there is no other point.
-        let vertex_index = f.params.iter().position(|p| p.name == "vertex");
-        let is_facet = vertex_index.is_some_and(|vi| {
-            f.params
-                .iter()
-                .zip(&layout.params)
-                .enumerate()
-                .all(|(i, (p, slot))| match slot {
-                    ParamSlot::Seq { words, .. } if i == vi => p.space == ParamSpace::Point && *words == 4,
-                    ParamSlot::Seq { .. } => p.role == ParamRole::InterpData,
-                    _ => p.space != ParamSpace::Point,
-                })
-        }) && inst.n_seq >= 3;
+        let spans_of = |slot: &ParamSlot| param_spans(&layout, n_seq, slot);
+        let floats = |args: &[u32], at: usize, n: usize| arg_floats(args, at, n);
+        directions_to_lighting(
+            f,
+            &layout,
+            n_seq,
+            &mut inst.args,
+            &normals,
+            &lighting_from_object,
+            &mut warnings,
+        );
+        let vertex_index = facet_vertex(f, &layout).filter(|_| inst.n_seq >= 3);
+        let is_facet = vertex_index.is_some();
         let lit = self.shading_setup.lit();
         let name = f.name.clone();
 
@@ -1285,4 +1246,75 @@ fn is_identifier(s: &str) -> bool {
     let mut chars = s.chars();
     chars.next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
         && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
+}
+
+/// The argument words of parameter slot `slot` of `layout`: one (start, length) span, or
+/// one per sequence point for a per-sequence-point slot (`n_seq` of them); none for a pixel
+/// parameter.
+fn param_spans(layout: &ArgLayout, n_seq: usize, slot: &ParamSlot) -> Vec<(usize, usize)> {
+    match slot {
+        ParamSlot::Pixel => vec![],
+        ParamSlot::Fixed { offset, words } => vec![(*offset as usize, *words as usize)],
+        ParamSlot::Seq { seq_offset, words } => {
+            let base = layout.fixed_words as usize + n_seq * *seq_offset as usize;
+            (0..n_seq)
+                .map(|i| (base + i * *words as usize, *words as usize))
+                .collect()
+        }
+    }
+}
+
+/// `n` argument words from `at` as floats; empty when the block is shorter.
+fn arg_floats(args: &[u32], at: usize, n: usize) -> Vec<f32> {
+    args.get(at..at + n)
+        .map(|w| w.iter().map(|&b| f32::from_bits(b)).collect())
+        .unwrap_or_default()
+}
+
+/// Rewrite the normal and vector parameters of an instance of `f` (argument block `args`,
+/// `n_seq` sequence points) from object to lighting coordinates.
+fn directions_to_lighting(
+    f: &Function,
+    layout: &ArgLayout,
+    n_seq: usize,
+    args: &mut [u32],
+    normals: &NormalMatrix,
+    lighting_from_object: &DMat4,
+    warnings: &mut Vec<Warning>,
+) {
+    for (p, slot) in f.params.iter().zip(&layout.params) {
+        let chunk = match p.space {
+            ParamSpace::Normal | ParamSpace::Vector => 3,
+            _ => continue,
+        };
+        for (at, words) in param_spans(layout, n_seq, slot) {
+            for c in (0..words / chunk).map(|k| at + k * chunk) {
+                let Ok(v) = <[f32; 3]>::try_from(arg_floats(args, c, 3)) else {
+                    continue;
+                };
+                let out = match p.space {
+                    ParamSpace::Normal => geometry::normal_to_lighting(normals, v, warnings),
+                    _ => geometry::vector_to_lighting(lighting_from_object, v),
+                };
+                write_words(args, c, &out.map(f32::to_bits));
+            }
+        }
+    }
+}
+
+/// The index of `f`'s `vertex` parameter when `f` is a facet: its only per-sequence-point
+/// parameters are `point vertex[]` and interpolation data, and it has no other point.
+fn facet_vertex(f: &Function, layout: &ArgLayout) -> Option<usize> {
+    let vi = f.params.iter().position(|p| p.name == "vertex")?;
+    let facet = f
+        .params
+        .iter()
+        .zip(&layout.params)
+        .enumerate()
+        .all(|(i, (p, slot))| match slot {
+            ParamSlot::Seq { words, .. } if i == vi => p.space == ParamSpace::Point && *words == 4,
+            ParamSlot::Seq { .. } => p.role == ParamRole::InterpData,
+            _ => p.space != ParamSpace::Point,
+        });
+    facet.then_some(vi)
 }

@@ -185,18 +185,8 @@ impl Renderer {
         // Refused before any work: a frame this large would abort the process when its
         // allocation fails.
         let num_planes = self.num_planes();
-        let frame_bytes = frame_bytes(opts, num_planes);
-        if frame_bytes > MAX_FRAME_BYTES {
-            diags.push(Diagnostic::error(
-                "E0803",
-                format!(
-                    "a {}x{} frame with {num_planes} shading-parameter planes needs {:.1} GiB, more than the {} GiB a frame may take; nothing is rendered",
-                    opts.width,
-                    opts.height,
-                    frame_bytes as f64 / (1u64 << 30) as f64,
-                    MAX_FRAME_BYTES >> 30
-                ),
-            ));
+        if let Some(too_large) = frame_too_large(opts, num_planes) {
+            diags.push(too_large);
             *frame = Frame::empty();
             stats.render_micros = started.elapsed().as_micros() as u64;
             return RenderReport {
@@ -215,28 +205,7 @@ impl Renderer {
 
         // 1. Compile each (func, key) once, in first-use order.
         let (variants, variant_of) = self.variants();
-        let mut reports: Vec<KernelReport> = vec![];
-        let kernels: Vec<Option<Arc<Kernel>>> = variants
-            .iter()
-            .map(|(func, key)| {
-                let key = VariantKey {
-                    count_writes: opts.count_writes,
-                    ..key.clone()
-                };
-                let kernel = compile_one(&program, source, *func, &key, &mut diags);
-                if let Some(k) = &kernel {
-                    stats.kernels_compiled += 1;
-                    stats.compile_micros += k.compile_micros;
-                    reports.push(KernelReport {
-                        primitive: program.func(*func).name.clone(),
-                        key: describe_key(&key),
-                        trivial_accept: key.trivial_accept,
-                        compile_micros: k.compile_micros,
-                    });
-                }
-                kernel
-            })
-            .collect();
+        let (kernels, reports) = compile_variants(&program, source, variants, opts, &mut stats, &mut diags);
         let compiled = Instant::now();
         stats.kernels_micros = micros_between(started, compiled);
         if let (Some(hold), Some(watch)) = (&mut held_compiler, &compiler) {
@@ -332,15 +301,29 @@ impl Renderer {
         let shade_started = Instant::now();
         stats.tiles_micros = micros_between(tiles_started, shade_started);
 
-        // Deferred shading over the visible pixels, compiled for the scene's effects.
-        let effects = self.shading_setup.effects();
+        self.shade(frame);
+        stats.shade_micros = shade_started.elapsed().as_micros() as u64;
+
+        // 4. Run-time errors, one warning per site with its count, in site order.
+        super::errors::report(&program, &errors, &mut diags);
+        stats.render_micros = started.elapsed().as_micros() as u64;
+        RenderReport {
+            stats,
+            diags,
+            kernels: reports,
+            effects: self.shading_setup.effects(),
+        }
+    }
+
+    /// Deferred shading over the visible pixels of `frame`, compiled for the scene's
+    /// effects. The previous frame's colour buffer (if any) is reused; without an effect
+    /// there is none.
+    fn shade(&self, frame: &mut Frame) {
         let spaces = ShadingSpaces {
             device_from_lighting: self.geometry.device_from_lighting(),
             lighting_from_world: self.geometry.lighting_from_world(),
             device_from_clip: self.geometry.device_from_clip(),
         };
-        // The previous frame's colour buffer (if any) is reused; without an effect there is
-        // none.
         let colors = frame.colors.take();
         if let Some(shader) = Shader::new(&self.shading_setup, &spaces) {
             let mut buf = colors.unwrap_or_default();
@@ -351,18 +334,61 @@ impl Renderer {
             );
             frame.colors = Some(buf);
         }
-        stats.shade_micros = shade_started.elapsed().as_micros() as u64;
-
-        // 4. Run-time errors, one warning per site with its count, in site order.
-        super::errors::report(&program, &errors, &mut diags);
-        stats.render_micros = started.elapsed().as_micros() as u64;
-        RenderReport {
-            stats,
-            diags,
-            kernels: reports,
-            effects,
-        }
     }
+}
+
+/// E0803 when a `opts`-sized frame with `num_planes` planes needs more than
+/// `MAX_FRAME_BYTES`.
+fn frame_too_large(opts: &RenderOptions, num_planes: u32) -> Option<Diagnostic> {
+    let bytes = frame_bytes(opts, num_planes);
+    (bytes > MAX_FRAME_BYTES).then(|| {
+        Diagnostic::error(
+            "E0803",
+            format!(
+                "a {}x{} frame with {num_planes} shading-parameter planes needs {:.1} GiB, more than the {} GiB a frame may take; nothing is rendered",
+                opts.width,
+                opts.height,
+                bytes as f64 / (1u64 << 30) as f64,
+                MAX_FRAME_BYTES >> 30
+            ),
+        )
+    })
+}
+
+/// Compile every variant (`(func, key)`, in first-use order) through `source`, with the
+/// frame's `count_writes`; a variant that fails has `None` and its errors in `diags`.
+/// Returns the kernels, indexed like `variants`, and a report of each compiled one.
+fn compile_variants(
+    program: &Program,
+    source: &mut dyn KernelSource,
+    variants: &[(FuncId, VariantKey)],
+    opts: &RenderOptions,
+    stats: &mut RenderStats,
+    diags: &mut Diagnostics,
+) -> (Vec<Option<Arc<Kernel>>>, Vec<KernelReport>) {
+    let mut reports = vec![];
+    let kernels = variants
+        .iter()
+        .map(|(func, key)| {
+            let key = VariantKey {
+                count_writes: opts.count_writes,
+                ..key.clone()
+            };
+            let kernel = compile_one(program, source, *func, &key, diags);
+            if let Some(k) = &kernel {
+                stats.kernels_compiled += 1;
+                stats.compile_micros += k.compile_micros;
+                reports.push(KernelReport {
+                    primitive: program.func(*func).name.clone(),
+                    key: describe_key(&key),
+                    trivial_accept: key.trivial_accept,
+                    compile_micros: k.compile_micros,
+                });
+            }
+            kernel
+        })
+        .collect();
+    (kernels, reports)
 }
 
 impl RenderStats {

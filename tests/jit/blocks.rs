@@ -12,8 +12,7 @@ use std::sync::Arc;
 
 use crate::support::jit::*;
 use crate::support::raw_depth;
-use primflow::abi::Kernel;
-use primflow::abi::{TileCtx, ERR_NONE, MODE_RENDER};
+use primflow::abi::{Kernel, ERR_NONE};
 use primflow::ir::Variability::Varying;
 use primflow::ir::*;
 use primflow::jit::Jit;
@@ -21,7 +20,6 @@ use primflow::jit::Jit;
 /// Tile size: 3 blocks of 16 and a partial one across, 4 blocks of 8 and a partial one down.
 const TW: usize = 60;
 const TH: usize = 37;
-const STRIDE: usize = 60;
 
 /// `disc(cx, cy, r2, k, bx0, by0, bx1, by1)`:
 /// ```text
@@ -80,35 +78,14 @@ fn render(k: &Kernel, case: &Case, x0: i32, y0: i32) -> Vec<u32> {
         .chain(case.bound.iter().map(|v| v.to_bits()))
         .collect();
     assert_eq!(k.layout.words(1), args.len());
-    let mut depth = vec![0u32; STRIDE * TH];
-    let mut gbuf = vec![0f32; 4];
-    let mut counts = vec![0u32; STRIDE * TH];
-    let mut errors = vec![0u64; ERROR_SLOTS];
-    let mut ctx = TileCtx {
-        x0,
-        y0,
-        x1: x0 + TW as i32,
-        y1: y0 + TH as i32,
-        stride: STRIDE as u32,
-        depth: depth.as_mut_ptr(),
-        gbuf: gbuf.as_mut_ptr(),
-        plane_stride: 0,
-        num_planes: 0,
-        write_count: counts.as_mut_ptr(),
-        setup_counts: errors.as_mut_ptr(),
-        pixel_counts: errors.as_mut_ptr(),
-        ..TileCtx::new(MODE_RENDER, 4096, 4096)
-    };
-    // SAFETY: ctx points at live buffers of stride * rows elements and error counts for
-    // the program's slots; args has the layout's length for one sequence point.
-    unsafe { (k.entry)(&mut ctx, args.as_ptr()) };
-    assert_eq!(ctx.error, ERR_NONE);
-    depth
+    let mut tile = Tile::sized(TW, TH, 0).at(x0, y0);
+    assert_eq!(tile.render(k, &args).error, ERR_NONE);
+    tile.depth
 }
 
 /// The per-pixel semantics, in the prim's operation order.
 fn expected(case: &Case, x0: i32, y0: i32) -> Vec<u32> {
-    let mut out = vec![0u32; STRIDE * TH];
+    let mut out = vec![0u32; TW * TH];
     let [bx0, by0, bx1, by1] = case.bound;
     for row in 0..TH {
         for col in 0..TW {
@@ -125,7 +102,7 @@ fn expected(case: &Case, x0: i32, y0: i32) -> Vec<u32> {
             if (x as i32).wrapping_mul(case.k).wrapping_add(y as i32) > 1000 {
                 continue;
             }
-            out[row * STRIDE + col] = raw_depth(0.5);
+            out[row * TW + col] = raw_depth(0.5);
         }
     }
     out
@@ -138,7 +115,7 @@ fn check(case: Case, x0: i32, y0: i32) -> usize {
     let want = expected(&case, x0, y0);
     for row in 0..TH {
         for col in 0..TW {
-            let i = row * STRIDE + col;
+            let i = row * TW + col;
             assert_eq!(
                 got[i],
                 want[i],

@@ -13,8 +13,7 @@ use std::sync::Arc;
 
 use crate::support::jit::*;
 use crate::support::raw_depth;
-use primflow::abi::Kernel;
-use primflow::abi::{TileCtx, ERR_NONE, MODE_RENDER};
+use primflow::abi::{Kernel, ERR_NONE};
 use primflow::ir::Variability::{Uniform, Varying};
 use primflow::ir::*;
 use primflow::jit::Jit;
@@ -113,18 +112,10 @@ fn render(kernel: &Kernel, case: &Case, x0: i32, y0: i32) -> (Vec<u32>, Vec<f32>
     args.extend(case.bound.iter().map(|v| v.to_bits()));
     args.extend(case.d.iter().map(|v| v.to_bits()));
     assert_eq!(kernel.layout.words(1), args.len());
-    let mut depth = vec![0u32; TW * TH];
-    let mut gbuf = vec![-7.0f32; TW * TH];
-    let mut counts = vec![0u32; TW * TH];
-    let mut errors = vec![0u64; ERROR_SLOTS];
-    let mut ctx = tile_ctx(x0, y0, &mut depth, &mut gbuf, &mut counts, 1);
-    ctx.setup_counts = errors.as_mut_ptr();
-    ctx.pixel_counts = errors.as_mut_ptr();
-    // SAFETY: ctx points at live buffers of TW * TH elements (one plane) and error counts
-    // for the program's slots; args has the layout's length for one sequence point.
-    unsafe { (kernel.entry)(&mut ctx, args.as_ptr()) };
-    assert_eq!(ctx.error, ERR_NONE);
-    (depth, gbuf)
+    let mut tile = Tile::sized(TW, TH, 1).at(x0, y0);
+    tile.gbuf.fill(-7.0);
+    assert_eq!(tile.render(kernel, &args).error, ERR_NONE);
+    (tile.depth, tile.gbuf)
 }
 
 /// The per-pixel semantics in the primitive's operation order (f32, wrapping i32).
@@ -267,17 +258,9 @@ fn check_split(flag: bool, k: i32, lo: f32, bound: [f32; 4], x0: i32, y0: i32) -
     let mut args: Vec<u32> = vec![1, flag as u32, k as u32, lo.to_bits()];
     args.extend(bound.iter().map(|v| v.to_bits()));
     assert_eq!(kernel.layout.words(1), args.len());
-    let mut depth = vec![0u32; TW * TH];
-    let mut gbuf = vec![0f32; 4];
-    let mut counts = vec![0u32; TW * TH];
-    let mut errors = vec![0u64; ERROR_SLOTS];
-    let mut ctx = tile_ctx(x0, y0, &mut depth, &mut gbuf, &mut counts, 0);
-    ctx.setup_counts = errors.as_mut_ptr();
-    ctx.pixel_counts = errors.as_mut_ptr();
-    // SAFETY: ctx points at live buffers of TW * TH elements (no planes) and error counts
-    // for the program's slots; args has the layout's length for one sequence point.
-    unsafe { (kernel.entry)(&mut ctx, args.as_ptr()) };
-    assert_eq!(ctx.error, ERR_NONE);
+    let mut tile = Tile::sized(TW, TH, 0).at(x0, y0);
+    assert_eq!(tile.render(&kernel, &args).error, ERR_NONE);
+    let depth = tile.depth;
     let [bx0, by0, bx1, by1] = bound;
     let mut written = 0;
     for row in 0..TH {
@@ -338,22 +321,4 @@ fn count_cut(c0: i32, c1: i32, r0: i32, r1: i32) -> usize {
         }
     }
     n
-}
-
-/// A render-mode context for the TW x TH tile at (x0, y0) over the given buffers, with
-/// `num_planes` planes of TW * TH floats in `gbuf`. The buffers must outlive the kernel call.
-fn tile_ctx(x0: i32, y0: i32, depth: &mut [u32], gbuf: &mut [f32], counts: &mut [u32], num_planes: u32) -> TileCtx {
-    TileCtx {
-        x0,
-        y0,
-        x1: x0 + TW as i32,
-        y1: y0 + TH as i32,
-        stride: TW as u32,
-        depth: depth.as_mut_ptr(),
-        gbuf: gbuf.as_mut_ptr(),
-        plane_stride: if num_planes == 0 { 0 } else { (TW * TH) as u32 },
-        num_planes,
-        write_count: counts.as_mut_ptr(),
-        ..TileCtx::new(MODE_RENDER, 4096, 4096)
-    }
 }

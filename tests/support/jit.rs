@@ -262,14 +262,21 @@ pub fn fw(x: f32) -> u32 {
     x.to_bits()
 }
 
-/// A 16x8 tile at screen origin with `planes` G-buffer planes.
+/// A tile of pixels with its depth, G-buffer, write-count and error-count buffers: the one
+/// way the JIT tests build a `TileCtx`. [`Tile::new`] is a W x H (16x8) tile at the screen
+/// origin of a 64x32 viewport; [`Tile::sized`] and [`Tile::at`] give other sizes and places.
 pub struct Tile {
     pub depth: Vec<u32>,
     pub gbuf: Vec<f32>,
     pub counts: Vec<u32>,
     pub planes: usize,
+    /// Width and height in pixels; rows are `w` apart, planes `w * h`.
+    pub w: usize,
+    pub h: usize,
     pub x0: i32,
     pub y0: i32,
+    /// `TileCtx::width` and `height`: the viewport the kernel clamps its bound to.
+    pub viewport: (u32, u32),
     /// `TileCtx::pixel_fuel` and `group_fuel_floor` of the runs.
     pub pixel_fuel: u64,
     pub group_fuel_floor: u64,
@@ -285,16 +292,30 @@ pub const ERROR_SLOTS: usize = 1 << 16;
 impl Tile {
     pub fn new(planes: usize) -> Tile {
         Tile {
-            depth: vec![0; W * H],
-            gbuf: vec![0.0; W * H * planes.max(1)],
-            counts: vec![0; W * H],
+            viewport: (64, 32),
+            ..Tile::sized(W, H, planes)
+        }
+    }
+    /// A `w` x `h` tile at the origin of a 4096 x 4096 viewport, every buffer zero.
+    pub fn sized(w: usize, h: usize, planes: usize) -> Tile {
+        Tile {
+            depth: vec![0; w * h],
+            gbuf: vec![0.0; w * h * planes.max(1)],
+            counts: vec![0; w * h],
             planes,
+            w,
+            h,
             x0: 0,
             y0: 0,
+            viewport: (4096, 4096),
             pixel_fuel: DEFAULT_PIXEL_FUEL,
             group_fuel_floor: DEFAULT_GROUP_FUEL_FLOOR,
             errors: vec![0; ERROR_SLOTS],
         }
+    }
+    /// The same tile with its top-left pixel at (x0, y0).
+    pub fn at(self, x0: i32, y0: i32) -> Tile {
+        Tile { x0, y0, ..self }
     }
     /// The count of `slot` (of a program with `sites` sites) over the runs so far.
     pub fn error_count(&self, slot: ErrorSlot, sites: usize) -> u64 {
@@ -304,12 +325,12 @@ impl Tile {
         TileCtx {
             x0: self.x0,
             y0: self.y0,
-            x1: self.x0 + W as i32,
-            y1: self.y0 + H as i32,
-            stride: W as u32,
+            x1: self.x0 + self.w as i32,
+            y1: self.y0 + self.h as i32,
+            stride: self.w as u32,
             depth: self.depth.as_mut_ptr(),
             gbuf: self.gbuf.as_mut_ptr(),
-            plane_stride: (W * H) as u32,
+            plane_stride: (self.w * self.h) as u32,
             num_planes: self.planes as u32,
             write_count: self.counts.as_mut_ptr(),
             fuel,
@@ -317,7 +338,7 @@ impl Tile {
             group_fuel_floor: self.group_fuel_floor,
             setup_counts: self.errors.as_mut_ptr(),
             pixel_counts: self.errors.as_mut_ptr(),
-            ..TileCtx::new(mode, 64, 32)
+            ..TileCtx::new(mode, self.viewport.0, self.viewport.1)
         }
     }
     /// Run `k` in render mode with the given args; returns the context afterwards.
@@ -337,9 +358,9 @@ impl Tile {
         ctx
     }
     pub fn depth_at(&self, x: usize, y: usize) -> u32 {
-        self.depth[y * W + x]
+        self.depth[y * self.w + x]
     }
     pub fn plane_at(&self, p: usize, x: usize, y: usize) -> f32 {
-        self.gbuf[p * W * H + y * W + x]
+        self.gbuf[(p * self.h + y) * self.w + x]
     }
 }

@@ -31,7 +31,7 @@
 
 use std::collections::{HashMap, HashSet};
 
-use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, InstBuilder};
+use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, Block, InstBuilder};
 
 use super::{elem_scalar, Lower, Res};
 use crate::ir::{BinOp, Builtin, Elem, Expr, ExprId, ExprKind, Function, LocalId, Scalar, UnaryOp};
@@ -382,8 +382,25 @@ impl<'a> Lower<'a, '_> {
             }
         }
 
+        self.join_sides(&carried, then_tail, join, env, cache, flags);
+        Ok(())
+    }
+
+    /// Join the two sides of [`Self::abs_branch`] at `join`: one block parameter per part of
+    /// each carried value, passed by the else side (the current block) and then by
+    /// `then_tail` (a side that did not produce a value passes one that knows nothing), and
+    /// the joined values put where they belong: the flags, `env`'s locals, `cache`.
+    fn join_sides(
+        &mut self,
+        carried: &[Carried],
+        then_tail: Block,
+        join: Block,
+        env: &mut BlockEnv<'a>,
+        cache: &mut AbsCache,
+        flags: &mut Flags,
+    ) {
         let mut params = vec![];
-        for cv in &carried {
+        for cv in carried {
             let first = cv.parts.iter().flatten().next().expect("one side has the value");
             let tys: Vec<ir::Type> = first.iter().map(|v| self.b.func.dfg.value_type(*v)).collect();
             params.push(
@@ -398,7 +415,7 @@ impl<'a> Lower<'a, '_> {
                 self.b.switch_to_block(then_tail);
             }
             let mut args: Vec<ir::BlockArg> = vec![];
-            for cv in &carried {
+            for cv in carried {
                 let parts = match &cv.parts[side] {
                     Some(p) => p.clone(),
                     None => self.unknown_parts(&cv.shape),
@@ -431,7 +448,6 @@ impl<'a> Lower<'a, '_> {
                 _ => {}
             }
         }
-        Ok(())
     }
 
     /// SSA values that know nothing, in the form of `shape`: an interval that is not `ok`,

@@ -51,6 +51,75 @@ impl<'a, 'b> Lower<'a, 'b> {
                 break;
             }
         }
+        let (base, words) = self.call_arg_block(&layout, n_seq, args)?;
+        // The callee (or the expand recorder) runs with `ctx`: the index errors before the
+        // call come first.
+        if self.deferring_errors {
+            self.flush_errors();
+        }
+        // Call depth guard.
+        let depth = self.load_ctx(types::I32, ctx_off::CALL_DEPTH);
+        let deeper = self.b.ins().iadd_imm_s(depth, 1);
+        self.store_ctx(deeper, ctx_off::CALL_DEPTH);
+        let too_deep = self
+            .b
+            .ins()
+            .icmp_imm_s(IntCC::UnsignedGreaterThan, deeper, MAX_CALL_DEPTH as i64);
+        let deep_blk = self.b.create_block();
+        let call_blk = self.b.create_block();
+        let after = self.b.create_block();
+        self.b.ins().brif(too_deep, deep_blk, &[], call_blk, &[]);
+        self.b.switch_to_block(deep_blk);
+        self.record_error(ERR_CALL_DEPTH, u32::MAX, None);
+        self.b.ins().jump(after, &[]);
+        self.b.switch_to_block(call_blk);
+        let fref = self.linker.kernel_ref(self.b.func, callee)?;
+        // In MODE_EXPAND the call is recorded, not made (`abi::ExpandFn`): the runtime
+        // renders it later as an instance of its own.
+        let mode = self.load_ctx(types::I32, ctx_off::MODE);
+        let expanding = self.b.ins().icmp_imm_s(IntCC::Equal, mode, MODE_EXPAND as i64);
+        let record_blk = self.b.create_block();
+        let run_blk = self.b.create_block();
+        self.b.ins().brif(expanding, record_blk, &[], run_blk, &[]);
+        self.b.switch_to_block(record_blk);
+        self.record_call(callee, fref, base, words)?;
+        self.b.ins().jump(after, &[]);
+        self.b.switch_to_block(run_blk);
+        // The callee's setup spends the same fuel: hand it over in `ctx.fuel` and take back
+        // the rest.
+        let fuel = self.b.use_var(self.fuel);
+        self.store_ctx(fuel, ctx_off::FUEL);
+        self.b.ins().call(fref, &[self.ctx, base]);
+        let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
+        self.b.def_var(self.fuel, fuel);
+        self.b.ins().jump(after, &[]);
+        self.b.switch_to_block(after);
+        let d = self.load_ctx(types::I32, ctx_off::CALL_DEPTH);
+        let d = self.b.ins().iadd_imm_s(d, -1);
+        self.store_ctx(d, ctx_off::CALL_DEPTH);
+        // A callee whose setup ran out of fuel ended its run with the fuel spent (negative,
+        // see [`Self::spend_fuel`]): the caller's run ends too, leaving the fuel as it is.
+        let fuel = self.b.use_var(self.fuel);
+        let spent = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, fuel, 0);
+        let go_on = self.b.create_block();
+        if self.in_dead_block() {
+            self.dead_blocks.insert(go_on);
+            self.b.ins().trap(ir::TrapCode::unwrap_user(1));
+        } else {
+            self.b.ins().brif(spent, self.exit, &[], go_on, &[]);
+            self.live_targets.insert(self.exit);
+        }
+        self.seal_now(go_on);
+        self.b.switch_to_block(go_on);
+        Ok(())
+    }
+
+    /// The argument block of a primitive call in a stack slot of the caller's frame, laid
+    /// out by the callee's `layout` for `n_seq` sequence points: the caller's plane table
+    /// and binding data (the same key, so the same prefix), the space matrices (the
+    /// caller's, or identities when it has none) and `args` evaluated in the caller.
+    /// Returns the block's address and its length in words.
+    fn call_arg_block(&mut self, layout: &ArgLayout, n_seq: u32, args: &'a [Expr]) -> Res<(ir::Value, usize)> {
         let words = layout.words(n_seq);
         let bytes = u32::try_from(words * 4).map_err(|_| JitError {
             message: "primitive call argument block too large".into(),
@@ -123,66 +192,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 store_word(self, comp, start + w);
             }
         }
-        // The callee (or the expand recorder) runs with `ctx`: the index errors before the
-        // call come first.
-        if self.deferring_errors {
-            self.flush_errors();
-        }
-        // Call depth guard.
-        let depth = self.load_ctx(types::I32, ctx_off::CALL_DEPTH);
-        let deeper = self.b.ins().iadd_imm_s(depth, 1);
-        self.store_ctx(deeper, ctx_off::CALL_DEPTH);
-        let too_deep = self
-            .b
-            .ins()
-            .icmp_imm_s(IntCC::UnsignedGreaterThan, deeper, MAX_CALL_DEPTH as i64);
-        let deep_blk = self.b.create_block();
-        let call_blk = self.b.create_block();
-        let after = self.b.create_block();
-        self.b.ins().brif(too_deep, deep_blk, &[], call_blk, &[]);
-        self.b.switch_to_block(deep_blk);
-        self.record_error(ERR_CALL_DEPTH, u32::MAX, None);
-        self.b.ins().jump(after, &[]);
-        self.b.switch_to_block(call_blk);
-        let fref = self.linker.kernel_ref(self.b.func, callee)?;
-        // In MODE_EXPAND the call is recorded, not made (`abi::ExpandFn`): the runtime
-        // renders it later as an instance of its own.
-        let mode = self.load_ctx(types::I32, ctx_off::MODE);
-        let expanding = self.b.ins().icmp_imm_s(IntCC::Equal, mode, MODE_EXPAND as i64);
-        let record_blk = self.b.create_block();
-        let run_blk = self.b.create_block();
-        self.b.ins().brif(expanding, record_blk, &[], run_blk, &[]);
-        self.b.switch_to_block(record_blk);
-        self.record_call(callee, fref, base, words)?;
-        self.b.ins().jump(after, &[]);
-        self.b.switch_to_block(run_blk);
-        // The callee's setup spends the same fuel: hand it over in `ctx.fuel` and take back
-        // the rest.
-        let fuel = self.b.use_var(self.fuel);
-        self.store_ctx(fuel, ctx_off::FUEL);
-        self.b.ins().call(fref, &[self.ctx, base]);
-        let fuel = self.load_ctx(types::I64, ctx_off::FUEL);
-        self.b.def_var(self.fuel, fuel);
-        self.b.ins().jump(after, &[]);
-        self.b.switch_to_block(after);
-        let d = self.load_ctx(types::I32, ctx_off::CALL_DEPTH);
-        let d = self.b.ins().iadd_imm_s(d, -1);
-        self.store_ctx(d, ctx_off::CALL_DEPTH);
-        // A callee whose setup ran out of fuel ended its run with the fuel spent (negative,
-        // see [`Self::spend_fuel`]): the caller's run ends too, leaving the fuel as it is.
-        let fuel = self.b.use_var(self.fuel);
-        let spent = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, fuel, 0);
-        let go_on = self.b.create_block();
-        if self.in_dead_block() {
-            self.dead_blocks.insert(go_on);
-            self.b.ins().trap(ir::TrapCode::unwrap_user(1));
-        } else {
-            self.b.ins().brif(spent, self.exit, &[], go_on, &[]);
-            self.live_targets.insert(self.exit);
-        }
-        self.seal_now(go_on);
-        self.b.switch_to_block(go_on);
-        Ok(())
+        Ok((base, words))
     }
 
     /// Hand the call (callee id, its kernel's address, the argument block, its length) to
