@@ -600,6 +600,12 @@ fn write_explain(renderer: &Renderer, result: &crate::runtime::RenderOutput, out
 }
 
 fn bench(args: &BenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+    if cfg!(debug_assertions) {
+        let _ = writeln!(
+            err,
+            "note: this build has debug assertions (Cranelift's verifier and the IR validator run on every compile): its times are not a release build's; for timings build with `cargo build --release`"
+        );
+    }
     let report = match &args.scene {
         Some(scene) => crate::bench::run_scene(&crate::bench::SceneBenchOptions {
             scene: scene.clone(),

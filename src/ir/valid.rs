@@ -5,7 +5,7 @@
 //! rule is a [`Rule`] with a doc line saying what holds; a failure names the rule, the
 //! function and the statement or expression where it failed, with its span.
 //!
-//! Where it runs (in builds with debug assertions, which the `tests` profile has): at the
+//! Where it runs (in builds with debug assertions, as `cargo test` makes them): at the
 //! end of [`crate::check::check`] (after lowering, variability and [`super::split`]), and
 //! where the middle end makes a kernel body ([`crate::mid::body`]), after
 //! [`super::forward`] and after `mid::unroll`. A failure there is reported as an internal

@@ -620,7 +620,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         // dead (it never lives into the pixel loops).
         // Tier 0 only: tier 1 keeps its records in cold blocks, where they cost no run time
         // (deferring there too: CLIF -11 %, NURB frame -0.6 % by instructions, but the
-        // out-of-fuel blocks then store nothing to `ctx`, which `tests/jit_unroll.rs`
+        // out-of-fuel blocks then store nothing to `ctx`, which `tests/jit/unroll.rs`
         // counts to see loops).
         let setup_exit = self.tier0() && self.plan.setup_may_fail_index;
         self.setup_exit = setup_exit.then(|| {
@@ -666,7 +666,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// [`crate::mid::flat`] pixel code, [`crate::mid::dead`] setup code and
     /// [`Self::setup_stmts`]), and numbers values while
     /// lowering ([`Self::numbered`]) where tier 1 leaves that to Cranelift's e-graph. Results are
-    /// bit-identical either way (`tests/jit_tiers.rs`, `tests/jit_tier0.rs`).
+    /// bit-identical either way (`tests/jit/tiers.rs`, `tests/jit/tier0.rs`).
     fn tier0(&self) -> bool {
         !self.block_culling
     }

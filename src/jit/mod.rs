@@ -35,7 +35,7 @@
 //! the renderer leaves it a thread (`runtime::tiergate`). [`Jit::stall_tier_up`] holds it
 //! while reporting it compiling, for tests. Both tiers compute the same buffers bit for bit: they
 //! lower the same IR with the same floating-point operations in the same order, and block
-//! culling only decides which pixels run, never what they compute (`tests/jit_tiers.rs`).
+//! culling only decides which pixels run, never what they compute (`tests/jit/tiers.rs`).
 //! Compiled code is never freed (cranelift-jit leaks a module's memory unless told
 //! otherwise), so every entry point a JIT hands out stays callable for the life of the
 //! process, beyond the `KernelSource` contract; the worker's too, after it has ended.

@@ -31,7 +31,7 @@
 //! nowhere, `abi::ctx`), and in the kernel's own state (`tests/jit/inlined_helpers.rs`). Fuel exists so no source can hang the
 //! renderer; a loop with a constant trip count at most `MAX_TRIPS` cannot. Loops whose trip
 //! count is not a compile-time constant keep their fuel checks, index clamping and error
-//! records unchanged (`tests/jit_unroll.rs`).
+//! records unchanged (`tests/jit/unroll.rs`).
 //!
 //! Invariants kept: the output is a checked program in the sense of [`crate::ir`] (same
 //! locals, sites, loop ids, parameter layout, its expressions numbered afresh by

@@ -180,6 +180,12 @@ fn the_cli_prints_the_report_and_writes_json() {
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("first frame, as `primflow render`"), "{out}");
     assert!(out.contains("JIT compile time per variant"), "{out}");
+    // A build with debug assertions (`cargo test`'s) says its times are not a release's.
+    assert_eq!(
+        err.contains("note: this build has debug assertions"),
+        cfg!(debug_assertions),
+        "{err}"
+    );
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(
         report["frames"]["pixels_written"].as_u64(),

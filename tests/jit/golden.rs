@@ -3,7 +3,7 @@
 //! perspective_linear K=4`) at both tiers, the sphere with its implicit normal, and the
 //! documentation's user-written disc. A codegen change shows as a diff of these snapshots
 //! (`tests/jit/snapshots/`); review it with `cargo insta review` or by reading the diff, and
-//! accept it with `INSTA_UPDATE=always cargo test --profile tests --test jit golden`.
+//! accept it with `INSTA_UPDATE=always cargo test --test jit golden`.
 //!
 //! The CLIF printed does not depend on the host's CPU features (the lowering chooses no
 //! instruction by ISA flag; Cranelift's instruction selection comes after it), so the same

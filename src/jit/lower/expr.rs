@@ -583,7 +583,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// float (NaN, infinities and signed zeros included). Transforms of unit vectors
     /// (`transform("device", "object", {1, 0, 0, 0})`, the sphere's matrix columns) have
     /// a quarter of their products by 1; `x / 1.0` is one too (`exact_reciprocal`).
-    /// `tests/jit_multiply_by_one.rs`.
+    /// `tests/jit/multiply_by_one.rs`.
     pub(crate) fn fmul(&mut self, x: ir::Value, y: ir::Value) -> ir::Value {
         if float_const(self.b.func, y) == Some(1.0) {
             x

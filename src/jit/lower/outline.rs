@@ -44,7 +44,7 @@
 //!   flushed before the split).
 //!
 //! Results are bit-identical to the single function (the same instructions on the same
-//! values; `tests/jit_tier0.rs` and `tests/jit_tiers.rs` compare tiers). Tier 1 keeps one
+//! values; `tests/jit/tier0.rs` and `tests/jit/tiers.rs` compare tiers). Tier 1 keeps one
 //! function: it compiles in the background, and its optimisations work across the split.
 
 use cranelift_codegen::entity::EntityRef;
