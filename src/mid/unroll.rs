@@ -392,6 +392,17 @@ fn fold_in(e: &mut Expr, env: &Env) {
             ExprKind::MatMul { lhs, rhs }
         }
     };
+    // Folding may have made every operand uniform (a `?:` with a constant condition keeps
+    // its uniform side): an expression is varying iff an operand is (`ir::valid`'s
+    // `ExprVariability`). Leaves keep theirs: a local's, or uniform.
+    if !matches!(
+        e.kind,
+        ExprKind::Local(_) | ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag
+    ) {
+        let mut var = Variability::Uniform;
+        e.for_each_child(|c| var = var.join(c.var));
+        e.var = var;
+    }
 }
 
 fn const_scalar(c: ConstValue) -> Scalar {

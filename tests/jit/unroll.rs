@@ -151,3 +151,43 @@ fn unrolling_removes_the_constant_loops_code() {
         slots(&kept)
     );
 }
+
+/// Folding a `?:` whose condition is constant leaves its uniform arm: the expression
+/// around it is then uniform too (the IR validator's `ExprVariability`, which made this an
+/// internal compiler error at both tiers with unrolling on). Every pixel of the bound gets
+/// `Z = n / 100`, unrolled or not.
+#[test]
+fn a_folded_select_leaves_its_enclosing_expression_uniform() {
+    const FOLDS: &str = r#"
+primitive folds(float rect[4]; int n; varying float X, Y; inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    int v = 0;
+    if (Y > 3) v = 1;
+    float s = (1 < 0 ? v : 0) + n;
+    Z = s * 0.01;
+}
+"#;
+    let mut sources = SourceMap::new();
+    let program = support::library_with(&mut sources, &[("folds.prim", FOLDS)]);
+    let mut r = Renderer::new(program.clone());
+    r.set_image_size(16, 12).unwrap();
+    r.begin("folds").unwrap();
+    r.rast_param("rect", &Value(vec![0.0, 0.0, 16.0, 12.0])).unwrap();
+    r.rast_param("n", &Value(vec![37.0])).unwrap();
+    r.end().unwrap();
+    let want = support::raw_depth(f64::from(37.0f32 * 0.01f32));
+    for unroll in [false, true] {
+        for tier in [Tier::Fast, Tier::Optimised] {
+            let out = r.render(&mut jit(&program, unroll, tier));
+            assert!(
+                out.diags.items.is_empty(),
+                "unroll={unroll} {tier:?}: {:?}",
+                out.diags.items
+            );
+            let depths = out.frame.depth_values();
+            assert_eq!(depths.len(), 16 * 12);
+            assert!(depths.iter().all(|&d| d == want), "unroll={unroll} {tier:?}");
+        }
+    }
+}
