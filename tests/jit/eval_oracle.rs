@@ -105,6 +105,19 @@ primitive oracle_call(int i; float s; varying float X, Y; inout varying fixed<32
     Z = 0.25 + i / 16.0;
 }
 
+primitive oracle_round(float s; varying float X, Y; inout varying float Z)
+{
+    bound(0, 0, 40, 24);
+    fixed<16,0> column = X;                 // X = n + 0.5: ties, rounded to even
+    fixed<8,4> tie = s * 0.03125 + 0.03125;
+    fixed<32,32> depth = Y / 64;
+    Z = depth + column / 4096.0;
+    interpolation {
+        linear:
+            interpolator_return(column + tie);
+    }
+}
+
 primitive oracle_spin(int n; varying float X, Y; inout varying float Z)
 {
     bound(0, 0, 20, 12);
