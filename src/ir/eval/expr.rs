@@ -10,7 +10,7 @@
 //! lanes that take an arm of `?:` or the right side of `&&`/`||` while it is evaluated).
 
 use super::scalar::{self, arity, convert, float_builtin, int_builtin};
-use super::{any, malformed, Lanes, Machine, Mask, Res};
+use super::{any, malformed, Lanes, Machine, Res};
 use crate::abi::{ParamSlot, ERR_INDEX};
 use crate::ir::{
     BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, LocalId, Place, Scalar, SiteId, Space, Type, UnaryOp,
@@ -193,8 +193,18 @@ impl Machine<'_, '_> {
             return malformed("an index without components");
         };
         let idx: Lanes = lanes.map(|w| convert(idx.sc, Scalar::Int, w));
-        let bad: Mask = std::array::from_fn(|l| idx[l] >= len && self.exec[l]);
-        if any(bad) {
+        // A uniform index of pixel code fails for the group as the JIT checks it: once,
+        // whatever the lanes, under the guards of the arms around it; a varying one where
+        // an executing lane is out of range.
+        let failed = if self.pix.is_some() && !index.var.is_varying() {
+            self.guard && idx[0] >= len
+        } else {
+            self.guard && (0..4).any(|l| idx[l] >= len && self.exec[l])
+        };
+        if failed {
+            if self.pix.is_some() && !any(self.exec) {
+                self.out.laneless_errors += 1;
+            }
             self.record(ERR_INDEX, site.0, true)?;
         }
         for (base, &i) in acc.base.iter_mut().zip(&idx) {
@@ -289,11 +299,17 @@ impl Machine<'_, '_> {
 
     /// `e` evaluated for the lanes where the bool `cond` is `taken` (an arm of `?:`, the
     /// right side of `&&`/`||`): their errors only are counted.
-    fn eval_guarded(&mut self, e: &Expr, cond: Lanes, taken: bool) -> Res<Val> {
-        let outer = self.exec;
+    fn eval_guarded(&mut self, e: &Expr, cond: Lanes, varying: bool, taken: bool) -> Res<Val> {
+        let (outer, outer_guard) = (self.exec, self.guard);
         self.exec = std::array::from_fn(|l| outer[l] && (cond[l] != 0) == taken);
+        self.guard &= if varying {
+            any(self.exec)
+        } else {
+            (cond[0] != 0) == taken
+        };
         let v = self.eval(e);
         self.exec = outer;
+        self.guard = outer_guard;
         v
     }
 
@@ -335,7 +351,7 @@ impl Machine<'_, '_> {
                 let c = match op {
                     BinOp::And | BinOp::Or if a.sc == Scalar::Bool => {
                         let cond = bools(&a)?;
-                        self.eval_guarded(rhs, cond, *op == BinOp::And)?
+                        self.eval_guarded(rhs, cond, lhs.var.is_varying(), *op == BinOp::And)?
                     }
                     _ => self.eval(rhs)?,
                 };
@@ -354,8 +370,9 @@ impl Machine<'_, '_> {
             }
             ExprKind::Select { cond, then, otherwise } => {
                 let c = bools(&self.eval(cond)?)?;
-                let t = self.eval_guarded(then, c, true)?;
-                let o = self.eval_guarded(otherwise, c, false)?;
+                let varying = cond.var.is_varying();
+                let t = self.eval_guarded(then, c, varying, true)?;
+                let o = self.eval_guarded(otherwise, c, varying, false)?;
                 let (t, o) = unify(t, o)?;
                 let comps = t
                     .comps

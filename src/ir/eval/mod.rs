@@ -29,21 +29,25 @@
 //!   exactly as the JIT spends it, and an error is counted once per execution of the
 //!   failing operation per group.
 //! - *Errors.* An index out of range reads the nearest end and counts `ERR_INDEX` at its
-//!   site when some executing lane is out of range (the arms of `?:` and the right side
-//!   of `&&`/`||` execute only for the lanes that take them); a loop head with no fuel left
-//!   counts `ERR_FUEL` (setup: records it and ends the run and its callers' runs, uncounted,
-//!   with `-(2 + site)` left as fuel); a call too deep counts `ERR_CALL_DEPTH`. Setup code
-//!   counts into [`Outcome::setup_counts`], pixel code into [`Outcome::pixel_counts`].
+//!   site, as tier 1 checks it: a varying index when an executing lane is out of range, a
+//!   uniform one whenever its statement runs, under the guards of the expression (the arms
+//!   of `?:` and the right side of `&&`/`||` count only where taken: a varying guard
+//!   needs some lane taking it). A loop head with no fuel left counts `ERR_FUEL` (setup:
+//!   records it and ends the run and its callers' runs, uncounted, with `-(2 + site)` left
+//!   as fuel); a call too deep counts `ERR_CALL_DEPTH`. Setup code counts into
+//!   [`Outcome::setup_counts`], pixel code into [`Outcome::pixel_counts`].
 //! - *No panic, no overflow, no hang.* Malformed IR or a short argument block is an
 //!   [`EvalError`], never a panic; [`Evaluator::run`] evaluates on a thread of its own with a large
 //!   stack and refuses nesting past [`MAX_NESTING`] levels (a checked program, within
 //!   `crate::limits`, stays far below); every loop spends fuel.
 //!
 //! Where it differs from the JIT, by design:
-//! - a statement that runs while no lane executes (after a varying `break` or `return` in
-//!   the same statement list) counts no index error; tier 1 counts a uniform index failing
-//!   there, tier 0's flat code does not (`mid::flat`). The documented rule (a failing
-//!   access counts when it fails in some pixel) is this one.
+//! - none for tier 1. Tier 0's flat pixel code (`mid::flat`) counts a uniform index only
+//!   when some lane executes it, so after a varying `break`, `continue` or `return` has
+//!   left no lane executing, tier 1 and this evaluator count a failing uniform index
+//!   there and tier 0 may not (the language doc's rule is tier 0's: "a group counts an
+//!   access that fails in any of its pixels"). [`Outcome::laneless_errors`] says when a
+//!   run met this case.
 //! - `ERR_STACK` is never recorded: locals do not live on the native stack here.
 //! - [`Outcome::first_error`] is the first error in this evaluator's order: setup first,
 //!   then groups row by row. The JIT's block walk visits groups in another order, so only a
@@ -171,6 +175,9 @@ pub struct Outcome {
     /// The setup fuel left (`TileCtx::fuel`): `-(2 + site)` as an i64 when a setup loop
     /// ran out (`abi::setup_fuel_ran_out`).
     pub fuel: u64,
+    /// Index errors counted in pixel code while no lane executed (see the module doc:
+    /// tier 1 counts them, tier 0's flat code does not).
+    pub laneless_errors: u64,
     /// The last `bound` the primitive's own setup executed (its pass rectangle before
     /// clipping), if any.
     pub bound: Option<[f32; 4]>,
@@ -302,6 +309,7 @@ fn run_here(
             first_error: None,
             first_error_in_setup: false,
             fuel: budget.setup_fuel,
+            laneless_errors: 0,
             bound: None,
         },
         fuel: budget.setup_fuel as i64,
@@ -310,6 +318,7 @@ fn run_here(
         kernels: vec![],
         loops: vec![],
         exec: ALL,
+        guard: true,
         pix: None,
         view: (0..key.interp_components()).collect(),
         arm: None,
@@ -399,6 +408,9 @@ pub(crate) struct Machine<'p, 't> {
     pub loops: Vec<LoopCtx>,
     /// The lanes the current statement runs for (all four in setup code).
     pub exec: Mask,
+    /// Every guard around the expression being evaluated lets its errors count (an arm
+    /// of `?:` taken, for a varying condition by some executing lane).
+    pub guard: bool,
     pub pix: Option<Pix>,
     /// The interpolation-data components visible (`mid::view`).
     pub view: Vec<u32>,
