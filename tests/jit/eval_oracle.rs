@@ -558,3 +558,37 @@ fn library_primitives_with_random_arguments_match_the_evaluator() {
     assert!(seen.runs > 100, "{seen:?}");
     assert_eq!(seen.unsupported, 0, "{seen:?}");
 }
+
+#[test]
+fn the_evaluator_refuses_a_short_argument_block_or_a_bad_tile_without_panicking() {
+    let program = support::library();
+    let evaluator = eval::Evaluator::new(&program, true);
+    let tri = program.find("screen_triangle").expect("screen_triangle");
+    let key = VariantKey::default();
+    let full = ArgLayout::new(&program, tri, &key).words(3);
+    let mut tile = eval::Tile::new(0, 0, W, H, 0, 64, 32);
+    for words in [0, 1, full - 1] {
+        let mut args = vec![0u32; words];
+        if let Some(n) = args.first_mut() {
+            *n = 3;
+        }
+        let got = evaluator.run(tri, &key, &args, &mut tile, Budget::default());
+        assert!(
+            matches!(got, Err(eval::EvalError::Malformed(_))),
+            "{words} words: {got:?}"
+        );
+    }
+    // A stride that is not a whole number of groups, and buffers shorter than the tile.
+    let args = vec![3u32; full];
+    let mut odd = eval::Tile::new(0, 0, W, H, 0, 64, 32);
+    odd.stride = 6;
+    assert!(evaluator.run(tri, &key, &args, &mut odd, Budget::default()).is_err());
+    let mut short = eval::Tile::new(0, 0, W, H, 2, 64, 32);
+    short.planes.truncate(10);
+    assert!(evaluator.run(tri, &key, &args, &mut short, Budget::default()).is_err());
+    // An interpolator is not a kernel of its own.
+    let interp = program.find("solid_interpolation").expect("solid_interpolation");
+    assert!(evaluator
+        .run(interp, &key, &args, &mut tile, Budget::default())
+        .is_err());
+}
