@@ -16,11 +16,13 @@ use primflow::abi::VariantKey;
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::jit::{Jit, JitOptions, Tier};
 
-/// Generated programs the JIT refuses with loop unrolling on: `mid::unroll` leaves an
-/// expression marked varying whose operands it made uniform (the IR validator's
-/// `ExprVariability`), an internal compiler error at both tiers. Program 8 unrolls
-/// `for (int t2 = 0; t2 < (-1 - (i1 < t1 ? i0 : n0)); t2++)` nested in loops over `t0`
-/// and `t1`, with `i1` varying in the enclosing code. They are compared with unrolling off.
+/// Generated programs the JIT refuses with loop unrolling on, in test and debug builds:
+/// `mid::unroll` folds a `?:` whose condition is constant to its uniform arm but leaves
+/// the expression around it marked varying, which the IR validator reports
+/// (`ExprVariability`, an internal compiler error at both tiers). Program 8 has
+/// `t0 < ((5 < 0 ? i1 : 0) + n0)` with `i1` varying; the smallest such source is
+/// `int v = 0; if (Y > 3) v = 1; float s = (1 < 0 ? v : 0) + n;`. Compared with unrolling
+/// off.
 const KNOWN_UNROLL_ICE: &[u64] = &[8];
 
 /// Writes one primitive's source.
