@@ -592,3 +592,69 @@ fn the_evaluator_refuses_a_short_argument_block_or_a_bad_tile_without_panicking(
         .run(interp, &key, &args, &mut tile, Budget::default())
         .is_err());
 }
+
+/// Every lane leaves the loop at its first trip; the statement after the `break` then runs
+/// for no lane, and its uniform index `u` is out of range.
+const LANELESS: &str = r#"
+primitive laneless(int u; varying float X, Y; inout varying float Z)
+{
+    float a[2] = {0.25, 0.5};
+    float s = 0;
+    while (X > 0) {
+        if (X > -1)
+            break;
+        s = a[u];
+    }
+    Z = s + 0.125;
+}
+"#;
+
+#[test]
+fn a_uniform_index_no_lane_runs_is_counted_as_tier_1_counts_it() {
+    let mut sources = SourceMap::new();
+    let file = sources.add("laneless.prim", LANELESS);
+    let mut diags = Diagnostics::new();
+    let program = Arc::new(primflow::compile(&sources, &[file], &mut diags).expect("checks"));
+    let func = program.find("laneless").expect("laneless");
+    let key = VariantKey {
+        count_writes: true,
+        ..VariantKey::default()
+    };
+    let layout = ArgLayout::new(&program, func, &key);
+    let mut args = vec![0u32; layout.words(1)];
+    args[0] = 1;
+    let ParamSlot::Fixed { offset, .. } = layout.params[0] else {
+        panic!("u is a per-primitive parameter")
+    };
+    args[offset as usize] = 5;
+    let evaluator = eval::Evaluator::new(&program, true);
+    let mut t = eval::Tile::new(0, 0, W, H, 0, 64, 32);
+    let out = evaluator
+        .run(func, &key, &args, &mut t, Budget::default())
+        .expect("runs");
+    assert!(out.laneless_errors > 0, "{out:?}");
+    assert!(t.writes.iter().all(|&n| n == 1), "every pixel draws");
+    let counts: Vec<u64> = (0..count_slots(&program))
+        .map(|i| out.setup_counts[i] + out.pixel_counts[i])
+        .collect();
+    // One count per group of the tile: 4 groups a row, 8 rows.
+    assert_eq!(counts.iter().sum::<u64>(), 32, "{counts:?}");
+    for tier in [Tier::Optimised, Tier::Fast] {
+        for unroll_loops in [true, false] {
+            let mut jit = Jit::with_options(program.clone(), JitOptions { tier, unroll_loops }).expect("host ISA");
+            let k = jit.kernel(func, &key).expect("kernel");
+            let mut tile = Tile::new(0);
+            tile.run(&k, &args, MODE_RENDER, primflow::abi::DEFAULT_FUEL);
+            assert_eq!(tile.depth, t.depth, "{tier:?} unroll {unroll_loops}: depth");
+            // Tier 0 runs this pixel code flat and counts nothing here (`mid::flat`: only
+            // where some lane runs the access), unlike tier 1: see `ir::eval`'s module doc.
+            if tier == Tier::Optimised {
+                assert_eq!(
+                    &tile.errors[..counts.len()],
+                    &counts[..],
+                    "{tier:?} unroll {unroll_loops}: counts"
+                );
+            }
+        }
+    }
+}
