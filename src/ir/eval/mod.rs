@@ -1,23 +1,25 @@
-//! A reference evaluator of the checked IR: what a kernel compiled from a [`Function`] for a
-//! [`VariantKey`] does to a tile, computed by walking the IR instead of compiling it. It is
-//! the differential oracle of the JIT (`tests/jit/eval_oracle.rs`): on the same program,
-//! key, argument block and tile, tier 0, tier 1 and [`Evaluator::run`] must leave the same depths,
-//! G-buffer planes, depth-write counts and run-time error counts.
+//! A reference evaluator of the checked IR: what a kernel compiled from a [`Function`] for
+//! a [`VariantKey`] does to a tile, computed by walking the IR instead of compiling it. It
+//! is the JIT's differential oracle (`tests/jit/eval_oracle.rs`, `eval_generated.rs`): on
+//! the same program, key, argument block and tile, tier 1 and [`Evaluator::run`] leave the
+//! same depths, G-buffer planes, depth-write counts, run-time error counts and setup fuel,
+//! and tier 0 too but where noted below.
 //!
-//! What it computes, as a kernel does in `MODE_RENDER` (`abi::ctx`), from the primitive's
-//! body as the JIT lowers it ([`Evaluator::new`]: copies forwarded, constant-trip loops
-//! unrolled, which then spend no fuel): the primitive's setup
-//! part once, with the setup fuel; then, unless the setup returned or ran out of fuel, the
-//! pixel part for every 4-pixel group of the pass rectangle (the last executed `bound`,
-//! clipped to the tile; groups start at tile-aligned x), each group starting from the
-//! state the setup left, with its own pixel fuel. Primitive calls are made directly (no
-//! `MODE_EXPAND`), on the same tile, with the caller's key, sharing the setup fuel and
-//! nesting at most `MAX_CALL_DEPTH` deep. Shared interpolators are run where the JIT
-//! inlines them (`interpolator_return;`), for the executing lanes.
+//! What it computes is what a kernel does in `MODE_RENDER` (`abi::ctx`), from the
+//! primitive's body as the JIT lowers it ([`Evaluator::new`]: copies forwarded,
+//! constant-trip loops unrolled, which then spend no fuel): the setup part once, with the
+//! setup fuel; then, unless the setup returned or ran out of fuel, the pixel part for every
+//! 4-pixel group of the pass rectangle (the last executed `bound`, clipped to the tile;
+//! groups start at tile-aligned x), each group from the state the setup left, with its own
+//! pixel fuel. Primitive calls are made directly (as `MODE_RENDER` makes them, not
+//! recorded as `MODE_EXPAND` would), on the same tile, with the caller's key, sharing the
+//! setup fuel and nesting at most `MAX_CALL_DEPTH` deep. Shared interpolators run where the
+//! JIT inlines them (`interpolator_return;`), for the executing lanes. `MODE_BOUND` and
+//! `MODE_EXPAND` runs are not modelled.
 //!
 //! Invariants:
 //! - *Bit-exact values.* Every component is a raw 32-bit word per lane; the arithmetic in
-//!   [`scalar`] is the JIT's instruction for instruction (f32 operations in the same order,
+//!   `scalar` is the JIT's instruction for instruction (f32 operations in the same order,
 //!   fixed point in the same 64-bit intermediates, the same saturations, the libm functions
 //!   kernels call). NaN payloads are the one thing a caller should not compare: Rust and
 //!   Cranelift agree on which results are NaN, not on which NaN.
@@ -37,17 +39,17 @@
 //!   as fuel); a call too deep counts `ERR_CALL_DEPTH`. Setup code counts into
 //!   [`Outcome::setup_counts`], pixel code into [`Outcome::pixel_counts`].
 //! - *No panic, no overflow, no hang.* Malformed IR or a short argument block is an
-//!   [`EvalError`], never a panic; [`Evaluator::run`] evaluates on a thread of its own with a large
-//!   stack and refuses nesting past [`MAX_NESTING`] levels (a checked program, within
-//!   `crate::limits`, stays far below); every loop spends fuel.
+//!   [`EvalError`], never a panic; [`Evaluator::run`] evaluates on a thread of its own
+//!   with a large stack and refuses nesting past [`MAX_NESTING`] levels (a checked
+//!   program, within `crate::limits`, stays far below); every loop spends fuel.
 //!
-//! Where it differs from the JIT, by design:
-//! - none for tier 1. Tier 0's flat pixel code (`mid::flat`) counts a uniform index only
-//!   when some lane executes it, so after a varying `break`, `continue` or `return` has
-//!   left no lane executing, tier 1 and this evaluator count a failing uniform index
-//!   there and tier 0 may not (the language doc's rule is tier 0's: "a group counts an
-//!   access that fails in any of its pixels"). [`Outcome::laneless_errors`] says when a
-//!   run met this case.
+//! Where it differs from the JIT:
+//! - from tier 0 only: tier 0's flat pixel code (`mid::flat`) counts a failing uniform
+//!   index only when some lane executes it, tier 1 whenever its statement runs. After a
+//!   varying `break`, `continue` or `return` has left no lane executing, the rest of the
+//!   statement list still runs, and there tier 1 and this evaluator count the error and
+//!   tier 0 may not (the language doc's rule, "a group counts an access that fails in any
+//!   of its pixels", is tier 0's). [`Outcome::laneless_errors`] says when a run met this.
 //! - `ERR_STACK` is never recorded: locals do not live on the native stack here.
 //! - [`Outcome::first_error`] is the first error in this evaluator's order: setup first,
 //!   then groups row by row. The JIT's block walk visits groups in another order, so only a
