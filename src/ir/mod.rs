@@ -35,6 +35,7 @@
 //!   X, Y, Z as the caller's own; `interpolator_return` and `interpolation` occur only where
 //!   [`valid`] says.
 
+pub mod eval;
 pub mod forward;
 pub mod number;
 pub mod print;

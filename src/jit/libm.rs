@@ -58,6 +58,25 @@ impl LibmFn {
         }
     }
 
+    /// The function applied to `args` (`args[1]` is read only by the two-argument ones):
+    /// the very functions kernels call, for the IR evaluator (`ir::eval`), which must give
+    /// the same bits.
+    pub fn apply(self, args: [f32; 2]) -> f32 {
+        let [x, y] = args;
+        match self {
+            LibmFn::Sin => primflow_sinf(x),
+            LibmFn::Cos => primflow_cosf(x),
+            LibmFn::Tan => primflow_tanf(x),
+            LibmFn::Asin => primflow_asinf(x),
+            LibmFn::Acos => primflow_acosf(x),
+            LibmFn::Atan => primflow_atanf(x),
+            LibmFn::Atan2 => primflow_atan2f(x, y),
+            LibmFn::Pow => primflow_powf(x, y),
+            LibmFn::Exp => primflow_expf(x),
+            LibmFn::Log => primflow_logf(x),
+        }
+    }
+
     /// The function's address, for registering the symbol with the JIT.
     pub fn address(self) -> *const u8 {
         match self {

@@ -13,6 +13,8 @@ mod deep_programs;
 mod disassembly;
 mod edges;
 mod error_order;
+mod eval_generated;
+mod eval_oracle;
 mod fixed;
 mod float_division;
 mod forward;

@@ -1,0 +1,755 @@
+//! Expressions and places: [`Machine::eval`] computes an expression's components in every
+//! lane, [`Machine::assign`] stores into a place, as `jit::lower`'s `expr`, `storage` and
+//! `builtin` do.
+//!
+//! Invariants: a value holds the components of its type as the JIT's `Val` does:
+//! interpolation data only the current view's components (a local or parameter of it holds
+//! all of them per element, and reading it gathers the view); single components broadcast
+//! over the other operand's. Every index is clamped per lane into its array, and the error
+//! counted when an executing lane was out of range ([`Machine::exec`] is narrowed to the
+//! lanes that take an arm of `?:` or the right side of `&&`/`||` while it is evaluated).
+
+use super::scalar::{self, arity, convert, float_builtin, int_builtin};
+use super::{any, malformed, Lanes, Machine, Res};
+use crate::abi::{ParamSlot, ERR_INDEX};
+use crate::ir::{
+    BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, LocalId, Place, Scalar, SiteId, Space, Type, UnaryOp,
+};
+
+/// A value: its components, each in every lane, of one scalar type.
+#[derive(Clone, Debug)]
+pub(crate) struct Val {
+    pub comps: Vec<Lanes>,
+    pub sc: Scalar,
+}
+
+impl Val {
+    fn map(&self, sc: Scalar, f: impl Fn(u32) -> u32) -> Val {
+        Val {
+            comps: self.comps.iter().map(|c| c.map(&f)).collect(),
+            sc,
+        }
+    }
+
+    /// Every component converted to `to`.
+    pub(crate) fn converted(&self, to: Scalar) -> Val {
+        let from = self.sc;
+        self.map(to, |w| convert(from, to, w))
+    }
+}
+
+/// The scalar type of a type's components (interpolation data is float).
+pub(crate) fn elem_scalar(ty: &Type) -> Scalar {
+    match ty.elem {
+        Elem::Scalar(s) => s,
+        Elem::Interp => Scalar::Float,
+    }
+}
+
+/// Where an access reads from.
+enum Root {
+    Local(usize),
+    /// The frame's argument block from this word.
+    Args(usize),
+    Temp(Val),
+}
+
+/// A (possibly indexed) value not yet read: per lane, the offset of its first component.
+struct Access {
+    root: Root,
+    elem: Elem,
+    dims: Vec<u32>,
+    per_seq: bool,
+    sc: Scalar,
+    base: [usize; 4],
+    /// Interpolation data holds only the view's components (a computed value).
+    compact: bool,
+}
+
+fn fixed_len(dims: &[u32]) -> usize {
+    dims.iter().map(|&d| d as usize).product()
+}
+
+fn bools(v: &Val) -> Res<Lanes> {
+    match v.comps.first() {
+        Some(c) => Ok(c.map(|w| convert(v.sc, Scalar::Bool, w))),
+        None => malformed("a condition without components"),
+    }
+}
+
+impl Machine<'_, '_> {
+    /// Components of one value of `fixed_len` elements of `elem` (`compact`: interpolation
+    /// data holds only the view).
+    fn value_comps(&self, elem: Elem, fixed_len: usize, compact: bool) -> usize {
+        match elem {
+            Elem::Scalar(_) => fixed_len,
+            Elem::Interp => {
+                fixed_len
+                    * if compact {
+                        self.view.len()
+                    } else {
+                        self.n_interp as usize
+                    }
+            }
+        }
+    }
+
+    /// Offsets of the components such a value shows (interpolation data: the view's).
+    fn comp_offsets(&self, elem: Elem, fixed_len: usize, compact: bool) -> Vec<usize> {
+        match elem {
+            Elem::Scalar(_) => (0..fixed_len).collect(),
+            Elem::Interp => {
+                let per = if compact {
+                    self.view.len()
+                } else {
+                    self.n_interp as usize
+                };
+                let mut out = Vec::with_capacity(fixed_len * self.view.len());
+                for e in 0..fixed_len {
+                    for (j, &v) in self.view.iter().enumerate() {
+                        out.push(e * per + if compact { j } else { v as usize });
+                    }
+                }
+                out
+            }
+        }
+    }
+
+    /// The number of sequence points as indices see it (at least 1).
+    fn seq_len(&self) -> Res<u32> {
+        Ok(self.frame()?.args.first().copied().unwrap_or(0).max(1))
+    }
+
+    fn local_access(&self, local: LocalId) -> Res<Access> {
+        let fr = self.frame()?;
+        let i = local.0 as usize;
+        let Some(l) = fr.func.locals.get(i) else {
+            return malformed(format!("unknown local {i}"));
+        };
+        let slot = fr
+            .func
+            .params
+            .iter()
+            .position(|p| p.local == local)
+            .map(|p| &fr.slots[p]);
+        let root = match slot {
+            Some(ParamSlot::Fixed { offset, .. }) => Root::Args(*offset as usize),
+            Some(ParamSlot::Seq { seq_offset, .. }) => {
+                let n = self.seq_len()? as usize;
+                Root::Args(fr.fixed_words as usize + n * *seq_offset as usize)
+            }
+            Some(ParamSlot::Pixel) | None => Root::Local(i),
+        };
+        Ok(Access {
+            root,
+            elem: l.ty.elem,
+            dims: l.ty.dims.clone(),
+            per_seq: l.ty.per_seq,
+            sc: elem_scalar(&l.ty),
+            base: [0; 4],
+            compact: false,
+        })
+    }
+
+    fn resolve(&mut self, e: &Expr) -> Res<Access> {
+        match &e.kind {
+            ExprKind::Local(l) => self.local_access(*l),
+            ExprKind::Index { base, index, site } => {
+                self.enter()?;
+                let acc = self.resolve(base);
+                let acc = acc.and_then(|acc| self.index_access(acc, index, *site));
+                self.leave();
+                acc
+            }
+            _ => {
+                let v = self.eval(e)?;
+                Ok(Access {
+                    sc: v.sc,
+                    root: Root::Temp(v),
+                    elem: e.ty.elem,
+                    dims: e.ty.dims.clone(),
+                    per_seq: e.ty.per_seq,
+                    base: [0; 4],
+                    compact: true,
+                })
+            }
+        }
+    }
+
+    /// Apply one index: clamped per lane, `ERR_INDEX` counted at `site` when an executing
+    /// lane was out of range.
+    fn index_access(&mut self, mut acc: Access, index: &Expr, site: SiteId) -> Res<Access> {
+        if acc.dims.is_empty() && !acc.per_seq {
+            return malformed("indexing a scalar");
+        }
+        let (len, elem_dims) = if acc.per_seq {
+            (self.seq_len()?, acc.dims.clone())
+        } else {
+            (acc.dims[0], acc.dims[1..].to_vec())
+        };
+        let stride = self.value_comps(acc.elem, fixed_len(&elem_dims), acc.compact);
+        let idx = self.eval(index)?;
+        let Some(&lanes) = idx.comps.first() else {
+            return malformed("an index without components");
+        };
+        let idx: Lanes = lanes.map(|w| convert(idx.sc, Scalar::Int, w));
+        // A uniform index of pixel code fails for the group as the JIT checks it: once,
+        // whatever the lanes, under the guards of the arms around it; a varying one where
+        // an executing lane is out of range.
+        let failed = if self.pix.is_some() && !index.var.is_varying() {
+            self.guard && idx[0] >= len
+        } else {
+            self.guard && (0..4).any(|l| idx[l] >= len && self.exec[l])
+        };
+        if failed {
+            if self.pix.is_some() && !any(self.exec) {
+                self.out.laneless_errors += 1;
+            }
+            self.record(ERR_INDEX, site.0, true)?;
+        }
+        for (base, &i) in acc.base.iter_mut().zip(&idx) {
+            *base += (i as i32).clamp(0, len as i32 - 1) as usize * stride;
+        }
+        acc.dims = elem_dims;
+        acc.per_seq = false;
+        Ok(acc)
+    }
+
+    fn word(&self, root: &Root, at: usize, lane: usize) -> Res<u32> {
+        let got = match root {
+            Root::Local(i) => self.frame()?.locals.get(*i).and_then(|v| v.get(at)).map(|c| c[lane]),
+            Root::Args(start) => self.frame()?.args.get(start + at).copied(),
+            Root::Temp(v) => v.comps.get(at).map(|c| c[lane]),
+        };
+        match got {
+            Some(w) => Ok(w),
+            None => malformed("a read past its storage (argument block too short?)"),
+        }
+    }
+
+    fn read(&self, acc: &Access) -> Res<Val> {
+        let offs = self.comp_offsets(acc.elem, fixed_len(&acc.dims), acc.compact);
+        let mut comps = Vec::with_capacity(offs.len());
+        for o in offs {
+            let mut c = [0; 4];
+            for (l, w) in c.iter_mut().enumerate() {
+                *w = self.word(&acc.root, acc.base[l] + o, l)?;
+            }
+            comps.push(c);
+        }
+        Ok(Val { comps, sc: acc.sc })
+    }
+
+    /// `place = value`, converted to the place's type (`Lower::assign`): indices first,
+    /// then the value; a varying local takes the executing lanes only, a uniform one every
+    /// lane; the primitive's Z also marks the lanes that wrote it.
+    pub(crate) fn assign(&mut self, place: &Place, value: &Expr) -> Res<()> {
+        let mut acc = self.local_access(place.local)?;
+        for (idx, site) in &place.indices {
+            acc = self.index_access(acc, idx, *site)?;
+        }
+        let Root::Local(li) = acc.root else {
+            return malformed("assignment to a parameter");
+        };
+        let v = self.eval(value)?.converted(acc.sc);
+        let offs = self.comp_offsets(acc.elem, fixed_len(&acc.dims), false);
+        let comps = if v.comps.len() == 1 && offs.len() != 1 {
+            vec![v.comps[0]; offs.len()]
+        } else {
+            v.comps
+        };
+        if comps.len() != offs.len() {
+            return malformed(format!(
+                "assignment of {} components to a place of {}",
+                comps.len(),
+                offs.len()
+            ));
+        }
+        let fr = self.frame()?;
+        let varying = fr.func.locals[li].var.is_varying() && self.pix.is_some();
+        let is_z = fr.interp_binding.is_none()
+            && fr
+                .func
+                .params
+                .iter()
+                .any(|p| p.local.0 as usize == li && p.role == crate::ir::ParamRole::Z);
+        let exec = self.exec;
+        let Some(frame) = self.frames.last_mut() else {
+            return malformed("no frame");
+        };
+        let store = &mut frame.locals[li];
+        for (o, c) in offs.iter().zip(comps) {
+            for l in 0..4 {
+                if varying && !exec[l] {
+                    continue;
+                }
+                match store.get_mut(acc.base[l] + o) {
+                    Some(slot) => slot[l] = c[l],
+                    None => return malformed("a store past its local"),
+                }
+            }
+        }
+        if is_z {
+            if let Some(p) = &mut self.pix {
+                p.z_written = std::array::from_fn(|l| p.z_written[l] || exec[l]);
+            }
+        }
+        Ok(())
+    }
+
+    /// `e` evaluated for the lanes where the bool `cond` is `taken` (an arm of `?:`, the
+    /// right side of `&&`/`||`): their errors only are counted.
+    fn eval_guarded(&mut self, e: &Expr, cond: Lanes, varying: bool, taken: bool) -> Res<Val> {
+        let (outer, outer_guard) = (self.exec, self.guard);
+        self.exec = std::array::from_fn(|l| outer[l] && (cond[l] != 0) == taken);
+        self.guard &= if varying {
+            any(self.exec)
+        } else {
+            (cond[0] != 0) == taken
+        };
+        let v = self.eval(e);
+        self.exec = outer;
+        self.guard = outer_guard;
+        v
+    }
+
+    pub(crate) fn eval(&mut self, e: &Expr) -> Res<Val> {
+        self.enter()?;
+        let v = self.eval_inner(e);
+        self.leave();
+        v
+    }
+
+    fn eval_inner(&mut self, e: &Expr) -> Res<Val> {
+        let sc = elem_scalar(&e.ty);
+        match &e.kind {
+            ExprKind::Const(c) => {
+                let (from, w) = match *c {
+                    ConstValue::Float(x) => (Scalar::Float, x.to_bits()),
+                    ConstValue::Int(i) => (Scalar::Int, i as u32),
+                    ConstValue::Bool(b) => (Scalar::Bool, u32::from(b)),
+                    ConstValue::Fixed(i) => (sc, i as u32),
+                };
+                Ok(Val {
+                    comps: vec![[convert(from, sc, w); 4]],
+                    sc,
+                })
+            }
+            ExprKind::Local(_) | ExprKind::Index { .. } => {
+                let acc = self.resolve(e)?;
+                self.read(&acc)
+            }
+            ExprKind::Unary { op, expr } => {
+                let v = self.eval(expr)?;
+                Ok(match op {
+                    UnaryOp::Neg => v.map(v.sc, |w| scalar::neg(v.sc, w)),
+                    UnaryOp::Not => v.map(Scalar::Bool, |w| convert(v.sc, Scalar::Bool, w) ^ 1),
+                })
+            }
+            ExprKind::Binary { op, lhs, rhs } => {
+                let a = self.eval(lhs)?;
+                let c = match op {
+                    BinOp::And | BinOp::Or if a.sc == Scalar::Bool => {
+                        let cond = bools(&a)?;
+                        self.eval_guarded(rhs, cond, lhs.var.is_varying(), *op == BinOp::And)?
+                    }
+                    _ => self.eval(rhs)?,
+                };
+                binary(*op, a, c)
+            }
+            ExprKind::Convert(inner) => {
+                let v = self.eval(inner)?.converted(sc);
+                if e.ty.elem == Elem::Interp && inner.ty.elem != Elem::Interp && v.comps.len() == 1 {
+                    let n = self.comp_offsets(e.ty.elem, fixed_len(&e.ty.dims), true).len();
+                    return Ok(Val {
+                        comps: vec![v.comps[0]; n],
+                        sc,
+                    });
+                }
+                Ok(v)
+            }
+            ExprKind::Select { cond, then, otherwise } => {
+                let c = bools(&self.eval(cond)?)?;
+                let varying = cond.var.is_varying();
+                let t = self.eval_guarded(then, c, varying, true)?;
+                let o = self.eval_guarded(otherwise, c, varying, false)?;
+                let (t, o) = unify(t, o)?;
+                let comps = t
+                    .comps
+                    .iter()
+                    .zip(&o.comps)
+                    .map(|(x, y)| std::array::from_fn(|l| if c[l] != 0 { x[l] } else { y[l] }))
+                    .collect();
+                Ok(Val { comps, sc: t.sc })
+            }
+            ExprKind::Builtin { func, args } => self.builtin(*func, args),
+            ExprKind::List(items) => {
+                let mut comps = vec![];
+                for it in items {
+                    comps.extend(self.eval(it)?.converted(sc).comps);
+                }
+                Ok(Val { comps, sc })
+            }
+            ExprKind::Splat(item) => {
+                let one = self.eval(item)?.converted(sc).comps;
+                let n = fixed_len(&e.ty.dims);
+                if one.len().saturating_mul(n) > 1 << 26 {
+                    return Err(super::EvalError::Unsupported("a splat of over 2^26 components".into()));
+                }
+                Ok(Val {
+                    comps: one.repeat(n),
+                    sc,
+                })
+            }
+            ExprKind::MatMul { lhs, rhs } => {
+                let a = self.eval(lhs)?.converted(Scalar::Float);
+                let c = self.eval(rhs)?.converted(Scalar::Float);
+                matmul(&a, &c, &lhs.ty.dims, &rhs.ty.dims)
+            }
+            ExprKind::SeqCount => {
+                let n = self.frame()?.args.first().copied().unwrap_or(0);
+                Ok(Val {
+                    comps: vec![[n; 4]],
+                    sc: Scalar::Int,
+                })
+            }
+            ExprKind::ClipFlag => Ok(Val {
+                comps: vec![[u32::from(!self.key.trivial_accept); 4]],
+                sc: Scalar::Bool,
+            }),
+        }
+    }
+
+    fn builtin(&mut self, func: Builtin, args: &[Expr]) -> Res<Val> {
+        let mut vals = vec![];
+        for a in args {
+            vals.push(self.eval(a)?);
+        }
+        if vals.len() != arity(func) {
+            return malformed(format!("{func:?} with {} arguments", vals.len()));
+        }
+        let sc = vals[0].sc;
+        if matches!(sc, Scalar::Int | Scalar::Fixed(_))
+            && matches!(func, Builtin::Abs | Builtin::Min | Builtin::Max | Builtin::Clamp)
+            && vals.iter().all(|v| v.sc == sc)
+        {
+            let vs = unify_all(vals)?;
+            return Ok(componentwise(&vs, sc, |a| int_builtin(func, sc, a)));
+        }
+        let vals: Vec<Val> = vals.iter().map(|v| v.converted(Scalar::Float)).collect();
+        let f = |x: f32| x.to_bits();
+        let g = |w: u32| f32::from_bits(w);
+        match func {
+            Builtin::Dot => {
+                let vs = unify_all(vals)?;
+                Ok(one(dot(&vs[0], &vs[1])))
+            }
+            Builtin::Length => Ok(one(dot(&vals[0], &vals[0]).map(|d| f(g(d).sqrt())))),
+            Builtin::Distance => {
+                let vs = unify_all(vals)?;
+                let diff = Val {
+                    comps: vs[0]
+                        .comps
+                        .iter()
+                        .zip(&vs[1].comps)
+                        .map(|(x, y)| std::array::from_fn(|l| f(g(x[l]) - g(y[l]))))
+                        .collect(),
+                    sc: Scalar::Float,
+                };
+                Ok(one(dot(&diff, &diff).map(|d| f(g(d).sqrt()))))
+            }
+            Builtin::Normalize => {
+                let len = dot(&vals[0], &vals[0]).map(|d| g(d).sqrt());
+                Ok(Val {
+                    comps: vals[0]
+                        .comps
+                        .iter()
+                        .map(|x| std::array::from_fn(|l| f(g(x[l]) / len[l])))
+                        .collect(),
+                    sc: Scalar::Float,
+                })
+            }
+            Builtin::Cross => {
+                let vs = unify_all(vals)?;
+                if vs[0].comps.len() != 3 {
+                    return malformed("cross of non-3-component values");
+                }
+                let (a, c) = (&vs[0].comps, &vs[1].comps);
+                let comps = [(1, 2), (2, 0), (0, 1)]
+                    .iter()
+                    .map(|&(i, j)| std::array::from_fn(|l| f(g(a[i][l]) * g(c[j][l]) - g(a[j][l]) * g(c[i][l]))))
+                    .collect();
+                Ok(Val {
+                    comps,
+                    sc: Scalar::Float,
+                })
+            }
+            Builtin::TransformPoint { from, to } => {
+                let m = self.space_matrix(to, from)?;
+                apply_point(m, &vals[0])
+            }
+            Builtin::TransformVector { from, to } => {
+                let m = self.space_matrix(to, from)?;
+                apply_3x3(m, &vals[0], false)
+            }
+            Builtin::TransformNormal { from, to } => {
+                // The inverse transpose of to_from_from is the transpose of from_from_to.
+                let m = self.space_matrix(from, to)?;
+                apply_3x3(m, &vals[0], true)
+            }
+            _ => {
+                let unary = arity(func) == 1;
+                let vs = if unary { vals } else { unify_all(vals)? };
+                let mut bad = false;
+                let v = componentwise(&vs, Scalar::Float, |a| {
+                    float_builtin(func, a).unwrap_or_else(|| {
+                        bad = true;
+                        0
+                    })
+                });
+                if bad {
+                    return malformed(format!("{func:?} is not component-wise"));
+                }
+                Ok(v)
+            }
+        }
+    }
+
+    /// A matrix of the argument block's `spaces` (row-major); `None` when the kernel's
+    /// function has none (the JIT then takes every space as the identity).
+    fn load_matrix(&self, word: u32) -> Res<Option<[f32; 16]>> {
+        let k = self.kernel()?;
+        let Some(base) = k.layout.spaces else { return Ok(None) };
+        let args = &self.frames[k.frame].args;
+        let mut m = [0.0; 16];
+        for (i, x) in m.iter_mut().enumerate() {
+            match args.get((base + word) as usize + i) {
+                Some(&w) => *x = f32::from_bits(w),
+                None => return malformed("space matrices past the argument block"),
+            }
+        }
+        Ok(Some(m))
+    }
+
+    /// `to_from_from` = to_from_device * device_from_from (`None`: the identity).
+    fn space_matrix(&self, to: Space, from: Space) -> Res<Option<[f32; 16]>> {
+        if to == from {
+            return Ok(None);
+        }
+        let word = |s: Space, base: u32| match s {
+            Space::Device => None,
+            Space::Object => Some(base),
+            Space::World => Some(base + 16),
+            Space::Lighting => Some(base + 32),
+        };
+        let a = match word(to, 48) {
+            Some(w) => self.load_matrix(w)?,
+            None => None,
+        };
+        let c = match word(from, 0) {
+            Some(w) => self.load_matrix(w)?,
+            None => None,
+        };
+        Ok(match (a, c) {
+            (None, m) | (m, None) => m,
+            (Some(a), Some(c)) => Some(std::array::from_fn(|ij| {
+                let (i, j) = (ij / 4, ij % 4);
+                let mut acc = a[i * 4] * c[j];
+                for k in 1..4 {
+                    acc += a[i * 4 + k] * c[k * 4 + j];
+                }
+                acc
+            })),
+        })
+    }
+}
+
+fn one(c: Lanes) -> Val {
+    Val {
+        comps: vec![c],
+        sc: Scalar::Float,
+    }
+}
+
+/// `Σ a[i] * b[i]` left to right, per lane (0 without components).
+fn dot(a: &Val, c: &Val) -> Lanes {
+    let g = |w: u32| f32::from_bits(w);
+    std::array::from_fn(|l| {
+        let mut acc: Option<f32> = None;
+        for (x, y) in a.comps.iter().zip(&c.comps) {
+            let p = g(x[l]) * g(y[l]);
+            acc = Some(match acc {
+                None => p,
+                Some(s) => s + p,
+            });
+        }
+        acc.unwrap_or(0.0).to_bits()
+    })
+}
+
+fn apply_point(m: Option<[f32; 16]>, v: &Val) -> Res<Val> {
+    let Some(m) = m else { return Ok(v.clone()) };
+    let n = v.comps.len();
+    if n != 3 && n != 4 {
+        return malformed("transform of a point that has neither 3 nor 4 components");
+    }
+    let g = |w: u32| f32::from_bits(w);
+    let comps = (0..n)
+        .map(|i| {
+            std::array::from_fn(|l| {
+                // A 3-component point is taken with w = 1 (no divide afterwards).
+                let mut acc = m[i * 4 + 3];
+                if n == 4 {
+                    acc *= g(v.comps[3][l]);
+                }
+                for j in 0..3 {
+                    acc += m[i * 4 + j] * g(v.comps[j][l]);
+                }
+                acc.to_bits()
+            })
+        })
+        .collect();
+    Ok(Val {
+        comps,
+        sc: Scalar::Float,
+    })
+}
+
+fn apply_3x3(m: Option<[f32; 16]>, v: &Val, transpose: bool) -> Res<Val> {
+    let Some(m) = m else { return Ok(v.clone()) };
+    if v.comps.len() < 3 {
+        return malformed("transform of a direction with fewer than 3 components");
+    }
+    let g = |w: u32| f32::from_bits(w);
+    let mut comps: Vec<Lanes> = (0..3)
+        .map(|i| {
+            std::array::from_fn(|l| {
+                let at = |j: usize| if transpose { j * 4 + i } else { i * 4 + j };
+                let mut acc = m[at(0)] * g(v.comps[0][l]);
+                for j in 1..3 {
+                    acc += m[at(j)] * g(v.comps[j][l]);
+                }
+                acc.to_bits()
+            })
+        })
+        .collect();
+    // A homogeneous direction keeps its w.
+    comps.extend_from_slice(&v.comps[3..]);
+    Ok(Val {
+        comps,
+        sc: Scalar::Float,
+    })
+}
+
+fn matmul(a: &Val, c: &Val, ldims: &[u32], rdims: &[u32]) -> Res<Val> {
+    let (n, m) = match ldims {
+        [n, m] => (*n as usize, *m as usize),
+        _ => return malformed("matrix product with a non-2-D left side"),
+    };
+    let k = match rdims {
+        [r] if *r as usize == m => 1,
+        [r, k] if *r as usize == m => *k as usize,
+        _ => return malformed("matrix product with mismatched shapes"),
+    };
+    if a.comps.len() < n * m || c.comps.len() < m * k {
+        return malformed("matrix product operands shorter than their shapes");
+    }
+    let g = |w: u32| f32::from_bits(w);
+    let mut comps = Vec::with_capacity(n * k);
+    for i in 0..n {
+        for j in 0..k {
+            comps.push(std::array::from_fn(|l| {
+                let mut acc: Option<f32> = None;
+                for t in 0..m {
+                    let p = g(a.comps[i * m + t][l]) * g(c.comps[t * k + j][l]);
+                    acc = Some(match acc {
+                        None => p,
+                        Some(s) => s + p,
+                    });
+                }
+                acc.unwrap_or(0.0).to_bits()
+            }));
+        }
+    }
+    Ok(Val {
+        comps,
+        sc: Scalar::Float,
+    })
+}
+
+/// Bring two operands to one length (a single component broadcasts).
+fn unify(a: Val, c: Val) -> Res<(Val, Val)> {
+    let (mut a, mut c) = (a, c);
+    if a.comps.len() != c.comps.len() {
+        if a.comps.len() == 1 {
+            a.comps = vec![a.comps[0]; c.comps.len()];
+        } else if c.comps.len() == 1 {
+            c.comps = vec![c.comps[0]; a.comps.len()];
+        } else {
+            return malformed(format!(
+                "operands of {} and {} components",
+                a.comps.len(),
+                c.comps.len()
+            ));
+        }
+    }
+    Ok((a, c))
+}
+
+fn unify_all(vals: Vec<Val>) -> Res<Vec<Val>> {
+    let len = vals.iter().map(|v| v.comps.len()).max().unwrap_or(0);
+    vals.into_iter()
+        .map(|mut v| {
+            if v.comps.len() != len {
+                if v.comps.len() != 1 {
+                    return malformed(format!("built-in operands of {} and {len} components", v.comps.len()));
+                }
+                v.comps = vec![v.comps[0]; len];
+            }
+            Ok(v)
+        })
+        .collect()
+}
+
+/// `f` of the operands' i-th components, lane by lane, for every i.
+fn componentwise(vs: &[Val], sc: Scalar, mut f: impl FnMut(&[u32]) -> u32) -> Val {
+    let n = vs.first().map_or(0, |v| v.comps.len());
+    let comps = (0..n)
+        .map(|i| {
+            let mut c = [0; 4];
+            for (l, out) in c.iter_mut().enumerate() {
+                let args: Vec<u32> = vs.iter().map(|v| v.comps[i][l]).collect();
+                *out = f(&args);
+            }
+            c
+        })
+        .collect();
+    Val { comps, sc }
+}
+
+fn binary(op: BinOp, a: Val, c: Val) -> Res<Val> {
+    // Operands share a scalar type (checker); converted as the JIT does if they do not.
+    let c = if c.sc != a.sc { c.converted(a.sc) } else { c };
+    let (a, c) = unify(a, c)?;
+    let sc = a.sc;
+    let out = if matches!(
+        op,
+        BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne | BinOp::And | BinOp::Or
+    ) {
+        Scalar::Bool
+    } else {
+        sc
+    };
+    let mut comps = Vec::with_capacity(a.comps.len());
+    for (x, y) in a.comps.iter().zip(&c.comps) {
+        let mut r = [0; 4];
+        for l in 0..4 {
+            match scalar::binop(op, sc, x[l], y[l]) {
+                Some(w) => r[l] = w,
+                None => return malformed(format!("{op:?} on {sc:?}")),
+            }
+        }
+        comps.push(r);
+    }
+    Ok(Val { comps, sc: out })
+}
