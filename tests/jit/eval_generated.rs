@@ -12,18 +12,7 @@ use std::sync::Arc;
 use crate::eval_oracle::{random_arg_cases, small_budget, Seen};
 use crate::support::Lcg;
 
-use primflow::abi::VariantKey;
 use primflow::diag::{Diagnostics, SourceMap};
-use primflow::jit::{Jit, JitOptions, Tier};
-
-/// Generated programs the JIT refuses with loop unrolling on, in test and debug builds:
-/// `mid::unroll` folds a `?:` whose condition is constant to its uniform arm but leaves
-/// the expression around it marked varying, which the IR validator reports
-/// (`ExprVariability`, an internal compiler error at both tiers). Program 8 has
-/// `t0 < ((5 < 0 ? i1 : 0) + n0)` with `i1` varying; the smallest such source is
-/// `int v = 0; if (Y > 3) v = 1; float s = (1 < 0 ? v : 0) + n;`. Compared with unrolling
-/// off.
-const KNOWN_UNROLL_ICE: &[u64] = &[8];
 
 /// Writes one primitive's source.
 struct Gen {
@@ -296,22 +285,6 @@ fn generated_programs_match_the_evaluator_at_both_tiers_unrolled_or_not() {
         compiled += 1;
         let program = Arc::new(program);
         for unroll in [true, false] {
-            if unroll && KNOWN_UNROLL_ICE.contains(&seed) {
-                let gen = program.find("gen").expect("gen");
-                let jit = Jit::with_options(
-                    program.clone(),
-                    JitOptions {
-                        tier: Tier::Fast,
-                        unroll_loops: true,
-                    },
-                );
-                let refused = jit.expect("host ISA").kernel(gen, &VariantKey::default());
-                assert!(
-                    refused.is_err_and(|e| e.message.contains("IR invalid after unroll")),
-                    "program {seed} compiles now: drop it from KNOWN_UNROLL_ICE"
-                );
-                continue;
-            }
             random_arg_cases(&program, &["gen"], 2, small_budget(), unroll, &mut seen);
         }
     }
