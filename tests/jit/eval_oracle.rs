@@ -14,7 +14,6 @@
 //! it compared drawn pixels, nonzero plane values and nonzero error counts, so an
 //! evaluator that drew nothing or counted nothing would fail it.
 
-use std::path::Path;
 use std::sync::Arc;
 
 use crate::support;
@@ -340,20 +339,6 @@ fn instance_cases(r: &Renderer, what: &str, size: (u32, u32)) -> Vec<Case> {
         .collect()
 }
 
-fn read(dir: &str, ext: &str) -> Vec<(String, String)> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join(dir);
-    let mut files: Vec<_> = std::fs::read_dir(&dir)
-        .expect("directory")
-        .map(|e| e.expect("entry").path())
-        .filter(|p| p.extension().is_some_and(|x| x == ext))
-        .collect();
-    files.sort();
-    files
-        .into_iter()
-        .map(|p| (p.display().to_string(), std::fs::read_to_string(&p).expect("readable")))
-        .collect()
-}
-
 /// `text` with its `image` line made `size` (its instances' geometry follows).
 fn resized(text: &str, size: (u32, u32)) -> String {
     text.lines()
@@ -374,8 +359,8 @@ fn library_scenes_match_the_evaluator_at_both_tiers() {
     let mut jits = tiers(&program, true);
     let mut seen = Seen::default();
     let size = (64, 40);
-    let mut scenes = read("examples", "scene");
-    scenes.extend(read("prims/tests", "scene"));
+    let mut scenes = support::read_dir("examples", "scene");
+    scenes.extend(support::read_dir("prims/tests", "scene"));
     let mut cases = 0;
     for (name, text) in &scenes {
         let mut sources = sources.clone();
@@ -520,7 +505,7 @@ pub(crate) fn small_budget() -> Budget {
 
 #[test]
 fn test_sources_with_random_arguments_match_the_evaluator() {
-    let mut user: Vec<(String, String)> = read("tests/check/ok", "prim");
+    let mut user: Vec<(String, String)> = support::read_dir("tests/check/ok", "prim");
     user.push(("oracle.prim".into(), SOURCE.into()));
     let library = support::library();
     let mut seen = Seen::default();

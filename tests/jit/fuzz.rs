@@ -8,7 +8,8 @@
 //! run (`float fa[65535]` in screen_triangle) panicked Cranelift's SSA builder
 //! (`tests/jit/large_locals.rs` keeps that case).
 
-use std::path::Path;
+use crate::support;
+
 use std::sync::Arc;
 
 use primflow::diag::{Diagnostics, SourceMap};
@@ -125,20 +126,6 @@ fn mutate(src: &str, edits: &[(usize, usize)]) -> String {
     out
 }
 
-fn read_dir(dir: &str, ext: &str) -> Vec<(String, String)> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join(dir);
-    let mut files: Vec<_> = std::fs::read_dir(&dir)
-        .expect("directory")
-        .map(|e| e.expect("entry").path())
-        .filter(|p| p.extension().is_some_and(|x| x == ext))
-        .collect();
-    files.sort();
-    files
-        .into_iter()
-        .map(|p| (p.display().to_string(), std::fs::read_to_string(&p).expect("readable")))
-        .collect()
-}
-
 proptest! {
     #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
     #[test]
@@ -146,8 +133,8 @@ proptest! {
         prim in 0usize..64,
         edits in prop::collection::vec((0usize..100_000, 0usize..1000), 1..4),
     ) {
-        let prims = read_dir("prims", "prim");
-        let scenes = read_dir("examples", "scene");
+        let prims = support::read_dir("prims", "prim");
+        let scenes = support::read_dir("examples", "scene");
         let which = prim % prims.len();
         let mut sources = SourceMap::new();
         let files: Vec<_> = prims

@@ -275,3 +275,19 @@ pub fn example_scene(sources: &mut SourceMap, program: &Arc<Program>, name: &str
 pub fn raw_depth(z: f64) -> u32 {
     (z * 4294967296.0).round().clamp(0.0, 4294967295.0) as u32
 }
+
+/// Every file of `dir` (relative to the crate root) whose extension is `ext`, sorted by
+/// path: (path, contents).
+pub fn read_dir(dir: &str, ext: &str) -> Vec<(String, String)> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(dir);
+    let mut files: Vec<_> = std::fs::read_dir(&dir)
+        .expect("directory")
+        .map(|e| e.expect("entry").path())
+        .filter(|p| p.extension().is_some_and(|x| x == ext))
+        .collect();
+    files.sort();
+    files
+        .into_iter()
+        .map(|p| (p.display().to_string(), std::fs::read_to_string(&p).expect("readable")))
+        .collect()
+}
