@@ -436,3 +436,23 @@ fn converts_varying_float(f: &Function) -> bool {
     }
     found
 }
+
+/// Whether `f`'s pixel code for `key` may spend fuel: it has a loop, or a shared
+/// interpolator the key binds (inlined into the pixel code) has one.
+pub(crate) fn pixel_code_has_loops(program: &Program, f: &Function, key: &VariantKey) -> bool {
+    fn loops(stmts: &[Stmt]) -> bool {
+        let mut found = false;
+        crate::ir::for_each_stmt(stmts, &mut |s| {
+            found |= matches!(s.kind, crate::ir::StmtKind::Loop { .. })
+        });
+        found
+    }
+    loops(&f.pixel)
+        || key.bindings.iter().any(|b| match &b.kind {
+            BindingKind::Shared(name) => program.find(name).is_some_and(|id| {
+                let g = program.func(id);
+                loops(&g.setup) || loops(&g.pixel)
+            }),
+            BindingKind::Kind(_) | BindingKind::Constant => false,
+        })
+}

@@ -65,7 +65,7 @@ use crate::abi::{
     count_slots, ArgLayout, BindingKind, ErrorSlot, ParamSlot, VariantKey, DEFAULT_FUEL, DEFAULT_GROUP_FUEL_FLOOR,
     DEFAULT_PIXEL_FUEL, GROUP,
 };
-use crate::ir::{for_each_assign, for_each_stmt, FuncId, FuncKind, Function, ParamRole, Program, StmtKind};
+use crate::ir::{for_each_assign, FuncId, FuncKind, Function, ParamRole, Program};
 
 /// Recursion levels (statements, expressions, calls together) [`Evaluator::run`] evaluates before it
 /// refuses with [`EvalError::Unsupported`]: a checked program nests at most ~1100 levels per
@@ -565,7 +565,7 @@ impl<'p> Machine<'p, '_> {
             .kernel()?
             .bound
             .unwrap_or([f32::NEG_INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::INFINITY]);
-        let group_fuel = if pixel_code_has_loops(self.program, f, self.key) {
+        let group_fuel = if crate::mid::pixel_code_has_loops(self.program, f, self.key) {
             let (w, h) = (self.tile.width as i32, self.tile.height as i32);
             let (lo_x, hi_x) = pass_range(b[0], b[2], 0, w);
             let (lo_y, hi_y) = pass_range(b[1], b[3], 0, h);
@@ -722,22 +722,4 @@ fn pass_range(bmin: f32, bmax: f32, t0: i32, t1: i32) -> (i32, i32) {
     let hi = scalar::fmin(scalar::fmax((bmax - 0.5).floor() + 1.0, t0f), t1f);
     let (lo_i, hi_i) = (lo as i32, hi as i32);
     (lo_i, hi_i.max(lo_i))
-}
-
-/// Whether `f`'s pixel code for `key` may spend fuel (`jit::lower::loops`'s rule): it has a
-/// loop, or a shared interpolator the key binds has one.
-fn pixel_code_has_loops(program: &Program, f: &Function, key: &VariantKey) -> bool {
-    let loops = |stmts: &[crate::ir::Stmt]| {
-        let mut found = false;
-        for_each_stmt(stmts, &mut |s| found |= matches!(s.kind, StmtKind::Loop { .. }));
-        found
-    };
-    loops(&f.pixel)
-        || key.bindings.iter().any(|b| match &b.kind {
-            BindingKind::Shared(name) => program.find(name).is_some_and(|id| {
-                let g = program.func(id);
-                loops(&g.setup) || loops(&g.pixel)
-            }),
-            BindingKind::Kind(_) | BindingKind::Constant => false,
-        })
 }

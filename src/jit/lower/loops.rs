@@ -23,7 +23,7 @@
 //! plans the copies, [`Lower::unswitched_loops`] emits them).
 //! Z is written back at the end of a group for the lanes that assigned it.
 //!
-//! Fuel: when the pixel code has loops ([`pixel_code_has_loops`]), the kernel stores the
+//! Fuel: when the pixel code has loops ([`crate::mid::pixel_code_has_loops`]), the kernel stores the
 //! fuel each group gets in `ctx.group_fuel` before the loops (`Lower::store_group_fuel`:
 //! the draw's `ctx.pixel_fuel` over the groups of its bound rectangle, at least
 //! `ctx.group_fuel_floor`; see `abi::ctx`), and every group starts by loading it into the
@@ -35,8 +35,8 @@ use cranelift_frontend::Variable;
 
 use super::walk::BlockWalk;
 use super::{elem_scalar, err, Lower, PassRect, PixelState, Res, Storage, ALL_LANE_BITS, DEPTH_FORMAT, UNROLL};
-use crate::abi::{BindingKind, VariantKey, MODE_BOUND};
-use crate::ir::{Elem, Function, ParamRole, Program, Scalar, Stmt, StmtKind};
+use crate::abi::{BindingKind, MODE_BOUND};
+use crate::ir::{Elem, Function, ParamRole, Scalar, StmtKind};
 use crate::jit::fixed;
 use crate::jit::value::{args_flags, ctx_off, mask_const, mem_flags, zero, F32X4, I32X4};
 use crate::mid::block::Prefix;
@@ -106,7 +106,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             self.b.use_var(self.bound_vars[2]),
             self.b.use_var(self.bound_vars[3]),
         ];
-        self.group_fuel_used = pixel_code_has_loops(self.program, f, self.key);
+        self.group_fuel_used = crate::mid::pixel_code_has_loops(self.program, f, self.key);
         if self.group_fuel_used {
             self.store_group_fuel(bx);
         }
@@ -775,22 +775,4 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         Ok(())
     }
-}
-
-/// Whether `f`'s pixel code for `key` may spend fuel: it has a loop, or a shared
-/// interpolator the key binds (inlined into the pixel code) has one.
-pub(super) fn pixel_code_has_loops(program: &Program, f: &Function, key: &VariantKey) -> bool {
-    fn loops(stmts: &[Stmt]) -> bool {
-        let mut found = false;
-        crate::ir::for_each_stmt(stmts, &mut |s| found |= matches!(s.kind, StmtKind::Loop { .. }));
-        found
-    }
-    loops(&f.pixel)
-        || key.bindings.iter().any(|b| match &b.kind {
-            BindingKind::Shared(name) => program.find(name).is_some_and(|id| {
-                let g = program.func(id);
-                loops(&g.setup) || loops(&g.pixel)
-            }),
-            BindingKind::Kind(_) | BindingKind::Constant => false,
-        })
 }
