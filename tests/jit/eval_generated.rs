@@ -295,7 +295,5 @@ fn generated_programs_match_the_evaluator_at_both_tiers_unrolled_or_not() {
     );
     assert!(seen.drawn > 1000 && seen.nonzero_planes > 100, "{seen:?}");
     assert!(seen.errors > 100 && seen.fuel_errors > 10, "{seen:?}");
-    // The one case tier 0 may count differently (see `eval_oracle::compare_tile`) is met.
-    assert!(seen.laneless > 0, "{seen:?}");
     assert_eq!(seen.unsupported, 0, "{seen:?}");
 }

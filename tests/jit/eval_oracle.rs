@@ -151,8 +151,6 @@ pub(crate) struct Seen {
     pub fuel_errors: u64,
     pub setup_fuel_out: u64,
     pub unsupported: usize,
-    /// Runs that counted an index error while no lane executed (see `compare_tile`).
-    pub laneless: usize,
 }
 
 /// Both tiers' JITs for `program`.
@@ -230,7 +228,6 @@ fn compare_tile(
         .take(program.sites.len())
         .sum::<u64>();
     seen.setup_fuel_out += u64::from(primflow::abi::setup_fuel_ran_out(out.fuel).is_some());
-    seen.laneless += usize::from(out.laneless_errors > 0);
     for (tier, k) in kernels {
         let at = format!("{} {tier:?} tile ({x0}, {y0})", case.what);
         let mut tile = Tile::new(case.planes);
@@ -258,14 +255,7 @@ fn compare_tile(
                 i % (W * H)
             );
         }
-        // Tier 0's flat code counts a failing uniform index only where some lane runs it
-        // (`mid::flat`), tier 1 wherever its statement runs (`ir::eval` module doc): where
-        // the two differ, tier 0's counts are not compared (they are, with unrolling off,
-        // where tier 0 is not flat).
         assert_eq!(fuel, out.fuel, "{at}: setup fuel left");
-        if out.laneless_errors > 0 && *tier == Tier::Fast {
-            continue;
-        }
         assert_eq!(&tile.errors[..slots], &want_errors[..], "{at}: error counts");
         match out.first_error {
             Some((code, s)) if out.first_error_in_setup => assert_eq!((error, site), (code, s), "{at}: first error"),
@@ -579,7 +569,8 @@ fn the_evaluator_refuses_a_short_argument_block_or_a_bad_tile_without_panicking(
 }
 
 /// Every lane leaves the loop at its first trip; the statement after the `break` then runs
-/// for no lane, and its uniform index `u` is out of range.
+/// for no lane, and its uniform index `u` is out of range. The same index after the loop
+/// runs for every lane.
 const LANELESS: &str = r#"
 primitive laneless(int u; varying float X, Y; inout varying float Z)
 {
@@ -590,12 +581,12 @@ primitive laneless(int u; varying float X, Y; inout varying float Z)
             break;
         s = a[u];
     }
-    Z = s + 0.125;
+    Z = s + 0.125 + a[u];
 }
 "#;
 
 #[test]
-fn a_uniform_index_no_lane_runs_is_counted_as_tier_1_counts_it() {
+fn a_uniform_index_no_lane_runs_fails_for_no_pixel() {
     let mut sources = SourceMap::new();
     let file = sources.add("laneless.prim", LANELESS);
     let mut diags = Diagnostics::new();
@@ -617,12 +608,13 @@ fn a_uniform_index_no_lane_runs_is_counted_as_tier_1_counts_it() {
     let out = evaluator
         .run(func, &key, &args, &mut t, Budget::default())
         .expect("runs");
-    assert!(out.laneless_errors > 0, "{out:?}");
     assert!(t.writes.iter().all(|&n| n == 1), "every pixel draws");
+    assert!(t.depth.iter().all(|&z| z == support::raw_depth(0.625)), "Z = 0 + 0.125 + a[1]");
     let counts: Vec<u64> = (0..count_slots(&program))
         .map(|i| out.setup_counts[i] + out.pixel_counts[i])
         .collect();
-    // One count per group of the tile: 4 groups a row, 8 rows.
+    // One count per group of the tile (4 groups a row, 8 rows), from the access after the
+    // loop only: the one after the `break` fails for no pixel.
     assert_eq!(counts.iter().sum::<u64>(), 32, "{counts:?}");
     for tier in [Tier::Optimised, Tier::Fast] {
         for unroll_loops in [true, false] {
@@ -631,15 +623,11 @@ fn a_uniform_index_no_lane_runs_is_counted_as_tier_1_counts_it() {
             let mut tile = Tile::new(0);
             tile.run(&k, &args, MODE_RENDER, primflow::abi::DEFAULT_FUEL);
             assert_eq!(tile.depth, t.depth, "{tier:?} unroll {unroll_loops}: depth");
-            // Tier 0 runs this pixel code flat and counts nothing here (`mid::flat`: only
-            // where some lane runs the access), unlike tier 1: see `ir::eval`'s module doc.
-            if tier == Tier::Optimised {
-                assert_eq!(
-                    &tile.errors[..counts.len()],
-                    &counts[..],
-                    "{tier:?} unroll {unroll_loops}: counts"
-                );
-            }
+            assert_eq!(
+                &tile.errors[..counts.len()],
+                &counts[..],
+                "{tier:?} unroll {unroll_loops}: counts"
+            );
         }
     }
 }

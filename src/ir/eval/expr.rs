@@ -194,17 +194,14 @@ impl Machine<'_, '_> {
         };
         let idx: Lanes = lanes.map(|w| convert(idx.sc, Scalar::Int, w));
         // A uniform index of pixel code fails for the group as the JIT checks it: once,
-        // whatever the lanes, under the guards of the arms around it; a varying one where
-        // an executing lane is out of range.
+        // when some lane executes it, under the guards of the arms around it; a varying one
+        // where an executing lane is out of range.
         let failed = if self.pix.is_some() && !index.var.is_varying() {
-            self.guard && idx[0] >= len
+            self.guard && idx[0] >= len && any(self.exec)
         } else {
             self.guard && (0..4).any(|l| idx[l] >= len && self.exec[l])
         };
         if failed {
-            if self.pix.is_some() && !any(self.exec) {
-                self.out.laneless_errors += 1;
-            }
             self.record(ERR_INDEX, site.0, true)?;
         }
         for (base, &i) in acc.base.iter_mut().zip(&idx) {

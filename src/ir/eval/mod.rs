@@ -31,8 +31,11 @@
 //!   exactly as the JIT spends it, and an error is counted once per execution of the
 //!   failing operation per group.
 //! - *Errors.* An index out of range reads the nearest end and counts `ERR_INDEX` at its
-//!   site, as tier 1 checks it: a varying index when an executing lane is out of range, a
-//!   uniform one whenever its statement runs, under the guards of the expression (the arms
+//!   site, as the JIT checks it: a varying index when an executing lane is out of range, a
+//!   uniform one of pixel code when some lane executes it (a group counts an access that
+//!   fails in any of its pixels; after a varying `break`, `continue` or `return` left no
+//!   lane executing, the rest of the statement list still runs and fails for none), of
+//!   setup code whenever its statement runs; under the guards of the expression (the arms
 //!   of `?:` and the right side of `&&`/`||` count only where taken: a varying guard
 //!   needs some lane taking it). A loop head with no fuel left counts `ERR_FUEL` (setup:
 //!   records it and ends the run and its callers' runs, uncounted, with `-(2 + site)` left
@@ -44,12 +47,6 @@
 //!   program, within `crate::limits`, stays far below); every loop spends fuel.
 //!
 //! Where it differs from the JIT:
-//! - from tier 0 only: tier 0's flat pixel code (`mid::flat`) counts a failing uniform
-//!   index only when some lane executes it, tier 1 whenever its statement runs. After a
-//!   varying `break`, `continue` or `return` has left no lane executing, the rest of the
-//!   statement list still runs, and there tier 1 and this evaluator count the error and
-//!   tier 0 may not (the language doc's rule, "a group counts an access that fails in any
-//!   of its pixels", is tier 0's). [`Outcome::laneless_errors`] says when a run met this.
 //! - `ERR_STACK` is never recorded: locals do not live on the native stack here.
 //! - [`Outcome::first_error`] is the first error in this evaluator's order: setup first,
 //!   then groups row by row. The JIT's block walk visits groups in another order, so only a
@@ -177,9 +174,6 @@ pub struct Outcome {
     /// The setup fuel left (`TileCtx::fuel`): `-(2 + site)` as an i64 when a setup loop
     /// ran out (`abi::setup_fuel_ran_out`).
     pub fuel: u64,
-    /// Index errors counted in pixel code while no lane executed (see the module doc:
-    /// tier 1 counts them, tier 0's flat code does not).
-    pub laneless_errors: u64,
     /// The last `bound` the primitive's own setup executed (its pass rectangle before
     /// clipping), if any.
     pub bound: Option<[f32; 4]>,
@@ -311,7 +305,6 @@ fn run_here(
             first_error: None,
             first_error_in_setup: false,
             fuel: budget.setup_fuel,
-            laneless_errors: 0,
             bound: None,
         },
         fuel: budget.setup_fuel as i64,

@@ -113,28 +113,28 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.store_ctx(new_site, ctx_off::ERROR_SITE);
     }
 
-    /// When an error whose own condition is `cond` (i8; `None`: always) happens: `cond`,
-    /// the error guard, and in flat pixel code some lane executing (flat code also runs
-    /// statements no lane executes, see [`crate::mid::flat`]; tier 1 runs them only when some
-    /// lane does, and only then can they fail). `None`: always.
+    /// When an error whose own condition is `cond` (i8; `None`: always) happens: `cond`
+    /// and the error guard. `None`: always.
     pub(super) fn error_condition(&mut self, cond: Option<ir::Value>) -> Option<ir::Value> {
-        let mut happened = cond;
-        let mut and = |l: &mut Self, c: ir::Value| {
-            happened = Some(match happened {
-                Some(h) => l.b.ins().band(h, c),
-                None => c,
-            });
-        };
-        if let Some(g) = self.error_guard {
-            and(self, g);
+        match (cond, self.error_guard) {
+            (Some(c), Some(g)) => Some(self.b.ins().band(c, g)),
+            (c, g) => c.or(g),
         }
-        if self.flat {
-            if let Some(e) = self.exec() {
-                let any = self.b.ins().vany_true(e);
-                and(self, any);
-            }
-        }
-        happened
+    }
+
+    /// `cond` (i8; `None`: always) and, in pixel code, some lane executing: when a uniform
+    /// index of pixel code fails. Pixel code can run a statement no lane executes (flat
+    /// code always does, see [`crate::mid::flat`]; at either tier, the statements after a
+    /// varying `break`, `continue` or `return` left no lane running), and an access no pixel
+    /// makes fails for none: a group counts an access that fails in any of its pixels. (A
+    /// varying index's condition already has the lanes.)
+    pub(super) fn and_some_lane(&mut self, cond: Option<ir::Value>) -> Option<ir::Value> {
+        let Some(e) = self.exec() else { return cond };
+        let any = self.b.ins().vany_true(e);
+        Some(match cond {
+            Some(c) => self.b.ins().band(c, any),
+            None => any,
+        })
     }
 
     /// Add one to the count of error `code` at `site` (`abi::ErrorSlot::of`) when
@@ -186,10 +186,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             return self.record_error_counted(code, site.0, cond, count);
         }
-        let bad = match (cond, self.error_guard) {
-            (Some(c), Some(g)) => Some(self.b.ins().band(c, g)),
-            (c, g) => c.or(g),
-        };
+        let bad = self.error_condition(cond);
         if count {
             self.count_error(code, site.0, bad);
         }

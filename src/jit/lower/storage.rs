@@ -361,12 +361,12 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// that check fails whenever this one would, and first, and the first error is the one
     /// kept (the NURB tessellation's de Boor loops checked each index up to five times in
     /// a row; -6 % of its tier-0 instructions); only its count is added (a compare and
-    /// the add). Not in flat pixel code, where a record also depends on the lanes
-    /// executing.
+    /// the add). Not in pixel code, where a record also depends on the lanes executing
+    /// ([`Self::and_some_lane`]), so an earlier check may have recorded nothing.
     pub(super) fn checked_uniform_index(&mut self, idx: ir::Value, static_len: Option<u32>, site: SiteId) -> ir::Value {
         if self.tier0() {
             let key = VnKey::CheckedIndex(idx, static_len, self.error_guard);
-            let reusable = !(self.flat && self.pix.is_some());
+            let reusable = self.pix.is_none();
             if reusable {
                 let earlier = self
                     .numbered(key)
@@ -386,7 +386,8 @@ impl<'a, 'b> Lower<'a, 'b> {
             }
             let (len, last) = self.len_and_last(static_len);
             let bad = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, idx, len);
-            self.defer_error(ERR_INDEX, site, Some(bad));
+            let bad = self.and_some_lane(Some(bad));
+            self.defer_error(ERR_INDEX, site, bad);
             let zero_s = self.iconst_here(types::I32, 0);
             let c = self.b.ins().smax(idx, zero_s);
             let c = self.b.ins().smin(c, last);
@@ -403,7 +404,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(bad, cold, &[], in_range, &[idx.into()]);
         self.b.set_cold_block(cold);
         self.b.switch_to_block(cold);
-        self.defer_error(ERR_INDEX, site, None);
+        let failed = self.and_some_lane(None);
+        self.defer_error(ERR_INDEX, site, failed);
         let zero_s = self.iconst_here(types::I32, 0);
         let c = self.b.ins().smax(idx, zero_s);
         let c = self.b.ins().smin(c, last);
