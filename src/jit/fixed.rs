@@ -149,12 +149,17 @@ pub fn div(b: &mut FunctionBuilder, fmt: FixedFormat, x: ir::Value, y: ir::Value
         let is_zero = b.ins().icmp_imm_s(IntCC::Equal, c, 0);
         let one = b.ins().iconst(types::I64, 1);
         let den = b.ins().select(is_zero, one, c);
-        let q = if fmt.is_unsigned() {
-            b.ins().udiv(num, den)
+        let sat = if fmt.is_unsigned() {
+            // A u64 quotient (up to 2^64 - 1 for fixed<32,32>): clamped unsigned, since read
+            // signed one of 2^63 or more would be negative and clamp to 0.
+            let q = b.ins().udiv(num, den);
+            let hi = b.ins().iconst(types::I64, fmt.raw_range().1);
+            let q = b.ins().umin(q, hi);
+            b.ins().ireduce(types::I32, q)
         } else {
-            b.ins().sdiv(num, den)
+            let q = b.ins().sdiv(num, den);
+            saturate64(b, fmt, q)
         };
-        let sat = saturate64(b, fmt, q);
         let (lo, hi) = fmt.raw_range();
         let min = b.ins().iconst(types::I32, lo as i32 as i64);
         let max = b.ins().iconst(types::I32, hi as i32 as i64);

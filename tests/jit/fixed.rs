@@ -317,3 +317,61 @@ fn float_to_fixed_32_32_vector_matches_scalar_definition() {
     assert_eq!(fixed_32_32_ref(3.0 * two_m33), 2);
     assert_eq!(fixed_32_32_ref(f32::NAN), 0);
 }
+
+/// `Z = a / b` in the depth format: an unsigned quotient of 2^63 or more (the u64
+/// numerator `a << 32` over a tiny `b`) saturates to the format's largest value, in the
+/// evaluator and at both tiers.
+#[test]
+fn an_unsigned_fixed_quotient_past_2_63_saturates_high() {
+    use primflow::abi::{ArgLayout, ParamSlot, VariantKey};
+    use primflow::diag::{Diagnostics, SourceMap};
+    use primflow::ir::eval::{self, Budget};
+    use primflow::jit::{JitOptions, Tier};
+    const SOURCE: &str = "primitive quotient(fixed<32,32> a, b; varying float X, Y; inout varying fixed<32,32> Z)
+{
+    Z = a / b;
+}
+";
+    let mut sources = SourceMap::new();
+    let file = sources.add("quotient.prim", SOURCE);
+    let mut diags = Diagnostics::new();
+    let program = Arc::new(primflow::compile(&sources, &[file], &mut diags).expect("checks"));
+    let func = program.find("quotient").expect("quotient");
+    let key = VariantKey::default();
+    let layout = ArgLayout::new(&program, func, &key);
+    // (a, b, quotient) raw: 0.75 / 2^-32 and 0.5 / 2^-32 are far past the format's end;
+    // 0.25 / 0.5 is exact; 0.75 / 0.75 saturates just below 1.
+    for (a, b, want) in [
+        (0xC000_0000u32, 1u32, u32::MAX),
+        (0x8000_0000, 1, u32::MAX),
+        (0xFFFF_FFFF, 2, u32::MAX),
+        (0x4000_0000, 0x8000_0000, 0x8000_0000),
+        (0xC000_0000, 0xC000_0000, u32::MAX),
+    ] {
+        let mut args = vec![0u32; layout.words(1)];
+        args[0] = 1;
+        for (i, v) in [a, b].into_iter().enumerate() {
+            let ParamSlot::Fixed { offset, .. } = layout.params[i] else {
+                panic!("a per-primitive parameter")
+            };
+            args[offset as usize] = v;
+        }
+        let mut t = eval::Tile::new(0, 0, W, H, 0, 64, 32);
+        eval::Evaluator::new(&program, true)
+            .run(func, &key, &args, &mut t, Budget::default())
+            .expect("runs");
+        assert!(t.depth.iter().all(|&z| z == want), "evaluator {a:#x} / {b:#x}: {:#x}", t.depth[0]);
+        for tier in [Tier::Fast, Tier::Optimised] {
+            let options = JitOptions { tier, unroll_loops: true };
+            let mut jit = Jit::with_options(program.clone(), options).expect("host ISA");
+            let k = jit.kernel(func, &key).expect("kernel");
+            let mut tile = Tile::new(0);
+            tile.render(&k, &args);
+            assert!(
+                tile.depth.iter().all(|&z| z == want),
+                "{tier:?} {a:#x} / {b:#x}: {:#x}",
+                tile.depth[0]
+            );
+        }
+    }
+}

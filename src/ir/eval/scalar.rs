@@ -109,13 +109,11 @@ fn fixed_div(fmt: FixedFormat, x: u32, y: u32) -> u32 {
         };
     }
     let num = a.wrapping_shl(u32::from(fmt.frac));
-    // The JIT's quotient is an i64 clamped signed, also when it divided unsigned.
-    let q = if fmt.is_unsigned() {
-        ((num as u64) / (c as u64)) as i64
-    } else {
-        num.wrapping_div(c)
-    };
-    saturate64(fmt, q)
+    if fmt.is_unsigned() {
+        // A u64 quotient, clamped unsigned (`fixed::div`).
+        return ((num as u64) / (c as u64)).min(hi as u64) as u32;
+    }
+    saturate64(fmt, num.wrapping_div(c))
 }
 
 fn fixed_rem(fmt: FixedFormat, x: u32, y: u32) -> u32 {
