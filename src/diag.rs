@@ -118,9 +118,13 @@ impl SourceMap {
     }
     pub fn load(&mut self, path: &Path) -> std::io::Result<FileId> {
         let text = std::fs::read_to_string(path)?;
+        Ok(self.add_file(path, text))
+    }
+    /// Add the already read text of the file at `path`.
+    pub fn add_file(&mut self, path: &Path, text: String) -> FileId {
         let id = self.add(path.display().to_string(), text);
         self.files[id as usize].path = Some(path.to_path_buf());
-        Ok(id)
+        id
     }
     pub fn file(&self, id: FileId) -> &SourceFile {
         &self.files[id as usize]

@@ -152,8 +152,7 @@ pub struct SceneBenchReport {
 /// Benchmark the scene of `opts` (see the module doc). Errors: the scene's diagnostics, or
 /// the first disagreement between kernel sources.
 pub fn run_scene(opts: &SceneBenchOptions) -> Result<SceneBenchReport, String> {
-    let text = std::fs::read_to_string(&opts.scene)
-        .map_err(|e| format!("cannot read scene `{}`: {e}", opts.scene.display()))?;
+    let text = crate::scene::read_file(&opts.scene)?;
     let name = opts.scene.display().to_string();
     let base = opts.scene.parent().unwrap_or(Path::new("."));
     let bar = progress_bar(opts.progress)?;

@@ -376,10 +376,10 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
         .spawn(move || crate::runtime::render_pool(wanted))
         .ok();
     let mut sources = SourceMap::new();
-    let scene_file = match sources.load(&args.scene) {
-        Ok(id) => id,
+    let scene_file = match crate::scene::read_file(&args.scene) {
+        Ok(text) => sources.add_file(&args.scene, text),
         Err(e) => {
-            let _ = writeln!(err, "error: cannot read scene `{}`: {e}", args.scene.display());
+            let _ = writeln!(err, "error: {e}");
             return 1;
         }
     };

@@ -105,6 +105,25 @@ pub struct Command {
     pub arg_spans: Vec<Span>,
 }
 
+/// Largest scene file, in bytes (E0606, before the file is read). Spans are 32-bit offsets;
+/// and a scene of triangles takes about 20 bytes of memory per byte of text once parsed and
+/// applied (a 300 MB one peaks at 6 GB), so this keeps a scene within a workstation's memory.
+pub const MAX_SCENE_BYTES: u64 = 1 << 30;
+
+/// Read the scene file at `path`, refusing one larger than [`MAX_SCENE_BYTES`] before
+/// reading it. Errors: the message to print.
+pub fn read_file(path: &Path) -> Result<String, String> {
+    let cannot = |e: std::io::Error| format!("cannot read scene `{}`: {e}", path.display());
+    let len = std::fs::metadata(path).map_err(cannot)?.len();
+    if len > MAX_SCENE_BYTES {
+        return Err(format!(
+            "scene `{}` is {len} bytes, more than the limit of {MAX_SCENE_BYTES} (E0606); nothing rendered",
+            path.display()
+        ));
+    }
+    std::fs::read_to_string(path).map_err(cannot)
+}
+
 /// A parsed scene.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Scene {
@@ -716,6 +735,10 @@ pub fn load_for_render(
     if diags.has_errors() {
         return None;
     }
+    check_prim_dirs(&scene, base, diags);
+    if diags.has_errors() {
+        return None;
+    }
     let mut dirs = dirs.to_vec();
     dirs.extend(scene.prim_dirs(base));
     let (prims, kinds) = scene.library_names();
@@ -723,6 +746,21 @@ pub fn load_for_render(
     let mut renderer = Renderer::new(registry.program);
     apply(&scene, &mut renderer, diags);
     (!diags.has_errors()).then_some(renderer)
+}
+
+/// E0709 at each `prims DIR` line whose directory cannot be read, before any library is
+/// loaded (the registry's own E0709 has no scene line to point at).
+fn check_prim_dirs(scene: &Scene, base: &Path, diags: &mut Diagnostics) {
+    for c in &scene.commands {
+        let CommandKind::Prims(dir) = &c.kind else { continue };
+        let path = base.join(dir);
+        if let Err(e) = std::fs::read_dir(&path) {
+            diags.push(
+                Diagnostic::error("E0709", format!("cannot read primitive directory `{}`: {e}", path.display()))
+                    .primary(c.tokens[1].span, "this directory"),
+            );
+        }
+    }
 }
 
 /// Parse and apply a scene in one go (for tests and tools that have no `prims` lines to

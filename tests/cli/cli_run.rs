@@ -203,3 +203,35 @@ fn transparent_huge_pages_are_off_for_the_process() {
         assert_eq!(enabled, "0", "{}", status());
     }
 }
+
+#[test]
+fn a_prims_line_naming_a_missing_directory_is_e0709_at_that_line() {
+    let scene = temp_file(
+        "prims_missing.scene",
+        "image 8 8\nprims no_such_directory_here\nbegin screen_triangle\nrast_param screen_vertex 0 0 0.5 1  8 0 0.5 1  0 8 0.5 1\nend\n",
+    );
+    let out = scene.with_extension("png");
+    let (code, _, err) = cli(&["render", scene.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("E0709") && err.contains("no_such_directory_here"), "{err}");
+    assert!(err.contains("prims_missing.scene:2:7"), "located at the directory: {err}");
+    assert!(!out.exists(), "nothing rendered");
+}
+
+#[test]
+fn a_scene_past_the_size_limit_is_refused_before_it_is_read() {
+    // A sparse file: its length is past the limit, its blocks are never written or read.
+    let path = temp_file("huge.scene", "");
+    std::fs::File::options()
+        .write(true)
+        .open(&path)
+        .unwrap()
+        .set_len(primflow::scene::MAX_SCENE_BYTES + 1)
+        .unwrap();
+    let out = path.with_extension("png");
+    let (code, _, err) = cli(&["render", path.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    std::fs::remove_file(&path).unwrap();
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("E0606") && err.contains("huge.scene"), "{err}");
+    assert!(!out.exists(), "nothing rendered");
+}
