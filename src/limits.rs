@@ -48,3 +48,11 @@ pub const MAX_CALL_DEPTH: u32 = 32;
 /// body at the depth of its call. A program without helper calls stays below it by the
 /// two limits above (256 + 128 < 512).
 pub const MAX_NESTING: u32 = 512;
+
+/// Most bytes of local variables one primitive or interpolator may have, helpers' inlined
+/// locals included (E0216, at the local that passes it): a varying component takes 16
+/// bytes, a uniform one 4, an interpolation_data element counts as one component. A kernel's frame
+/// holds its arrays, so this is the render threads' stack (`runtime::RENDER_THREAD_STACK`):
+/// a primitive past it could never run, and compiling it would take seconds and, past
+/// 4 GiB, fail in Cranelift.
+pub const MAX_LOCAL_BYTES: u64 = 64 << 20;

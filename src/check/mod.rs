@@ -743,6 +743,7 @@ fn lower_function(
     };
     let errors_before = sink.error_count();
     variability::analyze(&mut f, &infos, roles, sink);
+    check_local_bytes(&f, sink);
     let variability_errors = sink.error_count() > errors_before;
     match kind {
         FuncKind::Primitive => {
@@ -759,4 +760,29 @@ fn lower_function(
     }
     ir::number::renumber(&mut f);
     f
+}
+
+/// E0216 at the first local (in declaration order) whose bytes bring `f`'s total past
+/// [`crate::limits::MAX_LOCAL_BYTES`]. Parameters live in the argument block, not the frame.
+fn check_local_bytes(f: &ir::Function, sink: &mut Sink) {
+    use crate::limits::MAX_LOCAL_BYTES;
+    let mut total: u64 = 0;
+    for l in &f.locals {
+        if matches!(l.kind, LocalKind::Param(_)) {
+            continue;
+        }
+        let per_comp = if l.var.is_varying() { 16 } else { 4 };
+        total += u64::from(l.ty.fixed_len().max(1)) * per_comp;
+        if total > MAX_LOCAL_BYTES {
+            sink.push(
+                Diagnostic::error(
+                    "E0216",
+                    format!("`{}`'s local variables take more than {} MiB", f.name, MAX_LOCAL_BYTES >> 20),
+                )
+                .primary(l.span, format!("`{}` brings them to {} bytes", l.name, total))
+                .help("a varying component takes 16 bytes, a uniform one 4; local arrays live on the render thread's stack"),
+            );
+            return;
+        }
+    }
 }

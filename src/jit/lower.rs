@@ -121,6 +121,11 @@ const PENDING_CODE_SHIFT: u32 = 28;
 /// cleared per row of every vertex stay straight stores), below its per-patch ones.
 const ZERO_LOOP_BYTES: u32 = 256;
 
+/// A clear of more bytes than this in pixel code is a loop, unless the code is flat (see
+/// `Lower::zero_stack_bytes`): a varying array of up to `MAX_FLAT_ARRAY` floats, which
+/// flat code may have, stays straight stores.
+const ZERO_LOOP_PIXEL_BYTES: u32 = 16 * crate::mid::flat::MAX_FLAT_ARRAY;
+
 /// The format depth values have in the depth buffer.
 const DEPTH_FORMAT: FixedFormat = FixedFormat { bits: 32, frac: 32 };
 

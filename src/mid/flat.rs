@@ -20,9 +20,9 @@
 //! - a uniform loop spends fuel whether or not a lane executes it: no uniform loop may be
 //!   in the pixel code (nor in a shared interpolator it inlines);
 //! - an assignment to a uniform local is not masked: none may be in the pixel code;
-//! - a failed array index records a run-time error: in flat pixel code the record is
-//!   further conditioned on some lane executing the access (`Lower::record_error`), which
-//!   is exactly when tier 1 runs it.
+//! - a failed array index records a run-time error: in pixel code, at either tier, the
+//!   record is further conditioned on some lane executing the access
+//!   (`Lower::and_some_lane`).
 //!
 //! Flat code also starts every group with the varying locals the pixel code assigns (and
 //! the setup does not) at zero ([`zeroed_locals`]): assigned under masks, they would
@@ -36,17 +36,28 @@ use super::homes::{Home, Homes};
 use crate::abi::{BindingKind, VariantKey};
 use crate::ir::{ExprId, Function, Program, Stmt, StmtKind};
 
+/// Elements of the largest varying local flat pixel code may have. Clearing a bigger one
+/// is a loop (`Lower::zero_stack_bytes`), which needs blocks: a varying `float a[65536]`
+/// cleared in straight stores was 65536 of them, 11 s of compile.
+pub const MAX_FLAT_ARRAY: u32 = 256;
+
 /// Whether tier 0 may lower `f`'s pixel code for `key` flat (see the module doc): no
-/// uniform loop and no assignment to a uniform local in it, nor in any shared interpolator
-/// the key binds (those are inlined into the pixel code).
+/// uniform loop, no assignment to a uniform local and no varying local of more than
+/// [`MAX_FLAT_ARRAY`] elements in it, nor in any shared interpolator the key binds (those
+/// are inlined into the pixel code).
 pub(crate) fn pixel_code_is_flattenable(program: &Program, f: &Function, key: &VariantKey) -> bool {
-    if !stmts_are_flattenable(f, &f.pixel) {
+    let small = |g: &Function| {
+        g.locals
+            .iter()
+            .all(|l| !l.var.is_varying() || l.ty.fixed_len() <= MAX_FLAT_ARRAY)
+    };
+    if !small(f) || !stmts_are_flattenable(f, &f.pixel) {
         return false;
     }
     key.bindings.iter().all(|b| match &b.kind {
         BindingKind::Shared(name) => program.find(name).is_some_and(|id| {
             let g = program.func(id);
-            stmts_are_flattenable(g, &g.setup) && stmts_are_flattenable(g, &g.pixel)
+            small(g) && stmts_are_flattenable(g, &g.setup) && stmts_are_flattenable(g, &g.pixel)
         }),
         BindingKind::Kind(_) | BindingKind::Constant => true,
     })

@@ -756,8 +756,11 @@ fn check_prim_dirs(scene: &Scene, base: &Path, diags: &mut Diagnostics) {
         let path = base.join(dir);
         if let Err(e) = std::fs::read_dir(&path) {
             diags.push(
-                Diagnostic::error("E0709", format!("cannot read primitive directory `{}`: {e}", path.display()))
-                    .primary(c.tokens[1].span, "this directory"),
+                Diagnostic::error(
+                    "E0709",
+                    format!("cannot read primitive directory `{}`: {e}", path.display()),
+                )
+                .primary(c.tokens[1].span, "this directory"),
             );
         }
     }

@@ -214,7 +214,10 @@ fn a_prims_line_naming_a_missing_directory_is_e0709_at_that_line() {
     let (code, _, err) = cli(&["render", scene.to_str().unwrap(), "-o", out.to_str().unwrap()]);
     assert_eq!(code, 1, "{err}");
     assert!(err.contains("E0709") && err.contains("no_such_directory_here"), "{err}");
-    assert!(err.contains("prims_missing.scene:2:7"), "located at the directory: {err}");
+    assert!(
+        err.contains("prims_missing.scene:2:7"),
+        "located at the directory: {err}"
+    );
     assert!(!out.exists(), "nothing rendered");
 }
 

@@ -4,7 +4,9 @@
 //! missed limit shows as a crash here. Sources are generated in the test.
 
 use primflow::diag::{Diagnostics, SourceMap};
-use primflow::limits::{MAX_BLOCK_DEPTH, MAX_CALL_DEPTH, MAX_EXPR_DEPTH, MAX_NESTING, MAX_SOURCE_BYTES};
+use primflow::limits::{
+    MAX_BLOCK_DEPTH, MAX_CALL_DEPTH, MAX_EXPR_DEPTH, MAX_LOCAL_BYTES, MAX_NESTING, MAX_SOURCE_BYTES,
+};
 
 /// The smallest stack of a compiling thread (std's default for a spawned thread).
 const SMALLEST_STACK: usize = 2 << 20;
@@ -166,4 +168,25 @@ fn a_deep_tree_with_a_syntax_error_is_freed_without_overflowing() {
     let got = codes(text);
     assert!(got.iter().all(|c| c.starts_with("E00")), "{got:?}");
     assert!(!got.is_empty());
+}
+
+/// `n` varying arrays of 65536 floats (1 MiB each), two lines each from line 3, plus a
+/// uniform one of `uniform` floats.
+fn wide_locals(n: usize, uniform: usize) -> String {
+    let mut body: Vec<String> = (0..n)
+        .map(|i| format!("    float a{i}[65536];\n    a{i}[int(X)] = Y;"))
+        .collect();
+    body.push(format!("    float u[{uniform}];"));
+    prim(&body.join("\n"))
+}
+
+#[test]
+fn locals_past_the_size_limit_are_e0216_at_the_local_that_passes_it() {
+    let n = (MAX_LOCAL_BYTES >> 20) as usize;
+    // Under the limit; then n MiB of varying arrays, the limit itself, and a uniform float
+    // 4 bytes past it; then the (n + 1)-th array past it. Both on line 3 + 2n.
+    assert_eq!(codes(wide_locals(n - 1, 65536)), Vec::<String>::new());
+    let line = 3 + 2 * n;
+    assert_eq!(codes(wide_locals(n, 1)), [format!("E0216@{line}:11")]);
+    assert_eq!(codes(wide_locals(n + 1, 1)), [format!("E0216@{line}:11")]);
 }

@@ -609,7 +609,10 @@ fn a_uniform_index_no_lane_runs_fails_for_no_pixel() {
         .run(func, &key, &args, &mut t, Budget::default())
         .expect("runs");
     assert!(t.writes.iter().all(|&n| n == 1), "every pixel draws");
-    assert!(t.depth.iter().all(|&z| z == support::raw_depth(0.625)), "Z = 0 + 0.125 + a[1]");
+    assert!(
+        t.depth.iter().all(|&z| z == support::raw_depth(0.625)),
+        "Z = 0 + 0.125 + a[1]"
+    );
     let counts: Vec<u64> = (0..count_slots(&program))
         .map(|i| out.setup_counts[i] + out.pixel_counts[i])
         .collect();

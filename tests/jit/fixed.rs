@@ -360,9 +360,16 @@ fn an_unsigned_fixed_quotient_past_2_63_saturates_high() {
         eval::Evaluator::new(&program, true)
             .run(func, &key, &args, &mut t, Budget::default())
             .expect("runs");
-        assert!(t.depth.iter().all(|&z| z == want), "evaluator {a:#x} / {b:#x}: {:#x}", t.depth[0]);
+        assert!(
+            t.depth.iter().all(|&z| z == want),
+            "evaluator {a:#x} / {b:#x}: {:#x}",
+            t.depth[0]
+        );
         for tier in [Tier::Fast, Tier::Optimised] {
-            let options = JitOptions { tier, unroll_loops: true };
+            let options = JitOptions {
+                tier,
+                unroll_loops: true,
+            };
             let mut jit = Jit::with_options(program.clone(), options).expect("host ISA");
             let k = jit.kernel(func, &key).expect("kernel");
             let mut tile = Tile::new(0);

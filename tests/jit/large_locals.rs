@@ -4,7 +4,9 @@
 //! by an unrolled loop and read in the pixel part panicked Cranelift's SSA builder at tier 1
 //! (found by mutating `screen_triangle.prim`'s `fa[3]`). Here one such array and two whose
 //! sum is past the limit, and a kernel calling one of them: both tiers draw the exact depth
-//! and report nothing.
+//! and report nothing. A varying array is cleared by a loop (`Lower::zero_stack_bytes`), not
+//! a store per component: `varying_wide` reads what the previous group set, which the
+//! clear must have zeroed, also under a varying `if`.
 
 use crate::support;
 
@@ -44,6 +46,20 @@ primitive calls_wide(float rect[4]; float z; varying float X, Y; inout varying f
     two_wide(rect, z, X, Y, Z);
 }
 
+primitive varying_wide(float rect[4]; float z; varying float X, Y; inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    float v[65536];
+    float w = z + 100 * v[0];
+    v[0] = 1;
+    if (X > 6) {
+        float u[40000];
+        w += 100 * u[39999];
+        u[39999] = 1;
+    }
+    Z = w;
+}
+
 primitive flat(float rect[4]; float z; varying float X, Y; inout varying fixed<32,32> Z)
 {
     bound(rect[0], rect[1], rect[2], rect[3]);
@@ -61,7 +77,7 @@ fn constant_indexed_locals_past_the_variable_limit_render_at_both_tiers() {
     let program = library(&mut sources);
     for z in [0.25f32, 0.625] {
         let reference = rect_scene(&program, "flat", &[("z", z)]);
-        for prim in ["one_wide", "two_wide", "calls_wide"] {
+        for prim in ["one_wide", "two_wide", "calls_wide", "varying_wide"] {
             let r = rect_scene(&program, prim, &[("z", z)]);
             for tier in [Tier::Fast, Tier::Optimised] {
                 let (want, none) = rect_depth_and_codes(&program, &sources, &reference, tier);
@@ -71,5 +87,21 @@ fn constant_indexed_locals_past_the_variable_limit_render_at_both_tiers() {
                 assert!(errors.is_empty(), "{prim} z={z} {tier:?}: {errors:?}");
             }
         }
+    }
+}
+
+/// The clears of `varying_wide`'s 105536 varying floats are loops: its CLIF stays small at
+/// both tiers (straight stores were a line per 16 bytes, 105536 lines, 11 s to compile 20
+/// such arrays).
+#[test]
+fn a_varying_array_is_cleared_by_a_loop() {
+    let mut sources = SourceMap::new();
+    let program = library(&mut sources);
+    let func = program.find("varying_wide").unwrap();
+    let key = primflow::abi::VariantKey::default();
+    for tier in [Tier::Fast, Tier::Optimised] {
+        let jit = primflow::jit::Jit::at_tier(program.clone(), tier).unwrap();
+        let lines = jit.clif(func, &key).unwrap().lines().count();
+        assert!(lines < 2000, "{tier:?}: {lines} lines of CLIF");
     }
 }

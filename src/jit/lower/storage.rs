@@ -24,7 +24,7 @@ use cranelift_frontend::Variable;
 
 use super::{
     all_zero_bits, const_int, elem_scalar, err, Access, AccessTy, Dyn, Frame, I32X4_or, Lower, Res, Root, Storage,
-    ZERO_LOOP_BYTES,
+    ZERO_LOOP_BYTES, ZERO_LOOP_PIXEL_BYTES,
 };
 use crate::abi::{type_words, ParamSlot, ERR_INDEX};
 use crate::ir::{Elem, Expr, ExprKind, FuncId, Function, LocalId, ParamRole, Place, Scalar, SiteId};
@@ -100,7 +100,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                         // comes after a whole assignment.
                         if clear {
                             let addr = self.slot_addr(slot);
-                            self.zero_stack_bytes(addr, 0, bytes);
+                            self.zero_stack_bytes(addr, 0, bytes, None);
                         }
                         Storage::Stack(slot)
                     } else {
@@ -446,17 +446,62 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// Copy `bytes` (a multiple of 4) from stack slot `from` to `to`, 16 bytes per load where
-    /// they fit.
+    /// they fit; past [`Self::loop_bytes`] a loop of four loads and stores per trip (a group
+    /// resetting a uniform `float a[65536]` the pixel code assigns was 32768 instructions).
     pub(super) fn copy_slot(&mut self, from: StackSlot, to: StackSlot, bytes: u32) {
         let src = self.slot_addr(from);
         let dst = self.slot_addr(to);
         let mut off = 0;
+        if self.loop_bytes().is_some_and(|n| bytes > n) {
+            off = bytes / 64 * 64;
+            self.byte_loop(&[src, dst], off, |l, p| {
+                for k in 0..4 {
+                    let v = l.b.ins().load(I32X4, mem_flags(), p[0], 16 * k);
+                    l.b.ins().store(mem_flags(), v, p[1], 16 * k);
+                }
+            });
+        }
         while off + 4 <= bytes {
             let ty = if bytes - off >= 16 { I32X4 } else { types::I32 };
             let v = self.b.ins().load(ty, mem_flags(), src, off as i32);
             self.b.ins().store(mem_flags(), v, dst, off as i32);
             off += ty.bytes();
         }
+    }
+
+    /// Clears and copies of more bytes than this are loops ([`Self::byte_loop`]): in setup
+    /// code [`ZERO_LOOP_BYTES`], in pixel code [`ZERO_LOOP_PIXEL_BYTES`]; `None` in flat pixel
+    /// code, which has no blocks (`mid::flat` keeps big arrays out of it).
+    fn loop_bytes(&self) -> Option<u32> {
+        if self.pix.is_none() {
+            Some(ZERO_LOOP_BYTES)
+        } else {
+            (!self.flat).then_some(ZERO_LOOP_PIXEL_BYTES)
+        }
+    }
+
+    /// A counted loop over `bytes` (a multiple of 64, at least 64) from each address of
+    /// `bases`: `trip(l, p)` emits one trip's 64 bytes at `p` (the addresses, each 64 bytes
+    /// further every trip). Code after it continues in the loop's exit block.
+    fn byte_loop(&mut self, bases: &[ir::Value], bytes: u32, mut trip: impl FnMut(&mut Self, &[ir::Value])) {
+        let last = self.b.ins().iadd_imm_s(bases[0], bytes as i64);
+        let trip_blk = self.b.create_block();
+        let after = self.b.create_block();
+        let p: Vec<ir::Value> = bases
+            .iter()
+            .map(|_| self.b.append_block_param(trip_blk, types::I64))
+            .collect();
+        let args: Vec<ir::BlockArg> = bases.iter().map(|&v| v.into()).collect();
+        self.b.ins().jump(trip_blk, &args);
+        self.b.switch_to_block(trip_blk);
+        trip(self, &p);
+        let next: Vec<ir::Value> = p.iter().map(|&v| self.b.ins().iadd_imm_s(v, 64)).collect();
+        let more = self.b.ins().icmp(IntCC::UnsignedLessThan, next[0], last);
+        let next_args: Vec<ir::BlockArg> = next.iter().map(|&v| v.into()).collect();
+        self.b.ins().brif(more, trip_blk, &next_args, after, &[]);
+        self.seal_now(trip_blk);
+        self.seal_now(after);
+        self.b.switch_to_block(after);
     }
 
     /// A new SSA variable of type `ty` (its type recorded for [`super::outline`]).
@@ -704,7 +749,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         for (idx, site) in &place.indices {
             acc = self.index_access(acc, idx, *site)?;
         }
-        if self.zero_uniform_array(place.local, &acc, value) {
+        if self.zero_array(place.local, &acc, value) {
             return Ok(());
         }
         let v = self.eval(value)?;
@@ -865,13 +910,17 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
-    /// A uniform stack array set whole to all zeros (a declaration without initialiser, or
-    /// `{0, ...}`): cleared 16 bytes per store instead of 4, since all-zero bits are zero in
-    /// every scalar type (the NURB tessellation zeroes ~480 words per vertex). Decided
-    /// before the value is evaluated: evaluating it first left one dead constant per
-    /// component (5700 of the NURB kernel's 32000 tier-0 CLIF lines) for Cranelift to
-    /// process. False (nothing emitted) when the assignment is not such a clear.
-    pub(super) fn zero_uniform_array(&mut self, local: LocalId, acc: &Access<'a>, value: &Expr) -> bool {
+    /// A stack array set whole to all zeros (a declaration without initialiser, or
+    /// `{0, ...}`): cleared 16 bytes per store, since all-zero bits are zero in every scalar
+    /// type (the NURB tessellation zeroes ~480 words per vertex), by [`Self::zero_stack_bytes`]
+    /// (a loop past a size). Uniform arrays of 8 words or more; varying ones past
+    /// [`ZERO_LOOP_PIXEL_BYTES`] (smaller ones stay on the general path, a store per
+    /// component), under the executing lanes where control flow is varying. Decided before
+    /// the value is evaluated: evaluating it first left one dead constant per component
+    /// (5700 of the NURB kernel's 32000 tier-0 CLIF lines) for Cranelift to process; a
+    /// varying `float a[65536]` was 65536 splats and stores. False (nothing emitted) when the
+    /// assignment is not such a clear.
+    pub(super) fn zero_array(&mut self, local: LocalId, acc: &Access<'a>, value: &Expr) -> bool {
         // Cheap tests first: this runs for every assignment.
         if !all_zero_bits(value) {
             return false;
@@ -896,47 +945,57 @@ impl<'a, 'b> Lower<'a, 'b> {
                 Elem::Scalar(_) => value.ty.fixed_len() == words,
                 Elem::Interp => value.ty.elem == Elem::Interp && value.ty.fixed_len() == acc.ty.fixed_len(),
             };
-        if varying || !whole || words < 8 || !fits {
+        let bytes = comp_bytes(varying);
+        let big_enough = if varying {
+            // Flat pixel code has none (`mid::flat`); it would need its blocks.
+            words * bytes > ZERO_LOOP_PIXEL_BYTES && !self.flat
+        } else {
+            words >= 8
+        };
+        if !whole || !big_enough || !fits {
             return false;
         }
+        let lanes = if varying && self.masked() { self.exec() } else { None };
         let base_addr = self.slot_addr(slot);
-        self.zero_stack_bytes(base_addr, acc.base * 4, (acc.base + words) * 4);
+        self.zero_stack_bytes(base_addr, acc.base * bytes, (acc.base + words) * bytes, lanes);
         true
     }
 
-    /// Store zeros to bytes `start..end` (multiples of 4) from `base_addr`, a stack slot's
-    /// address. All-zero bits are zero in every scalar type, so 16 bytes per store (a word
-    /// per store was a quarter of the NURB kernel's CLIF); a clear of more than
-    /// [`ZERO_LOOP_BYTES`] in setup code is a counted loop of four such stores per trip
-    /// (the NURB kernel's 2 KB tessellation arrays were 128 stores each: one CLIF
-    /// instruction per 16 bytes to build, allocate and emit, for a clear that runs once per
-    /// primitive). Pixel code keeps straight stores: its flat tier-0 form has no blocks.
-    pub(super) fn zero_stack_bytes(&mut self, base_addr: ir::Value, start: u32, end: u32) {
+    /// Store zeros to bytes `start..end` (multiples of 4; of 16 with `lanes`) from
+    /// `base_addr`, a stack slot's address; with `lanes` (a varying array's), only to the
+    /// lanes it sets, the rest keeping their bytes. All-zero bits are zero in every scalar
+    /// type, so 16 bytes per store (a word per store was a quarter of the NURB kernel's
+    /// CLIF). A clear of more than [`ZERO_LOOP_BYTES`] in setup code, or of more than
+    /// [`ZERO_LOOP_PIXEL_BYTES`] in pixel code that is not flat, is a counted loop of four
+    /// such stores per trip ([`Self::byte_loop`]; the NURB kernel's 2 KB tessellation arrays
+    /// were 128 stores each: one CLIF instruction per 16 bytes to build, allocate and emit,
+    /// for a clear that runs once per primitive). Flat pixel code keeps straight stores: it
+    /// has no blocks.
+    pub(super) fn zero_stack_bytes(&mut self, base_addr: ir::Value, start: u32, end: u32, lanes: Option<ir::Value>) {
         let zero_vec = mask_const(&mut self.b, false);
+        let clear = |l: &mut Self, addr: ir::Value, off: i32| {
+            let v = match lanes {
+                Some(m) => {
+                    let old = l.b.ins().load(I32X4, mem_flags(), addr, off);
+                    l.b.ins().band_not(old, m)
+                }
+                None => zero_vec,
+            };
+            l.b.ins().store(mem_flags(), v, addr, off);
+        };
         let mut at = start;
-        if end - start > ZERO_LOOP_BYTES && self.pix.is_none() {
-            let trip_bytes = 64;
-            let loop_end = start + (end - start) / trip_bytes * trip_bytes;
+        if self.loop_bytes().is_some_and(|n| end - start > n) {
+            let loop_bytes = (end - start) / 64 * 64;
             let first = self.b.ins().iadd_imm_s(base_addr, start as i64);
-            let last = self.b.ins().iadd_imm_s(base_addr, loop_end as i64);
-            let trip = self.b.create_block();
-            let after = self.b.create_block();
-            let p = self.b.append_block_param(trip, types::I64);
-            self.b.ins().jump(trip, &[first.into()]);
-            self.b.switch_to_block(trip);
-            for k in 0..trip_bytes / 16 {
-                self.b.ins().store(mem_flags(), zero_vec, p, (16 * k) as i32);
-            }
-            let next = self.b.ins().iadd_imm_s(p, trip_bytes as i64);
-            let more = self.b.ins().icmp(IntCC::UnsignedLessThan, next, last);
-            self.b.ins().brif(more, trip, &[next.into()], after, &[]);
-            self.seal_now(trip);
-            self.seal_now(after);
-            self.b.switch_to_block(after);
-            at = loop_end;
+            self.byte_loop(&[first], loop_bytes, |l, p| {
+                for k in 0..4 {
+                    clear(l, p[0], 16 * k);
+                }
+            });
+            at = start + loop_bytes;
         }
         while at + 16 <= end {
-            self.b.ins().store(mem_flags(), zero_vec, base_addr, at as i32);
+            clear(self, base_addr, at as i32);
             at += 16;
         }
         if at < end {
