@@ -67,7 +67,7 @@ impl Flavor {
 }
 
 /// Kernel forms, as const-generic parameters (`polygon::kernel` picks its triangle by one).
-pub(crate) mod isa {
+pub mod isa {
     pub const SCALAR: u8 = 0;
     pub const SSE41: u8 = 1;
     pub const SSE41_VEX: u8 = 2;

@@ -681,7 +681,7 @@ sse_kernel!(
 /// The kernel for `key` in form `isa` (an `isa::*` constant; a form not built for this
 /// architecture is the scalar one), after checking that the key is one this file serves and
 /// that the argument layout has the offsets the kernel reads.
-pub(crate) fn entry_for(layout: &ArgLayout, key: &VariantKey, isa: u8) -> Result<KernelFn, String> {
+pub fn entry_for(layout: &ArgLayout, key: &VariantKey, isa: u8) -> Result<KernelFn, String> {
     let t = match key.bindings.as_slice() {
         [] => 0,
         [Binding {
@@ -723,105 +723,4 @@ pub(crate) fn entry_for(layout: &ArgLayout, key: &VariantKey, isa: u8) -> Result
     #[cfg(not(target_arch = "x86_64"))]
     let kernel: KernelFn = forms!();
     Ok(kernel)
-}
-
-#[cfg(test)]
-mod tests {
-    use std::sync::Arc;
-
-    use super::*;
-    use crate::abi::{Kernel, KernelError};
-    use crate::diag::{Diagnostics, SourceMap};
-    use crate::handwritten::{Flavor, Handwritten};
-    use crate::ir::FuncId;
-    use crate::runtime::{KernelSource, Registry, Renderer, Value};
-
-    /// The hand-written sphere in form `isa` (an `isa::*` constant), whatever the CPU (the
-    /// runtime picks the VEX form on a CPU with AVX; this reaches the legacy one).
-    struct Form {
-        hand: Handwritten,
-        isa: u8,
-    }
-
-    impl KernelSource for Form {
-        fn kernel(&mut self, func: FuncId, key: &VariantKey) -> Result<Arc<Kernel>, KernelError> {
-            let k = self.hand.kernel(func, key)?;
-            let entry = entry_for(&k.layout, key, self.isa).map_err(|message| KernelError { message })?;
-            Ok(Arc::new(Kernel {
-                func: k.func,
-                key: k.key.clone(),
-                entry,
-                layout: k.layout.clone(),
-                compile_micros: 0,
-                warnings: vec![],
-            }))
-        }
-    }
-
-    /// Both SSE4.1 encodings draw exactly what the scalar kernel does (which
-    /// tests/prims/handwritten_shapes.rs holds to the JIT): a viewport that is not whole groups
-    /// wide with small tiles, overlapping spheres of several sizes (one narrower than a
-    /// group), one cut by the hither plane; with the normal and write counts, and without
-    /// either.
-    #[cfg(target_arch = "x86_64")]
-    #[test]
-    fn sse_forms_match_scalar() {
-        if !std::arch::is_x86_feature_detected!("sse4.1") {
-            return;
-        }
-        let mut sources = SourceMap::new();
-        let mut diags = Diagnostics::new();
-        let program = Registry::load(&mut sources, &[], &[], &mut diags)
-            .expect("the library loads")
-            .program;
-        let mut forms = vec![("sse41", isa::SSE41)];
-        if std::arch::is_x86_feature_detected!("avx") {
-            forms.push(("sse41_vex", isa::SSE41_VEX));
-        }
-        for (normal, count_writes) in [(true, true), (false, false)] {
-            let mut r = Renderer::new(program.clone());
-            r.set_image_size(45, 37).unwrap();
-            r.set_tile_size(16).unwrap();
-            r.options.count_writes = count_writes;
-            r.perspective(60.0, 1.0, 50.0);
-            if normal {
-                r.material_interp("N", "implicit", &[]).unwrap();
-                r.material("N", &Value(vec![0.0, 0.0, 1.0])).unwrap();
-            }
-            for (c, radius) in [
-                ([0.0, 0.0, -6.0], 1.5),
-                ([1.2, -0.6, -5.0], 0.7),
-                ([-1.5, 1.0, -7.0], 0.05),
-                ([0.3, 0.2, -1.3], 0.6),
-                ([-0.8, -0.9, -4.0], 1.1),
-            ] {
-                r.begin("sphere").unwrap();
-                r.rast_param("center", &Value(c.to_vec())).unwrap();
-                r.rast_param("radius", &Value(vec![radius])).unwrap();
-                r.end().unwrap();
-            }
-            let mut scalar = Handwritten::new(program.clone(), Flavor::Scalar);
-            let reference = r.render(&mut scalar);
-            assert!(reference.diags.items.is_empty(), "{:?}", reference.diags.items);
-            let drawn = reference.frame.depth_values().iter().filter(|&&d| d != 0).count();
-            assert!(drawn > 45 * 37 / 3, "only {drawn} pixels drawn");
-            for &(name, isa) in &forms {
-                let mut source = Form {
-                    hand: Handwritten::new(program.clone(), Flavor::Scalar),
-                    isa,
-                };
-                let out = r.render(&mut source);
-                assert!(out.diags.items.is_empty(), "{name}: {:?}", out.diags.items);
-                assert!(
-                    crate::workload::same_frame(&reference.frame, &out.frame),
-                    "{name}, normal {normal}: the frame differs from the scalar kernel's"
-                );
-                assert_eq!(
-                    reference.frame.write_count_values(),
-                    out.frame.write_count_values(),
-                    "{name}: write counts differ"
-                );
-            }
-        }
-    }
 }

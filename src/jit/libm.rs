@@ -125,15 +125,3 @@ extern "C" fn primflow_expf(x: f32) -> f32 {
 extern "C" fn primflow_logf(x: f32) -> f32 {
     x.ln()
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn atan2_takes_y_first() {
-        assert_eq!(primflow_atan2f(1.0, 0.0), std::f32::consts::FRAC_PI_2);
-        assert_eq!(LibmFn::Atan2.arity(), 2);
-        assert!(primflow_logf(-1.0).is_nan());
-    }
-}

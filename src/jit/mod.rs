@@ -152,6 +152,11 @@ fn jit_err(what: &str, e: impl std::fmt::Display) -> JitError {
 
 type CacheKey = (FuncId, VariantKey);
 
+/// A fault for tests of `Jit::compile_batch_caught`: once set, compiling the function of
+/// this name at tier 1 panics, as a bug of the JIT or of Cranelift would.
+#[doc(hidden)]
+pub static PANIC_AT_TIER_1: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+
 /// A tier-0 kernel of a tiered JIT and the word its code reads on entry: 0 until the worker
 /// stores the kernel's tier-1 entry point there (see `lower::lower_kernel`). The words are
 /// leaked on purpose, like the code that reads them (compiled code is never freed).
@@ -540,10 +545,17 @@ impl Jit {
     /// The tier-1 entry point the tier-0 kernel for (`func`, `key`) now forwards to, once
     /// the worker has compiled it (tiered JITs only; see `lower::lower_kernel`).
     pub fn tier0_forwards_to(&self, func: FuncId, key: &VariantKey) -> Option<KernelFn> {
-        let word = self.upgrade_words.get(&(func, key.clone()))?.load(Ordering::Acquire);
+        let word = self.upgrade_word(func, key)?.load(Ordering::Acquire);
         // SAFETY: the worker stores only entry points of finalized kernels with the kernel
         // signature (`KernelFn`); 0 means none yet.
         (word != 0).then(|| unsafe { std::mem::transmute::<usize, KernelFn>(word) })
+    }
+
+    /// The upgrade word of the tier-0 kernel for (`func`, `key`) (tiered JITs only): the
+    /// entry its code forwards to, 0 for none. For tests that store a stand-in entry there.
+    #[doc(hidden)]
+    pub fn upgrade_word(&self, func: FuncId, key: &VariantKey) -> Option<&'static AtomicUsize> {
+        self.upgrade_words.get(&(func, key.clone())).copied()
     }
 
     /// Let the tier-1 worker go without waiting for it, for a process about to exit (dropping
@@ -710,8 +722,10 @@ impl Jit {
     /// waits for it would hang and every later frame would leave it a core.
     fn compile_batch_caught(&mut self, root: FuncId, key: &VariantKey) -> Result<Vec<UpgradeWord>, JitError> {
         let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            #[cfg(test)]
-            tests::panic_if_asked(self, root);
+            let injected = PANIC_AT_TIER_1.get() == Some(&self.program.func(root).name);
+            if injected && self.options.tier == Tier::Optimised {
+                panic!("a panic for a test");
+            }
             self.compile_batch(root, key)
         }));
         caught.unwrap_or_else(|payload| {
@@ -1032,111 +1046,5 @@ impl Jit {
             flag("has_fma"),
             flag("has_avx512f"),
         )
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::abi::TierUpActivity;
-
-    /// A primitive whose tier-1 compile panics (see [`panic_if_asked`]).
-    const PANICS_AT_TIER_1: &str = "panics_at_tier_1";
-
-    /// Stands in for a bug of the JIT: compiling `PANICS_AT_TIER_1` at tier 1 panics.
-    pub(super) fn panic_if_asked(jit: &Jit, root: FuncId) {
-        if jit.options.tier == Tier::Optimised && jit.program.func(root).name == PANICS_AT_TIER_1 {
-            panic!("a panic for a test");
-        }
-    }
-
-    #[test]
-    fn a_panic_while_compiling_is_an_error_and_the_tier_1_worker_lives_on() {
-        let source = format!(
-            "primitive {PANICS_AT_TIER_1}(float rect[4]; varying float X, Y; inout varying fixed<32,32> Z)\n\
-             {{\n    bound(rect[0], rect[1], rect[2], rect[3]);\n    Z = 0.5;\n}}\n"
-        );
-        let mut sources = crate::diag::SourceMap::new();
-        let file = sources.add("panics.prim", source);
-        let mut diags = crate::diag::Diagnostics::new();
-        let program = Arc::new(crate::compile(&sources, &[file], &mut diags).expect("checks"));
-        let func = FuncId(0);
-        let key = VariantKey::default();
-
-        let mut tier1 = Jit::at_tier(program.clone(), Tier::Optimised).unwrap();
-        let err = tier1.kernel(func, &key).err().expect("the panic is an error");
-        assert!(
-            err.message.contains("internal compiler error") && err.message.contains(PANICS_AT_TIER_1),
-            "{}",
-            err.message
-        );
-        assert!(tier1.kernel(func, &key).is_err(), "and stays one");
-
-        // Tiered: tier 0 compiles; the worker's compile fails instead of killing it.
-        let mut tiered = Jit::tiered(program).unwrap();
-        let tier0 = tiered.kernel(func, &key).expect("tier 0");
-        let watch = tiered.tier_up_watch().expect("a tiered JIT has a worker");
-        assert!(
-            !watch.wait(std::time::Duration::from_secs(120)),
-            "the failed compile is no longer pending"
-        );
-        assert_eq!(watch.activity(), TierUpActivity::Idle);
-        assert!(tiered.tier_up_kernel(func, &key).is_none());
-        assert_eq!(tiered.kernel(func, &key).unwrap().entry as usize, tier0.entry as usize);
-    }
-
-    /// Kernels are shared across render threads; the JIT itself moves between threads.
-    #[test]
-    fn kernels_are_send_and_sync() {
-        fn send_sync<T: Send + Sync>() {}
-        send_sync::<Kernel>();
-        send_sync::<Arc<Kernel>>();
-    }
-
-    static FORWARDED_CALLS: AtomicUsize = AtomicUsize::new(0);
-
-    unsafe extern "C" fn count_call(_ctx: *mut crate::abi::TileCtx, _args: *const u32) {
-        FORWARDED_CALLS.fetch_add(1, Ordering::SeqCst);
-    }
-
-    /// The tier-0 code itself reads its upgrade word: with a stand-in entry stored there, a
-    /// call of the tier-0 entry runs the stand-in, and with the word cleared, its own code.
-    #[test]
-    fn a_tiered_jits_tier_0_kernel_calls_the_entry_in_its_word() {
-        let mut sources = crate::diag::SourceMap::new();
-        let mut diags = crate::diag::Diagnostics::new();
-        let program = crate::runtime::Registry::load(&mut sources, &[], &[], &mut diags)
-            .expect("library")
-            .program;
-        let r = crate::workload::fill_scene(&program, 32, 1, Some("perspective_linear"), 4);
-        let inst = &r.instances()[0];
-        let mut jit = Jit::tiered(program.clone()).unwrap();
-        let tier0 = jit.kernel(inst.func, &inst.key).unwrap();
-        // The worker is idle after this and never writes the word again.
-        jit.wait_for_tier_up();
-        let word = jit.upgrade_words[&(inst.func, inst.key.clone())];
-        assert_eq!(
-            word.load(Ordering::SeqCst),
-            jit.tier_up_kernel(inst.func, &inst.key).unwrap().entry as usize
-        );
-        let run = |mode| {
-            let mut ctx = crate::abi::TileCtx::new(mode, 32, 32);
-            let mut no_depth: Vec<u32> = Vec::new();
-            ctx.depth = no_depth.as_mut_ptr();
-            let mut errors = crate::abi::ErrorCounts::new(&program);
-            ctx.setup_counts = errors.ptr();
-            ctx.pixel_counts = errors.ptr();
-            // SAFETY: bound mode with an empty tile touches no buffer (as `run_bound`) but
-            // the error counts; the argument block is the instance's, laid out for this
-            // kernel.
-            unsafe { (tier0.entry)(&mut ctx, inst.args.as_ptr()) };
-            ctx.bound_set
-        };
-        word.store(count_call as KernelFn as usize, Ordering::SeqCst);
-        assert_eq!(run(crate::abi::MODE_BOUND), 0, "the stand-in records no bound");
-        assert_eq!(FORWARDED_CALLS.load(Ordering::SeqCst), 1);
-        word.store(0, Ordering::SeqCst);
-        assert_eq!(run(crate::abi::MODE_BOUND), 1, "its own code records the bound");
-        assert_eq!(FORWARDED_CALLS.load(Ordering::SeqCst), 1);
     }
 }

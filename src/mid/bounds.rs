@@ -71,7 +71,7 @@ const WIDEN_AFTER: usize = 8;
 
 /// A closed range holding every value an expression can take; never NaN, never infinite.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct Interval {
+pub struct Interval {
     pub lo: f64,
     pub hi: f64,
 }
@@ -82,7 +82,7 @@ impl Interval {
     }
 
     /// `None` unless both ends are finite, ordered and within `MAX_FINITE`.
-    fn new(lo: f64, hi: f64) -> Option<Interval> {
+    pub fn new(lo: f64, hi: f64) -> Option<Interval> {
         (lo <= hi && lo >= -MAX_FINITE && hi <= MAX_FINITE).then_some(Interval { lo, hi })
     }
 
@@ -108,7 +108,7 @@ impl Interval {
 
 /// The hull of `f` applied to every pair of ends (for `*` and `/`, whose extremes are at
 /// the corners), rounded outward.
-fn corners(a: Interval, b: Interval, f: impl Fn(f64, f64) -> f64) -> Option<Interval> {
+pub fn corners(a: Interval, b: Interval, f: impl Fn(f64, f64) -> f64) -> Option<Interval> {
     let c = [f(a.lo, b.lo), f(a.lo, b.hi), f(a.hi, b.lo), f(a.hi, b.hi)];
     let lo = c.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = c.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -488,25 +488,4 @@ fn float_const(e: &Expr) -> Option<f64> {
     };
     // The comparison is made in f32: the constant must be the value the lanes compare with.
     (e.ty.elem == Elem::Scalar(Scalar::Float) && (x as f32) as f64 == x && x.is_finite()).then_some(x)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn interval_products_take_the_corners_and_round_outward() {
-        let a = Interval { lo: -2.0, hi: 3.0 };
-        let b = Interval { lo: 16.0, hi: 16.0 };
-        let p = corners(a, b, |x, y| x * y).unwrap();
-        assert!(p.lo < -32.0 && p.lo > -32.001, "{p:?}");
-        assert!(p.hi > 48.0 && p.hi < 48.001, "{p:?}");
-    }
-
-    #[test]
-    fn bounds_past_f32_range_are_dropped() {
-        let a = Interval { lo: 0.0, hi: 1e30 };
-        assert!(corners(a, a, |x, y| x * y).is_none());
-        assert!(Interval::new(f64::NAN, 0.0).is_none());
-    }
 }

@@ -51,7 +51,7 @@ pub(crate) const MAX_TRIPS: u32 = 16;
 pub(crate) const MAX_UNROLLED_STMTS: usize = 512;
 
 /// Known values of uniform scalar int locals at the current point.
-type Env = HashMap<LocalId, i32>;
+pub type Env = HashMap<LocalId, i32>;
 
 /// `f` with its constant-trip uniform loops unrolled and integer constants propagated.
 ///
@@ -286,7 +286,7 @@ fn is_scalar_of(e: &Expr, s: Scalar) -> bool {
 }
 
 /// `e` with known locals replaced by their values and constant int/bool operations folded.
-fn fold(e: &Expr, env: &Env) -> Expr {
+pub fn fold(e: &Expr, env: &Env) -> Expr {
     let mut out = e.clone();
     fold_in(&mut out, env);
     out
@@ -456,73 +456,5 @@ fn fold_binary(op: BinOp, a: &Expr, c: &Expr) -> Option<ConstValue> {
             })
         }
         _ => None,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::diag::Span;
-    use crate::ir::Type;
-
-    fn int(v: i32) -> Expr {
-        Expr::new(
-            ExprKind::Const(ConstValue::Int(v)),
-            Type::int(),
-            Variability::Uniform,
-            Span::default(),
-        )
-    }
-
-    fn bin(op: BinOp, a: Expr, c: Expr) -> Expr {
-        let ty = if matches!(
-            op,
-            BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne
-        ) {
-            Type::bool()
-        } else {
-            Type::int()
-        };
-        Expr::new(
-            ExprKind::Binary {
-                op,
-                lhs: Box::new(a),
-                rhs: Box::new(c),
-            },
-            ty,
-            Variability::Uniform,
-            Span::default(),
-        )
-    }
-
-    fn folded(e: &Expr) -> Option<ConstValue> {
-        match fold(e, &Env::new()).kind {
-            ExprKind::Const(c) => Some(c),
-            _ => None,
-        }
-    }
-
-    /// Folding follows the JIT's integer semantics, edge cases included.
-    #[test]
-    fn folds_ints_like_the_jit() {
-        let cases = [
-            (BinOp::Add, i32::MAX, 1, i32::MIN),
-            (BinOp::Mul, 65536, 65536, 0),
-            (BinOp::Div, 7, -2, -3),
-            (BinOp::Rem, -7, 3, -1),
-            (BinOp::Div, 5, 0, 0),
-            (BinOp::Rem, 5, 0, 0),
-            (BinOp::Div, i32::MIN, -1, i32::MIN),
-            (BinOp::Rem, i32::MIN, -1, 0),
-        ];
-        for (op, x, y, want) in cases {
-            assert_eq!(
-                folded(&bin(op, int(x), int(y))),
-                Some(ConstValue::Int(want)),
-                "{op:?} {x} {y}"
-            );
-        }
-        assert_eq!(folded(&bin(BinOp::Lt, int(2), int(3))), Some(ConstValue::Bool(true)));
-        assert_eq!(folded(&bin(BinOp::Ge, int(2), int(3))), Some(ConstValue::Bool(false)));
     }
 }

@@ -67,7 +67,7 @@ const BOUND_CHUNK: usize = 64;
 /// One kernel invocation per tile it is binned into: a submitted instance, or a call that an
 /// expanded instance made.
 #[derive(Clone, Copy)]
-pub(crate) struct Draw<'a> {
+pub struct Draw<'a> {
     pub entry: KernelFn,
     pub args: &'a [u32],
     /// `TileCtx::call_depth` to run it at (0 for an instance, the call's depth for a call).
@@ -128,7 +128,7 @@ pub(super) fn context(mode: u32, opts: &RenderOptions) -> TileCtx {
 }
 
 /// An inclusive rectangle of tile indices: (tx0, ty0, tx1, ty1).
-pub(super) type TileRect = (usize, usize, usize, usize);
+pub type TileRect = (usize, usize, usize, usize);
 
 /// Where a draw's argument block lives.
 #[derive(Clone, Copy)]
@@ -168,7 +168,7 @@ impl Budget {
 
 /// One submitted instance's draws (itself, or the calls it made), the tiles each overlaps
 /// and the run-time errors met on the way, in order.
-pub(crate) enum Expanded {
+pub enum Expanded {
     /// Drawn as itself (the usual case: a frame may hold hundreds of thousands of small
     /// triangles, so this allocates nothing and stays small).
     Itself {
@@ -186,7 +186,7 @@ pub(crate) enum Expanded {
 }
 
 /// The draws of an instance replaced by its calls.
-pub(crate) struct CallDraws {
+pub struct CallDraws {
     /// Argument blocks of the recorded calls, back to back.
     pool: Vec<u32>,
     items: Vec<Item>,

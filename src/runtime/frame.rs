@@ -94,27 +94,32 @@ pub struct Frame {
     stride: u32,
     num_planes: u32,
     /// `stride * height`.
-    depth: Vec<u32>,
+    #[doc(hidden)]
+    pub depth: Vec<u32>,
     /// `num_planes` planes of `stride * height`, [`plane_pitch`] elements apart.
-    planes: Vec<f32>,
+    #[doc(hidden)]
+    pub planes: Vec<f32>,
     write_counts: Option<Vec<u32>>,
     /// The deferred shading pass's colours, `stride * height` (`None` when the scene turns
     /// no effect on and covered pixels show `Cs`).
-    pub(super) colors: Option<Vec<[f32; 3]>>,
+    #[doc(hidden)]
+    pub colors: Option<Vec<[f32; 3]>>,
 }
 
-pub(super) struct Tile {
-    pub(super) x0: u32,
-    pub(super) y0: u32,
-    pub(super) x1: u32,
-    pub(super) y1: u32,
+/// One tile of the grid: pixels `x0..x1` by `y0..y1`.
+#[doc(hidden)]
+pub struct Tile {
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
 }
 
 impl Tile {
     /// Columns of the tile's rectangle in every buffer, from `x0`: its pixels rounded up to
     /// whole groups, which is what its kernels address. `x1 - x0` is a multiple of `GROUP`
     /// except at the viewport's right edge, where the rounding reaches into the padding.
-    pub(super) fn group_columns(&self) -> u32 {
+    pub fn group_columns(&self) -> u32 {
         row_stride(self.x1 - self.x0)
     }
 }
@@ -192,7 +197,8 @@ impl Frame {
     /// Shape the frame for a render with `opts` and `num_planes` planes, keeping the buffers
     /// it already has (room enough: nothing allocated). Contents are left as they are: the
     /// tile tasks zero and write every tile's part, padding included.
-    pub(super) fn reset(&mut self, opts: &RenderOptions, num_planes: u32, params: impl Iterator<Item = ParamPlanes>) {
+    #[doc(hidden)]
+    pub fn reset(&mut self, opts: &RenderOptions, num_planes: u32, params: impl Iterator<Item = ParamPlanes>) {
         self.width = opts.width;
         self.height = opts.height;
         self.stride = row_stride(opts.width);
@@ -666,7 +672,8 @@ fn clamp01(v: f32) -> f32 {
 /// f32 in [0, 1] when written; `to_u8_rounds_half_away_from_zero` tests the ties and their
 /// neighbours).
 #[allow(clippy::manual_clamp)] // `clamp` keeps NaN
-fn to_u8(v: f32) -> u8 {
+#[doc(hidden)]
+pub fn to_u8(v: f32) -> u8 {
     let x = v.max(0.0).min(1.0) * 255.0;
     // SAFETY: `x` is finite and in [0, 255], so it truncates to an i32 exactly.
     let whole = unsafe { x.to_int_unchecked::<i32>() };
@@ -689,209 +696,4 @@ fn rows_to_u8<'b>(rows: [&[f32]; 3], bytes: &'b mut [u8]) -> [&'b [u8]; 3] {
     to_u8_row(rows[1], g);
     to_u8_row(rows[2], b);
     [r, g, b]
-}
-
-#[cfg(test)]
-pub(super) mod tests {
-    use super::*;
-
-    /// The row-wise `to_rgb8` gives `color_at` rounded at every pixel: unwritten pixels (the
-    /// background, clamped), shaded colours, `Cs` of 3 and 1 components and of a plane the
-    /// frame lacks, no `Cs`, values outside [0, 1] and NaN, a width that is not a whole
-    /// stride.
-    #[test]
-    fn to_rgb8_is_color_at_at_every_pixel() {
-        let (w, h) = (7, 5);
-        let values = [0.25, -1.0, 2.0, f32::NAN, 0.5, 1.0 / 255.0, 0.999];
-        for case in 0..5 {
-            let mut f = Frame::empty();
-            let o = RenderOptions {
-                background: [0.2, 1.5, -0.3],
-                ..opts(w, h, 4)
-            };
-            let (components, first) = [(3, 1), (1, 2), (3, 2), (0, 0), (3, 1)][case];
-            let cs = (components > 0).then(|| ParamPlanes {
-                name: "Cs".into(),
-                first_plane: first,
-                components,
-            });
-            // Case 2 names planes 2..5 of a 4-plane frame: the last reads as 0.
-            f.reset(&o, 4, cs.into_iter());
-            for (k, v) in f.planes.iter_mut().enumerate() {
-                *v = values[k % values.len()] * (1.0 + k as f32 / 64.0);
-            }
-            for (i, d) in f.depth.iter_mut().enumerate() {
-                *d = if i % 3 == 0 { 0 } else { i as u32 };
-            }
-            if case == 4 {
-                let n = f.depth.len();
-                f.colors = Some((0..n).map(|i| [values[i % 7], values[(i + 1) % 7], 0.5]).collect());
-            }
-            let image = f.to_rgb8();
-            for y in 0..h {
-                for x in 0..w {
-                    let want = f.color_at(x, y).map(to_u8);
-                    assert_eq!(image.get_pixel(x, y).0, want, "case {case} at ({x}, {y})");
-                }
-            }
-            // Both kinds of pixel occur.
-            assert!((0..w).any(|x| f.written(x, 0)) && (0..w).any(|x| !f.written(x, 0)));
-        }
-    }
-
-    /// `param_image` row by row gives what it gave pixel by pixel through `plane_at` and
-    /// `written`: 3 components clamped (unwritten pixels included), 1 as gray over the range
-    /// of the written finite values, a constant one as mid gray, a missing plane as 0.
-    #[test]
-    fn param_image_is_its_per_pixel_definition() {
-        let (w, h) = (7, 5);
-        let values = [0.25, -1.0, 2.0, f32::NAN, 0.5, f32::INFINITY, 0.999];
-        let cases = [
-            ("c3", 3, 0, false),
-            ("g", 1, 3, false),
-            ("flat", 1, 1, true),
-            ("gone", 1, 4, false),
-        ];
-        for (name, components, first, flat) in cases {
-            let mut f = Frame::empty();
-            let param = ParamPlanes {
-                name: name.into(),
-                first_plane: first,
-                components,
-            };
-            f.reset(&opts(w, h, 4), 4, std::iter::once(param));
-            for (k, v) in f.planes.iter_mut().enumerate() {
-                *v = if flat {
-                    0.75
-                } else {
-                    values[k % values.len()] * (1.0 + k as f32 / 64.0)
-                };
-            }
-            for (i, d) in f.depth.iter_mut().enumerate() {
-                *d = if i % 3 == 0 { 0 } else { i as u32 };
-            }
-            let image = f.param_image(name).unwrap();
-            let at = |k: u32, x: u32, y: u32| f.plane_at(first + k, x, y).unwrap_or(0.0);
-            let gray = |x: u32, y: u32| (f.written(x, y) && at(0, x, y).is_finite()).then(|| at(0, x, y));
-            let seen: Vec<f32> = (0..h).flat_map(|y| (0..w).filter_map(move |x| gray(x, y))).collect();
-            let lo = seen.iter().copied().fold(f32::INFINITY, f32::min);
-            let hi = seen.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-            for y in 0..h {
-                for x in 0..w {
-                    let want = if components == 3 {
-                        [0, 1, 2].map(|k| to_u8(at(k, x, y)))
-                    } else {
-                        let g = match gray(x, y) {
-                            None => 0.0,
-                            Some(v) if hi > lo => (v - lo) / (hi - lo),
-                            Some(_) => 0.5,
-                        };
-                        [to_u8(g); 3]
-                    };
-                    assert_eq!(image.get_pixel(x, y).0, want, "{name} at ({x}, {y})");
-                }
-            }
-        }
-        let mut f = Frame::empty();
-        let two = ParamPlanes {
-            name: "uv".into(),
-            first_plane: 0,
-            components: 2,
-        };
-        f.reset(&opts(4, 4, 4), 2, std::iter::once(two));
-        assert!(f.param_image("uv").is_err() && f.param_image("none").is_err());
-    }
-
-    #[test]
-    fn depth_image_is_the_top_16_bits_of_every_pixels_depth() {
-        let (w, h) = (7, 5);
-        let mut f = Frame::empty();
-        f.reset(&opts(w, h, 4), 0, std::iter::empty());
-        for (i, d) in f.depth.iter_mut().enumerate() {
-            *d = (i as u32).wrapping_mul(0x9e37_79b9) | u32::from(i % 4 == 0) << 31;
-        }
-        let image = f.depth_image();
-        assert_eq!(image.dimensions(), (w, h));
-        for y in 0..h {
-            for x in 0..w {
-                let want = (f.depth_at(x, y).unwrap() >> 16) as u16;
-                assert_eq!(image.get_pixel(x, y).0, [want], "({x}, {y})");
-            }
-        }
-        // A frame never rendered: an empty image, no panic.
-        assert_eq!(Frame::empty().depth_image().dimensions(), (0, 0));
-    }
-
-    #[test]
-    fn to_u8_rounds_half_away_from_zero() {
-        // Every tie k + 1/2 of the 8-bit scale and the floats either side of it, the ends,
-        // and what clamps: the same as `round()`.
-        let reference = |v: f32| (clamp01(v) * 255.0).round() as u8;
-        let mut values = vec![0.0, 1.0, -0.0, -1.0, 2.0, f32::NAN, f32::INFINITY, f32::MIN_POSITIVE];
-        for k in 0..256 {
-            let tie = (k as f32 + 0.5) / 255.0;
-            values.extend([
-                tie,
-                f32::from_bits(tie.to_bits() - 1),
-                f32::from_bits(tie.to_bits() + 1),
-            ]);
-            values.push(k as f32 / 255.0);
-        }
-        for v in values {
-            assert_eq!(to_u8(v), reference(v), "{v:e}");
-        }
-    }
-
-    pub(in crate::runtime) fn opts(w: u32, h: u32, ts: u32) -> RenderOptions {
-        RenderOptions {
-            width: w,
-            height: h,
-            tile_size: ts,
-            ..RenderOptions::default()
-        }
-    }
-
-    #[test]
-    fn strides_and_tile_sides_are_whole_groups() {
-        assert_eq!(row_stride(64), 64);
-        assert_eq!(row_stride(13), 16);
-        assert_eq!(row_stride(1), 4);
-        assert_eq!(row_stride(0), 0);
-        assert_eq!(
-            [0, 1, 4, 5, 16, 63, 4096, 5000].map(tile_side),
-            [4, 4, 4, 8, 16, 64, 4096, 4096]
-        );
-    }
-
-    /// Planes are whole lines apart, 17 lines modulo 64 (so plane `p` starts `17 p` cache
-    /// sets after plane 0 in any power-of-two set count up to 64 sets per 4 KiB), with
-    /// less than 64 lines of padding.
-    #[test]
-    fn plane_pitch_spreads_planes_over_cache_sets() {
-        for len in [
-            0usize,
-            1,
-            15,
-            16,
-            17,
-            4096,
-            64 * 64,
-            500 * 500,
-            512 * 512,
-            520 * 517,
-            16384 * 16384,
-        ] {
-            let pitch = plane_pitch(len);
-            assert!(pitch >= len, "{len}");
-            assert_eq!(pitch % 16, 0, "{len}");
-            assert_eq!((pitch / 16) % 64, 17, "{len}");
-            assert!(pitch - len < 64 * 16, "{len}");
-            // The first 64 planes' starts fall in 64 different 4 KiB-cache sets.
-            let mut sets: Vec<usize> = (0..64).map(|p| (p * pitch * 4 / 64) % 64).collect();
-            sets.sort_unstable();
-            sets.dedup();
-            assert_eq!(sets.len(), 64, "{len}");
-        }
-        assert_eq!(plane_pitch(512 * 512), 512 * 512 + 17 * 16);
-    }
 }

@@ -26,7 +26,8 @@
 
 pub mod api;
 mod errors;
-mod expand;
+#[doc(hidden)]
+pub mod expand;
 pub mod frame;
 pub mod geometry;
 pub mod kernels;
@@ -34,7 +35,8 @@ pub mod pool;
 pub mod registry;
 pub mod render;
 pub mod shading;
-mod tiergate;
+#[doc(hidden)]
+pub mod tiergate;
 pub mod transform;
 pub mod value;
 

@@ -58,8 +58,10 @@ pub fn pinning_plan(threads: usize) -> Option<Vec<usize>> {
     Some(cpus)
 }
 
+/// The CPUs this thread may run on (its affinity mask), in CPU order; `None` when the mask
+/// cannot be read.
 #[cfg(target_os = "linux")]
-fn allowed_cpus() -> Option<Vec<usize>> {
+pub fn allowed_cpus() -> Option<Vec<usize>> {
     // SAFETY: `set` is a plain bit mask the call fills in; size and pointer match.
     let set = unsafe {
         let mut set: libc::cpu_set_t = std::mem::zeroed();
@@ -75,8 +77,9 @@ fn allowed_cpus() -> Option<Vec<usize>> {
     (!cpus.is_empty()).then_some(cpus)
 }
 
+/// The CPUs this thread may run on: never known off Linux.
 #[cfg(not(target_os = "linux"))]
-fn allowed_cpus() -> Option<Vec<usize>> {
+pub fn allowed_cpus() -> Option<Vec<usize>> {
     None
 }
 
@@ -123,42 +126,3 @@ fn pin_current_thread(cpu: usize) {
 
 #[cfg(not(target_os = "linux"))]
 fn pin_current_thread(_cpu: usize) {}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn plan_pins_only_pools_of_two_to_cpu_count_threads() {
-        assert_eq!(pinning_plan(1), None);
-        let Some(cpus) = allowed_cpus() else {
-            return; // not Linux: nothing is ever pinned
-        };
-        assert_eq!(pinning_plan(cpus.len() + 1), None);
-        if cpus.len() >= 2 {
-            let plan = pinning_plan(cpus.len()).expect("a pool of one thread per CPU is pinned");
-            let mut sorted = plan.clone();
-            sorted.sort_unstable();
-            assert_eq!(sorted, cpus, "every allowed CPU once");
-        }
-    }
-
-    #[cfg(target_os = "linux")]
-    #[test]
-    fn pool_threads_are_each_allowed_only_their_planned_cpu() {
-        if allowed_cpus().is_none_or(|c| c.len() < 2) {
-            return;
-        }
-        let plan = pinning_plan(2).unwrap();
-        let pool = render_pool(2).unwrap();
-        // Each thread's own affinity mask, read on the thread.
-        let masks = pool.broadcast(|ctx| (ctx.index(), allowed_cpus()));
-        for (i, mask) in masks {
-            assert_eq!(mask, Some(vec![plan[i]]), "thread {i}");
-        }
-        assert_ne!(plan[0], plan[1]);
-        // A one-thread pool keeps the process's whole mask.
-        let one = render_pool(1).unwrap();
-        assert_eq!(one.install(allowed_cpus), allowed_cpus());
-    }
-}

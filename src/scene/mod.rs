@@ -545,7 +545,9 @@ fn parse_material_interp(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), D
     ))
 }
 
-fn edit_distance(a: &str, b: &str) -> usize {
+/// The Levenshtein distance between `a` and `b`, in characters: how the reader finds the
+/// command an unknown word was probably meant to be.
+pub fn edit_distance(a: &str, b: &str) -> usize {
     let b: Vec<char> = b.chars().collect();
     let mut row: Vec<usize> = (0..=b.len()).collect();
     for (i, ca) in a.chars().enumerate() {
@@ -777,25 +779,4 @@ pub fn load_into(sources: &SourceMap, file: FileId, renderer: &mut Renderer, dia
 /// A 4x4 matrix given row by row in the scene file.
 fn dmat_from_rows(rows: &[f32; 16]) -> glam::DMat4 {
     glam::DMat4::from_cols_array(&rows.map(f64::from)).transpose()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn tokens_carry_byte_spans_and_comments_end_lines() {
-        let toks = tokenize(0, "  begin\tscreen_triangle # a comment", 10);
-        let got: Vec<_> = toks
-            .iter()
-            .map(|t| (t.text.as_str(), t.span.start, t.span.end))
-            .collect();
-        assert_eq!(got, vec![("begin", 12, 17), ("screen_triangle", 18, 33)]);
-    }
-
-    #[test]
-    fn edit_distance_suggests_close_commands() {
-        assert_eq!(edit_distance("vertex", "vertx"), 1);
-        assert_eq!(edit_distance("material", "materail"), 2);
-    }
 }

@@ -1,5 +1,6 @@
 //! The command line: `render`, `check`, `test`, `bench` (effects, llvmpipe, `--scene`) and
-//! `accuracy`, run in-process or as the built binary.
+//! `accuracy`, run in-process or as the built binary; the `# expect:` lines `test` reads
+//! (`expectations`) and the bench report's arithmetic (`bench_report`).
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
@@ -7,8 +8,10 @@ mod accuracy_cli;
 mod accuracy_knobs;
 mod bench_effects;
 mod bench_llvmpipe;
+mod bench_report;
 mod bench_scene;
 mod cli_run;
+mod expectations;
 mod output_files;
 #[path = "../support/mod.rs"]
 mod support;

@@ -1,7 +1,8 @@
 //! The front end: lexer and grammar (`parse`), the checker's diagnostics (`check_errors`, `check_ok`,
 //! with insta snapshots under `snapshots/`), its passes over the IR (`check_passes`) and a fuzz of
 //! mutated sources (`check_fuzz`), the depth and size limits (`limits`), long-line diagnostics
-//! and the error cap (`diag_limits`), and the IR validator's rules (`valid`).
+//! and the error cap (`diag_limits`), the checker's type rules (`type_rules`), and the IR
+//! validator's rules (`valid`).
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
@@ -14,4 +15,5 @@ mod limits;
 mod parse;
 #[path = "../support/mod.rs"]
 mod support;
+mod type_rules;
 mod valid;

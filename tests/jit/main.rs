@@ -1,5 +1,8 @@
 //! The JIT: kernels compiled from hand-built IR (`support::jit`) and from the library (`support`), run on
-//! real tile contexts and checked pixel by pixel against Rust references, at both tiers.
+//! real tile contexts and checked pixel by pixel against Rust references, at both tiers; and the
+//! pieces beside code generation that the kernels' results rest on: the IR evaluator's scalar
+//! semantics (`eval_scalar`), the middle end's constant folding and intervals
+//! (`constant_folding`, `intervals`) and the libm functions kernels call (`libm`).
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
@@ -8,6 +11,8 @@ mod batch;
 mod blocks;
 mod builtins;
 mod calls;
+mod compile_panic;
+mod constant_folding;
 mod dead_setup;
 mod deep_programs;
 mod disassembly;
@@ -15,6 +20,7 @@ mod edges;
 mod error_order;
 mod eval_generated;
 mod eval_oracle;
+mod eval_scalar;
 mod fixed;
 mod float_division;
 mod forward;
@@ -28,7 +34,10 @@ mod inlined_helpers;
 mod inout_helpers;
 mod int_affine;
 mod int_conversion;
+mod intervals;
+mod kernel_threads;
 mod large_locals;
+mod libm;
 mod multiply_by_one;
 mod outline;
 mod pixel;
@@ -40,6 +49,7 @@ mod splat;
 #[path = "../support/mod.rs"]
 mod support;
 mod tier0;
+mod tier0_upgrade_word;
 mod tiers;
 mod uniform_operands;
 mod unroll;

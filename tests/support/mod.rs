@@ -13,7 +13,7 @@ use std::sync::Arc;
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::ir::Program;
 use primflow::jit::{Jit, JitOptions, Tier};
-use primflow::runtime::{Frame, Registry, Renderer, Value};
+use primflow::runtime::{Frame, Registry, RenderOptions, Renderer, Value};
 
 /// Run the command line in-process: (exit code, stdout, stderr).
 pub fn cli(args: &[&str]) -> (i32, String, String) {
@@ -98,6 +98,16 @@ pub fn assert_depth_in_every_jit(r: &Renderer, what: &str, expected: impl Fn(u32
                 }
             }
         }
+    }
+}
+
+/// The default render options at `width` x `height` in tiles of `tile_size` pixels.
+pub fn render_options(width: u32, height: u32, tile_size: u32) -> RenderOptions {
+    RenderOptions {
+        width,
+        height,
+        tile_size,
+        ..RenderOptions::default()
     }
 }
 

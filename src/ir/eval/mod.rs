@@ -53,7 +53,7 @@
 //!   setup's first error is comparable.
 
 mod expr;
-mod scalar;
+pub mod scalar;
 mod stmt;
 
 use std::rc::Rc;

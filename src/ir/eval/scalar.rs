@@ -13,7 +13,7 @@ use crate::ir::{BinOp, Builtin, FixedFormat, Scalar};
 use crate::jit::libm::LibmFn;
 
 /// The depth buffer's format.
-pub(super) const DEPTH: FixedFormat = FixedFormat { bits: 32, frac: 32 };
+pub const DEPTH: FixedFormat = FixedFormat { bits: 32, frac: 32 };
 
 fn f(w: u32) -> f32 {
     f32::from_bits(w)
@@ -24,7 +24,7 @@ fn w(x: f32) -> u32 {
 }
 
 /// Cranelift's `fmin`: NaN if either operand is, and -0 below +0.
-pub(super) fn fmin(a: f32, b: f32) -> f32 {
+pub fn fmin(a: f32, b: f32) -> f32 {
     if a.is_nan() || b.is_nan() {
         f32::NAN
     } else if a == b {
@@ -41,7 +41,7 @@ pub(super) fn fmin(a: f32, b: f32) -> f32 {
 }
 
 /// Cranelift's `fmax`: NaN if either operand is, and +0 above -0.
-pub(super) fn fmax(a: f32, b: f32) -> f32 {
+pub fn fmax(a: f32, b: f32) -> f32 {
     if a.is_nan() || b.is_nan() {
         f32::NAN
     } else if a == b {
@@ -167,7 +167,7 @@ fn float_to_fixed(fmt: FixedFormat, v: u32) -> u32 {
 }
 
 /// Convert one word from `from` to `to` (`fixed::convert`).
-pub(super) fn convert(from: Scalar, to: Scalar, v: u32) -> u32 {
+pub fn convert(from: Scalar, to: Scalar, v: u32) -> u32 {
     match (from, to) {
         (a, c) if a == c => v,
         (Scalar::Float, Scalar::Int) => f(v) as i32 as u32,
@@ -208,7 +208,7 @@ fn int_order(sc: Scalar, x: u32, y: u32) -> std::cmp::Ordering {
 
 /// `x op y` in scalar type `sc` (comparisons and `&&`/`||` give a bool word); `None` for an
 /// operator the type does not have (the IR validator rules it out).
-pub(super) fn binop(op: BinOp, sc: Scalar, x: u32, y: u32) -> Option<u32> {
+pub fn binop(op: BinOp, sc: Scalar, x: u32, y: u32) -> Option<u32> {
     use std::cmp::Ordering::{Greater, Less};
     Some(match sc {
         Scalar::Float => {
@@ -360,41 +360,5 @@ pub(super) fn arity(func: Builtin) -> usize {
         Builtin::Dot | Builtin::Cross | Builtin::Distance => 2,
         Builtin::Clamp | Builtin::Mix | Builtin::Smoothstep => 3,
         _ => 1,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn cranelift_min_and_max_propagate_nan_and_order_zeros() {
-        assert!(fmin(1.0, f32::NAN).is_nan() && fmax(f32::NAN, 1.0).is_nan());
-        assert!(fmin(0.0, -0.0).is_sign_negative() && fmin(-0.0, 0.0).is_sign_negative());
-        assert!(fmax(-0.0, 0.0).is_sign_positive() && fmax(0.0, -0.0).is_sign_positive());
-    }
-
-    #[test]
-    fn fixed_arithmetic_wraps_and_conversions_saturate() {
-        let f8_4 = FixedFormat { bits: 8, frac: 4 };
-        // 7.9375 + 0.0625 wraps to -8.
-        assert_eq!(binop(BinOp::Add, Scalar::Fixed(f8_4), 127, 1), Some((-128i32) as u32));
-        // 100.0 saturates to 7.9375; 0.03125 rounds to even (0).
-        assert_eq!(convert(Scalar::Float, Scalar::Fixed(f8_4), 100f32.to_bits()), 127);
-        assert_eq!(convert(Scalar::Float, Scalar::Fixed(f8_4), 0.03125f32.to_bits()), 0);
-        assert_eq!(convert(Scalar::Float, Scalar::Fixed(DEPTH), f32::NAN.to_bits()), 0);
-        assert_eq!(convert(Scalar::Float, Scalar::Fixed(DEPTH), 2f32.to_bits()), u32::MAX);
-        // Division by zero: the format's ends, or 0.
-        assert_eq!(
-            binop(BinOp::Div, Scalar::Fixed(f8_4), (-16i32) as u32, 0),
-            Some((-128i32) as u32)
-        );
-        assert_eq!(binop(BinOp::Div, Scalar::Int, 7, 0), Some(0));
-        assert_eq!(
-            binop(BinOp::Div, Scalar::Int, i32::MIN as u32, u32::MAX),
-            Some(i32::MIN as u32)
-        );
-        // Unsigned formats compare unsigned.
-        assert_eq!(binop(BinOp::Lt, Scalar::Fixed(DEPTH), 1, 0x8000_0000), Some(1));
     }
 }

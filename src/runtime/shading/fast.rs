@@ -88,8 +88,10 @@ pub(super) struct FastSetup {
 const FACING_MARGIN: f32 = 1.0e-5;
 
 /// Largest integer shininess taken by repeated squaring: at most 2 log2(n) = 14 f32
-/// multiplications, relative error below 1e-5 (the unit test sweeps it).
-const MAX_INTEGER_SHININESS: u32 = 128;
+/// multiplications, relative error below 1e-5 (tests/runtime/shading_fast_maths.rs sweeps
+/// it).
+#[doc(hidden)]
+pub const MAX_INTEGER_SHININESS: u32 = 128;
 
 impl FastSetup {
     pub(super) fn new(setup: &LightingSetup<f64>, eye: Eye<f64>, fog: Option<&Fog>) -> FastSetup {
@@ -169,10 +171,11 @@ impl FastSetup {
 
 /// One vector's per-pixel geometry for the light loop: the normal (flipped for back faces),
 /// the eye vector (zero without a normal), and which pixels are back-facing.
-struct ChunkGeometry<I: Isa> {
-    n: [F32s<I>; 3],
-    v: [F32s<I>; 3],
-    back: Mask<I>,
+#[doc(hidden)]
+pub struct ChunkGeometry<I: Isa> {
+    pub n: [F32s<I>; 3],
+    pub v: [F32s<I>; 3],
+    pub back: Mask<I>,
 }
 
 impl Shader {
@@ -454,7 +457,8 @@ impl Shader {
     /// [1e-15, 1e15] in length, or the frame has no normal: the vector then runs the exact
     /// path.
     #[inline(always)]
-    fn chunk_geometry_filtered<I: Isa>(
+    #[doc(hidden)]
+    pub fn chunk_geometry_filtered<I: Isa>(
         &self,
         row: &RowInputs<'_>,
         x0: usize,
@@ -510,7 +514,8 @@ impl Shader {
     /// Per-pixel geometry in f64 with the reference's operations (the decisions: facing,
     /// which lanes have a normal and an eye vector), rounded to f32 for the light loop.
     #[inline(always)]
-    fn chunk_geometry_exact<I: Isa>(&self, row: &RowInputs<'_>, x0: usize, p: &[F64s<I>; 3]) -> ChunkGeometry<I> {
+    #[doc(hidden)]
+    pub fn chunk_geometry_exact<I: Isa>(&self, row: &RowInputs<'_>, x0: usize, p: &[F64s<I>; 3]) -> ChunkGeometry<I> {
         let fast = &self.fast;
         let nm = self.normals_from_lighting.matrix;
         let (na, nb, nc) = (nm.x_axis.to_array(), nm.y_axis.to_array(), nm.z_axis.to_array());
@@ -671,7 +676,8 @@ fn by_side<I: Isa>(back: Mask<I>, per_side: [[f32; 3]; 2], k: usize) -> F32s<I> 
 
 /// The smallest base [`pow_integer`] takes for exponent `n`: `2^(-120/n)`, so `floor^n`
 /// is about 2^-120, well inside f32's normal range.
-fn integer_power_floor(n: u32) -> f32 {
+#[doc(hidden)]
+pub fn integer_power_floor(n: u32) -> f32 {
     (-120.0 / n.max(1) as f32).exp2()
 }
 
@@ -682,7 +688,8 @@ fn integer_power_floor(n: u32) -> f32 {
 /// smaller, an absolute error below 1e-36. Relative error elsewhere <= 2 log2(n) + 1
 /// roundings (< 1e-5).
 #[inline(always)]
-fn pow_integer<I: Isa>(x: F32s<I>, n: u32, floor: f32) -> F32s<I> {
+#[doc(hidden)]
+pub fn pow_integer<I: Isa>(x: F32s<I>, n: u32, floor: f32) -> F32s<I> {
     let floor = F32s::splat(floor);
     let mut square = x.gt(floor).select(x, floor);
     let mut result = F32s::splat(1.0);
@@ -701,10 +708,11 @@ fn pow_integer<I: Isa>(x: F32s<I>, n: u32, floor: f32) -> F32s<I> {
 
 /// `x^s` for normal positive `x` and `s` in [1, 16384], as `2^(s log2 x)` with polynomial
 /// log2 and exp2 (branch-free, so it vectorises). Relative error <= 1e-5 (dominated by the
-/// f32 rounding of `s log2 x`; the unit test sweeps it against f64 `powf`); results below
-/// 2^-126 are flushed to (near) zero.
+/// f32 rounding of `s log2 x`; tests/runtime/shading_fast_maths.rs sweeps it against f64
+/// `powf`); results below 2^-126 are flushed to (near) zero.
 #[inline(always)]
-fn pow_positive(x: f32, s: f32) -> f32 {
+#[doc(hidden)]
+pub fn pow_positive(x: f32, s: f32) -> f32 {
     // log2 x = e + log2 m with m in [sqrt(1/2), sqrt(2)): ln m = 2 atanh(t), t = (m-1)/(m+1),
     // |t| <= 0.172, five terms of the series leave < 4e-10.
     let bits = x.to_bits();
@@ -728,192 +736,4 @@ fn pow_positive(x: f32, s: f32) -> f32 {
             + z * (1.0 / 2.0
                 + z * (1.0 / 6.0 + z * (1.0 / 24.0 + z * (1.0 / 120.0 + z * (1.0 / 720.0 + z * (1.0 / 5040.0)))))));
     p * f32::from_bits(((k as i32 + 127) as u32) << 23)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::runtime::shading::{SceneLight, ShadingSetup, ShadingSpaces};
-    use glam::DMat4;
-    #[test]
-    fn polynomial_power_is_within_its_stated_bound() {
-        // Relative error <= 1e-5 over bases in (0, 1.001] and exponents in [1, 16384] (the f32
-        // rounding of y = s log2 x, |y| <= 126, dominates), absolute 1e-30 where flushed.
-        let mut worst = 0f64;
-        for si in 0..=60 {
-            let s = 2f64.powf(14.0 * si as f64 / 60.0);
-            for xi in 1..=2000 {
-                let x = (1.001 * xi as f64 / 2000.0).powf(4.0);
-                let (xf, sf) = (x as f32, s as f32);
-                let exact = f64::from(xf).powf(f64::from(sf));
-                let got = f64::from(pow_positive(xf, sf));
-                let err = (got - exact).abs();
-                worst = worst.max(err / exact.max(1e-30));
-                assert!(err <= 1e-5 * exact + 1e-30, "{xf}^{sf}: {got} vs {exact}");
-            }
-        }
-        println!("worst relative error of pow_positive: {worst:.2e}");
-        assert!(worst > 0.0);
-    }
-
-    #[test]
-    fn integer_power_is_within_its_stated_bound_and_never_subnormal() {
-        // Relative error <= 1e-5 against f64 powf for every integer exponent the fast path
-        // takes; where x^n would fall below the floor the result is about 2^-120 (absolute
-        // error < 1e-36) and no step is subnormal.
-        let mut worst = 0f64;
-        for n in 1..=MAX_INTEGER_SHININESS {
-            let floor = integer_power_floor(n);
-            assert!(f64::from(floor).powi(n as i32) >= 2f64.powi(-121), "n = {n}");
-            for xi in (1..=4000).step_by(8) {
-                let x: [f32; LANES] = std::array::from_fn(|j| ((1.001 * (xi + j) as f64 / 4000.0).powf(3.0)) as f32);
-                let got = pow_integer(F32s::<Portable>::new(x), n, floor).lanes();
-                for j in 0..LANES {
-                    assert!(got[j].is_normal(), "{}^{n} = {}", x[j], got[j]);
-                    let exact = f64::from(x[j]).powi(n as i32);
-                    let err = (f64::from(got[j]) - exact).abs();
-                    assert!(err <= 1e-5 * exact + 1e-36, "{}^{n}: {} vs {exact}", x[j], got[j]);
-                    if exact > 1e-30 {
-                        worst = worst.max(err / exact);
-                    }
-                }
-            }
-        }
-        println!("worst relative error of pow_integer: {worst:.2e}");
-        assert!(worst > 0.0);
-    }
-
-    /// A shader over a 64 x 64 perspective view in LC, lit by one light, for the geometry
-    /// tests; `back` gives the back side its own material.
-    fn geometry_shader() -> Shader {
-        // OpenGL's perspective: 90 degrees, near 0.5, far 50.
-        let (near, far) = (0.5, 50.0);
-        let clip_from_lighting = DMat4::from_cols_array(&[
-            1.0,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            1.0,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            (far + near) / (near - far),
-            -1.0,
-            0.0,
-            0.0,
-            2.0 * far * near / (near - far),
-            0.0,
-        ]);
-        let device_from_clip = DMat4::from_cols_array(&[
-            32.0, 0.0, 0.0, 0.0, 0.0, 32.0, 0.0, 0.0, 0.0, 0.0, -0.5, 0.0, 32.0, 32.0, 0.5, 1.0,
-        ]);
-        let setup = ShadingSetup {
-            lights: vec![SceneLight::Directional {
-                towards_light: [0.3, 0.5, 1.0],
-                colour: [1.0; 3],
-            }],
-            ..ShadingSetup::default()
-        };
-        let spaces = ShadingSpaces {
-            device_from_lighting: device_from_clip * clip_from_lighting,
-            lighting_from_world: DMat4::IDENTITY,
-            device_from_clip,
-        };
-        Shader::new(&setup, &spaces).expect("an invertible view")
-    }
-
-    #[test]
-    fn filtered_facing_agrees_with_the_exact_path_and_declines_near_grazing() {
-        // Random normals (and some within a hair of the view plane) at random depths: where
-        // the filtered path decides a chunk, its facing masks equal the exact path's and its
-        // f32 normal and eye vector are within 1e-6 of the exact ones; chunks with a pixel
-        // closer to grazing than the margin go to the exact path.
-        let shader = geometry_shader();
-        let mut seed = 0x2545f4914f6cdd1du64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let (mut decided, mut declined) = (0, 0);
-        for case in 0..400 {
-            let y = (case % 64) as u32;
-            let depth: Vec<u32> = (0..LANES)
-                .map(|_| (0.2 + 0.7 * next()) as f32)
-                .map(|d| (f64::from(d) * 4294967296.0) as u32)
-                .collect();
-            let mut normal: [Vec<f32>; 3] = Default::default();
-            for j in 0..LANES {
-                let n = [next() * 2.0 - 1.0, next() * 2.0 - 1.0, next() * 2.0 - 1.0];
-                for k in 0..3 {
-                    normal[k].push(n[k] as f32);
-                }
-                // Every fifth vector, pixel 3 is perpendicular to its eye vector (after
-                // rounding the normal to f32 the cosine is a few 1e-8 at most, under the
-                // margin: declined); every other one has pixels tilted just past the margin
-                // (cosine +-2e-5 and +-3e-5: decided, and their facing must be right).
-                let tilt = match (case % 5, j) {
-                    (0, 3) => Some(0.0f64),
-                    (1 | 3, 5) => Some(2.0e-5),
-                    (1 | 3, 9) => Some(-2.0e-5),
-                    (2 | 4, 6) => Some(3.0e-5),
-                    (2 | 4, 11) => Some(-3.0e-5),
-                    _ => None,
-                };
-                if let Some(cosine) = tilt {
-                    let x = (LANES * (case % 2)) as f64 + j as f64 + 0.5;
-                    let p = shader.position(x as u32, y, f64::from(depth[j]) / 4294967296.0);
-                    let v = (-p).normalize();
-                    let across = DVec3::new(v.y, -v.x, 0.0).normalize();
-                    let n = across * (1.0 - cosine * cosine).sqrt() + v * cosine;
-                    for k in 0..3 {
-                        normal[k][j] = n[k] as f32;
-                    }
-                }
-            }
-            let x0 = LANES * (case % 2);
-            let mut depth_row = vec![0u32; 64];
-            depth_row[x0..x0 + LANES].copy_from_slice(&depth);
-            let mut planes: [Vec<f32>; 3] = Default::default();
-            for k in 0..3 {
-                planes[k] = vec![0.0; 64];
-                planes[k][x0..x0 + LANES].copy_from_slice(&normal[k]);
-            }
-            let row = RowInputs {
-                y,
-                depth: &depth_row,
-                cs: None,
-                normal: Some([&planes[0], &planes[1], &planes[2]]),
-                facing: None,
-                st: None,
-            };
-            let p: [F64s<Portable>; 3] = std::array::from_fn(|k| {
-                F64s::new(std::array::from_fn(|j| {
-                    shader.position((x0 + j) as u32, y, f64::from(depth[j]) / 4294967296.0)[k]
-                }))
-            });
-            let exact = shader.chunk_geometry_exact(&row, x0, &p);
-            match shader.chunk_geometry_filtered(&row, x0, &p, Mask::all()) {
-                Some(fast) => {
-                    decided += 1;
-                    assert_eq!(fast.back.lanes(), exact.back.lanes(), "case {case}");
-                    for k in 0..3 {
-                        let (n, exact_n) = (fast.n[k].lanes(), exact.n[k].lanes());
-                        let (v, exact_v) = (fast.v[k].lanes(), exact.v[k].lanes());
-                        for j in 0..LANES {
-                            assert!((n[j] - exact_n[j]).abs() <= 1e-6, "case {case}");
-                            assert!((v[j] - exact_v[j]).abs() <= 1e-6, "case {case}");
-                        }
-                    }
-                }
-                None => declined += 1,
-            }
-        }
-        println!("filtered path decided {decided} chunks, declined {declined}");
-        // All 320 tilted ones decided, all 80 perpendicular ones declined.
-        assert_eq!((decided, declined), (320, 80));
-    }
 }

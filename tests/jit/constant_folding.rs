@@ -1,0 +1,68 @@
+//! Constant folding in the unroller (src/mid/unroll.rs) follows the JIT's integer
+//! semantics: wrapping add and multiply, division truncating toward zero, division and
+//! remainder by zero 0, `i32::MIN / -1` wrapping.
+
+use primflow::diag::Span;
+use primflow::ir::{BinOp, ConstValue, Expr, ExprKind, Type, Variability};
+use primflow::mid::unroll::{fold, Env};
+
+fn int(v: i32) -> Expr {
+    Expr::new(
+        ExprKind::Const(ConstValue::Int(v)),
+        Type::int(),
+        Variability::Uniform,
+        Span::default(),
+    )
+}
+
+fn bin(op: BinOp, a: Expr, c: Expr) -> Expr {
+    let ty = if matches!(
+        op,
+        BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne
+    ) {
+        Type::bool()
+    } else {
+        Type::int()
+    };
+    Expr::new(
+        ExprKind::Binary {
+            op,
+            lhs: Box::new(a),
+            rhs: Box::new(c),
+        },
+        ty,
+        Variability::Uniform,
+        Span::default(),
+    )
+}
+
+fn folded(e: &Expr) -> Option<ConstValue> {
+    match fold(e, &Env::new()).kind {
+        ExprKind::Const(c) => Some(c),
+        _ => None,
+    }
+}
+
+/// Folding follows the JIT's integer semantics, edge cases included.
+#[test]
+fn folds_ints_like_the_jit() {
+    let cases = [
+        (BinOp::Add, i32::MAX, 1, i32::MIN),
+        (BinOp::Mul, 65536, 65536, 0),
+        (BinOp::Div, 7, -2, -3),
+        (BinOp::Rem, -7, 3, -1),
+        (BinOp::Div, 5, 0, 0),
+        (BinOp::Rem, 5, 0, 0),
+        (BinOp::Div, i32::MIN, -1, i32::MIN),
+        (BinOp::Rem, i32::MIN, -1, 0),
+    ];
+    for (op, x, y, want) in cases {
+        assert_eq!(
+            folded(&bin(op, int(x), int(y))),
+            Some(ConstValue::Int(want)),
+            "{op:?} {x} {y}"
+        );
+    }
+    assert_eq!(folded(&bin(BinOp::Lt, int(2), int(3))), Some(ConstValue::Bool(true)));
+    assert_eq!(folded(&bin(BinOp::Ge, int(2), int(3))), Some(ConstValue::Bool(false)));
+}
