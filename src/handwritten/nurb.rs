@@ -56,6 +56,8 @@ const TRI_WORDS: usize = 1 + MAX_T + 12 + 3 * MAX_T;
 
 const LIMIT: f32 = 1e30f64 as f32;
 const WEIGHT_FLOOR: f32 = 1e-6f64 as f32;
+/// The prim's largest control point coordinate.
+const POINT_LIMIT: f32 = 1e15f64 as f32;
 
 /// Cranelift's `fmin`: NaN if either operand is NaN, and -0 below +0.
 #[inline(always)]
@@ -504,7 +506,7 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
     let mut weights = [0f32; 144];
     for (i, w) in weights.iter_mut().enumerate().take(n) {
         *w = weight(i);
-        if !(*w > 0.0 && *w < LIMIT) {
+        if !(*w > 0.0 && *w <= f32::MAX) {
             weights_ok = false;
         }
         largest = jit_max(largest, *w);
@@ -517,6 +519,12 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
     if !weights_ok {
         return;
     }
+    if !(0..n).all(|i| vertex(i).iter().all(|c| c.abs() <= POINT_LIMIT)) {
+        return;
+    }
+    if !(tolerance > 0.0) {
+        return;
+    }
 
     // ---- Homogeneous control points, the projected net and the bound.
     let mut h = [[0f32; 4]; 144];
@@ -524,6 +532,7 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
     let mut all_in_front = true;
     for i in 0..n {
         let p = vertex(i);
+        weights[i] /= largest;
         h[i] = p.map(|c| weights[i] * c);
         if !(p[3] > 0.0 && p[0].abs() < LIMIT && p[1].abs() < LIMIT) {
             all_in_front = false;
@@ -544,9 +553,6 @@ unsafe fn surface<const T: usize, const NORMAL: bool>(
         if c.mode == MODE_BOUND {
             screen_triangle::bound_or_rect(c, [x_lo - 1.0, y_lo - 1.0, x_hi + 1.0, y_hi + 1.0]);
         }
-    }
-    if !(tolerance > 0.0) {
-        return;
     }
     // The prim's normal matrix: cofactor columns of lighting_from_object, times the
     // handedness (exactly +-1).
