@@ -9,7 +9,7 @@
 use std::fmt::{self, Write};
 
 use super::{
-    ArmKind, BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, FuncKind, Function, LocalKind, Program, Scalar, Space,
+    ArmKind, BinOp, Builtin, ConstValue, Elem, ExprId, ExprKind, FuncKind, Function, LocalKind, Program, Scalar, Space,
     Stmt, StmtKind, Type, UnaryOp, Variability,
 };
 
@@ -167,7 +167,11 @@ impl Printer<'_> {
                 writeln!(out, " = {}", self.expr(value))
             }
             StmtKind::If { cond, then, otherwise } => {
-                let v = if cond.var.is_varying() { "varying " } else { "" };
+                let v = if self.func.exprs[*cond].var.is_varying() {
+                    "varying "
+                } else {
+                    ""
+                };
                 writeln!(out, "{pad}if {v}{} {{", self.expr(cond))?;
                 self.block(out, then, depth + 1)?;
                 if !otherwise.is_empty() {
@@ -230,7 +234,8 @@ impl Printer<'_> {
         }
     }
 
-    fn expr(&self, e: &Expr) -> String {
+    fn expr(&self, id: &ExprId) -> String {
+        let e = &self.func.exprs[*id];
         match &e.kind {
             ExprKind::Const(c) => const_str(*c, scalar(&e.ty)),
             ExprKind::Local(l) => self.local_name(*l),
