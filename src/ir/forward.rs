@@ -185,17 +185,17 @@ fn visit_stmt(x: &Exprs, s: &Stmt, read: &mut dyn FnMut(LocalId), write: &mut dy
         StmtKind::Assign { place, value } => {
             write(place.local);
             for (i, _) in &place.indices {
-                visit_expr(x, i, read);
+                visit_expr(x, *i, read);
             }
-            visit_expr(x, value, read);
+            visit_expr(x, *value, read);
         }
         StmtKind::If { cond, then, otherwise } => {
-            visit_expr(x, cond, read);
+            visit_expr(x, *cond, read);
             then.iter().chain(otherwise).for_each(|s| visit_stmt(x, s, read, write));
         }
         StmtKind::Loop { cond, body, step, .. } => {
             if let Some(c) = cond {
-                visit_expr(x, c, read);
+                visit_expr(x, *c, read);
             }
             body.iter().chain(step).for_each(|s| visit_stmt(x, s, read, write));
         }
@@ -203,15 +203,15 @@ fn visit_stmt(x: &Exprs, s: &Stmt, read: &mut dyn FnMut(LocalId), write: &mut dy
             .iter()
             .flat_map(|a| a.body.iter())
             .for_each(|s| visit_stmt(x, s, read, write)),
-        StmtKind::InterpolatorReturn(Some(e)) => visit_expr(x, e, read),
-        StmtKind::Bound(es) => es.iter().for_each(|e| visit_expr(x, e, read)),
-        StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| visit_expr(x, e, read)),
+        StmtKind::InterpolatorReturn(Some(e)) => visit_expr(x, *e, read),
+        StmtKind::Bound(es) => es.iter().for_each(|e| visit_expr(x, *e, read)),
+        StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| visit_expr(x, *e, read)),
         StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
     }
 }
 
-fn visit_expr(x: &Exprs, e: &ExprId, read: &mut dyn FnMut(LocalId)) {
-    x.for_each_local(*e, read);
+fn visit_expr(x: &Exprs, e: ExprId, read: &mut dyn FnMut(LocalId)) {
+    x.for_each_local(e, read);
 }
 
 /// Every read of `from` in `s` becomes a read of `to` (assignments to `from` stay: the rule
@@ -220,17 +220,17 @@ fn rename_stmt(x: &mut Exprs, s: &mut Stmt, from: LocalId, to: LocalId) {
     match &mut s.kind {
         StmtKind::Assign { place, value } => {
             rename_place(x, place, from, to);
-            rename_expr(x, value, from, to);
+            rename_expr(x, *value, from, to);
         }
         StmtKind::If { cond, then, otherwise } => {
-            rename_expr(x, cond, from, to);
+            rename_expr(x, *cond, from, to);
             then.iter_mut()
                 .chain(otherwise.iter_mut())
                 .for_each(|s| rename_stmt(x, s, from, to));
         }
         StmtKind::Loop { cond, body, step, .. } => {
             if let Some(c) = cond {
-                rename_expr(x, c, from, to);
+                rename_expr(x, *c, from, to);
             }
             body.iter_mut()
                 .chain(step.iter_mut())
@@ -240,28 +240,28 @@ fn rename_stmt(x: &mut Exprs, s: &mut Stmt, from: LocalId, to: LocalId) {
             .iter_mut()
             .flat_map(|a| a.body.iter_mut())
             .for_each(|s| rename_stmt(x, s, from, to)),
-        StmtKind::InterpolatorReturn(Some(e)) => rename_expr(x, e, from, to),
-        StmtKind::Bound(es) => es.iter_mut().for_each(|e| rename_expr(x, e, from, to)),
-        StmtKind::CallPrimitive { args, .. } => args.iter_mut().for_each(|e| rename_expr(x, e, from, to)),
+        StmtKind::InterpolatorReturn(Some(e)) => rename_expr(x, *e, from, to),
+        StmtKind::Bound(es) => es.iter_mut().for_each(|e| rename_expr(x, *e, from, to)),
+        StmtKind::CallPrimitive { args, .. } => args.iter_mut().for_each(|e| rename_expr(x, *e, from, to)),
         StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
     }
 }
 
 fn rename_place(x: &mut Exprs, p: &mut Place, from: LocalId, to: LocalId) {
     for (i, _) in &mut p.indices {
-        rename_expr(x, i, from, to);
+        rename_expr(x, *i, from, to);
     }
 }
 
-fn rename_expr(x: &mut Exprs, e: &ExprId, from: LocalId, to: LocalId) {
-    if let ExprKind::Local(l) = &mut x[*e].kind {
+fn rename_expr(x: &mut Exprs, e: ExprId, from: LocalId, to: LocalId) {
+    if let ExprKind::Local(l) = &mut x[e].kind {
         if *l == from {
             *l = to;
         }
     }
     let mut k = 0;
-    while let Some(c) = x[*e].child(k) {
-        rename_expr(x, &c, from, to);
+    while let Some(c) = x[e].child(k) {
+        rename_expr(x, c, from, to);
         k += 1;
     }
 }

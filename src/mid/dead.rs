@@ -45,8 +45,8 @@ fn mark(l: LocalId, live: &mut [bool]) {
     }
 }
 
-fn reads(x: &Exprs, e: &ExprId, live: &mut [bool]) {
-    x.for_each_local(*e, &mut |l| mark(l, live));
+fn reads(x: &Exprs, e: ExprId, live: &mut [bool]) {
+    x.for_each_local(e, &mut |l| mark(l, live));
 }
 
 /// One round: marks what live statements read; `skipped` gets the locals of the assignments
@@ -58,20 +58,20 @@ fn walk(x: &Exprs, stmts: &[Stmt], live: &mut [bool], skipped: &mut Vec<LocalId>
                 let is_live = live.get(place.local.0 as usize).copied().unwrap_or(true);
                 if is_live || !removable(s) {
                     mark(place.local, live);
-                    place.indices.iter().for_each(|(i, _)| reads(x, i, live));
-                    reads(x, value, live);
+                    place.indices.iter().for_each(|(i, _)| reads(x, *i, live));
+                    reads(x, *value, live);
                 } else {
                     skipped.push(place.local);
                 }
             }
             StmtKind::If { cond, then, otherwise } => {
-                reads(x, cond, live);
+                reads(x, *cond, live);
                 walk(x, then, live, skipped, removable);
                 walk(x, otherwise, live, skipped, removable);
             }
             StmtKind::Loop { cond, body, step, .. } => {
                 if let Some(c) = cond {
-                    reads(x, c, live);
+                    reads(x, *c, live);
                 }
                 walk(x, step, live, skipped, removable);
                 walk(x, body, live, skipped, removable);
@@ -81,9 +81,9 @@ fn walk(x: &Exprs, stmts: &[Stmt], live: &mut [bool], skipped: &mut Vec<LocalId>
                     walk(x, &a.body, live, skipped, removable);
                 }
             }
-            StmtKind::InterpolatorReturn(Some(e)) => reads(x, e, live),
-            StmtKind::Bound(es) => es.iter().for_each(|e| reads(x, e, live)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| reads(x, e, live)),
+            StmtKind::InterpolatorReturn(Some(e)) => reads(x, *e, live),
+            StmtKind::Bound(es) => es.iter().for_each(|e| reads(x, *e, live)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| reads(x, *e, live)),
             StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::InterpolatorReturn(None) => {}
         }
     }

@@ -327,11 +327,11 @@ impl Scope<'_> {
     pub(crate) fn row_invariant(
         &self,
         f: &Function,
-        e_id: ExprId,
+        e: ExprId,
         y: Option<LocalId>,
         assigned: &HashSet<LocalId>,
     ) -> bool {
-        self.row_invariant_in(f, e_id, y, assigned, None)
+        self.row_invariant_in(f, e, y, assigned, None)
     }
 
     /// [`Self::row_invariant`], reading the row locals in `rows` as row-invariant leaves;

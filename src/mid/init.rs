@@ -55,9 +55,9 @@ struct Walk<'t> {
 }
 
 impl Walk<'_> {
-    fn reads(&mut self, e: &ExprId, assigned: &[bool]) {
+    fn reads(&mut self, e: ExprId, assigned: &[bool]) {
         let needs = &mut self.needs;
-        self.x.for_each_local(*e, &mut |l: LocalId| {
+        self.x.for_each_local(e, &mut |l: LocalId| {
             let i = l.0 as usize;
             if !assigned.get(i).copied().unwrap_or(false) {
                 if let Some(n) = needs.get_mut(i) {
@@ -78,16 +78,16 @@ impl Walk<'_> {
             StmtKind::Assign { place, value } => {
                 // The value and the indices are read before the store.
                 for (i, _) in &place.indices {
-                    self.reads(i, assigned);
+                    self.reads(*i, assigned);
                 }
-                self.reads(value, assigned);
+                self.reads(*value, assigned);
                 let i = place.local.0 as usize;
                 if self.credit && place.indices.is_empty() && self.tracked.get(i).copied().unwrap_or(false) {
                     assigned[i] = true;
                 }
             }
             StmtKind::If { cond, then, otherwise } => {
-                self.reads(cond, assigned);
+                self.reads(*cond, assigned);
                 let mut then_state = assigned.clone();
                 self.stmts(then, &mut then_state);
                 self.stmts(otherwise, assigned);
@@ -97,7 +97,7 @@ impl Walk<'_> {
             }
             StmtKind::Loop { cond, body, step, .. } => {
                 if let Some(c) = cond {
-                    self.reads(c, assigned);
+                    self.reads(*c, assigned);
                 }
                 // The step also runs after a `continue` part-way through the body, so it is
                 // judged from the state at the loop's entry, not from the body's end.
@@ -112,9 +112,9 @@ impl Walk<'_> {
                     self.stmts(&a.body, &mut arm);
                 }
             }
-            StmtKind::InterpolatorReturn(Some(e)) => self.reads(e, assigned),
-            StmtKind::Bound(es) => es.iter().for_each(|e| self.reads(e, assigned)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| self.reads(e, assigned)),
+            StmtKind::InterpolatorReturn(Some(e)) => self.reads(*e, assigned),
+            StmtKind::Bound(es) => es.iter().for_each(|e| self.reads(*e, assigned)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| self.reads(*e, assigned)),
             StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
         }
     }

@@ -36,11 +36,11 @@ fn constant_in_fixed(x: &Exprs, site: &IndexSite) -> bool {
 /// Every index site of `stmts` (statements of `f`): in places (`a[i] = ...`, the local's
 /// type indexed one dimension per site) and in expressions.
 pub(crate) fn index_sites(f: &Function, stmts: &[Stmt], out: &mut Vec<IndexSite>) {
-    fn expr(x: &Exprs, e: &ExprId, out: &mut Vec<IndexSite>) {
-        if let ExprKind::Index { base, index, site } = &x[*e].kind {
+    fn expr(x: &Exprs, e: ExprId, out: &mut Vec<IndexSite>) {
+        if let ExprKind::Index { base, index, site } = &x[e].kind {
             out.push((static_len_of(&x[*base].ty), *index, *site));
         }
-        x[*e].for_each_child(|c| expr(x, &c, out));
+        x[e].for_each_child(|c| expr(x, c, out));
     }
     let x = &f.exprs;
     for s in stmts {
@@ -50,28 +50,28 @@ pub(crate) fn index_sites(f: &Function, stmts: &[Stmt], out: &mut Vec<IndexSite>
                     let mut ty = local.ty.clone();
                     for (index, site) in &place.indices {
                         out.push((static_len_of(&ty), *index, *site));
-                        expr(x, index, out);
+                        expr(x, *index, out);
                         ty = ty.element();
                     }
                 }
-                expr(x, value, out);
+                expr(x, *value, out);
             }
             StmtKind::If { cond, then, otherwise } => {
-                expr(x, cond, out);
+                expr(x, *cond, out);
                 index_sites(f, then, out);
                 index_sites(f, otherwise, out);
             }
             StmtKind::Loop { cond, body, step, .. } => {
                 if let Some(c) = cond {
-                    expr(x, c, out);
+                    expr(x, *c, out);
                 }
                 index_sites(f, body, out);
                 index_sites(f, step, out);
             }
             StmtKind::Interpolation { arms } => arms.iter().for_each(|a| index_sites(f, &a.body, out)),
-            StmtKind::InterpolatorReturn(Some(e)) => expr(x, e, out),
-            StmtKind::Bound(args) => args.iter().for_each(|a| expr(x, a, out)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr(x, a, out)),
+            StmtKind::InterpolatorReturn(Some(e)) => expr(x, *e, out),
+            StmtKind::Bound(args) => args.iter().for_each(|a| expr(x, *a, out)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr(x, *a, out)),
             StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
         }
     }

@@ -245,7 +245,7 @@ impl Machine<'_, '_> {
     /// `place = value`, converted to the place's type (`Lower::assign`): indices first,
     /// then the value; a varying local takes the executing lanes only, a uniform one every
     /// lane; the primitive's Z also marks the lanes that wrote it.
-    pub(crate) fn assign(&mut self, place: &Place, value_id: ExprId) -> Res<()> {
+    pub(crate) fn assign(&mut self, place: &Place, value: ExprId) -> Res<()> {
         let mut acc = self.local_access(place.local)?;
         for (idx, site) in &place.indices {
             acc = self.index_access(acc, *idx, *site)?;
@@ -253,7 +253,7 @@ impl Machine<'_, '_> {
         let Root::Local(li) = acc.root else {
             return malformed("assignment to a parameter");
         };
-        let v = self.eval(value_id)?.converted(acc.sc);
+        let v = self.eval(value)?.converted(acc.sc);
         let offs = self.comp_offsets(acc.elem, fixed_len(&acc.dims), false);
         let comps = if v.comps.len() == 1 && offs.len() != 1 {
             vec![v.comps[0]; offs.len()]
@@ -301,7 +301,7 @@ impl Machine<'_, '_> {
 
     /// `e` evaluated for the lanes where the bool `cond` is `taken` (an arm of `?:`, the
     /// right side of `&&`/`||`): their errors only are counted.
-    fn eval_guarded(&mut self, e_id: ExprId, cond: Lanes, varying: bool, taken: bool) -> Res<Val> {
+    fn eval_guarded(&mut self, e: ExprId, cond: Lanes, varying: bool, taken: bool) -> Res<Val> {
         let (outer, outer_guard) = (self.exec, self.guard);
         self.exec = std::array::from_fn(|l| outer[l] && (cond[l] != 0) == taken);
         self.guard &= if varying {
@@ -309,15 +309,15 @@ impl Machine<'_, '_> {
         } else {
             (cond[0] != 0) == taken
         };
-        let v = self.eval(e_id);
+        let v = self.eval(e);
         self.exec = outer;
         self.guard = outer_guard;
         v
     }
 
-    pub(crate) fn eval(&mut self, e_id: ExprId) -> Res<Val> {
+    pub(crate) fn eval(&mut self, e: ExprId) -> Res<Val> {
         self.enter()?;
-        let v = self.eval_inner(e_id);
+        let v = self.eval_inner(e);
         self.leave();
         v
     }

@@ -344,11 +344,11 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// In a group: the carried value of `e`, if `e` is carried by the loop being lowered.
-    pub(super) fn carried_value(&self, e_id: ExprId) -> Option<Val> {
+    pub(super) fn carried_value(&self, e: ExprId) -> Option<Val> {
         if self.carry_now.is_empty() || self.pix.is_none() || self.frames.len() != 1 {
             return None;
         }
-        let &(_, v) = self.carry_now.iter().find(|(k, _)| *k == e_id)?;
+        let &(_, v) = self.carry_now.iter().find(|(k, _)| *k == e)?;
         Some(Val {
             comps: vec![v],
             scalar: Scalar::Int,

@@ -87,7 +87,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// non-NaN f32 within it (an end may be infinite). The flag is true when the guards
     /// before this statement narrowed it: such a bound holds here only, not wherever the
     /// same value is computed (see [`Self::convert_here`]).
-    pub(super) fn float_bound_here(&mut self, e_id: ExprId) -> (Option<(f64, f64)>, bool) {
+    pub(super) fn float_bound_here(&mut self, e: ExprId) -> (Option<(f64, f64)>, bool) {
         let Some(frame) = self.frames.last() else {
             return (None, false);
         };
@@ -100,8 +100,8 @@ impl<'a, 'b> Lower<'a, 'b> {
             );
             return (None, false);
         };
-        let whole = table.expr(self.exprs(), e_id).map(|b| (b.lo, b.hi));
-        let here = table.expr_here(self.exprs(), e_id, &self.guard_facts, depth);
+        let whole = table.expr(self.exprs(), e).map(|b| (b.lo, b.hi));
+        let here = table.expr_here(self.exprs(), e, &self.guard_facts, depth);
         (here, here != whole)
     }
 
@@ -113,14 +113,14 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// that was (right for every lane, so for these).
     pub(super) fn convert_here(
         &mut self,
-        e_id: ExprId,
+        e: ExprId,
         from: Scalar,
         to: Scalar,
         c: ir::Value,
         varying: bool,
     ) -> ir::Value {
         let (bound, narrowed) = if varying && from == Scalar::Float && matches!(to, Scalar::Int | Scalar::Fixed(_)) {
-            self.float_bound_here(e_id)
+            self.float_bound_here(e)
         } else {
             (None, false)
         };
