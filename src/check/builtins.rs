@@ -7,14 +7,15 @@
 //! handled by the lowering itself (they need the AST or parameter roles).
 
 use crate::diag::Span;
-use crate::ir::{Builtin, Elem, Expr, ExprKind, Scalar, Type, Variability};
+use crate::ir::tree::{Tree, TreeKind};
+use crate::ir::{Builtin, Elem, Scalar, Type, Variability};
 
 use super::types::{self, convert, type_name};
 
 type BuiltinError = (Span, String, String);
 
 /// Lower a call of built-in `name`; `Ok(None)` if there is no such built-in.
-pub fn lower(name: &str, args: Vec<Expr>, span: Span) -> Result<Option<Expr>, BuiltinError> {
+pub fn lower(name: &str, args: Vec<Tree>, span: Span) -> Result<Option<Tree>, BuiltinError> {
     use Builtin::*;
     let (func, arity): (Builtin, &[usize]) = match name {
         "sqrt" => (Sqrt, &[1]),
@@ -107,15 +108,15 @@ pub fn lower(name: &str, args: Vec<Expr>, span: Span) -> Result<Option<Expr>, Bu
             float(shape)
         }
     };
-    Ok(Some(Expr::new(
-        ExprKind::Builtin { func, args: floats },
+    Ok(Some(Tree::new(
+        TreeKind::Builtin { func, args: floats },
         ty,
         Variability::Uniform,
         span,
     )))
 }
 
-fn shape_error(name: &str, args: &[Expr], span: Span, want: &str) -> BuiltinError {
+fn shape_error(name: &str, args: &[Tree], span: Span, want: &str) -> BuiltinError {
     let found = args.iter().map(|a| type_name(&a.ty)).collect::<Vec<_>>().join(", ");
     (
         span,
@@ -124,14 +125,14 @@ fn shape_error(name: &str, args: &[Expr], span: Span, want: &str) -> BuiltinErro
     )
 }
 
-/// A float scalar repeated over an array of `dims` (see [`ExprKind::Splat`]).
-fn expand(v: Expr, dims: &[u32]) -> Expr {
+/// A float scalar repeated over an array of `dims` (see [`TreeKind::Splat`]).
+fn expand(v: Tree, dims: &[u32]) -> Tree {
     if dims.is_empty() {
         return v;
     }
     let span = v.span;
-    Expr::new(
-        ExprKind::Splat(Box::new(v)),
+    Tree::new(
+        TreeKind::Splat(Box::new(v)),
         Type::array(Elem::Scalar(Scalar::Float), dims.to_vec()),
         Variability::Uniform,
         span,

@@ -6,7 +6,8 @@
 //! [`ir::Param::default`](crate::ir::Param) stores.
 
 use crate::diag::Span;
-use crate::ir::{ConstValue, Elem, Expr, ExprKind, Scalar, Type, Variability};
+use crate::ir::tree::{Tree, TreeKind};
+use crate::ir::{ConstValue, Elem, Scalar, Type, Variability};
 use crate::syntax::ast;
 
 use super::types;
@@ -137,7 +138,7 @@ fn scalar_const(c: &ConstTree, s: Scalar) -> Result<ConstValue, String> {
 }
 
 /// The expression for flattened constant components of `ty` (nested lists for arrays).
-pub fn const_to_expr(values: &[ConstValue], ty: &Type, span: Span) -> Expr {
+pub fn const_to_expr(values: &[ConstValue], ty: &Type, span: Span) -> Tree {
     let Elem::Scalar(s) = ty.elem else {
         // Callers only store defaults of scalar-element types.
         return types::const_expr(ConstValue::Float(0.0), Scalar::Float, span);
@@ -145,7 +146,7 @@ pub fn const_to_expr(values: &[ConstValue], ty: &Type, span: Span) -> Expr {
     build(values, &ty.dims, s, span)
 }
 
-fn build(values: &[ConstValue], dims: &[u32], s: Scalar, span: Span) -> Expr {
+fn build(values: &[ConstValue], dims: &[u32], s: Scalar, span: Span) -> Tree {
     match dims.first() {
         None => types::const_expr(values.first().copied().unwrap_or(types::zero_const(s)), s, span),
         Some(&n) => {
@@ -157,8 +158,8 @@ fn build(values: &[ConstValue], dims: &[u32], s: Scalar, span: Span) -> Expr {
                     build(&values[lo..hi], &dims[1..], s, span)
                 })
                 .collect();
-            Expr::new(
-                ExprKind::List(items),
+            Tree::new(
+                TreeKind::List(items),
                 Type::array(Elem::Scalar(s), dims.to_vec()),
                 Variability::Uniform,
                 span,

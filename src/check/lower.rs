@@ -5,8 +5,11 @@
 //! functions at their call sites. Lowering of an expression returns `None` after reporting an
 //! error, and the enclosing statement is dropped, so one mistake gives one diagnostic.
 //!
-//! After this pass every IR expression has its final type; variabilities are placeholders
-//! (uniform) that [`super::variability`] fills in. The whole body is in `Function::setup`.
+//! Expressions are built as owned trees ([`crate::ir::tree::Tree`]) and statements as
+//! `Stmt<Tree>`; the checker then moves the body into the function's arena
+//! ([`crate::ir::tree::intern_body`]). After this pass every IR expression has its final
+//! type; variabilities are placeholders (uniform) that [`super::variability`] fills in. The
+//! whole body is in `Function::setup`.
 //!
 //! This file holds [`FnLower`]'s state, nesting depth, locals and scopes; its methods for
 //! statements are in [`stmt`], for calls (primitive calls and helper inlining) in [`call`],
@@ -22,9 +25,10 @@
 use rustc_hash::FxHashMap;
 
 use crate::diag::{Diagnostic, Span};
+use crate::ir::tree::{Tree, TreeKind};
 use crate::ir::{
-    self, BinOp, ConstValue, Elem, Expr, ExprKind, FuncKind, Local, LocalId, LocalKind, LoopId, ParamRole, Scalar,
-    SiteId, Stmt, StmtKind, Type, Variability,
+    self, BinOp, ConstValue, Elem, FuncKind, Local, LocalId, LocalKind, LoopId, ParamRole, Scalar, SiteId, Stmt,
+    StmtKind, Type, Variability,
 };
 use crate::limits::{MAX_CALL_DEPTH, MAX_NESTING};
 use crate::syntax::ast;
@@ -110,11 +114,11 @@ fn arity_error(what: &str, callee: &ast::Ident, sig: &Signature, given: usize, s
     .secondary(sig.item.name.span, "declared here")
 }
 
-fn mk(kind: ExprKind, ty: Type, span: Span) -> Expr {
-    Expr::new(kind, ty, Variability::Uniform, span)
+fn mk(kind: TreeKind, ty: Type, span: Span) -> Tree {
+    Tree::new(kind, ty, Variability::Uniform, span)
 }
 
-fn stmt(kind: StmtKind, span: Span) -> Stmt {
+fn stmt(kind: StmtKind<Tree>, span: Span) -> Stmt<Tree> {
     Stmt { kind, span }
 }
 
@@ -390,8 +394,8 @@ impl<'g, 'a> FnLower<'g, 'a> {
         !self.inline.is_empty()
     }
 
-    fn local_expr(&self, id: LocalId, span: Span) -> Expr {
-        mk(ExprKind::Local(id), self.locals[id.0 as usize].ty.clone(), span)
+    fn local_expr(&self, id: LocalId, span: Span) -> Tree {
+        mk(TreeKind::Local(id), self.locals[id.0 as usize].ty.clone(), span)
     }
 }
 
@@ -404,13 +408,13 @@ pub fn var_of(v: ast::Variability) -> Variability {
 
 /// `float and point`: the operand types of a binary operation, for its error messages
 /// (formatted only when there is an error: this is the hot path of lowering).
-fn shapes(l: &Expr, r: &Expr) -> String {
+fn shapes(l: &Tree, r: &Tree) -> String {
     format!("{} and {}", type_name(&l.ty), type_name(&r.ty))
 }
 
-fn bin(op: BinOp, l: Expr, r: Expr, ty: Type, span: Span) -> Expr {
+fn bin(op: BinOp, l: Tree, r: Tree, ty: Type, span: Span) -> Tree {
     mk(
-        ExprKind::Binary {
+        TreeKind::Binary {
             op,
             lhs: Box::new(l),
             rhs: Box::new(r),
@@ -430,20 +434,20 @@ fn negate_const(c: ConstValue, s: Scalar) -> Option<ConstValue> {
 }
 
 /// A float scalar seen as interpolation data: the same value for every component.
-fn to_interp(v: Expr) -> Expr {
+fn to_interp(v: Tree) -> Tree {
     let span = v.span;
-    mk(ExprKind::Convert(Box::new(v)), Type::array(Elem::Interp, vec![]), span)
+    mk(TreeKind::Convert(Box::new(v)), Type::array(Elem::Interp, vec![]), span)
 }
 
 /// A scalar (or interpolation_data element) repeated over an array of the given
-/// dimensions: one [`ExprKind::Splat`] node, not a tree of lists.
-fn broadcast(v: Expr, dims: &[u32]) -> Expr {
+/// dimensions: one [`TreeKind::Splat`] node, not a tree of lists.
+fn broadcast(v: Tree, dims: &[u32]) -> Tree {
     if dims.is_empty() {
         return v;
     }
     let span = v.span;
     let ty = Type::array(v.ty.elem, dims.to_vec());
-    mk(ExprKind::Splat(Box::new(v)), ty, span)
+    mk(TreeKind::Splat(Box::new(v)), ty, span)
 }
 
 /// Does the name `name` occur anywhere in `e` (in nested calls' arguments too)?

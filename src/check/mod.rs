@@ -729,16 +729,17 @@ fn lower_function(
         lowered_cleanly[h] = true;
     }
     let (locals, infos, n_loops, uses_spaces) = (fl.locals, fl.infos, fl.n_loops, fl.uses_spaces);
+    let (setup, pixel, exprs) = ir::tree::intern_body(body, vec![]);
     let mut f = ir::Function {
         name: sig.item.name.name.clone(),
         kind,
         span: sig.item.name.span,
         params,
         locals,
-        setup: body,
-        pixel: vec![],
+        setup,
+        pixel,
         loops: n_loops,
-        exprs: 0,
+        exprs,
         uses_spaces,
     };
     let errors_before = sink.error_count();

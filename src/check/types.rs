@@ -6,7 +6,8 @@
 //! Invariant kept by [`convert`]: the returned expression has exactly the requested scalar
 //! element and the input's shape; constant scalars are folded instead of wrapped.
 
-use crate::ir::{ConstValue, Elem, Expr, ExprKind, FixedFormat, Scalar, Type, Variability};
+use crate::ir::tree::{Tree, TreeKind};
+use crate::ir::{ConstValue, Elem, FixedFormat, Scalar, Type, Variability};
 
 /// The result format of an arithmetic operation on two fixed-point operands.
 ///
@@ -92,8 +93,8 @@ pub fn zero_const(s: Scalar) -> ConstValue {
 }
 
 /// A constant expression of a scalar type.
-pub fn const_expr(c: ConstValue, s: Scalar, span: crate::diag::Span) -> Expr {
-    Expr::new(ExprKind::Const(c), Type::scalar(s), Variability::Uniform, span)
+pub fn const_expr(c: ConstValue, s: Scalar, span: crate::diag::Span) -> Tree {
+    Tree::new(TreeKind::Const(c), Type::scalar(s), Variability::Uniform, span)
 }
 
 /// Raw bits of `v` in format `f`: rounded to nearest, saturated to the format's range.
@@ -158,13 +159,13 @@ fn unreachable_bool() -> ConstValue {
 /// Convert the elements of `e` to scalar `to`, keeping its shape. Constants are folded.
 /// The caller has checked that the conversion is allowed (numbers to numbers, or to the
 /// same scalar; a float scalar to interpolation data).
-pub fn convert(e: Expr, to: Scalar) -> Expr {
+pub fn convert(e: Tree, to: Scalar) -> Tree {
     match e.ty.elem {
         Elem::Scalar(s) if s == to => e,
         Elem::Scalar(s) => {
-            if let ExprKind::Const(c) = e.kind {
+            if let TreeKind::Const(c) = e.kind {
                 if let Some(c2) = convert_const(c, s, to) {
-                    return Expr::new(ExprKind::Const(c2), Type::scalar(to), e.var, e.span);
+                    return Tree::new(TreeKind::Const(c2), Type::scalar(to), e.var, e.span);
                 }
             }
             let ty = Type {
@@ -173,7 +174,7 @@ pub fn convert(e: Expr, to: Scalar) -> Expr {
                 per_seq: e.ty.per_seq,
             };
             let (var, span) = (e.var, e.span);
-            Expr::new(ExprKind::Convert(Box::new(e)), ty, var, span)
+            Tree::new(TreeKind::Convert(Box::new(e)), ty, var, span)
         }
         Elem::Interp => e,
     }

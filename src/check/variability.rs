@@ -20,7 +20,7 @@
 //! first varying operand or condition), so diagnostics can point at the cause.
 
 use crate::diag::{Diagnostic, Span};
-use crate::ir::{Expr, ExprKind, Function, Local, LocalId, LoopId, ParamRole, Stmt, StmtKind, Variability};
+use crate::ir::{ExprId, ExprKind, Exprs, Function, Local, LocalId, LoopId, ParamRole, Stmt, StmtKind, Variability};
 
 use super::{LocalInfo, Sink};
 
@@ -32,6 +32,8 @@ struct State<'i> {
     infos: &'i [LocalInfo<'i>],
     /// The function's locals (for their names in messages).
     locals: &'i [Local],
+    /// The function's expressions, whose variabilities the walk sets.
+    exprs: Exprs,
     var: Vec<Variability>,
     cause: Vec<Option<Span>>,
     /// The loop's IR `varying` flag: it must run until no lane is active.
@@ -56,6 +58,7 @@ pub fn analyze(f: &mut Function, infos: &[LocalInfo], callee_roles: &[Vec<ParamR
     let mut st = State {
         infos,
         locals: &f.locals,
+        exprs: std::mem::take(&mut f.exprs),
         var: infos
             .iter()
             .map(|i| i.declared.map_or(Variability::Uniform, |d| d.0))
@@ -82,6 +85,7 @@ pub fn analyze(f: &mut Function, infos: &[LocalInfo], callee_roles: &[Vec<ParamR
         sink.push(d);
     }
     let var = st.var;
+    f.exprs = st.exprs;
     f.setup = body;
     for (l, v) in f.locals.iter_mut().zip(&var) {
         l.var = *v;
@@ -131,9 +135,9 @@ impl State<'_> {
         let span = s.span;
         match &mut s.kind {
             StmtKind::Assign { place, value } => {
-                let (mut v, mut cause) = self.expr(value);
+                let (mut v, mut cause) = self.expr(*value);
                 for (idx, _) in &mut place.indices {
-                    let (iv, ic) = self.expr(idx);
+                    let (iv, ic) = self.expr(*idx);
                     if iv.is_varying() && !v.is_varying() {
                         v = iv;
                         cause = ic;
@@ -175,10 +179,10 @@ impl State<'_> {
                 }
             }
             StmtKind::If { cond, then, otherwise } => {
-                let (cv, _) = self.expr(cond);
+                let (cv, _) = self.expr(*cond);
                 let pushed = cv.is_varying();
                 if pushed {
-                    self.conds.push((cond.span, self.loops.len()));
+                    self.conds.push((self.exprs.span(*cond), self.loops.len()));
                 }
                 self.block(then, roles, sink);
                 self.block(otherwise, roles, sink);
@@ -197,11 +201,11 @@ impl State<'_> {
                 let i = id.0 as usize;
                 self.loops.push(*id);
                 if let Some(c) = cond {
-                    let (cv, _) = self.expr(c);
+                    let (cv, _) = self.expr(*c);
                     if cv.is_varying() && !self.loop_ctl[i] {
                         self.loop_var[i] = true;
                         self.loop_ctl[i] = true;
-                        self.loop_cause[i] = Some(c.span);
+                        self.loop_cause[i] = Some(self.exprs.span(*c));
                         self.changed = true;
                     }
                 }
@@ -230,15 +234,15 @@ impl State<'_> {
             }
             StmtKind::InterpolatorReturn(v) => {
                 if let Some(e) = v {
-                    self.expr(e);
+                    self.expr(*e);
                 }
             }
             StmtKind::Bound(args) => {
                 for a in args.iter_mut() {
-                    let (v, cause) = self.expr(a);
+                    let (v, cause) = self.expr(*a);
                     if v.is_varying() {
                         let d = Diagnostic::error("E0303", "varying argument to `bound`")
-                            .primary(a.span, "varies per pixel")
+                            .primary(self.exprs.span(*a), "varies per pixel")
                             .help("a bound is one rectangle per primitive: compute it from uniform values");
                         sink.push(self.explain(d, cause));
                     }
@@ -254,13 +258,13 @@ impl State<'_> {
             StmtKind::CallPrimitive { callee, args } => {
                 let callee_roles = roles.get(callee.0 as usize);
                 for (k, a) in args.iter_mut().enumerate() {
-                    let (v, cause) = self.expr(a);
+                    let (v, cause) = self.expr(*a);
                     let pixel = callee_roles
                         .and_then(|r| r.get(k))
                         .is_some_and(|r| matches!(r, ParamRole::X | ParamRole::Y | ParamRole::Z));
                     if v.is_varying() && !pixel {
                         let d = Diagnostic::error("E0304", "varying argument to a primitive call")
-                            .primary(a.span, "varies per pixel")
+                            .primary(self.exprs.span(*a), "varies per pixel")
                             .help("parameters of a primitive are per-primitive (uniform) values");
                         sink.push(self.explain(d, cause));
                     }
@@ -294,46 +298,25 @@ impl State<'_> {
     }
 
     /// Compute (and store) the variability of an expression and of all its parts.
-    fn expr(&mut self, e: &mut Expr) -> (Variability, Cause) {
+    fn expr(&mut self, e: ExprId) -> (Variability, Cause) {
         let mut acc = (Variability::Uniform, None);
-        let join = |acc: &mut (Variability, Cause), (v, c): (Variability, Cause)| {
-            if v.is_varying() && !acc.0.is_varying() {
-                *acc = (v, c);
-            }
-        };
-        match &mut e.kind {
-            ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
-            ExprKind::Local(l) => {
-                let v = self.var[l.0 as usize];
-                if v.is_varying() {
-                    acc = (v, Some((e.span, Some(*l))));
-                } else {
-                    self.read_uniform[l.0 as usize] = true;
-                }
-            }
-            ExprKind::Index { base, index, .. } => {
-                join(&mut acc, self.expr(base));
-                join(&mut acc, self.expr(index));
-            }
-            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) | ExprKind::Splat(expr) => {
-                join(&mut acc, self.expr(expr))
-            }
-            ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
-                join(&mut acc, self.expr(lhs));
-                join(&mut acc, self.expr(rhs));
-            }
-            ExprKind::Select { cond, then, otherwise } => {
-                join(&mut acc, self.expr(cond));
-                join(&mut acc, self.expr(then));
-                join(&mut acc, self.expr(otherwise));
-            }
-            ExprKind::Builtin { args, .. } | ExprKind::List(args) => {
-                for a in args {
-                    join(&mut acc, self.expr(a));
-                }
+        if let ExprKind::Local(l) = self.exprs[e].kind {
+            let v = self.var[l.0 as usize];
+            if v.is_varying() {
+                acc = (v, Some((self.exprs.span(e), Some(l))));
+            } else {
+                self.read_uniform[l.0 as usize] = true;
             }
         }
-        e.var = acc.0;
+        let mut k = 0;
+        while let Some(c) = self.exprs[e].child(k) {
+            let (v, cause) = self.expr(c);
+            if v.is_varying() && !acc.0.is_varying() {
+                acc = (v, cause);
+            }
+            k += 1;
+        }
+        self.exprs[e].var = acc.0;
         acc
     }
 }

@@ -23,16 +23,20 @@
 //! [`super::number::renumber`]); only `Assign` statements are removed and only `Local`
 //! expressions renamed.
 
-use super::{Expr, ExprKind, Function, LocalId, LocalKind, Place, Stmt, StmtKind};
+use super::{ExprId, ExprKind, Exprs, Function, LocalId, LocalKind, Place, Stmt, StmtKind};
 
 /// `f` with whole-array copies forwarded (see the module comment).
 pub fn forward_copies(f: &Function) -> Function {
     let mut out = f.clone();
     let mut counts = Counts::new(out.locals.len());
     for s in out.setup.iter().chain(out.pixel.iter()) {
-        counts.stmt(s);
+        counts.stmt(&out.exprs, s);
     }
-    let mut fw = Forwarder { f, counts };
+    let mut fw = Forwarder {
+        f,
+        counts,
+        exprs: &mut out.exprs,
+    };
     fw.list(&mut out.setup);
     fw.list(&mut out.pixel);
     // The dropped copies took their expressions' ids with them.
@@ -54,8 +58,10 @@ impl Counts {
         }
     }
 
-    fn stmt(&mut self, s: &Stmt) {
-        visit_stmt(s, &mut |l| bump(&mut self.reads, l), &mut |l| bump(&mut self.writes, l));
+    fn stmt(&mut self, x: &Exprs, s: &Stmt) {
+        visit_stmt(x, s, &mut |l| bump(&mut self.reads, l), &mut |l| {
+            bump(&mut self.writes, l)
+        });
     }
 }
 
@@ -68,6 +74,8 @@ fn bump(v: &mut [u32], l: LocalId) {
 struct Forwarder<'a> {
     f: &'a Function,
     counts: Counts,
+    /// The arena of the function being rewritten.
+    exprs: &'a mut Exprs,
 }
 
 impl Forwarder<'_> {
@@ -104,7 +112,7 @@ impl Forwarder<'_> {
         let StmtKind::Assign { place, value } = &st.kind else {
             return None;
         };
-        let ExprKind::Local(s) = value.kind else {
+        let ExprKind::Local(s) = self.exprs[*value].kind else {
             return None;
         };
         if !place.indices.is_empty() || place.local == s {
@@ -136,6 +144,7 @@ impl Forwarder<'_> {
             let mut reads_d = 0;
             let mut writes_s = false;
             visit_stmt(
+                self.exprs,
                 st,
                 &mut |l| {
                     if l == d {
@@ -157,7 +166,7 @@ impl Forwarder<'_> {
             return false; // some read of `d` is elsewhere
         }
         for st in &mut list[k + 1..=last] {
-            rename_stmt(st, d, s);
+            rename_stmt(self.exprs, st, d, s);
         }
         self.counts.reads[s.0 as usize] += total_reads;
         // The copy itself read `s` once.
@@ -171,84 +180,88 @@ impl Forwarder<'_> {
 
 /// Calls `read` for every `Local` expression and `write` for every assigned place's local in
 /// `s` (nested statements included).
-fn visit_stmt(s: &Stmt, read: &mut dyn FnMut(LocalId), write: &mut dyn FnMut(LocalId)) {
+fn visit_stmt(x: &Exprs, s: &Stmt, read: &mut dyn FnMut(LocalId), write: &mut dyn FnMut(LocalId)) {
     match &s.kind {
         StmtKind::Assign { place, value } => {
             write(place.local);
             for (i, _) in &place.indices {
-                visit_expr(i, read);
+                visit_expr(x, *i, read);
             }
-            visit_expr(value, read);
+            visit_expr(x, *value, read);
         }
         StmtKind::If { cond, then, otherwise } => {
-            visit_expr(cond, read);
-            then.iter().chain(otherwise).for_each(|s| visit_stmt(s, read, write));
+            visit_expr(x, *cond, read);
+            then.iter().chain(otherwise).for_each(|s| visit_stmt(x, s, read, write));
         }
         StmtKind::Loop { cond, body, step, .. } => {
             if let Some(c) = cond {
-                visit_expr(c, read);
+                visit_expr(x, *c, read);
             }
-            body.iter().chain(step).for_each(|s| visit_stmt(s, read, write));
+            body.iter().chain(step).for_each(|s| visit_stmt(x, s, read, write));
         }
         StmtKind::Interpolation { arms } => arms
             .iter()
             .flat_map(|a| a.body.iter())
-            .for_each(|s| visit_stmt(s, read, write)),
-        StmtKind::InterpolatorReturn(Some(e)) => visit_expr(e, read),
-        StmtKind::Bound(es) => es.iter().for_each(|e| visit_expr(e, read)),
-        StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| visit_expr(e, read)),
+            .for_each(|s| visit_stmt(x, s, read, write)),
+        StmtKind::InterpolatorReturn(Some(e)) => visit_expr(x, *e, read),
+        StmtKind::Bound(es) => es.iter().for_each(|e| visit_expr(x, *e, read)),
+        StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| visit_expr(x, *e, read)),
         StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
     }
 }
 
-fn visit_expr(e: &Expr, read: &mut dyn FnMut(LocalId)) {
-    e.for_each_local(read);
+fn visit_expr(x: &Exprs, e: ExprId, read: &mut dyn FnMut(LocalId)) {
+    x.for_each_local(e, read);
 }
 
 /// Every read of `from` in `s` becomes a read of `to` (assignments to `from` stay: the rule
 /// only renames where `from` is never assigned).
-fn rename_stmt(s: &mut Stmt, from: LocalId, to: LocalId) {
+fn rename_stmt(x: &mut Exprs, s: &mut Stmt, from: LocalId, to: LocalId) {
     match &mut s.kind {
         StmtKind::Assign { place, value } => {
-            rename_place(place, from, to);
-            rename_expr(value, from, to);
+            rename_place(x, place, from, to);
+            rename_expr(x, *value, from, to);
         }
         StmtKind::If { cond, then, otherwise } => {
-            rename_expr(cond, from, to);
+            rename_expr(x, *cond, from, to);
             then.iter_mut()
                 .chain(otherwise.iter_mut())
-                .for_each(|s| rename_stmt(s, from, to));
+                .for_each(|s| rename_stmt(x, s, from, to));
         }
         StmtKind::Loop { cond, body, step, .. } => {
             if let Some(c) = cond {
-                rename_expr(c, from, to);
+                rename_expr(x, *c, from, to);
             }
             body.iter_mut()
                 .chain(step.iter_mut())
-                .for_each(|s| rename_stmt(s, from, to));
+                .for_each(|s| rename_stmt(x, s, from, to));
         }
         StmtKind::Interpolation { arms } => arms
             .iter_mut()
             .flat_map(|a| a.body.iter_mut())
-            .for_each(|s| rename_stmt(s, from, to)),
-        StmtKind::InterpolatorReturn(Some(e)) => rename_expr(e, from, to),
-        StmtKind::Bound(es) => es.iter_mut().for_each(|e| rename_expr(e, from, to)),
-        StmtKind::CallPrimitive { args, .. } => args.iter_mut().for_each(|e| rename_expr(e, from, to)),
+            .for_each(|s| rename_stmt(x, s, from, to)),
+        StmtKind::InterpolatorReturn(Some(e)) => rename_expr(x, *e, from, to),
+        StmtKind::Bound(es) => es.iter_mut().for_each(|e| rename_expr(x, *e, from, to)),
+        StmtKind::CallPrimitive { args, .. } => args.iter_mut().for_each(|e| rename_expr(x, *e, from, to)),
         StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
     }
 }
 
-fn rename_place(p: &mut Place, from: LocalId, to: LocalId) {
+fn rename_place(x: &mut Exprs, p: &mut Place, from: LocalId, to: LocalId) {
     for (i, _) in &mut p.indices {
-        rename_expr(i, from, to);
+        rename_expr(x, *i, from, to);
     }
 }
 
-fn rename_expr(e: &mut Expr, from: LocalId, to: LocalId) {
-    if let ExprKind::Local(l) = &mut e.kind {
+fn rename_expr(x: &mut Exprs, e: ExprId, from: LocalId, to: LocalId) {
+    if let ExprKind::Local(l) = &mut x[e].kind {
         if *l == from {
             *l = to;
         }
     }
-    e.for_each_child_mut(|c| rename_expr(c, from, to));
+    let mut k = 0;
+    while let Some(c) = x[e].child(k) {
+        rename_expr(x, c, from, to);
+        k += 1;
+    }
 }

@@ -8,11 +8,16 @@
 //! validator [`valid`] states each as a [`valid::Rule`] and checks it after the checker and
 //! after every pass that rewrites a function (`forward`, `mid::unroll`) in test and
 //! debug builds, so a pass that breaks one is an internal compiler error, not a miscompile:
-//! - Every [`Expr`] of a function has an [`ExprId`] of its own, and the ids are exactly
-//!   `0..Function::exprs` in pre-order ([`number`]): the key of the JIT's side tables, as a
-//!   [`LoopId`] is a loop's (each names one `Loop` statement). An id names an expression of
-//!   its own function only. The checker numbers every function, and so does every pass
-//!   that adds, drops or copies expressions.
+//! - A function's expressions live in its arena, [`Function::exprs`] ([`arena`]): a node
+//!   ([`Expr`]) holds its kind, type and variability, its operands are [`ExprId`]s of the
+//!   same arena, and its span is in the arena's side table. Statements hold the ids of
+//!   their expressions. The arena stores trees: each node is the operand of exactly one
+//!   node or the expression of exactly one statement, so a pass may rewrite nodes in place.
+//!   The ids are exactly `0..exprs.len()` in pre-order and every node is reachable
+//!   ([`number`]): the key of every analysis' side table, as a [`LoopId`] is a loop's (each
+//!   names one `Loop` statement). An id names an expression of its own function only. The
+//!   checker builds a body as trees ([`tree`]) and moves it into the arena in that order;
+//!   every pass that adds, drops or copies expressions renumbers its result.
 //! - Every [`Expr`] has a concrete [`Type`] and a [`Variability`]. An expression is varying
 //!   iff one of its operands is. Operands of `Binary` have the same scalar element (the
 //!   checker inserts `Convert`), and the same shape, except that one side may be a scalar
@@ -35,16 +40,19 @@
 //!   X, Y, Z as the caller's own; `interpolator_return` and `interpolation` occur only where
 //!   [`valid`] says.
 
+pub mod arena;
 pub mod eval;
 pub mod forward;
 pub mod number;
 pub mod print;
 pub mod range;
 pub mod split;
+pub mod tree;
 pub mod valid;
 
 use crate::diag::Span;
 pub use crate::ops::{BinOp, UnaryOp};
+pub use arena::Exprs;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct FuncId(pub u32);
@@ -55,15 +63,10 @@ pub struct LoopId(pub u32);
 /// A place that can fail at run time (an index out of range, a loop out of fuel).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct SiteId(pub u32);
-/// An expression of one function: the key of the analyses' side tables (see the module doc).
+/// An expression of one function: its index in the function's arena ([`Function::exprs`]),
+/// and the key of the analyses' side tables (see the module doc).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct ExprId(pub u32);
-
-impl ExprId {
-    /// The id of an expression built outside a numbered function; [`number::renumber`]
-    /// replaces it.
-    pub const UNSET: ExprId = ExprId(u32::MAX);
-}
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Variability {
@@ -281,8 +284,8 @@ pub struct Function {
     pub pixel: Vec<Stmt>,
     /// Number of `LoopId`s used (ids are 0..loops).
     pub loops: u32,
-    /// Number of expressions: their ids are 0..exprs (see [`number`]).
-    pub exprs: u32,
+    /// Every expression of `setup` and `pixel`, indexed by [`ExprId`] (see [`number`]).
+    pub exprs: Exprs,
     /// The function uses `transform(...)` between named spaces, so its arguments carry the
     /// space matrices.
     pub uses_spaces: bool,
@@ -317,53 +320,46 @@ impl Program {
     }
 }
 
+/// An expression node of a function's arena ([`Function::exprs`]): its operands are the
+/// [`ExprId`]s of other nodes of the same arena; its span is in the arena's side table.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Expr {
     pub kind: ExprKind,
     pub ty: Type,
     pub var: Variability,
-    pub span: Span,
-    pub id: ExprId,
 }
 
 impl Expr {
-    /// An expression not numbered yet ([`ExprId::UNSET`]).
-    pub fn new(kind: ExprKind, ty: Type, var: Variability, span: Span) -> Expr {
-        Expr {
-            kind,
-            ty,
-            var,
-            span,
-            id: ExprId::UNSET,
-        }
+    pub fn new(kind: ExprKind, ty: Type, var: Variability) -> Expr {
+        Expr { kind, ty, var }
     }
 
-    /// Call `f` on each direct sub-expression, in evaluation order. The one place that
-    /// knows the shape of every `ExprKind`; walks that treat all children alike recurse
-    /// through it.
-    pub fn for_each_child<'e>(&'e self, mut f: impl FnMut(&'e Expr)) {
+    /// The `k`-th direct operand, in evaluation order (`None` past the last). The one place
+    /// that knows the shape of every `ExprKind` (with [`Expr::for_each_child_mut`]); walks
+    /// that treat all operands alike go through it.
+    pub fn child(&self, k: usize) -> Option<ExprId> {
         match &self.kind {
-            ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
-            ExprKind::Index { base, index, .. } => {
-                f(base);
-                f(index);
-            }
-            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) | ExprKind::Splat(expr) => f(expr),
-            ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
-                f(lhs);
-                f(rhs);
-            }
-            ExprKind::Select { cond, then, otherwise } => {
-                f(cond);
-                f(then);
-                f(otherwise);
-            }
-            ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(f),
+            ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => None,
+            ExprKind::Index { base: a, index: b, .. }
+            | ExprKind::Binary { lhs: a, rhs: b, .. }
+            | ExprKind::MatMul { lhs: a, rhs: b } => [*a, *b].get(k).copied(),
+            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) | ExprKind::Splat(expr) => (k == 0).then_some(*expr),
+            ExprKind::Select { cond, then, otherwise } => [*cond, *then, *otherwise].get(k).copied(),
+            ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.get(k).copied(),
         }
     }
 
-    /// [`Expr::for_each_child`] for rewriting.
-    pub fn for_each_child_mut(&mut self, mut f: impl FnMut(&mut Expr)) {
+    /// Call `f` on each direct operand, in evaluation order.
+    pub fn for_each_child(&self, mut f: impl FnMut(ExprId)) {
+        let mut k = 0;
+        while let Some(c) = self.child(k) {
+            f(c);
+            k += 1;
+        }
+    }
+
+    /// [`Expr::for_each_child`] for rewriting the operand ids.
+    pub fn for_each_child_mut(&mut self, mut f: impl FnMut(&mut ExprId)) {
         match &mut self.kind {
             ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
             ExprKind::Index { base, index, .. } => {
@@ -383,27 +379,12 @@ impl Expr {
             ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter_mut().for_each(f),
         }
     }
-
-    /// Call `f` on every local `self` reads, anywhere inside it (once per occurrence).
-    pub fn for_each_local(&self, f: &mut dyn FnMut(LocalId)) {
-        if let ExprKind::Local(l) = self.kind {
-            f(l);
-        }
-        self.for_each_child(|c| c.for_each_local(f));
-    }
-
-    /// Whether `self` reads a local for which `pred` holds.
-    pub fn reads_any(&self, pred: &dyn Fn(LocalId) -> bool) -> bool {
-        let mut found = false;
-        self.for_each_local(&mut |l| found |= pred(l));
-        found
-    }
 }
 
 /// Call `f` on every statement in `stmts`, nested ones too (through `if` sides, loop
 /// bodies and steps, interpolation arms), each before the statements inside it. The one
 /// place that knows which statements hold others.
-pub fn for_each_stmt<'s>(stmts: &'s [Stmt], f: &mut dyn FnMut(&'s Stmt)) {
+pub fn for_each_stmt<'s, E>(stmts: &'s [Stmt<E>], f: &mut dyn FnMut(&'s Stmt<E>)) {
     for s in stmts {
         f(s);
         match &s.kind {
@@ -422,7 +403,7 @@ pub fn for_each_stmt<'s>(stmts: &'s [Stmt], f: &mut dyn FnMut(&'s Stmt)) {
 }
 
 /// [`for_each_stmt`] for rewriting.
-pub fn for_each_stmt_mut(stmts: &mut [Stmt], f: &mut dyn FnMut(&mut Stmt)) {
+pub fn for_each_stmt_mut<E>(stmts: &mut [Stmt<E>], f: &mut dyn FnMut(&mut Stmt<E>)) {
     for s in stmts {
         f(s);
         match &mut s.kind {
@@ -440,11 +421,11 @@ pub fn for_each_stmt_mut(stmts: &mut [Stmt], f: &mut dyn FnMut(&mut Stmt)) {
     }
 }
 
-impl Stmt {
+impl<E> Stmt<E> {
     /// Call `f` on each expression `self` holds itself (not those of the statements inside
     /// it): a place's indices, then the assigned value; a condition; the arguments of
     /// `bound` and of a call; an interpolator's value.
-    pub fn for_each_expr<'s>(&'s self, mut f: impl FnMut(&'s Expr)) {
+    pub fn for_each_expr<'s>(&'s self, mut f: impl FnMut(&'s E)) {
         match &self.kind {
             StmtKind::Assign { place, value } => {
                 place.indices.iter().for_each(|(i, _)| f(i));
@@ -460,7 +441,7 @@ impl Stmt {
     }
 
     /// [`Stmt::for_each_expr`] for rewriting.
-    pub fn for_each_expr_mut(&mut self, mut f: impl FnMut(&mut Expr)) {
+    pub fn for_each_expr_mut(&mut self, mut f: impl FnMut(&mut E)) {
         match &mut self.kind {
             StmtKind::Assign { place, value } => {
                 place.indices.iter_mut().for_each(|(i, _)| f(i));
@@ -474,14 +455,84 @@ impl Stmt {
             StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::Interpolation { .. } => {}
         }
     }
+
+    /// `self` with each expression `x` replaced by `f(x)`, in the order of
+    /// [`for_each_stmt`] and, within a statement, [`Stmt::for_each_expr`] (a statement's
+    /// own expressions before those of the statements inside it).
+    pub fn map_exprs<F>(self, f: &mut dyn FnMut(E) -> F) -> Stmt<F> {
+        fn list<E, F>(ss: Vec<Stmt<E>>, f: &mut dyn FnMut(E) -> F) -> Vec<Stmt<F>> {
+            ss.into_iter().map(|s| s.map_exprs(f)).collect()
+        }
+        let kind = match self.kind {
+            StmtKind::Assign { place, value } => {
+                let indices = place.indices.into_iter().map(|(i, site)| (f(i), site)).collect();
+                StmtKind::Assign {
+                    place: Place {
+                        local: place.local,
+                        indices,
+                        span: place.span,
+                    },
+                    value: f(value),
+                }
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                let cond = f(cond);
+                let then = list(then, f);
+                StmtKind::If {
+                    cond,
+                    then,
+                    otherwise: list(otherwise, f),
+                }
+            }
+            StmtKind::Loop {
+                id,
+                cond,
+                body,
+                step,
+                varying,
+                site,
+            } => {
+                let cond = cond.map(&mut *f);
+                let body = list(body, f);
+                StmtKind::Loop {
+                    id,
+                    cond,
+                    body,
+                    step: list(step, f),
+                    varying,
+                    site,
+                }
+            }
+            StmtKind::Break(l) => StmtKind::Break(l),
+            StmtKind::Continue(l) => StmtKind::Continue(l),
+            StmtKind::Return => StmtKind::Return,
+            StmtKind::Interpolation { arms } => StmtKind::Interpolation {
+                arms: arms
+                    .into_iter()
+                    .map(|a| InterpArm {
+                        kind: a.kind,
+                        body: list(a.body, f),
+                        span: a.span,
+                    })
+                    .collect(),
+            },
+            StmtKind::InterpolatorReturn(e) => StmtKind::InterpolatorReturn(e.map(&mut *f)),
+            StmtKind::Bound(es) => StmtKind::Bound(es.map(&mut *f)),
+            StmtKind::CallPrimitive { callee, args } => StmtKind::CallPrimitive {
+                callee,
+                args: args.into_iter().map(&mut *f).collect(),
+            },
+        };
+        Stmt { kind, span: self.span }
+    }
 }
 
 /// Call `f` on every assignment in `stmts`, nested ones too, with its place and value; the
 /// walks that collect assigned locals go through it.
-pub fn for_each_assign(stmts: &[Stmt], f: &mut dyn FnMut(&Place, &Expr)) {
+pub fn for_each_assign(stmts: &[Stmt], f: &mut dyn FnMut(&Place, ExprId)) {
     for_each_stmt(stmts, &mut |s| {
         if let StmtKind::Assign { place, value } = &s.kind {
-            f(place, value);
+            f(place, *value);
         }
     });
 }
@@ -559,45 +610,45 @@ pub enum ExprKind {
     Local(LocalId),
     /// `base[index]`; `index` is Int. Out-of-range indices are clamped and reported at `site`.
     Index {
-        base: Box<Expr>,
-        index: Box<Expr>,
+        base: ExprId,
+        index: ExprId,
         site: SiteId,
     },
     Unary {
         op: UnaryOp,
-        expr: Box<Expr>,
+        expr: ExprId,
     },
     Binary {
         op: BinOp,
-        lhs: Box<Expr>,
-        rhs: Box<Expr>,
+        lhs: ExprId,
+        rhs: ExprId,
     },
     /// Element conversion to this expression's scalar type, shape unchanged. Float to int
     /// truncates toward zero and saturates; to fixed rounds to nearest and saturates;
     /// fixed to float is exact up to f32 rounding.
-    Convert(Box<Expr>),
+    Convert(ExprId),
     /// `cond ? then : otherwise`; `cond` is a scalar Bool.
     Select {
-        cond: Box<Expr>,
-        then: Box<Expr>,
-        otherwise: Box<Expr>,
+        cond: ExprId,
+        then: ExprId,
+        otherwise: ExprId,
     },
     Builtin {
         func: Builtin,
-        args: Vec<Expr>,
+        args: Vec<ExprId>,
     },
     /// Aggregate literal: each element has the type of `self.ty.element()`.
-    List(Vec<Expr>),
+    List(Vec<ExprId>),
     /// A scalar of this expression's element kind (or one interpolation_data element)
     /// repeated into every element of its fixed-size array type: what a declaration
     /// without an initialiser (zero) and a scalar assigned to an array become. One node
     /// whatever the array's size (`point known[1280];` was 6 400 as a `List`, walked and
     /// copied by every pass).
-    Splat(Box<Expr>),
+    Splat(ExprId),
     /// Matrix product: `[n][m] * [m]` -> `[n]`, `[n][m] * [m][k]` -> `[n][k]` (floats).
     MatMul {
-        lhs: Box<Expr>,
-        rhs: Box<Expr>,
+        lhs: ExprId,
+        rhs: ExprId,
     },
     /// Run-time number of sequence points (`len(a)` of a per-sequence-point parameter).
     SeqCount,
@@ -609,9 +660,9 @@ pub enum ExprKind {
 
 /// An assignable place: a local and zero or more indices into it.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Place {
+pub struct Place<E = ExprId> {
     pub local: LocalId,
-    pub indices: Vec<(Expr, SiteId)>,
+    pub indices: Vec<(E, SiteId)>,
     pub span: Span,
 }
 
@@ -623,31 +674,31 @@ pub enum ArmKind {
 }
 
 #[derive(Clone, Debug, PartialEq)]
-pub struct InterpArm {
+pub struct InterpArm<E = ExprId> {
     pub kind: ArmKind,
-    pub body: Vec<Stmt>,
+    pub body: Vec<Stmt<E>>,
     pub span: Span,
 }
 
 #[derive(Clone, Debug, PartialEq)]
-pub struct Stmt {
-    pub kind: StmtKind,
+pub struct Stmt<E = ExprId> {
+    pub kind: StmtKind<E>,
     pub span: Span,
 }
 
 #[derive(Clone, Debug, PartialEq)]
-pub enum StmtKind {
+pub enum StmtKind<E = ExprId> {
     /// Declarations become assignments (a declaration without an initialiser assigns zero).
     /// Compound assignment is desugared (`a += b` is `a = a + b`).
     Assign {
-        place: Place,
-        value: Expr,
+        place: Place<E>,
+        value: E,
     },
     /// A varying `cond` executes both sides under masks.
     If {
-        cond: Expr,
-        then: Vec<Stmt>,
-        otherwise: Vec<Stmt>,
+        cond: E,
+        then: Vec<Stmt<E>>,
+        otherwise: Vec<Stmt<E>>,
     },
     /// `loop { if let Some(c) = cond { if !c break }; body; step }`. `continue` goes to
     /// `step`. `varying` is set when the condition is varying or a break/continue/return
@@ -655,9 +706,9 @@ pub enum StmtKind {
     /// active. Every iteration spends fuel; out of fuel is a run-time error at `site`.
     Loop {
         id: LoopId,
-        cond: Option<Expr>,
-        body: Vec<Stmt>,
-        step: Vec<Stmt>,
+        cond: Option<E>,
+        body: Vec<Stmt<E>>,
+        step: Vec<Stmt<E>>,
         varying: bool,
         site: SiteId,
     },
@@ -667,18 +718,18 @@ pub enum StmtKind {
     /// nothing more).
     Return,
     Interpolation {
-        arms: Vec<InterpArm>,
+        arms: Vec<InterpArm<E>>,
     },
     /// Store into the shading parameters of the enclosing arm's kind (or, in an
     /// interpolator, set its result and end it). `None`: run the shared interpolators and
     /// constants bound to the parameters of kinds this construct has no arm for.
-    InterpolatorReturn(Option<Expr>),
+    InterpolatorReturn(Option<E>),
     /// `bound(xmin, ymin, xmax, ymax)`, all uniform floats.
-    Bound(Box<[Expr; 4]>),
+    Bound([E; 4]),
     /// Render another primitive now: one argument per callee parameter (defaults filled in),
     /// the callee's X, Y, Z receiving this function's own X, Y, Z locals.
     CallPrimitive {
         callee: FuncId,
-        args: Vec<Expr>,
+        args: Vec<E>,
     },
 }

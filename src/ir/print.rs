@@ -9,7 +9,7 @@
 use std::fmt::{self, Write};
 
 use super::{
-    ArmKind, BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, FuncKind, Function, LocalKind, Program, Scalar, Space,
+    ArmKind, BinOp, Builtin, ConstValue, Elem, ExprId, ExprKind, FuncKind, Function, LocalKind, Program, Scalar, Space,
     Stmt, StmtKind, Type, UnaryOp, Variability,
 };
 
@@ -162,13 +162,17 @@ impl Printer<'_> {
             StmtKind::Assign { place, value } => {
                 write!(out, "{pad}{}", self.local_name(place.local))?;
                 for (i, _) in &place.indices {
-                    write!(out, "[{}]", self.expr(i))?;
+                    write!(out, "[{}]", self.expr(*i))?;
                 }
-                writeln!(out, " = {}", self.expr(value))
+                writeln!(out, " = {}", self.expr(*value))
             }
             StmtKind::If { cond, then, otherwise } => {
-                let v = if cond.var.is_varying() { "varying " } else { "" };
-                writeln!(out, "{pad}if {v}{} {{", self.expr(cond))?;
+                let v = if self.func.exprs[*cond].var.is_varying() {
+                    "varying "
+                } else {
+                    ""
+                };
+                writeln!(out, "{pad}if {v}{} {{", self.expr(*cond))?;
                 self.block(out, then, depth + 1)?;
                 if !otherwise.is_empty() {
                     writeln!(out, "{pad}}} else {{")?;
@@ -186,7 +190,7 @@ impl Printer<'_> {
             } => {
                 let v = if *varying { " varying" } else { "" };
                 match cond {
-                    Some(c) => writeln!(out, "{pad}loop#{}{v} while {} {{", id.0, self.expr(c))?,
+                    Some(c) => writeln!(out, "{pad}loop#{}{v} while {} {{", id.0, self.expr(*c))?,
                     None => writeln!(out, "{pad}loop#{}{v} {{", id.0)?,
                 }
                 self.block(out, body, depth + 1)?;
@@ -210,14 +214,14 @@ impl Printer<'_> {
                 }
                 writeln!(out, "{pad}}}")
             }
-            StmtKind::InterpolatorReturn(Some(e)) => writeln!(out, "{pad}interpolator_return({})", self.expr(e)),
+            StmtKind::InterpolatorReturn(Some(e)) => writeln!(out, "{pad}interpolator_return({})", self.expr(*e)),
             StmtKind::InterpolatorReturn(None) => writeln!(out, "{pad}interpolator_return"),
             StmtKind::Bound(args) => {
-                let a: Vec<String> = args.iter().map(|e| self.expr(e)).collect();
+                let a: Vec<String> = args.iter().map(|e| self.expr(*e)).collect();
                 writeln!(out, "{pad}bound({})", a.join(", "))
             }
             StmtKind::CallPrimitive { callee, args } => {
-                let a: Vec<String> = args.iter().map(|e| self.expr(e)).collect();
+                let a: Vec<String> = args.iter().map(|e| self.expr(*e)).collect();
                 writeln!(out, "{pad}call primitive#{}({})", callee.0, a.join(", "))
             }
         }
@@ -230,33 +234,39 @@ impl Printer<'_> {
         }
     }
 
-    fn expr(&self, e: &Expr) -> String {
+    fn expr(&self, id: ExprId) -> String {
+        let e = &self.func.exprs[id];
         match &e.kind {
             ExprKind::Const(c) => const_str(*c, scalar(&e.ty)),
             ExprKind::Local(l) => self.local_name(*l),
-            ExprKind::Index { base, index, .. } => format!("{}[{}]", self.expr(base), self.expr(index)),
+            ExprKind::Index { base, index, .. } => format!("{}[{}]", self.expr(*base), self.expr(*index)),
             ExprKind::Unary { op, expr } => {
                 let o = match op {
                     UnaryOp::Neg => "-",
                     UnaryOp::Not => "!",
                 };
-                format!("{o}{}", self.expr(expr))
+                format!("{o}{}", self.expr(*expr))
             }
             ExprKind::Binary { op, lhs, rhs } => {
-                format!("({} {} {})", self.expr(lhs), bin_str(*op), self.expr(rhs))
+                format!("({} {} {})", self.expr(*lhs), bin_str(*op), self.expr(*rhs))
             }
             ExprKind::Convert(x) => {
                 let to = match e.ty.elem {
                     Elem::Scalar(s) => scalar_str(s),
                     Elem::Interp => "interp".into(),
                 };
-                format!("{to}({})", self.expr(x))
+                format!("{to}({})", self.expr(*x))
             }
             ExprKind::Select { cond, then, otherwise } => {
-                format!("({} ? {} : {})", self.expr(cond), self.expr(then), self.expr(otherwise))
+                format!(
+                    "({} ? {} : {})",
+                    self.expr(*cond),
+                    self.expr(*then),
+                    self.expr(*otherwise)
+                )
             }
             ExprKind::Builtin { func, args } => {
-                let a: Vec<String> = args.iter().map(|x| self.expr(x)).collect();
+                let a: Vec<String> = args.iter().map(|x| self.expr(*x)).collect();
                 let name = match func {
                     Builtin::TransformPoint { from, to } => {
                         format!("transform[{}->{}]", space_str(*from), space_str(*to))
@@ -272,11 +282,11 @@ impl Printer<'_> {
                 format!("{name}({})", a.join(", "))
             }
             ExprKind::List(items) => {
-                let a: Vec<String> = items.iter().map(|x| self.expr(x)).collect();
+                let a: Vec<String> = items.iter().map(|x| self.expr(*x)).collect();
                 format!("{{{}}}", a.join(", "))
             }
-            ExprKind::Splat(x) => format!("splat{:?}({})", e.ty.dims, self.expr(x)),
-            ExprKind::MatMul { lhs, rhs } => format!("matmul({}, {})", self.expr(lhs), self.expr(rhs)),
+            ExprKind::Splat(x) => format!("splat{:?}({})", e.ty.dims, self.expr(*x)),
+            ExprKind::MatMul { lhs, rhs } => format!("matmul({}, {})", self.expr(*lhs), self.expr(*rhs)),
             ExprKind::SeqCount => "seq_count".into(),
             ExprKind::ClipFlag => "clipping()".into(),
         }

@@ -28,7 +28,9 @@
 
 use std::collections::{HashMap, HashSet};
 
-use super::{BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, Function, LocalId, LoopId, Scalar, SiteId, Stmt};
+use super::{
+    BinOp, Builtin, ConstValue, Elem, Expr, ExprId, ExprKind, Function, LocalId, LoopId, Scalar, SiteId, Stmt,
+};
 use super::{LocalKind, StmtKind, UnaryOp};
 
 /// An interval of i32 values, `lo <= hi`, as arithmetic on it takes it (exact in i64).
@@ -221,15 +223,15 @@ impl Analysis<'_> {
             let mut env = st?;
             if let Some(local) = self.f.locals.get(place.local.0 as usize) {
                 for (depth, (index, site)) in place.indices.iter().enumerate() {
-                    self.judge(index_len(&local.ty, depth), index, *site, &env);
+                    self.judge(index_len(&local.ty, depth), *index, *site, &env);
                 }
             }
             for (index, _) in &place.indices {
-                self.visit(index, &env);
+                self.visit(*index, &env);
             }
-            self.visit(value, &env);
+            self.visit(*value, &env);
             if place.indices.is_empty() && self.tracked(place.local) {
-                let v = self.eval(value, &env);
+                let v = self.eval(*value, &env);
                 if let Some(at) = self.slot(place.local) {
                     env[at] = stored(v);
                 }
@@ -241,16 +243,16 @@ impl Analysis<'_> {
             // Handled above (it takes the state by value).
             StmtKind::Assign { .. } => st,
             StmtKind::If { cond, then, otherwise } => {
-                self.visit(cond, env);
-                let t = self.refine(st.clone(), cond, true);
-                let e = self.refine(st, cond, false);
+                self.visit(*cond, env);
+                let t = self.refine(st.clone(), *cond, true);
+                let e = self.refine(st, *cond, false);
                 let t = self.stmts(then, t);
                 let e = self.stmts(otherwise, e);
                 join(t, e)
             }
             StmtKind::Loop {
                 id, cond, body, step, ..
-            } => self.lower_loop(*id, cond.as_ref(), body, step, st),
+            } => self.lower_loop(*id, *cond, body, step, st),
             StmtKind::Break(id) | StmtKind::Continue(id) => {
                 let is_break = matches!(s.kind, StmtKind::Break(_));
                 if let Some(frame) = self.loops.iter_mut().rev().find(|l| l.id == *id) {
@@ -275,16 +277,16 @@ impl Analysis<'_> {
             }
             StmtKind::InterpolatorReturn(e) => {
                 if let Some(e) = e {
-                    self.visit(e, env);
+                    self.visit(*e, env);
                 }
                 st
             }
             StmtKind::Bound(es) => {
-                es.iter().for_each(|e| self.visit(e, env));
+                es.iter().for_each(|e| self.visit(*e, env));
                 st
             }
             StmtKind::CallPrimitive { args, .. } => {
-                args.iter().for_each(|e| self.visit(e, env));
+                args.iter().for_each(|e| self.visit(*e, env));
                 st
             }
         }
@@ -299,7 +301,7 @@ impl Analysis<'_> {
     /// at 2^31 - 1). The ascending rounds are quiet; sites are judged in one more round from
     /// `next`, whose states cover every trip. A quiet visit (inside another loop's ascending
     /// rounds) returns the last ascending round's exit and skips that round.
-    fn lower_loop(&mut self, id: LoopId, cond: Option<&Expr>, body: &[Stmt], step: &[Stmt], entry: State) -> State {
+    fn lower_loop(&mut self, id: LoopId, cond: Option<ExprId>, body: &[Stmt], step: &[Stmt], entry: State) -> State {
         let judging = !self.quiet;
         if judging {
             // A fresh solve: heads cached by earlier ascending rounds came from larger
@@ -315,8 +317,8 @@ impl Analysis<'_> {
             Some(c) => c.clone(),
             None => {
                 let mut c = vec![false; self.slots.len()];
-                counters_in(body, &mut c);
-                counters_in(step, &mut c);
+                counters_in(&self.f.exprs, body, &mut c);
+                counters_in(&self.f.exprs, step, &mut c);
                 let c: Vec<bool> = (0..self.slots.len())
                     .filter_map(|l| self.slots[l].map(|_| c[l]))
                     .collect();
@@ -378,7 +380,7 @@ impl Analysis<'_> {
     fn loop_round(
         &mut self,
         id: LoopId,
-        cond: Option<&Expr>,
+        cond: Option<ExprId>,
         body: &[Stmt],
         step: &[Stmt],
         head: State,
@@ -412,39 +414,41 @@ impl Analysis<'_> {
     }
 
     /// Judge every index site in `e` under `env` (nothing to do in a quiet round).
-    fn visit(&mut self, e: &Expr, env: &[Stored]) {
+    fn visit(&mut self, e_id: ExprId, env: &[Stored]) {
+        let e = &self.f.exprs[e_id];
         if self.quiet {
             return;
         }
         match &e.kind {
             ExprKind::Index { base, index, site } => {
-                self.judge(index_len(&base.ty, 0), index, *site, env);
-                self.visit(base, env);
-                self.visit(index, env);
+                self.judge(index_len(&self.f.exprs[*base].ty, 0), *index, *site, env);
+                self.visit(*base, env);
+                self.visit(*index, env);
             }
             ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => {}
-            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) | ExprKind::Splat(expr) => self.visit(expr, env),
+            ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) | ExprKind::Splat(expr) => self.visit(*expr, env),
             ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
-                self.visit(lhs, env);
-                self.visit(rhs, env);
+                self.visit(*lhs, env);
+                self.visit(*rhs, env);
             }
             ExprKind::Select { cond, then, otherwise } => {
                 // The JIT evaluates both arms whatever the condition (and selects), so an
                 // index in either arm runs under the unrefined state: judged there.
-                self.visit(cond, env);
-                self.visit(then, env);
-                self.visit(otherwise, env);
+                self.visit(*cond, env);
+                self.visit(*then, env);
+                self.visit(*otherwise, env);
             }
-            ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| self.visit(a, env)),
+            ExprKind::Builtin { args, .. } | ExprKind::List(args) => args.iter().for_each(|a| self.visit(*a, env)),
         }
     }
 
     /// `len`: the indexed array's length (`None`: the sequence length, not fixed).
-    fn judge(&mut self, len: Option<u32>, index: &Expr, site: SiteId, env: &[Stored]) {
+    fn judge(&mut self, len: Option<u32>, index_id: ExprId, site: SiteId, env: &[Stored]) {
+        let index = &self.f.exprs[index_id];
         if self.quiet {
             return;
         }
-        let (lo, hi) = self.eval(index, env);
+        let (lo, hi) = self.eval(index_id, env);
         let ok = !index.var.is_varying() && len.is_some_and(|n| lo >= 0 && hi < n as i64);
         let at = site.0 as usize;
         if self.verdicts.len() <= at {
@@ -458,7 +462,8 @@ impl Analysis<'_> {
     }
 
     /// The interval of a uniform int expression (TOP for anything else).
-    fn eval(&self, e: &Expr, env: &[Stored]) -> Range {
+    fn eval(&self, e_id: ExprId, env: &[Stored]) -> Range {
+        let e = &self.f.exprs[e_id];
         if e.var.is_varying() || !e.ty.is_scalar() || e.ty.elem != Elem::Scalar(Scalar::Int) {
             return TOP;
         }
@@ -466,11 +471,11 @@ impl Analysis<'_> {
             ExprKind::Const(ConstValue::Int(v)) => (*v as i64, *v as i64),
             ExprKind::Local(l) => self.slot(*l).and_then(|at| env.get(at).copied()).map_or(TOP, range),
             ExprKind::Unary { op: UnaryOp::Neg, expr } => {
-                let (lo, hi) = self.eval(expr, env);
+                let (lo, hi) = self.eval(*expr, env);
                 fits(-hi, -lo)
             }
             ExprKind::Binary { op, lhs, rhs } => {
-                let (a, b) = (self.eval(lhs, env), self.eval(rhs, env));
+                let (a, b) = (self.eval(*lhs, env), self.eval(*rhs, env));
                 match op {
                     BinOp::Add => fits(a.0 + b.0, a.1 + b.1),
                     BinOp::Sub => fits(a.0 - b.1, a.1 - b.0),
@@ -483,10 +488,10 @@ impl Analysis<'_> {
                     _ => TOP,
                 }
             }
-            ExprKind::Select { cond, then, otherwise } if !refines_nothing(cond) => {
+            ExprKind::Select { cond, then, otherwise } if !refines_nothing(&self.f.exprs[*cond]) => {
                 let st = Some(env.to_vec());
-                let t = self.refine(st.clone(), cond, true).map(|t| self.eval(then, &t));
-                let o = self.refine(st, cond, false).map(|o| self.eval(otherwise, &o));
+                let t = self.refine(st.clone(), *cond, true).map(|t| self.eval(*then, &t));
+                let o = self.refine(st, *cond, false).map(|o| self.eval(*otherwise, &o));
                 match (t, o) {
                     (Some(t), Some(o)) => (t.0.min(o.0), t.1.max(o.1)),
                     (Some(x), None) | (None, Some(x)) => x,
@@ -494,11 +499,11 @@ impl Analysis<'_> {
                 }
             }
             ExprKind::Select { then, otherwise, .. } => {
-                let (t, o) = (self.eval(then, env), self.eval(otherwise, env));
+                let (t, o) = (self.eval(*then, env), self.eval(*otherwise, env));
                 (t.0.min(o.0), t.1.max(o.1))
             }
             ExprKind::Builtin { func, args } => {
-                let r: Vec<Range> = args.iter().map(|a| self.eval(a, env)).collect();
+                let r: Vec<Range> = args.iter().map(|a| self.eval(*a, env)).collect();
                 match (func, r.as_slice()) {
                     (Builtin::Min, [a, b]) => (a.0.min(b.0), a.1.min(b.1)),
                     (Builtin::Max, [a, b]) => (a.0.max(b.0), a.1.max(b.1)),
@@ -520,35 +525,38 @@ impl Analysis<'_> {
     }
 
     /// `st` where `cond` evaluates to `truth` (None: it cannot).
-    fn refine(&self, st: State, cond: &Expr, truth: bool) -> State {
+    fn refine(&self, st: State, cond_id: ExprId, truth: bool) -> State {
+        let cond = &self.f.exprs[cond_id];
         st.as_ref()?;
         if let ExprKind::Const(ConstValue::Bool(b)) = cond.kind {
             return if b == truth { st } else { None };
         }
         match &cond.kind {
-            ExprKind::Unary { op: UnaryOp::Not, expr } => self.refine(st, expr, !truth),
+            ExprKind::Unary { op: UnaryOp::Not, expr } => self.refine(st, *expr, !truth),
             ExprKind::Binary {
                 op: BinOp::And,
                 lhs,
                 rhs,
             } if truth => {
-                let st = self.refine(st, lhs, true);
-                self.refine(st, rhs, true)
+                let st = self.refine(st, *lhs, true);
+                self.refine(st, *rhs, true)
             }
             ExprKind::Binary {
                 op: BinOp::Or,
                 lhs,
                 rhs,
             } if !truth => {
-                let st = self.refine(st, lhs, false);
-                self.refine(st, rhs, false)
+                let st = self.refine(st, *lhs, false);
+                self.refine(st, *rhs, false)
             }
             ExprKind::Binary {
                 op: BinOp::And | BinOp::Or,
                 lhs,
                 rhs,
-            } => join(self.refine(st.clone(), lhs, truth), self.refine(st, rhs, truth)),
-            ExprKind::Binary { op, lhs, rhs } if is_int(lhs) && is_int(rhs) && !cond.var.is_varying() => {
+            } => join(self.refine(st.clone(), *lhs, truth), self.refine(st, *rhs, truth)),
+            ExprKind::Binary { op, lhs, rhs }
+                if is_int(&self.f.exprs[*lhs]) && is_int(&self.f.exprs[*rhs]) && !cond.var.is_varying() =>
+            {
                 // As `lhs OP rhs` holding: `lt` with `lhs < rhs`, `le` with `<=`, `eq`, `ne`.
                 let op = match (op, truth) {
                     (BinOp::Lt, true) | (BinOp::Ge, false) => Cmp::Lt,
@@ -559,7 +567,7 @@ impl Analysis<'_> {
                     _ => return st,
                 };
                 let mut next = st?;
-                let (a, b) = (self.eval(lhs, &next), self.eval(rhs, &next));
+                let (a, b) = (self.eval(*lhs, &next), self.eval(*rhs, &next));
                 // lhs OP b, and rhs OP' a (the mirrored comparison).
                 let mirrored = match op {
                     Cmp::Lt => Cmp::Gt,
@@ -568,7 +576,7 @@ impl Analysis<'_> {
                     Cmp::Ge => Cmp::Le,
                     Cmp::Eq => Cmp::Eq,
                 };
-                let ok = self.narrow(&mut next, lhs, op, b) && self.narrow(&mut next, rhs, mirrored, a);
+                let ok = self.narrow(&mut next, *lhs, op, b) && self.narrow(&mut next, *rhs, mirrored, a);
                 ok.then_some(next)
             }
             _ => st,
@@ -577,14 +585,15 @@ impl Analysis<'_> {
 
     /// Narrow the local in `e` (`l`, `l + c` or `l - c`) so that `e OP other` can hold;
     /// false if it cannot.
-    fn narrow(&self, env: &mut [Stored], e: &Expr, op: Cmp, other: Range) -> bool {
+    fn narrow(&self, env: &mut [Stored], e_id: ExprId, op: Cmp, other: Range) -> bool {
+        let e = &self.f.exprs[e_id];
         let (l, offset) = match &e.kind {
             ExprKind::Local(l) => (*l, 0),
             ExprKind::Binary {
                 op: bop @ (BinOp::Add | BinOp::Sub),
                 lhs,
                 rhs,
-            } => match (&lhs.kind, &rhs.kind) {
+            } => match (&self.f.exprs[*lhs].kind, &self.f.exprs[*rhs].kind) {
                 (ExprKind::Local(l), ExprKind::Const(ConstValue::Int(c))) => {
                     (*l, if *bop == BinOp::Add { *c as i64 } else { -(*c as i64) })
                 }
@@ -620,9 +629,9 @@ impl Analysis<'_> {
 
 /// Mark (by local) the locals that `list` assigns whole from a value that reads them
 /// (`i = i + 1`, `n = max(n, m)`): the loop counters, widened before other locals.
-fn counters_in(list: &[Stmt], out: &mut [bool]) {
+fn counters_in(x: &super::Exprs, list: &[Stmt], out: &mut [bool]) {
     super::for_each_assign(list, &mut |place, value| {
-        if place.indices.is_empty() && value.reads_any(&|l| l == place.local) {
+        if place.indices.is_empty() && x.reads_any(value, &|l| l == place.local) {
             if let Some(c) = out.get_mut(place.local.0 as usize) {
                 *c = true;
             }

@@ -23,7 +23,7 @@
 
 use std::collections::HashSet;
 
-use super::{Expr, ExprKind, Function, LocalId, LoopId, ParamRole, Stmt, StmtKind};
+use super::{ExprId, ExprKind, Exprs, Function, LocalId, LoopId, ParamRole, Stmt, StmtKind};
 use crate::diag::{Diagnostic, Diagnostics};
 
 /// Move the statements that must run per pixel group from `f.setup` into `f.pixel`.
@@ -62,7 +62,7 @@ pub fn split_checked(f: &mut Function, diags: &mut Diagnostics) {
             && !pixel_content(&s, f, &pixel_params, false)
             && !contains(&s, &|k| matches!(k, StmtKind::Return | StmtKind::CallPrimitive { .. }))
             && no_escaping_jumps(&s);
-        if hoistable && safe_to_hoist(&s, &pixel) {
+        if hoistable && safe_to_hoist(&f.exprs, &s, &pixel) {
             setup.push(s);
             continue;
         }
@@ -88,7 +88,7 @@ pub fn split_checked(f: &mut Function, diags: &mut Diagnostics) {
                     .help("compute the bound from uniform values before the first per-pixel statement"),
             );
         }
-        if uniform_return(&s, false) {
+        if uniform_return(&f.exprs, &s, false) {
             barrier = true;
         }
         pixel.push(s);
@@ -100,15 +100,16 @@ pub fn split_checked(f: &mut Function, diags: &mut Diagnostics) {
 /// Whether `s` needs to run per pixel. `ctl`: `s` sits under varying control flow.
 fn pixel_content(s: &Stmt, f: &Function, pixel_params: &HashSet<LocalId>, ctl: bool) -> bool {
     let any = |b: &[Stmt], ctl: bool| b.iter().any(|s| pixel_content(s, f, pixel_params, ctl));
+    let is_varying = |e: &ExprId| f.exprs[*e].var.is_varying();
     match &s.kind {
         StmtKind::Assign { place, value } => {
-            value.var.is_varying()
-                || place.indices.iter().any(|(i, _)| i.var.is_varying())
+            is_varying(value)
+                || place.indices.iter().any(|(i, _)| is_varying(i))
                 || f.local(place.local).var.is_varying()
         }
         StmtKind::If { cond, then, otherwise } => {
-            let c = ctl || cond.var.is_varying();
-            cond.var.is_varying() || any(then, c) || any(otherwise, c)
+            let c = ctl || is_varying(cond);
+            is_varying(cond) || any(then, c) || any(otherwise, c)
         }
         StmtKind::Loop {
             cond,
@@ -118,28 +119,28 @@ fn pixel_content(s: &Stmt, f: &Function, pixel_params: &HashSet<LocalId>, ctl: b
             ..
         } => {
             let c = ctl || *varying;
-            *varying || cond.as_ref().is_some_and(|e| e.var.is_varying()) || any(body, c) || any(step, c)
+            *varying || cond.as_ref().is_some_and(|e| is_varying(e)) || any(body, c) || any(step, c)
         }
         StmtKind::Break(_) | StmtKind::Continue(_) => false,
         StmtKind::Return => ctl,
         StmtKind::Interpolation { arms } => arms.iter().any(|a| any(&a.body, ctl)),
         StmtKind::InterpolatorReturn(_) => true,
-        StmtKind::Bound(args) => args.iter().any(|a| a.var.is_varying()),
+        StmtKind::Bound(args) => args.iter().any(|a| is_varying(a)),
         StmtKind::CallPrimitive { args, .. } => args.iter().any(|a| {
-            let passthrough = matches!(a.kind, ExprKind::Local(l) if pixel_params.contains(&l));
-            a.var.is_varying() && !passthrough
+            let passthrough = matches!(f.exprs[*a].kind, ExprKind::Local(l) if pixel_params.contains(&l));
+            is_varying(a) && !passthrough
         }),
     }
 }
 
 /// Whether `s` holds a `return` that is not under varying control (it may end the whole
 /// primitive, so nothing after it may move before it). `ctl`: under varying control.
-fn uniform_return(s: &Stmt, ctl: bool) -> bool {
-    let any = |b: &[Stmt], ctl: bool| b.iter().any(|s| uniform_return(s, ctl));
+fn uniform_return(x: &Exprs, s: &Stmt, ctl: bool) -> bool {
+    let any = |b: &[Stmt], ctl: bool| b.iter().any(|s| uniform_return(x, s, ctl));
     match &s.kind {
         StmtKind::Return => !ctl,
         StmtKind::If { cond, then, otherwise } => {
-            let c = ctl || cond.var.is_varying();
+            let c = ctl || x[*cond].var.is_varying();
             any(then, c) || any(otherwise, c)
         }
         StmtKind::Loop {
@@ -185,39 +186,39 @@ fn no_escaping_jumps(s: &Stmt) -> bool {
 }
 
 /// Moving `s` before the statements of `pixel` keeps the program's meaning.
-fn safe_to_hoist(s: &Stmt, pixel: &[Stmt]) -> bool {
+fn safe_to_hoist(x: &Exprs, s: &Stmt, pixel: &[Stmt]) -> bool {
     let (mut r, mut w) = (HashSet::new(), HashSet::new());
-    reads_writes(s, &mut r, &mut w);
+    reads_writes(x, s, &mut r, &mut w);
     pixel.iter().all(|t| {
         let (mut tr, mut tw) = (HashSet::new(), HashSet::new());
-        reads_writes(t, &mut tr, &mut tw);
+        reads_writes(x, t, &mut tr, &mut tw);
         tr.is_disjoint(&w) && tw.is_disjoint(&w) && tw.is_disjoint(&r)
     })
 }
 
 /// The locals a statement reads and writes (anywhere inside it).
-pub(crate) fn reads_writes(s: &Stmt, r: &mut HashSet<LocalId>, w: &mut HashSet<LocalId>) {
+pub(crate) fn reads_writes(x: &Exprs, s: &Stmt, r: &mut HashSet<LocalId>, w: &mut HashSet<LocalId>) {
     let block = |b: &[Stmt], r: &mut HashSet<LocalId>, w: &mut HashSet<LocalId>| {
         for s in b {
-            reads_writes(s, r, w);
+            reads_writes(x, s, r, w);
         }
     };
     match &s.kind {
         StmtKind::Assign { place, value } => {
             w.insert(place.local);
             for (i, _) in &place.indices {
-                expr_reads(i, r);
+                expr_reads(x, *i, r);
             }
-            expr_reads(value, r);
+            expr_reads(x, *value, r);
         }
         StmtKind::If { cond, then, otherwise } => {
-            expr_reads(cond, r);
+            expr_reads(x, *cond, r);
             block(then, r, w);
             block(otherwise, r, w);
         }
         StmtKind::Loop { cond, body, step, .. } => {
             if let Some(c) = cond {
-                expr_reads(c, r);
+                expr_reads(x, *c, r);
             }
             block(body, r, w);
             block(step, r, w);
@@ -227,16 +228,16 @@ pub(crate) fn reads_writes(s: &Stmt, r: &mut HashSet<LocalId>, w: &mut HashSet<L
                 block(&a.body, r, w);
             }
         }
-        StmtKind::InterpolatorReturn(Some(e)) => expr_reads(e, r),
-        StmtKind::Bound(args) => args.iter().for_each(|a| expr_reads(a, r)),
-        StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr_reads(a, r)),
+        StmtKind::InterpolatorReturn(Some(e)) => expr_reads(x, *e, r),
+        StmtKind::Bound(args) => args.iter().for_each(|a| expr_reads(x, *a, r)),
+        StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr_reads(x, *a, r)),
         StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
     }
 }
 
 /// Every local `e` reads.
-pub(crate) fn expr_reads(e: &Expr, r: &mut HashSet<LocalId>) {
-    e.for_each_local(&mut |l| {
+pub(crate) fn expr_reads(x: &Exprs, e: ExprId, r: &mut HashSet<LocalId>) {
+    x.for_each_local(e, &mut |l| {
         r.insert(l);
     });
 }

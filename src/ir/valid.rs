@@ -15,7 +15,7 @@
 //!
 //! The rules, by theme (the module doc of [`crate::ir`] states them in prose):
 //! - **index facts**: locals, loop ids, sites and callees in range; each loop id belongs
-//!   to one loop; expression ids are dense (`0..exprs`, one expression each);
+//!   to one loop; the expression arena holds trees, numbered densely in pre-order;
 //!   `break`/`continue` leave an enclosing loop; parameter `i` is local `i`;
 //! - **types**: each expression's type follows from its operands exactly as the checker
 //!   builds it (`Binary` operands of one scalar element and shape, or a scalar broadcast;
@@ -42,8 +42,8 @@
 use std::fmt;
 
 use super::{
-    ArmKind, BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, FuncKind, Function, LocalId, LocalKind, LoopId, Param,
-    ParamRole, Place, Program, Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp, Variability,
+    ArmKind, BinOp, Builtin, ConstValue, Elem, Expr, ExprId, ExprKind, FuncKind, Function, LocalId, LocalKind, LoopId,
+    Param, ParamRole, Place, Program, Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp, Variability,
 };
 use crate::diag::Span;
 
@@ -59,8 +59,10 @@ pub enum Rule {
     LoopIdInRange,
     /// Each `LoopId` is the id of at most one `Loop` statement.
     LoopIdUnique,
-    /// Expression ids are exactly `0..function.exprs`, each the id of one expression.
-    ExprIdsDense,
+    /// The arena holds one tree per statement expression: every operand id is in range,
+    /// each node is the operand or statement expression of exactly one parent, and the ids
+    /// are `0..exprs.len()` in pre-order (see [`super::number`]), so none is unreachable.
+    ExprTree,
     /// `break` and `continue` name a loop that encloses them.
     JumpTarget,
     /// Parameter i is `LocalId(i)`, whose kind is `Param(i)`; no other local is a parameter.
@@ -173,7 +175,7 @@ impl Rule {
             SiteInRange => "every site id is in range",
             LoopIdInRange => "every loop id is in range",
             LoopIdUnique => "each loop id belongs to one loop",
-            ExprIdsDense => "expression ids are 0..exprs, one expression each",
+            ExprTree => "expressions form trees numbered 0..exprs in pre-order",
             JumpTarget => "break/continue leave an enclosing loop",
             ParamLayout => "parameter i is local i, of kind Param(i)",
             CallCallee => "a primitive call names a primitive",
@@ -362,13 +364,14 @@ fn is_float(t: &Type) -> bool {
 /// control flow introduced inside it (a varying `if`, or another such loop). Found to a
 /// fixpoint, since a loop found so makes jumps inside it varying in turn.
 fn control_loops(f: &Function) -> Vec<bool> {
-    struct Ctl {
+    struct Ctl<'f> {
+        x: &'f super::Exprs,
         ctl: Vec<bool>,
         loops: Vec<LoopId>,
         conds: Vec<usize>,
         changed: bool,
     }
-    impl Ctl {
+    impl Ctl<'_> {
         fn set(&mut self, id: LoopId) {
             if let Some(c) = self.ctl.get_mut(id.0 as usize) {
                 if !*c {
@@ -381,7 +384,7 @@ fn control_loops(f: &Function) -> Vec<bool> {
             for s in ss {
                 match &s.kind {
                     StmtKind::If { cond, then, otherwise } => {
-                        let pushed = cond.var.is_varying();
+                        let pushed = self.x[*cond].var.is_varying();
                         if pushed {
                             self.conds.push(self.loops.len());
                         }
@@ -395,7 +398,7 @@ fn control_loops(f: &Function) -> Vec<bool> {
                         id, cond, body, step, ..
                     } => {
                         self.loops.push(*id);
-                        if cond.as_ref().is_some_and(|c| c.var.is_varying()) {
+                        if cond.is_some_and(|c| self.x[c].var.is_varying()) {
                             self.set(*id);
                         }
                         let pushed = self.ctl.get(id.0 as usize).copied().unwrap_or(false);
@@ -424,6 +427,7 @@ fn control_loops(f: &Function) -> Vec<bool> {
         }
     }
     let mut c = Ctl {
+        x: &f.exprs,
         ctl: vec![false; f.loops as usize],
         loops: vec![],
         conds: vec![],
@@ -451,11 +455,12 @@ impl<'a> Validator<'a> {
         })
     }
 
-    fn check(&self, ok: bool, rule: Rule, e: &Expr, detail: impl FnOnce() -> String) -> Res {
+    fn check(&self, ok: bool, rule: Rule, e_id: ExprId, detail: impl FnOnce() -> String) -> Res {
+        let e = &self.f.exprs[e_id];
         if ok {
             Ok(())
         } else {
-            self.fail(rule, expr_node(e), e.span, detail())
+            self.fail(rule, expr_node(e), self.f.exprs.span(e_id), detail())
         }
     }
 
@@ -608,32 +613,59 @@ impl<'a> Validator<'a> {
         Ok(())
     }
 
+    /// The arena is a set of trees numbered in pre-order ([`Rule::ExprTree`]): walking
+    /// the statements' expressions in that order must meet ids 0, 1, 2, ... exactly, and
+    /// then have met every node. A node shared by two parents, or out of range, breaks the
+    /// count where it is met; an unreachable node leaves the count short.
     fn expr_ids(&self) -> Res {
         let f = self.f;
-        let mut seen = vec![false; f.exprs as usize];
-        let mut count = 0;
-        let mut found: Option<(&Expr, String)> = None;
-        super::number::for_each_expr(f, &mut |e| {
-            count += 1;
-            if found.is_some() {
-                return;
+        let x = &f.exprs;
+        /// Walk the tree at `id` expecting pre-order id `*next`; the first mismatch found.
+        fn walk(x: &super::Exprs, id: ExprId, next: &mut u32) -> Result<(), (Option<ExprId>, String)> {
+            let Some(e) = x.get(id) else {
+                return Err((None, format!("operand id {} of {}", id.0, x.len())));
+            };
+            if id.0 != *next {
+                let why = if id.0 < *next {
+                    format!("id {} is used twice (or out of pre-order)", id.0)
+                } else {
+                    format!("id {} where pre-order gives {}", id.0, *next)
+                };
+                return Err((Some(id), why));
             }
-            match seen.get_mut(e.id.0 as usize) {
-                None => found = Some((e, format!("id {} of {}", e.id.0, f.exprs))),
-                Some(true) => found = Some((e, format!("id {} is given twice", e.id.0))),
-                Some(slot) => *slot = true,
+            *next += 1;
+            let mut k = 0;
+            while let Some(c) = e.child(k) {
+                walk(x, c, next)?;
+                k += 1;
             }
-        });
-        if let Some((e, detail)) = found {
-            return self.fail(Rule::ExprIdsDense, expr_node(e), e.span, detail);
+            Ok(())
         }
-        // Unique and in range: dense when there are as many expressions as ids.
-        if count != f.exprs {
+        let mut next = 0;
+        let mut found: Option<(Option<ExprId>, &Stmt, String)> = None;
+        for part in [&f.setup, &f.pixel] {
+            super::for_each_stmt(part, &mut |s| {
+                s.for_each_expr(|e| {
+                    if found.is_none() {
+                        if let Err((at, why)) = walk(x, *e, &mut next) {
+                            found = Some((at, s, why));
+                        }
+                    }
+                })
+            });
+        }
+        if let Some((at, s, detail)) = found {
+            return match at {
+                Some(id) => self.fail(Rule::ExprTree, expr_node(&x[id]), x.span(id), detail),
+                None => self.fail(Rule::ExprTree, stmt_node(s), s.span, detail),
+            };
+        }
+        if next != x.len() {
             return self.fail(
-                Rule::ExprIdsDense,
+                Rule::ExprTree,
                 "function",
                 f.span,
-                format!("{count} expressions numbered 0..{}", f.exprs),
+                format!("{next} expressions reachable of the {} in the arena", x.len()),
             );
         }
         Ok(())
@@ -647,19 +679,21 @@ impl<'a> Validator<'a> {
 
     /// An expression standing on its own in a statement: checked, not a per-sequence-point
     /// array, and uniform in the setup part.
-    fn root(&mut self, e: &'a Expr) -> Res {
-        self.expr(e)?;
-        self.check(!e.ty.per_seq, Rule::PerSeqValue, e, || {
+    fn root(&mut self, e_id: ExprId) -> Res {
+        let e = &self.f.exprs[e_id];
+        self.expr(e_id)?;
+        self.check(!e.ty.per_seq, Rule::PerSeqValue, e_id, || {
             "a whole per-sequence-point array used as a value".into()
         })?;
-        self.check(self.pixel || !e.var.is_varying(), Rule::SetupUniform, e, || {
+        self.check(self.pixel || !e.var.is_varying(), Rule::SetupUniform, e_id, || {
             "a varying expression in the setup part".into()
         })
     }
 
-    fn condition(&mut self, c: &'a Expr) -> Res {
-        self.root(c)?;
-        self.check(c.ty == Type::bool(), Rule::ConditionType, c, || {
+    fn condition(&mut self, c_id: ExprId) -> Res {
+        let c = &self.f.exprs[c_id];
+        self.root(c_id)?;
+        self.check(c.ty == Type::bool(), Rule::ConditionType, c_id, || {
             format!("a condition of type {:?}", c.ty)
         })
     }
@@ -687,10 +721,10 @@ impl<'a> Validator<'a> {
     fn stmt(&mut self, s: &'a Stmt) -> Res {
         let f = self.f;
         match &s.kind {
-            StmtKind::Assign { place, value } => self.assign(s, place, value),
+            StmtKind::Assign { place, value } => self.assign(s, place, *value),
             StmtKind::If { cond, then, otherwise } => {
-                self.condition(cond)?;
-                let pushed = cond.var.is_varying();
+                self.condition(*cond)?;
+                let pushed = f.exprs[*cond].var.is_varying();
                 if pushed {
                     self.conds.push(self.loops.len());
                 }
@@ -710,9 +744,9 @@ impl<'a> Validator<'a> {
                 site,
             } => {
                 self.site(*site, stmt_node(s), s.span)?;
-                if let Some(c) = cond {
+                if let Some(c) = *cond {
                     self.condition(c)?;
-                    self.check_stmt(!c.var.is_varying() || *varying, Rule::LoopVarying, s, || {
+                    self.check_stmt(!f.exprs[c].var.is_varying() || *varying, Rule::LoopVarying, s, || {
                         format!("loop {} has a varying condition but is not varying", id.0)
                     })?;
                 }
@@ -764,16 +798,17 @@ impl<'a> Validator<'a> {
                 }
                 Ok(())
             }
-            StmtKind::InterpolatorReturn(v) => self.interpolator_return(s, v.as_ref()),
+            StmtKind::InterpolatorReturn(v) => self.interpolator_return(s, *v),
             StmtKind::Bound(args) => {
                 self.check_stmt(f.kind == FuncKind::Primitive, Rule::InterpolatorBody, s, || {
                     "`bound` in an interpolator".into()
                 })?;
                 self.check_stmt(!self.pixel, Rule::PixelPart, s, || "`bound` in the pixel part".into())?;
-                for a in args.iter() {
+                for &a in args.iter() {
                     self.root(a)?;
-                    self.check(a.ty == Type::float(), Rule::BoundType, a, || {
-                        format!("a bound of type {:?}", a.ty)
+                    let ty = &f.exprs[a].ty;
+                    self.check(*ty == Type::float(), Rule::BoundType, a, || {
+                        format!("a bound of type {ty:?}")
                     })?;
                 }
                 Ok(())
@@ -784,8 +819,9 @@ impl<'a> Validator<'a> {
 
     /// An assignment: its place's local, read-only parameters, index types, the value's
     /// type, and what a uniform local may be assigned.
-    fn assign(&mut self, s: &'a Stmt, place: &'a Place, value: &'a Expr) -> Res {
-        self.root(value)?;
+    fn assign(&mut self, s: &'a Stmt, place: &'a Place, value_id: ExprId) -> Res {
+        let value = &self.f.exprs[value_id];
+        self.root(value_id)?;
         let local = self.local(place.local, stmt_node(s), place.span)?;
         if let Some(p) = self.param_of(place.local) {
             self.check_stmt(p.role == ParamRole::Z, Rule::AssignReadOnly, s, || {
@@ -794,17 +830,17 @@ impl<'a> Validator<'a> {
         }
         let mut ty = local.ty.clone();
         let mut index_var = Variability::Uniform;
-        for (i, site) in &place.indices {
+        for &(i, site) in &place.indices {
             self.root(i)?;
-            self.site(*site, stmt_node(s), place.span)?;
+            self.site(site, stmt_node(s), place.span)?;
             self.check(
-                i.ty == Type::int() && (!ty.dims.is_empty() || ty.per_seq),
+                self.f.exprs[i].ty == Type::int() && (!ty.dims.is_empty() || ty.per_seq),
                 Rule::IndexType,
                 i,
-                || format!("index of type {:?} into a place of type {:?}", i.ty, ty),
+                || format!("index of type {:?} into a place of type {:?}", self.f.exprs[i].ty, ty),
             )?;
             ty = ty.element();
-            index_var = index_var.join(i.var);
+            index_var = index_var.join(self.f.exprs[i].var);
         }
         self.check_stmt(ty == value.ty, Rule::AssignType, s, || {
             format!("a value of type {:?} assigned to a place of type {:?}", value.ty, ty)
@@ -824,7 +860,7 @@ impl<'a> Validator<'a> {
     }
 
     /// `interpolator_return`: where it may stand, with or without a value, and its type.
-    fn interpolator_return(&mut self, s: &'a Stmt, v: Option<&'a Expr>) -> Res {
+    fn interpolator_return(&mut self, s: &'a Stmt, v: Option<ExprId>) -> Res {
         let f = self.f;
         self.check_stmt(self.pixel, Rule::InterpolatorReturnPlacement, s, || {
             "`interpolator_return` in the setup part".into()
@@ -844,16 +880,17 @@ impl<'a> Validator<'a> {
         })?;
         if let Some(e) = v {
             self.root(e)?;
-            let ok = match e.ty.elem {
-                Elem::Interp => f.kind == FuncKind::Primitive && e.ty.dims.is_empty(),
+            let ty = &f.exprs[e].ty;
+            let ok = match ty.elem {
+                Elem::Interp => f.kind == FuncKind::Primitive && ty.dims.is_empty(),
                 Elem::Scalar(sc) => sc == Scalar::Float,
             };
-            self.check(ok, Rule::InterpolatorReturnType, e, || format!("stores a {:?}", e.ty))?;
+            self.check(ok, Rule::InterpolatorReturnType, e, || format!("stores a {ty:?}"))?;
         }
         Ok(())
     }
 
-    fn call(&mut self, s: &'a Stmt, callee: super::FuncId, args: &'a [Expr]) -> Res {
+    fn call(&mut self, s: &'a Stmt, callee: super::FuncId, args: &'a [ExprId]) -> Res {
         let f = self.f;
         self.check_stmt(f.kind == FuncKind::Primitive, Rule::InterpolatorBody, s, || {
             "a primitive call in an interpolator".into()
@@ -882,8 +919,9 @@ impl<'a> Validator<'a> {
                 cf.name
             )
         })?;
-        for (a, p) in args.iter().zip(&cf.params) {
-            self.expr(a)?;
+        for (&a_id, p) in args.iter().zip(&cf.params) {
+            self.expr(a_id)?;
+            let a = &f.exprs[a_id];
             let pty = &cf.locals.get(p.local.0 as usize).map(|l| &l.ty);
             let Some(pty) = pty else {
                 return self.fail(
@@ -896,7 +934,7 @@ impl<'a> Validator<'a> {
             if matches!(p.role, ParamRole::X | ParamRole::Y | ParamRole::Z) {
                 let own = f.param_by_role(p.role).map(|q| q.local);
                 let ok = matches!(a.kind, ExprKind::Local(l) if Some(l) == own) && a.ty == **pty;
-                self.check(ok, Rule::CallPixelArgs, a, || {
+                self.check(ok, Rule::CallPixelArgs, a_id, || {
                     format!(
                         "`{}` of `{}` does not receive this function's own {:?}",
                         p.name, cf.name, p.role
@@ -904,7 +942,7 @@ impl<'a> Validator<'a> {
                 })?;
                 continue;
             }
-            self.check(!a.var.is_varying(), Rule::CallArgVarying, a, || {
+            self.check(!a.var.is_varying(), Rule::CallArgVarying, a_id, || {
                 format!("a varying argument for `{}` of `{}`", p.name, cf.name)
             })?;
             let ok = if pty.per_seq {
@@ -912,7 +950,7 @@ impl<'a> Validator<'a> {
             } else {
                 a.ty == **pty
             };
-            self.check(ok, Rule::CallArgType, a, || {
+            self.check(ok, Rule::CallArgType, a_id, || {
                 format!("an argument of type {:?} for `{}`: {:?}", a.ty, p.name, pty)
             })?;
         }
@@ -921,42 +959,44 @@ impl<'a> Validator<'a> {
 
     // ---- expressions
 
-    fn expr(&mut self, e: &'a Expr) -> Res {
+    fn expr(&mut self, e_id: ExprId) -> Res {
+        let e = &self.f.exprs[e_id];
         let mut r = Ok(());
         let mut var = Variability::Uniform;
         e.for_each_child(|c| {
             if r.is_ok() {
                 r = self.expr(c);
-                var = var.join(c.var);
+                var = var.join(self.f.exprs[c].var);
             }
         });
         r?;
         // A whole per-sequence-point array is only ever the array indexed.
         let per_seq_ok = match &e.kind {
-            ExprKind::Index { index, .. } => !index.ty.per_seq,
+            ExprKind::Index { index, .. } => !self.f.exprs[*index].ty.per_seq,
             _ => {
                 let mut ok = true;
-                e.for_each_child(|c| ok &= !c.ty.per_seq);
+                e.for_each_child(|c| ok &= !self.f.exprs[c].ty.per_seq);
                 ok
             }
         };
-        self.check(per_seq_ok, Rule::PerSeqValue, e, || {
+        self.check(per_seq_ok, Rule::PerSeqValue, e_id, || {
             "a whole per-sequence-point array used as an operand".into()
         })?;
         if let ExprKind::Local(l) = &e.kind {
-            let local = self.local(*l, expr_node(e), e.span)?;
+            let local = self.local(*l, expr_node(e), self.f.exprs.span(e_id))?;
             var = local.var;
-            self.check(e.ty == local.ty, Rule::LocalType, e, || {
+            self.check(e.ty == local.ty, Rule::LocalType, e_id, || {
                 format!("reads `{}` of type {:?} as {:?}", local.name, local.ty, e.ty)
             })?;
         }
-        self.check(e.var == var, Rule::ExprVariability, e, || {
+        self.check(e.var == var, Rule::ExprVariability, e_id, || {
             format!("marked {:?}, its operands make it {:?}", e.var, var)
         })?;
-        self.expr_type(e)
+        self.expr_type(e_id)
     }
 
-    fn expr_type(&self, e: &Expr) -> Res {
+    fn expr_type(&self, e_id: ExprId) -> Res {
+        let e = &self.f.exprs[e_id];
         let ty = &e.ty;
         match &e.kind {
             ExprKind::Local(_) => Ok(()),
@@ -969,52 +1009,75 @@ impl<'a> Validator<'a> {
                             | (ConstValue::Bool(_), Elem::Scalar(Scalar::Bool))
                             | (ConstValue::Fixed(_), Elem::Scalar(Scalar::Fixed(_)))
                     );
-                self.check(ok, Rule::ConstType, e, || format!("{c:?} of type {ty:?}"))
+                self.check(ok, Rule::ConstType, e_id, || format!("{c:?} of type {ty:?}"))
             }
             ExprKind::Index { base, index, site } => {
-                self.site(*site, expr_node(e), e.span)?;
-                let ok = (!base.ty.dims.is_empty() || base.ty.per_seq)
-                    && index.ty == Type::int()
-                    && *ty == base.ty.element();
-                self.check(ok, Rule::IndexType, e, || {
-                    format!("{:?}[{:?}] typed {:?}", base.ty, index.ty, ty)
+                self.site(*site, expr_node(e), self.f.exprs.span(e_id))?;
+                let ok = (!self.f.exprs[*base].ty.dims.is_empty() || self.f.exprs[*base].ty.per_seq)
+                    && self.f.exprs[*index].ty == Type::int()
+                    && *ty == self.f.exprs[*base].ty.element();
+                self.check(ok, Rule::IndexType, e_id, || {
+                    format!(
+                        "{:?}[{:?}] typed {:?}",
+                        self.f.exprs[*base].ty, self.f.exprs[*index].ty, ty
+                    )
                 })
             }
             ExprKind::Unary { op, expr } => {
                 let ok = match op {
-                    UnaryOp::Neg => *ty == expr.ty && ty.elem != Elem::Scalar(Scalar::Bool),
-                    UnaryOp::Not => *ty == Type::bool() && expr.ty == Type::bool(),
+                    UnaryOp::Neg => *ty == self.f.exprs[*expr].ty && ty.elem != Elem::Scalar(Scalar::Bool),
+                    UnaryOp::Not => *ty == Type::bool() && self.f.exprs[*expr].ty == Type::bool(),
                 };
-                self.check(ok, Rule::UnaryType, e, || {
-                    format!("{op:?} of {:?} typed {ty:?}", expr.ty)
+                self.check(ok, Rule::UnaryType, e_id, || {
+                    format!("{op:?} of {:?} typed {ty:?}", self.f.exprs[*expr].ty)
                 })
             }
             ExprKind::Binary { op, lhs, rhs } => {
-                let ok = binary_ok(*op, &lhs.ty, &rhs.ty, ty);
-                self.check(ok, Rule::BinaryType, e, || {
-                    format!("{:?} {op:?} {:?} typed {ty:?}", lhs.ty, rhs.ty)
+                let ok = binary_ok(*op, &self.f.exprs[*lhs].ty, &self.f.exprs[*rhs].ty, ty);
+                self.check(ok, Rule::BinaryType, e_id, || {
+                    format!(
+                        "{:?} {op:?} {:?} typed {ty:?}",
+                        self.f.exprs[*lhs].ty, self.f.exprs[*rhs].ty
+                    )
                 })
             }
-            ExprKind::Convert(x) => match (ty.elem, x.ty.elem) {
+            ExprKind::Convert(x) => match (ty.elem, self.f.exprs[*x].ty.elem) {
                 (Elem::Scalar(t), Elem::Scalar(s)) => {
-                    let ok = (t == s || (is_number(t) && is_number(s))) && ty.dims == x.ty.dims;
-                    self.check(ok, Rule::ConvertType, e, || format!("{:?} to {ty:?}", x.ty))
+                    let ok = (t == s || (is_number(t) && is_number(s))) && ty.dims == self.f.exprs[*x].ty.dims;
+                    self.check(ok, Rule::ConvertType, e_id, || {
+                        format!("{:?} to {ty:?}", self.f.exprs[*x].ty)
+                    })
                 }
-                (Elem::Interp, Elem::Scalar(Scalar::Float)) if ty.dims.is_empty() && !x.ty.per_seq => {
-                    match x.ty.dims.len() {
+                (Elem::Interp, Elem::Scalar(Scalar::Float)) if ty.dims.is_empty() && !self.f.exprs[*x].ty.per_seq => {
+                    match self.f.exprs[*x].ty.dims.len() {
                         0 => Ok(()),
-                        1 => self.check(self.arm == Some(false), Rule::InterpFromList, e, || {
-                            format!("{:?} made interpolation data outside a named arm", x.ty)
+                        1 => self.check(self.arm == Some(false), Rule::InterpFromList, e_id, || {
+                            format!("{:?} made interpolation data outside a named arm", self.f.exprs[*x].ty)
                         }),
-                        _ => self.fail(Rule::ConvertType, expr_node(e), e.span, format!("{:?} to {ty:?}", x.ty)),
+                        _ => self.fail(
+                            Rule::ConvertType,
+                            expr_node(e),
+                            self.f.exprs.span(e_id),
+                            format!("{:?} to {ty:?}", self.f.exprs[*x].ty),
+                        ),
                     }
                 }
-                _ => self.fail(Rule::ConvertType, expr_node(e), e.span, format!("{:?} to {ty:?}", x.ty)),
+                _ => self.fail(
+                    Rule::ConvertType,
+                    expr_node(e),
+                    self.f.exprs.span(e_id),
+                    format!("{:?} to {ty:?}", self.f.exprs[*x].ty),
+                ),
             },
             ExprKind::Select { cond, then, otherwise } => {
-                let ok = cond.ty == Type::bool() && then.ty == *ty && otherwise.ty == *ty;
-                self.check(ok, Rule::SelectType, e, || {
-                    format!("{:?} ? {:?} : {:?} typed {ty:?}", cond.ty, then.ty, otherwise.ty)
+                let ok = self.f.exprs[*cond].ty == Type::bool()
+                    && self.f.exprs[*then].ty == *ty
+                    && self.f.exprs[*otherwise].ty == *ty;
+                self.check(ok, Rule::SelectType, e_id, || {
+                    format!(
+                        "{:?} ? {:?} : {:?} typed {ty:?}",
+                        self.f.exprs[*cond].ty, self.f.exprs[*then].ty, self.f.exprs[*otherwise].ty
+                    )
                 })
             }
             ExprKind::Builtin { func, args } => {
@@ -1022,43 +1085,56 @@ impl<'a> Validator<'a> {
                     func,
                     Builtin::TransformPoint { .. } | Builtin::TransformVector { .. } | Builtin::TransformNormal { .. }
                 ) {
-                    self.check(self.f.uses_spaces, Rule::SpacesUsed, e, || {
+                    self.check(self.f.uses_spaces, Rule::SpacesUsed, e_id, || {
                         format!("{func:?} in a function not marked uses_spaces")
                     })?;
                 }
-                self.check(builtin_ok(*func, args, ty), Rule::BuiltinType, e, || {
-                    let a: Vec<&Type> = args.iter().map(|a| &a.ty).collect();
-                    format!("{func:?} of {a:?} typed {ty:?}")
-                })
+                self.check(
+                    builtin_ok(&self.f.exprs, *func, args, ty),
+                    Rule::BuiltinType,
+                    e_id,
+                    || {
+                        let a: Vec<&Type> = args.iter().map(|a| &self.f.exprs[*a].ty).collect();
+                        format!("{func:?} of {a:?} typed {ty:?}")
+                    },
+                )
             }
             ExprKind::List(items) => {
                 let ok = !ty.per_seq
                     && ty.dims.first() == Some(&(items.len() as u32))
-                    && items.iter().all(|i| i.ty == ty.element());
-                self.check(ok, Rule::ListType, e, || {
-                    let a: Vec<&Type> = items.iter().map(|a| &a.ty).collect();
+                    && items.iter().all(|i| self.f.exprs[*i].ty == ty.element());
+                self.check(ok, Rule::ListType, e_id, || {
+                    let a: Vec<&Type> = items.iter().map(|a| &self.f.exprs[*a].ty).collect();
                     format!("items {a:?} in a list typed {ty:?}")
                 })
             }
             ExprKind::Splat(x) => {
-                let ok =
-                    x.ty.dims.is_empty() && !x.ty.per_seq && x.ty.elem == ty.elem && !ty.dims.is_empty() && !ty.per_seq;
-                self.check(ok, Rule::SplatType, e, || format!("{:?} splat to {ty:?}", x.ty))
+                let ok = self.f.exprs[*x].ty.dims.is_empty()
+                    && !self.f.exprs[*x].ty.per_seq
+                    && self.f.exprs[*x].ty.elem == ty.elem
+                    && !ty.dims.is_empty()
+                    && !ty.per_seq;
+                self.check(ok, Rule::SplatType, e_id, || {
+                    format!("{:?} splat to {ty:?}", self.f.exprs[*x].ty)
+                })
             }
             ExprKind::MatMul { lhs, rhs } => {
-                let ok = is_float(&lhs.ty)
-                    && is_float(&rhs.ty)
-                    && match (lhs.ty.dims.as_slice(), rhs.ty.dims.as_slice()) {
+                let ok = is_float(&self.f.exprs[*lhs].ty)
+                    && is_float(&self.f.exprs[*rhs].ty)
+                    && match (
+                        self.f.exprs[*lhs].ty.dims.as_slice(),
+                        self.f.exprs[*rhs].ty.dims.as_slice(),
+                    ) {
                         ([n, m], [m2]) => m == m2 && *ty == float_ty(vec![*n]),
                         ([n, m], [m2, k]) => m == m2 && *ty == float_ty(vec![*n, *k]),
                         _ => false,
                     };
-                self.check(ok, Rule::MatMulType, e, || {
-                    format!("{:?} * {:?} typed {ty:?}", lhs.ty, rhs.ty)
+                self.check(ok, Rule::MatMulType, e_id, || {
+                    format!("{:?} * {:?} typed {ty:?}", self.f.exprs[*lhs].ty, self.f.exprs[*rhs].ty)
                 })
             }
-            ExprKind::SeqCount => self.check(*ty == Type::int(), Rule::QueryType, e, || format!("typed {ty:?}")),
-            ExprKind::ClipFlag => self.check(*ty == Type::bool(), Rule::QueryType, e, || format!("typed {ty:?}")),
+            ExprKind::SeqCount => self.check(*ty == Type::int(), Rule::QueryType, e_id, || format!("typed {ty:?}")),
+            ExprKind::ClipFlag => self.check(*ty == Type::bool(), Rule::QueryType, e_id, || format!("typed {ty:?}")),
         }
     }
 }
@@ -1097,24 +1173,24 @@ fn binary_ok(op: BinOp, l: &Type, r: &Type, ty: &Type) -> bool {
 }
 
 /// The checker's typing of a built-in call (see `check::builtins`).
-fn builtin_ok(func: Builtin, args: &[Expr], ty: &Type) -> bool {
+fn builtin_ok(x: &super::Exprs, func: Builtin, args: &[ExprId], ty: &Type) -> bool {
     use Builtin::*;
     let arity = match func {
         Min | Max | Pow | Step | Atan2 | Dot | Cross | Distance => 2,
         Clamp | Mix | Smoothstep => 3,
         _ => 1,
     };
-    if args.len() != arity || !args.iter().all(|a| is_float(&a.ty)) || ty.per_seq {
+    if args.len() != arity || !args.iter().all(|a| is_float(&x[*a].ty)) || ty.per_seq {
         return false;
     }
-    let a0 = &args[0].ty;
+    let a0 = &x[args[0]].ty;
     match func {
-        Dot | Distance => a0.dims.len() == 1 && args[1].ty == *a0 && *ty == Type::float(),
-        Cross => *a0 == float_ty(vec![3]) && args[1].ty == *a0 && *ty == *a0,
+        Dot | Distance => a0.dims.len() == 1 && x[args[1]].ty == *a0 && *ty == Type::float(),
+        Cross => *a0 == float_ty(vec![3]) && x[args[1]].ty == *a0 && *ty == *a0,
         Length => a0.dims.len() == 1 && *ty == Type::float(),
         Normalize => a0.dims.len() == 1 && *ty == *a0,
         TransformPoint { .. } => (a0.dims == [3] || a0.dims == [4]) && *ty == *a0,
         TransformVector { .. } | TransformNormal { .. } => a0.dims == [3] && *ty == *a0,
-        _ => is_float(ty) && args.iter().all(|a| a.ty == *ty),
+        _ => is_float(ty) && args.iter().all(|a| x[*a].ty == *ty),
     }
 }

@@ -12,7 +12,7 @@ use cranelift_codegen::ir::{self, condcodes::FloatCC, InstBuilder};
 use super::libm::LibmFn;
 use super::lower::{err, Lower, Res};
 use super::value::{blend, Val, F32X4};
-use crate::ir::{Builtin, Expr, Scalar, Space};
+use crate::ir::{Builtin, ExprId, Scalar, Space};
 
 /// A 4x4 row-major matrix of uniform f32 values; `None` is the identity.
 type Mat = Option<[ir::Value; 16]>;
@@ -86,11 +86,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
-    pub(crate) fn builtin(&mut self, func: Builtin, args: &'a [Expr], e: &'a Expr) -> Res<Val> {
+    pub(crate) fn builtin(&mut self, func: Builtin, args: &'a [ExprId], e: ExprId) -> Res<Val> {
         let _ = e;
         let mut vals = vec![];
         for a in args {
-            vals.push(self.eval(a)?);
+            vals.push(self.eval(*a)?);
         }
         let arity = match func {
             Builtin::Min | Builtin::Max | Builtin::Atan2 | Builtin::Pow | Builtin::Step => 2,

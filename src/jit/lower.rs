@@ -40,7 +40,7 @@ use super::value::{cl_type, ctx_off, mem_flags, Val, VnTable, F32X4};
 use super::JitError;
 use crate::abi::{ArgLayout, BindingKind, ParamSlot, VariantKey, ERR_STACK};
 use crate::ir::{
-    ConstValue, Elem, Expr, ExprId, ExprKind, FixedFormat, FuncId, Function, LocalId, LoopId, Program, Scalar, Stmt,
+    ConstValue, Elem, ExprId, ExprKind, Exprs, FixedFormat, FuncId, Function, LocalId, LoopId, Program, Scalar, Stmt,
     StmtKind, Type,
 };
 use crate::mid::pred::{const_index_in_range, const_int, key_constant, speculable_expr};
@@ -661,7 +661,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// The plan's row and per-run terms (none without a pixel part).
-    fn hoists(&self) -> &'a [crate::mid::hoist::Hoist<'a>] {
+    fn hoists(&self) -> &'a [crate::mid::hoist::Hoist] {
         self.plan.pixel.as_ref().map_or(&[], |p| &p.hoists)
     }
 
@@ -710,16 +710,16 @@ fn quiet_stmt(f: &Function, s: &Stmt) -> bool {
             };
             let mut ty = local.ty.clone();
             let in_range = place.indices.iter().all(|(index, _)| {
-                let ok = const_index_in_range(&ty, index);
+                let ok = const_index_in_range(&f.exprs, &ty, *index);
                 if ok {
                     ty = ty.element();
                 }
                 ok
             });
-            in_range && speculable_expr(value)
+            in_range && speculable_expr(&f.exprs, *value)
         }
         StmtKind::If { cond, then, otherwise } => {
-            speculable_expr(cond) && then.iter().chain(otherwise).all(|t| quiet_stmt(f, t))
+            speculable_expr(&f.exprs, *cond) && then.iter().chain(otherwise).all(|t| quiet_stmt(f, t))
         }
         StmtKind::Return => true,
         _ => false,
@@ -728,15 +728,15 @@ fn quiet_stmt(f: &Function, s: &Stmt) -> bool {
 
 /// Whether `e` is a constant (or a literal of constants) whose every component has all bits
 /// zero (so `-0.0` is not).
-fn all_zero_bits(e: &Expr) -> bool {
-    match &e.kind {
+fn all_zero_bits(x: &Exprs, e: ExprId) -> bool {
+    match &x[e].kind {
         ExprKind::Const(ConstValue::Float(f)) => f.to_bits() == 0,
         ExprKind::Const(ConstValue::Int(v) | ConstValue::Fixed(v)) => *v == 0,
         ExprKind::Const(ConstValue::Bool(b)) => !b,
-        ExprKind::List(items) => items.iter().all(all_zero_bits),
-        ExprKind::Splat(item) => all_zero_bits(item),
+        ExprKind::List(items) => items.iter().all(|i| all_zero_bits(x, *i)),
+        ExprKind::Splat(item) => all_zero_bits(x, *item),
         // Every conversion (to interpolation data too: a broadcast) keeps zero bits zero.
-        ExprKind::Convert(inner) => all_zero_bits(inner),
+        ExprKind::Convert(inner) => all_zero_bits(x, *inner),
         _ => false,
     }
 }

@@ -48,12 +48,13 @@ use std::collections::{HashMap, HashSet};
 
 use super::hoist::Scope;
 use crate::ir::{
-    BinOp, ConstValue, Elem, Expr, ExprId, ExprKind, Function, LocalId, ParamRole, Scalar, Stmt, StmtKind, UnaryOp,
+    BinOp, ConstValue, Elem, Expr, ExprId, ExprKind, Exprs, Function, LocalId, ParamRole, Scalar, Stmt, StmtKind,
+    UnaryOp,
 };
 
 /// One carried expression: where its per-group step lives in the uniform frame.
-pub(crate) struct Carried<'a> {
-    pub expr: &'a Expr,
+pub(crate) struct Carried {
+    pub expr: ExprId,
     /// Byte offset of its step (`4 * A` splatted, i32x4) in the uniform frame.
     pub step_offset: u32,
     /// When the expression is affine in the row too (`A*xi + B*yi + C`, B and C the same
@@ -65,10 +66,10 @@ pub(crate) struct Carried<'a> {
 /// The carried terms of a primitive's pixel code (empty at tier 0, and when the pixel code
 /// has no X it never assigns, or calls a primitive).
 #[derive(Default)]
-pub(crate) struct Carry<'a> {
-    pub carried: Vec<Carried<'a>>,
+pub(crate) struct Carry {
+    pub carried: Vec<Carried>,
     /// Substitutable locals (see the module comment), by their single defining value.
-    pub defs: HashMap<LocalId, &'a Expr>,
+    pub defs: HashMap<LocalId, ExprId>,
     /// The primitive's X, when the pixel code was walked.
     pub x: Option<LocalId>,
     /// The primitive's Y when carried terms may be affine in the row too.
@@ -87,7 +88,7 @@ enum Form {
 }
 
 /// The analysis' state while walking the pixel code.
-struct Walk<'s, 'a> {
+struct Walk<'s> {
     x: LocalId,
     y: Option<LocalId>,
     /// Y when it is a float the pixel code never assigns (`int(Y * c)` leaves).
@@ -97,7 +98,7 @@ struct Walk<'s, 'a> {
     single: HashSet<LocalId>,
     /// Substitutable locals: their value, its form, and whether it is affine in the row
     /// too (see [`Carried::row_step_offset`]), at the assignment.
-    defs: HashMap<LocalId, (&'a Expr, Form, bool)>,
+    defs: HashMap<LocalId, (ExprId, Form, bool)>,
     /// The substitutable locals in the order of their assignments.
     def_order: Vec<LocalId>,
     /// Substitutable locals read by themselves (not inside a carried expression).
@@ -110,10 +111,11 @@ fn int_scalar(e: &Expr) -> bool {
 
 /// `c` if `e` is a float constant with an integer value of the exactness condition in the
 /// module comment (`1 <= |c| <= 2^15`, odd part at most 255 in magnitude).
-fn exact_scale(e: &Expr) -> Option<i32> {
+fn exact_scale(x: &Exprs, e_id: ExprId) -> Option<i32> {
+    let e = &x[e_id];
     let c = match &e.kind {
         ExprKind::Const(ConstValue::Float(c)) => *c as f64,
-        ExprKind::Convert(inner) => match inner.kind {
+        ExprKind::Convert(inner) => match x[*inner].kind {
             ExprKind::Const(ConstValue::Int(i)) if e.ty.elem == Elem::Scalar(Scalar::Float) => i as f64,
             _ => return None,
         },
@@ -128,8 +130,10 @@ fn exact_scale(e: &Expr) -> Option<i32> {
 }
 
 /// `c` if `e` is `int(X * c)` or `int(c * X)` with `c` exact (see [`exact_scale`]).
-pub(crate) fn column_leaf(e: &Expr, x: LocalId) -> Option<i32> {
-    let ExprKind::Convert(inner) = &e.kind else { return None };
+pub(crate) fn column_leaf(exprs: &Exprs, e_id: ExprId, x: LocalId) -> Option<i32> {
+    let e = &exprs[e_id];
+    let ExprKind::Convert(inner) = e.kind else { return None };
+    let inner = &exprs[inner];
     if !int_scalar(e) || inner.ty.elem != Elem::Scalar(Scalar::Float) || !inner.ty.dims.is_empty() {
         return None;
     }
@@ -137,15 +141,15 @@ pub(crate) fn column_leaf(e: &Expr, x: LocalId) -> Option<i32> {
         op: BinOp::Mul,
         lhs,
         rhs,
-    } = &inner.kind
+    } = inner.kind
     else {
         return None;
     };
-    let is_x = |e: &Expr| matches!(e.kind, ExprKind::Local(l) if l == x);
+    let is_x = |e: ExprId| matches!(exprs[e].kind, ExprKind::Local(l) if l == x);
     if is_x(lhs) {
-        exact_scale(rhs)
+        exact_scale(exprs, rhs)
     } else if is_x(rhs) {
-        exact_scale(lhs)
+        exact_scale(exprs, lhs)
     } else {
         None
     }
@@ -155,14 +159,14 @@ pub(crate) fn column_leaf(e: &Expr, x: LocalId) -> Option<i32> {
 /// from `first_offset` (16 bytes each), and the substitutable locals; `assigned`: the locals
 /// the pixel code assigns. The substitutable locals no group reads go to `unread`, their
 /// values' expressions to `unstored` (see [`mark_unread_in_groups`]).
-pub(crate) fn collect_carried<'a>(
-    scope: &Scope<'_, 'a>,
-    f: &'a Function,
+pub(crate) fn collect_carried(
+    scope: &Scope<'_>,
+    f: &Function,
     assigned: &HashSet<LocalId>,
     first_offset: u32,
     unread: &mut HashSet<LocalId>,
     unstored: &mut HashSet<ExprId>,
-) -> Carry<'a> {
+) -> Carry {
     scope.collect_carried(f, assigned, first_offset, unread, unstored)
 }
 
@@ -171,37 +175,37 @@ pub(crate) fn collect_carried<'a>(
 /// their assignment is not lowered there, and the row terms only their values use (marked
 /// in `unstored`) are not stored per row. Shared by the carried terms and the row terms
 /// ([`super::hoist::row_locals_unread`]).
-pub(crate) fn mark_unread_in_groups<'e>(
+pub(crate) fn mark_unread_in_groups(
     f: &Function,
-    terms: impl IntoIterator<Item = &'e Expr>,
-    locals: impl IntoIterator<Item = (LocalId, &'e Expr)>,
+    terms: impl IntoIterator<Item = ExprId>,
+    locals: impl IntoIterator<Item = (LocalId, ExprId)>,
     unread: &mut HashSet<LocalId>,
     unstored: &mut HashSet<ExprId>,
 ) {
     let mut all_reads = HashMap::new();
-    count_stmt_reads(&f.pixel, &mut all_reads);
+    count_stmt_reads(&f.exprs, &f.pixel, &mut all_reads);
     let mut term_reads = HashMap::new();
     for t in terms {
-        count_reads(t, &mut term_reads);
+        count_reads(&f.exprs, t, &mut term_reads);
     }
     for (l, value) in locals {
         if all_reads.get(&l) == term_reads.get(&l) {
             unread.insert(l);
-            super::block::expr_keys(value, unstored);
+            super::block::expr_keys(&f.exprs, value, unstored);
         }
     }
 }
 
-impl<'s, 'a> Scope<'s, 'a> {
+impl Scope<'_> {
     /// See [`collect_carried`].
     fn collect_carried(
         &self,
-        f: &'a Function,
+        f: &Function,
         assigned: &HashSet<LocalId>,
         first_offset: u32,
         unread: &mut HashSet<LocalId>,
         unstored: &mut HashSet<ExprId>,
-    ) -> Carry<'a> {
+    ) -> Carry {
         let Some(x) = f.param_by_role(ParamRole::X).map(|p| p.local) else {
             return Carry::default();
         };
@@ -254,13 +258,13 @@ impl<'s, 'a> Scope<'s, 'a> {
             };
             if form == Form::Affine
                 && w.bare.contains(l)
-                && !matches!(value.kind, ExprKind::Local(_) | ExprKind::Const(_))
+                && !matches!(f.exprs[value].kind, ExprKind::Local(_) | ExprKind::Const(_))
             {
                 found.push((value, plane));
             }
         }
         let mut next = first_offset;
-        let carried: Vec<Carried<'a>> = found
+        let carried: Vec<Carried> = found
             .into_iter()
             .map(|(expr, rows)| {
                 let step_offset = next;
@@ -300,21 +304,21 @@ impl<'s, 'a> Scope<'s, 'a> {
     /// seen by every lane that reaches the reads after them).
     fn carry_stmts(
         &self,
-        f: &'a Function,
-        stmts: &'a [Stmt],
+        f: &Function,
+        stmts: &[Stmt],
         straight: bool,
         visible: &mut HashSet<LocalId>,
-        w: &mut Walk<'_, 'a>,
-        out: &mut Vec<(&'a Expr, bool)>,
+        w: &mut Walk<'_>,
+        out: &mut Vec<(ExprId, bool)>,
     ) {
         for s in stmts {
             match &s.kind {
                 StmtKind::Assign { place, value } => {
                     for (i, _) in &place.indices {
-                        self.carry_expr(f, i, visible, w, out);
+                        self.carry_expr(f, *i, visible, w, out);
                     }
                     let form = if straight && w.single.contains(&place.local) {
-                        self.form(f, value, visible, w)
+                        self.form(f, *value, visible, w)
                     } else {
                         None
                     };
@@ -322,17 +326,17 @@ impl<'s, 'a> Scope<'s, 'a> {
                         // Its reads are carried (or evaluated) instead; the value itself is
                         // evaluated where it is assigned only if something else reads it.
                         Some(form) => {
-                            let plane = self.plane(f, value, visible, w);
-                            w.defs.insert(place.local, (value, form, plane));
+                            let plane = self.plane(f, *value, visible, w);
+                            w.defs.insert(place.local, (*value, form, plane));
                             w.def_order.push(place.local);
                             visible.insert(place.local);
                         }
-                        None => self.carry_expr(f, value, visible, w, out),
+                        None => self.carry_expr(f, *value, visible, w, out),
                     }
                 }
                 StmtKind::If { cond, then, otherwise } => {
-                    self.carry_expr(f, cond, visible, w, out);
-                    let straight = straight && !cond.var.is_varying();
+                    self.carry_expr(f, *cond, visible, w, out);
+                    let straight = straight && !f.exprs[*cond].var.is_varying();
                     for side in [then, otherwise] {
                         let mut inner = visible.clone();
                         self.carry_stmts(f, side, straight, &mut inner, w, out);
@@ -347,12 +351,13 @@ impl<'s, 'a> Scope<'s, 'a> {
     /// Record the maximal affine subexpressions of `e` in `out`.
     fn carry_expr(
         &self,
-        f: &'a Function,
-        e: &'a Expr,
+        f: &Function,
+        e_id: ExprId,
         visible: &HashSet<LocalId>,
-        w: &mut Walk<'_, 'a>,
-        out: &mut Vec<(&'a Expr, bool)>,
+        w: &mut Walk<'_>,
+        out: &mut Vec<(ExprId, bool)>,
     ) {
+        let e = &f.exprs[e_id];
         if let ExprKind::Local(l) = e.kind {
             if visible.contains(&l) {
                 w.bare.insert(l);
@@ -360,9 +365,9 @@ impl<'s, 'a> Scope<'s, 'a> {
             return;
         }
         if !matches!(e.kind, ExprKind::Local(_) | ExprKind::Const(_))
-            && self.form(f, e, visible, w) == Some(Form::Affine)
+            && self.form(f, e_id, visible, w) == Some(Form::Affine)
         {
-            out.push((e, self.plane(f, e, visible, w)));
+            out.push((e_id, self.plane(f, e_id, visible, w)));
             return;
         }
         let mut children = vec![];
@@ -373,17 +378,18 @@ impl<'s, 'a> Scope<'s, 'a> {
     }
 
     /// The form of int expression `e` where the locals in `visible` hold their definitions.
-    fn form(&self, f: &Function, e: &Expr, visible: &HashSet<LocalId>, w: &Walk<'_, 'a>) -> Option<Form> {
+    fn form(&self, f: &Function, e_id: ExprId, visible: &HashSet<LocalId>, w: &Walk<'_>) -> Option<Form> {
+        let e = &f.exprs[e_id];
         if !int_scalar(e) {
             return None;
         }
-        if self.row_invariant(f, e, None, w.assigned) {
+        if self.row_invariant(f, e_id, None, w.assigned) {
             return Some(Form::Uniform);
         }
-        if self.row_invariant(f, e, w.y, w.assigned) {
+        if self.row_invariant(f, e_id, w.y, w.assigned) {
             return Some(Form::Row);
         }
-        if column_leaf(e, w.x).is_some() {
+        if column_leaf(&f.exprs, e_id, w.x).is_some() {
             return Some(Form::Affine);
         }
         match &e.kind {
@@ -393,13 +399,13 @@ impl<'s, 'a> Scope<'s, 'a> {
                 Form::Uniform | Form::Row => Some(Form::Row),
                 Form::Affine => Some(Form::Affine),
             },
-            ExprKind::Unary { op: UnaryOp::Neg, expr } => match self.form(f, expr, visible, w)? {
+            ExprKind::Unary { op: UnaryOp::Neg, expr } => match self.form(f, *expr, visible, w)? {
                 Form::Affine => Some(Form::Affine),
                 _ => Some(Form::Row),
             },
             ExprKind::Binary { op, lhs, rhs } => {
-                let a = self.form(f, lhs, visible, w)?;
-                let c = self.form(f, rhs, visible, w)?;
+                let a = self.form(f, *lhs, visible, w)?;
+                let c = self.form(f, *rhs, visible, w)?;
                 match op {
                     BinOp::Add | BinOp::Sub if a == Form::Affine || c == Form::Affine => Some(Form::Affine),
                     BinOp::Mul => match (a, c) {
@@ -418,31 +424,32 @@ impl<'s, 'a> Scope<'s, 'a> {
     /// `e` is `A*xi + B*yi + C` with A, B and C the same for the kernel run: built from
     /// `int(X * c)` and `int(Y * c)` leaves (the same exactness), uniform values and
     /// locals of that form, by `+`, `-`, unary `-` and products by uniform values.
-    fn plane(&self, f: &Function, e: &Expr, visible: &HashSet<LocalId>, w: &Walk<'_, 'a>) -> bool {
+    fn plane(&self, f: &Function, e_id: ExprId, visible: &HashSet<LocalId>, w: &Walk<'_>) -> bool {
+        let e = &f.exprs[e_id];
         if !int_scalar(e) {
             return false;
         }
-        if self.row_invariant(f, e, None, w.assigned)
-            || column_leaf(e, w.x).is_some()
-            || w.y_float.is_some_and(|y| column_leaf(e, y).is_some())
+        if self.row_invariant(f, e_id, None, w.assigned)
+            || column_leaf(&f.exprs, e_id, w.x).is_some()
+            || w.y_float.is_some_and(|y| column_leaf(&f.exprs, e_id, y).is_some())
         {
             return true;
         }
         match &e.kind {
             ExprKind::Local(l) => visible.contains(l) && w.defs.get(l).is_some_and(|d| d.2),
-            ExprKind::Unary { op: UnaryOp::Neg, expr } => self.plane(f, expr, visible, w),
+            ExprKind::Unary { op: UnaryOp::Neg, expr } => self.plane(f, *expr, visible, w),
             ExprKind::Binary {
                 op: BinOp::Add | BinOp::Sub,
                 lhs,
                 rhs,
-            } => self.plane(f, lhs, visible, w) && self.plane(f, rhs, visible, w),
+            } => self.plane(f, *lhs, visible, w) && self.plane(f, *rhs, visible, w),
             ExprKind::Binary {
                 op: BinOp::Mul,
                 lhs,
                 rhs,
             } => {
-                let uniform = |e: &Expr| self.row_invariant(f, e, None, w.assigned);
-                (uniform(lhs) && self.plane(f, rhs, visible, w)) || (uniform(rhs) && self.plane(f, lhs, visible, w))
+                let uniform = |e: ExprId| self.row_invariant(f, e, None, w.assigned);
+                (uniform(*lhs) && self.plane(f, *rhs, visible, w)) || (uniform(*rhs) && self.plane(f, *lhs, visible, w))
             }
             _ => false,
         }
@@ -461,39 +468,36 @@ fn calls_primitive(stmts: &[Stmt]) -> bool {
 }
 
 /// Count the reads of each local in `e` (every `Local` node).
-fn count_reads(e: &Expr, out: &mut HashMap<LocalId, u32>) {
-    if let ExprKind::Local(l) = e.kind {
-        *out.entry(l).or_insert(0) += 1;
-    }
-    e.for_each_child(|c| count_reads(c, out));
+fn count_reads(x: &Exprs, e: ExprId, out: &mut HashMap<LocalId, u32>) {
+    x.for_each_local(e, &mut |l| *out.entry(l).or_insert(0) += 1);
 }
 
 /// Count the reads of each local in every expression of `stmts`.
-fn count_stmt_reads(stmts: &[Stmt], out: &mut HashMap<LocalId, u32>) {
+fn count_stmt_reads(x: &Exprs, stmts: &[Stmt], out: &mut HashMap<LocalId, u32>) {
     for s in stmts {
         match &s.kind {
             StmtKind::Assign { place, value } => {
                 for (i, _) in &place.indices {
-                    count_reads(i, out);
+                    count_reads(x, *i, out);
                 }
-                count_reads(value, out);
+                count_reads(x, *value, out);
             }
             StmtKind::If { cond, then, otherwise } => {
-                count_reads(cond, out);
-                count_stmt_reads(then, out);
-                count_stmt_reads(otherwise, out);
+                count_reads(x, *cond, out);
+                count_stmt_reads(x, then, out);
+                count_stmt_reads(x, otherwise, out);
             }
             StmtKind::Loop { cond, body, step, .. } => {
                 if let Some(c) = cond {
-                    count_reads(c, out);
+                    count_reads(x, *c, out);
                 }
-                count_stmt_reads(body, out);
-                count_stmt_reads(step, out);
+                count_stmt_reads(x, body, out);
+                count_stmt_reads(x, step, out);
             }
-            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| count_stmt_reads(&a.body, out)),
-            StmtKind::InterpolatorReturn(Some(e)) => count_reads(e, out),
-            StmtKind::Bound(es) => es.iter().for_each(|e| count_reads(e, out)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| count_reads(e, out)),
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| count_stmt_reads(x, &a.body, out)),
+            StmtKind::InterpolatorReturn(Some(e)) => count_reads(x, *e, out),
+            StmtKind::Bound(es) => es.iter().for_each(|e| count_reads(x, *e, out)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| count_reads(x, *e, out)),
             StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
         }
     }

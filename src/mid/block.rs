@@ -18,7 +18,7 @@
 
 use std::collections::{HashMap, HashSet};
 
-use crate::ir::{ConstValue, Elem, Expr, ExprId, ExprKind, Function, LocalId, Stmt, StmtKind};
+use crate::ir::{ConstValue, Elem, ExprId, ExprKind, Exprs, Function, LocalId, Stmt, StmtKind};
 
 /// One statement of the guard prefix.
 pub(crate) enum PStmt<'a> {
@@ -26,13 +26,13 @@ pub(crate) enum PStmt<'a> {
     Assign {
         stmt: &'a Stmt,
         local: LocalId,
-        value: &'a Expr,
+        value: ExprId,
     },
     /// `if (cond) return;` with a varying `cond`; `id` numbers guards in pre-order.
-    Guard { stmt: &'a Stmt, cond: &'a Expr, id: usize },
+    Guard { stmt: &'a Stmt, cond: ExprId, id: usize },
     /// `if (cond) {..} else {..}` on a uniform `cond`, both sides prefix statements.
     UniformIf {
-        cond: &'a Expr,
+        cond: ExprId,
         then: Vec<PStmt<'a>>,
         otherwise: Vec<PStmt<'a>>,
     },
@@ -79,7 +79,7 @@ fn classify_into<'a>(
     out: &mut Vec<PStmt<'a>>,
 ) -> bool {
     if let StmtKind::If { cond, then, otherwise } = &s.kind {
-        if let Some(&on) = decided.get(&cond.id) {
+        if let Some(&on) = decided.get(cond) {
             let taken = if on { then } else { otherwise };
             return taken.iter().all(|t| classify_into(f, t, guards, decided, out));
         }
@@ -104,26 +104,29 @@ fn classify<'a>(
             let local = f.locals.get(place.local.0 as usize)?;
             let is_param = f.params.iter().any(|p| p.local == place.local);
             let scalar_ok = matches!(local.ty.elem, Elem::Scalar(_)) && local.ty.dims.is_empty() && !local.ty.per_seq;
-            (place.indices.is_empty() && !is_param && scalar_ok && local.var.is_varying() && pure(value)).then_some(
-                PStmt::Assign {
+            (place.indices.is_empty() && !is_param && scalar_ok && local.var.is_varying() && pure(&f.exprs, *value))
+                .then_some(PStmt::Assign {
                     stmt: s,
                     local: place.local,
-                    value,
-                },
-            )
+                    value: *value,
+                })
         }
         StmtKind::If { cond, then, otherwise } => {
-            if !pure(cond) {
+            if !pure(&f.exprs, *cond) {
                 return None;
             }
-            if cond.var.is_varying() {
+            if f.exprs[*cond].var.is_varying() {
                 let is_guard = otherwise.is_empty() && then.len() == 1 && matches!(then[0].kind, StmtKind::Return);
                 if !is_guard {
                     return None;
                 }
                 let id = *guards;
                 *guards += 1;
-                return Some(PStmt::Guard { stmt: s, cond, id });
+                return Some(PStmt::Guard {
+                    stmt: s,
+                    cond: *cond,
+                    id,
+                });
             }
             let mut then_p = vec![];
             let mut otherwise_p = vec![];
@@ -132,7 +135,7 @@ fn classify<'a>(
                     .iter()
                     .all(|t| classify_into(f, t, guards, decided, &mut otherwise_p));
             ok.then_some(PStmt::UniformIf {
-                cond,
+                cond: *cond,
                 then: then_p,
                 otherwise: otherwise_p,
             })
@@ -143,10 +146,12 @@ fn classify<'a>(
 }
 
 /// No effect when evaluated: no index that may be out of range (which records an error).
-pub(crate) fn pure(e: &Expr) -> bool {
-    match &e.kind {
+pub(crate) fn pure(x: &Exprs, e: ExprId) -> bool {
+    let pure = |c: &ExprId| pure(x, *c);
+    match &x[e].kind {
         ExprKind::Index { base, index, .. } => {
-            let in_range = match (&index.kind, base.ty.per_seq, base.ty.dims.first()) {
+            let base_ty = &x[*base].ty;
+            let in_range = match (&x[*index].kind, base_ty.per_seq, base_ty.dims.first()) {
                 (ExprKind::Const(ConstValue::Int(k)), false, Some(&len)) => *k >= 0 && (*k as i64) < len as i64,
                 _ => false,
             };
@@ -173,6 +178,7 @@ pub(crate) fn assigned_locals(stmts: &[Stmt], out: &mut HashSet<LocalId>) {
 /// (screen_triangle's `int(Y * 16) - int(oy * 16)` and float edge terms) cost every pixel
 /// row of a span for nothing.
 pub(crate) fn pass_exprs(
+    x: &Exprs,
     all: &[PStmt<'_>],
     rest: &[Stmt],
     decidable: &[bool],
@@ -180,6 +186,7 @@ pub(crate) fn pass_exprs(
     decided: &HashMap<ExprId, bool>,
 ) -> HashSet<ExprId> {
     fn prefix(
+        x: &Exprs,
         all: &[PStmt<'_>],
         stmts: &[PStmt<'_>],
         decidable: &[bool],
@@ -188,17 +195,17 @@ pub(crate) fn pass_exprs(
     ) {
         for s in stmts {
             match s {
-                PStmt::Assign { value, .. } => expr_keys(value, out),
+                PStmt::Assign { value, .. } => expr_keys(x, *value, out),
                 PStmt::Guard { cond, id, .. } => {
                     if !decidable[*id] {
-                        expr_keys(cond, out);
+                        expr_keys(x, *cond, out);
                     }
                 }
                 PStmt::UniformIf { cond, then, otherwise } => {
-                    if !no_effect_in_pass(all, s, decidable, live) {
-                        expr_keys(cond, out);
-                        prefix(all, then, decidable, live, out);
-                        prefix(all, otherwise, decidable, live, out);
+                    if !no_effect_in_pass(x, all, s, decidable, live) {
+                        expr_keys(x, *cond, out);
+                        prefix(x, all, then, decidable, live, out);
+                        prefix(x, all, otherwise, decidable, live, out);
                     }
                 }
                 PStmt::Kill(_) => {}
@@ -206,43 +213,43 @@ pub(crate) fn pass_exprs(
         }
     }
     let mut out = HashSet::new();
-    prefix(all, all, decidable, live, &mut out);
-    stmt_keys(rest, decided, &mut out);
+    prefix(x, all, all, decidable, live, &mut out);
+    stmt_keys(x, rest, decided, &mut out);
     out
 }
 
 /// The ids of `e` and all its subexpressions.
-pub(crate) fn expr_keys(e: &Expr, out: &mut HashSet<ExprId>) {
-    out.insert(e.id);
-    e.for_each_child(|c| expr_keys(c, out));
+pub(crate) fn expr_keys(x: &Exprs, e: ExprId, out: &mut HashSet<ExprId>) {
+    out.insert(e);
+    x[e].for_each_child(|c| expr_keys(x, c, out));
 }
 
 /// The ids of every expression in `stmts`, but for the untaken side (and the condition) of
 /// each `if` that `decided` fixes (see [`super::unswitch`]).
-pub(crate) fn stmt_keys(stmts: &[Stmt], decided: &HashMap<ExprId, bool>, out: &mut HashSet<ExprId>) {
+pub(crate) fn stmt_keys(x: &Exprs, stmts: &[Stmt], decided: &HashMap<ExprId, bool>, out: &mut HashSet<ExprId>) {
     for s in stmts {
         match &s.kind {
             StmtKind::Assign { place, value } => {
-                place.indices.iter().for_each(|(i, _)| expr_keys(i, out));
-                expr_keys(value, out);
+                place.indices.iter().for_each(|(i, _)| expr_keys(x, *i, out));
+                expr_keys(x, *value, out);
             }
-            StmtKind::If { cond, then, otherwise } => match decided.get(&cond.id) {
-                Some(&on) => stmt_keys(if on { then } else { otherwise }, decided, out),
+            StmtKind::If { cond, then, otherwise } => match decided.get(cond) {
+                Some(&on) => stmt_keys(x, if on { then } else { otherwise }, decided, out),
                 None => {
-                    expr_keys(cond, out);
-                    stmt_keys(then, decided, out);
-                    stmt_keys(otherwise, decided, out);
+                    expr_keys(x, *cond, out);
+                    stmt_keys(x, then, decided, out);
+                    stmt_keys(x, otherwise, decided, out);
                 }
             },
             StmtKind::Loop { cond, body, step, .. } => {
-                cond.iter().for_each(|c| expr_keys(c, out));
-                stmt_keys(body, decided, out);
-                stmt_keys(step, decided, out);
+                cond.iter().for_each(|c| expr_keys(x, *c, out));
+                stmt_keys(x, body, decided, out);
+                stmt_keys(x, step, decided, out);
             }
-            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| stmt_keys(&a.body, decided, out)),
-            StmtKind::InterpolatorReturn(e) => e.iter().for_each(|e| expr_keys(e, out)),
-            StmtKind::Bound(es) => es.iter().for_each(|e| expr_keys(e, out)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr_keys(a, out)),
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| stmt_keys(x, &a.body, decided, out)),
+            StmtKind::InterpolatorReturn(e) => e.iter().for_each(|e| expr_keys(x, *e, out)),
+            StmtKind::Bound(es) => es.iter().for_each(|e| expr_keys(x, *e, out)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr_keys(x, *a, out)),
             StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
         }
     }
@@ -266,22 +273,22 @@ fn prefix_assigned(stmts: &[PStmt<'_>], out: &mut HashSet<LocalId>) {
 
 /// Locals the pass variant's prefix reads outside `skip` (an `if` of the prefix): the values
 /// of assignments, the conditions of the guards it keeps and of uniform `if`s.
-fn prefix_reads(stmts: &[PStmt<'_>], skip: &PStmt<'_>, decidable: &[bool], out: &mut HashSet<LocalId>) {
+fn prefix_reads(x: &Exprs, stmts: &[PStmt<'_>], skip: &PStmt<'_>, decidable: &[bool], out: &mut HashSet<LocalId>) {
     for s in stmts {
         if std::ptr::eq(s, skip) {
             continue;
         }
         match s {
-            PStmt::Assign { value, .. } => crate::ir::split::expr_reads(value, out),
+            PStmt::Assign { value, .. } => crate::ir::split::expr_reads(x, *value, out),
             PStmt::Guard { cond, id, .. } => {
                 if !decidable[*id] {
-                    crate::ir::split::expr_reads(cond, out);
+                    crate::ir::split::expr_reads(x, *cond, out);
                 }
             }
             PStmt::UniformIf { cond, then, otherwise } => {
-                crate::ir::split::expr_reads(cond, out);
-                prefix_reads(then, skip, decidable, out);
-                prefix_reads(otherwise, skip, decidable, out);
+                crate::ir::split::expr_reads(x, *cond, out);
+                prefix_reads(x, then, skip, decidable, out);
+                prefix_reads(x, otherwise, skip, decidable, out);
             }
             PStmt::Kill(_) => {}
         }
@@ -291,7 +298,13 @@ fn prefix_reads(stmts: &[PStmt<'_>], skip: &PStmt<'_>, decidable: &[bool], out: 
 /// `s` (a uniform `if` of the prefix) does nothing in the pass variant: every guard in it
 /// is dropped, it kills no lane, and no local it assigns is read outside it (`live`: the
 /// locals the pixel code after the prefix uses).
-pub(crate) fn no_effect_in_pass(all: &[PStmt<'_>], s: &PStmt<'_>, decidable: &[bool], live: &HashSet<LocalId>) -> bool {
+pub(crate) fn no_effect_in_pass(
+    x: &Exprs,
+    all: &[PStmt<'_>],
+    s: &PStmt<'_>,
+    decidable: &[bool],
+    live: &HashSet<LocalId>,
+) -> bool {
     fn only_dropped(stmts: &[PStmt<'_>], decidable: &[bool]) -> bool {
         stmts.iter().all(|s| match s {
             PStmt::Assign { .. } => true,
@@ -311,6 +324,6 @@ pub(crate) fn no_effect_in_pass(all: &[PStmt<'_>], s: &PStmt<'_>, decidable: &[b
     let mut assigned = HashSet::new();
     prefix_assigned(std::slice::from_ref(s), &mut assigned);
     let mut reads = live.clone();
-    prefix_reads(all, s, decidable, &mut reads);
+    prefix_reads(x, all, s, decidable, &mut reads);
     assigned.is_disjoint(&reads)
 }

@@ -54,7 +54,8 @@
 //! run where the facts hold read it.
 
 use crate::ir::{
-    for_each_assign, BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, Function, LocalId, ParamRole, Scalar, UnaryOp,
+    for_each_assign, BinOp, Builtin, ConstValue, Elem, ExprId, ExprKind, Exprs, Function, LocalId, ParamRole, Scalar,
+    UnaryOp,
 };
 
 /// Pixel centres the runtime can hand to pixel code, with a wide margin: frames are at most
@@ -150,7 +151,7 @@ impl LocalBounds {
                     let Some(Some(old)) = table.locals.get(i).copied() else {
                         return;
                     };
-                    let new = table.expr(value).map(|v| old.join(v));
+                    let new = table.expr(&f.exprs, value).map(|v| old.join(v));
                     if new != Some(old) {
                         table.locals[i] = new;
                         changed[i] = true;
@@ -172,19 +173,19 @@ impl LocalBounds {
     }
 
     /// The bound of `e`'s every component, or `None` if unbounded or not a float.
-    pub(crate) fn expr(&self, e: &Expr) -> Option<Interval> {
-        self.expr_with(e, &|_| None)
+    pub(crate) fn expr(&self, x: &Exprs, e: ExprId) -> Option<Interval> {
+        self.expr_with(x, e, &|_| None)
     }
 
     /// The bound of float expression `e` at a point of the pixel code where `facts` holds
     /// (see [`GuardFacts`]), as `(lo, hi)`: every executing lane's value is a non-NaN `f32`
     /// in `[lo, hi]`. An end may be infinite when `e` is a local bounded on one side only
     /// by a guard (`z >= 0`); inside arithmetic only finite bounds are used.
-    pub(crate) fn expr_here(&self, e: &Expr, facts: &GuardFacts, frame: usize) -> Option<(f64, f64)> {
-        if e.ty.elem != Elem::Scalar(Scalar::Float) {
-            return self.expr(e).map(|b| (b.lo, b.hi));
+    pub(crate) fn expr_here(&self, x: &Exprs, e: ExprId, facts: &GuardFacts, frame: usize) -> Option<(f64, f64)> {
+        if x[e].ty.elem != Elem::Scalar(Scalar::Float) {
+            return self.expr(x, e).map(|b| (b.lo, b.hi));
         }
-        if let ExprKind::Local(l) = e.kind {
+        if let ExprKind::Local(l) = x[e].kind {
             let whole = self.locals.get(l.0 as usize).copied().flatten();
             return match (facts.range(frame, l), whole) {
                 (Some((lo, hi)), Some(w)) => {
@@ -209,11 +210,12 @@ impl LocalBounds {
             };
             Interval::new(lo, hi)
         };
-        self.expr_with(e, &refined).map(|b| (b.lo, b.hi))
+        self.expr_with(x, e, &refined).map(|b| (b.lo, b.hi))
     }
 
     /// [`Self::expr`] with `refined` answering first for scalar locals it knows.
-    fn expr_with(&self, e: &Expr, refined: &dyn Fn(LocalId) -> Option<Interval>) -> Option<Interval> {
+    fn expr_with(&self, x: &Exprs, e: ExprId, refined: &dyn Fn(LocalId) -> Option<Interval>) -> Option<Interval> {
+        let e = &x[e];
         match e.ty.elem {
             Elem::Scalar(Scalar::Float) => {}
             // An int constant converted to float (`X * 16`).
@@ -231,21 +233,21 @@ impl LocalBounds {
             ExprKind::Local(l) => refined(*l).or_else(|| self.locals.get(l.0 as usize).copied().flatten()),
             ExprKind::Index { base, .. } => {
                 // Every element of a local shares its bound.
-                let mut root = &**base;
+                let mut root = &x[*base];
                 while let ExprKind::Index { base, .. } = &root.kind {
-                    root = base;
+                    root = &x[*base];
                 }
                 match root.kind {
                     ExprKind::Local(l) => self.locals.get(l.0 as usize).copied().flatten(),
                     _ => None,
                 }
             }
-            ExprKind::Unary { op: UnaryOp::Neg, expr } => {
-                self.expr_with(expr, refined).and_then(|a| Interval::new(-a.hi, -a.lo))
-            }
+            ExprKind::Unary { op: UnaryOp::Neg, expr } => self
+                .expr_with(x, *expr, refined)
+                .and_then(|a| Interval::new(-a.hi, -a.lo)),
             ExprKind::Unary { .. } => None,
             ExprKind::Binary { op, lhs, rhs } => {
-                let (a, b) = (self.expr_with(lhs, refined)?, self.expr_with(rhs, refined)?);
+                let (a, b) = (self.expr_with(x, *lhs, refined)?, self.expr_with(x, *rhs, refined)?);
                 match op {
                     BinOp::Add => Interval::rounded(a.lo + b.lo, a.hi + b.hi),
                     BinOp::Sub => Interval::rounded(a.lo - b.hi, a.hi - b.lo),
@@ -257,27 +259,34 @@ impl LocalBounds {
             }
             // Int -> float rounds to nearest (only int constants are bounded, above).
             ExprKind::Convert(inner) => self
-                .expr_with(inner, refined)
+                .expr_with(x, *inner, refined)
                 .and_then(|a| Interval::rounded(a.lo, a.hi)),
-            ExprKind::Select { then, otherwise, .. } => {
-                Some(self.expr_with(then, refined)?.join(self.expr_with(otherwise, refined)?))
-            }
-            ExprKind::Builtin { func, args } => self.builtin(*func, args, refined),
+            ExprKind::Select { then, otherwise, .. } => Some(
+                self.expr_with(x, *then, refined)?
+                    .join(self.expr_with(x, *otherwise, refined)?),
+            ),
+            ExprKind::Builtin { func, args } => self.builtin(x, *func, args, refined),
             ExprKind::List(items) => {
                 let mut all: Option<Interval> = None;
                 for it in items {
-                    let b = self.expr_with(it, refined)?;
+                    let b = self.expr_with(x, *it, refined)?;
                     all = Some(all.map_or(b, |a| a.join(b)));
                 }
                 all
             }
-            ExprKind::Splat(item) => self.expr_with(item, refined),
+            ExprKind::Splat(item) => self.expr_with(x, *item, refined),
             ExprKind::MatMul { .. } | ExprKind::SeqCount | ExprKind::ClipFlag => None,
         }
     }
 
-    fn builtin(&self, func: Builtin, args: &[Expr], refined: &dyn Fn(LocalId) -> Option<Interval>) -> Option<Interval> {
-        let arg = |i: usize| args.get(i).and_then(|a| self.expr_with(a, refined));
+    fn builtin(
+        &self,
+        x: &Exprs,
+        func: Builtin,
+        args: &[ExprId],
+        refined: &dyn Fn(LocalId) -> Option<Interval>,
+    ) -> Option<Interval> {
+        let arg = |i: usize| args.get(i).and_then(|a| self.expr_with(x, *a, refined));
         let unit = Interval { lo: -1.0, hi: 1.0 };
         match func {
             Builtin::Abs => {
@@ -405,30 +414,30 @@ impl GuardFacts {
     /// other than `!=` that holds, or a `!=` that does not (NaN compares unordered, so
     /// `!(z < 0)` lets NaN through and says nothing); `&&` that holds and `||` that does not
     /// give both sides' facts, `!` flips. Anything else says nothing.
-    pub(crate) fn assume(&mut self, frame: usize, cond: &Expr, holds: bool) {
-        match &cond.kind {
-            ExprKind::Unary { op: UnaryOp::Not, expr } => self.assume(frame, expr, !holds),
+    pub(crate) fn assume(&mut self, x: &Exprs, frame: usize, cond: ExprId, holds: bool) {
+        match &x[cond].kind {
+            ExprKind::Unary { op: UnaryOp::Not, expr } => self.assume(x, frame, *expr, !holds),
             ExprKind::Binary {
                 op: BinOp::And,
                 lhs,
                 rhs,
             } if holds => {
-                self.assume(frame, lhs, true);
-                self.assume(frame, rhs, true);
+                self.assume(x, frame, *lhs, true);
+                self.assume(x, frame, *rhs, true);
             }
             ExprKind::Binary {
                 op: BinOp::Or,
                 lhs,
                 rhs,
             } if !holds => {
-                self.assume(frame, lhs, false);
-                self.assume(frame, rhs, false);
+                self.assume(x, frame, *lhs, false);
+                self.assume(x, frame, *rhs, false);
             }
             ExprKind::Binary { op, lhs, rhs } => {
                 // `local op c` or `c op local`, the latter read as `local op' c`.
-                let (local, c, op) = match (scalar_float_local(lhs), float_const(rhs)) {
+                let (local, c, op) = match (scalar_float_local(&x[*lhs]), float_const(x, *rhs)) {
                     (Some(l), Some(c)) => (l, c, *op),
-                    _ => match (float_const(lhs), scalar_float_local(rhs)) {
+                    _ => match (float_const(x, *lhs), scalar_float_local(&x[*rhs])) {
                         (Some(c), Some(l)) => (l, c, mirrored(*op)),
                         _ => return,
                     },
@@ -466,7 +475,7 @@ fn mirrored(op: BinOp) -> BinOp {
 }
 
 /// A plain scalar float local (not an element, not a vector).
-fn scalar_float_local(e: &Expr) -> Option<LocalId> {
+fn scalar_float_local(e: &crate::ir::Expr) -> Option<LocalId> {
     match e.kind {
         ExprKind::Local(l) if e.ty.elem == Elem::Scalar(Scalar::Float) && e.ty.is_scalar() => Some(l),
         _ => None,
@@ -475,17 +484,18 @@ fn scalar_float_local(e: &Expr) -> Option<LocalId> {
 
 /// A float-typed constant (a float literal, or an int literal compared as a float) whose
 /// value is exact in f32; `None` for anything else.
-fn float_const(e: &Expr) -> Option<f64> {
-    let x = match &e.kind {
-        ExprKind::Const(ConstValue::Float(x)) => *x as f64,
+fn float_const(x: &Exprs, id: ExprId) -> Option<f64> {
+    let e = &x[id];
+    let v = match &e.kind {
+        ExprKind::Const(ConstValue::Float(v)) => *v as f64,
         ExprKind::Const(ConstValue::Int(i)) if e.ty.elem == Elem::Scalar(Scalar::Float) => *i as f64,
-        ExprKind::Convert(inner) if e.ty.elem == Elem::Scalar(Scalar::Float) => match inner.kind {
+        ExprKind::Convert(inner) if e.ty.elem == Elem::Scalar(Scalar::Float) => match x[*inner].kind {
             ExprKind::Const(ConstValue::Int(i)) => i as f64,
             _ => return None,
         },
-        ExprKind::Unary { op: UnaryOp::Neg, expr } => -float_const(expr)?,
+        ExprKind::Unary { op: UnaryOp::Neg, expr } => -float_const(x, *expr)?,
         _ => return None,
     };
     // The comparison is made in f32: the constant must be the value the lanes compare with.
-    (e.ty.elem == Elem::Scalar(Scalar::Float) && (x as f32) as f64 == x && x.is_finite()).then_some(x)
+    (e.ty.elem == Elem::Scalar(Scalar::Float) && (v as f32) as f64 == v && v.is_finite()).then_some(v)
 }

@@ -10,12 +10,17 @@
 //! that may record a run-time error, i.e. not speculable). The lowering then skips a setup
 //! assignment whose local is not live and that could have no effect but its value.
 
-use crate::ir::{Expr, LocalId, Stmt, StmtKind};
+use crate::ir::{ExprId, Exprs, LocalId, Stmt, StmtKind};
 
 /// The locals read by live code (indexed by local), given `live`, the locals the pixel
 /// code reads or assigns as lowered, and `removable` (whether an assignment statement may
 /// be skipped when its local is dead).
-pub(crate) fn live_setup_locals(setup: &[Stmt], mut live: Vec<bool>, removable: &dyn Fn(&Stmt) -> bool) -> Vec<bool> {
+pub(crate) fn live_setup_locals(
+    x: &Exprs,
+    setup: &[Stmt],
+    mut live: Vec<bool>,
+    removable: &dyn Fn(&Stmt) -> bool,
+) -> Vec<bool> {
     // Statements are walked last to first, so in straight-line code an assignment is met
     // after the reads that make its local live, and one round finds everything unless an
     // assignment skipped as dead has its local read above it (a reused local, a loop whose
@@ -24,7 +29,7 @@ pub(crate) fn live_setup_locals(setup: &[Stmt], mut live: Vec<bool>, removable: 
     let mut skipped = Vec::new();
     loop {
         skipped.clear();
-        walk(setup, &mut live, &mut skipped, removable);
+        walk(x, setup, &mut live, &mut skipped, removable);
         if !skipped
             .iter()
             .any(|l: &LocalId| live.get(l.0 as usize).copied().unwrap_or(true))
@@ -40,45 +45,45 @@ fn mark(l: LocalId, live: &mut [bool]) {
     }
 }
 
-fn reads(e: &Expr, live: &mut [bool]) {
-    e.for_each_local(&mut |l| mark(l, live));
+fn reads(x: &Exprs, e: ExprId, live: &mut [bool]) {
+    x.for_each_local(e, &mut |l| mark(l, live));
 }
 
 /// One round: marks what live statements read; `skipped` gets the locals of the assignments
 /// left out as dead.
-fn walk(stmts: &[Stmt], live: &mut [bool], skipped: &mut Vec<LocalId>, removable: &dyn Fn(&Stmt) -> bool) {
+fn walk(x: &Exprs, stmts: &[Stmt], live: &mut [bool], skipped: &mut Vec<LocalId>, removable: &dyn Fn(&Stmt) -> bool) {
     for s in stmts.iter().rev() {
         match &s.kind {
             StmtKind::Assign { place, value } => {
                 let is_live = live.get(place.local.0 as usize).copied().unwrap_or(true);
                 if is_live || !removable(s) {
                     mark(place.local, live);
-                    place.indices.iter().for_each(|(i, _)| reads(i, live));
-                    reads(value, live);
+                    place.indices.iter().for_each(|(i, _)| reads(x, *i, live));
+                    reads(x, *value, live);
                 } else {
                     skipped.push(place.local);
                 }
             }
             StmtKind::If { cond, then, otherwise } => {
-                reads(cond, live);
-                walk(then, live, skipped, removable);
-                walk(otherwise, live, skipped, removable);
+                reads(x, *cond, live);
+                walk(x, then, live, skipped, removable);
+                walk(x, otherwise, live, skipped, removable);
             }
             StmtKind::Loop { cond, body, step, .. } => {
                 if let Some(c) = cond {
-                    reads(c, live);
+                    reads(x, *c, live);
                 }
-                walk(step, live, skipped, removable);
-                walk(body, live, skipped, removable);
+                walk(x, step, live, skipped, removable);
+                walk(x, body, live, skipped, removable);
             }
             StmtKind::Interpolation { arms } => {
                 for a in arms {
-                    walk(&a.body, live, skipped, removable);
+                    walk(x, &a.body, live, skipped, removable);
                 }
             }
-            StmtKind::InterpolatorReturn(Some(e)) => reads(e, live),
-            StmtKind::Bound(es) => es.iter().for_each(|e| reads(e, live)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| reads(e, live)),
+            StmtKind::InterpolatorReturn(Some(e)) => reads(x, *e, live),
+            StmtKind::Bound(es) => es.iter().for_each(|e| reads(x, *e, live)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| reads(x, *e, live)),
             StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::InterpolatorReturn(None) => {}
         }
     }
@@ -103,7 +108,7 @@ pub(crate) fn assigned_flags(stmts: &[Stmt], locals: usize) -> Vec<bool> {
 }
 
 /// The locals `stmts` reads or assigns anywhere, as a flag per local (`locals` of them).
-pub(crate) fn mentioned_flags(stmts: &[Stmt], locals: usize) -> Vec<bool> {
+pub(crate) fn mentioned_flags(x: &Exprs, stmts: &[Stmt], locals: usize) -> Vec<bool> {
     // Nothing removable: one round marks every read and every assigned local.
-    live_setup_locals(stmts, vec![false; locals], &|_| false)
+    live_setup_locals(x, stmts, vec![false; locals], &|_| false)
 }

@@ -97,7 +97,7 @@ pub(crate) fn maskable_ifs(f: &Function, stmts: &[Stmt], out: &mut HashSet<ExprI
     crate::ir::for_each_stmt(stmts, &mut |s| {
         if let StmtKind::If { cond, then, otherwise } = &s.kind {
             if maskable_stmts(f, then) && maskable_stmts(f, otherwise) {
-                out.insert(cond.id);
+                out.insert(*cond);
             }
         }
     });

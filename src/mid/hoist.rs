@@ -48,12 +48,12 @@ use std::collections::{HashMap, HashSet};
 use super::view;
 use crate::abi::VariantKey;
 use crate::ir::{
-    BinOp, Builtin, ConstValue, Elem, Expr, ExprId, ExprKind, Function, LocalId, Scalar, Stmt, StmtKind, UnaryOp,
+    BinOp, Builtin, ConstValue, Elem, ExprId, ExprKind, Function, LocalId, Scalar, Stmt, StmtKind, UnaryOp,
 };
 
 /// One hoisted expression: where its components live in the row section.
-pub(crate) struct Hoist<'a> {
-    pub expr: &'a Expr,
+pub(crate) struct Hoist {
+    pub expr: ExprId,
     /// The interpolation view it is evaluated under.
     pub view: Vec<u32>,
     /// Byte offset of its first component in the uniform frame (16 bytes per component).
@@ -66,7 +66,7 @@ pub(crate) struct Hoist<'a> {
 }
 
 /// What row invariance is judged against (see the module comment).
-pub(crate) struct Scope<'s, 'a> {
+pub(crate) struct Scope<'s> {
     pub key: &'s VariantKey,
     /// The key's interpolated components (the view outside `interpolation` arms).
     pub n_interp: u32,
@@ -74,7 +74,7 @@ pub(crate) struct Scope<'s, 'a> {
     /// (a word of the uniform frame, or a parameter in the argument block).
     pub resident: &'s [bool],
     /// The row locals, once found ([`Self::collect_row_locals`]).
-    pub row_locals: HashMap<LocalId, &'a Expr>,
+    pub row_locals: HashMap<LocalId, ExprId>,
 }
 
 /// `f`'s Y parameter unless the pixel code assigns it (`assigned`; then nothing is
@@ -92,31 +92,27 @@ fn unassigned_y(f: &Function, assigned: &HashSet<LocalId>) -> Option<LocalId> {
 /// (marked in `unread` and `unstored`, see [`super::affine::mark_unread_in_groups`]).
 pub(crate) fn row_locals_unread<'a>(
     f: &Function,
-    hoists: &[Hoist<'a>],
-    rows: &HashMap<LocalId, &'a Expr>,
+    hoists: &[Hoist],
+    rows: &HashMap<LocalId, ExprId>,
     unread: &mut HashSet<LocalId>,
     unstored: &mut HashSet<ExprId>,
 ) {
     // Each term once, whatever the views it was collected under.
     let mut counted = HashSet::new();
-    let terms: Vec<&'a Expr> = hoists
+    let terms: Vec<ExprId> = hoists
         .iter()
-        .filter(|h| !h.per_run && counted.insert(h.expr.id))
+        .filter(|h| !h.per_run && counted.insert(h.expr))
         .map(|h| h.expr)
         .collect();
-    let locals: Vec<(LocalId, &'a Expr)> = rows.iter().map(|(&l, &v)| (l, v)).collect();
+    let locals: Vec<(LocalId, ExprId)> = rows.iter().map(|(&l, &v)| (l, v)).collect();
     super::affine::mark_unread_in_groups(f, terms, locals, unread, unstored);
 }
 
-impl<'s, 'a> Scope<'s, 'a> {
+impl Scope<'_> {
     /// The row locals of `f`'s pixel code (see the module comment), each with its defining
     /// expression; a row local's value may read earlier ones. `assigned`: the locals the
     /// pixel code assigns.
-    pub(crate) fn collect_row_locals(
-        &self,
-        f: &'a Function,
-        assigned: &HashSet<LocalId>,
-    ) -> HashMap<LocalId, &'a Expr> {
+    pub(crate) fn collect_row_locals(&self, f: &Function, assigned: &HashSet<LocalId>) -> HashMap<LocalId, ExprId> {
         let y = unassigned_y(f, assigned);
         let mut pixel_assignments: HashMap<LocalId, u32> = HashMap::new();
         crate::ir::for_each_assign(&f.pixel, &mut |place, _| {
@@ -141,8 +137,8 @@ impl<'s, 'a> Scope<'s, 'a> {
                 && pixel_assignments.get(&l) == Some(&1)
                 && !setup_assigned.contains(&l)
                 && !params.contains(&l);
-            if candidate && self.row_invariant_in(f, value, y, assigned, Some(&rows)) {
-                rows.insert(l, value);
+            if candidate && self.row_invariant_in(f, *value, y, assigned, Some(&rows)) {
+                rows.insert(l, *value);
             }
         }
         rows
@@ -151,12 +147,7 @@ impl<'s, 'a> Scope<'s, 'a> {
     /// The maximal row-invariant varying subexpressions of `f`'s pixel code, in the order
     /// met, with the view each is lowered under; offsets start at `first_offset`.
     /// `assigned`: the locals the pixel code assigns.
-    pub(crate) fn collect_hoists(
-        &self,
-        f: &'a Function,
-        assigned: &HashSet<LocalId>,
-        first_offset: u32,
-    ) -> Vec<Hoist<'a>> {
+    pub(crate) fn collect_hoists(&self, f: &Function, assigned: &HashSet<LocalId>, first_offset: u32) -> Vec<Hoist> {
         let y = unassigned_y(f, assigned);
         let mut out = vec![];
         let view: Vec<u32> = (0..self.n_interp).collect();
@@ -168,19 +159,19 @@ impl<'s, 'a> Scope<'s, 'a> {
     #[allow(clippy::too_many_arguments)]
     fn hoists_in(
         &self,
-        f: &'a Function,
-        stmts: &'a [Stmt],
+        f: &Function,
+        stmts: &[Stmt],
         view: &[u32],
         y: Option<LocalId>,
         assigned: &HashSet<LocalId>,
-        out: &mut Vec<Hoist<'a>>,
+        out: &mut Vec<Hoist>,
         next: &mut u32,
     ) {
         for s in stmts {
             match &s.kind {
-                StmtKind::Assign { value, .. } => self.hoists_expr(f, value, view, y, assigned, out, next),
+                StmtKind::Assign { value, .. } => self.hoists_expr(f, *value, view, y, assigned, out, next),
                 StmtKind::If { cond, then, otherwise } => {
-                    self.hoists_expr(f, cond, view, y, assigned, out, next);
+                    self.hoists_expr(f, *cond, view, y, assigned, out, next);
                     self.hoists_in(f, then, view, y, assigned, out, next);
                     self.hoists_in(f, otherwise, view, y, assigned, out, next);
                 }
@@ -192,7 +183,7 @@ impl<'s, 'a> Scope<'s, 'a> {
                         }
                     }
                 }
-                StmtKind::InterpolatorReturn(Some(e)) => self.hoists_expr(f, e, view, y, assigned, out, next),
+                StmtKind::InterpolatorReturn(Some(e)) => self.hoists_expr(f, *e, view, y, assigned, out, next),
                 // Loop bodies run a data-dependent number of times per group; their terms
                 // are left where they are.
                 _ => {}
@@ -203,17 +194,18 @@ impl<'s, 'a> Scope<'s, 'a> {
     #[allow(clippy::too_many_arguments)]
     fn hoists_expr(
         &self,
-        f: &'a Function,
-        e: &'a Expr,
+        f: &Function,
+        e_id: ExprId,
         view: &[u32],
         y: Option<LocalId>,
         assigned: &HashSet<LocalId>,
-        out: &mut Vec<Hoist<'a>>,
+        out: &mut Vec<Hoist>,
         next: &mut u32,
     ) {
+        let e = &f.exprs[e_id];
         let has_op = !matches!(e.kind, ExprKind::Local(_) | ExprKind::Const(_) | ExprKind::Index { .. });
         let rows = Some(&self.row_locals);
-        if e.var.is_varying() && has_op && !e.ty.per_seq && self.row_invariant_in(f, e, y, assigned, rows) {
+        if e.var.is_varying() && has_op && !e.ty.per_seq && self.row_invariant_in(f, e_id, y, assigned, rows) {
             let elements: u32 = e.ty.dims.iter().product();
             let (comps, scalar) = match e.ty.elem {
                 Elem::Interp if e.ty.dims.is_empty() => (view.len() as u32, Scalar::Float),
@@ -222,7 +214,7 @@ impl<'s, 'a> Scope<'s, 'a> {
             };
             if comps > 0 {
                 out.push(Hoist {
-                    expr: e,
+                    expr: e_id,
                     view: view.to_vec(),
                     offset: *next,
                     comps,
@@ -232,13 +224,13 @@ impl<'s, 'a> Scope<'s, 'a> {
                 *next += 16 * comps;
                 // Its uniform operations are evaluated once per run too, so the row
                 // prologue reads them (`int(oy * 16)` of `int(Y * 16) - int(oy * 16)`).
-                self.per_run_inside(f, e, view, y, assigned, out, next);
+                self.per_run_inside(f, e_id, view, y, assigned, out, next);
                 return;
             }
         }
         match &e.kind {
             ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => {
-                self.hoists_expr(f, expr, view, y, assigned, out, next)
+                self.hoists_expr(f, *expr, view, y, assigned, out, next)
             }
             ExprKind::Binary { op, lhs, rhs } => {
                 // A uniform operand of a varying operation is splatted in every group; when
@@ -251,23 +243,23 @@ impl<'s, 'a> Scope<'s, 'a> {
                         BinOp::Add | BinOp::Sub | BinOp::Mul | BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge
                     );
                 for side in [lhs, rhs] {
-                    if splats_operand && self.uniform_operation(f, side, y, assigned) {
-                        push_per_run(side, view, out, next);
+                    if splats_operand && self.uniform_operation(f, *side, y, assigned) {
+                        push_per_run(f, *side, view, out, next);
                     } else {
-                        self.hoists_expr(f, side, view, y, assigned, out, next);
+                        self.hoists_expr(f, *side, view, y, assigned, out, next);
                     }
                 }
             }
             ExprKind::Select { cond, then, otherwise } => {
-                self.hoists_expr(f, cond, view, y, assigned, out, next);
+                self.hoists_expr(f, *cond, view, y, assigned, out, next);
                 // A uniform operation as an arm of a varying select (`-handedness` in
                 // `w < 0 ? -handedness : handedness`) is splatted and recomputed in every
                 // group: once per kernel run instead, as for a binary operator's operand.
                 for arm in [then, otherwise] {
-                    if e.var.is_varying() && self.uniform_operation(f, arm, y, assigned) {
-                        push_per_run(arm, view, out, next);
+                    if e.var.is_varying() && self.uniform_operation(f, *arm, y, assigned) {
+                        push_per_run(f, *arm, view, out, next);
                     } else {
-                        self.hoists_expr(f, arm, view, y, assigned, out, next);
+                        self.hoists_expr(f, *arm, view, y, assigned, out, next);
                     }
                 }
             }
@@ -275,10 +267,10 @@ impl<'s, 'a> Scope<'s, 'a> {
                 // Likewise a uniform operation as an argument of a varying built-in
                 // (`clamp(v, lo * 2, hi)`).
                 for a in args {
-                    if e.var.is_varying() && self.uniform_operation(f, a, y, assigned) {
-                        push_per_run(a, view, out, next);
+                    if e.var.is_varying() && self.uniform_operation(f, *a, y, assigned) {
+                        push_per_run(f, *a, view, out, next);
                     } else {
-                        self.hoists_expr(f, a, view, y, assigned, out, next);
+                        self.hoists_expr(f, *a, view, y, assigned, out, next);
                     }
                 }
             }
@@ -291,25 +283,26 @@ impl<'s, 'a> Scope<'s, 'a> {
     #[allow(clippy::too_many_arguments)]
     fn per_run_inside(
         &self,
-        f: &'a Function,
-        e: &'a Expr,
+        f: &Function,
+        e_id: ExprId,
         view: &[u32],
         y: Option<LocalId>,
         assigned: &HashSet<LocalId>,
-        out: &mut Vec<Hoist<'a>>,
+        out: &mut Vec<Hoist>,
         next: &mut u32,
     ) {
+        let e = &f.exprs[e_id];
         match &e.kind {
             ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => {
-                self.per_run_inside(f, expr, view, y, assigned, out, next)
+                self.per_run_inside(f, *expr, view, y, assigned, out, next)
             }
             ExprKind::Binary { op, lhs, rhs } => {
                 let splats_operand = e.var.is_varying() && matches!(op, BinOp::Add | BinOp::Sub | BinOp::Mul);
                 for side in [lhs, rhs] {
-                    if splats_operand && self.uniform_operation(f, side, y, assigned) {
-                        push_per_run(side, view, out, next);
+                    if splats_operand && self.uniform_operation(f, *side, y, assigned) {
+                        push_per_run(f, *side, view, out, next);
                     } else {
-                        self.per_run_inside(f, side, view, y, assigned, out, next);
+                        self.per_run_inside(f, *side, view, y, assigned, out, next);
                     }
                 }
             }
@@ -319,13 +312,14 @@ impl<'s, 'a> Scope<'s, 'a> {
 
     /// `e` is a uniform float or int scalar computed by an operation from frame words,
     /// arguments and constants only (hoistable like a row term; no Y in it).
-    fn uniform_operation(&self, f: &Function, e: &Expr, y: Option<LocalId>, assigned: &HashSet<LocalId>) -> bool {
+    fn uniform_operation(&self, f: &Function, e_id: ExprId, y: Option<LocalId>, assigned: &HashSet<LocalId>) -> bool {
+        let e = &f.exprs[e_id];
         !e.var.is_varying()
             && !matches!(e.kind, ExprKind::Local(_) | ExprKind::Const(_) | ExprKind::Index { .. })
             && e.ty.dims.is_empty()
             && !e.ty.per_seq
             && matches!(e.ty.elem, Elem::Scalar(Scalar::Float | Scalar::Int))
-            && self.row_invariant(f, e, y, assigned)
+            && self.row_invariant(f, e_id, y, assigned)
     }
 
     /// `e` has the same value in every group of a row (see the module comment), without
@@ -333,7 +327,7 @@ impl<'s, 'a> Scope<'s, 'a> {
     pub(crate) fn row_invariant(
         &self,
         f: &Function,
-        e: &Expr,
+        e: ExprId,
         y: Option<LocalId>,
         assigned: &HashSet<LocalId>,
     ) -> bool {
@@ -346,11 +340,12 @@ impl<'s, 'a> Scope<'s, 'a> {
     fn row_invariant_in(
         &self,
         f: &Function,
-        e: &Expr,
+        e_id: ExprId,
         y: Option<LocalId>,
         assigned: &HashSet<LocalId>,
-        rows: Option<&HashMap<LocalId, &Expr>>,
+        rows: Option<&HashMap<LocalId, ExprId>>,
     ) -> bool {
+        let e = &f.exprs[e_id];
         let plain = |t: &crate::ir::Type| {
             !t.per_seq
                 && if t.dims.is_empty() {
@@ -374,17 +369,22 @@ impl<'s, 'a> Scope<'s, 'a> {
                     && self.resident.get(l.0 as usize).copied().unwrap_or(false)
             }
             ExprKind::Index { base, index, .. } => {
-                let in_range = match (&index.kind, base.ty.per_seq, base.ty.dims.first()) {
+                let in_range = match (
+                    &f.exprs[*index].kind,
+                    f.exprs[*base].ty.per_seq,
+                    f.exprs[*base].ty.dims.first(),
+                ) {
                     (ExprKind::Const(ConstValue::Int(k)), false, Some(&len)) => *k >= 0 && (*k as i64) < len as i64,
                     _ => false,
                 };
-                let ExprKind::Local(l) = base.kind else {
+                let ExprKind::Local(l) = f.exprs[*base].kind else {
                     return false;
                 };
                 // An element of a one-dimensional row local: the prologue substitutes the
                 // local's value and takes the element (`Lower::row_local_element`).
-                let row_element = base.ty.dims.len() == 1 && plain(&e.ty) && rows.is_some_and(|r| r.contains_key(&l));
-                in_range && (row_element || self.row_invariant(f, base, y, assigned))
+                let row_element =
+                    f.exprs[*base].ty.dims.len() == 1 && plain(&e.ty) && rows.is_some_and(|r| r.contains_key(&l));
+                in_range && (row_element || self.row_invariant(f, *base, y, assigned))
             }
             ExprKind::Builtin { func, args } => {
                 // Pure maths lowered inline, on float or int scalars and arrays: the same
@@ -415,23 +415,23 @@ impl<'s, 'a> Scope<'s, 'a> {
                     && scalars(&e.ty)
                     && args
                         .iter()
-                        .all(|a| scalars(&a.ty) && self.row_invariant_in(f, a, y, assigned, rows))
+                        .all(|a| scalars(&f.exprs[*a].ty) && self.row_invariant_in(f, *a, y, assigned, rows))
             }
             ExprKind::Unary { op: UnaryOp::Neg, expr } => {
-                plain(&e.ty) && self.row_invariant_in(f, expr, y, assigned, rows)
+                plain(&e.ty) && self.row_invariant_in(f, *expr, y, assigned, rows)
             }
             ExprKind::Convert(expr) => {
-                plain(&e.ty) && plain(&expr.ty) && self.row_invariant_in(f, expr, y, assigned, rows)
+                plain(&e.ty) && plain(&f.exprs[*expr].ty) && self.row_invariant_in(f, *expr, y, assigned, rows)
             }
             ExprKind::Binary { op, lhs, rhs } => {
                 let float = matches!(e.ty.elem, Elem::Interp | Elem::Scalar(Scalar::Float));
                 let op_ok = matches!(op, BinOp::Add | BinOp::Sub | BinOp::Mul) || (*op == BinOp::Div && float);
                 op_ok
                     && plain(&e.ty)
-                    && plain(&lhs.ty)
-                    && plain(&rhs.ty)
-                    && self.row_invariant_in(f, lhs, y, assigned, rows)
-                    && self.row_invariant_in(f, rhs, y, assigned, rows)
+                    && plain(&f.exprs[*lhs].ty)
+                    && plain(&f.exprs[*rhs].ty)
+                    && self.row_invariant_in(f, *lhs, y, assigned, rows)
+                    && self.row_invariant_in(f, *rhs, y, assigned, rows)
             }
             _ => false,
         }
@@ -440,12 +440,13 @@ impl<'s, 'a> Scope<'s, 'a> {
 
 /// Record the uniform operation `side` as a per-run hoist at `next` (a scalar one; others
 /// are left where they are).
-fn push_per_run<'a>(side: &'a Expr, view: &[u32], out: &mut Vec<Hoist<'a>>, next: &mut u32) {
+fn push_per_run(f: &Function, side_id: ExprId, view: &[u32], out: &mut Vec<Hoist>, next: &mut u32) {
+    let side = &f.exprs[side_id];
     let Elem::Scalar(scalar) = side.ty.elem else {
         return;
     };
     out.push(Hoist {
-        expr: side,
+        expr: side_id,
         view: view.to_vec(),
         offset: *next,
         comps: 1,

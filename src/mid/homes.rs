@@ -18,7 +18,7 @@
 
 use super::pred::const_int;
 use crate::abi::type_words;
-use crate::ir::{Expr, ExprKind, Function, LocalId, ParamRole, Stmt, StmtKind};
+use crate::ir::{ExprId, ExprKind, Exprs, Function, LocalId, ParamRole, Stmt, StmtKind};
 
 /// Most components a local kept in SSA variables may have, and most such components a
 /// kernel may have in all its frames; the rest live on the stack. Cranelift allows at most
@@ -108,61 +108,63 @@ pub(crate) fn primitive_homes<'b>(
 pub(crate) fn dynamic_locals(f: &Function) -> Vec<bool> {
     let mut dynamic = vec![false; f.locals.len()];
     for s in f.setup.iter().chain(f.pixel.iter()) {
-        mark_dynamic_stmt(s, &mut dynamic);
+        mark_dynamic_stmt(&f.exprs, s, &mut dynamic);
     }
     dynamic
 }
 
-fn mark_dynamic_stmt(s: &Stmt, dynamic: &mut [bool]) {
+fn mark_dynamic_stmt(x: &Exprs, s: &Stmt, dynamic: &mut [bool]) {
     match &s.kind {
         StmtKind::Assign { place, value } => {
             for (i, _) in &place.indices {
-                if const_int(i).is_none() {
+                if const_int(x, *i).is_none() {
                     if let Some(d) = dynamic.get_mut(place.local.0 as usize) {
                         *d = true;
                     }
                 }
-                mark_dynamic_expr(i, dynamic);
+                mark_dynamic_expr(x, *i, dynamic);
             }
-            mark_dynamic_expr(value, dynamic);
+            mark_dynamic_expr(x, *value, dynamic);
         }
         StmtKind::If { cond, then, otherwise } => {
-            mark_dynamic_expr(cond, dynamic);
-            then.iter().chain(otherwise).for_each(|s| mark_dynamic_stmt(s, dynamic));
+            mark_dynamic_expr(x, *cond, dynamic);
+            then.iter()
+                .chain(otherwise)
+                .for_each(|s| mark_dynamic_stmt(x, s, dynamic));
         }
         StmtKind::Loop { cond, body, step, .. } => {
             if let Some(c) = cond {
-                mark_dynamic_expr(c, dynamic);
+                mark_dynamic_expr(x, *c, dynamic);
             }
-            body.iter().chain(step).for_each(|s| mark_dynamic_stmt(s, dynamic));
+            body.iter().chain(step).for_each(|s| mark_dynamic_stmt(x, s, dynamic));
         }
         StmtKind::Interpolation { arms } => {
             arms.iter()
                 .flat_map(|a| a.body.iter())
-                .for_each(|s| mark_dynamic_stmt(s, dynamic));
+                .for_each(|s| mark_dynamic_stmt(x, s, dynamic));
         }
-        StmtKind::InterpolatorReturn(Some(e)) => mark_dynamic_expr(e, dynamic),
-        StmtKind::Bound(es) => es.iter().for_each(|e| mark_dynamic_expr(e, dynamic)),
-        StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| mark_dynamic_expr(e, dynamic)),
+        StmtKind::InterpolatorReturn(Some(e)) => mark_dynamic_expr(x, *e, dynamic),
+        StmtKind::Bound(es) => es.iter().for_each(|e| mark_dynamic_expr(x, *e, dynamic)),
+        StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| mark_dynamic_expr(x, *e, dynamic)),
         StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::InterpolatorReturn(None) => {}
     }
 }
 
-fn mark_dynamic_expr(e: &Expr, dynamic: &mut [bool]) {
-    if let ExprKind::Index { base, index, .. } = &e.kind {
-        if const_int(index).is_none() {
-            if let Some(d) = root_local(base).and_then(|l| dynamic.get_mut(l.0 as usize)) {
+fn mark_dynamic_expr(x: &Exprs, e: ExprId, dynamic: &mut [bool]) {
+    if let ExprKind::Index { base, index, .. } = &x[e].kind {
+        if const_int(x, *index).is_none() {
+            if let Some(d) = root_local(x, *base).and_then(|l| dynamic.get_mut(l.0 as usize)) {
                 *d = true;
             }
         }
     }
-    e.for_each_child(|c| mark_dynamic_expr(c, dynamic));
+    x[e].for_each_child(|c| mark_dynamic_expr(x, c, dynamic));
 }
 
-fn root_local(e: &Expr) -> Option<LocalId> {
-    match &e.kind {
+fn root_local(x: &Exprs, e: ExprId) -> Option<LocalId> {
+    match &x[e].kind {
         ExprKind::Local(l) => Some(*l),
-        ExprKind::Index { base, .. } => root_local(base),
+        ExprKind::Index { base, .. } => root_local(x, *base),
         _ => None,
     }
 }

@@ -22,7 +22,7 @@
 //! every word of the slot (`Lower::assign_at` writes one component per word or fails).
 //! Everything else answers `true` (keep the clear).
 
-use crate::ir::{Elem, Expr, Function, LocalId, Stmt, StmtKind};
+use crate::ir::{Elem, ExprId, Exprs, Function, LocalId, Stmt, StmtKind};
 
 /// Per local of `f`: may a read of it run before a whole assignment has stored every word
 /// of it (so its stack slot must start zeroed)? `true` for every local not tracked.
@@ -33,6 +33,7 @@ pub(crate) fn read_before_assigned(f: &Function) -> Vec<bool> {
         .map(|l| !l.var.is_varying() && matches!(l.ty.elem, Elem::Scalar(_)) && !l.ty.per_seq)
         .collect();
     let mut walk = Walk {
+        x: &f.exprs,
         tracked: &tracked,
         needs: tracked.iter().map(|t| !t).collect(),
         credit: true,
@@ -45,6 +46,7 @@ pub(crate) fn read_before_assigned(f: &Function) -> Vec<bool> {
 }
 
 struct Walk<'t> {
+    x: &'t Exprs,
     tracked: &'t [bool],
     /// The answer so far.
     needs: Vec<bool>,
@@ -53,9 +55,9 @@ struct Walk<'t> {
 }
 
 impl Walk<'_> {
-    fn reads(&mut self, e: &Expr, assigned: &[bool]) {
+    fn reads(&mut self, e: ExprId, assigned: &[bool]) {
         let needs = &mut self.needs;
-        e.for_each_local(&mut |l: LocalId| {
+        self.x.for_each_local(e, &mut |l: LocalId| {
             let i = l.0 as usize;
             if !assigned.get(i).copied().unwrap_or(false) {
                 if let Some(n) = needs.get_mut(i) {
@@ -76,16 +78,16 @@ impl Walk<'_> {
             StmtKind::Assign { place, value } => {
                 // The value and the indices are read before the store.
                 for (i, _) in &place.indices {
-                    self.reads(i, assigned);
+                    self.reads(*i, assigned);
                 }
-                self.reads(value, assigned);
+                self.reads(*value, assigned);
                 let i = place.local.0 as usize;
                 if self.credit && place.indices.is_empty() && self.tracked.get(i).copied().unwrap_or(false) {
                     assigned[i] = true;
                 }
             }
             StmtKind::If { cond, then, otherwise } => {
-                self.reads(cond, assigned);
+                self.reads(*cond, assigned);
                 let mut then_state = assigned.clone();
                 self.stmts(then, &mut then_state);
                 self.stmts(otherwise, assigned);
@@ -95,7 +97,7 @@ impl Walk<'_> {
             }
             StmtKind::Loop { cond, body, step, .. } => {
                 if let Some(c) = cond {
-                    self.reads(c, assigned);
+                    self.reads(*c, assigned);
                 }
                 // The step also runs after a `continue` part-way through the body, so it is
                 // judged from the state at the loop's entry, not from the body's end.
@@ -110,9 +112,9 @@ impl Walk<'_> {
                     self.stmts(&a.body, &mut arm);
                 }
             }
-            StmtKind::InterpolatorReturn(Some(e)) => self.reads(e, assigned),
-            StmtKind::Bound(es) => es.iter().for_each(|e| self.reads(e, assigned)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| self.reads(e, assigned)),
+            StmtKind::InterpolatorReturn(Some(e)) => self.reads(*e, assigned),
+            StmtKind::Bound(es) => es.iter().for_each(|e| self.reads(*e, assigned)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| self.reads(*e, assigned)),
             StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
         }
     }

@@ -71,7 +71,7 @@ use std::collections::{HashMap, HashSet};
 use std::sync::OnceLock;
 
 use crate::abi::{BindingKind, KernelError, VariantKey};
-use crate::ir::{Elem, Expr, ExprId, ExprKind, FuncId, FuncKind, Function, LocalId, Program, Scalar, SiteId, Stmt};
+use crate::ir::{Elem, ExprId, ExprKind, FuncId, FuncKind, Function, LocalId, Program, Scalar, SiteId, Stmt};
 use affine::Carry;
 use bounds::LocalBounds;
 use hoist::Hoist;
@@ -203,11 +203,11 @@ pub(crate) struct PixelPlan<'a> {
     /// The uniform frame's layout.
     pub frame: FrameLayout,
     /// Row locals, by their defining value ([`hoist`]).
-    pub row_locals: HashMap<LocalId, &'a Expr>,
+    pub row_locals: HashMap<LocalId, ExprId>,
     /// Row terms and per-run terms, with their offsets in the frame.
-    pub hoists: Vec<Hoist<'a>>,
+    pub hoists: Vec<Hoist>,
     /// Tier 1: the terms carried along the row ([`affine`]).
-    pub carry: Carry<'a>,
+    pub carry: Carry,
     /// Pixel locals no group reads (only carried or row terms do): their assignments are
     /// not lowered in a group.
     pub unread_in_groups: HashSet<LocalId>,
@@ -344,7 +344,7 @@ fn pixel_plan<'a>(program: &Program, f: &'a Function, key: &VariantKey, tier: Ti
     // Tier 1: the frame words only one side of the first unswitched condition reads wait
     // for that side.
     if let Some(cond) = loops.first_condition() {
-        let early: Vec<&Expr> = hoists
+        let early: Vec<ExprId> = hoists
             .iter()
             .filter(|h| h.per_run)
             .map(|h| h.expr)
@@ -380,13 +380,13 @@ fn pixel_plan<'a>(program: &Program, f: &'a Function, key: &VariantKey, tier: Ti
 /// `key` lowers it, and what setup statements that are not removable read.
 fn dead_setup(f: &Function, key: &VariantKey, homes: &Homes) -> Vec<bool> {
     let mut live = vec![false; f.locals.len()];
-    view::live_flags(key, &f.pixel, &mut live);
+    view::live_flags(&f.exprs, key, &f.pixel, &mut live);
     let in_vars = |l: LocalId| homes.in_vars(l);
     let removable = |s: &Stmt| {
         let mut budget = usize::MAX;
         pred::speculable_stmts(f, key, &in_vars, std::slice::from_ref(s), &mut budget)
     };
-    dead::live_setup_locals(&f.setup, live, &removable)
+    dead::live_setup_locals(&f.exprs, &f.setup, live, &removable)
 }
 
 /// The shared interpolators `key` binds (the ones the lowering may inline), by id.
@@ -414,27 +414,16 @@ fn interpolators(program: &Program, key: &VariantKey) -> HashMap<FuncId, Interpo
 /// Whether `f` converts a varying float to an int or fixed-point value somewhere: only then
 /// does the lowering ask for its locals' bounds (`Lower::convert_here`).
 fn converts_varying_float(f: &Function) -> bool {
-    fn expr(e: &Expr) -> bool {
-        if let ExprKind::Convert(inner) = &e.kind {
+    // Every node of the arena is an expression of the function (see `ir::number`).
+    f.exprs.iter().any(|(_, e)| match e.kind {
+        ExprKind::Convert(inner) => {
+            let inner = &f.exprs[inner];
             let to_int = matches!(e.ty.elem, Elem::Scalar(Scalar::Int | Scalar::Fixed(_)));
             let from_float = matches!(inner.ty.elem, Elem::Scalar(Scalar::Float) | Elem::Interp);
-            if to_int && from_float && (e.var.is_varying() || inner.var.is_varying()) {
-                return true;
-            }
+            to_int && from_float && (e.var.is_varying() || inner.var.is_varying())
         }
-        let mut found = false;
-        e.for_each_child(|c| found = found || expr(c));
-        found
-    }
-    let mut found = false;
-    for stmts in [&f.setup, &f.pixel] {
-        crate::ir::for_each_stmt(stmts, &mut |s| {
-            if !found {
-                s.for_each_expr(|e| found = found || expr(e));
-            }
-        });
-    }
-    found
+        _ => false,
+    })
 }
 
 /// Whether `f`'s pixel code for `key` may spend fuel: it has a loop, or a shared

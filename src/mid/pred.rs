@@ -6,43 +6,40 @@
 //! that consults it mean the same thing by "speculable" or "constant".
 
 use crate::abi::VariantKey;
-use crate::ir::{ConstValue, Expr, ExprKind, Function, LocalId, Stmt, StmtKind, Type, UnaryOp};
+use crate::ir::{ConstValue, ExprId, ExprKind, Exprs, Function, LocalId, Stmt, StmtKind, Type, UnaryOp};
 
 /// `e` as an int constant: a literal, or the negation of one.
-pub(crate) fn const_int(e: &Expr) -> Option<i64> {
-    match &e.kind {
+pub(crate) fn const_int(x: &Exprs, e: ExprId) -> Option<i64> {
+    match &x[e].kind {
         ExprKind::Const(ConstValue::Int(i)) => Some(*i as i64),
-        ExprKind::Unary { op: UnaryOp::Neg, expr } => const_int(expr).map(|v| -v),
+        ExprKind::Unary { op: UnaryOp::Neg, expr } => const_int(x, *expr).map(|v| -v),
         _ => None,
     }
 }
 
 /// Whether `index` is a constant within `ty`'s outer fixed dimension (indexing then records
 /// no error).
-pub(crate) fn const_index_in_range(ty: &Type, index: &Expr) -> bool {
+pub(crate) fn const_index_in_range(x: &Exprs, ty: &Type, index: ExprId) -> bool {
     !ty.per_seq
         && ty
             .dims
             .first()
-            .is_some_and(|&n| const_int(index).is_some_and(|k| k >= 0 && k < n as i64))
+            .is_some_and(|&n| const_int(x, index).is_some_and(|k| k >= 0 && k < n as i64))
 }
 
 /// Whether evaluating `e` has no effect but its value (no error record, no control flow), so
 /// it may run when the language would not evaluate it (tier 0's if-conversion).
-pub(crate) fn speculable_expr(e: &Expr) -> bool {
-    match &e.kind {
+pub(crate) fn speculable_expr(x: &Exprs, e: ExprId) -> bool {
+    let spec = |c: &ExprId| speculable_expr(x, *c);
+    match &x[e].kind {
         ExprKind::Const(_) | ExprKind::Local(_) | ExprKind::SeqCount | ExprKind::ClipFlag => true,
-        ExprKind::Index { base, index, .. } => const_index_in_range(&base.ty, index) && speculable_expr(base),
-        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => speculable_expr(expr),
-        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => {
-            speculable_expr(lhs) && speculable_expr(rhs)
-        }
-        ExprKind::Select { cond, then, otherwise } => {
-            speculable_expr(cond) && speculable_expr(then) && speculable_expr(otherwise)
-        }
-        ExprKind::Builtin { args, .. } => args.iter().all(speculable_expr),
-        ExprKind::List(items) => items.iter().all(speculable_expr),
-        ExprKind::Splat(item) => speculable_expr(item),
+        ExprKind::Index { base, index, .. } => const_index_in_range(x, &x[*base].ty, *index) && spec(base),
+        ExprKind::Unary { expr, .. } | ExprKind::Convert(expr) => spec(expr),
+        ExprKind::Binary { lhs, rhs, .. } | ExprKind::MatMul { lhs, rhs } => spec(lhs) && spec(rhs),
+        ExprKind::Select { cond, then, otherwise } => spec(cond) && spec(then) && spec(otherwise),
+        ExprKind::Builtin { args, .. } => args.iter().all(spec),
+        ExprKind::List(items) => items.iter().all(spec),
+        ExprKind::Splat(item) => spec(item),
     }
 }
 
@@ -71,17 +68,17 @@ pub(crate) fn speculable_stmts(
                 if !place.indices.is_empty() {
                     let mut ty = local.ty.clone();
                     for (idx, _) in &place.indices {
-                        if !const_index_in_range(&ty, idx) {
+                        if !const_index_in_range(&f.exprs, &ty, *idx) {
                             return false;
                         }
                         ty = ty.element();
                     }
                 }
-                in_vars(place.local) && !local.var.is_varying() && speculable_expr(value)
+                in_vars(place.local) && !local.var.is_varying() && speculable_expr(&f.exprs, *value)
             }
             StmtKind::If { cond, then, otherwise } => {
-                key_constant(cond, key).is_none()
-                    && speculable_expr(cond)
+                key_constant(&f.exprs, *cond, key).is_none()
+                    && speculable_expr(&f.exprs, *cond)
                     && speculable_stmts(f, key, in_vars, then, budget)
                     && speculable_stmts(f, key, in_vars, otherwise, budget)
             }
@@ -91,13 +88,13 @@ pub(crate) fn speculable_stmts(
 }
 
 /// The value of a condition fixed by the variant key: `clipping()` or `!clipping()`.
-pub(crate) fn key_constant(cond: &Expr, key: &VariantKey) -> Option<bool> {
-    match &cond.kind {
+pub(crate) fn key_constant(x: &Exprs, cond: ExprId, key: &VariantKey) -> Option<bool> {
+    match &x[cond].kind {
         ExprKind::ClipFlag => Some(!key.trivial_accept),
         ExprKind::Unary {
             op: crate::ir::UnaryOp::Not,
             expr,
-        } => key_constant(expr, key).map(|v| !v),
+        } => key_constant(x, *expr, key).map(|v| !v),
         _ => None,
     }
 }

@@ -13,11 +13,11 @@
 use std::collections::HashSet;
 
 use super::pred::const_int;
-use crate::ir::{Expr, ExprKind, Function, SiteId, Stmt, StmtKind, Type};
+use crate::ir::{ExprId, ExprKind, Exprs, Function, SiteId, Stmt, StmtKind, Type};
 
 /// An index site: the static length of the array it indexes (`None`: a sequence, or not
 /// an array), its index and its site.
-pub(crate) type IndexSite<'a> = (Option<u32>, &'a Expr, SiteId);
+pub(crate) type IndexSite = (Option<u32>, ExprId, SiteId);
 
 /// The static length the lowering checks an index of a `ty` value against.
 fn static_len_of(ty: &Type) -> Option<u32> {
@@ -29,48 +29,49 @@ fn static_len_of(ty: &Type) -> Option<u32> {
 }
 
 /// A site whose index is a constant inside its fixed-size array: never checked.
-fn constant_in_fixed(site: &IndexSite<'_>) -> bool {
-    site.0.is_some() && const_int(site.1).is_some()
+fn constant_in_fixed(x: &Exprs, site: &IndexSite) -> bool {
+    site.0.is_some() && const_int(x, site.1).is_some()
 }
 
 /// Every index site of `stmts` (statements of `f`): in places (`a[i] = ...`, the local's
 /// type indexed one dimension per site) and in expressions.
-pub(crate) fn index_sites<'a>(f: &'a Function, stmts: &'a [Stmt], out: &mut Vec<IndexSite<'a>>) {
-    fn expr<'a>(e: &'a Expr, out: &mut Vec<IndexSite<'a>>) {
-        if let ExprKind::Index { base, index, site } = &e.kind {
-            out.push((static_len_of(&base.ty), index, *site));
+pub(crate) fn index_sites(f: &Function, stmts: &[Stmt], out: &mut Vec<IndexSite>) {
+    fn expr(x: &Exprs, e: ExprId, out: &mut Vec<IndexSite>) {
+        if let ExprKind::Index { base, index, site } = &x[e].kind {
+            out.push((static_len_of(&x[*base].ty), *index, *site));
         }
-        e.for_each_child(|c| expr(c, out));
+        x[e].for_each_child(|c| expr(x, c, out));
     }
+    let x = &f.exprs;
     for s in stmts {
         match &s.kind {
             StmtKind::Assign { place, value } => {
                 if let Some(local) = f.locals.get(place.local.0 as usize) {
                     let mut ty = local.ty.clone();
                     for (index, site) in &place.indices {
-                        out.push((static_len_of(&ty), index, *site));
-                        expr(index, out);
+                        out.push((static_len_of(&ty), *index, *site));
+                        expr(x, *index, out);
                         ty = ty.element();
                     }
                 }
-                expr(value, out);
+                expr(x, *value, out);
             }
             StmtKind::If { cond, then, otherwise } => {
-                expr(cond, out);
+                expr(x, *cond, out);
                 index_sites(f, then, out);
                 index_sites(f, otherwise, out);
             }
             StmtKind::Loop { cond, body, step, .. } => {
                 if let Some(c) = cond {
-                    expr(c, out);
+                    expr(x, *c, out);
                 }
                 index_sites(f, body, out);
                 index_sites(f, step, out);
             }
             StmtKind::Interpolation { arms } => arms.iter().for_each(|a| index_sites(f, &a.body, out)),
-            StmtKind::InterpolatorReturn(Some(e)) => expr(e, out),
-            StmtKind::Bound(args) => args.iter().for_each(|a| expr(a, out)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr(a, out)),
+            StmtKind::InterpolatorReturn(Some(e)) => expr(x, *e, out),
+            StmtKind::Bound(args) => args.iter().for_each(|a| expr(x, *a, out)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr(x, *a, out)),
             StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
         }
     }
@@ -82,7 +83,7 @@ pub(crate) fn needs_range(f: &Function) -> bool {
     let mut sites = vec![];
     index_sites(f, &f.setup, &mut sites);
     index_sites(f, &f.pixel, &mut sites);
-    !sites.iter().all(constant_in_fixed)
+    !sites.iter().all(|s| constant_in_fixed(&f.exprs, s))
 }
 
 /// Whether lowering `f`'s setup may record an index error: some index site is neither a
@@ -91,10 +92,10 @@ pub(crate) fn needs_range(f: &Function) -> bool {
 pub(crate) fn setup_may_fail_index(f: &Function, proven: Option<&HashSet<SiteId>>) -> bool {
     let mut sites = vec![];
     index_sites(f, &f.setup, &mut sites);
-    sites
-        .into_iter()
-        .any(|(static_len, index, site)| match (static_len, const_int(index)) {
+    sites.into_iter().any(
+        |(static_len, index, site)| match (static_len, const_int(&f.exprs, index)) {
             (Some(len), Some(k)) => k < 0 || k >= i64::from(len),
             _ => !proven.is_some_and(|p| p.contains(&site)),
-        })
+        },
+    )
 }

@@ -21,7 +21,7 @@ use std::collections::HashMap;
 use super::homes::{Home, Homes};
 use super::view;
 use crate::abi::VariantKey;
-use crate::ir::{Expr, ExprId, Function, LocalId, StmtKind};
+use crate::ir::{ExprId, Function, LocalId, StmtKind};
 
 /// Where the uniform frame keeps what (byte offsets from its start).
 pub(crate) struct FrameLayout {
@@ -60,7 +60,7 @@ pub(crate) fn place(f: &Function, key: &VariantKey, homes: &Homes, assigned: &[b
     // when only perspective_linear parameters are bound) are not stored: their setup
     // computations are then dead and Cranelift drops them.
     let mut pixel_used = vec![false; f.locals.len()];
-    view::live_flags(key, &f.pixel, &mut pixel_used);
+    view::live_flags(&f.exprs, key, &f.pixel, &mut pixel_used);
     let mut placed = vec![];
     let mut next_word = 0;
     let mut resident = vec![false; f.locals.len()];
@@ -110,28 +110,28 @@ pub(crate) fn deferred_stores(
     f: &Function,
     key: &VariantKey,
     layout: &FrameLayout,
-    cond: &Expr,
-    early: &[&Expr],
+    cond: ExprId,
+    early: &[ExprId],
 ) -> Option<(ExprId, HashMap<usize, bool>)> {
     let at = f
         .pixel
         .iter()
-        .position(|s| matches!(&s.kind, StmtKind::If { cond: c, .. } if std::ptr::eq(c, cond)))?;
+        .position(|s| matches!(&s.kind, StmtKind::If { cond: c, .. } if *c == cond))?;
     let StmtKind::If { then, otherwise, .. } = &f.pixel[at].kind else {
         return None;
     };
     let n = f.locals.len();
     let mut outside = vec![false; n];
-    view::visit_live_locals(key, &f.pixel[..at], &mut mark(&mut outside));
-    view::visit_live_locals(key, &f.pixel[at + 1..], &mut mark(&mut outside));
-    cond.for_each_local(&mut mark(&mut outside));
-    for e in early {
-        e.for_each_local(&mut mark(&mut outside));
+    view::visit_live_locals(&f.exprs, key, &f.pixel[..at], &mut mark(&mut outside));
+    view::visit_live_locals(&f.exprs, key, &f.pixel[at + 1..], &mut mark(&mut outside));
+    f.exprs.for_each_local(cond, &mut mark(&mut outside));
+    for &e in early {
+        f.exprs.for_each_local(e, &mut mark(&mut outside));
     }
     let mut in_then = vec![false; n];
     let mut in_else = vec![false; n];
-    view::visit_live_locals(key, then, &mut mark(&mut in_then));
-    view::visit_live_locals(key, otherwise, &mut mark(&mut in_else));
+    view::visit_live_locals(&f.exprs, key, then, &mut mark(&mut in_then));
+    view::visit_live_locals(&f.exprs, key, otherwise, &mut mark(&mut in_else));
     let mut deferred = HashMap::new();
     for &(i, word) in &layout.placed {
         if word.is_none() || outside[i] || in_then[i] == in_else[i] {
@@ -139,7 +139,7 @@ pub(crate) fn deferred_stores(
         }
         deferred.insert(i, in_then[i]);
     }
-    (!deferred.is_empty()).then_some((cond.id, deferred))
+    (!deferred.is_empty()).then_some((cond, deferred))
 }
 
 /// A visitor that flags each local it is called with in `flags`.

@@ -13,7 +13,7 @@
 //! second.
 
 use super::dead;
-use crate::ir::{Expr, ExprKind, Function, Stmt, StmtKind};
+use crate::ir::{ExprId, ExprKind, Exprs, Function, Stmt};
 
 /// A setup this large (in [`stmt_size`] units) is split when the kernel has no pixel
 /// loops: NURB's is ~4 900, polygon's ~500.
@@ -30,17 +30,17 @@ pub(crate) struct SetupSplit {
 /// The split of `f`'s setup, if it is large enough and splits evenly enough (see the
 /// module doc).
 pub(crate) fn setup_split(f: &Function) -> Option<SetupSplit> {
-    let at = setup_split_point(&f.setup)?;
-    let before = dead::mentioned_flags(&f.setup[..at], f.locals.len());
-    let after = dead::mentioned_flags(&f.setup[at..], f.locals.len());
+    let at = setup_split_point(&f.exprs, &f.setup)?;
+    let before = dead::mentioned_flags(&f.exprs, &f.setup[..at], f.locals.len());
+    let after = dead::mentioned_flags(&f.exprs, &f.setup[at..], f.locals.len());
     let shared = before.iter().zip(&after).map(|(b, a)| *b && *a).collect();
     Some(SetupSplit { at, shared })
 }
 
 /// The top-level setup statement that halves the setup most evenly by size, if the setup
 /// is large enough and neither half is under a quarter of it.
-fn setup_split_point(setup: &[Stmt]) -> Option<usize> {
-    let sizes: Vec<usize> = setup.iter().map(stmt_size).collect();
+fn setup_split_point(x: &Exprs, setup: &[Stmt]) -> Option<usize> {
+    let sizes: Vec<usize> = setup.iter().map(|s| stmt_size(x, s)).collect();
     let total: usize = sizes.iter().sum();
     if total < SPLIT_SETUP_SIZE {
         return None;
@@ -60,31 +60,23 @@ fn setup_split_point(setup: &[Stmt]) -> Option<usize> {
 
 /// A statement's size with the statements inside it: the components their expressions
 /// compute (an operation on a point counts four), a rough measure of the CLIF it lowers to.
-fn stmt_size(s: &Stmt) -> usize {
+fn stmt_size(x: &Exprs, s: &Stmt) -> usize {
     let mut size = 0;
     crate::ir::for_each_stmt(std::slice::from_ref(s), &mut |s| {
-        size += 1 + match &s.kind {
-            StmtKind::Assign { place, value } => {
-                expr_size(value) + place.indices.iter().map(|(i, _)| expr_size(i)).sum::<usize>()
-            }
-            StmtKind::If { cond, .. } => expr_size(cond),
-            StmtKind::Loop { cond, .. } => cond.as_ref().map_or(0, expr_size),
-            StmtKind::InterpolatorReturn(e) => e.as_ref().map_or(0, expr_size),
-            StmtKind::Bound(es) => es.iter().map(expr_size).sum(),
-            StmtKind::CallPrimitive { args, .. } => args.iter().map(expr_size).sum(),
-            StmtKind::Interpolation { .. } | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => 0,
-        };
+        size += 1;
+        s.for_each_expr(|e| size += expr_size(x, *e));
     });
     size
 }
 
-fn expr_size(e: &Expr) -> usize {
+fn expr_size(x: &Exprs, e: ExprId) -> usize {
     // A local's value is its variables or its address (an index computes the element);
     // whole arrays beyond 16 components are cleared and copied by loops.
-    let mut n = match e.kind {
+    let node = &x[e];
+    let mut n = match node.kind {
         ExprKind::Local(_) => 1,
-        _ => e.ty.fixed_len().clamp(1, 16) as usize,
+        _ => node.ty.fixed_len().clamp(1, 16) as usize,
     };
-    e.for_each_child(|c| n += expr_size(c));
+    node.for_each_child(|c| n += expr_size(x, c));
     n
 }

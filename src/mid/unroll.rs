@@ -41,8 +41,8 @@
 use std::collections::HashMap;
 
 use crate::ir::{
-    BinOp, ConstValue, Elem, Expr, ExprKind, Function, Local, LocalId, LoopId, Scalar, Stmt, StmtKind, UnaryOp,
-    Variability,
+    BinOp, ConstValue, Elem, Expr, ExprId, ExprKind, Exprs, Function, Local, LocalId, LoopId, Scalar, Stmt, StmtKind,
+    UnaryOp, Variability,
 };
 
 /// Longest loop unrolled (trips).
@@ -61,7 +61,10 @@ pub type Env = HashMap<LocalId, i32>;
 pub(crate) fn unroll_function(mut f: Function) -> Function {
     let setup = std::mem::take(&mut f.setup);
     let pixel = std::mem::take(&mut f.pixel);
-    let u = Unroller { locals: &f.locals };
+    let mut u = Unroller {
+        locals: &f.locals,
+        x: &mut f.exprs,
+    };
     let mut env = Env::new();
     let setup = u.stmts(setup, &mut env);
     // The pixel part runs once per pixel group after setup: what it assigns itself may hold
@@ -81,6 +84,9 @@ pub(crate) fn unroll_function(mut f: Function) -> Function {
 
 struct Unroller<'a> {
     locals: &'a [Local],
+    /// The function's arena: folding rewrites its nodes in place, and each trip of an
+    /// unrolled loop gets copies of the body's expressions.
+    x: &'a mut Exprs,
 }
 
 impl Unroller<'_> {
@@ -91,7 +97,7 @@ impl Unroller<'_> {
         })
     }
 
-    fn stmts(&self, list: Vec<Stmt>, env: &mut Env) -> Vec<Stmt> {
+    fn stmts(&mut self, list: Vec<Stmt>, env: &mut Env) -> Vec<Stmt> {
         let mut out = Vec::with_capacity(list.len());
         for s in list {
             self.stmt(s, env, &mut out);
@@ -101,21 +107,24 @@ impl Unroller<'_> {
 
     /// Append `s`, folded under `env` (and unrolled where it is such a loop), to `out`;
     /// `env` then holds what is known after it.
-    fn stmt(&self, mut s: Stmt, env: &mut Env, out: &mut Vec<Stmt>) {
+    fn stmt(&mut self, mut s: Stmt, env: &mut Env, out: &mut Vec<Stmt>) {
         match &mut s.kind {
             StmtKind::Assign { place, value } => {
-                fold_in(value, env);
+                fold_in(self.x, *value, env);
                 for (i, _) in &mut place.indices {
-                    fold_in(i, env);
+                    fold_in(self.x, *i, env);
                 }
-                match (&value.kind, place.indices.is_empty() && self.tracked(place.local)) {
+                match (
+                    &self.x[*value].kind,
+                    place.indices.is_empty() && self.tracked(place.local),
+                ) {
                     (ExprKind::Const(ConstValue::Int(v)), true) => env.insert(place.local, *v),
                     _ => env.remove(&place.local),
                 };
             }
             StmtKind::If { cond, then, otherwise } => {
-                fold_in(cond, env);
-                if let ExprKind::Const(ConstValue::Bool(c)) = cond.kind {
+                fold_in(self.x, *cond, env);
+                if let ExprKind::Const(ConstValue::Bool(c)) = self.x[*cond].kind {
                     // A constant condition: only the taken side exists.
                     for t in std::mem::take(if c { then } else { otherwise }) {
                         self.stmt(t, env, out);
@@ -135,7 +144,7 @@ impl Unroller<'_> {
                 varying,
                 ..
             } => {
-                if one_trip(*id, cond.as_ref(), body) {
+                if one_trip(*id, *cond, body) {
                     // An inlined helper: its body runs once, in place (see `one_trip`).
                     let mut body = std::mem::take(body);
                     body.pop();
@@ -145,7 +154,7 @@ impl Unroller<'_> {
                     return;
                 }
                 if !*varying {
-                    if let Some(unrolled) = self.unroll(*id, cond.as_ref(), body, step, env) {
+                    if let Some(unrolled) = self.unroll(*id, *cond, body, step, env) {
                         out.extend(unrolled);
                         return;
                     }
@@ -158,7 +167,7 @@ impl Unroller<'_> {
                     env.remove(&l);
                 }
                 if let Some(c) = cond {
-                    fold_in(c, env);
+                    fold_in(self.x, *c, env);
                 }
                 *body = self.stmts(std::mem::take(body), &mut env.clone());
                 *step = self.stmts(std::mem::take(step), &mut env.clone());
@@ -174,11 +183,11 @@ impl Unroller<'_> {
             }
             StmtKind::InterpolatorReturn(e) => {
                 if let Some(e) = e {
-                    fold_in(e, env);
+                    fold_in(self.x, *e, env);
                 }
             }
-            StmtKind::Bound(es) => es.iter_mut().for_each(|e| fold_in(e, env)),
-            StmtKind::CallPrimitive { args, .. } => args.iter_mut().for_each(|a| fold_in(a, env)),
+            StmtKind::Bound(es) => es.iter().for_each(|e| fold_in(self.x, *e, env)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| fold_in(self.x, *a, env)),
             StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
         }
         out.push(s);
@@ -187,9 +196,9 @@ impl Unroller<'_> {
     /// The statements of `loop id` run trip by trip, if its trip count is a compile-time
     /// constant within the limits; `env` then holds the state after the loop.
     fn unroll(
-        &self,
+        &mut self,
         id: LoopId,
-        cond: Option<&Expr>,
+        cond: Option<ExprId>,
         body: &[Stmt],
         step: &[Stmt],
         env: &mut Env,
@@ -201,7 +210,8 @@ impl Unroller<'_> {
         let mut trip_env = env.clone();
         let mut out = vec![];
         for _ in 0..=MAX_TRIPS {
-            match fold(cond, &trip_env).kind {
+            let folded = fold(self.x, cond, &trip_env);
+            match self.x[folded].kind {
                 ExprKind::Const(ConstValue::Bool(false)) => {
                     *env = trip_env;
                     return Some(out);
@@ -210,7 +220,9 @@ impl Unroller<'_> {
                 _ => return None,
             }
             for s in body.iter().chain(step) {
-                self.stmt(s.clone(), &mut trip_env, &mut out);
+                // Each trip folds its own copy of the statement's expressions.
+                let copy = s.clone().map_exprs(&mut |e| self.x.copy_tree(e));
+                self.stmt(copy, &mut trip_env, &mut out);
             }
             // A body that still holds a loop after unrolling gains nothing (its arrays stay
             // dynamically indexed) and only grows the code (measured: the NURB kernel's
@@ -230,7 +242,7 @@ impl Unroller<'_> {
 /// a `break`); one whose only `return` is at its end is the body itself, without the loop's
 /// block structure, fuel check and the SSA block parameters for every variable live across
 /// it (an inlined helper in a setup was 5 loops and ~40 % of the sphere's tier-0 CLIF).
-fn one_trip(id: LoopId, cond: Option<&Expr>, body: &[Stmt]) -> bool {
+fn one_trip(id: LoopId, cond: Option<ExprId>, body: &[Stmt]) -> bool {
     match body.split_last() {
         Some((
             Stmt {
@@ -285,123 +297,98 @@ fn is_scalar_of(e: &Expr, s: Scalar) -> bool {
     e.ty.is_scalar() && e.ty.elem == Elem::Scalar(s)
 }
 
-/// `e` with known locals replaced by their values and constant int/bool operations folded.
-pub fn fold(e: &Expr, env: &Env) -> Expr {
-    let mut out = e.clone();
-    fold_in(&mut out, env);
-    out
+/// A folded copy of `e` (known locals replaced by their values, constant int/bool
+/// operations folded); `e` itself is unchanged.
+pub fn fold(x: &mut Exprs, e: ExprId, env: &Env) -> ExprId {
+    let copy = x.copy_tree(e);
+    fold_in(x, copy, env);
+    copy
 }
 
 /// [`fold`] in place: replaces known locals by their values and folds constant int/bool
-/// operations, allocating nothing where there is nothing to fold.
-fn fold_in(e: &mut Expr, env: &Env) {
-    // The kind moves out (a unit variant stands in) so its boxes can be reused or moved.
-    let kind = std::mem::replace(&mut e.kind, ExprKind::SeqCount);
-    e.kind = match kind {
+/// operations, rewriting the nodes of the tree at `e` (operands a fold drops stay in the
+/// arena, unreachable, until the function is renumbered).
+fn fold_in(x: &mut Exprs, e: ExprId, env: &Env) {
+    let node = &x[e];
+    let (ty_int, ty_bool) = (is_scalar_of(node, Scalar::Int), is_scalar_of(node, Scalar::Bool));
+    let folded = match node.kind {
         ExprKind::Local(l) => match env.get(&l) {
-            Some(&v) if is_scalar_of(e, Scalar::Int) => {
-                e.var = Variability::Uniform;
-                ExprKind::Const(ConstValue::Int(v))
-            }
-            _ => ExprKind::Local(l),
+            Some(&v) if ty_int => Some(ConstValue::Int(v)),
+            _ => None,
         },
-        k @ (ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag) => k,
-        ExprKind::Index {
-            mut base,
-            mut index,
-            site,
-        } => {
-            fold_in(&mut base, env);
-            fold_in(&mut index, env);
-            ExprKind::Index { base, index, site }
-        }
-        ExprKind::Unary { op, mut expr } => {
-            fold_in(&mut expr, env);
-            let folded = match (op, &expr.kind, e.ty.is_scalar()) {
-                (UnaryOp::Neg, ExprKind::Const(ConstValue::Int(v)), true) if is_scalar_of(e, Scalar::Int) => {
+        ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag => None,
+        ExprKind::Unary { op, expr } => {
+            fold_in(x, expr, env);
+            match (op, &x[expr].kind) {
+                (UnaryOp::Neg, ExprKind::Const(ConstValue::Int(v))) if ty_int => {
                     Some(ConstValue::Int(v.wrapping_neg()))
                 }
-                (UnaryOp::Not, ExprKind::Const(ConstValue::Bool(v)), true) if is_scalar_of(e, Scalar::Bool) => {
-                    Some(ConstValue::Bool(!v))
-                }
+                (UnaryOp::Not, ExprKind::Const(ConstValue::Bool(v))) if ty_bool => Some(ConstValue::Bool(!v)),
                 _ => None,
-            };
-            match folded {
-                Some(c) => {
-                    e.var = Variability::Uniform;
-                    ExprKind::Const(c)
-                }
-                None => ExprKind::Unary { op, expr },
             }
         }
-        ExprKind::Binary { op, mut lhs, mut rhs } => {
-            fold_in(&mut lhs, env);
-            fold_in(&mut rhs, env);
-            match fold_binary(op, &lhs, &rhs) {
-                Some(v) if e.ty.is_scalar() && e.ty.elem == Elem::Scalar(const_scalar(v)) => {
-                    e.var = Variability::Uniform;
-                    ExprKind::Const(v)
-                }
-                _ => ExprKind::Binary { op, lhs, rhs },
+        ExprKind::Binary { op, lhs, rhs } => {
+            fold_in(x, lhs, env);
+            fold_in(x, rhs, env);
+            let ty = &x[e].ty;
+            match fold_binary(op, &x[lhs], &x[rhs]) {
+                Some(v) if ty.is_scalar() && ty.elem == Elem::Scalar(const_scalar(v)) => Some(v),
+                _ => None,
             }
         }
-        ExprKind::Convert(mut x) => {
-            fold_in(&mut x, env);
-            ExprKind::Convert(x)
-        }
-        ExprKind::Select {
-            mut cond,
-            mut then,
-            mut otherwise,
-        } => {
-            fold_in(&mut cond, env);
-            let taken = match cond.kind {
+        ExprKind::Select { cond, then, otherwise } => {
+            fold_in(x, cond, env);
+            let taken = match x[cond].kind {
                 ExprKind::Const(ConstValue::Bool(v)) => Some(v),
                 _ => None,
             };
             // Expressions are pure: a constant condition selects one side.
             if let Some(v) = taken {
-                let side = if v { &mut then } else { &mut otherwise };
-                fold_in(side, env);
-                if side.ty == e.ty && side.var <= e.var {
-                    *e = *if v { then } else { otherwise };
+                let (side, other) = if v { (then, otherwise) } else { (otherwise, then) };
+                fold_in(x, side, env);
+                if x[side].ty == x[e].ty && x[side].var <= x[e].var {
+                    // The side takes the select's place (its operands with it).
+                    let side_node = x[side].clone();
+                    x.replace(e, side_node, x.span(side));
                     return;
                 }
-                fold_in(if v { &mut otherwise } else { &mut then }, env);
+                fold_in(x, other, env);
             } else {
-                fold_in(&mut then, env);
-                fold_in(&mut otherwise, env);
+                fold_in(x, then, env);
+                fold_in(x, otherwise, env);
             }
-            ExprKind::Select { cond, then, otherwise }
+            None
         }
-        ExprKind::Builtin { func, mut args } => {
-            args.iter_mut().for_each(|a| fold_in(a, env));
-            ExprKind::Builtin { func, args }
-        }
-        ExprKind::List(mut items) => {
-            items.iter_mut().for_each(|a| fold_in(a, env));
-            ExprKind::List(items)
-        }
-        ExprKind::Splat(mut item) => {
-            fold_in(&mut item, env);
-            ExprKind::Splat(item)
-        }
-        ExprKind::MatMul { mut lhs, mut rhs } => {
-            fold_in(&mut lhs, env);
-            fold_in(&mut rhs, env);
-            ExprKind::MatMul { lhs, rhs }
+        ExprKind::Index { .. }
+        | ExprKind::Convert(_)
+        | ExprKind::Builtin { .. }
+        | ExprKind::List(_)
+        | ExprKind::Splat(_)
+        | ExprKind::MatMul { .. } => {
+            let mut k = 0;
+            while let Some(c) = x[e].child(k) {
+                fold_in(x, c, env);
+                k += 1;
+            }
+            None
         }
     };
+    if let Some(c) = folded {
+        x[e].kind = ExprKind::Const(c);
+        x[e].var = Variability::Uniform;
+        return;
+    }
     // Folding may have made every operand uniform (a `?:` with a constant condition keeps
     // its uniform side): an expression is varying iff an operand is (`ir::valid`'s
     // `ExprVariability`). Leaves keep theirs: a local's, or uniform.
+    let node = &x[e];
     if !matches!(
-        e.kind,
+        node.kind,
         ExprKind::Local(_) | ExprKind::Const(_) | ExprKind::SeqCount | ExprKind::ClipFlag
     ) {
         let mut var = Variability::Uniform;
-        e.for_each_child(|c| var = var.join(c.var));
-        e.var = var;
+        node.for_each_child(|c| var = var.join(x[c].var));
+        x[e].var = var;
     }
 }
 

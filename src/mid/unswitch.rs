@@ -32,7 +32,7 @@ use super::block::{self, Prefix};
 use super::pred::key_constant;
 use super::view;
 use crate::abi::VariantKey;
-use crate::ir::{Expr, ExprId, Function, LocalId, Stmt, StmtKind};
+use crate::ir::{ExprId, Exprs, Function, LocalId, Stmt, StmtKind};
 
 /// Uniform conditions decided on one path through the unswitching tree. Each doubles the
 /// pixel loops' code (less the untaken sides); measured for screen_triangle (one
@@ -45,7 +45,7 @@ pub(crate) enum Loops<'a> {
     Copy(Box<LoopsCopy<'a>>),
     /// `sides[0]` runs when `cond` holds, `sides[1]` when it does not.
     Split {
-        cond: &'a Expr,
+        cond: ExprId,
         sides: Box<[Loops<'a>; 2]>,
     },
 }
@@ -64,10 +64,10 @@ pub(crate) struct LoopsCopy<'a> {
 
 impl<'a> Loops<'a> {
     /// The condition decided first, before every copy (`None`: one copy).
-    pub(crate) fn first_condition(&self) -> Option<&'a Expr> {
+    pub(crate) fn first_condition(&self) -> Option<ExprId> {
         match self {
             Loops::Copy(_) => None,
-            Loops::Split { cond, .. } => Some(cond),
+            Loops::Split { cond, .. } => Some(*cond),
         }
     }
 }
@@ -89,13 +89,13 @@ fn plan_copies<'a>(
     let cond = if !tier1 || decided.len() >= MAX_UNSWITCHED {
         None
     } else {
-        next_condition(&f.pixel, decided, assigned, key)
+        next_condition(&f.exprs, &f.pixel, decided, assigned, key)
     };
     if let Some(cond) = cond {
         let mut side = |on| {
-            decided.insert(cond.id, on);
+            decided.insert(cond, on);
             let copies = plan_copies(f, key, assigned, tier1, decided);
-            decided.remove(&cond.id);
+            decided.remove(&cond);
             copies
         };
         let sides = [side(true), side(false)];
@@ -111,7 +111,7 @@ fn plan_copies<'a>(
     };
     let mut rest_live = HashSet::new();
     if let Some(p) = &prefix {
-        view::live_locals(key, &f.pixel[p.len..], &mut rest_live);
+        view::live_locals(&f.exprs, key, &f.pixel[p.len..], &mut rest_live);
     }
     let full_exprs = (!decided.is_empty()).then(|| full_code_exprs(f, decided));
     Loops::Copy(Box::new(LoopsCopy {
@@ -123,29 +123,29 @@ fn plan_copies<'a>(
 
 /// The first (pre-order) unswitchable condition of `stmts` not decided in `decided`,
 /// looking only into the sides that `decided` and the variant key leave reachable.
-pub(crate) fn next_condition<'a>(
-    stmts: &'a [Stmt],
+pub(crate) fn next_condition(
+    x: &Exprs,
+    stmts: &[Stmt],
     decided: &HashMap<ExprId, bool>,
     assigned: &HashSet<LocalId>,
     key: &VariantKey,
-) -> Option<&'a Expr> {
+) -> Option<ExprId> {
     for s in stmts {
         let found = match &s.kind {
             StmtKind::If { cond, then, otherwise } => {
-                let fixed = decided.get(&cond.id).copied().or_else(|| key_constant(cond, key));
+                let fixed = decided.get(cond).copied().or_else(|| key_constant(x, *cond, key));
                 match fixed {
-                    Some(on) => next_condition(if on { then } else { otherwise }, decided, assigned, key),
-                    None if unswitchable(cond, assigned) => Some(cond),
-                    None => next_condition(then, decided, assigned, key)
-                        .or_else(|| next_condition(otherwise, decided, assigned, key)),
+                    Some(on) => next_condition(x, if on { then } else { otherwise }, decided, assigned, key),
+                    None if unswitchable(x, *cond, assigned) => Some(*cond),
+                    None => next_condition(x, then, decided, assigned, key)
+                        .or_else(|| next_condition(x, otherwise, decided, assigned, key)),
                 }
             }
-            StmtKind::Loop { body, step, .. } => {
-                next_condition(body, decided, assigned, key).or_else(|| next_condition(step, decided, assigned, key))
-            }
+            StmtKind::Loop { body, step, .. } => next_condition(x, body, decided, assigned, key)
+                .or_else(|| next_condition(x, step, decided, assigned, key)),
             StmtKind::Interpolation { arms } => arms
                 .iter()
-                .find_map(|a| next_condition(&a.body, decided, assigned, key)),
+                .find_map(|a| next_condition(x, &a.body, decided, assigned, key)),
             _ => None,
         };
         if found.is_some() {
@@ -156,18 +156,19 @@ pub(crate) fn next_condition<'a>(
 }
 
 /// See the module comment.
-fn unswitchable(cond: &Expr, assigned: &HashSet<LocalId>) -> bool {
+fn unswitchable(x: &Exprs, cond_id: ExprId, assigned: &HashSet<LocalId>) -> bool {
+    let cond = &x[cond_id];
     !cond.var.is_varying()
         && cond.ty.dims.is_empty()
         && !cond.ty.per_seq
-        && block::pure(cond)
-        && !cond.reads_any(&|l| assigned.contains(&l))
+        && block::pure(x, cond_id)
+        && !x.reads_any(cond_id, &|l| assigned.contains(&l))
 }
 
 /// The expressions the full pixel code lowers when the conditions in `decided` are fixed
 /// (the untaken sides left out): the row terms a copy evaluates.
 pub(crate) fn full_code_exprs(f: &Function, decided: &HashMap<ExprId, bool>) -> HashSet<ExprId> {
     let mut out = HashSet::new();
-    block::stmt_keys(&f.pixel, decided, &mut out);
+    block::stmt_keys(&f.exprs, &f.pixel, decided, &mut out);
     out
 }

@@ -10,7 +10,7 @@
 use std::collections::HashSet;
 
 use crate::abi::{BindingKind, VariantKey};
-use crate::ir::{ArmKind, InterpArm, LocalId, Stmt, StmtKind};
+use crate::ir::{ArmKind, Exprs, InterpArm, LocalId, Stmt, StmtKind};
 
 /// The kinds the named arms of an `interpolation` serve.
 pub(crate) fn named_kinds(arms: &[InterpArm]) -> Vec<&str> {
@@ -52,16 +52,16 @@ pub(crate) fn arm_view(key: &VariantKey, named: &[&str], arm: &InterpArm) -> Opt
 
 /// Every local read or assigned by `stmts` as `key` lowers them (arms the key gives
 /// nothing to do are skipped).
-pub(crate) fn live_locals(key: &VariantKey, stmts: &[Stmt], out: &mut HashSet<LocalId>) {
-    visit_live_locals(key, stmts, &mut |l| {
+pub(crate) fn live_locals(x: &Exprs, key: &VariantKey, stmts: &[Stmt], out: &mut HashSet<LocalId>) {
+    visit_live_locals(x, key, stmts, &mut |l| {
         out.insert(l);
     });
 }
 
 /// [`live_locals`] as a flag per local (tier 0's analyses: a HashSet cost more than the
 /// walk itself).
-pub(crate) fn live_flags(key: &VariantKey, stmts: &[Stmt], out: &mut [bool]) {
-    visit_live_locals(key, stmts, &mut |l| {
+pub(crate) fn live_flags(x: &Exprs, key: &VariantKey, stmts: &[Stmt], out: &mut [bool]) {
+    visit_live_locals(x, key, stmts, &mut |l| {
         if let Some(x) = out.get_mut(l.0 as usize) {
             *x = true;
         }
@@ -70,37 +70,37 @@ pub(crate) fn live_flags(key: &VariantKey, stmts: &[Stmt], out: &mut [bool]) {
 
 /// Calls `out` with every local `stmts` reads or assigns as `key` lowers them (a local as
 /// often as it is mentioned).
-pub(crate) fn visit_live_locals(key: &VariantKey, stmts: &[Stmt], out: &mut dyn FnMut(LocalId)) {
+pub(crate) fn visit_live_locals(x: &Exprs, key: &VariantKey, stmts: &[Stmt], out: &mut dyn FnMut(LocalId)) {
     for s in stmts {
         match &s.kind {
             StmtKind::Assign { place, value } => {
                 out(place.local);
-                place.indices.iter().for_each(|(i, _)| i.for_each_local(out));
-                value.for_each_local(out);
+                place.indices.iter().for_each(|(i, _)| x.for_each_local(*i, out));
+                x.for_each_local(*value, out);
             }
             StmtKind::If { cond, then, otherwise } => {
-                cond.for_each_local(out);
-                visit_live_locals(key, then, out);
-                visit_live_locals(key, otherwise, out);
+                x.for_each_local(*cond, out);
+                visit_live_locals(x, key, then, out);
+                visit_live_locals(x, key, otherwise, out);
             }
             StmtKind::Loop { cond, body, step, .. } => {
                 if let Some(c) = cond {
-                    c.for_each_local(out);
+                    x.for_each_local(*c, out);
                 }
-                visit_live_locals(key, body, out);
-                visit_live_locals(key, step, out);
+                visit_live_locals(x, key, body, out);
+                visit_live_locals(x, key, step, out);
             }
             StmtKind::Interpolation { arms } => {
                 let named = named_kinds(arms);
                 for arm in arms {
                     if arm_view(key, &named, arm).is_some() {
-                        visit_live_locals(key, &arm.body, out);
+                        visit_live_locals(x, key, &arm.body, out);
                     }
                 }
             }
-            StmtKind::InterpolatorReturn(Some(e)) => e.for_each_local(out),
-            StmtKind::Bound(es) => es.iter().for_each(|e| e.for_each_local(out)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| e.for_each_local(out)),
+            StmtKind::InterpolatorReturn(Some(e)) => x.for_each_local(*e, out),
+            StmtKind::Bound(es) => es.iter().for_each(|e| x.for_each_local(*e, out)),
+            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| x.for_each_local(*e, out)),
             StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::InterpolatorReturn(None) => {}
         }
     }

@@ -26,7 +26,7 @@ use std::collections::BTreeMap;
 
 use crate::abi::{count_slots, ErrorSlot, ERR_CALL_DEPTH, ERR_FUEL, ERR_INDEX, ERR_STACK, MAX_CALL_DEPTH};
 use crate::diag::{Diagnostic, Diagnostics};
-use crate::ir::{for_each_stmt, Expr, ExprKind, FuncId, Program, SiteId, StmtKind};
+use crate::ir::{for_each_stmt, ExprId, ExprKind, Exprs, FuncId, Program, SiteId, StmtKind};
 
 /// Error counts of kernel runs, as (slot index, count) pairs (a slot may repeat: sum them).
 pub(crate) type Counts = Vec<(u32, u64)>;
@@ -93,15 +93,16 @@ impl CountArrays {
 /// Where each site of `program` is: the function whose code holds it and whether in its
 /// pixel part.
 fn site_owners(program: &Program) -> Vec<Option<(FuncId, bool)>> {
-    fn expr(e: &Expr, mark: &mut dyn FnMut(SiteId)) {
-        if let ExprKind::Index { site, .. } = &e.kind {
+    fn expr(x: &Exprs, e: ExprId, mark: &mut dyn FnMut(SiteId)) {
+        if let ExprKind::Index { site, .. } = &x[e].kind {
             mark(*site);
         }
-        e.for_each_child(|c| expr(c, mark));
+        x[e].for_each_child(|c| expr(x, c, mark));
     }
     let mut owners = vec![None; program.sites.len()];
     for (i, f) in program.functions.iter().enumerate() {
         for (stmts, pixel) in [(&f.setup, false), (&f.pixel, true)] {
+            let x = &f.exprs;
             let mut mark = |site: SiteId| {
                 if let Some(o) = owners.get_mut(site.0 as usize) {
                     *o = Some((FuncId(i as u32), pixel));
@@ -111,20 +112,20 @@ fn site_owners(program: &Program) -> Vec<Option<(FuncId, bool)>> {
                 StmtKind::Assign { place, value } => {
                     for (index, site) in &place.indices {
                         mark(*site);
-                        expr(index, &mut mark);
+                        expr(x, *index, &mut mark);
                     }
-                    expr(value, &mut mark);
+                    expr(x, *value, &mut mark);
                 }
-                StmtKind::If { cond, .. } => expr(cond, &mut mark),
+                StmtKind::If { cond, .. } => expr(x, *cond, &mut mark),
                 StmtKind::Loop { cond, site, .. } => {
                     mark(*site);
                     if let Some(c) = cond {
-                        expr(c, &mut mark);
+                        expr(x, *c, &mut mark);
                     }
                 }
-                StmtKind::InterpolatorReturn(Some(e)) => expr(e, &mut mark),
-                StmtKind::Bound(es) => es.iter().for_each(|e| expr(e, &mut mark)),
-                StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| expr(e, &mut mark)),
+                StmtKind::InterpolatorReturn(Some(e)) => expr(x, *e, &mut mark),
+                StmtKind::Bound(es) => es.iter().for_each(|e| expr(x, *e, &mut mark)),
+                StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| expr(x, *e, &mut mark)),
                 _ => {}
             });
         }

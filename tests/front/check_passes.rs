@@ -136,7 +136,7 @@ fn fixed_operands_join_and_ints_and_floats_mix() {
             .iter()
             .chain(&f.setup)
             .find_map(|s| match &s.kind {
-                StmtKind::Assign { place, value } if f.local(place.local).name == name => Some(value.ty.elem),
+                StmtKind::Assign { place, value } if f.local(place.local).name == name => Some(f.exprs[*value].ty.elem),
                 _ => None,
             })
             .expect("assignment")
@@ -167,7 +167,7 @@ fn helpers_are_inlined_as_one_trip_loops() {
     let StmtKind::Assign { value, .. } = &f.setup[2].kind else {
         panic!()
     };
-    let ExprKind::Local(result) = value.kind else {
+    let ExprKind::Local(result) = f.exprs[*value].kind else {
         panic!("the call is a local")
     };
     assert_eq!(f.local(result).kind, LocalKind::Temp);
@@ -309,16 +309,17 @@ fn varying_argument_for_a_uniform_helper_parameter_is_reported_at_the_call() {
     );
 }
 
-/// Every expression node of `stmts`, nested statements and sub-expressions included.
-fn expr_nodes(stmts: &[Stmt]) -> usize {
-    fn expr(e: &primflow::ir::Expr) -> usize {
+/// Every expression node of `stmts` (statements of `f`), nested statements and
+/// sub-expressions included.
+fn expr_nodes(f: &primflow::ir::Function, stmts: &[Stmt]) -> usize {
+    fn expr(x: &primflow::ir::Exprs, e: primflow::ir::ExprId) -> usize {
         let mut n = 1;
-        e.for_each_child(|c| n += expr(c));
+        x[e].for_each_child(|c| n += expr(x, c));
         n
     }
     let mut n = 0;
     primflow::ir::for_each_assign(stmts, &mut |place, value| {
-        n += expr(value) + place.indices.iter().map(|(i, _)| expr(i)).sum::<usize>()
+        n += expr(&f.exprs, value) + place.indices.iter().map(|(i, _)| expr(&f.exprs, *i)).sum::<usize>()
     });
     n
 }
@@ -341,21 +342,21 @@ fn an_array_filled_with_one_value_is_one_splat_node_whatever_its_size() {
         .iter()
         .chain(&f.pixel)
         .filter_map(|s| match &s.kind {
-            StmtKind::Assign { value, .. } => Some(value),
+            StmtKind::Assign { value, .. } => Some(&f.exprs[*value]),
             _ => None,
         })
         .collect();
     let splat_of = |e: &primflow::ir::Expr| match &e.kind {
-        ExprKind::Splat(item) => Some((e.ty.dims.clone(), item.ty.dims.is_empty())),
+        ExprKind::Splat(item) => Some((e.ty.dims.clone(), f.exprs[*item].ty.dims.is_empty())),
         _ => None,
     };
     assert_eq!(splat_of(values[0]), Some((vec![1000, 4], true)), "{:?}", values[0].kind);
     assert_eq!(splat_of(values[1]), Some((vec![300], true)));
     assert!(
-        matches!(&values[2].kind, ExprKind::Builtin { args, .. } if splat_of(&args[2]) == Some((vec![4], true))),
+        matches!(&values[2].kind, ExprKind::Builtin { args, .. } if splat_of(&f.exprs[args[2]]) == Some((vec![4], true))),
         "{:?}",
         values[2].kind
     );
-    let nodes = expr_nodes(&f.setup) + expr_nodes(&f.pixel);
+    let nodes = expr_nodes(f, &f.setup) + expr_nodes(f, &f.pixel);
     assert!(nodes < 60, "{nodes} expression nodes");
 }

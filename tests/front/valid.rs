@@ -8,7 +8,9 @@ use primflow::diag::{Diagnostics, SourceMap, Span};
 use primflow::ir::valid::{validate, validate_function, Rule};
 use primflow::ir::*;
 
-use crate::support::jit::{e, fc, ic, s as st};
+use primflow::ir::tree::{Tree, TreeKind};
+
+use crate::support::jit::{e, fc, ic};
 
 fn prim_files(dir: &Path) -> Vec<PathBuf> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
@@ -130,19 +132,27 @@ fn func<'p>(p: &'p mut Program, name: &str) -> &'p mut Function {
     &mut p.functions[id.0 as usize]
 }
 
+/// A statement of the IR (its expressions already in the function's arena).
+fn st(kind: StmtKind) -> Stmt {
+    Stmt {
+        kind,
+        span: Span::default(),
+    }
+}
+
 /// A read of `name` (a local of `f`) with its type and variability.
-fn read(f: &Function, name: &str) -> Expr {
+fn read(f: &Function, name: &str) -> Tree {
     let (i, l) = f
         .locals
         .iter()
         .enumerate()
         .find(|(_, l)| l.name == name)
         .unwrap_or_else(|| panic!("local `{name}`"));
-    e(ExprKind::Local(LocalId(i as u32)), l.ty.clone(), l.var)
+    e(TreeKind::Local(LocalId(i as u32)), l.ty.clone(), l.var)
 }
 
 fn place(f: &Function, name: &str) -> Place {
-    let ExprKind::Local(local) = read(f, name).kind else {
+    let TreeKind::Local(local) = read(f, name).kind else {
         unreachable!()
     };
     Place {
@@ -171,39 +181,31 @@ fn find_stmt(ss: &mut [Stmt], f: &mut dyn FnMut(&mut Stmt) -> bool) -> bool {
     false
 }
 
-fn find_in_expr(x: &mut Expr, f: &mut dyn FnMut(&mut Expr) -> bool) -> bool {
-    if f(x) {
-        return true;
+/// The first expression of `x` in the tree at `id` (outermost first) that `pick` takes.
+fn first_in(x: &Exprs, id: ExprId, pick: &dyn Fn(&Exprs, &Expr) -> bool) -> Option<ExprId> {
+    if pick(x, &x[id]) {
+        return Some(id);
     }
-    let mut found = false;
-    x.for_each_child_mut(|c| found = found || find_in_expr(c, f));
+    let mut found = None;
+    x[id].for_each_child(|c| found = found.or_else(|| first_in(x, c, pick)));
     found
 }
 
-/// Call `f` on every expression of `ss` (outermost first) until it returns true.
-fn find_expr(ss: &mut [Stmt], f: &mut dyn FnMut(&mut Expr) -> bool) -> bool {
-    find_stmt(ss, &mut |s| {
-        let roots: Vec<&mut Expr> = match &mut s.kind {
-            StmtKind::Assign { place, value } => place.indices.iter_mut().map(|(i, _)| i).chain([value]).collect(),
-            StmtKind::If { cond, .. } => vec![cond],
-            StmtKind::Loop { cond, .. } => cond.iter_mut().collect(),
-            StmtKind::InterpolatorReturn(v) => v.iter_mut().collect(),
-            StmtKind::Bound(args) => args.iter_mut().collect(),
-            StmtKind::CallPrimitive { args, .. } => args.iter_mut().collect(),
-            _ => vec![],
-        };
-        roots.into_iter().any(|r| find_in_expr(r, f))
-    })
-}
-
 /// Edit the first statement of `base`'s setup (`pixel`: its pixel part) that `pick` takes.
-fn edit_stmt(p: &mut Program, pixel: bool, pick: impl Fn(&Stmt) -> bool, edit: impl FnOnce(&mut Stmt)) {
+/// `pick` and `edit` are given the function's arena too.
+fn edit_stmt(
+    p: &mut Program,
+    pixel: bool,
+    pick: impl Fn(&Exprs, &Stmt) -> bool,
+    edit: impl FnOnce(&mut Exprs, &mut Stmt),
+) {
     let f = func(p, "base");
     let part = if pixel { &mut f.pixel } else { &mut f.setup };
+    let exprs = &mut f.exprs;
     let mut edit = Some(edit);
     let found = find_stmt(part, &mut |s| {
-        if pick(s) {
-            (edit.take().expect("once"))(s);
+        if pick(exprs, s) {
+            (edit.take().expect("once"))(exprs, s);
             true
         } else {
             false
@@ -212,20 +214,21 @@ fn edit_stmt(p: &mut Program, pixel: bool, pick: impl Fn(&Stmt) -> bool, edit: i
     assert!(found, "no statement to edit");
 }
 
-/// Edit the first expression of `base`'s setup (`pixel`: its pixel part) that `pick` takes.
-fn edit_expr(p: &mut Program, pixel: bool, pick: impl Fn(&Expr) -> bool, edit: impl FnOnce(&mut Expr)) {
+/// Edit the first expression of `base`'s setup (`pixel`: its pixel part) that `pick` takes
+/// (given the arena and the node).
+fn edit_expr(
+    p: &mut Program,
+    pixel: bool,
+    pick: impl Fn(&Exprs, &Expr) -> bool,
+    edit: impl FnOnce(&mut Exprs, ExprId),
+) {
     let f = func(p, "base");
-    let part = if pixel { &mut f.pixel } else { &mut f.setup };
-    let mut edit = Some(edit);
-    let found = find_expr(part, &mut |x| {
-        if pick(x) {
-            (edit.take().expect("once"))(x);
-            true
-        } else {
-            false
-        }
+    let part = if pixel { &f.pixel } else { &f.setup };
+    let mut found = None;
+    for_each_stmt(part, &mut |s| {
+        s.for_each_expr(|r| found = found.or_else(|| first_in(&f.exprs, *r, &pick)))
     });
-    assert!(found, "no expression to edit");
+    edit(&mut f.exprs, found.expect("no expression to edit"));
 }
 
 fn is_binary(x: &Expr, want: BinOp) -> bool {
@@ -233,7 +236,8 @@ fn is_binary(x: &Expr, want: BinOp) -> bool {
 }
 
 /// `base()` broken by `breaking`, its expressions numbered again (as every pass leaves
-/// them), is rejected with `rule`, named in the message.
+/// them: a tree the edit added or shared is in pre-order again), is rejected with `rule`,
+/// named in the message.
 #[track_caller]
 fn rejects(rule: Rule, breaking: impl FnOnce(&mut Program)) {
     let mut p = base();
@@ -264,8 +268,8 @@ fn local_in_range() {
         edit_expr(
             p,
             false,
-            |x| matches!(x.kind, ExprKind::Local(_)),
-            |x| x.kind = ExprKind::Local(LocalId(9999)),
+            |_, x| matches!(x.kind, ExprKind::Local(_)),
+            |x, id| x[id].kind = ExprKind::Local(LocalId(9999)),
         )
     });
 }
@@ -292,8 +296,8 @@ fn loop_id_unique() {
         edit_stmt(
             p,
             true,
-            |s| matches!(s.kind, StmtKind::Loop { .. }),
-            |s| {
+            |_, s| matches!(s.kind, StmtKind::Loop { .. }),
+            |_, s| {
                 if let StmtKind::Loop { id, .. } = &mut s.kind {
                     *id = first;
                 }
@@ -303,27 +307,55 @@ fn loop_id_unique() {
 }
 
 #[test]
-fn expr_ids_dense() {
+fn expr_tree() {
     // Not numbered again after the edit.
-    let breakings: [fn(&mut Program); 3] = [
-        // An expression added without numbering it.
+    let breakings: [fn(&mut Program); 4] = [
+        // An expression added at the end of the arena for a statement of the setup part:
+        // out of pre-order (the pixel part's expressions come after it).
         |p| {
             let f = func(p, "base");
             let acc = place(f, "acc");
-            f.setup.push(st(StmtKind::Assign {
-                place: acc,
-                value: fc(1.0),
-            }));
+            let value = f.exprs.intern(fc(1.0));
+            f.setup.push(st(StmtKind::Assign { place: acc, value }));
         },
-        // Two expressions with one id.
-        |p| edit_expr(p, false, |x| x.id == ExprId(1), |x| x.id = ExprId(0)),
-        // An id no expression has.
-        |p| func(p, "base").exprs += 1,
+        // One node the operand of two parents: the first `if`'s condition also the
+        // value of the first assignment (a DAG, not a tree).
+        |p| {
+            let f = func(p, "base");
+            let cond = f.setup.iter().find_map(|s| match s.kind {
+                StmtKind::If { cond, .. } => Some(cond),
+                _ => None,
+            });
+            let cond = cond.expect("an if in setup");
+            let assign = f.setup.iter_mut().find_map(|s| match &mut s.kind {
+                StmtKind::Assign { value, .. } => Some(value),
+                _ => None,
+            });
+            *assign.expect("an assignment in setup") = cond;
+        },
+        // A node no statement reaches.
+        |p| {
+            let f = func(p, "base");
+            f.exprs.intern(fc(2.0));
+        },
+        // An operand id past the arena.
+        |p| {
+            edit_expr(
+                p,
+                false,
+                |_, x| matches!(x.kind, ExprKind::Binary { .. }),
+                |x, id| {
+                    if let ExprKind::Binary { rhs, .. } = &mut x[id].kind {
+                        *rhs = ExprId(u32::MAX);
+                    }
+                },
+            )
+        },
     ];
     for breaking in breakings {
         let mut p = base();
         breaking(&mut p);
-        rejected_with(Rule::ExprIdsDense, &p);
+        rejected_with(Rule::ExprTree, &p);
     }
 }
 
@@ -346,8 +378,8 @@ fn call_callee() {
         edit_stmt(
             p,
             false,
-            |s| matches!(s.kind, StmtKind::CallPrimitive { .. }),
-            |s| {
+            |_, s| matches!(s.kind, StmtKind::CallPrimitive { .. }),
+            |_, s| {
                 if let StmtKind::CallPrimitive { callee, .. } = &mut s.kind {
                     *callee = terp;
                 }
@@ -364,8 +396,8 @@ fn const_type() {
         edit_expr(
             p,
             false,
-            |x| matches!(x.kind, ExprKind::Const(ConstValue::Float(_))),
-            |x| x.ty = Type::int(),
+            |_, x| matches!(x.kind, ExprKind::Const(ConstValue::Float(_))),
+            |x, id| x[id].ty = Type::int(),
         )
     });
 }
@@ -376,8 +408,8 @@ fn local_type() {
         edit_expr(
             p,
             false,
-            |x| matches!(x.kind, ExprKind::Local(_)),
-            |x| x.ty = Type::bool(),
+            |_, x| matches!(x.kind, ExprKind::Local(_)),
+            |x, id| x[id].ty = Type::bool(),
         )
     });
 }
@@ -388,10 +420,11 @@ fn index_type() {
         edit_expr(
             p,
             false,
-            |x| matches!(x.kind, ExprKind::Index { .. }),
-            |x| {
-                if let ExprKind::Index { index, .. } = &mut x.kind {
-                    **index = fc(0.0);
+            |_, x| matches!(x.kind, ExprKind::Index { .. }),
+            |x, id| {
+                let zero = x.intern(fc(0.0));
+                if let ExprKind::Index { index, .. } = &mut x[id].kind {
+                    *index = zero;
                 }
             },
         )
@@ -404,16 +437,23 @@ fn unary_type() {
         edit_expr(
             p,
             false,
-            |x| is_binary(x, BinOp::Lt),
-            |x| {
-                let inner = x.clone();
-                *x = e(
-                    ExprKind::Unary {
-                        op: UnaryOp::Neg,
-                        expr: Box::new(inner),
-                    },
-                    Type::bool(),
-                    x.var,
+            |_, x| is_binary(x, BinOp::Lt),
+            |x, id| {
+                // The comparison moves to a new node; its place becomes `-` of it.
+                let (inner, span) = (x[id].clone(), x.span(id));
+                let var = inner.var;
+                let moved = x.alloc(inner, span);
+                x.replace(
+                    id,
+                    Expr::new(
+                        ExprKind::Unary {
+                            op: UnaryOp::Neg,
+                            expr: moved,
+                        },
+                        Type::bool(),
+                        var,
+                    ),
+                    span,
                 );
             },
         )
@@ -426,10 +466,11 @@ fn binary_type() {
         edit_expr(
             p,
             false,
-            |x| is_binary(x, BinOp::Add) && x.ty == Type::float(),
-            |x| {
-                if let ExprKind::Binary { rhs, .. } = &mut x.kind {
-                    **rhs = ic(1);
+            |_, x| is_binary(x, BinOp::Add) && x.ty == Type::float(),
+            |x, id| {
+                let one = x.intern(ic(1));
+                if let ExprKind::Binary { rhs, .. } = &mut x[id].kind {
+                    *rhs = one;
                 }
             },
         )
@@ -442,8 +483,8 @@ fn convert_type() {
         edit_expr(
             p,
             false,
-            |x| matches!(x.kind, ExprKind::Convert(_)),
-            |x| x.ty.elem = Elem::Scalar(Scalar::Bool),
+            |_, x| matches!(x.kind, ExprKind::Convert(_)),
+            |x, id| x[id].ty.elem = Elem::Scalar(Scalar::Bool),
         )
     });
 }
@@ -456,8 +497,8 @@ fn interp_from_list() {
         edit_expr(
             p,
             true,
-            |x| matches!(&x.kind, ExprKind::Convert(a) if x.ty.elem == Elem::Interp && a.ty.dims.len() == 1),
-            |x| list = Some(x.clone()),
+            |xs, x| matches!(&x.kind, ExprKind::Convert(a) if x.ty.elem == Elem::Interp && xs[*a].ty.dims.len() == 1),
+            |x, id| list = Some(x.copy_tree(id)),
         );
         let f = func(p, "base");
         let dd = place(f, "dd");
@@ -474,10 +515,11 @@ fn select_type() {
         edit_expr(
             p,
             false,
-            |x| matches!(x.kind, ExprKind::Select { .. }),
-            |x| {
-                if let ExprKind::Select { otherwise, .. } = &mut x.kind {
-                    **otherwise = ic(2);
+            |_, x| matches!(x.kind, ExprKind::Select { .. }),
+            |x, id| {
+                let two = x.intern(ic(2));
+                if let ExprKind::Select { otherwise, .. } = &mut x[id].kind {
+                    *otherwise = two;
                 }
             },
         )
@@ -490,9 +532,9 @@ fn builtin_type() {
         edit_expr(
             p,
             false,
-            |x| matches!(x.kind, ExprKind::Builtin { func: Builtin::Max, .. }),
-            |x| {
-                if let ExprKind::Builtin { args, .. } = &mut x.kind {
+            |_, x| matches!(x.kind, ExprKind::Builtin { func: Builtin::Max, .. }),
+            |x, id| {
+                if let ExprKind::Builtin { args, .. } = &mut x[id].kind {
                     args.pop();
                 }
             },
@@ -506,9 +548,9 @@ fn list_type() {
         edit_expr(
             p,
             false,
-            |x| matches!(x.kind, ExprKind::List(_)),
-            |x| {
-                if let ExprKind::List(items) = &mut x.kind {
+            |_, x| matches!(x.kind, ExprKind::List(_)),
+            |x, id| {
+                if let ExprKind::List(items) = &mut x[id].kind {
                     items.pop();
                 }
             },
@@ -522,8 +564,8 @@ fn splat_type() {
         edit_expr(
             p,
             false,
-            |x| matches!(x.kind, ExprKind::Splat(_)),
-            |x| x.ty.elem = Elem::Scalar(Scalar::Int),
+            |_, x| matches!(x.kind, ExprKind::Splat(_)),
+            |x, id| x[id].ty.elem = Elem::Scalar(Scalar::Int),
         )
     });
 }
@@ -534,8 +576,8 @@ fn mat_mul_type() {
         edit_expr(
             p,
             false,
-            |x| matches!(x.kind, ExprKind::MatMul { .. }),
-            |x| x.ty.dims = vec![3],
+            |_, x| matches!(x.kind, ExprKind::MatMul { .. }),
+            |x, id| x[id].ty.dims = vec![3],
         )
     });
 }
@@ -546,8 +588,8 @@ fn query_type() {
         edit_expr(
             p,
             false,
-            |x| matches!(x.kind, ExprKind::SeqCount),
-            |x| x.ty = Type::float(),
+            |_, x| matches!(x.kind, ExprKind::SeqCount),
+            |x, id| x[id].ty = Type::float(),
         )
     });
 }
@@ -558,10 +600,11 @@ fn condition_type() {
         edit_stmt(
             p,
             false,
-            |s| matches!(s.kind, StmtKind::If { .. }),
-            |s| {
+            |_, s| matches!(s.kind, StmtKind::If { .. }),
+            |x, s| {
+                let one = x.intern(ic(1));
                 if let StmtKind::If { cond, .. } = &mut s.kind {
-                    *cond = ic(1);
+                    *cond = one;
                 }
             },
         )
@@ -574,10 +617,11 @@ fn assign_type() {
         edit_stmt(
             p,
             false,
-            |s| matches!(&s.kind, StmtKind::Assign { value, .. } if value.ty == Type::float()),
-            |s| {
+            |x, s| matches!(&s.kind, StmtKind::Assign { value, .. } if x[*value].ty == Type::float()),
+            |x, s| {
+                let zero = x.intern(ic(0));
                 if let StmtKind::Assign { value, .. } = &mut s.kind {
-                    *value = ic(0);
+                    *value = zero;
                 }
             },
         )
@@ -590,10 +634,11 @@ fn bound_type() {
         edit_stmt(
             p,
             false,
-            |s| matches!(s.kind, StmtKind::Bound(_)),
-            |s| {
+            |_, s| matches!(s.kind, StmtKind::Bound(_)),
+            |x, s| {
+                let zero = x.intern(ic(0));
                 if let StmtKind::Bound(args) = &mut s.kind {
-                    args[0] = ic(0);
+                    args[0] = zero;
                 }
             },
         )
@@ -607,10 +652,11 @@ fn per_seq_value() {
         edit_expr(
             p,
             false,
-            |x| matches!(&x.kind, ExprKind::Index { base, .. } if base.ty.per_seq),
-            |x| {
-                if let ExprKind::Index { base, .. } = &x.kind {
-                    *x = (**base).clone();
+            |xs, x| matches!(&x.kind, ExprKind::Index { base, .. } if xs[*base].ty.per_seq),
+            |x, id| {
+                if let ExprKind::Index { base, .. } = x[id].kind {
+                    let (node, span) = (x[base].clone(), x.span(base));
+                    x.replace(id, node, span);
                 }
             },
         )
@@ -645,7 +691,8 @@ fn assign_read_only() {
     rejects(Rule::AssignReadOnly, |p| {
         let f = func(p, "base");
         let n = place(f, "n");
-        f.setup.push(st(StmtKind::Assign { place: n, value: ic(1) }));
+        let value = f.exprs.intern(ic(1));
+        f.setup.push(st(StmtKind::Assign { place: n, value }));
     });
 }
 
@@ -662,8 +709,8 @@ fn expr_variability() {
         edit_expr(
             p,
             true,
-            |x| matches!(x.kind, ExprKind::Binary { .. }) && x.var.is_varying(),
-            |x| x.var = Variability::Uniform,
+            |_, x| matches!(x.kind, ExprKind::Binary { .. }) && x.var.is_varying(),
+            |x, id| x[id].var = Variability::Uniform,
         )
     });
 }
@@ -673,14 +720,15 @@ fn varying_into_uniform() {
     rejects(Rule::VaryingIntoUniform, |p| {
         let f = func(p, "base");
         let (acc, x) = (place(f, "acc"), read(f, "X"));
-        f.pixel.push(st(StmtKind::Assign { place: acc, value: x }));
+        let value = f.exprs.intern(x);
+        f.pixel.push(st(StmtKind::Assign { place: acc, value }));
     });
 }
 
 /// `X < 1`: a varying condition.
-fn x_below_one(f: &Function) -> Expr {
+fn x_below_one(f: &Function) -> Tree {
     e(
-        ExprKind::Binary {
+        TreeKind::Binary {
             op: BinOp::Lt,
             lhs: Box::new(read(f, "X")),
             rhs: Box::new(fc(1.0)),
@@ -695,12 +743,10 @@ fn uniform_under_varying_control() {
     rejects(Rule::UniformUnderVaryingControl, |p| {
         let f = func(p, "base");
         let (cond, acc) = (x_below_one(f), place(f, "acc"));
+        let (cond, one) = (f.exprs.intern(cond), f.exprs.intern(fc(1.0)));
         f.pixel.push(st(StmtKind::If {
             cond,
-            then: vec![st(StmtKind::Assign {
-                place: acc,
-                value: fc(1.0),
-            })],
+            then: vec![st(StmtKind::Assign { place: acc, value: one })],
             otherwise: vec![],
         }));
     });
@@ -712,8 +758,8 @@ fn loop_varying() {
         edit_stmt(
             p,
             true,
-            |s| matches!(s.kind, StmtKind::Loop { varying: true, .. }),
-            |s| {
+            |_, s| matches!(s.kind, StmtKind::Loop { varying: true, .. }),
+            |_, s| {
                 if let StmtKind::Loop { varying, .. } = &mut s.kind {
                     *varying = false;
                 }
@@ -728,6 +774,7 @@ fn a_varying_jump_out_of_a_uniform_loop_is_rejected() {
     rejects(Rule::LoopVarying, |p| {
         let f = func(p, "base");
         let cond = x_below_one(f);
+        let cond = f.exprs.intern(cond);
         let id = LoopId(f.loops);
         f.loops += 1;
         f.pixel.push(st(StmtKind::Loop {
@@ -752,6 +799,7 @@ fn setup_uniform() {
     rejects(Rule::SetupUniform, |p| {
         let f = func(p, "base");
         let cond = x_below_one(f);
+        let cond = f.exprs.intern(cond);
         f.setup.push(st(StmtKind::If {
             cond,
             then: vec![],
@@ -784,8 +832,8 @@ fn interpolation_arms(p: &mut Program, edit: impl FnOnce(&mut Vec<InterpArm>)) {
     edit_stmt(
         p,
         true,
-        |s| matches!(s.kind, StmtKind::Interpolation { .. }),
-        |s| {
+        |_, s| matches!(s.kind, StmtKind::Interpolation { .. }),
+        |_, s| {
             if let StmtKind::Interpolation { arms } = &mut s.kind {
                 edit(arms);
             }
@@ -824,22 +872,35 @@ fn interpolator_return_type() {
     rejects(Rule::InterpolatorReturnType, |p| {
         interpolation_arms(p, |arms| {
             let ret = arms[0].body.last_mut().expect("a return");
-            ret.kind = StmtKind::InterpolatorReturn(Some(ic(1)));
-        })
+            ret.kind = StmtKind::InterpolatorReturn(Some(ExprId(0)));
+        });
+        // The value: an int, in the arena (numbered by `rejects`).
+        edit_stmt(
+            p,
+            true,
+            |_, s| matches!(s.kind, StmtKind::Interpolation { .. }),
+            |x, s| {
+                let one = x.intern(ic(1));
+                if let StmtKind::Interpolation { arms } = &mut s.kind {
+                    arms[0].body.last_mut().expect("a return").kind = StmtKind::InterpolatorReturn(Some(one));
+                }
+            },
+        );
     });
 }
 
 // -- primitive calls
 
-fn call_args(p: &mut Program, edit: impl FnOnce(&Function, &mut Vec<Expr>)) {
+/// `edit` is given `base` as it was, its arena and the call's arguments.
+fn call_args(p: &mut Program, edit: impl FnOnce(&Function, &mut Exprs, &mut Vec<ExprId>)) {
     let f = func(p, "base").clone();
     edit_stmt(
         p,
         false,
-        |s| matches!(s.kind, StmtKind::CallPrimitive { .. }),
-        |s| {
+        |_, s| matches!(s.kind, StmtKind::CallPrimitive { .. }),
+        |x, s| {
             if let StmtKind::CallPrimitive { args, .. } = &mut s.kind {
-                edit(&f, args);
+                edit(&f, x, args);
             }
         },
     );
@@ -848,7 +909,7 @@ fn call_args(p: &mut Program, edit: impl FnOnce(&Function, &mut Vec<Expr>)) {
 #[test]
 fn call_arity() {
     rejects(Rule::CallArity, |p| {
-        call_args(p, |_, args| {
+        call_args(p, |_, _, args| {
             args.pop();
         })
     });
@@ -856,17 +917,19 @@ fn call_arity() {
 
 #[test]
 fn call_arg_type() {
-    rejects(Rule::CallArgType, |p| call_args(p, |_, args| args[0] = fc(1.0)));
+    rejects(Rule::CallArgType, |p| {
+        call_args(p, |_, x, args| args[0] = x.intern(fc(1.0)))
+    });
 }
 
 #[test]
 fn call_pixel_args() {
     rejects(Rule::CallPixelArgs, |p| {
-        call_args(p, |f, args| {
+        call_args(p, |f, x, args| {
             let at = args
                 .iter()
-                .position(|a| matches!(&a.kind, ExprKind::Local(l) if f.local(*l).name == "X"));
-            args[at.expect("X passed")] = read(f, "Y");
+                .position(|a| matches!(&x[*a].kind, ExprKind::Local(l) if f.local(*l).name == "X"));
+            args[at.expect("X passed")] = x.intern(read(f, "Y"));
         })
     });
 }
@@ -874,13 +937,13 @@ fn call_pixel_args() {
 #[test]
 fn call_arg_varying() {
     rejects(Rule::CallArgVarying, |p| {
-        call_args(p, |f, args| {
-            let x = read(f, "X");
-            args[0] = e(
-                ExprKind::Splat(Box::new(x)),
+        call_args(p, |f, x, args| {
+            let read_x = read(f, "X");
+            args[0] = x.intern(e(
+                TreeKind::Splat(Box::new(read_x)),
                 Type::array(Elem::Scalar(Scalar::Float), vec![4]),
                 Variability::Varying,
-            );
+            ));
         })
     });
 }

@@ -61,16 +61,16 @@ fn a_batch_compiled_in_parallel_renders_what_a_one_thread_pool_renders() {
 fn inner() -> Function {
     let mut fb = Fb::new("inner", FuncKind::Primitive);
     let (_x, _y, z) = fb.xyz();
-    fb.f.setup = vec![bound([fc(1.0), fc(2.0), fc(5.0), fc(4.0)])];
-    fb.f.pixel = vec![assign(&z, fc(0.5))];
-    fb.f
+    fb.setup = vec![bound([fc(1.0), fc(2.0), fc(5.0), fc(4.0)])];
+    fb.pixel = vec![assign(&z, fc(0.5))];
+    fb.finish()
 }
 
 /// NAME(X, Y, Z): calls each of `callees` with (X, Y, Z), then `tail` per pixel.
-fn caller(name: &str, callees: &[u32], tail: Vec<Stmt>) -> Function {
+fn caller(name: &str, callees: &[u32], tail: Vec<Stmt<Tree>>) -> Function {
     let mut fb = Fb::new(name, FuncKind::Primitive);
     let (x, y, z) = fb.xyz();
-    fb.f.setup = callees
+    fb.setup = callees
         .iter()
         .map(|&c| {
             s(StmtKind::CallPrimitive {
@@ -79,8 +79,8 @@ fn caller(name: &str, callees: &[u32], tail: Vec<Stmt>) -> Function {
             })
         })
         .collect();
-    fb.f.pixel = tail;
-    fb.f
+    fb.pixel = tail;
+    fb.finish()
 }
 
 /// `broken` (which calls `inner`, then fails to lower: a `bound` in per-pixel code) fails

@@ -36,13 +36,13 @@ fn disc() -> Function {
     let cy = fb.param("cy", float(), ParamRole::PerPrimitive);
     let r2 = fb.param("r2", float(), ParamRole::PerPrimitive);
     let k = fb.param("k", Type::int(), ParamRole::PerPrimitive);
-    let b: Vec<Expr> = ["bx0", "by0", "bx1", "by1"]
+    let b: Vec<Tree> = ["bx0", "by0", "bx1", "by1"]
         .iter()
         .map(|n| fb.param(n, float(), ParamRole::PerPrimitive))
         .collect();
     let dx = fb.local("dx", float(), Varying);
     let dy = fb.local("dy", float(), Varying);
-    fb.f.setup = vec![bound([b[0].clone(), b[1].clone(), b[2].clone(), b[3].clone()])];
+    fb.setup = vec![bound([b[0].clone(), b[1].clone(), b[2].clone(), b[3].clone()])];
     let dist = bin(
         BinOp::Add,
         bin(BinOp::Mul, dx.clone(), dx.clone()),
@@ -53,14 +53,14 @@ fn disc() -> Function {
         bin(BinOp::Mul, conv(x.clone(), Scalar::Int), k),
         conv(y.clone(), Scalar::Int),
     );
-    fb.f.pixel = vec![
+    fb.pixel = vec![
         assign(&dx, bin(BinOp::Sub, x, cx)),
         assign(&dy, bin(BinOp::Sub, y, cy)),
         if_(bin(BinOp::Gt, dist, r2), vec![ret()], vec![]),
         if_(bin(BinOp::Gt, line, ic(1000)), vec![ret()], vec![]),
         assign(&z, fc(0.5)),
     ];
-    fb.f
+    fb.finish()
 }
 
 struct Case {

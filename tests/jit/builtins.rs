@@ -10,18 +10,18 @@ use primflow::abi::ERR_NONE;
 use primflow::ir::*;
 use primflow::jit::Jit;
 
-fn call(f: Builtin, args: Vec<Expr>, ty: Type) -> Expr {
+fn call(f: Builtin, args: Vec<Tree>, ty: Type) -> Tree {
     let var = args.iter().fold(Variability::Uniform, |v, a| v.join(a.var));
-    e(ExprKind::Builtin { func: f, args }, ty, var)
+    e(TreeKind::Builtin { func: f, args }, ty, var)
 }
 
-fn vec3(a: f32, b: f32, c: f32) -> Expr {
+fn vec3(a: f32, b: f32, c: f32) -> Tree {
     list(vec![fc(a), fc(b), fc(c)])
 }
 
 /// Run a primitive returning `outs` (flattened into one linear binding) with `spaces`
 /// matrices if given; plane p of pixel (x, 0) for each output component.
-fn run(outs: impl Fn(&Expr) -> Vec<Expr>, spaces: Option<[[f32; 16]; 6]>) -> Vec<Vec<f32>> {
+fn run(outs: impl Fn(&Tree) -> Vec<Tree>, spaces: Option<[[f32; 16]; 6]>) -> Vec<Vec<f32>> {
     let mut fb = Fb::new("b", FuncKind::Primitive);
     let (x, _y, _z) = fb.xyz();
     fb.f.uses_spaces = spaces.is_some();
@@ -29,7 +29,7 @@ fn run(outs: impl Fn(&Expr) -> Vec<Expr>, spaces: Option<[[f32; 16]; 6]>) -> Vec
     // Aggregates as their components, so the list's items share one type (the checker's
     // lists do; `primflow::ir::valid` checks it). Site 0: constant indices, never out of range.
     let several = outs.len() > 1;
-    let flat: Vec<Expr> = outs
+    let flat: Vec<Tree> = outs
         .into_iter()
         .flat_map(|o| match o.ty.dims.first() {
             Some(&n) if several => (0..n as i32).map(|i| index(o.clone(), ic(i), 0)).collect(),
@@ -43,8 +43,8 @@ fn run(outs: impl Fn(&Expr) -> Vec<Expr>, spaces: Option<[[f32; 16]; 6]>) -> Vec
     } else {
         list(flat)
     };
-    fb.f.pixel = vec![arm("linear", vec![interp_return(value)])];
-    let mut jit = Jit::new(Arc::new(program(vec![fb.f], 1))).unwrap();
+    fb.pixel = vec![arm("linear", vec![interp_return(value)])];
+    let mut jit = Jit::new(Arc::new(program(vec![fb.finish()], 1))).unwrap();
     let k = jit.kernel(FuncId(0), &kind_key(&[("linear", n)])).unwrap();
     assert!(k.warnings.is_empty(), "{:?}", k.warnings);
     let mut args: Vec<u32> = vec![1];

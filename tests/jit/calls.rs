@@ -24,14 +24,14 @@ fn inner() -> Function {
     v_ty.per_seq = true;
     let v = fb.param("v", v_ty, ParamRole::PerSequencePoint);
     let d = fb.param("d", Type::array(Elem::Interp, vec![3]), ParamRole::InterpData);
-    let count = e(ExprKind::SeqCount, Type::int(), Variability::Uniform);
-    fb.f.setup = vec![bound([
+    let count = e(TreeKind::SeqCount, Type::int(), Variability::Uniform);
+    fb.setup = vec![bound([
         index(r.clone(), ic(0), 0),
         index(r.clone(), ic(1), 0),
         index(r.clone(), ic(2), 0),
         index(r, ic(3), 0),
     ])];
-    fb.f.pixel = vec![
+    fb.pixel = vec![
         assign(&z, bin(BinOp::Add, depth, index(v, bin(BinOp::Sub, count, ic(1)), 0))),
         s(StmtKind::Interpolation {
             arms: vec![InterpArm {
@@ -41,7 +41,7 @@ fn inner() -> Function {
             }],
         }),
     ];
-    fb.f
+    fb.finish()
 }
 
 /// outer(X, Y, Z; float d; interpolation_data data[3]):
@@ -51,7 +51,7 @@ fn outer() -> Function {
     let (x, y, z) = fb.xyz();
     let d = fb.param("d", float(), ParamRole::PerPrimitive);
     let data = fb.param("data", Type::array(Elem::Interp, vec![3]), ParamRole::InterpData);
-    fb.f.setup = vec![s(StmtKind::CallPrimitive {
+    fb.setup = vec![s(StmtKind::CallPrimitive {
         callee: FuncId(0),
         args: vec![
             x,
@@ -63,7 +63,7 @@ fn outer() -> Function {
             data,
         ],
     })];
-    fb.f
+    fb.finish()
 }
 
 #[test]
@@ -106,12 +106,12 @@ fn primitive_call_renders_the_callee_with_built_arguments() {
 fn recursive_primitive_stops_at_max_call_depth() {
     let mut fb = Fb::new("rec", FuncKind::Primitive);
     let (x, y, z) = fb.xyz();
-    fb.f.setup = vec![s(StmtKind::CallPrimitive {
+    fb.setup = vec![s(StmtKind::CallPrimitive {
         callee: FuncId(0),
         args: vec![x, y, z.clone()],
     })];
-    fb.f.pixel = vec![assign(&z, fc(0.5))];
-    let mut jit = Jit::new(Arc::new(program(vec![fb.f], 0))).unwrap();
+    fb.pixel = vec![assign(&z, fc(0.5))];
+    let mut jit = Jit::new(Arc::new(program(vec![fb.finish()], 0))).unwrap();
     let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
     let mut tile = Tile::new(0);
     let ctx = tile.render(&k, &[1]);
@@ -128,26 +128,26 @@ fn ix() -> Function {
     let (x, _y, _z) = fb.xyz();
     let scale = fb.param("scale", float(), ParamRole::PerPrimitive);
     let offset = fb.param("offset", float(), ParamRole::PerPrimitive);
-    fb.f.pixel = vec![interp_return(bin(BinOp::Add, bin(BinOp::Mul, x, scale), offset))];
-    fb.f
+    fb.pixel = vec![interp_return(bin(BinOp::Add, bin(BinOp::Mul, x, scale), offset))];
+    fb.finish()
 }
 
 /// interpolator early(X, Y, Z) { if (X < 4) interpolator_return(1.0); interpolator_return(2.0); }
 fn early() -> Function {
     let mut fb = Fb::new("early", FuncKind::Interpolator);
     let (x, _y, _z) = fb.xyz();
-    fb.f.pixel = vec![
+    fb.pixel = vec![
         if_(bin(BinOp::Lt, x, fc(4.0)), vec![interp_return(fc(1.0))], vec![]),
         interp_return(fc(2.0)),
     ];
-    fb.f
+    fb.finish()
 }
 
 #[test]
 fn bare_interpolator_return_writes_constants_and_shared_interpolators() {
     let mut fb = Fb::new("p", FuncKind::Primitive);
     let (x, _y, z) = fb.xyz();
-    fb.f.pixel = vec![
+    fb.pixel = vec![
         if_(bin(BinOp::Gt, x, fc(10.0)), vec![ret()], vec![]),
         assign(&z, fc(0.5)),
         s(StmtKind::InterpolatorReturn(None)),
@@ -174,7 +174,7 @@ fn bare_interpolator_return_writes_constants_and_shared_interpolators() {
         count_writes: false,
         trivial_accept: false,
     };
-    let mut jit = Jit::new(Arc::new(program(vec![fb.f, ix(), early()], 0))).unwrap();
+    let mut jit = Jit::new(Arc::new(program(vec![fb.finish(), ix(), early()], 0))).unwrap();
     let k = jit.kernel(FuncId(0), &key).unwrap();
     assert_eq!(k.warnings.len(), 1, "{:?}", k.warnings);
     assert!(k.warnings[0].contains("linear"));

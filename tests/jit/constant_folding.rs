@@ -3,19 +3,17 @@
 //! remainder by zero 0, `i32::MIN / -1` wrapping.
 
 use primflow::diag::Span;
-use primflow::ir::{BinOp, ConstValue, Expr, ExprKind, Type, Variability};
+use primflow::ir::{BinOp, ConstValue, Expr, ExprId, ExprKind, Exprs, Type, Variability};
 use primflow::mid::unroll::{fold, Env};
 
-fn int(v: i32) -> Expr {
-    Expr::new(
-        ExprKind::Const(ConstValue::Int(v)),
-        Type::int(),
-        Variability::Uniform,
+fn int(x: &mut Exprs, v: i32) -> ExprId {
+    x.alloc(
+        Expr::new(ExprKind::Const(ConstValue::Int(v)), Type::int(), Variability::Uniform),
         Span::default(),
     )
 }
 
-fn bin(op: BinOp, a: Expr, c: Expr) -> Expr {
+fn bin(x: &mut Exprs, op: BinOp, a: ExprId, c: ExprId) -> ExprId {
     let ty = if matches!(
         op,
         BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne
@@ -24,20 +22,19 @@ fn bin(op: BinOp, a: Expr, c: Expr) -> Expr {
     } else {
         Type::int()
     };
-    Expr::new(
-        ExprKind::Binary {
-            op,
-            lhs: Box::new(a),
-            rhs: Box::new(c),
-        },
-        ty,
-        Variability::Uniform,
+    x.alloc(
+        Expr::new(ExprKind::Binary { op, lhs: a, rhs: c }, ty, Variability::Uniform),
         Span::default(),
     )
 }
 
-fn folded(e: &Expr) -> Option<ConstValue> {
-    match fold(e, &Env::new()).kind {
+/// `op a c` folded.
+fn folded(op: BinOp, a: i32, c: i32) -> Option<ConstValue> {
+    let mut x = Exprs::new();
+    let (a, c) = (int(&mut x, a), int(&mut x, c));
+    let e = bin(&mut x, op, a, c);
+    let f = fold(&mut x, e, &Env::new());
+    match x[f].kind {
         ExprKind::Const(c) => Some(c),
         _ => None,
     }
@@ -57,12 +54,8 @@ fn folds_ints_like_the_jit() {
         (BinOp::Rem, i32::MIN, -1, 0),
     ];
     for (op, x, y, want) in cases {
-        assert_eq!(
-            folded(&bin(op, int(x), int(y))),
-            Some(ConstValue::Int(want)),
-            "{op:?} {x} {y}"
-        );
+        assert_eq!(folded(op, x, y), Some(ConstValue::Int(want)), "{op:?} {x} {y}");
     }
-    assert_eq!(folded(&bin(BinOp::Lt, int(2), int(3))), Some(ConstValue::Bool(true)));
-    assert_eq!(folded(&bin(BinOp::Ge, int(2), int(3))), Some(ConstValue::Bool(false)));
+    assert_eq!(folded(BinOp::Lt, 2, 3), Some(ConstValue::Bool(true)));
+    assert_eq!(folded(BinOp::Ge, 2, 3), Some(ConstValue::Bool(false)));
 }

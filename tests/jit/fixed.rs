@@ -26,16 +26,16 @@ fn wrap_f64(x: f64, int_bits: u32) -> f64 {
 
 /// Runs a primitive whose pixel part returns `outputs` (float expressions) into one linear
 /// binding of that many components; `params` are fixed<32,16> per-primitive values.
-fn run_outputs(params: &[f64], outputs: impl Fn(&[Expr], &Expr) -> Vec<Expr>) -> Vec<Vec<f32>> {
+fn run_outputs(params: &[f64], outputs: impl Fn(&[Tree], &Tree) -> Vec<Tree>) -> Vec<Vec<f32>> {
     let mut fb = Fb::new("fx", FuncKind::Primitive);
     let (x, _y, _z) = fb.xyz();
-    let ps: Vec<Expr> = (0..params.len())
+    let ps: Vec<Tree> = (0..params.len())
         .map(|i| fb.param(&format!("p{i}"), fixed(32, 16), ParamRole::PerPrimitive))
         .collect();
     let outs = outputs(&ps, &x);
     let n = outs.len();
-    fb.f.pixel = vec![arm("linear", vec![interp_return(list(outs))])];
-    let mut jit = Jit::new(Arc::new(program(vec![fb.f], 1))).unwrap();
+    fb.pixel = vec![arm("linear", vec![interp_return(list(outs))])];
+    let mut jit = Jit::new(Arc::new(program(vec![fb.finish()], 1))).unwrap();
     let k = jit.kernel(FuncId(0), &kind_key(&[("linear", n as u32)])).unwrap();
     assert!(k.warnings.is_empty(), "{:?}", k.warnings);
     let mut args = vec![1];
@@ -49,7 +49,7 @@ fn run_outputs(params: &[f64], outputs: impl Fn(&[Expr], &Expr) -> Vec<Expr>) ->
         .collect()
 }
 
-fn to_f(e: Expr) -> Expr {
+fn to_f(e: Tree) -> Tree {
     conv(e, Scalar::Float)
 }
 
@@ -162,11 +162,11 @@ fn z_from_float(varying: bool, v: f32) -> Vec<u32> {
     let z = fb.param("Z", fixed(32, 32), ParamRole::Z);
     let p = fb.param("v", float(), ParamRole::PerPrimitive);
     let value = if varying { bin(BinOp::Mul, x, p) } else { p };
-    fb.f.pixel = vec![assign(
+    fb.pixel = vec![assign(
         &z,
         conv(value, Scalar::Fixed(FixedFormat { bits: 32, frac: 32 })),
     )];
-    let mut jit = Jit::new(Arc::new(program(vec![fb.f], 0))).unwrap();
+    let mut jit = Jit::new(Arc::new(program(vec![fb.finish()], 0))).unwrap();
     let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
     let mut tile = Tile::new(0);
     tile.render(&k, &[1, v.to_bits()]);
@@ -210,8 +210,8 @@ fn float_z_is_stored_rounded_and_saturated() {
         let mut fb = Fb::new("zfloat", FuncKind::Primitive);
         let (_x, _y, z) = fb.xyz();
         let p = fb.param("v", float(), ParamRole::PerPrimitive);
-        fb.f.pixel = vec![assign(&z, p)];
-        let mut jit = Jit::new(Arc::new(program(vec![fb.f], 0))).unwrap();
+        fb.pixel = vec![assign(&z, p)];
+        let mut jit = Jit::new(Arc::new(program(vec![fb.finish()], 0))).unwrap();
         let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
         let mut tile = Tile::new(0);
         tile.depth.fill(7);
@@ -238,11 +238,11 @@ fn float_to_fixed_32_32_vector_matches_scalar_definition() {
     let _y = fb.param("Y", float(), ParamRole::Y);
     let z = fb.param("Z", fixed(32, 32), ParamRole::Z);
     let p = fb.param("v", float(), ParamRole::PerPrimitive);
-    fb.f.pixel = vec![assign(
+    fb.pixel = vec![assign(
         &z,
         conv(bin(BinOp::Mul, x, p), Scalar::Fixed(FixedFormat { bits: 32, frac: 32 })),
     )];
-    let mut jit = Jit::new(Arc::new(program(vec![fb.f], 0))).unwrap();
+    let mut jit = Jit::new(Arc::new(program(vec![fb.finish()], 0))).unwrap();
     let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
 
     let ulp_below = |f: f32| f32::from_bits(f.to_bits() - 1);

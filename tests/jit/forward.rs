@@ -123,7 +123,10 @@ fn whole_array_copies(f: &primflow::ir::Function, list: &[Stmt], out: &mut Vec<S
         match &s.kind {
             StmtKind::Assign { place, value } => {
                 let local = f.local(place.local);
-                if place.indices.is_empty() && !local.ty.dims.is_empty() && matches!(value.kind, ExprKind::Local(_)) {
+                if place.indices.is_empty()
+                    && !local.ty.dims.is_empty()
+                    && matches!(f.exprs[*value].kind, ExprKind::Local(_))
+                {
                     out.push(local.name.clone());
                 }
             }

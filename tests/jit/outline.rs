@@ -23,7 +23,7 @@ fn counting(endless: bool) -> Function {
     let (x, _y, z) = fb.xyz();
     let i = fb.local("i", Type::int(), Varying);
     let l = fb.new_loop();
-    fb.f.pixel = if endless {
+    fb.pixel = if endless {
         vec![while_(l, bin(BinOp::Gt, x, fc(0.0)), vec![], 0), assign(&z, fc(0.25))]
     } else {
         vec![
@@ -37,7 +37,7 @@ fn counting(endless: bool) -> Function {
             assign(&z, bin(BinOp::Div, conv(i, Scalar::Float), fc(32.0))),
         ]
     };
-    fb.f
+    fb.finish()
 }
 
 /// The setup fuel of the runs (the setups here have no loops: it stays).

@@ -23,7 +23,7 @@ fn half_plane() -> Function {
     let a = fb.param("a", float(), ParamRole::PerPrimitive);
     let d = fb.param("d", Type::array(Elem::Interp, vec![3]), ParamRole::InterpData);
     let value = bin(BinOp::Mul, index(d, ic(0), 0), x.clone());
-    fb.f.pixel = vec![
+    fb.pixel = vec![
         if_(bin(BinOp::Gt, x, a), vec![ret()], vec![]),
         assign(&z, fc(0.5)),
         s(StmtKind::Interpolation {
@@ -34,7 +34,7 @@ fn half_plane() -> Function {
             }],
         }),
     ];
-    fb.f
+    fb.finish()
 }
 
 #[test]
@@ -86,7 +86,7 @@ fn varying_while_runs_each_lane_to_its_own_count() {
     let (x, _y, z) = fb.xyz();
     let i = fb.local("i", Type::int(), Varying);
     let l = fb.new_loop();
-    fb.f.pixel = vec![
+    fb.pixel = vec![
         assign(&i, ic(0)),
         while_(
             l,
@@ -96,7 +96,7 @@ fn varying_while_runs_each_lane_to_its_own_count() {
         ),
         assign(&z, bin(BinOp::Div, conv(i, Scalar::Float), fc(32.0))),
     ];
-    let mut jit = jit_for(vec![fb.f], 1);
+    let mut jit = jit_for(vec![fb.finish()], 1);
     let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
     let mut tile = Tile::new(0);
     let ctx = tile.render(&k, &[1]);
@@ -115,8 +115,8 @@ fn endless_varying_loop_runs_out_of_fuel() {
     let mut fb = Fb::new("forever", FuncKind::Primitive);
     let (x, _y, z) = fb.xyz();
     let l = fb.new_loop();
-    fb.f.pixel = vec![while_(l, bin(BinOp::Gt, x, fc(0.0)), vec![], 3), assign(&z, fc(0.25))];
-    let mut jit = jit_for(vec![fb.f], 4);
+    fb.pixel = vec![while_(l, bin(BinOp::Gt, x, fc(0.0)), vec![], 3), assign(&z, fc(0.25))];
+    let mut jit = jit_for(vec![fb.finish()], 4);
     let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
     let mut tile = Tile::new(0);
     tile.pixel_fuel = 0;
@@ -136,8 +136,8 @@ fn endless_varying_loop_runs_out_of_fuel() {
 fn endless_uniform_loop_in_setup_runs_out_of_fuel() {
     let mut fb = Fb::new("spin", FuncKind::Primitive);
     let l = fb.new_loop();
-    fb.f.setup = vec![while_(l, bc(true), vec![], 0)];
-    let mut jit = jit_for(vec![fb.f], 1);
+    fb.setup = vec![while_(l, bc(true), vec![], 0)];
+    let mut jit = jit_for(vec![fb.finish()], 1);
     let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
     let mut tile = Tile::new(0);
     let ctx = tile.run(&k, &[1], primflow::abi::MODE_RENDER, 50);
@@ -154,11 +154,11 @@ fn index_prim(varying_index: bool) -> Function {
     let arr_ty = Type::array(Elem::Scalar(Scalar::Float), vec![4]);
     let arr = fb.local("arr", arr_ty, Uniform);
     let idx = if varying_index { conv(x, Scalar::Int) } else { k };
-    fb.f.pixel = vec![
+    fb.pixel = vec![
         assign(&arr, list(vec![fc(1.0), fc(2.0), fc(3.0), fc(4.0)])),
         assign(&z, bin(BinOp::Div, index(arr, idx, 2), fc(8.0))),
     ];
-    fb.f
+    fb.finish()
 }
 
 #[test]
@@ -197,8 +197,8 @@ fn varying_scatter_into_local_array_respects_mask() {
     let arr = fb.local("arr", Type::array(Elem::Scalar(Scalar::Float), vec![4]), Varying);
     let xi = conv(x.clone(), Scalar::Int);
     let slot = bin(BinOp::Rem, xi, ic(4));
-    fb.f.pixel = vec![
-        assign(&arr, e(ExprKind::Splat(Box::new(fc(0.0))), arr.ty.clone(), Uniform)),
+    fb.pixel = vec![
+        assign(&arr, e(TreeKind::Splat(Box::new(fc(0.0))), arr.ty.clone(), Uniform)),
         // Only lanes with X < 8 write 1 into arr[X % 4].
         if_(
             bin(BinOp::Lt, x, fc(8.0)),
@@ -214,7 +214,7 @@ fn varying_scatter_into_local_array_respects_mask() {
             ),
         ),
     ];
-    let mut jit = jit_for(vec![fb.f], 3);
+    let mut jit = jit_for(vec![fb.finish()], 3);
     let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
     let mut tile = Tile::new(0);
     let ctx = tile.render(&k, &[1]);
@@ -229,9 +229,9 @@ fn varying_scatter_into_local_array_respects_mask() {
 fn bounded(b: [f32; 4]) -> Function {
     let mut fb = Fb::new("bounded", FuncKind::Primitive);
     let (_x, _y, z) = fb.xyz();
-    fb.f.setup = vec![bound([fc(b[0]), fc(b[1]), fc(b[2]), fc(b[3])])];
-    fb.f.pixel = vec![assign(&z, fc(0.5))];
-    fb.f
+    fb.setup = vec![bound([fc(b[0]), fc(b[1]), fc(b[2]), fc(b[3])])];
+    fb.pixel = vec![assign(&z, fc(0.5))];
+    fb.finish()
 }
 
 fn written(tile: &Tile) -> Vec<(usize, usize)> {
@@ -302,8 +302,8 @@ fn bound_mode_unions_bounds_and_ignores_nan() {
     // No bound statement: the whole viewport (64x32 in the test context).
     let mut fb = Fb::new("unbounded", FuncKind::Primitive);
     let (_x, _y, z) = fb.xyz();
-    fb.f.pixel = vec![assign(&z, fc(0.5))];
-    let mut jit = jit_for(vec![fb.f], 0);
+    fb.pixel = vec![assign(&z, fc(0.5))];
+    let mut jit = jit_for(vec![fb.finish()], 0);
     let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
     let ctx = tile.run(&k, &[1], MODE_BOUND, 100);
     assert_eq!((ctx.bound_set, ctx.bound), (1, [0.0, 0.0, 64.0, 32.0]));
@@ -314,12 +314,12 @@ fn count_writes_counts_lanes_that_assigned_z() {
     let mut fb = Fb::new("counted", FuncKind::Primitive);
     let (x, _y, z) = fb.xyz();
     // Z is assigned twice for X < 4, once for the rest, never for X > 12 (returned).
-    fb.f.pixel = vec![
+    fb.pixel = vec![
         if_(bin(BinOp::Gt, x.clone(), fc(12.0)), vec![ret()], vec![]),
         assign(&z, fc(0.25)),
         if_(bin(BinOp::Lt, x, fc(4.0)), vec![assign(&z, fc(0.75))], vec![]),
     ];
-    let mut jit = jit_for(vec![fb.f], 0);
+    let mut jit = jit_for(vec![fb.finish()], 0);
     let mut key = kind_key(&[]);
     key.count_writes = true;
     let k = jit.kernel(FuncId(0), &key).unwrap();
@@ -374,11 +374,11 @@ fn guarded_index_prim(varying_cond: bool) -> Function {
     } else {
         bin(BinOp::Lt, k.clone(), ic(4))
     };
-    fb.f.pixel = vec![
+    fb.pixel = vec![
         assign(&arr, list(vec![fc(1.0), fc(2.0), fc(3.0), fc(4.0)])),
         assign(&z, bin(BinOp::Div, select(cond, index(arr, k, 2), fc(0.5)), fc(8.0))),
     ];
-    fb.f
+    fb.finish()
 }
 
 #[test]
@@ -414,11 +414,11 @@ fn short_circuit_prim(or: bool) -> Function {
     } else {
         bin(BinOp::And, bin(BinOp::Lt, k, ic(4)), bin(BinOp::Gt, read, fc(2.0)))
     };
-    fb.f.pixel = vec![
+    fb.pixel = vec![
         assign(&arr, list(vec![fc(1.0), fc(2.0), fc(3.0), fc(4.0)])),
         assign(&z, bin(BinOp::Div, select(cond, fc(1.0), fc(2.0)), fc(8.0))),
     ];
-    fb.f
+    fb.finish()
 }
 
 #[test]

@@ -40,14 +40,14 @@ fn ramp() -> Function {
     let b = fb.param("b", float(), ParamRole::PerPrimitive);
     let c = fb.param("c", float(), ParamRole::PerPrimitive);
     let k = fb.param("k", Type::int(), ParamRole::PerPrimitive);
-    let bnd: Vec<Expr> = ["bx0", "by0", "bx1", "by1"]
+    let bnd: Vec<Tree> = ["bx0", "by0", "bx1", "by1"]
         .iter()
         .map(|n| fb.param(n, float(), ParamRole::PerPrimitive))
         .collect();
     let d = fb.param("d", Type::array(Elem::Interp, vec![3]), ParamRole::InterpData);
     let bb = fb.local("bb", float(), Uniform);
     let dx = fb.local("dx", float(), Varying);
-    fb.f.setup = vec![
+    fb.setup = vec![
         bound([bnd[0].clone(), bnd[1].clone(), bnd[2].clone(), bnd[3].clone()]),
         assign(&bb, bin(BinOp::Mul, b, fc(2.0))),
     ];
@@ -74,7 +74,7 @@ fn ramp() -> Function {
         ),
         bin(BinOp::Mul, index(d, ic(1), 1), y),
     );
-    fb.f.pixel = vec![
+    fb.pixel = vec![
         assign(&dx, bin(BinOp::Sub, x, bin(BinOp::Add, cx, fc(0.25)))),
         if_(
             bin(BinOp::Gt, bin(BinOp::Mul, dx.clone(), dx.clone()), r2),
@@ -90,7 +90,7 @@ fn ramp() -> Function {
             }],
         }),
     ];
-    fb.f
+    fb.finish()
 }
 
 struct Case {
@@ -222,15 +222,15 @@ fn split() -> Function {
     let flag = fb.param("flag", Type::bool(), ParamRole::PerPrimitive);
     let k = fb.param("k", Type::int(), ParamRole::PerPrimitive);
     let lo = fb.param("lo", float(), ParamRole::PerPrimitive);
-    let bnd: Vec<Expr> = ["bx0", "by0", "bx1", "by1"]
+    let bnd: Vec<Tree> = ["bx0", "by0", "bx1", "by1"]
         .iter()
         .map(|n| fb.param(n, float(), ParamRole::PerPrimitive))
         .collect();
     let sy = fb.local("sy", Type::int(), Varying);
     let fy = fb.local("fy", float(), Varying);
-    fb.f.setup = vec![bound([bnd[0].clone(), bnd[1].clone(), bnd[2].clone(), bnd[3].clone()])];
+    fb.setup = vec![bound([bnd[0].clone(), bnd[1].clone(), bnd[2].clone(), bnd[3].clone()])];
     let int_line = bin(BinOp::Add, bin(BinOp::Mul, sy.clone(), k), conv(x.clone(), Scalar::Int));
-    fb.f.pixel = vec![
+    fb.pixel = vec![
         if_(
             flag,
             vec![
@@ -247,7 +247,7 @@ fn split() -> Function {
             bin(BinOp::Add, bin(BinOp::Mul, x, fc(0.001)), bin(BinOp::Mul, y, fc(0.002))),
         ),
     ];
-    fb.f
+    fb.finish()
 }
 
 /// Renders `split` on a TW x TH tile at (x0, y0) and compares every pixel's depth with the

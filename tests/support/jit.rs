@@ -8,6 +8,8 @@ use primflow::abi::{
     MODE_RENDER,
 };
 use primflow::diag::Span;
+use primflow::ir::tree::intern_body;
+pub use primflow::ir::tree::{Tree, TreeKind};
 use primflow::ir::*;
 
 pub const W: usize = 16;
@@ -20,9 +22,12 @@ pub fn fixed(bits: u8, frac: u8) -> Type {
     Type::scalar(Scalar::Fixed(FixedFormat { bits, frac }))
 }
 
-/// A function under construction.
+/// A function under construction: its parameters, locals and loops in `f`, its body as
+/// trees in `setup` and `pixel` until [`Fb::finish`] moves them into `f`'s arena.
 pub struct Fb {
     pub f: Function,
+    pub setup: Vec<Stmt<Tree>>,
+    pub pixel: Vec<Stmt<Tree>>,
 }
 
 impl Fb {
@@ -37,10 +42,18 @@ impl Fb {
                 setup: vec![],
                 pixel: vec![],
                 loops: 0,
-                exprs: 0,
+                exprs: Exprs::new(),
                 uses_spaces: false,
             },
+            setup: vec![],
+            pixel: vec![],
         }
+    }
+    /// The function, its body in its arena (numbered as the checker numbers it).
+    pub fn finish(self) -> Function {
+        let mut f = self.f;
+        (f.setup, f.pixel, f.exprs) = intern_body(self.setup, self.pixel);
+        f
     }
     fn add_local(&mut self, name: &str, ty: Type, var: Variability, kind: LocalKind) -> LocalId {
         self.f.locals.push(Local {
@@ -53,7 +66,7 @@ impl Fb {
         LocalId(self.f.locals.len() as u32 - 1)
     }
     /// Parameters must be added before locals (parameter i is LocalId(i)).
-    pub fn param(&mut self, name: &str, ty: Type, role: ParamRole) -> Expr {
+    pub fn param(&mut self, name: &str, ty: Type, role: ParamRole) -> Tree {
         let var = match role {
             ParamRole::X | ParamRole::Y | ParamRole::Z => Variability::Varying,
             _ => Variability::Uniform,
@@ -71,14 +84,14 @@ impl Fb {
         local(id, ty, var)
     }
     /// The X, Y, Z parameters as floats.
-    pub fn xyz(&mut self) -> (Expr, Expr, Expr) {
+    pub fn xyz(&mut self) -> (Tree, Tree, Tree) {
         (
             self.param("X", float(), ParamRole::X),
             self.param("Y", float(), ParamRole::Y),
             self.param("Z", float(), ParamRole::Z),
         )
     }
-    pub fn local(&mut self, name: &str, ty: Type, var: Variability) -> Expr {
+    pub fn local(&mut self, name: &str, ty: Type, var: Variability) -> Tree {
         let id = self.add_local(name, ty.clone(), var, LocalKind::Var);
         local(id, ty, var)
     }
@@ -88,28 +101,28 @@ impl Fb {
     }
 }
 
-pub fn e(kind: ExprKind, ty: Type, var: Variability) -> Expr {
-    Expr::new(kind, ty, var, Span::default())
+pub fn e(kind: TreeKind, ty: Type, var: Variability) -> Tree {
+    Tree::new(kind, ty, var, Span::default())
 }
-pub fn s(kind: StmtKind) -> Stmt {
+pub fn s(kind: StmtKind<Tree>) -> Stmt<Tree> {
     Stmt {
         kind,
         span: Span::default(),
     }
 }
-pub fn local(id: LocalId, ty: Type, var: Variability) -> Expr {
-    e(ExprKind::Local(id), ty, var)
+pub fn local(id: LocalId, ty: Type, var: Variability) -> Tree {
+    e(TreeKind::Local(id), ty, var)
 }
-pub fn fc(x: f32) -> Expr {
-    e(ExprKind::Const(ConstValue::Float(x)), float(), Variability::Uniform)
+pub fn fc(x: f32) -> Tree {
+    e(TreeKind::Const(ConstValue::Float(x)), float(), Variability::Uniform)
 }
-pub fn ic(i: i32) -> Expr {
-    e(ExprKind::Const(ConstValue::Int(i)), Type::int(), Variability::Uniform)
+pub fn ic(i: i32) -> Tree {
+    e(TreeKind::Const(ConstValue::Int(i)), Type::int(), Variability::Uniform)
 }
-pub fn bc(b: bool) -> Expr {
-    e(ExprKind::Const(ConstValue::Bool(b)), Type::bool(), Variability::Uniform)
+pub fn bc(b: bool) -> Tree {
+    e(TreeKind::Const(ConstValue::Bool(b)), Type::bool(), Variability::Uniform)
 }
-pub fn bin(op: BinOp, a: Expr, b: Expr) -> Expr {
+pub fn bin(op: BinOp, a: Tree, b: Tree) -> Tree {
     let var = a.var.join(b.var);
     let shape = if a.ty.dims.is_empty() && a.ty.elem != Elem::Interp {
         b.ty.clone()
@@ -124,7 +137,7 @@ pub fn bin(op: BinOp, a: Expr, b: Expr) -> Expr {
         _ => shape,
     };
     e(
-        ExprKind::Binary {
+        TreeKind::Binary {
             op,
             lhs: Box::new(a),
             rhs: Box::new(b),
@@ -133,19 +146,19 @@ pub fn bin(op: BinOp, a: Expr, b: Expr) -> Expr {
         var,
     )
 }
-pub fn conv(x: Expr, to: Scalar) -> Expr {
+pub fn conv(x: Tree, to: Scalar) -> Tree {
     let ty = Type {
         elem: Elem::Scalar(to),
         ..x.ty.clone()
     };
     let var = x.var;
-    e(ExprKind::Convert(Box::new(x)), ty, var)
+    e(TreeKind::Convert(Box::new(x)), ty, var)
 }
-pub fn index(base: Expr, i: Expr, site: u32) -> Expr {
+pub fn index(base: Tree, i: Tree, site: u32) -> Tree {
     let ty = base.ty.element();
     let var = base.var.join(i.var);
     e(
-        ExprKind::Index {
+        TreeKind::Index {
             base: Box::new(base),
             index: Box::new(i),
             site: SiteId(site),
@@ -154,18 +167,18 @@ pub fn index(base: Expr, i: Expr, site: u32) -> Expr {
         var,
     )
 }
-pub fn list(items: Vec<Expr>) -> Expr {
+pub fn list(items: Vec<Tree>) -> Tree {
     let var = items.iter().fold(Variability::Uniform, |v, i| v.join(i.var));
     let mut dims = vec![items.len() as u32];
     dims.extend(items[0].ty.dims.clone());
     let ty = Type::array(items[0].ty.elem, dims);
-    e(ExprKind::List(items), ty, var)
+    e(TreeKind::List(items), ty, var)
 }
-pub fn select(c: Expr, a: Expr, b: Expr) -> Expr {
+pub fn select(c: Tree, a: Tree, b: Tree) -> Tree {
     let var = c.var.join(a.var).join(b.var);
     let ty = a.ty.clone();
     e(
-        ExprKind::Select {
+        TreeKind::Select {
             cond: Box::new(c),
             then: Box::new(a),
             otherwise: Box::new(b),
@@ -174,8 +187,8 @@ pub fn select(c: Expr, a: Expr, b: Expr) -> Expr {
         var,
     )
 }
-pub fn assign(target: &Expr, value: Expr) -> Stmt {
-    let ExprKind::Local(l) = target.kind else {
+pub fn assign(target: &Tree, value: Tree) -> Stmt<Tree> {
+    let TreeKind::Local(l) = target.kind else {
         panic!("assign to a local")
     };
     s(StmtKind::Assign {
@@ -187,8 +200,8 @@ pub fn assign(target: &Expr, value: Expr) -> Stmt {
         value,
     })
 }
-pub fn assign_at(target: &Expr, i: Expr, site: u32, value: Expr) -> Stmt {
-    let ExprKind::Local(l) = target.kind else {
+pub fn assign_at(target: &Tree, i: Tree, site: u32, value: Tree) -> Stmt<Tree> {
+    let TreeKind::Local(l) = target.kind else {
         panic!("assign to a local")
     };
     s(StmtKind::Assign {
@@ -200,10 +213,10 @@ pub fn assign_at(target: &Expr, i: Expr, site: u32, value: Expr) -> Stmt {
         value,
     })
 }
-pub fn if_(cond: Expr, then: Vec<Stmt>, otherwise: Vec<Stmt>) -> Stmt {
+pub fn if_(cond: Tree, then: Vec<Stmt<Tree>>, otherwise: Vec<Stmt<Tree>>) -> Stmt<Tree> {
     s(StmtKind::If { cond, then, otherwise })
 }
-pub fn while_(id: LoopId, cond: Expr, body: Vec<Stmt>, site: u32) -> Stmt {
+pub fn while_(id: LoopId, cond: Tree, body: Vec<Stmt<Tree>>, site: u32) -> Stmt<Tree> {
     let varying = cond.var.is_varying();
     s(StmtKind::Loop {
         id,
@@ -214,15 +227,15 @@ pub fn while_(id: LoopId, cond: Expr, body: Vec<Stmt>, site: u32) -> Stmt {
         site: SiteId(site),
     })
 }
-pub fn ret() -> Stmt {
+pub fn ret() -> Stmt<Tree> {
     s(StmtKind::Return)
 }
-pub fn interp_return(x: Expr) -> Stmt {
+pub fn interp_return(x: Tree) -> Stmt<Tree> {
     s(StmtKind::InterpolatorReturn(Some(x)))
 }
 /// `interpolation { kind: body }`: one named arm (`interpolator_return(e)` of a primitive
 /// stands in one, see `primflow::ir::valid`).
-pub fn arm(kind: &str, body: Vec<Stmt>) -> Stmt {
+pub fn arm(kind: &str, body: Vec<Stmt<Tree>>) -> Stmt<Tree> {
     s(StmtKind::Interpolation {
         arms: vec![InterpArm {
             kind: ArmKind::Named(kind.into()),
@@ -231,13 +244,12 @@ pub fn arm(kind: &str, body: Vec<Stmt>) -> Stmt {
         }],
     })
 }
-pub fn bound(r: [Expr; 4]) -> Stmt {
-    s(StmtKind::Bound(Box::new(r)))
+pub fn bound(r: [Tree; 4]) -> Stmt<Tree> {
+    s(StmtKind::Bound(r))
 }
 
-/// The program of `funcs`, their expressions numbered.
-pub fn program(mut funcs: Vec<Function>, sites: usize) -> Program {
-    funcs.iter_mut().for_each(number::renumber);
+/// The program of `funcs` (each [`Fb::finish`]ed: its expressions numbered).
+pub fn program(funcs: Vec<Function>, sites: usize) -> Program {
     Program {
         functions: funcs,
         sites: vec![Span::default(); sites],

@@ -19,8 +19,8 @@ use primflow::abi::{ArgLayout, ErrorSlot, KernelFn, TileCtx, VariantKey, ERR_IND
 use primflow::abi::{Kernel, KernelError};
 use primflow::diag::{SourceMap, Span};
 use primflow::ir::{
-    ConstValue, Elem, FixedFormat, FuncId, FuncKind, Function, Local, LocalId, LocalKind, Param, ParamRole, ParamSpace,
-    Program, Scalar, SiteId, Type, Variability,
+    ConstValue, Elem, Exprs, FixedFormat, FuncId, FuncKind, Function, Local, LocalId, LocalKind, Param, ParamRole,
+    ParamSpace, Program, Scalar, SiteId, Type, Variability,
 };
 use primflow::runtime::{KernelSource, Renderer};
 
@@ -49,7 +49,7 @@ impl FnBuilder {
                 setup: vec![],
                 pixel: vec![],
                 loops: 0,
-                exprs: 0,
+                exprs: Exprs::new(),
                 uses_spaces: false,
             },
         }

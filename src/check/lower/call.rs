@@ -8,7 +8,8 @@
 //! [`crate::limits::MAX_CALL_DEPTH`] (E0110).
 
 use crate::diag::Span;
-use crate::ir::{ConstValue, Expr, FuncKind, LocalId, LocalKind, ParamRole, Place, Scalar, Stmt, StmtKind};
+use crate::ir::tree::Tree;
+use crate::ir::{ConstValue, FuncKind, LocalId, LocalKind, ParamRole, Place, Scalar, Stmt, StmtKind};
 use crate::syntax::ast;
 
 use super::super::types::{self, type_name};
@@ -24,8 +25,8 @@ impl<'g, 'a> FnLower<'g, 'a> {
         callee: &ast::Ident,
         args: &[ast::Expr],
         span: Span,
-        pre: &mut Vec<Stmt>,
-    ) -> Option<Stmt> {
+        pre: &mut Vec<Stmt<Tree>>,
+    ) -> Option<Stmt<Tree>> {
         let sig: &Signature = &self.g.sigs[idx];
         if self.kind != FuncKind::Primitive || self.in_helper() {
             let where_ = if self.in_helper() {
@@ -273,9 +274,9 @@ impl<'g, 'a> FnLower<'g, 'a> {
         callee: &ast::Ident,
         args: &[ast::Expr],
         span: Span,
-        pre: &mut Vec<Stmt>,
+        pre: &mut Vec<Stmt<Tree>>,
         as_statement: bool,
-    ) -> Option<Expr> {
+    ) -> Option<Tree> {
         if !self.may_inline(idx, callee, args, span, as_statement) {
             return None;
         }
@@ -373,7 +374,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
     /// element each way: nurb_surface's de Boor weights and points). Not when the parameter
     /// or the variable declares its variability: the copies are where those rules are
     /// checked, and where their errors point.
-    pub(super) fn inout_alias(&self, p: &SigParam, place: &Place, args: &[ast::Expr], i: usize) -> bool {
+    pub(super) fn inout_alias(&self, p: &SigParam, place: &Place<Tree>, args: &[ast::Expr], i: usize) -> bool {
         let ast::ExprKind::Name(id) = &args[i].kind else {
             return false;
         };
@@ -390,7 +391,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         idx: usize,
         param_locals: &[LocalId],
         span: Span,
-        pre: &mut Vec<Stmt>,
+        pre: &mut Vec<Stmt<Tree>>,
     ) -> Option<LocalId> {
         let g = self.g;
         let sig = &g.sigs[idx];

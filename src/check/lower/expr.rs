@@ -6,7 +6,8 @@
 //! gives one diagnostic.
 
 use crate::diag::Span;
-use crate::ir::{self, BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, Scalar, Space, Stmt, Type};
+use crate::ir::tree::{Tree, TreeKind};
+use crate::ir::{self, BinOp, Builtin, ConstValue, Elem, Scalar, Space, Stmt, Type};
 use crate::syntax::ast;
 
 use super::super::types::{self, convert, scalar_of, type_name};
@@ -16,7 +17,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
     // ---- expressions ------------------------------------------------------------------
 
     /// Lower `e` and convert it to `ty` (a `{...}` list is lowered against `ty` directly).
-    pub fn expr_to(&mut self, e: &ast::Expr, ty: &Type, pre: &mut Vec<Stmt>) -> Option<Expr> {
+    pub fn expr_to(&mut self, e: &ast::Expr, ty: &Type, pre: &mut Vec<Stmt<Tree>>) -> Option<Tree> {
         if let ast::ExprKind::List(items) = &e.kind {
             if !ty.dims.is_empty() && !ty.per_seq {
                 if items.len() != ty.dims[0] as usize {
@@ -34,7 +35,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                     out.push(self.expr_to(it, &et, pre));
                 }
                 let out: Option<Vec<_>> = out.into_iter().collect();
-                return Some(mk(ExprKind::List(out?), ty.clone(), e.span));
+                return Some(mk(TreeKind::List(out?), ty.clone(), e.span));
             }
         }
         let v = self.expr(e, pre)?;
@@ -43,11 +44,11 @@ impl<'g, 'a> FnLower<'g, 'a> {
 
     /// Convert a value to `ty` for assignment: numbers convert, bool only from bool, a
     /// scalar broadcasts over an aggregate, shapes must otherwise match.
-    pub(super) fn coerce(&mut self, v: Expr, ty: &Type, span: Span) -> Option<Expr> {
+    pub(super) fn coerce(&mut self, v: Tree, ty: &Type, span: Span) -> Option<Tree> {
         if v.ty == *ty {
             return Some(v);
         }
-        let mismatch = |this: &mut Self, v: &Expr| {
+        let mismatch = |this: &mut Self, v: &Tree| {
             this.sink.push(err(
                 "E0205",
                 format!("expected {}, found {}", type_name(ty), type_name(&v.ty)),
@@ -86,7 +87,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
     }
 
-    pub fn expr(&mut self, e: &ast::Expr, pre: &mut Vec<Stmt>) -> Option<Expr> {
+    pub fn expr(&mut self, e: &ast::Expr, pre: &mut Vec<Stmt<Tree>>) -> Option<Tree> {
         if !self.enter(1, e.span) {
             return None;
         }
@@ -95,7 +96,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         v
     }
 
-    pub(super) fn expr_nested(&mut self, e: &ast::Expr, pre: &mut Vec<Stmt>) -> Option<Expr> {
+    pub(super) fn expr_nested(&mut self, e: &ast::Expr, pre: &mut Vec<Stmt<Tree>>) -> Option<Tree> {
         use ast::ExprKind as K;
         let span = e.span;
         match &e.kind {
@@ -141,7 +142,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 let (t, o) = self.unify(t, o, span)?;
                 let ty = t.ty.clone();
                 Some(mk(
-                    ExprKind::Select {
+                    TreeKind::Select {
                         cond: Box::new(c),
                         then: Box::new(t),
                         otherwise: Box::new(o),
@@ -158,7 +159,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 let site = self.new_site(index.span);
                 let ty = b.ty.element();
                 Some(mk(
-                    ExprKind::Index {
+                    TreeKind::Index {
                         base: Box::new(b),
                         index: Box::new(i),
                         site,
@@ -172,14 +173,14 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 for it in items {
                     vals.push(self.expr(it, pre));
                 }
-                let vals: Vec<Expr> = vals.into_iter().collect::<Option<_>>()?;
+                let vals: Vec<Tree> = vals.into_iter().collect::<Option<_>>()?;
                 self.list(vals, span)
             }
         }
     }
 
     /// A name as a value: a local, `PI`, or an error naming what it is instead.
-    fn name(&mut self, id: &ast::Ident, span: Span) -> Option<Expr> {
+    fn name(&mut self, id: &ast::Ident, span: Span) -> Option<Tree> {
         if let Some(l) = self.lookup(&id.name) {
             return Some(self.local_expr(l, span));
         }
@@ -209,7 +210,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
     }
 
     /// `-v` (a constant folded) or `!v`.
-    fn unary(&mut self, op: ast::UnaryOp, expr: &ast::Expr, span: Span, pre: &mut Vec<Stmt>) -> Option<Expr> {
+    fn unary(&mut self, op: ast::UnaryOp, expr: &ast::Expr, span: Span, pre: &mut Vec<Stmt<Tree>>) -> Option<Tree> {
         let v = self.expr(expr, pre)?;
         match op {
             ast::UnaryOp::Neg => {
@@ -218,14 +219,14 @@ impl<'g, 'a> FnLower<'g, 'a> {
                         .push(err("E0203", "cannot negate a bool", span, "use `!` for bools"));
                     return None;
                 }
-                if let (ExprKind::Const(c), Some(s)) = (&v.kind, scalar_of(&v.ty)) {
+                if let (TreeKind::Const(c), Some(s)) = (&v.kind, scalar_of(&v.ty)) {
                     if let Some(n) = negate_const(*c, s) {
                         return Some(types::const_expr(n, s, span));
                     }
                 }
                 let ty = v.ty.clone();
                 Some(mk(
-                    ExprKind::Unary {
+                    TreeKind::Unary {
                         op: ir::UnaryOp::Neg,
                         expr: Box::new(v),
                     },
@@ -244,7 +245,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                     return None;
                 }
                 Some(mk(
-                    ExprKind::Unary {
+                    TreeKind::Unary {
                         op: ir::UnaryOp::Not,
                         expr: Box::new(v),
                     },
@@ -256,7 +257,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
     }
 
     /// The index of `base[index]`: an int, and in range when both are constant.
-    pub(super) fn index_value(&mut self, base: &Type, index: &ast::Expr, pre: &mut Vec<Stmt>) -> Option<Expr> {
+    pub(super) fn index_value(&mut self, base: &Type, index: &ast::Expr, pre: &mut Vec<Stmt<Tree>>) -> Option<Tree> {
         if base.dims.is_empty() && !base.per_seq {
             self.sink.push(err(
                 "E0206",
@@ -279,7 +280,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
             );
             return None;
         }
-        if let (ExprKind::Const(ConstValue::Int(k)), false) = (&i.kind, base.per_seq) {
+        if let (TreeKind::Const(ConstValue::Int(k)), false) = (&i.kind, base.per_seq) {
             let n = base.dims[0];
             if *k < 0 || *k as u32 >= n {
                 self.sink.push(err(
@@ -295,7 +296,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
     }
 
     /// Infer the type of a `{...}` list from its elements.
-    pub(super) fn list(&mut self, vals: Vec<Expr>, span: Span) -> Option<Expr> {
+    pub(super) fn list(&mut self, vals: Vec<Tree>, span: Span) -> Option<Tree> {
         let Some(first) = vals.first() else {
             self.sink
                 .push(err("E0213", "empty list", span, "a list needs at least one element"));
@@ -346,12 +347,12 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
         let mut all = vec![out.len() as u32];
         all.extend(dims);
-        Some(mk(ExprKind::List(out), Type::array(elem, all), span))
+        Some(mk(TreeKind::List(out), Type::array(elem, all), span))
     }
 
     /// Bring two values to one type (for `?:`): numbers to their common scalar, a scalar
     /// broadcast to the other side's shape.
-    pub(super) fn unify(&mut self, a: Expr, b: Expr, span: Span) -> Option<(Expr, Expr)> {
+    pub(super) fn unify(&mut self, a: Tree, b: Tree, span: Span) -> Option<(Tree, Tree)> {
         if a.ty == b.ty {
             return Some((a, b));
         }
@@ -383,7 +384,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
     }
 
     /// Type a binary operation (see the module docs of [`super::types`]).
-    pub fn binary(&mut self, op: ast::BinOp, l: Expr, r: Expr, span: Span) -> Option<Expr> {
+    pub fn binary(&mut self, op: ast::BinOp, l: Tree, r: Tree, span: Span) -> Option<Tree> {
         use ast::BinOp as B;
         let iop = op;
         if l.ty.per_seq || r.ty.per_seq {
@@ -452,14 +453,14 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
     }
 
-    pub(super) fn arith(&mut self, op: ast::BinOp, iop: BinOp, l: Expr, r: Expr, span: Span) -> Option<Expr> {
+    pub(super) fn arith(&mut self, op: ast::BinOp, iop: BinOp, l: Tree, r: Tree, span: Span) -> Option<Tree> {
         // Interpolation data: with itself, or with a number (taken as float).
         if l.ty.elem == Elem::Interp || r.ty.elem == Elem::Interp {
-            let ok_other = |e: &Expr| {
+            let ok_other = |e: &Tree| {
                 e.ty.elem == Elem::Interp || (e.ty.dims.is_empty() && scalar_of(&e.ty).is_some_and(types::is_number))
             };
             let same_or_scalar = l.ty.dims == r.ty.dims || l.ty.dims.is_empty() || r.ty.dims.is_empty();
-            let interp_scalar_side = |e: &Expr| e.ty.elem == Elem::Interp || e.ty.dims.is_empty();
+            let interp_scalar_side = |e: &Tree| e.ty.elem == Elem::Interp || e.ty.dims.is_empty();
             if !(ok_other(&l) && ok_other(&r) && same_or_scalar && interp_scalar_side(&l) && interp_scalar_side(&r)) {
                 self.sink.push(
                     err(
@@ -517,7 +518,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
             let mut dims = vec![n];
             dims.extend(r.ty.dims.get(1).copied());
             return Some(mk(
-                ExprKind::MatMul {
+                TreeKind::MatMul {
                     lhs: Box::new(convert(l, Scalar::Float)),
                     rhs: Box::new(convert(r, Scalar::Float)),
                 },
@@ -552,8 +553,8 @@ impl<'g, 'a> FnLower<'g, 'a> {
         callee: &ast::Ident,
         args: &[ast::Expr],
         span: Span,
-        pre: &mut Vec<Stmt>,
-    ) -> Option<Expr> {
+        pre: &mut Vec<Stmt<Tree>>,
+    ) -> Option<Tree> {
         if let Some(&idx) = self.g.by_name.get(&callee.name) {
             let sig = &self.g.sigs[idx];
             return match sig.item.kind {
@@ -596,7 +597,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                     ));
                     return None;
                 }
-                return Some(mk(ExprKind::ClipFlag, Type::bool(), span));
+                return Some(mk(TreeKind::ClipFlag, Type::bool(), span));
             }
             "len" => {
                 if args.len() != 1 {
@@ -610,7 +611,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 }
                 let a = self.expr(&args[0], pre)?;
                 if a.ty.per_seq {
-                    return Some(mk(ExprKind::SeqCount, Type::int(), span));
+                    return Some(mk(TreeKind::SeqCount, Type::int(), span));
                 }
                 let Some(&n) = a.ty.dims.first() else {
                     self.sink.push(err(
@@ -629,7 +630,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         for a in args {
             vals.push(self.expr(a, pre));
         }
-        let vals: Vec<Expr> = vals.into_iter().collect::<Option<_>>()?;
+        let vals: Vec<Tree> = vals.into_iter().collect::<Option<_>>()?;
         match super::super::builtins::lower(&callee.name, vals, span) {
             Ok(Some(e)) => Some(e),
             Ok(None) => {
@@ -653,8 +654,8 @@ impl<'g, 'a> FnLower<'g, 'a> {
         callee: &ast::Ident,
         args: &[ast::Expr],
         span: Span,
-        pre: &mut Vec<Stmt>,
-    ) -> Option<Expr> {
+        pre: &mut Vec<Stmt<Tree>>,
+    ) -> Option<Tree> {
         if args.len() != 3 {
             self.sink.push(err(
                 "E0210",
@@ -709,7 +710,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         self.uses_spaces = true;
         let v = convert(v, Scalar::Float);
         let ty = v.ty.clone();
-        Some(mk(ExprKind::Builtin { func, args: vec![v] }, ty, span))
+        Some(mk(TreeKind::Builtin { func, args: vec![v] }, ty, span))
     }
 
     pub(super) fn construct(
@@ -717,14 +718,14 @@ impl<'g, 'a> FnLower<'g, 'a> {
         ty: &ast::TypeExpr,
         args: &[ast::Expr],
         span: Span,
-        pre: &mut Vec<Stmt>,
-    ) -> Option<Expr> {
+        pre: &mut Vec<Stmt<Tree>>,
+    ) -> Option<Tree> {
         use ast::TypeKind as K;
         let mut vals = vec![];
         for a in args {
             vals.push(self.expr(a, pre));
         }
-        let vals: Vec<Expr> = vals.into_iter().collect::<Option<_>>()?;
+        let vals: Vec<Tree> = vals.into_iter().collect::<Option<_>>()?;
         let arity = |this: &mut Self, what: &str, want: &str| {
             this.sink.push(err(
                 "E0214",
@@ -734,7 +735,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
             ));
             None
         };
-        let float_scalars = |this: &mut Self, vals: Vec<Expr>| -> Option<Vec<Expr>> {
+        let float_scalars = |this: &mut Self, vals: Vec<Tree>| -> Option<Vec<Tree>> {
             let mut out = vec![];
             for v in vals {
                 if !v.ty.dims.is_empty() || v.ty.per_seq || !scalar_of(&v.ty).is_some_and(types::is_number) {
@@ -750,9 +751,9 @@ impl<'g, 'a> FnLower<'g, 'a> {
             }
             Some(out)
         };
-        let list = |items: Vec<Expr>, dims: Vec<u32>| {
+        let list = |items: Vec<Tree>, dims: Vec<u32>| {
             mk(
-                ExprKind::List(items),
+                TreeKind::List(items),
                 Type::array(Elem::Scalar(Scalar::Float), dims),
                 span,
             )
@@ -815,7 +816,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                         let one = convert(types::const_expr(ConstValue::Int(1), Scalar::Int, span), t);
                         let zero = convert(types::const_expr(ConstValue::Int(0), Scalar::Int, span), t);
                         Some(mk(
-                            ExprKind::Select {
+                            TreeKind::Select {
                                 cond: Box::new(v),
                                 then: Box::new(one),
                                 otherwise: Box::new(zero),

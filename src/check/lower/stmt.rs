@@ -6,10 +6,8 @@
 //! inside an inlined helper assigns the helper's result and breaks its one-trip loop.
 
 use crate::diag::{Diagnostic, Span};
-use crate::ir::{
-    self, ArmKind, ConstValue, Elem, Expr, ExprKind, FuncKind, InterpArm, LocalKind, Place, Scalar, Stmt, StmtKind,
-    Type,
-};
+use crate::ir::tree::{Tree, TreeKind};
+use crate::ir::{self, ArmKind, ConstValue, Elem, FuncKind, InterpArm, LocalKind, Place, Scalar, Stmt, StmtKind, Type};
 use crate::syntax::ast;
 
 use super::super::types::{self, convert, type_name};
@@ -19,7 +17,7 @@ use super::*;
 impl<'g, 'a> FnLower<'g, 'a> {
     // ---- blocks and statements ---------------------------------------------------------
 
-    pub fn block(&mut self, stmts: &[ast::Stmt], out: &mut Vec<Stmt>) {
+    pub fn block(&mut self, stmts: &[ast::Stmt], out: &mut Vec<Stmt<Tree>>) {
         self.scopes.push(FxHashMap::default());
         self.stmts_in_scope(stmts, out);
         self.scopes.pop();
@@ -27,20 +25,20 @@ impl<'g, 'a> FnLower<'g, 'a> {
 
     /// Lower statements in the current scope (a function body shares its parameters'
     /// scope, so redeclaring a parameter there is an error).
-    pub fn stmts_in_scope(&mut self, stmts: &[ast::Stmt], out: &mut Vec<Stmt>) {
+    pub fn stmts_in_scope(&mut self, stmts: &[ast::Stmt], out: &mut Vec<Stmt<Tree>>) {
         for s in stmts {
             self.stmt(s, out);
         }
     }
 
-    pub(super) fn stmt(&mut self, s: &ast::Stmt, out: &mut Vec<Stmt>) {
+    pub(super) fn stmt(&mut self, s: &ast::Stmt, out: &mut Vec<Stmt<Tree>>) {
         if self.enter(1, s.span) {
             self.stmt_nested(s, out);
             self.leave(1);
         }
     }
 
-    pub(super) fn stmt_nested(&mut self, s: &ast::Stmt, out: &mut Vec<Stmt>) {
+    pub(super) fn stmt_nested(&mut self, s: &ast::Stmt, out: &mut Vec<Stmt<Tree>>) {
         use ast::StmtKind as K;
         match &s.kind {
             K::Error => {}
@@ -121,7 +119,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         quals: &ast::Qualifiers,
         ty: &ast::TypeExpr,
         vars: &[ast::DeclVar],
-        out: &mut Vec<Stmt>,
+        out: &mut Vec<Stmt<Tree>>,
     ) {
         if let Some(sp) = quals.inout {
             self.sink.push(err(
@@ -177,7 +175,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
     }
 
     /// The zero value of a type (interpolation data: a float 0 broadcast).
-    pub(super) fn zero(&mut self, ty: &Type, span: Span) -> Expr {
+    pub(super) fn zero(&mut self, ty: &Type, span: Span) -> Tree {
         let scalar = match ty.elem {
             Elem::Scalar(s) => types::const_expr(types::zero_const(s), s, span),
             Elem::Interp => to_interp(types::const_expr(ConstValue::Float(0.0), Scalar::Float, span)),
@@ -191,8 +189,8 @@ impl<'g, 'a> FnLower<'g, 'a> {
         op: ast::AssignOp,
         value: &ast::Expr,
         span: Span,
-        pre: &mut Vec<Stmt>,
-    ) -> Option<Stmt> {
+        pre: &mut Vec<Stmt<Tree>>,
+    ) -> Option<Stmt<Tree>> {
         let (place, pty) = self.place(target, pre)?;
         let v = match op {
             ast::AssignOp::Set => self.expr_to(value, &pty, pre)?,
@@ -213,7 +211,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
     }
 
     /// Lower an assignment target. Parameters other than Z are read-only.
-    pub(super) fn place(&mut self, e: &ast::Expr, pre: &mut Vec<Stmt>) -> Option<(Place, Type)> {
+    pub(super) fn place(&mut self, e: &ast::Expr, pre: &mut Vec<Stmt<Tree>>) -> Option<(Place<Tree>, Type)> {
         match &e.kind {
             ast::ExprKind::Name(id) => {
                 let Some(local) = self.lookup(&id.name) else {
@@ -270,12 +268,12 @@ impl<'g, 'a> FnLower<'g, 'a> {
     }
 
     /// Read the current value of a place (for compound assignment and inout write-back).
-    pub(super) fn place_expr(&self, place: &Place, _ty: &Type) -> Expr {
+    pub(super) fn place_expr(&self, place: &Place<Tree>, _ty: &Type) -> Tree {
         let mut e = self.local_expr(place.local, place.span);
         for (idx, site) in &place.indices {
             let ty = e.ty.element();
             e = mk(
-                ExprKind::Index {
+                TreeKind::Index {
                     base: Box::new(e),
                     index: Box::new(idx.clone()),
                     site: *site,
@@ -287,7 +285,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         e
     }
 
-    pub(super) fn expr_stmt(&mut self, e: &ast::Expr, span: Span, out: &mut Vec<Stmt>) {
+    pub(super) fn expr_stmt(&mut self, e: &ast::Expr, span: Span, out: &mut Vec<Stmt<Tree>>) {
         if let ast::ExprKind::Call { callee, args } = &e.kind {
             if let Some(&idx) = self.g.by_name.get(&callee.name) {
                 let sig = &self.g.sigs[idx];
@@ -321,7 +319,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
     }
 
     /// A bool scalar condition (with a hint for the C habit of testing numbers).
-    pub(super) fn cond(&mut self, e: &ast::Expr, pre: &mut Vec<Stmt>) -> Option<Expr> {
+    pub(super) fn cond(&mut self, e: &ast::Expr, pre: &mut Vec<Stmt<Tree>>) -> Option<Tree> {
         let c = self.expr(e, pre)?;
         if c.ty != Type::bool() {
             self.sink.push(
@@ -344,7 +342,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         step: Option<&ast::Stmt>,
         body: &[ast::Stmt],
         span: Span,
-        out: &mut Vec<Stmt>,
+        out: &mut Vec<Stmt<Tree>>,
     ) {
         let id = self.new_loop();
         let site = self.new_site(span);
@@ -367,7 +365,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
             let c = c.expect("pre-statements come from a condition");
             let cspan = c.span;
             let not_c = mk(
-                ExprKind::Unary {
+                TreeKind::Unary {
                     op: ir::UnaryOp::Not,
                     expr: Box::new(c),
                 },
@@ -406,7 +404,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         ));
     }
 
-    pub(super) fn ret(&mut self, value: Option<&ast::Expr>, span: Span, out: &mut Vec<Stmt>) {
+    pub(super) fn ret(&mut self, value: Option<&ast::Expr>, span: Span, out: &mut Vec<Stmt<Tree>>) {
         if let Some(frame) = self.inline.last() {
             let (exit, result, helper) = (frame.exit, frame.result, frame.helper);
             let g = self.g;
@@ -469,7 +467,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         out.push(stmt(StmtKind::Return, span));
     }
 
-    pub(super) fn interpolation(&mut self, arms: &[ast::InterpArm], span: Span, out: &mut Vec<Stmt>) {
+    pub(super) fn interpolation(&mut self, arms: &[ast::InterpArm], span: Span, out: &mut Vec<Stmt<Tree>>) {
         if self.kind != FuncKind::Primitive || self.in_helper() {
             let where_ = if self.in_helper() {
                 "a helper function"
@@ -551,7 +549,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         out.push(stmt(StmtKind::Interpolation { arms: ir_arms }, span));
     }
 
-    pub(super) fn interpolator_return(&mut self, value: Option<&ast::Expr>, span: Span, out: &mut Vec<Stmt>) {
+    pub(super) fn interpolator_return(&mut self, value: Option<&ast::Expr>, span: Span, out: &mut Vec<Stmt<Tree>>) {
         if self.in_helper() {
             self.sink.push(err(
                 "E0408",
@@ -621,7 +619,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
 
     /// A value `interpolator_return` may store: interpolation data (if allowed), a float
     /// scalar or a float aggregate; other numbers are converted to float.
-    pub(super) fn float_result(&mut self, e: &ast::Expr, interp_ok: bool, pre: &mut Vec<Stmt>) -> Option<Expr> {
+    pub(super) fn float_result(&mut self, e: &ast::Expr, interp_ok: bool, pre: &mut Vec<Stmt<Tree>>) -> Option<Tree> {
         let v = self.expr(e, pre)?;
         match v.ty.elem {
             Elem::Interp if interp_ok && v.ty.dims.is_empty() => Some(v),
@@ -643,7 +641,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
     }
 
-    pub(super) fn bound(&mut self, args: &[ast::Expr], span: Span, out: &mut Vec<Stmt>) {
+    pub(super) fn bound(&mut self, args: &[ast::Expr], span: Span, out: &mut Vec<Stmt<Tree>>) {
         if self.kind != FuncKind::Primitive || self.in_helper() {
             self.sink.push(err(
                 "E0409",
@@ -670,12 +668,12 @@ impl<'g, 'a> FnLower<'g, 'a> {
         for a in args {
             vals.push(self.expr_to(a, &Type::float(), &mut pre));
         }
-        let vals: Option<Vec<Expr>> = vals.into_iter().collect();
+        let vals: Option<Vec<Tree>> = vals.into_iter().collect();
         let Some(vals) = vals else { return };
-        let Ok(arr): Result<[Expr; 4], _> = vals.try_into() else {
+        let Ok(arr): Result<[Tree; 4], _> = vals.try_into() else {
             return;
         };
         out.extend(pre);
-        out.push(stmt(StmtKind::Bound(Box::new(arr)), span));
+        out.push(stmt(StmtKind::Bound(arr), span));
     }
 }

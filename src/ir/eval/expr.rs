@@ -13,7 +13,7 @@ use super::scalar::{self, arity, convert, float_builtin, int_builtin};
 use super::{any, malformed, Lanes, Machine, Res};
 use crate::abi::{ParamSlot, ERR_INDEX};
 use crate::ir::{
-    BinOp, Builtin, ConstValue, Elem, Expr, ExprKind, LocalId, Place, Scalar, SiteId, Space, Type, UnaryOp,
+    BinOp, Builtin, ConstValue, Elem, ExprId, ExprKind, LocalId, Place, Scalar, SiteId, Space, Type, UnaryOp,
 };
 
 /// A value: its components, each in every lane, of one scalar type.
@@ -151,18 +151,19 @@ impl Machine<'_, '_> {
         })
     }
 
-    fn resolve(&mut self, e: &Expr) -> Res<Access> {
+    fn resolve(&mut self, e_id: ExprId) -> Res<Access> {
+        let e = &self.exprs()[e_id];
         match &e.kind {
             ExprKind::Local(l) => self.local_access(*l),
             ExprKind::Index { base, index, site } => {
                 self.enter()?;
-                let acc = self.resolve(base);
-                let acc = acc.and_then(|acc| self.index_access(acc, index, *site));
+                let acc = self.resolve(*base);
+                let acc = acc.and_then(|acc| self.index_access(acc, *index, *site));
                 self.leave();
                 acc
             }
             _ => {
-                let v = self.eval(e)?;
+                let v = self.eval(e_id)?;
                 Ok(Access {
                     sc: v.sc,
                     root: Root::Temp(v),
@@ -178,7 +179,8 @@ impl Machine<'_, '_> {
 
     /// Apply one index: clamped per lane, `ERR_INDEX` counted at `site` when an executing
     /// lane was out of range.
-    fn index_access(&mut self, mut acc: Access, index: &Expr, site: SiteId) -> Res<Access> {
+    fn index_access(&mut self, mut acc: Access, index_id: ExprId, site: SiteId) -> Res<Access> {
+        let index = &self.exprs()[index_id];
         if acc.dims.is_empty() && !acc.per_seq {
             return malformed("indexing a scalar");
         }
@@ -188,7 +190,7 @@ impl Machine<'_, '_> {
             (acc.dims[0], acc.dims[1..].to_vec())
         };
         let stride = self.value_comps(acc.elem, fixed_len(&elem_dims), acc.compact);
-        let idx = self.eval(index)?;
+        let idx = self.eval(index_id)?;
         let Some(&lanes) = idx.comps.first() else {
             return malformed("an index without components");
         };
@@ -240,10 +242,10 @@ impl Machine<'_, '_> {
     /// `place = value`, converted to the place's type (`Lower::assign`): indices first,
     /// then the value; a varying local takes the executing lanes only, a uniform one every
     /// lane; the primitive's Z also marks the lanes that wrote it.
-    pub(crate) fn assign(&mut self, place: &Place, value: &Expr) -> Res<()> {
+    pub(crate) fn assign(&mut self, place: &Place, value: ExprId) -> Res<()> {
         let mut acc = self.local_access(place.local)?;
         for (idx, site) in &place.indices {
-            acc = self.index_access(acc, idx, *site)?;
+            acc = self.index_access(acc, *idx, *site)?;
         }
         let Root::Local(li) = acc.root else {
             return malformed("assignment to a parameter");
@@ -296,7 +298,7 @@ impl Machine<'_, '_> {
 
     /// `e` evaluated for the lanes where the bool `cond` is `taken` (an arm of `?:`, the
     /// right side of `&&`/`||`): their errors only are counted.
-    fn eval_guarded(&mut self, e: &Expr, cond: Lanes, varying: bool, taken: bool) -> Res<Val> {
+    fn eval_guarded(&mut self, e: ExprId, cond: Lanes, varying: bool, taken: bool) -> Res<Val> {
         let (outer, outer_guard) = (self.exec, self.guard);
         self.exec = std::array::from_fn(|l| outer[l] && (cond[l] != 0) == taken);
         self.guard &= if varying {
@@ -310,14 +312,15 @@ impl Machine<'_, '_> {
         v
     }
 
-    pub(crate) fn eval(&mut self, e: &Expr) -> Res<Val> {
+    pub(crate) fn eval(&mut self, e: ExprId) -> Res<Val> {
         self.enter()?;
         let v = self.eval_inner(e);
         self.leave();
         v
     }
 
-    fn eval_inner(&mut self, e: &Expr) -> Res<Val> {
+    fn eval_inner(&mut self, e_id: ExprId) -> Res<Val> {
+        let e = &self.exprs()[e_id];
         let sc = elem_scalar(&e.ty);
         match &e.kind {
             ExprKind::Const(c) => {
@@ -333,30 +336,30 @@ impl Machine<'_, '_> {
                 })
             }
             ExprKind::Local(_) | ExprKind::Index { .. } => {
-                let acc = self.resolve(e)?;
+                let acc = self.resolve(e_id)?;
                 self.read(&acc)
             }
             ExprKind::Unary { op, expr } => {
-                let v = self.eval(expr)?;
+                let v = self.eval(*expr)?;
                 Ok(match op {
                     UnaryOp::Neg => v.map(v.sc, |w| scalar::neg(v.sc, w)),
                     UnaryOp::Not => v.map(Scalar::Bool, |w| convert(v.sc, Scalar::Bool, w) ^ 1),
                 })
             }
             ExprKind::Binary { op, lhs, rhs } => {
-                let a = self.eval(lhs)?;
+                let a = self.eval(*lhs)?;
                 let c = match op {
                     BinOp::And | BinOp::Or if a.sc == Scalar::Bool => {
                         let cond = bools(&a)?;
-                        self.eval_guarded(rhs, cond, lhs.var.is_varying(), *op == BinOp::And)?
+                        self.eval_guarded(*rhs, cond, self.exprs()[*lhs].var.is_varying(), *op == BinOp::And)?
                     }
-                    _ => self.eval(rhs)?,
+                    _ => self.eval(*rhs)?,
                 };
                 binary(*op, a, c)
             }
             ExprKind::Convert(inner) => {
-                let v = self.eval(inner)?.converted(sc);
-                if e.ty.elem == Elem::Interp && inner.ty.elem != Elem::Interp && v.comps.len() == 1 {
+                let v = self.eval(*inner)?.converted(sc);
+                if e.ty.elem == Elem::Interp && self.exprs()[*inner].ty.elem != Elem::Interp && v.comps.len() == 1 {
                     let n = self.comp_offsets(e.ty.elem, fixed_len(&e.ty.dims), true).len();
                     return Ok(Val {
                         comps: vec![v.comps[0]; n],
@@ -366,10 +369,10 @@ impl Machine<'_, '_> {
                 Ok(v)
             }
             ExprKind::Select { cond, then, otherwise } => {
-                let c = bools(&self.eval(cond)?)?;
-                let varying = cond.var.is_varying();
-                let t = self.eval_guarded(then, c, varying, true)?;
-                let o = self.eval_guarded(otherwise, c, varying, false)?;
+                let c = bools(&self.eval(*cond)?)?;
+                let varying = self.exprs()[*cond].var.is_varying();
+                let t = self.eval_guarded(*then, c, varying, true)?;
+                let o = self.eval_guarded(*otherwise, c, varying, false)?;
                 let (t, o) = unify(t, o)?;
                 let comps = t
                     .comps
@@ -383,12 +386,12 @@ impl Machine<'_, '_> {
             ExprKind::List(items) => {
                 let mut comps = vec![];
                 for it in items {
-                    comps.extend(self.eval(it)?.converted(sc).comps);
+                    comps.extend(self.eval(*it)?.converted(sc).comps);
                 }
                 Ok(Val { comps, sc })
             }
             ExprKind::Splat(item) => {
-                let one = self.eval(item)?.converted(sc).comps;
+                let one = self.eval(*item)?.converted(sc).comps;
                 let n = fixed_len(&e.ty.dims);
                 if one.len().saturating_mul(n) > 1 << 26 {
                     return Err(super::EvalError::Unsupported("a splat of over 2^26 components".into()));
@@ -399,9 +402,9 @@ impl Machine<'_, '_> {
                 })
             }
             ExprKind::MatMul { lhs, rhs } => {
-                let a = self.eval(lhs)?.converted(Scalar::Float);
-                let c = self.eval(rhs)?.converted(Scalar::Float);
-                matmul(&a, &c, &lhs.ty.dims, &rhs.ty.dims)
+                let a = self.eval(*lhs)?.converted(Scalar::Float);
+                let c = self.eval(*rhs)?.converted(Scalar::Float);
+                matmul(&a, &c, &self.exprs()[*lhs].ty.dims, &self.exprs()[*rhs].ty.dims)
             }
             ExprKind::SeqCount => {
                 let n = self.frame()?.args.first().copied().unwrap_or(0);
@@ -417,10 +420,10 @@ impl Machine<'_, '_> {
         }
     }
 
-    fn builtin(&mut self, func: Builtin, args: &[Expr]) -> Res<Val> {
+    fn builtin(&mut self, func: Builtin, args: &[ExprId]) -> Res<Val> {
         let mut vals = vec![];
         for a in args {
-            vals.push(self.eval(a)?);
+            vals.push(self.eval(*a)?);
         }
         if vals.len() != arity(func) {
             return malformed(format!("{func:?} with {} arguments", vals.len()));

@@ -437,6 +437,13 @@ impl<'p> Machine<'p, '_> {
         }
     }
 
+    /// The expression arena of the function being evaluated: the one every `ExprId` the
+    /// statements at hand hold refers to.
+    pub(crate) fn exprs(&self) -> &'p crate::ir::Exprs {
+        let f: &'p Function = self.frames.last().expect("a frame is pushed while evaluating").func;
+        &f.exprs
+    }
+
     pub(crate) fn kernel(&self) -> Res<&Kernel> {
         match self.kernels.last() {
             Some(k) => Ok(k),

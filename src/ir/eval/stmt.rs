@@ -15,7 +15,7 @@ use super::{and, any, malformed, Flow, LoopCtx, Machine, Mask, Res, NONE};
 use crate::abi::{
     interpolator_arg_words, type_words, ArgLayout, BindingKind, ParamSlot, ERR_CALL_DEPTH, ERR_FUEL, MAX_CALL_DEPTH,
 };
-use crate::ir::{Expr, FuncId, FuncKind, InterpArm, LoopId, ParamRole, Scalar, SiteId, Stmt, StmtKind};
+use crate::ir::{ExprId, FuncId, FuncKind, InterpArm, LoopId, ParamRole, Scalar, SiteId, Stmt, StmtKind};
 use crate::mid::view;
 
 impl<'p> Machine<'p, '_> {
@@ -35,10 +35,10 @@ impl<'p> Machine<'p, '_> {
     fn stmt(&mut self, s: &'p Stmt) -> Res<Flow> {
         match &s.kind {
             StmtKind::Assign { place, value } => {
-                self.assign(place, value)?;
+                self.assign(place, *value)?;
                 Ok(Flow::Normal)
             }
-            StmtKind::If { cond, then, otherwise } => self.if_(cond, then, otherwise),
+            StmtKind::If { cond, then, otherwise } => self.if_(*cond, then, otherwise),
             StmtKind::Loop {
                 id,
                 cond,
@@ -48,23 +48,23 @@ impl<'p> Machine<'p, '_> {
                 site,
             } => {
                 if *varying && self.pix.is_some() {
-                    self.varying_loop(*id, cond.as_ref(), body, step, *site)
+                    self.varying_loop(*id, *cond, body, step, *site)
                 } else {
-                    self.uniform_loop(*id, cond.as_ref(), body, step, *site)
+                    self.uniform_loop(*id, *cond, body, step, *site)
                 }
             }
             StmtKind::Break(id) => self.break_continue(*id, true),
             StmtKind::Continue(id) => self.break_continue(*id, false),
             StmtKind::Return => self.return_(),
             StmtKind::Interpolation { arms } => self.interpolation(arms),
-            StmtKind::InterpolatorReturn(e) => self.interpolator_return(e.as_ref()),
+            StmtKind::InterpolatorReturn(e) => self.interpolator_return(*e),
             StmtKind::Bound(es) => {
                 if self.pix.is_some() || self.frames.len() != self.kernel()?.frame + 1 {
                     return malformed("`bound` in per-pixel code");
                 }
                 let mut r = [0.0f32; 4];
                 for (i, e) in es.iter().enumerate() {
-                    let v = self.eval(e)?.converted(Scalar::Float);
+                    let v = self.eval(*e)?.converted(Scalar::Float);
                     let Some(c) = v.comps.first() else {
                         return malformed("a bound without components");
                     };
@@ -91,8 +91,9 @@ impl<'p> Machine<'p, '_> {
         }
     }
 
-    fn if_(&mut self, cond: &'p Expr, then: &'p [Stmt], otherwise: &'p [Stmt]) -> Res<Flow> {
-        let c = self.eval(cond)?;
+    fn if_(&mut self, cond_id: ExprId, then: &'p [Stmt], otherwise: &'p [Stmt]) -> Res<Flow> {
+        let cond = &self.exprs()[cond_id];
+        let c = self.eval(cond_id)?;
         let Some(c) = c
             .comps
             .first()
@@ -158,7 +159,7 @@ impl<'p> Machine<'p, '_> {
     fn uniform_loop(
         &mut self,
         id: LoopId,
-        cond: Option<&'p Expr>,
+        cond: Option<ExprId>,
         body: &'p [Stmt],
         step: &'p [Stmt],
         site: SiteId,
@@ -206,7 +207,7 @@ impl<'p> Machine<'p, '_> {
     fn varying_loop(
         &mut self,
         id: LoopId,
-        cond: Option<&'p Expr>,
+        cond: Option<ExprId>,
         body: &'p [Stmt],
         step: &'p [Stmt],
         site: SiteId,
@@ -235,7 +236,7 @@ impl<'p> Machine<'p, '_> {
     fn varying_trips(
         &mut self,
         li: usize,
-        cond: Option<&'p Expr>,
+        cond: Option<ExprId>,
         body: &'p [Stmt],
         step: &'p [Stmt],
         site: SiteId,
@@ -392,7 +393,7 @@ impl<'p> Machine<'p, '_> {
         self.key.bindings[..bi].iter().map(|b| b.components).sum()
     }
 
-    fn interpolator_return(&mut self, e: Option<&'p Expr>) -> Res<Flow> {
+    fn interpolator_return(&mut self, e: Option<ExprId>) -> Res<Flow> {
         if self.pix.is_none() {
             return malformed("`interpolator_return` outside per-pixel code");
         }
@@ -420,9 +421,10 @@ impl<'p> Machine<'p, '_> {
     /// `interpolator_return(e)` of a primitive: `e` into the parameters of the arm's kinds
     /// (outside an arm, of every kind); a binding whose components `e` does not match is
     /// not written (the JIT warns).
-    fn store_kind_bindings(&mut self, e: &'p Expr) -> Res<()> {
+    fn store_kind_bindings(&mut self, e_id: ExprId) -> Res<()> {
+        let e = &self.exprs()[e_id];
         let is_interp = e.ty.elem == crate::ir::Elem::Interp && e.ty.dims.is_empty();
-        let v: Val = self.eval(e)?.converted(Scalar::Float);
+        let v: Val = self.eval(e_id)?.converted(Scalar::Float);
         let mut offsets = vec![];
         let (mut ic, mut gc) = (0u32, 0u32);
         for (i, b) in self.key.bindings.iter().enumerate() {
@@ -571,7 +573,7 @@ impl<'p> Machine<'p, '_> {
 
     /// A primitive call: the callee's argument block built as the JIT builds it, then a
     /// kernel run of the callee on the same tile, sharing the setup fuel.
-    fn call(&mut self, callee: FuncId, args: &'p [Expr]) -> Res<Flow> {
+    fn call(&mut self, callee: FuncId, args: &'p [ExprId]) -> Res<Flow> {
         let program = self.program;
         let Some(cf) = program.functions.get(callee.0 as usize) else {
             return malformed(format!("call of unknown function {}", callee.0));
@@ -583,7 +585,7 @@ impl<'p> Machine<'p, '_> {
         let mut n_seq = 1u32;
         for (i, slot) in layout.params.iter().enumerate() {
             if let ParamSlot::Seq { .. } = slot {
-                let a = &args[i];
+                let a = &self.exprs()[args[i]];
                 if a.ty.per_seq || a.ty.dims.is_empty() {
                     return malformed("a per-sequence-point parameter given no fixed-size array");
                 }
@@ -646,7 +648,7 @@ impl<'p> Machine<'p, '_> {
                 ParamSlot::Fixed { offset, words } => (*offset, *words, 1),
                 ParamSlot::Seq { seq_offset, words } => (layout.fixed_words + n_seq * seq_offset, *words, n_seq),
             };
-            let v = self.eval(&args[i])?;
+            let v = self.eval(args[i])?;
             for w in 0..(words * elems) as usize {
                 let word = v.comps.get(w).map_or(0, |c| c[0]);
                 match block.get_mut(start as usize + w) {

@@ -34,12 +34,12 @@ use std::collections::{HashMap, HashSet};
 use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, Block, InstBuilder};
 
 use super::{elem_scalar, Lower, Res};
-use crate::ir::{BinOp, Builtin, Elem, Expr, ExprId, ExprKind, Function, LocalId, Scalar, UnaryOp};
+use crate::ir::{BinOp, Builtin, Elem, ExprId, ExprKind, Exprs, Function, LocalId, Scalar, UnaryOp};
 use crate::jit::fixed;
 use crate::mid::block::{no_effect_in_pass, PStmt, Prefix};
 
-fn reads_any(e: &Expr, set: &HashSet<LocalId>) -> bool {
-    e.reads_any(&|l| set.contains(&l))
+fn reads_any(x: &Exprs, e: ExprId, set: &HashSet<LocalId>) -> bool {
+    x.reads_any(e, &|l| set.contains(&l))
 }
 
 /// The abstract value of a scalar expression over a block (run-time values, all scalar).
@@ -196,14 +196,14 @@ impl<'a> Lower<'a, '_> {
         for s in stmts {
             match s {
                 PStmt::Assign { local, value, .. } => {
-                    let v = self.abs_expr(value, env, cache)?;
+                    let v = self.abs_expr(*value, env, cache)?;
                     let to = elem_scalar(&self.frame().func.local(*local).ty);
-                    let from = elem_scalar(&value.ty);
+                    let from = elem_scalar(&self.exprs()[*value].ty);
                     let v = v.map(|v| self.abs_convert(v, from, to));
                     env.locals.insert(*local, v);
                 }
                 PStmt::Guard { cond, id, .. } => {
-                    let v = self.abs_expr(cond, env, cache)?;
+                    let v = self.abs_expr(*cond, env, cache)?;
                     if let (true, Some(Abs::B { t, f })) = (block, v) {
                         decidable[*id] = true;
                         let fires_everywhere = self.b.ins().icmp_imm_s(IntCC::Equal, f, 0);
@@ -228,14 +228,14 @@ impl<'a> Lower<'a, '_> {
                     // (its value is the one the previous group left); others once, at
                     // the row stage. Before the block stage such a condition is not
                     // known, and neither are the locals its sides assign.
-                    let cacheable = !reads_any(cond, env.pixel_assigned);
-                    let c = match cache.conds.get(&cond.id) {
+                    let cacheable = !reads_any(self.exprs(), *cond, env.pixel_assigned);
+                    let c = match cache.conds.get(&*cond) {
                         Some(&c) => Some(c),
                         None if cacheable || block => {
-                            let c = self.eval_uniform(cond)?;
+                            let c = self.eval_uniform(*cond)?;
                             let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
                             if cacheable {
-                                cache.conds.insert(cond.id, c);
+                                cache.conds.insert(*cond, c);
                             }
                             Some(c)
                         }
@@ -551,18 +551,19 @@ impl<'a> Lower<'a, '_> {
 
     /// The abstract value of `e`, or `None` when it needs a range a later stage has (X, or
     /// Y before [`Stage::Row`]). Every value computed is cached, so a later stage reuses it.
-    fn abs_expr(&mut self, e: &'a Expr, env: &BlockEnv<'a>, cache: &mut AbsCache) -> Res<Option<Abs>> {
-        if let Some(v) = cache.values.get(&e.id) {
+    fn abs_expr(&mut self, e: ExprId, env: &BlockEnv<'a>, cache: &mut AbsCache) -> Res<Option<Abs>> {
+        if let Some(v) = cache.values.get(&e) {
             return Ok(Some(v.clone()));
         }
         let v = self.abs_expr_uncached(e, env, cache)?;
         if let Some(v) = &v {
-            cache.values.insert(e.id, v.clone());
+            cache.values.insert(e, v.clone());
         }
         Ok(v)
     }
 
-    fn abs_expr_uncached(&mut self, e: &'a Expr, env: &BlockEnv<'a>, cache: &mut AbsCache) -> Res<Option<Abs>> {
+    fn abs_expr_uncached(&mut self, e_id: ExprId, env: &BlockEnv<'a>, cache: &mut AbsCache) -> Res<Option<Abs>> {
+        let e = &self.exprs()[e_id];
         let sc = elem_scalar(&e.ty);
         let scalar_shape = e.ty.dims.is_empty() && !e.ty.per_seq && matches!(e.ty.elem, Elem::Scalar(_));
         if !scalar_shape {
@@ -570,8 +571,9 @@ impl<'a> Lower<'a, '_> {
         }
         // A uniform value is one point. (One reading a local the pixel code assigns changes
         // from group to group: it is evaluated structurally below, its leaves unknown.)
-        if !e.var.is_varying() && !reads_any(e, env.pixel_assigned) && !matches!(sc, Scalar::Fixed(_)) {
-            let v = self.eval_uniform(e)?;
+        if !e.var.is_varying() && !reads_any(self.exprs(), e_id, env.pixel_assigned) && !matches!(sc, Scalar::Fixed(_))
+        {
+            let v = self.eval_uniform(e_id)?;
             return Ok(Some(self.abs_point(v.scalar, v.comps[0])));
         }
         Ok(Some(match &e.kind {
@@ -587,7 +589,7 @@ impl<'a> Lower<'a, '_> {
                 }
             }
             ExprKind::Unary { op, expr } => {
-                let Some(v) = self.abs_expr(expr, env, cache)? else {
+                let Some(v) = self.abs_expr(*expr, env, cache)? else {
                     return Ok(None);
                 };
                 match (op, v) {
@@ -606,30 +608,30 @@ impl<'a> Lower<'a, '_> {
                 }
             }
             ExprKind::Convert(inner) => {
-                let Some(v) = self.abs_expr(inner, env, cache)? else {
+                let Some(v) = self.abs_expr(*inner, env, cache)? else {
                     return Ok(None);
                 };
-                self.abs_convert(v, elem_scalar(&inner.ty), sc)
+                self.abs_convert(v, elem_scalar(&self.exprs()[*inner].ty), sc)
             }
             ExprKind::Binary { op, lhs, rhs } => {
-                if elem_scalar(&lhs.ty) != elem_scalar(&rhs.ty) {
+                if elem_scalar(&self.exprs()[*lhs].ty) != elem_scalar(&self.exprs()[*rhs].ty) {
                     return Ok(Some(Abs::Top));
                 }
                 // Both sides first, so each is cached at the earliest stage it can be.
-                let a = self.abs_expr(lhs, env, cache)?;
-                let c = self.abs_expr(rhs, env, cache)?;
+                let a = self.abs_expr(*lhs, env, cache)?;
+                let c = self.abs_expr(*rhs, env, cache)?;
                 let (Some(a), Some(c)) = (a, c) else {
                     return Ok(None);
                 };
                 self.abs_binary(*op, a, c)
             }
             ExprKind::Builtin { func, args } if sc == Scalar::Float => {
-                if args.iter().any(|a| elem_scalar(&a.ty) != Scalar::Float) {
+                if args.iter().any(|a| elem_scalar(&self.exprs()[*a].ty) != Scalar::Float) {
                     return Ok(Some(Abs::Top));
                 }
                 let mut vals = vec![];
                 for a in args {
-                    vals.push(self.abs_expr(a, env, cache)?);
+                    vals.push(self.abs_expr(*a, env, cache)?);
                 }
                 let Some(vals) = vals.into_iter().collect::<Option<Vec<_>>>() else {
                     return Ok(None);
@@ -873,7 +875,7 @@ impl<'a> Lower<'a, '_> {
                     } else {
                         // Dropped: the block facts proved it fires for no lane of the
                         // block, so every lane has `cond` false here, as after the guard.
-                        self.assume_guard(cond);
+                        self.assume_guard(*cond);
                     }
                 }
                 PStmt::UniformIf { cond, then, otherwise } => {
@@ -881,10 +883,10 @@ impl<'a> Lower<'a, '_> {
                     // dropped, no kill, its locals read nowhere else) is not emitted: its
                     // assignments would be dead, but the test of its condition would stay
                     // in every group.
-                    if no_effect_in_pass(all, s, decidable, live) {
+                    if no_effect_in_pass(self.exprs(), all, s, decidable, live) {
                         continue;
                     }
-                    let c = self.eval_uniform(cond)?;
+                    let c = self.eval_uniform(*cond)?;
                     let c = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
                     let then_blk = self.b.create_block();
                     let else_blk = self.b.create_block();

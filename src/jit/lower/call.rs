@@ -15,12 +15,12 @@ use super::{err, word_of, Lower, Res};
 use crate::abi::{
     interpolator_arg_words, ArgLayout, BindingKind, ParamSlot, ERR_CALL_DEPTH, MAX_CALL_DEPTH, MODE_EXPAND,
 };
-use crate::ir::{Expr, FuncId, FuncKind};
+use crate::ir::{ExprId, FuncId, FuncKind};
 use crate::jit::value::{args_flags, ctx_off, mem_flags};
 use crate::jit::JitError;
 
 impl<'a, 'b> Lower<'a, 'b> {
-    pub(super) fn call_primitive(&mut self, callee: FuncId, args: &'a [Expr]) -> Res<()> {
+    pub(super) fn call_primitive(&mut self, callee: FuncId, args: &'a [ExprId]) -> Res<()> {
         let Some(cf) = self.program.functions.get(callee.0 as usize) else {
             return err(format!("call of unknown function {}", callee.0));
         };
@@ -41,13 +41,13 @@ impl<'a, 'b> Lower<'a, 'b> {
         for (i, slot) in layout.params.iter().enumerate() {
             if let ParamSlot::Seq { .. } = slot {
                 let a = &args[i];
-                if a.ty.per_seq || a.ty.dims.is_empty() {
+                if self.exprs()[*a].ty.per_seq || self.exprs()[*a].ty.dims.is_empty() {
                     return err(format!(
                         "argument {} of the call to `{}`: a per-sequence-point parameter needs a fixed-size array argument",
                         i, cf.name
                     ));
                 }
-                n_seq = a.ty.dims[0];
+                n_seq = self.exprs()[*a].ty.dims[0];
                 break;
             }
         }
@@ -119,7 +119,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// and binding data (the same key, so the same prefix), the space matrices (the
     /// caller's, or identities when it has none) and `args` evaluated in the caller.
     /// Returns the block's address and its length in words.
-    fn call_arg_block(&mut self, layout: &ArgLayout, n_seq: u32, args: &'a [Expr]) -> Res<(ir::Value, usize)> {
+    fn call_arg_block(&mut self, layout: &ArgLayout, n_seq: u32, args: &'a [ExprId]) -> Res<(ir::Value, usize)> {
         let words = layout.words(n_seq);
         let bytes = u32::try_from(words * 4).map_err(|_| JitError {
             message: "primitive call argument block too large".into(),
@@ -183,7 +183,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 ParamSlot::Seq { seq_offset, words } => (layout.fixed_words + n_seq * seq_offset, *words, n_seq),
             };
             let total = words * elems;
-            let v = self.eval_uniform(&args[i])?;
+            let v = self.eval_uniform(args[i])?;
             for w in 0..total {
                 let comp = match v.comps.get(w as usize) {
                     Some(&c) => word_of(&mut self.b, v.scalar, c),

@@ -22,7 +22,7 @@ use std::collections::HashSet;
 
 use cranelift_codegen::ir::{self, types, InstBuilder};
 
-use crate::ir::{BinOp, Elem, Expr, ExprId, ExprKind, Function, LocalId, ParamRole, Scalar, UnaryOp};
+use crate::ir::{BinOp, Elem, ExprId, ExprKind, Function, LocalId, ParamRole, Scalar, UnaryOp};
 use crate::mid::affine::column_leaf;
 
 use super::super::value::{mem_flags, splat, Val, I32X4};
@@ -54,14 +54,15 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// Evaluate carried expression `e` (or part of one) where the pixel code would, but
     /// with its substitutable locals replaced by their values: in the row prologue, with
     /// X bound to the row's first group.
-    fn eval_affine(&mut self, e: &'a Expr) -> Res<Val> {
+    fn eval_affine(&mut self, e_id: ExprId) -> Res<Val> {
+        let e = &self.exprs()[e_id];
         match &e.kind {
             ExprKind::Local(l) => match self.affine_def(*l) {
                 Some(def) => self.eval_affine(def),
-                None => self.eval(e),
+                None => self.eval(e_id),
             },
             ExprKind::Unary { op: UnaryOp::Neg, expr } => {
-                let v = self.eval_affine(expr)?;
+                let v = self.eval_affine(*expr)?;
                 let comps = v.comps.iter().map(|&c| self.b.ins().ineg(c)).collect();
                 Ok(Val { comps, ..v })
             }
@@ -70,18 +71,19 @@ impl<'a, 'b> Lower<'a, 'b> {
                 lhs,
                 rhs,
             } => {
-                let a = self.eval_affine(lhs)?;
-                let c = self.eval_affine(rhs)?;
+                let a = self.eval_affine(*lhs)?;
+                let c = self.eval_affine(*rhs)?;
                 self.binary(*op, a, c)
             }
-            _ => self.eval(e),
+            _ => self.eval(e_id),
         }
     }
 
     /// The coefficient `A` of carried expression `e` (a scalar i32; `None` for 0), with the
     /// uniform multipliers evaluated here (once per kernel run, after setup).
-    fn column_coefficient(&mut self, e: &'a Expr, axis: LocalId) -> Res<Option<ir::Value>> {
-        if let Some(c) = column_leaf(e, axis) {
+    fn column_coefficient(&mut self, e_id: ExprId, axis: LocalId) -> Res<Option<ir::Value>> {
+        let e = &self.exprs()[e_id];
+        if let Some(c) = column_leaf(self.exprs(), e_id, axis) {
             return Ok(Some(self.iconst_here(types::I32, c as i64)));
         }
         Ok(match &e.kind {
@@ -90,11 +92,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                 None => None,
             },
             ExprKind::Unary { op: UnaryOp::Neg, expr } => {
-                self.column_coefficient(expr, axis)?.map(|a| self.b.ins().ineg(a))
+                self.column_coefficient(*expr, axis)?.map(|a| self.b.ins().ineg(a))
             }
             ExprKind::Binary { op, lhs, rhs } => {
-                let a = self.column_coefficient(lhs, axis)?;
-                let c = self.column_coefficient(rhs, axis)?;
+                let a = self.column_coefficient(*lhs, axis)?;
+                let c = self.column_coefficient(*rhs, axis)?;
                 match (op, a, c) {
                     (_, None, None) => None,
                     (BinOp::Add, Some(a), Some(c)) => Some(self.b.ins().iadd(a, c)),
@@ -103,11 +105,11 @@ impl<'a, 'b> Lower<'a, 'b> {
                     (BinOp::Add, None, Some(c)) => Some(c),
                     (BinOp::Sub, None, Some(c)) => Some(self.b.ins().ineg(c)),
                     (BinOp::Mul, Some(a), None) => {
-                        let u = self.uniform_int(rhs)?;
+                        let u = self.uniform_int(*rhs)?;
                         Some(self.b.ins().imul(a, u))
                     }
                     (BinOp::Mul, None, Some(c)) => {
-                        let u = self.uniform_int(lhs)?;
+                        let u = self.uniform_int(*lhs)?;
                         Some(self.b.ins().imul(u, c))
                     }
                     _ => return super::err("carried int expression of an unexpected shape"),
@@ -118,7 +120,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// A uniform int multiplier's scalar value.
-    fn uniform_int(&mut self, e: &'a Expr) -> Res<ir::Value> {
+    fn uniform_int(&mut self, e: ExprId) -> Res<ir::Value> {
         let v = self.eval(e)?;
         match (v.varying, v.comps.as_slice()) {
             (false, &[c]) => Ok(c),
@@ -177,20 +179,20 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// The carried expressions a pixel loop's variant reads (`only`; `None`: all).
-    fn carried_in(&self, only: Option<&HashSet<ExprId>>) -> Vec<(&'a Expr, u32, Option<u32>)> {
+    fn carried_in(&self, only: Option<&HashSet<ExprId>>) -> Vec<(ExprId, u32, Option<u32>)> {
         let (Some(p), Some(_)) = (&self.plan.pixel, self.uniform_frame) else {
             return vec![];
         };
         p.carry
             .carried
             .iter()
-            .filter(|c| only.is_none_or(|set| set.contains(&c.expr.id)))
+            .filter(|c| only.is_none_or(|set| set.contains(&c.expr)))
             .map(|c| (c.expr, c.step_offset, c.row_step_offset))
             .collect()
     }
 
     /// Evaluate carried `expr` outside the groups (X and Y bound), as one i32x4 vector.
-    fn eval_carried(&mut self, expr: &'a Expr) -> Res<ir::Value> {
+    fn eval_carried(&mut self, expr: ExprId) -> Res<ir::Value> {
         let v = self.eval_affine(expr)?;
         let v = self.make_varying(v);
         match v.comps.as_slice() {
@@ -210,7 +212,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         y0: ir::Value,
         only: Option<&HashSet<ExprId>>,
     ) -> Res<RowCarry> {
-        let picked: Vec<(&'a Expr, u32)> = self
+        let picked: Vec<(ExprId, u32)> = self
             .carried_in(only)
             .into_iter()
             .filter_map(|(e, _, row)| row.map(|r| (e, r)))
@@ -248,7 +250,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             let at = 16 * i as u32;
             let addr = self.slot_addr(slot);
             self.b.ins().store(mem_flags(), v, addr, at as i32);
-            out.items.push((expr.id, at, row_offset));
+            out.items.push((expr, at, row_offset));
         }
         self.prologue_frame = None;
         Ok(out)
@@ -281,7 +283,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let addr = self.uniform_frame.map(|(fs, _)| self.slot_addr(fs));
         self.prologue_frame = addr.map(|a| (a, false));
         for (expr, offset, _) in picked {
-            let v = match (rows.slot, rows.items.iter().find(|r| r.0 == expr.id)) {
+            let v = match (rows.slot, rows.items.iter().find(|r| r.0 == expr)) {
                 (Some(slot), Some(&(_, at, _))) => {
                     let addr = self.slot_addr(slot);
                     Ok(self.b.ins().load(I32X4, mem_flags(), addr, at as i32))
@@ -297,7 +299,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             };
             let var = self.declare_var(I32X4);
             self.b.def_var(var, v);
-            out.group.push((expr.id, var, offset));
+            out.group.push((expr, var, offset));
         }
         self.prologue_frame = None;
         Ok(out)
@@ -337,16 +339,16 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// The value a substitutable local of the carried terms stands for (see
     /// [`crate::mid::affine`]).
-    fn affine_def(&self, l: LocalId) -> Option<&'a Expr> {
+    fn affine_def(&self, l: LocalId) -> Option<ExprId> {
         self.plan.pixel.as_ref()?.carry.defs.get(&l).copied()
     }
 
     /// In a group: the carried value of `e`, if `e` is carried by the loop being lowered.
-    pub(super) fn carried_value(&self, e: &'a Expr) -> Option<Val> {
+    pub(super) fn carried_value(&self, e: ExprId) -> Option<Val> {
         if self.carry_now.is_empty() || self.pix.is_none() || self.frames.len() != 1 {
             return None;
         }
-        let &(_, v) = self.carry_now.iter().find(|(k, _)| *k == e.id)?;
+        let &(_, v) = self.carry_now.iter().find(|(k, _)| *k == e)?;
         Some(Val {
             comps: vec![v],
             scalar: Scalar::Int,

@@ -15,7 +15,7 @@
 use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, InstBuilder};
 
 use super::{elem_scalar, err, exact_reciprocal, float_const, speculable_expr, Lower, Res};
-use crate::ir::{BinOp, ConstValue, Elem, Expr, ExprKind, LocalId, Scalar, UnaryOp};
+use crate::ir::{BinOp, ConstValue, Elem, ExprId, ExprKind, LocalId, Scalar, UnaryOp};
 use crate::jit::fixed;
 use crate::jit::libm::LibmFn;
 use crate::jit::value::{args_flags, blend, splat, zero, Val, VnKey, F32X4, VN_NEG, VN_NOT};
@@ -26,10 +26,10 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// run-time errors are guarded: by `cb` itself when uniform; for a varying `cb` (lane
     /// masks) the executing lanes narrow to those where `cb == taken`, and uniform errors
     /// inside count if some such lane exists.
-    pub(super) fn eval_guarded(&mut self, e: &'a Expr, varying: bool, cb: ir::Value, taken: bool) -> Res<Val> {
+    pub(super) fn eval_guarded(&mut self, e: ExprId, varying: bool, cb: ir::Value, taken: bool) -> Res<Val> {
         // Tier 0: a uniform guard is only read by an error record, so an expression that
         // cannot record one needs none (Cranelift would drop it, after we built it).
-        if !varying && self.tier0() && speculable_expr(e) {
+        if !varying && self.tier0() && speculable_expr(self.exprs(), e) {
             return self.eval(e);
         }
         let outer_guard = self.error_guard;
@@ -87,7 +87,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// non-NaN f32 within it (an end may be infinite). The flag is true when the guards
     /// before this statement narrowed it: such a bound holds here only, not wherever the
     /// same value is computed (see [`Self::convert_here`]).
-    pub(super) fn float_bound_here(&mut self, e: &Expr) -> (Option<(f64, f64)>, bool) {
+    pub(super) fn float_bound_here(&mut self, e: ExprId) -> (Option<(f64, f64)>, bool) {
         let Some(frame) = self.frames.last() else {
             return (None, false);
         };
@@ -100,8 +100,8 @@ impl<'a, 'b> Lower<'a, 'b> {
             );
             return (None, false);
         };
-        let whole = table.expr(e).map(|b| (b.lo, b.hi));
-        let here = table.expr_here(e, &self.guard_facts, depth);
+        let whole = table.expr(self.exprs(), e).map(|b| (b.lo, b.hi));
+        let here = table.expr_here(self.exprs(), e, &self.guard_facts, depth);
         (here, here != whole)
     }
 
@@ -113,7 +113,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// that was (right for every lane, so for these).
     pub(super) fn convert_here(
         &mut self,
-        e: &Expr,
+        e: ExprId,
         from: Scalar,
         to: Scalar,
         c: ir::Value,
@@ -158,14 +158,17 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// While a row prologue substitutes row locals: element `k` of a one-dimensional row
     /// local (`along[1]`), from the local's value (see [`crate::mid::hoist`]). `None` for
     /// anything else.
-    pub(super) fn row_local_element(&mut self, e: &'a Expr) -> Option<Res<Val>> {
+    pub(super) fn row_local_element(&mut self, e_id: ExprId) -> Option<Res<Val>> {
+        let e = &self.exprs()[e_id];
         let ExprKind::Index { base, index, .. } = &e.kind else {
             return None;
         };
-        let (ExprKind::Local(l), ExprKind::Const(ConstValue::Int(k))) = (&base.kind, &index.kind) else {
+        let (ExprKind::Local(l), ExprKind::Const(ConstValue::Int(k))) =
+            (&self.exprs()[*base].kind, &self.exprs()[*index].kind)
+        else {
             return None;
         };
-        if base.ty.dims.len() != 1 {
+        if self.exprs()[*base].ty.dims.len() != 1 {
             return None;
         }
         let k = usize::try_from(*k).ok()?;
@@ -175,7 +178,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }))
     }
 
-    pub(crate) fn eval_uniform(&mut self, e: &'a Expr) -> Res<Val> {
+    pub(crate) fn eval_uniform(&mut self, e: ExprId) -> Res<Val> {
         let v = self.eval(e)?;
         if v.varying {
             return err("varying value where a uniform one is required");
@@ -183,8 +186,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         Ok(v)
     }
 
-    pub(crate) fn eval(&mut self, e: &'a Expr) -> Res<Val> {
-        if let Some(v) = self.hoisted(e) {
+    pub(crate) fn eval(&mut self, e_id: ExprId) -> Res<Val> {
+        let e = &self.exprs()[e_id];
+        if let Some(v) = self.hoisted(e_id) {
             return Ok(v);
         }
         if self.substitute_row_locals {
@@ -193,38 +197,38 @@ impl<'a, 'b> Lower<'a, 'b> {
                     return v;
                 }
             }
-            if let Some(v) = self.row_local_element(e) {
+            if let Some(v) = self.row_local_element(e_id) {
                 return v;
             }
         }
-        if let Some(v) = self.carried_value(e) {
+        if let Some(v) = self.carried_value(e_id) {
             return Ok(v);
         }
         let sc = elem_scalar(&e.ty);
         match &e.kind {
             ExprKind::Const(c) => self.eval_const(c, sc),
             ExprKind::Local(_) | ExprKind::Index { .. } => {
-                let acc = self.resolve(e)?;
+                let acc = self.resolve(e_id)?;
                 self.read(acc)
             }
-            ExprKind::Unary { op, expr } => self.eval_unary(op, expr),
+            ExprKind::Unary { op, expr } => self.eval_unary(op, *expr),
             ExprKind::Binary { op, lhs, rhs } => {
-                let a = self.eval(lhs)?;
+                let a = self.eval(*lhs)?;
                 let c = match op {
                     // `a && b` reads b only where a holds, `a || b` only where it does not.
                     BinOp::And | BinOp::Or if a.scalar == Scalar::Bool => {
-                        self.eval_guarded(rhs, a.varying, a.comps[0], *op == BinOp::And)?
+                        self.eval_guarded(*rhs, a.varying, a.comps[0], *op == BinOp::And)?
                     }
-                    _ => self.eval(rhs)?,
+                    _ => self.eval(*rhs)?,
                 };
                 self.binary(*op, a, c)
             }
-            ExprKind::Convert(inner) => self.eval_convert(e, inner, sc),
-            ExprKind::Select { cond, then, otherwise } => self.eval_select(cond, then, otherwise),
-            ExprKind::Builtin { func, args } => self.builtin(*func, args, e),
+            ExprKind::Convert(inner) => self.eval_convert(e_id, *inner, sc),
+            ExprKind::Select { cond, then, otherwise } => self.eval_select(*cond, *then, *otherwise),
+            ExprKind::Builtin { func, args } => self.builtin(*func, args, e_id),
             ExprKind::List(items) => self.eval_list(items, sc),
-            ExprKind::Splat(item) => self.eval_splat(e, item, sc),
-            ExprKind::MatMul { lhs, rhs } => self.eval_matmul(lhs, rhs),
+            ExprKind::Splat(item) => self.eval_splat(e_id, *item, sc),
+            ExprKind::MatMul { lhs, rhs } => self.eval_matmul(*lhs, *rhs),
             ExprKind::SeqCount => {
                 let n = self.b.ins().load(types::I32, args_flags(), self.args, 0);
                 Ok(Val::one(n, Scalar::Int, false))
@@ -265,7 +269,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// `-x` and `!x`, component by component.
-    fn eval_unary(&mut self, op: &UnaryOp, expr: &'a Expr) -> Res<Val> {
+    fn eval_unary(&mut self, op: &UnaryOp, expr: ExprId) -> Res<Val> {
         let v = self.eval(expr)?;
         let code = if *op == UnaryOp::Neg { VN_NEG } else { VN_NOT };
         let comps = v
@@ -302,7 +306,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// A conversion of `inner` to `e`'s type (scalar `sc`).
-    fn eval_convert(&mut self, e: &'a Expr, inner: &'a Expr, sc: Scalar) -> Res<Val> {
+    fn eval_convert(&mut self, e_id: ExprId, inner: ExprId, sc: Scalar) -> Res<Val> {
+        let e = &self.exprs()[e_id];
         let v = self.eval(inner)?;
         let mut comps: Vec<ir::Value> = v
             .comps
@@ -331,7 +336,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         // A number converted to interpolation data stands for that number in every
         // component of the current view (the checker's zero-initialisation and
         // broadcasts).
-        if e.ty.elem == Elem::Interp && inner.ty.elem != Elem::Interp && comps.len() == 1 {
+        if e.ty.elem == Elem::Interp && self.exprs()[inner].ty.elem != Elem::Interp && comps.len() == 1 {
             let offs = self.comp_offsets(e.ty.elem, e.ty.fixed_len(), true);
             let n = offs.len();
             self.give_back_offsets(offs);
@@ -345,7 +350,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// `cond ? then : otherwise`: both arms evaluated (errors only where taken), then selected.
-    fn eval_select(&mut self, cond: &'a Expr, then: &'a Expr, otherwise: &'a Expr) -> Res<Val> {
+    fn eval_select(&mut self, cond: ExprId, then: ExprId, otherwise: ExprId) -> Res<Val> {
         let c = self.eval(cond)?;
         let cb = fixed::convert(&mut self.b, c.scalar, Scalar::Bool, c.comps[0]);
         let t = self.eval_guarded(then, c.varying, cb, true)?;
@@ -385,10 +390,10 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// A list literal: its items' components converted to `sc`, one after the other.
-    fn eval_list(&mut self, items: &'a [Expr], sc: Scalar) -> Res<Val> {
+    fn eval_list(&mut self, items: &'a [ExprId], sc: Scalar) -> Res<Val> {
         let mut vals = vec![];
         for it in items {
-            vals.push(self.eval(it)?);
+            vals.push(self.eval(*it)?);
         }
         let varying = vals.iter().any(|v| v.varying);
         let mut comps = vec![];
@@ -413,7 +418,8 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// `item` repeated over every element of `e`'s type.
-    fn eval_splat(&mut self, e: &'a Expr, item: &'a Expr, sc: Scalar) -> Res<Val> {
+    fn eval_splat(&mut self, e_id: ExprId, item: ExprId, sc: Scalar) -> Res<Val> {
+        let e = &self.exprs()[e_id];
         let v = self.eval(item)?;
         let one: Vec<ir::Value> = v
             .comps
@@ -428,14 +434,15 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// A matrix product (`n x m` by `m` or `m x k`), as sums of products in index order.
-    fn eval_matmul(&mut self, lhs: &'a Expr, rhs: &'a Expr) -> Res<Val> {
-        let a = self.eval(lhs)?;
+    fn eval_matmul(&mut self, lhs_id: ExprId, rhs: ExprId) -> Res<Val> {
+        let lhs = &self.exprs()[lhs_id];
+        let a = self.eval(lhs_id)?;
         let c = self.eval(rhs)?;
         let (n, m) = match lhs.ty.dims.as_slice() {
             [n, m] => (*n as usize, *m as usize),
             _ => return err("matrix product with a non-2-D left side"),
         };
-        let k = match rhs.ty.dims.as_slice() {
+        let k = match self.exprs()[rhs].ty.dims.as_slice() {
             [r] if *r as usize == m => None,
             [r, k] if *r as usize == m => Some(*k as usize),
             _ => return err("matrix product with mismatched shapes"),

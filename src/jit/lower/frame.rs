@@ -28,7 +28,7 @@ use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, I
 
 use super::{Lower, Res, PENDING_CODE_SHIFT};
 use crate::abi::{ErrorSlot, MODE_BOUND};
-use crate::ir::{Expr, Scalar, SiteId};
+use crate::ir::{ExprId, Scalar, SiteId};
 use crate::jit::fixed;
 use crate::jit::value::{args_flags, ctx_off, mem_flags, VnKey};
 
@@ -261,9 +261,9 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// `bound(...)`. `then_done`: nothing after it in the setup matters to a bound run
     /// (see `body`), so in bound mode the kernel returns right after recording it.
-    pub(super) fn lower_bound(&mut self, es: &'a [Expr; 4], then_done: bool) -> Res<()> {
+    pub(super) fn lower_bound(&mut self, es: &'a [ExprId; 4], then_done: bool) -> Res<()> {
         let mut r = [self.f32const_here(0.0); 4];
-        for (i, e) in es.iter().enumerate() {
+        for (i, &e) in es.iter().enumerate() {
             let v = self.eval_uniform(e)?;
             r[i] = fixed::convert(&mut self.b, v.scalar, Scalar::Float, v.comps[0]);
         }

@@ -208,6 +208,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let used_exprs = match (pass, self.copy) {
             (Some((prefix, decidable)), Some(copy)) => {
                 pass_exprs = crate::mid::block::pass_exprs(
+                    &f.exprs,
                     &prefix.stmts,
                     &f.pixel[prefix.len..],
                     decidable,
@@ -766,11 +767,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         for ((block, on), side) in blocks.into_iter().zip([true, false]).zip(sides.iter()) {
             self.b.switch_to_block(block);
             if depth == 0 {
-                self.store_deferred_frame(cond.id, on);
+                self.store_deferred_frame(cond, on);
             }
-            self.unswitched.insert(cond.id, on);
+            self.unswitched.insert(cond, on);
             let r = self.unswitched_loops(side, depth + 1, loops);
-            self.unswitched.remove(&cond.id);
+            self.unswitched.remove(&cond);
             r?;
         }
         Ok(())

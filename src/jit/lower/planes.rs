@@ -17,7 +17,7 @@ use cranelift_codegen::ir::{self, condcodes::IntCC, types, InstBuilder, StackSlo
 
 use super::{elem_scalar, err, ArmInfo, LoopCtx, Lower, Res, Storage, ALL_LANE_BITS, DEPTH_FORMAT};
 use crate::abi::{interpolator_arg_words, type_words, BindingKind, ParamSlot};
-use crate::ir::{Elem, Expr, FuncKind, ParamRole, Scalar};
+use crate::ir::{Elem, ExprId, FuncKind, ParamRole, Scalar};
 use crate::jit::fixed;
 use crate::jit::value::{args_flags, blend, ctx_off, mask_const, mem_flags, zero, Val, F32X4, I32X4};
 use crate::mid::view;
@@ -194,7 +194,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.plane_ptrs = Some(slot);
     }
 
-    pub(super) fn interpolator_return(&mut self, e: Option<&'a Expr>) -> Res<()> {
+    pub(super) fn interpolator_return(&mut self, e: Option<ExprId>) -> Res<()> {
         if !self.in_pixel() {
             return err("`interpolator_return` outside per-pixel code");
         }
@@ -247,9 +247,10 @@ impl<'a, 'b> Lower<'a, 'b> {
         })
     }
 
-    pub(super) fn store_kind_bindings(&mut self, e: &'a Expr) -> Res<()> {
+    pub(super) fn store_kind_bindings(&mut self, e_id: ExprId) -> Res<()> {
+        let e = &self.exprs()[e_id];
         let is_interp = e.ty.elem == Elem::Interp && e.ty.dims.is_empty();
-        let v = self.eval(e)?;
+        let v = self.eval(e_id)?;
         let v = self.float_varying(v);
         let bindings: Vec<usize> = match &self.arm {
             Some(a) => a.bindings.clone(),

@@ -22,7 +22,7 @@ use cranelift_codegen::ir::{self, InstBuilder, StackSlot, StackSlotData, StackSl
 use cranelift_frontend::Variable;
 
 use super::{elem_scalar, err, DeferredStore, Lower, Res, Storage};
-use crate::ir::{Elem, Expr, ExprId, Function, LocalId, ParamRole, Scalar};
+use crate::ir::{Elem, ExprId, Function, LocalId, ParamRole, Scalar};
 use crate::jit::fixed;
 use crate::jit::value::{args_flags, cl_type, mem_flags, splat, Val};
 
@@ -169,7 +169,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let unstored = &self.pixel_plan()?.unstored_terms;
         for k in 0..self.hoists().len() {
             let h = &self.hoists()[k];
-            let id = h.expr.id;
+            let id = h.expr;
             let skip = h.per_run || only.is_some_and(|set| !set.contains(&id)) || unstored.contains(&id);
             if !skip {
                 stored = self.store_hoist(fs, k);
@@ -225,7 +225,7 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// In a group: the value of a hoisted row term, read from the frame's row section.
     /// Also in a pixel loop's prologue while carried terms are evaluated (`prologue_frame`).
-    pub(super) fn hoisted(&mut self, e: &'a Expr) -> Option<Val> {
+    pub(super) fn hoisted(&mut self, e: ExprId) -> Option<Val> {
         let (base, rows_ready) = match (&self.pix, self.prologue_frame) {
             (Some(p), _) => (p.frame_base?, true),
             (None, Some(pf)) => pf,
@@ -237,7 +237,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let h = self
             .hoists()
             .iter()
-            .find(|h| std::ptr::eq(h.expr, e) && h.view == self.view && (rows_ready || h.per_run))?;
+            .find(|h| h.expr == e && h.view == self.view && (rows_ready || h.per_run))?;
         let (offset, comps, scalar) = (h.offset, h.comps, h.scalar);
         let ty = cl_type(scalar, true);
         let comps = (0..comps)

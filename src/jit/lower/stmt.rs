@@ -19,7 +19,7 @@ use cranelift_frontend::Variable;
 
 use super::{err, key_constant, quiet_stmt, speculable_expr, LoopCtx, Lower, Res, Storage};
 use crate::abi::ERR_FUEL;
-use crate::ir::{for_each_assign, Expr, Function, LocalId, LoopId, Scalar, SiteId, Stmt, StmtKind};
+use crate::ir::{for_each_assign, ExprId, Function, LocalId, LoopId, Scalar, SiteId, Stmt, StmtKind};
 use crate::jit::fixed;
 use crate::jit::value::{mask_const, splat, I32X4};
 
@@ -124,16 +124,16 @@ impl<'a, 'b> Lower<'a, 'b> {
                 {
                     return Ok(());
                 }
-                self.assign(place, value)
+                self.assign(place, *value)
             }
             StmtKind::If { cond, then, otherwise } => {
-                self.lower_if(cond, then, otherwise)?;
+                self.lower_if(*cond, then, otherwise)?;
                 // `if (c) return;`: every lane still executing has `c` false.
                 if self.in_pixel()
                     && otherwise.is_empty()
                     && matches!(then.as_slice(), [t] if matches!(t.kind, StmtKind::Return))
                 {
-                    self.assume_guard(cond);
+                    self.assume_guard(*cond);
                 }
                 Ok(())
             }
@@ -154,16 +154,16 @@ impl<'a, 'b> Lower<'a, 'b> {
                     for_each_assign(step, &mut |p, _| self.guard_facts.kill(frame, p.local));
                 }
                 if *varying && self.in_pixel() {
-                    self.varying_loop(*id, cond.as_ref(), body, step, *site)
+                    self.varying_loop(*id, *cond, body, step, *site)
                 } else {
-                    self.uniform_loop(*id, cond.as_ref(), body, step, *site)
+                    self.uniform_loop(*id, *cond, body, step, *site)
                 }
             }
             StmtKind::Break(id) => self.break_continue(*id, true),
             StmtKind::Continue(id) => self.break_continue(*id, false),
             StmtKind::Return => self.lower_return(),
             StmtKind::Interpolation { arms } => self.interpolation(arms),
-            StmtKind::InterpolatorReturn(e) => self.interpolator_return(e.as_ref()),
+            StmtKind::InterpolatorReturn(e) => self.interpolator_return(*e),
             StmtKind::Bound(es) => {
                 if self.in_pixel() || self.frames.len() > 1 {
                     return err("`bound` in per-pixel code");
@@ -194,10 +194,10 @@ impl<'a, 'b> Lower<'a, 'b> {
             && self.speculable_stmts(std::slice::from_ref(s), &mut budget)
     }
 
-    pub(super) fn lower_if(&mut self, cond: &'a Expr, then: &'a [Stmt], otherwise: &'a [Stmt]) -> Res<()> {
+    pub(super) fn lower_if(&mut self, cond: ExprId, then: &'a [Stmt], otherwise: &'a [Stmt]) -> Res<()> {
         // `clipping()` (possibly negated) is a constant of the key: lower only the branch it
         // selects, so a trivially accepted variant contains no clipping code at all.
-        if let Some(on) = key_constant(cond, self.key) {
+        if let Some(on) = key_constant(self.exprs(), cond, self.key) {
             let taken = if on { then } else { otherwise };
             for s in taken {
                 self.stmt(s)?;
@@ -206,7 +206,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         // A condition of the primitive decided before the pixel loops (tier 1, see
         // [`crate::mid::unswitch`]): this copy of the loops holds the side it takes only.
-        if let (1, Some(&on)) = (self.frames.len(), self.unswitched.get(&cond.id)) {
+        if let (1, Some(&on)) = (self.frames.len(), self.unswitched.get(&cond)) {
             return self.stmts(if on { then } else { otherwise });
         }
         let c = self.eval(cond)?;
@@ -215,8 +215,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             // Tier 0, flat pixel code: a uniform `if` whose sides run under masks as well
             // as after a branch is lowered like a varying one, with the condition splatted
             // to every lane: no blocks for its sides (see [`crate::mid::flat`]).
-            if self.flat && self.frames.len() == 1 && self.pixel_plan().is_ok_and(|p| p.maskable_ifs.contains(&cond.id))
-            {
+            if self.flat && self.frames.len() == 1 && self.pixel_plan().is_ok_and(|p| p.maskable_ifs.contains(&cond)) {
                 if let Some(entry) = self.exec() {
                     let m = splat(&mut self.b, Scalar::Bool, c);
                     return self.masked_if(entry, m, then, otherwise);
@@ -392,12 +391,13 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// `c` of a setup statement `if (c) return;` whose condition cannot fail.
-    pub(super) fn deferrable_guard(&self, s: &'a Stmt) -> Option<&'a Expr> {
+    pub(super) fn deferrable_guard(&self, s: &'a Stmt) -> Option<ExprId> {
         let StmtKind::If { cond, then, otherwise } = &s.kind else {
             return None;
         };
         let is_return = otherwise.is_empty() && matches!(then.as_slice(), [t] if matches!(t.kind, StmtKind::Return));
-        (is_return && key_constant(cond, self.key).is_none() && speculable_expr(cond)).then_some(cond)
+        (is_return && key_constant(self.exprs(), *cond, self.key).is_none() && speculable_expr(self.exprs(), *cond))
+            .then_some(*cond)
     }
 
     /// End the kernel if `c` (i8) holds; code goes on in a new block.
@@ -511,9 +511,9 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// After `if (cond) return;` in pixel code (lowered, or dropped by a block variant that
     /// proved it fires for no lane): record what `cond` being false says about float
     /// locals for the rest of the statement list (see [`super::bounds::GuardFacts`]).
-    pub(in crate::jit) fn assume_guard(&mut self, cond: &Expr) {
+    pub(in crate::jit) fn assume_guard(&mut self, cond: ExprId) {
         let frame = self.frames.len() - 1;
-        self.guard_facts.assume(frame, cond, false);
+        self.guard_facts.assume(self.exprs(), frame, cond, false);
     }
 
     /// `m & !c` for a lane mask `m` and a varying condition `c`. When `c` is a vector
@@ -583,7 +583,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     pub(super) fn uniform_loop(
         &mut self,
         id: LoopId,
-        cond: Option<&'a Expr>,
+        cond: Option<ExprId>,
         body: &'a [Stmt],
         step: &'a [Stmt],
         site: SiteId,
@@ -653,7 +653,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     pub(super) fn varying_loop(
         &mut self,
         id: LoopId,
-        cond: Option<&'a Expr>,
+        cond: Option<ExprId>,
         body: &'a [Stmt],
         step: &'a [Stmt],
         site: SiteId,

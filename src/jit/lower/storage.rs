@@ -27,7 +27,7 @@ use super::{
     ZERO_LOOP_BYTES, ZERO_LOOP_PIXEL_BYTES,
 };
 use crate::abi::{type_words, ParamSlot, ERR_INDEX};
-use crate::ir::{Elem, Expr, ExprKind, FuncId, Function, LocalId, ParamRole, Place, Scalar, SiteId};
+use crate::ir::{Elem, ExprId, ExprKind, Exprs, FuncId, Function, LocalId, ParamRole, Place, Scalar, SiteId};
 use crate::jit::fixed;
 use crate::jit::value::{
     args_flags, blend, cl_type, comp_bytes, mask_const, mem_flags, splat, zero, Val, VnKey, I32X4,
@@ -141,6 +141,13 @@ impl<'a, 'b> Lower<'a, 'b> {
         })
     }
 
+    /// The expression arena of the function being lowered (the innermost frame's): the one
+    /// every `ExprId` of the statements at hand refers to.
+    pub(crate) fn exprs(&self) -> &'a Exprs {
+        let f: &'a Function = self.frame().func;
+        &f.exprs
+    }
+
     pub(super) fn frame(&self) -> &Frame<'a> {
         self.frames.last().expect("a frame is always pushed while lowering")
     }
@@ -212,7 +219,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// Apply one index to an access (clamping it, recording ERR_INDEX when out of range).
-    pub(super) fn index_access(&mut self, mut acc: Access<'a>, index: &'a Expr, site: SiteId) -> Res<Access<'a>> {
+    pub(super) fn index_access(&mut self, mut acc: Access<'a>, index: ExprId, site: SiteId) -> Res<Access<'a>> {
         let base_ty = acc.ty;
         if base_ty.dims().is_empty() && !base_ty.per_seq {
             return err("indexing a scalar");
@@ -220,7 +227,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let elem_ty = base_ty.element();
         let stride = self.value_comps(elem_ty.elem(), elem_ty.fixed_len(), acc.compact);
         let static_len = if base_ty.per_seq { None } else { Some(base_ty.dims()[0]) };
-        if let (Some(len), Some(k)) = (static_len, const_int(index)) {
+        if let (Some(len), Some(k)) = (static_len, const_int(self.exprs(), index)) {
             let clamped = k.clamp(0, len as i64 - 1) as u32;
             if k < 0 || k >= len as i64 {
                 self.defer_error(ERR_INDEX, site, None);
@@ -414,15 +421,16 @@ impl<'a, 'b> Lower<'a, 'b> {
         checked
     }
 
-    pub(super) fn resolve(&mut self, e: &'a Expr) -> Res<Access<'a>> {
+    pub(super) fn resolve(&mut self, e_id: ExprId) -> Res<Access<'a>> {
+        let e = &self.exprs()[e_id];
         match &e.kind {
             ExprKind::Local(l) => self.local_access(*l),
             ExprKind::Index { base, index, site } => {
-                let acc = self.resolve(base)?;
-                self.index_access(acc, index, *site)
+                let acc = self.resolve(*base)?;
+                self.index_access(acc, *index, *site)
             }
             _ => {
-                let v = self.eval(e)?;
+                let v = self.eval(e_id)?;
                 Ok(Access {
                     root: Root::Temp(v.clone()),
                     ty: AccessTy::of(&e.ty),
@@ -742,12 +750,12 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
-    pub(super) fn assign(&mut self, place: &'a Place, value: &'a Expr) -> Res<()> {
+    pub(super) fn assign(&mut self, place: &'a Place, value: ExprId) -> Res<()> {
         let frame = self.frames.len() - 1;
         self.guard_facts.kill(frame, place.local);
         let mut acc = self.local_access(place.local)?;
         for (idx, site) in &place.indices {
-            acc = self.index_access(acc, idx, *site)?;
+            acc = self.index_access(acc, *idx, *site)?;
         }
         if self.zero_array(place.local, &acc, value) {
             return Ok(());
@@ -920,9 +928,10 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// (5700 of the NURB kernel's 32000 tier-0 CLIF lines) for Cranelift to process; a
     /// varying `float a[65536]` was 65536 splats and stores. False (nothing emitted) when the
     /// assignment is not such a clear.
-    pub(super) fn zero_array(&mut self, local: LocalId, acc: &Access<'a>, value: &Expr) -> bool {
+    pub(super) fn zero_array(&mut self, local: LocalId, acc: &Access<'a>, value_id: ExprId) -> bool {
+        let value = &self.exprs()[value_id];
         // Cheap tests first: this runs for every assignment.
-        if !all_zero_bits(value) {
+        if !all_zero_bits(self.exprs(), value_id) {
             return false;
         }
         let fr = &self.frames[self.frames.len() - 1];
