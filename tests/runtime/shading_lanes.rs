@@ -2,9 +2,7 @@
 //! computes each lane as scalar code does, and the AVX2 and AVX-512 builds are bit-identical
 //! to it lane by lane (NaN payloads aside), wherever the CPU has them.
 
-use primflow::runtime::shading::lanes::{load, F32s, F64s, Isa, Mask, Portable, LANES};
-#[cfg(target_arch = "x86_64")]
-use primflow::runtime::shading::lanes::{Avx2, Avx512};
+use primflow::runtime::shading::lanes::{load, on_each_isa, F32s, F64s, Isa, LaneProgram, Mask, Portable, LANES};
 
 /// The same operations on every instruction set, lane by lane, bit for bit, including
 /// NaN, infinities, signed zeros, subnormals and u32 values past i32's range.
@@ -86,28 +84,23 @@ fn portable_lanes_compute_each_lane_as_scalar_code_does() {
     assert_eq!(F64s::<Portable>::from_u32(&[u32::MAX; LANES]).0[0], 4294967295.0);
 }
 
-#[cfg(target_arch = "x86_64")]
+struct Exercise;
+
+impl LaneProgram for Exercise {
+    fn run<I: Isa>() -> Vec<u64> {
+        exercise::<I>()
+    }
+}
+
 #[test]
 fn avx2_and_avx512_lanes_are_bit_identical_to_portable_ones() {
-    let portable = exercise::<Portable>();
-    let mut compared = 0;
-    if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
-        #[target_feature(enable = "avx2,fma")]
-        unsafe fn on_avx2() -> Vec<u64> {
-            exercise::<Avx2>()
-        }
-        // SAFETY: the CPU has AVX2 and FMA (checked above).
-        assert_eq!(unsafe { on_avx2() }, portable, "AVX2");
-        compared += 1;
+    let results = on_each_isa::<Exercise>();
+    let (_, portable) = &results[0];
+    for (build, r) in &results[1..] {
+        assert_eq!(r, portable, "{build}");
     }
-    if is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512dq") {
-        #[target_feature(enable = "avx512f,avx512dq")]
-        unsafe fn on_avx512() -> Vec<u64> {
-            exercise::<Avx512>()
-        }
-        // SAFETY: the CPU has AVX-512 F and DQ (checked above).
-        assert_eq!(unsafe { on_avx512() }, portable, "AVX-512");
-        compared += 1;
-    }
-    eprintln!("compared {compared} instruction sets with the portable lanes");
+    eprintln!(
+        "compared {} instruction sets with the portable lanes",
+        results.len() - 1
+    );
 }

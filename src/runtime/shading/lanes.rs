@@ -618,8 +618,43 @@ macro_rules! per_register {
     }};
 }
 
+/// A computation over lane vectors, to run on each instruction set with [`on_each_isa`].
+#[doc(hidden)]
+pub trait LaneProgram {
+    fn run<I: Isa>() -> Vec<u64>;
+}
+
+/// `P` on the portable lanes, then on AVX2 and AVX-512 where this CPU has them: (build,
+/// result) each, for tests that compare the builds. The AVX types are not public, and this
+/// detects the CPU before it runs them, so no code outside the crate executes their
+/// instructions unchecked.
+#[doc(hidden)]
+pub fn on_each_isa<P: LaneProgram>() -> Vec<(&'static str, Vec<u64>)> {
+    let mut out = vec![("portable", P::run::<Portable>())];
+    #[cfg(target_arch = "x86_64")]
+    {
+        if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+            #[target_feature(enable = "avx2,fma")]
+            unsafe fn on_avx2<P: LaneProgram>() -> Vec<u64> {
+                P::run::<Avx2>()
+            }
+            // SAFETY: the CPU has AVX2 and FMA (checked above).
+            out.push(("AVX2", unsafe { on_avx2::<P>() }));
+        }
+        if is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512dq") {
+            #[target_feature(enable = "avx512f,avx512dq")]
+            unsafe fn on_avx512<P: LaneProgram>() -> Vec<u64> {
+                P::run::<Avx512>()
+            }
+            // SAFETY: the CPU has AVX-512 F and DQ (checked above).
+            out.push(("AVX-512", unsafe { on_avx512::<P>() }));
+        }
+    }
+    out
+}
+
 #[cfg(target_arch = "x86_64")]
-pub use avx2::Avx2;
+pub(crate) use avx2::Avx2;
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
@@ -916,7 +951,7 @@ mod avx2 {
 }
 
 #[cfg(target_arch = "x86_64")]
-pub use avx512::Avx512;
+pub(crate) use avx512::Avx512;
 
 #[cfg(target_arch = "x86_64")]
 mod avx512 {
