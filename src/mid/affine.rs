@@ -474,31 +474,5 @@ fn count_reads(x: &Exprs, e: ExprId, out: &mut HashMap<LocalId, u32>) {
 
 /// Count the reads of each local in every expression of `stmts`.
 fn count_stmt_reads(x: &Exprs, stmts: &[Stmt], out: &mut HashMap<LocalId, u32>) {
-    for s in stmts {
-        match &s.kind {
-            StmtKind::Assign { place, value } => {
-                for (i, _) in &place.indices {
-                    count_reads(x, *i, out);
-                }
-                count_reads(x, *value, out);
-            }
-            StmtKind::If { cond, then, otherwise } => {
-                count_reads(x, *cond, out);
-                count_stmt_reads(x, then, out);
-                count_stmt_reads(x, otherwise, out);
-            }
-            StmtKind::Loop { cond, body, step, .. } => {
-                if let Some(c) = cond {
-                    count_reads(x, *c, out);
-                }
-                count_stmt_reads(x, body, out);
-                count_stmt_reads(x, step, out);
-            }
-            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| count_stmt_reads(x, &a.body, out)),
-            StmtKind::InterpolatorReturn(Some(e)) => count_reads(x, *e, out),
-            StmtKind::Bound(es) => es.iter().for_each(|e| count_reads(x, *e, out)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| count_reads(x, *e, out)),
-            StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
-        }
-    }
+    crate::ir::for_each_stmt(stmts, &mut |s| s.for_each_expr(|e| count_reads(x, *e, out)));
 }

@@ -43,38 +43,21 @@ pub(crate) fn index_sites(f: &Function, stmts: &[Stmt], out: &mut Vec<IndexSite>
         x[e].for_each_child(|c| expr(x, c, out));
     }
     let x = &f.exprs;
-    for s in stmts {
-        match &s.kind {
-            StmtKind::Assign { place, value } => {
-                if let Some(local) = f.locals.get(place.local.0 as usize) {
-                    let mut ty = local.ty.clone();
-                    for (index, site) in &place.indices {
-                        out.push((static_len_of(&ty), *index, *site));
-                        expr(x, *index, out);
-                        ty = ty.element();
-                    }
+    // Each statement before those inside it; a place's sites before its index expressions.
+    crate::ir::for_each_stmt(stmts, &mut |s| match &s.kind {
+        StmtKind::Assign { place, value } => {
+            if let Some(local) = f.locals.get(place.local.0 as usize) {
+                let mut ty = local.ty.clone();
+                for (index, site) in &place.indices {
+                    out.push((static_len_of(&ty), *index, *site));
+                    expr(x, *index, out);
+                    ty = ty.element();
                 }
-                expr(x, *value, out);
             }
-            StmtKind::If { cond, then, otherwise } => {
-                expr(x, *cond, out);
-                index_sites(f, then, out);
-                index_sites(f, otherwise, out);
-            }
-            StmtKind::Loop { cond, body, step, .. } => {
-                if let Some(c) = cond {
-                    expr(x, *c, out);
-                }
-                index_sites(f, body, out);
-                index_sites(f, step, out);
-            }
-            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| index_sites(f, &a.body, out)),
-            StmtKind::InterpolatorReturn(Some(e)) => expr(x, *e, out),
-            StmtKind::Bound(args) => args.iter().for_each(|a| expr(x, *a, out)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr(x, *a, out)),
-            StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
+            expr(x, *value, out);
         }
-    }
+        _ => s.for_each_expr(|e| expr(x, *e, out)),
+    });
 }
 
 /// Whether `f` has a site the lowering may ask the range analysis about: one whose index
