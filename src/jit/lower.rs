@@ -54,6 +54,7 @@ mod frame;
 mod loops;
 mod outline;
 mod planes;
+mod rows;
 mod spill;
 mod stmt;
 mod storage;

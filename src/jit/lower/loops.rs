@@ -2,12 +2,13 @@
 //!
 //! In bound mode the pixel part records the viewport unless a bound ran, and returns. In
 //! render mode (at tier 0 in a function of its own the kernel calls, see
-//! [`super::outline`]) [`Lower::pixel_loops`] loops rows ([`Lower::pixel_rows`]), then
-//! 4-pixel groups ([`Lower::pixel_group`]) of the pass rectangle clipped to the tile
-//! (groups start at tile-aligned x; lanes outside start dead), `UNROLL` groups per loop
-//! step. Loop headers branch exit-first so Cranelift keeps hoisting uniform work out of
-//! them. Uniform locals move to the uniform frame first (see [`super::spill`]) and the
-//! G-buffer plane addresses are computed once (see [`super::planes`]).
+//! [`super::outline`]) [`Lower::pixel_loops`] loops rows, then 4-pixel groups
+//! ([`Lower::pixel_group`]) of the pass rectangle clipped to the tile (a
+//! [`super::rows::RowLoop`]; groups start at tile-aligned x; lanes outside start dead),
+//! `UNROLL` groups per loop step. Loop headers branch exit-first so Cranelift keeps
+//! hoisting uniform work out of them. Uniform locals move to the uniform frame first (see
+//! [`super::spill`]) and the G-buffer plane addresses are computed once (see
+//! [`super::planes`]).
 //!
 //! When the pixel part opens with coverage tests (`if (c) return;`), the rectangle is
 //! walked in blocks instead: first the whole rectangle as one block, and only when that is
@@ -33,8 +34,9 @@
 use cranelift_codegen::ir::{self, condcodes::FloatCC, condcodes::IntCC, types, Block, InstBuilder};
 use cranelift_frontend::Variable;
 
+use super::rows::RowLoop;
 use super::walk::BlockWalk;
-use super::{elem_scalar, err, Lower, PassRect, PixelState, Res, Storage, ALL_LANE_BITS, DEPTH_FORMAT, UNROLL};
+use super::{elem_scalar, err, Lower, PassRect, PixelState, Res, Storage, ALL_LANE_BITS, DEPTH_FORMAT};
 use crate::abi::{BindingKind, MODE_BOUND};
 use crate::ir::{Elem, Function, ParamRole, Scalar, StmtKind};
 use crate::jit::fixed;
@@ -220,121 +222,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             (Some(_), None) => return err("a pass span outside a planned copy"),
             (None, copy) => copy.and_then(|c| c.full_exprs.as_ref()),
         };
-        let py = self.declare_var(types::I32);
-        let gx = self.declare_var(types::I32);
-        let xv = self.declare_var(F32X4);
-        self.b.def_var(py, ys[0]);
-        // The row's element index of pixel x = 0 (`(y - y0) * stride - x0`; the tile's x0
-        // subtracted once, so a group's index is one add) and its centre Y, carried from row
-        // to row by an add: both exact (integers; multiples of 0.5 below 2^22 in f32).
-        let row_base_var = self.declare_var(types::I64);
-        let yf_var = self.declare_var(types::F32);
-        {
-            let row = self.b.ins().isub(ys[0], rect.y0);
-            let row64 = self.b.ins().sextend(types::I64, row);
-            let row_base = self.b.ins().imul(row64, rect.stride64);
-            let x0_64 = self.b.ins().sextend(types::I64, rect.x0);
-            let row_base = self.b.ins().isub(row_base, x0_64);
-            self.b.def_var(row_base_var, row_base);
-            let yf = self.b.ins().fcvt_from_sint(types::F32, ys[0]);
-            let half = self.f32const_here(0.5);
-            let yf = self.b.ins().fadd(yf, half);
-            self.b.def_var(yf_var, yf);
-        }
+        let rows = RowLoop::new(self, rect, ys, gs);
         let row_carry = self.carry_rows_start(f, gs[0], ys[0], used_exprs)?;
-        let row_hdr = self.b.create_block();
-        let row_body = self.b.create_block();
-        let row_next = self.b.create_block();
-        let grp_hdr = self.b.create_block();
-        let grp_next = self.b.create_block();
-        self.b.ins().jump(row_hdr, &[]);
-
-        // Loop headers branch exit-first so Cranelift keeps hoisting uniform work.
-        self.b.switch_to_block(row_hdr);
-        let y = self.b.use_var(py);
-        let finished = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, y, ys[1]);
-        self.b.ins().brif(finished, done, &[], row_body, &[]);
-
-        self.b.switch_to_block(row_body);
-        let row_y = self.b.use_var(py);
-        let row_base = self.b.use_var(row_base_var);
-        let yf = self.b.use_var(yf_var);
-        let y_f = self.b.ins().splat(F32X4, yf);
-        self.row_hoists(f, y_f, used_exprs)?;
-        self.b.def_var(gx, gs[0]);
-        // X of the group's lanes, carried across the row: centre of the first group's
-        // lanes (int -> float, + 0.5, as the pixel's X is defined), then + 4.0 per group.
-        // Exact, so bit-identical to converting each group's lane indices: every value is
-        // a multiple of 0.5 below 2^22 in magnitude (images are at most 16384 pixels wide).
-        let x0_f = self.lane_centres(gs[0]);
-        self.b.def_var(xv, x0_f);
-        // Int terms affine in the column: their value at the first group, carried (see
-        // [`super::carry`]); after the row hoists, which define Y's variable the same way.
-        let carry = self.carry_prologue(f, x0_f, y_f, used_exprs, &row_carry)?;
-        self.b.ins().jump(grp_hdr, &[]);
-
-        self.b.switch_to_block(grp_hdr);
-        let g = self.b.use_var(gx);
-        let finished = self.b.ins().icmp(IntCC::SignedGreaterThanOrEqual, g, gs[1]);
-        let first = self.b.create_block();
-        self.b.ins().brif(finished, row_next, &[], first, &[]);
-        self.b.switch_to_block(first);
-        let unroll = UNROLL;
-        for k in 0..unroll {
-            let next = if k + 1 == unroll {
-                grp_next
-            } else {
-                self.b.create_block()
-            };
-            let g = self.b.use_var(gx);
-            let g = self.b.ins().iadd_imm_s(g, 4 * k as i64);
-            let x_f = self.b.use_var(xv);
-            let x_f = if k == 0 {
-                x_f
-            } else {
-                let step = self.f32const_here(4.0 * k as f32);
-                let step = self.b.ins().splat(F32X4, step);
-                self.b.ins().fadd(x_f, step)
-            };
-            let mut vals: Vec<ir::Value> = carry.group.iter().map(|c| self.b.use_var(c.1)).collect();
-            self.carry_advance(&mut vals, &carry, k);
-            self.carry_now = carry.group.iter().zip(&vals).map(|(c, &v)| (c.0, v)).collect();
-            let lowered = self.pixel_group(f, rect, g, row_base, [x_f, y_f], pass, next);
-            self.carry_now.clear();
-            lowered?;
-            if k + 1 != unroll {
-                self.b.switch_to_block(next);
-            }
-        }
-
-        self.b.switch_to_block(grp_next);
-        let g = self.b.use_var(gx);
-        let g = self.b.ins().iadd_imm_s(g, 4 * unroll as i64);
-        self.b.def_var(gx, g);
-        let x_f = self.b.use_var(xv);
-        let step = self.f32const_here(4.0 * unroll as f32);
-        let step = self.b.ins().splat(F32X4, step);
-        let x_f = self.b.ins().fadd(x_f, step);
-        self.b.def_var(xv, x_f);
-        let mut vals: Vec<ir::Value> = carry.group.iter().map(|c| self.b.use_var(c.1)).collect();
-        self.carry_advance(&mut vals, &carry, unroll);
-        for (c, v) in carry.group.iter().zip(vals) {
-            self.b.def_var(c.1, v);
-        }
-        self.b.ins().jump(grp_hdr, &[]);
-
-        // The row's y as read in `row_body` (dominates this block), not `use_var`: a read
-        // here would be looked up through the group loop and carried through it.
-        self.b.switch_to_block(row_next);
-        let y = self.b.ins().iadd_imm_s(row_y, 1);
-        self.b.def_var(py, y);
-        let row_base = self.b.ins().iadd(row_base, rect.stride64);
-        self.b.def_var(row_base_var, row_base);
-        let one = self.f32const_here(1.0);
-        let yf = self.b.ins().fadd(yf, one);
-        self.b.def_var(yf_var, yf);
-        self.carry_next_row(&carry);
-        self.b.ins().jump(row_hdr, &[]);
+        rows.emit(self, f, rect, used_exprs, &row_carry, pass, done)?;
         self.seal_blocks_from(first_block);
         Ok(())
     }
