@@ -76,6 +76,26 @@ impl<'g, 'a> FnLower<'g, 'a> {
                         _ => None,
                     };
                     match want {
+                        // The callee writes the caller's Z in place: the same type or nothing.
+                        Some(w) if given == Some(w) && self.locals[w.0 as usize].ty != p.ty => {
+                            let (mine, theirs) = (
+                                type_name(&self.locals[w.0 as usize].ty),
+                                type_name(&p.ty),
+                            );
+                            self.sink.push(
+                                err(
+                                    "E0410",
+                                    format!(
+                                        "`{}` of `{}` is `{theirs}`, but this primitive's own is `{mine}`",
+                                        p.name, callee.name
+                                    ),
+                                    a.span,
+                                    format!("this is `{mine}`"),
+                                )
+                                .help("a sub-primitive works on its caller's X, Y and Z in place: declare them with the callee's types"),
+                            );
+                            ok = false;
+                        }
                         Some(w) if given == Some(w) => out.push(self.local_expr(w, a.span)),
                         _ => {
                             let rname = match p.role {
