@@ -28,6 +28,7 @@ pub mod bench;
 pub mod check;
 pub mod cli;
 pub mod diag;
+pub mod fuzz;
 pub mod handwritten;
 pub mod ir;
 pub mod jit;

@@ -45,9 +45,55 @@ pub enum Command {
     /// Sweep the accuracy knobs: error against the f64 reference vs time, as a table, CSV,
     /// JSON and one plot per knob.
     Accuracy(AccuracyArgs),
+    /// Run a fuzzing campaign: generated and mutated programs and scenes through the checker,
+    /// both JIT tiers and the renderer; prints counts per class and every finding.
+    Fuzz(FuzzArgs),
     /// `bench`'s llvmpipe process (see `bench::llvmpipe`): not for direct use.
     #[command(name = "llvmpipe-worker", hide = true)]
     LlvmpipeWorker,
+    /// `fuzz`'s worker process (see `fuzz::campaign`): not for direct use.
+    #[command(name = "fuzz-worker", hide = true)]
+    FuzzWorker(FuzzWorkerArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct FuzzArgs {
+    /// Number of inputs.
+    #[arg(long, default_value_t = 10_000)]
+    pub inputs: u64,
+    /// Campaign seed: input i of a seed is always the same text.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// First input number (to replay one finding: `--start I --inputs 1`).
+    #[arg(long, default_value_t = 0)]
+    pub start: u64,
+    /// Only inputs of this class (default: a mix of all).
+    #[arg(long, value_enum)]
+    pub class: Option<crate::fuzz::Class>,
+    /// Worker processes at a time (default: one per core).
+    #[arg(long, value_name = "N")]
+    pub jobs: Option<usize>,
+    /// Seconds an input may run before it counts as a hang.
+    #[arg(long, default_value_t = 20)]
+    pub timeout: u64,
+    /// Write each finding's input into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub findings: Option<PathBuf>,
+    /// Write the shortest input of each (class, outcome) into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub save_corpus: Option<PathBuf>,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct FuzzWorkerArgs {
+    #[arg(long)]
+    pub seed: u64,
+    #[arg(long)]
+    pub from: u64,
+    #[arg(long)]
+    pub to: u64,
+    #[arg(long, value_enum)]
+    pub class: Option<crate::fuzz::Class>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -215,8 +261,72 @@ where
         Command::Test(args) => test(&args, out),
         Command::Bench(args) => bench(&args, out, err),
         Command::Accuracy(args) => accuracy(&args, out, err),
+        Command::Fuzz(args) => fuzz(&args, out, err),
         Command::LlvmpipeWorker => crate::bench::llvmpipe_worker(&mut std::io::stdin().lock(), out),
+        Command::FuzzWorker(a) => crate::fuzz::campaign::worker(a.seed, a.from, a.to, a.class, out),
     }
+}
+
+fn fuzz(args: &FuzzArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+    use crate::fuzz::{campaign, Class, Corpus};
+    let corpus = match Corpus::load() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = writeln!(err, "error: the fuzz corpus: {e}");
+            return 1;
+        }
+    };
+    let opts = campaign::Options {
+        seed: args.seed,
+        start: args.start,
+        inputs: args.inputs,
+        only: args.class,
+        jobs: args
+            .jobs
+            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())),
+        timeout: std::time::Duration::from_secs(args.timeout.max(1)),
+        findings: args.findings.clone(),
+        save_corpus: args.save_corpus.clone(),
+    };
+    let started = std::time::Instant::now();
+    let report = match campaign::campaign(&opts, &corpus, err) {
+        Ok(r) => r,
+        Err(e) => {
+            let _ = writeln!(err, "error: {e}");
+            return 1;
+        }
+    };
+    let _ = write!(out, "{:<8}", "class");
+    for k in campaign::KINDS {
+        let _ = write!(out, " {k:>9}");
+    }
+    let _ = writeln!(out);
+    for class in Class::ALL {
+        let _ = write!(out, "{:<8}", class.name());
+        for k in campaign::KINDS {
+            let _ = write!(out, " {:>9}", report.counts.get(&(class, k)).copied().unwrap_or(0));
+        }
+        let _ = writeln!(out);
+    }
+    let _ = writeln!(
+        out,
+        "{} inputs (seed {}) in {:.1} s: {} findings",
+        args.inputs,
+        args.seed,
+        started.elapsed().as_secs_f64(),
+        report.findings.len()
+    );
+    for (i, class, outcome) in &report.findings {
+        let class_arg = args.class.map_or(String::new(), |c| format!(" --class {}", c.name()));
+        let _ = writeln!(
+            out,
+            "finding: input {i} ({}) {}: {outcome:?}\n  replay: primflow fuzz --seed {} --start {i} --inputs 1{class_arg}",
+            class.name(),
+            campaign::kind(outcome),
+            args.seed
+        );
+    }
+    i32::from(!report.findings.is_empty())
 }
 
 fn test(args: &TestArgs, out: &mut dyn Write) -> i32 {

@@ -12,6 +12,7 @@ mod bench_report;
 mod bench_scene;
 mod cli_run;
 mod expectations;
+mod fuzz_campaign;
 mod output_files;
 #[path = "../support/mod.rs"]
 mod support;

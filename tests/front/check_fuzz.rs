@@ -6,64 +6,6 @@ use std::path::Path;
 use primflow::diag::{Diagnostics, SourceMap};
 use proptest::prelude::*;
 
-const TOKENS: &[&str] = &[
-    "X",
-    "Y",
-    "Z",
-    "uniform ",
-    "varying ",
-    "inout ",
-    "return;",
-    "break;",
-    "continue;",
-    "{",
-    "}",
-    "(",
-    ")",
-    "[",
-    "]",
-    "[]",
-    "0",
-    "1.5",
-    "-",
-    "*",
-    "/",
-    "%",
-    "==",
-    "&&",
-    "!",
-    "?",
-    ":",
-    ";",
-    ",",
-    "=",
-    "+=",
-    "int ",
-    "float ",
-    "fixed<32,16> ",
-    "fixed<0,40> ",
-    "point ",
-    "matrix ",
-    "interpolation_data ",
-    "interpolator_return(X);",
-    "interpolator_return;",
-    "interpolation { linear: default: }",
-    "bound(X, Y, 1, 2);",
-    "len(",
-    "transform(",
-    "\"world\"",
-    "screen_triangle(",
-    "polygon(",
-    "sqrt(",
-    "atan(",
-    "PI",
-    "true",
-    "while (X > 0) ",
-    "if (Y) ",
-    "for (;;) ",
-    "float h(float v) { return h(v); }",
-];
-
 fn corpus() -> Vec<String> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/check/ok");
     let mut files: Vec<_> = std::fs::read_dir(dir)
@@ -79,14 +21,7 @@ fn corpus() -> Vec<String> {
 }
 
 fn edit(text: &str, edits: &[(usize, usize, usize)]) -> String {
-    let mut s: Vec<char> = text.chars().collect();
-    for &(at, del, tok) in edits {
-        let at = at % (s.len() + 1);
-        let end = (at + del % 12).min(s.len());
-        let insert: Vec<char> = TOKENS[tok % TOKENS.len()].chars().collect();
-        s.splice(at..end, insert);
-    }
-    s.into_iter().collect()
+    primflow::fuzz::mutate::splice(text, primflow::fuzz::mutate::PRIM_TOKENS, edits)
 }
 
 proptest! {
