@@ -295,6 +295,65 @@ fn loop_id_unique() {
 }
 
 #[test]
+fn stmt_tree() {
+    // Not numbered again after the edit.
+    let breakings: [fn(&mut Program); 5] = [
+        // A statement added at the end of the arena for the setup part: out of pre-order
+        // (the pixel part's statements come after it).
+        |p| {
+            let f = func(p, "base");
+            f.setup.push(st(&mut f.stmts, StmtKind::Return));
+        },
+        // One statement in two blocks: the setup's first also its last.
+        |p| {
+            let f = func(p, "base");
+            let first = f.setup[0];
+            f.setup.push(first);
+        },
+        // A statement no block reaches.
+        |p| {
+            let f = func(p, "base");
+            st(&mut f.stmts, StmtKind::Return);
+        },
+        // A statement id past the arena, in the pixel part.
+        |p| func(p, "base").pixel.push(StmtId(u32::MAX)),
+        // A statement id past the arena, in a nested block.
+        |p| {
+            edit_stmt(
+                p,
+                false,
+                |_, s| matches!(s, StmtKind::If { .. }),
+                |_, s| {
+                    if let StmtKind::If { then, .. } = s {
+                        then.push(StmtId(u32::MAX));
+                    }
+                },
+            )
+        },
+    ];
+    for breaking in breakings {
+        let mut p = base();
+        breaking(&mut p);
+        rejected_with(Rule::StmtTree, &p);
+    }
+}
+
+#[test]
+fn a_statement_shared_by_two_blocks_is_copied_by_renumbering() {
+    // `rejects` renumbers what a breaking edit leaves: a statement in two blocks becomes
+    // two, and the function validates again.
+    let mut p = base();
+    let f = func(&mut p, "base");
+    let first = f.setup[0];
+    f.setup.push(first);
+    let before = f.stmts.len();
+    number::renumber(f);
+    assert!(f.stmts.len() > before, "the second occurrence is a copy");
+    assert_ne!(f.setup[0], *f.setup.last().expect("a statement"));
+    validate(&p).expect("a renumbered function validates");
+}
+
+#[test]
 fn expr_tree() {
     // Not numbered again after the edit.
     let breakings: [fn(&mut Program); 4] = [
