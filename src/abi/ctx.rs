@@ -50,7 +50,7 @@
 //! handed to `TileCtx::expand` instead of being made, and the recorded calls are bound,
 //! binned and rendered as instances of their own (see `runtime::expand`).
 
-use crate::ir::{Elem, FuncId, FuncKind, ParamRole, Program, SiteId, Stmt, StmtKind, Type};
+use crate::ir::{for_each_stmt, Elem, FuncId, FuncKind, Function, ParamRole, Program, SiteId, StmtKind, Type};
 
 /// Pixels per group: one f32x4 per varying value.
 pub const GROUP: u32 = 4;
@@ -380,19 +380,17 @@ pub type ExpandFn =
 /// (in call order) draws the same pixels as running it in every tile. An unknown id is
 /// `false`.
 pub fn expands(program: &Program, func: FuncId) -> bool {
-    fn calls(stmts: &[Stmt]) -> bool {
-        stmts.iter().any(|s| match &s.kind {
-            StmtKind::CallPrimitive { .. } => true,
-            StmtKind::If { then, otherwise, .. } => calls(then) || calls(otherwise),
-            StmtKind::Loop { body, step, .. } => calls(body) || calls(step),
-            StmtKind::Interpolation { arms } => arms.iter().any(|a| calls(&a.body)),
-            _ => false,
-        })
+    fn calls(f: &Function) -> bool {
+        let mut found = false;
+        for_each_stmt(&f.stmts, &f.setup, &mut |_, s| {
+            found |= matches!(s, StmtKind::CallPrimitive { .. })
+        });
+        found
     }
     program
         .functions
         .get(func.0 as usize)
-        .is_some_and(|f| f.kind == FuncKind::Primitive && f.pixel.is_empty() && calls(&f.setup))
+        .is_some_and(|f| f.kind == FuncKind::Primitive && f.pixel.is_empty() && calls(f))
 }
 
 /// What a native kernel does where its primitive's source calls another primitive, as the

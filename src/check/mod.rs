@@ -729,17 +729,18 @@ fn lower_function(
         lowered_cleanly[h] = true;
     }
     let (locals, infos, n_loops, uses_spaces) = (fl.locals, fl.infos, fl.n_loops, fl.uses_spaces);
-    let (setup, pixel, exprs) = ir::tree::intern_body(body, vec![]);
+    let body = ir::tree::intern_body(body, vec![]);
     let mut f = ir::Function {
         name: sig.item.name.name.clone(),
         kind,
         span: sig.item.name.span,
         params,
         locals,
-        setup,
-        pixel,
+        setup: body.setup,
+        pixel: body.pixel,
         loops: n_loops,
-        exprs,
+        stmts: body.stmts,
+        exprs: body.exprs,
         uses_spaces,
     };
     let errors_before = sink.error_count();

@@ -20,7 +20,9 @@
 //! first varying operand or condition), so diagnostics can point at the cause.
 
 use crate::diag::{Diagnostic, Span};
-use crate::ir::{ExprId, ExprKind, Exprs, Function, Local, LocalId, LoopId, ParamRole, Stmt, StmtKind, Variability};
+use crate::ir::{
+    ExprId, ExprKind, Exprs, Function, Local, LocalId, LoopId, ParamRole, StmtId, StmtKind, Stmts, Variability,
+};
 
 use super::{LocalInfo, Sink};
 
@@ -33,6 +35,7 @@ struct State<'i> {
     /// The function's locals (for their names in messages).
     locals: &'i [Local],
     /// The function's expressions, whose variabilities the walk sets.
+    stmts: Stmts,
     exprs: Exprs,
     var: Vec<Variability>,
     cause: Vec<Option<Span>>,
@@ -54,10 +57,11 @@ struct State<'i> {
 /// Infer variabilities in `f.setup` (the whole checked body), set them in the IR and report
 /// the variability errors. `callee_roles[f]` gives each primitive's parameter roles.
 pub fn analyze(f: &mut Function, infos: &[LocalInfo], callee_roles: &[Vec<ParamRole>], sink: &mut Sink) {
-    let mut body = std::mem::take(&mut f.setup);
+    let body = std::mem::take(&mut f.setup);
     let mut st = State {
         infos,
         locals: &f.locals,
+        stmts: std::mem::take(&mut f.stmts),
         exprs: std::mem::take(&mut f.exprs),
         var: infos
             .iter()
@@ -76,7 +80,7 @@ pub fn analyze(f: &mut Function, infos: &[LocalInfo], callee_roles: &[Vec<ParamR
         st.changed = false;
         st.read_uniform.fill(false);
         let mut errors = Sink::default();
-        st.block(&mut body, callee_roles, &mut errors);
+        st.block(&body, callee_roles, &mut errors);
         if !st.changed {
             break errors;
         }
@@ -85,6 +89,7 @@ pub fn analyze(f: &mut Function, infos: &[LocalInfo], callee_roles: &[Vec<ParamR
         sink.push(d);
     }
     let var = st.var;
+    f.stmts = st.stmts;
     f.exprs = st.exprs;
     f.setup = body;
     for (l, v) in f.locals.iter_mut().zip(&var) {
@@ -125,15 +130,23 @@ impl State<'_> {
         }
     }
 
-    fn block(&mut self, stmts: &mut [Stmt], roles: &[Vec<ParamRole>], sink: &mut Sink) {
-        for s in stmts {
+    fn block(&mut self, stmts: &[StmtId], roles: &[Vec<ParamRole>], sink: &mut Sink) {
+        for &s in stmts {
             self.stmt(s, roles, sink);
         }
     }
 
-    fn stmt(&mut self, s: &mut Stmt, roles: &[Vec<ParamRole>], sink: &mut Sink) {
-        let span = s.span;
-        match &mut s.kind {
+    fn stmt(&mut self, s: StmtId, roles: &[Vec<ParamRole>], sink: &mut Sink) {
+        let span = self.stmts.span(s);
+        // Out of the arena while it is analysed (a loop's `varying` is set in it); the
+        // statements inside it are other nodes.
+        let mut node = self.stmts.take(s);
+        self.stmt_kind(&mut node, span, roles, sink);
+        self.stmts[s] = node;
+    }
+
+    fn stmt_kind(&mut self, node: &mut StmtKind, span: Span, roles: &[Vec<ParamRole>], sink: &mut Sink) {
+        match node {
             StmtKind::Assign { place, value } => {
                 let (mut v, mut cause) = self.expr(*value);
                 for (idx, _) in &mut place.indices {
@@ -228,8 +241,8 @@ impl State<'_> {
             }
             StmtKind::Return => self.jump(0, true),
             StmtKind::Interpolation { arms } => {
-                for a in arms {
-                    self.block(&mut a.body, roles, sink);
+                for a in arms.iter() {
+                    self.block(&a.body, roles, sink);
                 }
             }
             StmtKind::InterpolatorReturn(v) => {

@@ -1,16 +1,20 @@
-//! The expression arena of a [`super::Function`]: every expression node of the function,
-//! indexed by [`ExprId`], with each node's span in a side table of the same length.
+//! The two arenas of a [`super::Function`]: [`Stmts`], every statement node indexed by
+//! [`StmtId`], and [`Exprs`], every expression node indexed by [`ExprId`]; each keeps its
+//! nodes' spans in a side table of the same length.
 //!
-//! A node's operands are ids of other nodes of the same arena. The arena stores a tree:
-//! each node is the operand of exactly one node or the expression of exactly one
-//! statement, so a pass that rewrites an expression may change its nodes in place. In a
-//! checked function the ids are also exactly `0..len` in pre-order and no node is
-//! unreachable ([`super::number`]); a pass that allocates nodes (a copy, a folded constant)
-//! or drops them restores that with [`super::number::renumber`].
+//! A statement node ([`StmtKind`]) holds the ids of its expressions and the blocks of
+//! statement ids inside it; an expression node's operands are ids of other nodes of the
+//! expression arena. Both arenas store trees: each statement is in exactly one block (the
+//! setup or pixel part, or a block of one statement), each expression node is the operand
+//! of exactly one node or the expression of exactly one statement, so a pass that rewrites
+//! a statement or an expression may change its nodes in place. In a checked function the
+//! ids of each arena are also exactly `0..len` in pre-order and no node is unreachable
+//! ([`super::number`]); a pass that allocates nodes (a copy, a folded constant) or drops
+//! or moves them restores that with [`super::number::renumber`].
 
 use std::ops::{Index, IndexMut};
 
-use super::{Expr, ExprId, LocalId};
+use super::{Expr, ExprId, LocalId, StmtId, StmtKind};
 use crate::diag::Span;
 
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -120,6 +124,88 @@ impl Index<ExprId> for Exprs {
 
 impl IndexMut<ExprId> for Exprs {
     fn index_mut(&mut self, id: ExprId) -> &mut Expr {
+        &mut self.nodes[id.0 as usize]
+    }
+}
+
+/// The statements of a function: [`StmtKind`] nodes by [`StmtId`], spans beside them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Stmts {
+    nodes: Vec<StmtKind>,
+    /// The span of each node, indexed like `nodes`.
+    spans: Vec<Span>,
+}
+
+impl Stmts {
+    pub fn new() -> Stmts {
+        Stmts::default()
+    }
+
+    pub fn with_capacity(n: usize) -> Stmts {
+        Stmts {
+            nodes: Vec::with_capacity(n),
+            spans: Vec::with_capacity(n),
+        }
+    }
+
+    /// Number of nodes: their ids are `0..len`.
+    pub fn len(&self) -> u32 {
+        self.nodes.len() as u32
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// Add `s` (whose blocks name statements already in the arena, or added before it is
+    /// read) and return its id.
+    pub fn alloc(&mut self, s: StmtKind, span: Span) -> StmtId {
+        self.nodes.push(s);
+        self.spans.push(span);
+        StmtId(self.nodes.len() as u32 - 1)
+    }
+
+    pub fn get(&self, id: StmtId) -> Option<&StmtKind> {
+        self.nodes.get(id.0 as usize)
+    }
+
+    /// The source span of `id`.
+    pub fn span(&self, id: StmtId) -> Span {
+        self.spans[id.0 as usize]
+    }
+
+    /// Every node with its id, in id order.
+    pub fn iter(&self) -> impl Iterator<Item = (StmtId, &StmtKind)> {
+        self.nodes.iter().enumerate().map(|(i, s)| (StmtId(i as u32), s))
+    }
+
+    /// A copy of statement `id` with the statements inside it and all their expressions,
+    /// allocated afresh in pre-order in `self` and `x` (the copy shares no node with the
+    /// original); returns the copy's id.
+    pub fn copy_tree(&mut self, x: &mut Exprs, id: StmtId) -> StmtId {
+        let root = self.alloc(self[id].clone(), self.span(id));
+        let mut node = self.take(root);
+        node.for_each_expr_mut(|e| *e = x.copy_tree(*e));
+        node.for_each_block_mut(|b| b.iter_mut().for_each(|s| *s = self.copy_tree(x, *s)));
+        self[root] = node;
+        root
+    }
+
+    /// Take the node `id` out, leaving a placeholder (a `Return`).
+    pub fn take(&mut self, id: StmtId) -> StmtKind {
+        std::mem::replace(&mut self.nodes[id.0 as usize], StmtKind::Return)
+    }
+}
+
+impl Index<StmtId> for Stmts {
+    type Output = StmtKind;
+    fn index(&self, id: StmtId) -> &StmtKind {
+        &self.nodes[id.0 as usize]
+    }
+}
+
+impl IndexMut<StmtId> for Stmts {
+    fn index_mut(&mut self, id: StmtId) -> &mut StmtKind {
         &mut self.nodes[id.0 as usize]
     }
 }

@@ -19,27 +19,28 @@
 //! Lists are visited outside-in, so chains (`knots = u_knots; ... k2 = knots`) collapse.
 //!
 //! Invariants kept: the output is a checked program in the sense of [`crate::ir`] (same
-//! locals, sites, loops, parameters, its expressions numbered afresh by
+//! locals, sites, loops, parameters, its statements and expressions numbered afresh by
 //! [`super::number::renumber`]); only `Assign` statements are removed and only `Local`
 //! expressions renamed.
 
-use super::{ExprId, ExprKind, Exprs, Function, LocalId, LocalKind, Place, Stmt, StmtKind};
+use super::{for_each_stmt, ExprId, ExprKind, Exprs, Function, LocalId, LocalKind, StmtId, StmtKind, Stmts};
 
 /// `f` with whole-array copies forwarded (see the module comment).
 pub fn forward_copies(f: &Function) -> Function {
     let mut out = f.clone();
     let mut counts = Counts::new(out.locals.len());
-    for s in out.setup.iter().chain(out.pixel.iter()) {
-        counts.stmt(&out.exprs, s);
+    for &s in out.setup.iter().chain(out.pixel.iter()) {
+        counts.stmt(&out.stmts, &out.exprs, s);
     }
     let mut fw = Forwarder {
         f,
         counts,
+        stmts: &mut out.stmts,
         exprs: &mut out.exprs,
     };
     fw.list(&mut out.setup);
     fw.list(&mut out.pixel);
-    // The dropped copies took their expressions' ids with them.
+    // The dropped copies left their statements and expressions unreachable.
     super::number::renumber(&mut out);
     out
 }
@@ -58,8 +59,8 @@ impl Counts {
         }
     }
 
-    fn stmt(&mut self, x: &Exprs, s: &Stmt) {
-        visit_stmt(x, s, &mut |l| bump(&mut self.reads, l), &mut |l| {
+    fn stmt(&mut self, st: &Stmts, x: &Exprs, s: StmtId) {
+        visit_stmt(st, x, s, &mut |l| bump(&mut self.reads, l), &mut |l| {
             bump(&mut self.writes, l)
         });
     }
@@ -74,42 +75,31 @@ fn bump(v: &mut [u32], l: LocalId) {
 struct Forwarder<'a> {
     f: &'a Function,
     counts: Counts,
-    /// The arena of the function being rewritten.
+    /// The arenas of the function being rewritten.
+    stmts: &'a mut Stmts,
     exprs: &'a mut Exprs,
 }
 
 impl Forwarder<'_> {
-    fn list(&mut self, list: &mut Vec<Stmt>) {
+    fn list(&mut self, list: &mut Vec<StmtId>) {
         let mut k = 0;
         while k < list.len() {
-            if let Some((d, s)) = self.candidate(&list[k]) {
+            if let Some((d, s)) = self.candidate(list[k]) {
                 if self.forward(list, k, d, s) {
                     continue; // list[k] is now the next statement
                 }
             }
-            match &mut list[k].kind {
-                StmtKind::If { then, otherwise, .. } => {
-                    self.list(then);
-                    self.list(otherwise);
-                }
-                StmtKind::Loop { body, step, .. } => {
-                    self.list(body);
-                    self.list(step);
-                }
-                StmtKind::Interpolation { arms } => {
-                    for arm in arms {
-                        self.list(&mut arm.body);
-                    }
-                }
-                _ => {}
-            }
+            // Out of the arena while its blocks are rewritten; no walk of them reaches it.
+            let mut node = self.stmts.take(list[k]);
+            node.for_each_block_mut(|b| self.list(b));
+            self.stmts[list[k]] = node;
             k += 1;
         }
     }
 
     /// `d = s` of the shape the rule asks for (without the flow conditions).
-    fn candidate(&self, st: &Stmt) -> Option<(LocalId, LocalId)> {
-        let StmtKind::Assign { place, value } = &st.kind else {
+    fn candidate(&self, st: StmtId) -> Option<(LocalId, LocalId)> {
+        let StmtKind::Assign { place, value } = &self.stmts[st] else {
             return None;
         };
         let ExprKind::Local(s) = self.exprs[*value].kind else {
@@ -129,7 +119,7 @@ impl Forwarder<'_> {
     }
 
     /// Forward `list[k]` (`d = s`) if the flow conditions hold; true if it was removed.
-    fn forward(&mut self, list: &mut Vec<Stmt>, k: usize, d: LocalId, s: LocalId) -> bool {
+    fn forward(&mut self, list: &mut Vec<StmtId>, k: usize, d: LocalId, s: LocalId) -> bool {
         if self.counts.writes[d.0 as usize] != 1 {
             return false;
         }
@@ -137,13 +127,14 @@ impl Forwarder<'_> {
         let mut seen = 0;
         let mut last = k;
         let mut s_written = false;
-        for (j, st) in list.iter().enumerate().skip(k + 1) {
+        for (j, &st) in list.iter().enumerate().skip(k + 1) {
             if seen == total_reads {
                 break;
             }
             let mut reads_d = 0;
             let mut writes_s = false;
             visit_stmt(
+                self.stmts,
                 self.exprs,
                 st,
                 &mut |l| {
@@ -165,8 +156,8 @@ impl Forwarder<'_> {
         if seen != total_reads {
             return false; // some read of `d` is elsewhere
         }
-        for st in &mut list[k + 1..=last] {
-            rename_stmt(self.exprs, st, d, s);
+        for &st in &list[k + 1..=last] {
+            rename_stmt(self.stmts, self.exprs, st, d, s);
         }
         self.counts.reads[s.0 as usize] += total_reads;
         // The copy itself read `s` once.
@@ -180,34 +171,13 @@ impl Forwarder<'_> {
 
 /// Calls `read` for every `Local` expression and `write` for every assigned place's local in
 /// `s` (nested statements included).
-fn visit_stmt(x: &Exprs, s: &Stmt, read: &mut dyn FnMut(LocalId), write: &mut dyn FnMut(LocalId)) {
-    match &s.kind {
-        StmtKind::Assign { place, value } => {
+fn visit_stmt(st: &Stmts, x: &Exprs, s: StmtId, read: &mut dyn FnMut(LocalId), write: &mut dyn FnMut(LocalId)) {
+    for_each_stmt(st, &[s], &mut |_, kind| {
+        if let StmtKind::Assign { place, .. } = kind {
             write(place.local);
-            for (i, _) in &place.indices {
-                visit_expr(x, *i, read);
-            }
-            visit_expr(x, *value, read);
         }
-        StmtKind::If { cond, then, otherwise } => {
-            visit_expr(x, *cond, read);
-            then.iter().chain(otherwise).for_each(|s| visit_stmt(x, s, read, write));
-        }
-        StmtKind::Loop { cond, body, step, .. } => {
-            if let Some(c) = cond {
-                visit_expr(x, *c, read);
-            }
-            body.iter().chain(step).for_each(|s| visit_stmt(x, s, read, write));
-        }
-        StmtKind::Interpolation { arms } => arms
-            .iter()
-            .flat_map(|a| a.body.iter())
-            .for_each(|s| visit_stmt(x, s, read, write)),
-        StmtKind::InterpolatorReturn(Some(e)) => visit_expr(x, *e, read),
-        StmtKind::Bound(es) => es.iter().for_each(|e| visit_expr(x, *e, read)),
-        StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| visit_expr(x, *e, read)),
-        StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
-    }
+        kind.for_each_expr(|e| visit_expr(x, *e, read));
+    });
 }
 
 fn visit_expr(x: &Exprs, e: ExprId, read: &mut dyn FnMut(LocalId)) {
@@ -216,41 +186,10 @@ fn visit_expr(x: &Exprs, e: ExprId, read: &mut dyn FnMut(LocalId)) {
 
 /// Every read of `from` in `s` becomes a read of `to` (assignments to `from` stay: the rule
 /// only renames where `from` is never assigned).
-fn rename_stmt(x: &mut Exprs, s: &mut Stmt, from: LocalId, to: LocalId) {
-    match &mut s.kind {
-        StmtKind::Assign { place, value } => {
-            rename_place(x, place, from, to);
-            rename_expr(x, *value, from, to);
-        }
-        StmtKind::If { cond, then, otherwise } => {
-            rename_expr(x, *cond, from, to);
-            then.iter_mut()
-                .chain(otherwise.iter_mut())
-                .for_each(|s| rename_stmt(x, s, from, to));
-        }
-        StmtKind::Loop { cond, body, step, .. } => {
-            if let Some(c) = cond {
-                rename_expr(x, *c, from, to);
-            }
-            body.iter_mut()
-                .chain(step.iter_mut())
-                .for_each(|s| rename_stmt(x, s, from, to));
-        }
-        StmtKind::Interpolation { arms } => arms
-            .iter_mut()
-            .flat_map(|a| a.body.iter_mut())
-            .for_each(|s| rename_stmt(x, s, from, to)),
-        StmtKind::InterpolatorReturn(Some(e)) => rename_expr(x, *e, from, to),
-        StmtKind::Bound(es) => es.iter_mut().for_each(|e| rename_expr(x, *e, from, to)),
-        StmtKind::CallPrimitive { args, .. } => args.iter_mut().for_each(|e| rename_expr(x, *e, from, to)),
-        StmtKind::InterpolatorReturn(None) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
-    }
-}
-
-fn rename_place(x: &mut Exprs, p: &mut Place, from: LocalId, to: LocalId) {
-    for (i, _) in &mut p.indices {
-        rename_expr(x, *i, from, to);
-    }
+fn rename_stmt(st: &Stmts, x: &mut Exprs, s: StmtId, from: LocalId, to: LocalId) {
+    for_each_stmt(st, &[s], &mut |_, kind| {
+        kind.for_each_expr(|e| rename_expr(x, *e, from, to))
+    });
 }
 
 fn rename_expr(x: &mut Exprs, e: ExprId, from: LocalId, to: LocalId) {

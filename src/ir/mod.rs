@@ -2,22 +2,27 @@
 //!
 //! A [`Program`] holds every primitive and shared interpolator of a compilation as a
 //! [`Function`]. Helper functions do not survive into the IR: the checker inlines each call
-//! (a one-trip [`Stmt::Loop`] whose `return` is a `Break`), so recursion is rejected there.
+//! (a one-trip [`StmtKind::Loop`] whose `return` is a `Break`), so recursion is rejected
+//! there.
 //!
 //! Rules that hold for a checked program. Codegen relies on them and asserts none: the
 //! validator [`valid`] states each as a [`valid::Rule`] and checks it after the checker and
 //! after every pass that rewrites a function (`forward`, `mid::unroll`) in test and
 //! debug builds, so a pass that breaks one is an internal compiler error, not a miscompile:
-//! - A function's expressions live in its arena, [`Function::exprs`] ([`arena`]): a node
-//!   ([`Expr`]) holds its kind, type and variability, its operands are [`ExprId`]s of the
-//!   same arena, and its span is in the arena's side table. Statements hold the ids of
-//!   their expressions. The arena stores trees: each node is the operand of exactly one
-//!   node or the expression of exactly one statement, so a pass may rewrite nodes in place.
-//!   The ids are exactly `0..exprs.len()` in pre-order and every node is reachable
-//!   ([`number`]): the key of every analysis' side table, as a [`LoopId`] is a loop's (each
-//!   names one `Loop` statement). An id names an expression of its own function only. The
-//!   checker builds a body as trees ([`tree`]) and moves it into the arena in that order;
-//!   every pass that adds, drops or copies expressions renumbers its result.
+//! - A function's statements and expressions live in its two arenas ([`arena`]):
+//!   [`Function::stmts`] holds [`StmtKind`] nodes addressed by [`StmtId`],
+//!   [`Function::exprs`] holds [`Expr`] nodes (kind, type, variability) addressed by
+//!   [`ExprId`]; spans are in each arena's side table. A statement holds the ids of its
+//!   expressions and, for the statements inside it, [`Block`]s of statement ids; an
+//!   expression holds its operands' ids. `Function::setup` and `Function::pixel` are blocks.
+//!   Both arenas store trees: each statement is in exactly one block, each expression node
+//!   the operand of exactly one node or the expression of exactly one statement, so a pass
+//!   may rewrite nodes in place. In each arena the ids are exactly `0..len` in pre-order and
+//!   every node is reachable ([`number`]): the key of every analysis' side table, as a
+//!   [`LoopId`] is a loop's (each names one `Loop` statement). An id names a node of its
+//!   own function only. The checker builds a body as owned trees ([`tree`]) and moves it
+//!   into the arenas in that order; every pass that adds, drops, moves or copies
+//!   statements or expressions renumbers its result.
 //! - Every [`Expr`] has a concrete [`Type`] and a [`Variability`]. An expression is varying
 //!   iff one of its operands is. Operands of `Binary` have the same scalar element (the
 //!   checker inserts `Convert`), and the same shape, except that one side may be a scalar
@@ -50,9 +55,11 @@ pub mod split;
 pub mod tree;
 pub mod valid;
 
+use std::fmt;
+
 use crate::diag::Span;
 pub use crate::ops::{BinOp, UnaryOp};
-pub use arena::Exprs;
+pub use arena::{Exprs, Stmts};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct FuncId(pub u32);
@@ -67,6 +74,14 @@ pub struct SiteId(pub u32);
 /// and the key of the analyses' side tables (see the module doc).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct ExprId(pub u32);
+/// A statement of one function: its index in the function's statement arena
+/// ([`Function::stmts`]), and the key of side tables about statements.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct StmtId(pub u32);
+/// Statements run in order: ids of nodes of the function's statement arena. The setup and
+/// pixel parts and every nested body (an `if` side, a loop's body and step, an
+/// interpolation arm) are blocks.
+pub type Block = Vec<StmtId>;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Variability {
@@ -278,13 +293,16 @@ pub struct Function {
     /// Every variable; parameter i is `LocalId(i)`.
     pub locals: Vec<Local>,
     /// Uniform statements, run once per instance (and per tile it touches).
-    pub setup: Vec<Stmt>,
+    pub setup: Block,
     /// Statements run for every pixel group of the pass rectangle, after `setup`. Empty if
     /// the function has no varying code.
-    pub pixel: Vec<Stmt>,
+    pub pixel: Block,
     /// Number of `LoopId`s used (ids are 0..loops).
     pub loops: u32,
-    /// Every expression of `setup` and `pixel`, indexed by [`ExprId`] (see [`number`]).
+    /// Every statement of `setup` and `pixel`, nested ones too, indexed by [`StmtId`] (see
+    /// [`number`]).
+    pub stmts: Stmts,
+    /// Every expression of those statements, indexed by [`ExprId`] (see [`number`]).
     pub exprs: Exprs,
     /// The function uses `transform(...)` between named spaces, so its arguments carry the
     /// space matrices.
@@ -381,52 +399,33 @@ impl Expr {
     }
 }
 
-/// Call `f` on every statement in `stmts`, nested ones too (through `if` sides, loop
-/// bodies and steps, interpolation arms), each before the statements inside it. The one
-/// place that knows which statements hold others.
-pub fn for_each_stmt<'s, E>(stmts: &'s [Stmt<E>], f: &mut dyn FnMut(&'s Stmt<E>)) {
-    for s in stmts {
-        f(s);
-        match &s.kind {
-            StmtKind::If { then, otherwise, .. } => {
-                for_each_stmt(then, f);
-                for_each_stmt(otherwise, f);
-            }
-            StmtKind::Loop { body, step, .. } => {
-                for_each_stmt(body, f);
-                for_each_stmt(step, f);
-            }
-            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| for_each_stmt(&a.body, f)),
-            _ => {}
-        }
+/// Call `f` on every statement of `block`, nested ones too (through `if` sides, loop
+/// bodies and steps, interpolation arms), each before the statements inside it, with its
+/// id and node.
+pub fn for_each_stmt<'s>(stmts: &'s Stmts, block: &[StmtId], f: &mut dyn FnMut(StmtId, &'s StmtKind)) {
+    for &id in block {
+        let s = &stmts[id];
+        f(id, s);
+        s.for_each_block(|b| for_each_stmt(stmts, b, f));
     }
 }
 
-/// [`for_each_stmt`] for rewriting.
-pub fn for_each_stmt_mut<E>(stmts: &mut [Stmt<E>], f: &mut dyn FnMut(&mut Stmt<E>)) {
-    for s in stmts {
-        f(s);
-        match &mut s.kind {
-            StmtKind::If { then, otherwise, .. } => {
-                for_each_stmt_mut(then, f);
-                for_each_stmt_mut(otherwise, f);
-            }
-            StmtKind::Loop { body, step, .. } => {
-                for_each_stmt_mut(body, f);
-                for_each_stmt_mut(step, f);
-            }
-            StmtKind::Interpolation { arms } => arms.iter_mut().for_each(|a| for_each_stmt_mut(&mut a.body, f)),
-            _ => {}
+/// Call `f` on every assignment of `block`, nested ones too, with its place and value; the
+/// walks that collect assigned locals go through it.
+pub fn for_each_assign(stmts: &Stmts, block: &[StmtId], f: &mut dyn FnMut(&Place, ExprId)) {
+    for_each_stmt(stmts, block, &mut |_, s| {
+        if let StmtKind::Assign { place, value } = s {
+            f(place, *value);
         }
-    }
+    });
 }
 
-impl<E> Stmt<E> {
+impl<E: Form> StmtKind<E> {
     /// Call `f` on each expression `self` holds itself (not those of the statements inside
     /// it): a place's indices, then the assigned value; a condition; the arguments of
     /// `bound` and of a call; an interpolator's value.
     pub fn for_each_expr<'s>(&'s self, mut f: impl FnMut(&'s E)) {
-        match &self.kind {
+        match self {
             StmtKind::Assign { place, value } => {
                 place.indices.iter().for_each(|(i, _)| f(i));
                 f(value);
@@ -440,9 +439,9 @@ impl<E> Stmt<E> {
         }
     }
 
-    /// [`Stmt::for_each_expr`] for rewriting.
+    /// [`StmtKind::for_each_expr`] for rewriting.
     pub fn for_each_expr_mut(&mut self, mut f: impl FnMut(&mut E)) {
-        match &mut self.kind {
+        match self {
             StmtKind::Assign { place, value } => {
                 place.indices.iter_mut().for_each(|(i, _)| f(i));
                 f(value);
@@ -456,85 +455,55 @@ impl<E> Stmt<E> {
         }
     }
 
-    /// `self` with each expression `x` replaced by `f(x)`, in the order of
-    /// [`for_each_stmt`] and, within a statement, [`Stmt::for_each_expr`] (a statement's
-    /// own expressions before those of the statements inside it).
-    pub fn map_exprs<F>(self, f: &mut dyn FnMut(E) -> F) -> Stmt<F> {
-        fn list<E, F>(ss: Vec<Stmt<E>>, f: &mut dyn FnMut(E) -> F) -> Vec<Stmt<F>> {
-            ss.into_iter().map(|s| s.map_exprs(f)).collect()
+    /// Call `f` on each block `self` holds, in execution order: `then` and `otherwise`; a
+    /// loop's body and step; each interpolation arm's body. The one place that knows which
+    /// statements hold others; walks that treat all blocks alike go through it.
+    pub fn for_each_block<'s>(&'s self, mut f: impl FnMut(&'s E::Block)) {
+        match self {
+            StmtKind::If { then, otherwise, .. } => {
+                f(then);
+                f(otherwise);
+            }
+            StmtKind::Loop { body, step, .. } => {
+                f(body);
+                f(step);
+            }
+            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| f(&a.body)),
+            _ => {}
         }
-        let kind = match self.kind {
-            StmtKind::Assign { place, value } => {
-                let indices = place.indices.into_iter().map(|(i, site)| (f(i), site)).collect();
-                StmtKind::Assign {
-                    place: Place {
-                        local: place.local,
-                        indices,
-                        span: place.span,
-                    },
-                    value: f(value),
-                }
-            }
-            StmtKind::If { cond, then, otherwise } => {
-                let cond = f(cond);
-                let then = list(then, f);
-                StmtKind::If {
-                    cond,
-                    then,
-                    otherwise: list(otherwise, f),
-                }
-            }
-            StmtKind::Loop {
-                id,
-                cond,
-                body,
-                step,
-                varying,
-                site,
-            } => {
-                let cond = cond.map(&mut *f);
-                let body = list(body, f);
-                StmtKind::Loop {
-                    id,
-                    cond,
-                    body,
-                    step: list(step, f),
-                    varying,
-                    site,
-                }
-            }
-            StmtKind::Break(l) => StmtKind::Break(l),
-            StmtKind::Continue(l) => StmtKind::Continue(l),
-            StmtKind::Return => StmtKind::Return,
-            StmtKind::Interpolation { arms } => StmtKind::Interpolation {
-                arms: arms
-                    .into_iter()
-                    .map(|a| InterpArm {
-                        kind: a.kind,
-                        body: list(a.body, f),
-                        span: a.span,
-                    })
-                    .collect(),
-            },
-            StmtKind::InterpolatorReturn(e) => StmtKind::InterpolatorReturn(e.map(&mut *f)),
-            StmtKind::Bound(es) => StmtKind::Bound(es.map(&mut *f)),
-            StmtKind::CallPrimitive { callee, args } => StmtKind::CallPrimitive {
-                callee,
-                args: args.into_iter().map(&mut *f).collect(),
-            },
-        };
-        Stmt { kind, span: self.span }
     }
-}
 
-/// Call `f` on every assignment in `stmts`, nested ones too, with its place and value; the
-/// walks that collect assigned locals go through it.
-pub fn for_each_assign(stmts: &[Stmt], f: &mut dyn FnMut(&Place, ExprId)) {
-    for_each_stmt(stmts, &mut |s| {
-        if let StmtKind::Assign { place, value } = &s.kind {
-            f(place, *value);
+    /// [`StmtKind::for_each_block`] for rewriting.
+    pub fn for_each_block_mut(&mut self, mut f: impl FnMut(&mut E::Block)) {
+        match self {
+            StmtKind::If { then, otherwise, .. } => {
+                f(then);
+                f(otherwise);
+            }
+            StmtKind::Loop { body, step, .. } => {
+                f(body);
+                f(step);
+            }
+            StmtKind::Interpolation { arms } => arms.iter_mut().for_each(|a| f(&mut a.body)),
+            _ => {}
         }
-    });
+    }
+
+    /// The name of the kind, as the validator and diagnostics name a statement.
+    pub fn name(&self) -> &'static str {
+        match self {
+            StmtKind::Assign { .. } => "Assign",
+            StmtKind::If { .. } => "If",
+            StmtKind::Loop { .. } => "Loop",
+            StmtKind::Break(_) => "Break",
+            StmtKind::Continue(_) => "Continue",
+            StmtKind::Return => "Return",
+            StmtKind::Interpolation { .. } => "Interpolation",
+            StmtKind::InterpolatorReturn(_) => "InterpolatorReturn",
+            StmtKind::Bound(_) => "Bound",
+            StmtKind::CallPrimitive { .. } => "CallPrimitive",
+        }
+    }
 }
 
 /// Built-in functions. Unless stated, they work component-wise on floats.
@@ -674,20 +643,34 @@ pub enum ArmKind {
 }
 
 #[derive(Clone, Debug, PartialEq)]
-pub struct InterpArm<E = ExprId> {
+pub struct InterpArm<E: Form = ExprId> {
     pub kind: ArmKind,
-    pub body: Vec<Stmt<E>>,
+    pub body: E::Block,
     pub span: Span,
 }
 
+/// How a statement holds its expressions (`E`) and, following from it, the statements
+/// inside it: the IR's statements hold [`ExprId`]s and [`Block`]s of ids of the same
+/// arenas; the checker's owned statements ([`tree`]) hold their trees and statements inline.
+pub trait Form: Clone + fmt::Debug + PartialEq {
+    type Block: Clone + fmt::Debug + PartialEq;
+}
+
+impl Form for ExprId {
+    type Block = Block;
+}
+
+/// A statement with its span, owned: how the checker builds a body ([`tree`]) before
+/// [`tree::intern_body`] moves it into the function's arenas. In the IR a statement is a
+/// [`StmtKind`] node of [`Function::stmts`], its span in the arena's side table.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Stmt<E = ExprId> {
+pub struct Stmt<E: Form> {
     pub kind: StmtKind<E>,
     pub span: Span,
 }
 
 #[derive(Clone, Debug, PartialEq)]
-pub enum StmtKind<E = ExprId> {
+pub enum StmtKind<E: Form = ExprId> {
     /// Declarations become assignments (a declaration without an initialiser assigns zero).
     /// Compound assignment is desugared (`a += b` is `a = a + b`).
     Assign {
@@ -697,8 +680,8 @@ pub enum StmtKind<E = ExprId> {
     /// A varying `cond` executes both sides under masks.
     If {
         cond: E,
-        then: Vec<Stmt<E>>,
-        otherwise: Vec<Stmt<E>>,
+        then: E::Block,
+        otherwise: E::Block,
     },
     /// `loop { if let Some(c) = cond { if !c break }; body; step }`. `continue` goes to
     /// `step`. `varying` is set when the condition is varying or a break/continue/return
@@ -707,8 +690,8 @@ pub enum StmtKind<E = ExprId> {
     Loop {
         id: LoopId,
         cond: Option<E>,
-        body: Vec<Stmt<E>>,
-        step: Vec<Stmt<E>>,
+        body: E::Block,
+        step: E::Block,
         varying: bool,
         site: SiteId,
     },

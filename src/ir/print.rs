@@ -10,7 +10,7 @@ use std::fmt::{self, Write};
 
 use super::{
     ArmKind, BinOp, Builtin, ConstValue, Elem, ExprId, ExprKind, FuncKind, Function, LocalKind, Program, Scalar, Space,
-    Stmt, StmtKind, Type, UnaryOp, Variability,
+    StmtId, StmtKind, Type, UnaryOp, Variability,
 };
 
 impl fmt::Display for Program {
@@ -149,16 +149,16 @@ struct Printer<'f> {
 }
 
 impl Printer<'_> {
-    fn block(&self, out: &mut String, stmts: &[Stmt], depth: usize) -> fmt::Result {
-        for s in stmts {
+    fn block(&self, out: &mut String, stmts: &[StmtId], depth: usize) -> fmt::Result {
+        for &s in stmts {
             self.stmt(out, s, depth)?;
         }
         Ok(())
     }
 
-    fn stmt(&self, out: &mut String, s: &Stmt, depth: usize) -> fmt::Result {
+    fn stmt(&self, out: &mut String, s: StmtId, depth: usize) -> fmt::Result {
         let pad = "  ".repeat(depth);
-        match &s.kind {
+        match &self.func.stmts[s] {
             StmtKind::Assign { place, value } => {
                 write!(out, "{pad}{}", self.local_name(place.local))?;
                 for (i, _) in &place.indices {

@@ -29,7 +29,7 @@
 use std::collections::{HashMap, HashSet};
 
 use super::{
-    BinOp, Builtin, ConstValue, Elem, Expr, ExprId, ExprKind, Function, LocalId, LoopId, Scalar, SiteId, Stmt,
+    BinOp, Builtin, ConstValue, Elem, Expr, ExprId, ExprKind, Function, LocalId, LoopId, Scalar, SiteId, StmtId,
 };
 use super::{LocalKind, StmtKind, UnaryOp};
 
@@ -210,16 +210,17 @@ impl Analysis<'_> {
         self.slots.get(l.0 as usize).copied().flatten()
     }
 
-    fn stmts(&mut self, list: &[Stmt], mut st: State) -> State {
-        for s in list {
+    fn stmts(&mut self, list: &[StmtId], mut st: State) -> State {
+        for &s in list {
             st.as_ref()?;
             st = self.stmt(s, st);
         }
         st
     }
 
-    fn stmt(&mut self, s: &Stmt, st: State) -> State {
-        if let StmtKind::Assign { place, value } = &s.kind {
+    fn stmt(&mut self, s: StmtId, st: State) -> State {
+        let f = self.f;
+        if let StmtKind::Assign { place, value } = &f.stmts[s] {
             let mut env = st?;
             if let Some(local) = self.f.locals.get(place.local.0 as usize) {
                 for (depth, (index, site)) in place.indices.iter().enumerate() {
@@ -239,7 +240,7 @@ impl Analysis<'_> {
             return Some(env);
         }
         let env = st.as_ref()?;
-        match &s.kind {
+        match &f.stmts[s] {
             // Handled above (it takes the state by value).
             StmtKind::Assign { .. } => st,
             StmtKind::If { cond, then, otherwise } => {
@@ -254,7 +255,7 @@ impl Analysis<'_> {
                 id, cond, body, step, ..
             } => self.lower_loop(*id, *cond, body, step, st),
             StmtKind::Break(id) | StmtKind::Continue(id) => {
-                let is_break = matches!(s.kind, StmtKind::Break(_));
+                let is_break = matches!(f.stmts[s], StmtKind::Break(_));
                 if let Some(frame) = self.loops.iter_mut().rev().find(|l| l.id == *id) {
                     let slot = if is_break {
                         &mut frame.breaks
@@ -301,7 +302,14 @@ impl Analysis<'_> {
     /// at 2^31 - 1). The ascending rounds are quiet; sites are judged in one more round from
     /// `next`, whose states cover every trip. A quiet visit (inside another loop's ascending
     /// rounds) returns the last ascending round's exit and skips that round.
-    fn lower_loop(&mut self, id: LoopId, cond: Option<ExprId>, body: &[Stmt], step: &[Stmt], entry: State) -> State {
+    fn lower_loop(
+        &mut self,
+        id: LoopId,
+        cond: Option<ExprId>,
+        body: &[StmtId],
+        step: &[StmtId],
+        entry: State,
+    ) -> State {
         let judging = !self.quiet;
         if judging {
             // A fresh solve: heads cached by earlier ascending rounds came from larger
@@ -317,8 +325,8 @@ impl Analysis<'_> {
             Some(c) => c.clone(),
             None => {
                 let mut c = vec![false; self.slots.len()];
-                counters_in(&self.f.exprs, body, &mut c);
-                counters_in(&self.f.exprs, step, &mut c);
+                counters_in(self.f, body, &mut c);
+                counters_in(self.f, step, &mut c);
                 let c: Vec<bool> = (0..self.slots.len())
                     .filter_map(|l| self.slots[l].map(|_| c[l]))
                     .collect();
@@ -381,8 +389,8 @@ impl Analysis<'_> {
         &mut self,
         id: LoopId,
         cond: Option<ExprId>,
-        body: &[Stmt],
-        step: &[Stmt],
+        body: &[StmtId],
+        step: &[StmtId],
         head: State,
     ) -> (State, State) {
         let (into, out) = match cond {
@@ -629,9 +637,9 @@ impl Analysis<'_> {
 
 /// Mark (by local) the locals that `list` assigns whole from a value that reads them
 /// (`i = i + 1`, `n = max(n, m)`): the loop counters, widened before other locals.
-fn counters_in(x: &super::Exprs, list: &[Stmt], out: &mut [bool]) {
-    super::for_each_assign(list, &mut |place, value| {
-        if place.indices.is_empty() && x.reads_any(value, &|l| l == place.local) {
+fn counters_in(f: &Function, list: &[StmtId], out: &mut [bool]) {
+    super::for_each_assign(&f.stmts, list, &mut |place, value| {
+        if place.indices.is_empty() && f.exprs.reads_any(value, &|l| l == place.local) {
             if let Some(c) = out.get_mut(place.local.0 as usize) {
                 *c = true;
             }

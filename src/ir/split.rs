@@ -19,11 +19,14 @@
 //! - `setup` holds only uniform statements; `pixel` everything from the first pixel
 //!   statement on that could not be hoisted;
 //! - every primitive call and every `bound` is in `setup`; one left in `pixel` is an error
-//!   (E0411, E0412) reported by [`split_checked`].
+//!   (E0411, E0412) reported by [`split_checked`];
+//! - statements keep their ids while they move between the two blocks, so a hoisted one
+//!   is out of pre-order until the caller renumbers ([`super::number::renumber`]; the
+//!   checker does, after this pass).
 
 use std::collections::HashSet;
 
-use super::{ExprId, ExprKind, Exprs, Function, LocalId, LoopId, ParamRole, Stmt, StmtKind};
+use super::{ExprId, ExprKind, Exprs, Function, LocalId, LoopId, ParamRole, StmtId, StmtKind, Stmts};
 use crate::diag::{Diagnostic, Diagnostics};
 
 /// Move the statements that must run per pixel group from `f.setup` into `f.pixel`.
@@ -43,14 +46,15 @@ pub fn split_checked(f: &mut Function, diags: &mut Diagnostics) {
         .map(|p| p.local)
         .collect();
     let body = std::mem::take(&mut f.setup);
-    let is_pixel = |s: &Stmt| pixel_content(s, f, &pixel_params, false);
+    let is_pixel = |s: &StmtId| pixel_content(f, *s, &pixel_params, false);
     let Some(k) = body.iter().position(is_pixel) else {
         f.setup = body;
         return;
     };
-    let first_pixel_span = body[k].span;
+    let st = &f.stmts;
+    let first_pixel_span = st.span(body[k]);
     let mut setup = vec![];
-    let mut pixel: Vec<Stmt> = vec![];
+    let mut pixel: Vec<StmtId> = vec![];
     let mut barrier = false;
     for (i, s) in body.into_iter().enumerate() {
         if i < k {
@@ -59,36 +63,38 @@ pub fn split_checked(f: &mut Function, diags: &mut Diagnostics) {
         }
         let hoistable = i > k
             && !barrier
-            && !pixel_content(&s, f, &pixel_params, false)
-            && !contains(&s, &|k| matches!(k, StmtKind::Return | StmtKind::CallPrimitive { .. }))
-            && no_escaping_jumps(&s);
-        if hoistable && safe_to_hoist(&f.exprs, &s, &pixel) {
+            && !pixel_content(f, s, &pixel_params, false)
+            && !contains(st, s, &|k| {
+                matches!(k, StmtKind::Return | StmtKind::CallPrimitive { .. })
+            })
+            && no_escaping_jumps(st, s);
+        if hoistable && safe_to_hoist(f, s, &pixel) {
             setup.push(s);
             continue;
         }
-        if contains(&s, &|k| matches!(k, StmtKind::CallPrimitive { .. })) {
+        if contains(st, s, &|k| matches!(k, StmtKind::CallPrimitive { .. })) {
             diags.push(
                 Diagnostic::error(
                     "E0411",
                     "a primitive call must come before the primitive's per-pixel code",
                 )
-                .primary(s.span, "this call is after per-pixel code")
+                .primary(st.span(s), "this call is after per-pixel code")
                 .secondary(first_pixel_span, "per-pixel code starts here")
                 .help("sub-primitives are rendered from the uniform setup part"),
             );
         }
-        if contains(&s, &|k| matches!(k, StmtKind::Bound(_))) {
+        if contains(st, s, &|k| matches!(k, StmtKind::Bound(_))) {
             diags.push(
                 Diagnostic::error("E0412", "`bound` cannot be moved before the per-pixel code")
                     .primary(
-                        s.span,
+                        st.span(s),
                         "this bound depends on per-pixel code or is in a statement that does",
                     )
                     .secondary(first_pixel_span, "per-pixel code starts here")
                     .help("compute the bound from uniform values before the first per-pixel statement"),
             );
         }
-        if uniform_return(&f.exprs, &s, false) {
+        if uniform_return(f, s, false) {
             barrier = true;
         }
         pixel.push(s);
@@ -98,10 +104,10 @@ pub fn split_checked(f: &mut Function, diags: &mut Diagnostics) {
 }
 
 /// Whether `s` needs to run per pixel. `ctl`: `s` sits under varying control flow.
-fn pixel_content(s: &Stmt, f: &Function, pixel_params: &HashSet<LocalId>, ctl: bool) -> bool {
-    let any = |b: &[Stmt], ctl: bool| b.iter().any(|s| pixel_content(s, f, pixel_params, ctl));
+fn pixel_content(f: &Function, s: StmtId, pixel_params: &HashSet<LocalId>, ctl: bool) -> bool {
+    let any = |b: &[StmtId], ctl: bool| b.iter().any(|s| pixel_content(f, *s, pixel_params, ctl));
     let is_varying = |e: &ExprId| f.exprs[*e].var.is_varying();
-    match &s.kind {
+    match &f.stmts[s] {
         StmtKind::Assign { place, value } => {
             is_varying(value)
                 || place.indices.iter().any(|(i, _)| is_varying(i))
@@ -135,9 +141,10 @@ fn pixel_content(s: &Stmt, f: &Function, pixel_params: &HashSet<LocalId>, ctl: b
 
 /// Whether `s` holds a `return` that is not under varying control (it may end the whole
 /// primitive, so nothing after it may move before it). `ctl`: under varying control.
-fn uniform_return(x: &Exprs, s: &Stmt, ctl: bool) -> bool {
-    let any = |b: &[Stmt], ctl: bool| b.iter().any(|s| uniform_return(x, s, ctl));
-    match &s.kind {
+fn uniform_return(f: &Function, s: StmtId, ctl: bool) -> bool {
+    let any = |b: &[StmtId], ctl: bool| b.iter().any(|s| uniform_return(f, *s, ctl));
+    let x = &f.exprs;
+    match &f.stmts[s] {
         StmtKind::Return => !ctl,
         StmtKind::If { cond, then, otherwise } => {
             let c = ctl || x[*cond].var.is_varying();
@@ -152,24 +159,17 @@ fn uniform_return(x: &Exprs, s: &Stmt, ctl: bool) -> bool {
 }
 
 /// Whether `s` or a statement nested in it has a kind matching `pred`.
-fn contains(s: &Stmt, pred: &dyn Fn(&StmtKind) -> bool) -> bool {
-    if pred(&s.kind) {
-        return true;
-    }
-    let any = |b: &[Stmt]| b.iter().any(|s| contains(s, pred));
-    match &s.kind {
-        StmtKind::If { then, otherwise, .. } => any(then) || any(otherwise),
-        StmtKind::Loop { body, step, .. } => any(body) || any(step),
-        StmtKind::Interpolation { arms } => arms.iter().any(|a| any(&a.body)),
-        _ => false,
-    }
+fn contains(st: &Stmts, s: StmtId, pred: &dyn Fn(&StmtKind) -> bool) -> bool {
+    let mut found = false;
+    super::for_each_stmt(st, &[s], &mut |_, k| found |= pred(k));
+    found
 }
 
 /// True when every `break`/`continue` in `s` targets a loop inside `s`.
-fn no_escaping_jumps(s: &Stmt) -> bool {
-    fn walk(s: &Stmt, inside: &mut Vec<LoopId>) -> bool {
-        let all = |b: &[Stmt], inside: &mut Vec<LoopId>| b.iter().all(|s| walk(s, inside));
-        match &s.kind {
+fn no_escaping_jumps(st: &Stmts, s: StmtId) -> bool {
+    fn walk(st: &Stmts, s: StmtId, inside: &mut Vec<LoopId>) -> bool {
+        let all = |b: &[StmtId], inside: &mut Vec<LoopId>| b.iter().all(|s| walk(st, *s, inside));
+        match &st[s] {
             StmtKind::Break(l) | StmtKind::Continue(l) => inside.contains(l),
             StmtKind::If { then, otherwise, .. } => all(then, inside) && all(otherwise, inside),
             StmtKind::Loop { id, body, step, .. } => {
@@ -182,28 +182,29 @@ fn no_escaping_jumps(s: &Stmt) -> bool {
             _ => true,
         }
     }
-    walk(s, &mut vec![])
+    walk(st, s, &mut vec![])
 }
 
 /// Moving `s` before the statements of `pixel` keeps the program's meaning.
-fn safe_to_hoist(x: &Exprs, s: &Stmt, pixel: &[Stmt]) -> bool {
+fn safe_to_hoist(f: &Function, s: StmtId, pixel: &[StmtId]) -> bool {
     let (mut r, mut w) = (HashSet::new(), HashSet::new());
-    reads_writes(x, s, &mut r, &mut w);
+    reads_writes(f, s, &mut r, &mut w);
     pixel.iter().all(|t| {
         let (mut tr, mut tw) = (HashSet::new(), HashSet::new());
-        reads_writes(x, t, &mut tr, &mut tw);
+        reads_writes(f, *t, &mut tr, &mut tw);
         tr.is_disjoint(&w) && tw.is_disjoint(&w) && tw.is_disjoint(&r)
     })
 }
 
 /// The locals a statement reads and writes (anywhere inside it).
-pub(crate) fn reads_writes(x: &Exprs, s: &Stmt, r: &mut HashSet<LocalId>, w: &mut HashSet<LocalId>) {
-    let block = |b: &[Stmt], r: &mut HashSet<LocalId>, w: &mut HashSet<LocalId>| {
+pub(crate) fn reads_writes(f: &Function, s: StmtId, r: &mut HashSet<LocalId>, w: &mut HashSet<LocalId>) {
+    let block = |b: &[StmtId], r: &mut HashSet<LocalId>, w: &mut HashSet<LocalId>| {
         for s in b {
-            reads_writes(x, s, r, w);
+            reads_writes(f, *s, r, w);
         }
     };
-    match &s.kind {
+    let x = &f.exprs;
+    match &f.stmts[s] {
         StmtKind::Assign { place, value } => {
             w.insert(place.local);
             for (i, _) in &place.indices {

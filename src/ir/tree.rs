@@ -1,15 +1,17 @@
-//! Expressions as owned trees: the form in which the checker and hand-written test
-//! programs build a body before it enters a function's arena.
+//! Statements and expressions as owned trees: the form in which the checker and
+//! hand-written test programs build a body before it enters a function's arenas.
 //!
 //! A [`Tree`] holds its operands itself, so building code can compose values freely
 //! (fold a constant, wrap a conversion, clone an index) without an arena at hand.
-//! Statements are generic over how they hold an expression, so a body under construction
-//! is `Vec<Stmt<Tree>>`; [`intern_body`] moves it into an arena in the order of
-//! [`super::number`] and gives the IR's `Vec<Stmt>`. Nothing after the checker sees a
-//! `Tree`.
+//! Statements are generic over how they hold an expression ([`super::Form`]): a body under
+//! construction is `Vec<Stmt<Tree>>`, each statement holding its trees and the statements
+//! inside it. [`intern_body`] moves it into a statement and an expression arena in the
+//! order of [`super::number`] and gives the IR's blocks. Nothing after the checker sees a
+//! `Tree` or an owned `Stmt`.
 
 use super::{
-    BinOp, Builtin, ConstValue, Expr, ExprId, ExprKind, Exprs, LocalId, SiteId, Stmt, Type, UnaryOp, Variability,
+    BinOp, Block, Builtin, ConstValue, Expr, ExprId, ExprKind, Exprs, Form, InterpArm, LocalId, Place, SiteId, Stmt,
+    StmtId, StmtKind, Stmts, Type, UnaryOp, Variability,
 };
 use crate::diag::Span;
 
@@ -116,12 +118,104 @@ impl Exprs {
     }
 }
 
-/// A body's setup and pixel statements moved into a fresh arena, numbered as
-/// [`super::number`] says: `(setup, pixel, arena)`.
-pub fn intern_body(setup: Vec<Stmt<Tree>>, pixel: Vec<Stmt<Tree>>) -> (Vec<Stmt>, Vec<Stmt>, Exprs) {
+impl Form for Tree {
+    type Block = Vec<Stmt<Tree>>;
+}
+
+/// A body's setup and pixel statements moved into fresh arenas, numbered as
+/// [`super::number`] says.
+pub struct Interned {
+    pub setup: Block,
+    pub pixel: Block,
+    pub stmts: Stmts,
+    pub exprs: Exprs,
+}
+
+/// Move `setup` then `pixel` into fresh arenas (see [`Interned`]).
+pub fn intern_body(setup: Vec<Stmt<Tree>>, pixel: Vec<Stmt<Tree>>) -> Interned {
+    let mut stmts = Stmts::new();
     let mut exprs = Exprs::new();
-    let mut put = |t: Tree| exprs.intern(t);
-    let setup = setup.into_iter().map(|s| s.map_exprs(&mut put)).collect();
-    let pixel = pixel.into_iter().map(|s| s.map_exprs(&mut put)).collect();
-    (setup, pixel, exprs)
+    let setup = intern_block(&mut stmts, &mut exprs, setup);
+    let pixel = intern_block(&mut stmts, &mut exprs, pixel);
+    Interned {
+        setup,
+        pixel,
+        stmts,
+        exprs,
+    }
+}
+
+fn intern_block(stmts: &mut Stmts, x: &mut Exprs, block: Vec<Stmt<Tree>>) -> Block {
+    block.into_iter().map(|s| intern_stmt(stmts, x, s)).collect()
+}
+
+/// Move `s` into the arenas: its node first, then its expressions, then the statements
+/// inside it; returns its id.
+fn intern_stmt(stmts: &mut Stmts, x: &mut Exprs, s: Stmt<Tree>) -> StmtId {
+    let id = stmts.alloc(StmtKind::Return, s.span);
+    let mut put = |t: Tree| x.intern(t);
+    // Expressions first, in `for_each_expr` order: a place's indices, then the value.
+    let kind = match s.kind {
+        StmtKind::Assign { place, value } => {
+            let indices = place.indices.into_iter().map(|(i, site)| (put(i), site)).collect();
+            let place = Place {
+                local: place.local,
+                indices,
+                span: place.span,
+            };
+            StmtKind::Assign {
+                place,
+                value: put(value),
+            }
+        }
+        StmtKind::If { cond, then, otherwise } => {
+            let cond = put(cond);
+            let then = intern_block(stmts, x, then);
+            StmtKind::If {
+                cond,
+                then,
+                otherwise: intern_block(stmts, x, otherwise),
+            }
+        }
+        StmtKind::Loop {
+            id: loop_id,
+            cond,
+            body,
+            step,
+            varying,
+            site,
+        } => {
+            let cond = cond.map(put);
+            let body = intern_block(stmts, x, body);
+            StmtKind::Loop {
+                id: loop_id,
+                cond,
+                body,
+                step: intern_block(stmts, x, step),
+                varying,
+                site,
+            }
+        }
+        StmtKind::Break(l) => StmtKind::Break(l),
+        StmtKind::Continue(l) => StmtKind::Continue(l),
+        StmtKind::Return => StmtKind::Return,
+        StmtKind::Interpolation { arms } => StmtKind::Interpolation {
+            arms: arms
+                .into_iter()
+                .map(|a| InterpArm {
+                    kind: a.kind,
+                    body: intern_block(stmts, x, a.body),
+                    span: a.span,
+                })
+                .collect(),
+        },
+        StmtKind::InterpolatorReturn(e) => StmtKind::InterpolatorReturn(e.map(put)),
+        StmtKind::Bound(es) => StmtKind::Bound(es.map(put)),
+        StmtKind::CallPrimitive { callee, args } => StmtKind::CallPrimitive {
+            callee,
+            args: args.into_iter().map(put).collect(),
+        },
+    };
+    stmts[id] = kind;
+    id
 }

@@ -15,7 +15,7 @@
 //!
 //! The rules, by theme (the module doc of [`crate::ir`] states them in prose):
 //! - **index facts**: locals, loop ids, sites and callees in range; each loop id belongs
-//!   to one loop; the expression arena holds trees, numbered densely in pre-order;
+//!   to one loop; the statement and expression arenas hold trees, numbered densely in pre-order;
 //!   `break`/`continue` leave an enclosing loop; parameter `i` is local `i`;
 //! - **types**: each expression's type follows from its operands exactly as the checker
 //!   builds it (`Binary` operands of one scalar element and shape, or a scalar broadcast;
@@ -43,7 +43,7 @@ use std::fmt;
 
 use super::{
     ArmKind, BinOp, Builtin, ConstValue, Elem, Expr, ExprId, ExprKind, FuncKind, Function, LocalId, LocalKind, LoopId,
-    Param, ParamRole, Place, Program, Scalar, SiteId, Stmt, StmtKind, Type, UnaryOp, Variability,
+    Param, ParamRole, Place, Program, Scalar, SiteId, StmtId, StmtKind, Type, UnaryOp, Variability,
 };
 use crate::diag::Span;
 
@@ -59,6 +59,10 @@ pub enum Rule {
     LoopIdInRange,
     /// Each `LoopId` is the id of at most one `Loop` statement.
     LoopIdUnique,
+    /// The statement arena holds the setup and pixel blocks as trees: every id in a block
+    /// is in range, each statement is in exactly one block, and the ids are
+    /// `0..stmts.len()` in pre-order (see [`super::number`]), so none is unreachable.
+    StmtTree,
     /// The arena holds one tree per statement expression: every operand id is in range,
     /// each node is the operand or statement expression of exactly one parent, and the ids
     /// are `0..exprs.len()` in pre-order (see [`super::number`]), so none is unreachable.
@@ -175,6 +179,7 @@ impl Rule {
             SiteInRange => "every site id is in range",
             LoopIdInRange => "every loop id is in range",
             LoopIdUnique => "each loop id belongs to one loop",
+            StmtTree => "statements form trees numbered 0..stmts in pre-order",
             ExprTree => "expressions form trees numbered 0..exprs in pre-order",
             JumpTarget => "break/continue leave an enclosing loop",
             ParamLayout => "parameter i is local i, of kind Param(i)",
@@ -275,15 +280,16 @@ pub fn validate_function(program: &Program, f: &Function) -> Res {
         arm: None,
     };
     v.params()?;
+    v.stmt_ids()?;
     v.loop_ids()?;
     v.expr_ids()?;
     v.loop_ctl = control_loops(f);
     if f.kind == FuncKind::Interpolator {
-        if let Some(s) = f.setup.first() {
+        if let Some(&s) = f.setup.first() {
             return v.fail(
                 Rule::InterpolatorBody,
-                stmt_node(s),
-                s.span,
+                stmt_node(&f.stmts[s]),
+                f.stmts.span(s),
                 "an interpolator has a setup part",
             );
         }
@@ -312,20 +318,8 @@ struct Validator<'a> {
     arm: Option<bool>,
 }
 
-fn stmt_node(s: &Stmt) -> String {
-    let k = match &s.kind {
-        StmtKind::Assign { .. } => "Assign",
-        StmtKind::If { .. } => "If",
-        StmtKind::Loop { .. } => "Loop",
-        StmtKind::Break(_) => "Break",
-        StmtKind::Continue(_) => "Continue",
-        StmtKind::Return => "Return",
-        StmtKind::Interpolation { .. } => "Interpolation",
-        StmtKind::InterpolatorReturn(_) => "InterpolatorReturn",
-        StmtKind::Bound(_) => "Bound",
-        StmtKind::CallPrimitive { .. } => "CallPrimitive",
-    };
-    format!("statement `{k}`")
+fn stmt_node(s: &StmtKind) -> String {
+    format!("statement `{}`", s.name())
 }
 
 fn expr_node(e: &Expr) -> String {
@@ -365,6 +359,7 @@ fn is_float(t: &Type) -> bool {
 /// fixpoint, since a loop found so makes jumps inside it varying in turn.
 fn control_loops(f: &Function) -> Vec<bool> {
     struct Ctl<'f> {
+        st: &'f super::Stmts,
         x: &'f super::Exprs,
         ctl: Vec<bool>,
         loops: Vec<LoopId>,
@@ -380,9 +375,10 @@ fn control_loops(f: &Function) -> Vec<bool> {
                 }
             }
         }
-        fn stmts(&mut self, ss: &[Stmt]) {
-            for s in ss {
-                match &s.kind {
+        fn stmts(&mut self, ss: &[StmtId]) {
+            let st = self.st;
+            for &s in ss {
+                match &st[s] {
                     StmtKind::If { cond, then, otherwise } => {
                         let pushed = self.x[*cond].var.is_varying();
                         if pushed {
@@ -427,6 +423,7 @@ fn control_loops(f: &Function) -> Vec<bool> {
         }
     }
     let mut c = Ctl {
+        st: &f.stmts,
         x: &f.exprs,
         ctl: vec![false; f.loops as usize],
         loops: vec![],
@@ -464,12 +461,16 @@ impl<'a> Validator<'a> {
         }
     }
 
-    fn check_stmt(&self, ok: bool, rule: Rule, s: &Stmt, detail: impl FnOnce() -> String) -> Res {
+    fn check_stmt(&self, ok: bool, rule: Rule, s: StmtId, detail: impl FnOnce() -> String) -> Res {
         if ok {
             Ok(())
         } else {
-            self.fail(rule, stmt_node(s), s.span, detail())
+            self.fail_stmt(rule, s, detail())
         }
+    }
+
+    fn fail_stmt(&self, rule: Rule, s: StmtId, detail: impl Into<String>) -> Res {
+        self.fail(rule, stmt_node(&self.f.stmts[s]), self.f.stmts.span(s), detail)
     }
 
     fn site(&self, site: SiteId, node: impl Into<String>, span: Span) -> Res {
@@ -578,17 +579,76 @@ impl<'a> Validator<'a> {
         Ok(())
     }
 
+    /// The statement arena is a set of trees numbered in pre-order ([`Rule::StmtTree`]):
+    /// walking the blocks from `setup` and `pixel` must meet ids 0, 1, 2, ... exactly, and
+    /// then have met every node. A statement in two blocks, or out of range, breaks the
+    /// count where it is met; an unreachable one leaves the count short. Runs before every
+    /// other walk of the statements, which may then index the arena.
+    fn stmt_ids(&self) -> Res {
+        let f = self.f;
+        let st = &f.stmts;
+        /// Walk `block` expecting pre-order id `*next`; the first mismatch found, with the
+        /// statement holding the block (`None`: the setup or pixel part).
+        fn walk(
+            st: &super::Stmts,
+            holder: Option<StmtId>,
+            block: &[StmtId],
+            next: &mut u32,
+        ) -> Result<(), (Option<StmtId>, String)> {
+            for &id in block {
+                let Some(s) = st.get(id) else {
+                    return Err((holder, format!("statement id {} of {}", id.0, st.len())));
+                };
+                if id.0 != *next {
+                    let why = if id.0 < *next {
+                        format!("statement id {} is used twice (or out of pre-order)", id.0)
+                    } else {
+                        format!("statement id {} where pre-order gives {}", id.0, *next)
+                    };
+                    return Err((Some(id), why));
+                }
+                *next += 1;
+                let mut r = Ok(());
+                s.for_each_block(|b| {
+                    if r.is_ok() {
+                        r = walk(st, Some(id), b, next);
+                    }
+                });
+                r?;
+            }
+            Ok(())
+        }
+        let mut next = 0;
+        for part in [&f.setup, &f.pixel] {
+            if let Err((at, detail)) = walk(st, None, part, &mut next) {
+                return match at {
+                    Some(s) if st.get(s).is_some() => self.fail_stmt(Rule::StmtTree, s, detail),
+                    _ => self.fail(Rule::StmtTree, "function", f.span, detail),
+                };
+            }
+        }
+        if next != st.len() {
+            return self.fail(
+                Rule::StmtTree,
+                "function",
+                f.span,
+                format!("{next} statements reachable of the {} in the arena", st.len()),
+            );
+        }
+        Ok(())
+    }
+
     /// Loop ids in range and unique; remembers each loop's `varying` flag.
     fn loop_ids(&mut self) -> Res {
         let f = self.f;
         let mut flags = vec![None; f.loops as usize];
-        let mut found: Option<(Rule, &Stmt, String)> = None;
+        let mut found: Option<(Rule, StmtId, String)> = None;
         for part in [&f.setup, &f.pixel] {
-            super::for_each_stmt(part, &mut |s| {
+            super::for_each_stmt(&f.stmts, part, &mut |s, kind| {
                 if found.is_some() {
                     return;
                 }
-                let (id, varying) = match &s.kind {
+                let (id, varying) = match kind {
                     StmtKind::Loop { id, varying, .. } => (*id, Some(*varying)),
                     StmtKind::Break(id) | StmtKind::Continue(id) => (*id, None),
                     _ => return,
@@ -607,7 +667,7 @@ impl<'a> Validator<'a> {
             });
         }
         if let Some((rule, s, detail)) = found {
-            return self.fail(rule, stmt_node(s), s.span, detail);
+            return self.fail_stmt(rule, s, detail);
         }
         self.loop_varying = flags;
         Ok(())
@@ -642,10 +702,10 @@ impl<'a> Validator<'a> {
             Ok(())
         }
         let mut next = 0;
-        let mut found: Option<(Option<ExprId>, &Stmt, String)> = None;
+        let mut found: Option<(Option<ExprId>, StmtId, String)> = None;
         for part in [&f.setup, &f.pixel] {
-            super::for_each_stmt(part, &mut |s| {
-                s.for_each_expr(|e| {
+            super::for_each_stmt(&f.stmts, part, &mut |s, kind| {
+                kind.for_each_expr(|e| {
                     if found.is_none() {
                         if let Err((at, why)) = walk(x, *e, &mut next) {
                             found = Some((at, s, why));
@@ -657,7 +717,7 @@ impl<'a> Validator<'a> {
         if let Some((at, s, detail)) = found {
             return match at {
                 Some(id) => self.fail(Rule::ExprTree, expr_node(&x[id]), x.span(id), detail),
-                None => self.fail(Rule::ExprTree, stmt_node(s), s.span, detail),
+                None => self.fail_stmt(Rule::ExprTree, s, detail),
             };
         }
         if next != x.len() {
@@ -673,8 +733,8 @@ impl<'a> Validator<'a> {
 
     // ---- statements
 
-    fn stmts(&mut self, ss: &'a [Stmt]) -> Res {
-        ss.iter().try_for_each(|s| self.stmt(s))
+    fn stmts(&mut self, ss: &'a [StmtId]) -> Res {
+        ss.iter().try_for_each(|&s| self.stmt(s))
     }
 
     /// An expression standing on its own in a statement: checked, not a per-sequence-point
@@ -700,17 +760,16 @@ impl<'a> Validator<'a> {
 
     /// A `break`, `continue` (`target`: the position of the loop left) or `return` (0)
     /// under varying control flow leaves varying loops only.
-    fn jump(&self, s: &Stmt, target: usize) -> Res {
+    fn jump(&self, s: StmtId, target: usize) -> Res {
         let Some(&d) = self.conds.iter().max() else {
             return Ok(());
         };
         for q in target..d.min(self.loops.len()) {
             let id = self.loops[q];
             if self.loop_varying[id.0 as usize] != Some(true) {
-                return self.fail(
+                return self.fail_stmt(
                     Rule::LoopVarying,
-                    stmt_node(s),
-                    s.span,
+                    s,
                     format!("leaves uniform loop {} under varying control flow", id.0),
                 );
             }
@@ -718,9 +777,9 @@ impl<'a> Validator<'a> {
         Ok(())
     }
 
-    fn stmt(&mut self, s: &'a Stmt) -> Res {
+    fn stmt(&mut self, s: StmtId) -> Res {
         let f = self.f;
-        match &s.kind {
+        match &f.stmts[s] {
             StmtKind::Assign { place, value } => self.assign(s, place, *value),
             StmtKind::If { cond, then, otherwise } => {
                 self.condition(*cond)?;
@@ -743,7 +802,7 @@ impl<'a> Validator<'a> {
                 varying,
                 site,
             } => {
-                self.site(*site, stmt_node(s), s.span)?;
+                self.site(*site, stmt_node(&f.stmts[s]), f.stmts.span(s))?;
                 if let Some(c) = *cond {
                     self.condition(c)?;
                     self.check_stmt(!f.exprs[c].var.is_varying() || *varying, Rule::LoopVarying, s, || {
@@ -768,12 +827,7 @@ impl<'a> Validator<'a> {
             }
             StmtKind::Break(id) | StmtKind::Continue(id) => match self.loops.iter().position(|l| l == id) {
                 Some(p) => self.jump(s, p),
-                None => self.fail(
-                    Rule::JumpTarget,
-                    stmt_node(s),
-                    s.span,
-                    format!("loop {} does not enclose it", id.0),
-                ),
+                None => self.fail_stmt(Rule::JumpTarget, s, format!("loop {} does not enclose it", id.0)),
             },
             StmtKind::Return => self.jump(s, 0),
             StmtKind::Interpolation { arms } => {
@@ -819,10 +873,10 @@ impl<'a> Validator<'a> {
 
     /// An assignment: its place's local, read-only parameters, index types, the value's
     /// type, and what a uniform local may be assigned.
-    fn assign(&mut self, s: &'a Stmt, place: &'a Place, value_id: ExprId) -> Res {
+    fn assign(&mut self, s: StmtId, place: &'a Place, value_id: ExprId) -> Res {
         let value = &self.f.exprs[value_id];
         self.root(value_id)?;
-        let local = self.local(place.local, stmt_node(s), place.span)?;
+        let local = self.local(place.local, stmt_node(&self.f.stmts[s]), place.span)?;
         if let Some(p) = self.param_of(place.local) {
             self.check_stmt(p.role == ParamRole::Z, Rule::AssignReadOnly, s, || {
                 format!("assignment to parameter `{}`", p.name)
@@ -832,7 +886,7 @@ impl<'a> Validator<'a> {
         let mut index_var = Variability::Uniform;
         for &(i, site) in &place.indices {
             self.root(i)?;
-            self.site(site, stmt_node(s), place.span)?;
+            self.site(site, stmt_node(&self.f.stmts[s]), place.span)?;
             self.check(
                 self.f.exprs[i].ty == Type::int() && (!ty.dims.is_empty() || ty.per_seq),
                 Rule::IndexType,
@@ -860,7 +914,7 @@ impl<'a> Validator<'a> {
     }
 
     /// `interpolator_return`: where it may stand, with or without a value, and its type.
-    fn interpolator_return(&mut self, s: &'a Stmt, v: Option<ExprId>) -> Res {
+    fn interpolator_return(&mut self, s: StmtId, v: Option<ExprId>) -> Res {
         let f = self.f;
         self.check_stmt(self.pixel, Rule::InterpolatorReturnPlacement, s, || {
             "`interpolator_return` in the setup part".into()
@@ -890,7 +944,7 @@ impl<'a> Validator<'a> {
         Ok(())
     }
 
-    fn call(&mut self, s: &'a Stmt, callee: super::FuncId, args: &'a [ExprId]) -> Res {
+    fn call(&mut self, s: StmtId, callee: super::FuncId, args: &'a [ExprId]) -> Res {
         let f = self.f;
         self.check_stmt(f.kind == FuncKind::Primitive, Rule::InterpolatorBody, s, || {
             "a primitive call in an interpolator".into()
@@ -904,10 +958,9 @@ impl<'a> Validator<'a> {
             .get(callee.0 as usize)
             .filter(|cf| cf.kind == FuncKind::Primitive)
         else {
-            return self.fail(
+            return self.fail_stmt(
                 Rule::CallCallee,
-                stmt_node(s),
-                s.span,
+                s,
                 format!("function {} is not a primitive of the program", callee.0),
             );
         };
@@ -924,10 +977,9 @@ impl<'a> Validator<'a> {
             let a = &f.exprs[a_id];
             let pty = &cf.locals.get(p.local.0 as usize).map(|l| &l.ty);
             let Some(pty) = pty else {
-                return self.fail(
+                return self.fail_stmt(
                     Rule::CallCallee,
-                    stmt_node(s),
-                    s.span,
+                    s,
                     format!("`{}` has no local for parameter `{}`", cf.name, p.name),
                 );
             };

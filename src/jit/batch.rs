@@ -371,8 +371,8 @@ impl<'j> BatchWork<'j> {
             // its outcome is left unused (`Jit::compile_batch` walks from the root).
             let func = self.program.func(f);
             for stmts in [&func.setup, &func.pixel] {
-                crate::ir::for_each_stmt(stmts, &mut |s| {
-                    if let StmtKind::CallPrimitive { callee, .. } = s.kind {
+                crate::ir::for_each_stmt(&func.stmts, stmts, &mut |_, s| {
+                    if let StmtKind::CallPrimitive { callee, .. } = *s {
                         self.start(scope, callee);
                     }
                 });

@@ -40,7 +40,7 @@ use super::value::{cl_type, ctx_off, mem_flags, Val, VnTable, F32X4};
 use super::JitError;
 use crate::abi::{ArgLayout, BindingKind, ParamSlot, VariantKey, ERR_STACK};
 use crate::ir::{
-    ConstValue, Elem, ExprId, ExprKind, Exprs, FixedFormat, FuncId, Function, LocalId, LoopId, Program, Scalar, Stmt,
+    ConstValue, Elem, ExprId, ExprKind, Exprs, FixedFormat, FuncId, Function, LocalId, LoopId, Program, Scalar, StmtId,
     StmtKind, Type,
 };
 use crate::mid::pred::{const_index_in_range, const_int, key_constant, speculable_expr};
@@ -329,7 +329,7 @@ pub(crate) struct Lower<'a, 'b> {
     /// What the middle end planned for this kernel (see [`crate::mid`]).
     plan: &'a Plan<'a>,
     /// In the pixel loops: the copy being lowered (see [`crate::mid::unswitch`]).
-    copy: Option<&'a crate::mid::unswitch::LoopsCopy<'a>>,
+    copy: Option<&'a crate::mid::unswitch::LoopsCopy>,
     /// While a row term is evaluated in the row prologue: read row locals as their values.
     substitute_row_locals: bool,
     /// The row locals' values already computed in the current row prologue, with the block
@@ -654,7 +654,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// The plan of the pixel part (the pixel loops are lowered only when there is one).
-    fn pixel_plan(&self) -> Res<&'a PixelPlan<'a>> {
+    fn pixel_plan(&self) -> Res<&'a PixelPlan> {
         match &self.plan.pixel {
             Some(p) => Ok(p),
             None => err("no pixel part planned"),
@@ -702,8 +702,8 @@ fn word_of(b: &mut FunctionBuilder, sc: Scalar, c: ir::Value) -> ir::Value {
 /// Whether running setup statement `s` can matter to a bound run only through its value:
 /// no `bound`, no primitive call, no loop (fuel), no index that may record an error. (An
 /// early `return` is fine: the bound already recorded stays.)
-fn quiet_stmt(f: &Function, s: &Stmt) -> bool {
-    match &s.kind {
+fn quiet_stmt(f: &Function, s: StmtId) -> bool {
+    match &f.stmts[s] {
         StmtKind::Assign { place, value } => {
             // Each index of the place a constant inside its dimension.
             let Some(local) = f.locals.get(place.local.0 as usize) else {
@@ -720,7 +720,7 @@ fn quiet_stmt(f: &Function, s: &Stmt) -> bool {
             in_range && speculable_expr(&f.exprs, *value)
         }
         StmtKind::If { cond, then, otherwise } => {
-            speculable_expr(&f.exprs, *cond) && then.iter().chain(otherwise).all(|t| quiet_stmt(f, t))
+            speculable_expr(&f.exprs, *cond) && then.iter().chain(otherwise).all(|&t| quiet_stmt(f, t))
         }
         StmtKind::Return => true,
         _ => false,

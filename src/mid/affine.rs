@@ -48,7 +48,7 @@ use std::collections::{HashMap, HashSet};
 
 use super::hoist::Scope;
 use crate::ir::{
-    BinOp, ConstValue, Elem, Expr, ExprId, ExprKind, Exprs, Function, LocalId, ParamRole, Scalar, Stmt, StmtKind,
+    BinOp, ConstValue, Elem, Expr, ExprId, ExprKind, Exprs, Function, LocalId, ParamRole, Scalar, StmtId, StmtKind,
     UnaryOp,
 };
 
@@ -183,7 +183,7 @@ pub(crate) fn mark_unread_in_groups(
     unstored: &mut HashSet<ExprId>,
 ) {
     let mut all_reads = HashMap::new();
-    count_stmt_reads(&f.exprs, &f.pixel, &mut all_reads);
+    count_stmt_reads(f, &f.pixel, &mut all_reads);
     let mut term_reads = HashMap::new();
     for t in terms {
         count_reads(&f.exprs, t, &mut term_reads);
@@ -210,7 +210,7 @@ impl Scope<'_> {
             return Carry::default();
         };
         let x_float = f.local(x).ty.elem == Elem::Scalar(Scalar::Float) && f.local(x).ty.dims.is_empty();
-        if !x_float || assigned.contains(&x) || calls_primitive(&f.pixel) {
+        if !x_float || assigned.contains(&x) || calls_primitive(f, &f.pixel) {
             return Carry::default();
         }
         let y = f
@@ -219,7 +219,7 @@ impl Scope<'_> {
             .filter(|l| !assigned.contains(l));
         let y_float = y.filter(|&l| f.local(l).ty.elem == Elem::Scalar(Scalar::Float) && f.local(l).ty.dims.is_empty());
         let mut counts: HashMap<LocalId, (u32, bool)> = HashMap::new();
-        crate::ir::for_each_assign(&f.pixel, &mut |place, _| {
+        crate::ir::for_each_assign(&f.stmts, &f.pixel, &mut |place, _| {
             let c = counts.entry(place.local).or_insert((0, true));
             c.0 += 1;
             c.1 &= place.indices.is_empty();
@@ -305,14 +305,14 @@ impl Scope<'_> {
     fn carry_stmts(
         &self,
         f: &Function,
-        stmts: &[Stmt],
+        stmts: &[StmtId],
         straight: bool,
         visible: &mut HashSet<LocalId>,
         w: &mut Walk<'_>,
         out: &mut Vec<(ExprId, bool)>,
     ) {
-        for s in stmts {
-            match &s.kind {
+        for &s in stmts {
+            match &f.stmts[s] {
                 StmtKind::Assign { place, value } => {
                     for (i, _) in &place.indices {
                         self.carry_expr(f, *i, visible, w, out);
@@ -457,14 +457,12 @@ impl Scope<'_> {
 }
 
 /// The pixel code renders another primitive somewhere (its X is this one's: not carried).
-fn calls_primitive(stmts: &[Stmt]) -> bool {
-    stmts.iter().any(|s| match &s.kind {
-        StmtKind::CallPrimitive { .. } => true,
-        StmtKind::If { then, otherwise, .. } => calls_primitive(then) || calls_primitive(otherwise),
-        StmtKind::Loop { body, step, .. } => calls_primitive(body) || calls_primitive(step),
-        StmtKind::Interpolation { arms } => arms.iter().any(|a| calls_primitive(&a.body)),
-        _ => false,
-    })
+fn calls_primitive(f: &Function, stmts: &[StmtId]) -> bool {
+    let mut found = false;
+    crate::ir::for_each_stmt(&f.stmts, stmts, &mut |_, s| {
+        found |= matches!(s, StmtKind::CallPrimitive { .. })
+    });
+    found
 }
 
 /// Count the reads of each local in `e` (every `Local` node).
@@ -473,6 +471,8 @@ fn count_reads(x: &Exprs, e: ExprId, out: &mut HashMap<LocalId, u32>) {
 }
 
 /// Count the reads of each local in every expression of `stmts`.
-fn count_stmt_reads(x: &Exprs, stmts: &[Stmt], out: &mut HashMap<LocalId, u32>) {
-    crate::ir::for_each_stmt(stmts, &mut |s| s.for_each_expr(|e| count_reads(x, *e, out)));
+fn count_stmt_reads(f: &Function, stmts: &[StmtId], out: &mut HashMap<LocalId, u32>) {
+    crate::ir::for_each_stmt(&f.stmts, stmts, &mut |_, s| {
+        s.for_each_expr(|e| count_reads(&f.exprs, *e, out))
+    });
 }

@@ -18,31 +18,31 @@
 
 use std::collections::{HashMap, HashSet};
 
-use crate::ir::{ConstValue, Elem, ExprId, ExprKind, Exprs, Function, LocalId, Stmt, StmtKind};
+use crate::ir::{ConstValue, Elem, ExprId, ExprKind, Exprs, Function, LocalId, StmtId, StmtKind};
 
 /// One statement of the guard prefix.
-pub(crate) enum PStmt<'a> {
+pub(crate) enum PStmt {
     /// `local = value` for a varying scalar local: kept in both variants.
     Assign {
-        stmt: &'a Stmt,
+        stmt: StmtId,
         local: LocalId,
         value: ExprId,
     },
     /// `if (cond) return;` with a varying `cond`; `id` numbers guards in pre-order.
-    Guard { stmt: &'a Stmt, cond: ExprId, id: usize },
+    Guard { stmt: StmtId, cond: ExprId, id: usize },
     /// `if (cond) {..} else {..}` on a uniform `cond`, both sides prefix statements.
     UniformIf {
         cond: ExprId,
-        then: Vec<PStmt<'a>>,
-        otherwise: Vec<PStmt<'a>>,
+        then: Vec<PStmt>,
+        otherwise: Vec<PStmt>,
     },
     /// `return` under uniform control: every lane that gets here retires.
-    Kill(&'a Stmt),
+    Kill(StmtId),
 }
 
 /// The guard prefix of a primitive's pixel part.
-pub(crate) struct Prefix<'a> {
-    pub stmts: Vec<PStmt<'a>>,
+pub(crate) struct Prefix {
+    pub stmts: Vec<PStmt>,
     /// How many top-level pixel statements the prefix covers.
     pub len: usize,
     /// Number of guards (ids 0..guards).
@@ -52,11 +52,11 @@ pub(crate) struct Prefix<'a> {
 /// Find the guard prefix of `f`'s pixel statements (see the module comment). A uniform `if`
 /// whose condition `decided` fixes (see [`super::unswitch`]) contributes the statements of
 /// the side it takes, inline.
-pub(crate) fn prefix<'a>(f: &'a Function, decided: &HashMap<ExprId, bool>) -> Prefix<'a> {
+pub(crate) fn prefix(f: &Function, decided: &HashMap<ExprId, bool>) -> Prefix {
     let mut stmts = vec![];
     let mut guards = 0;
     let mut len = 0;
-    for s in &f.pixel {
+    for &s in &f.pixel {
         let mut n = guards;
         let mut out = vec![];
         if !classify_into(f, s, &mut n, decided, &mut out) {
@@ -71,17 +71,17 @@ pub(crate) fn prefix<'a>(f: &'a Function, decided: &HashMap<ExprId, bool>) -> Pr
 
 /// Append `s`'s prefix statements to `out` (several when `s` is a decided `if`); false
 /// when `s` is not a prefix statement.
-fn classify_into<'a>(
-    f: &'a Function,
-    s: &'a Stmt,
+fn classify_into(
+    f: &Function,
+    s: StmtId,
     guards: &mut usize,
     decided: &HashMap<ExprId, bool>,
-    out: &mut Vec<PStmt<'a>>,
+    out: &mut Vec<PStmt>,
 ) -> bool {
-    if let StmtKind::If { cond, then, otherwise } = &s.kind {
+    if let StmtKind::If { cond, then, otherwise } = &f.stmts[s] {
         if let Some(&on) = decided.get(cond) {
             let taken = if on { then } else { otherwise };
-            return taken.iter().all(|t| classify_into(f, t, guards, decided, out));
+            return taken.iter().all(|&t| classify_into(f, t, guards, decided, out));
         }
     }
     match classify(f, s, guards, decided) {
@@ -93,13 +93,8 @@ fn classify_into<'a>(
     }
 }
 
-fn classify<'a>(
-    f: &'a Function,
-    s: &'a Stmt,
-    guards: &mut usize,
-    decided: &HashMap<ExprId, bool>,
-) -> Option<PStmt<'a>> {
-    match &s.kind {
+fn classify(f: &Function, s: StmtId, guards: &mut usize, decided: &HashMap<ExprId, bool>) -> Option<PStmt> {
+    match &f.stmts[s] {
         StmtKind::Assign { place, value } => {
             let local = f.locals.get(place.local.0 as usize)?;
             let is_param = f.params.iter().any(|p| p.local == place.local);
@@ -116,7 +111,7 @@ fn classify<'a>(
                 return None;
             }
             if f.exprs[*cond].var.is_varying() {
-                let is_guard = otherwise.is_empty() && then.len() == 1 && matches!(then[0].kind, StmtKind::Return);
+                let is_guard = otherwise.is_empty() && then.len() == 1 && matches!(f.stmts[then[0]], StmtKind::Return);
                 if !is_guard {
                     return None;
                 }
@@ -130,10 +125,10 @@ fn classify<'a>(
             }
             let mut then_p = vec![];
             let mut otherwise_p = vec![];
-            let ok = then.iter().all(|t| classify_into(f, t, guards, decided, &mut then_p))
+            let ok = then.iter().all(|&t| classify_into(f, t, guards, decided, &mut then_p))
                 && otherwise
                     .iter()
-                    .all(|t| classify_into(f, t, guards, decided, &mut otherwise_p));
+                    .all(|&t| classify_into(f, t, guards, decided, &mut otherwise_p));
             ok.then_some(PStmt::UniformIf {
                 cond: *cond,
                 then: then_p,
@@ -165,9 +160,9 @@ pub(crate) fn pure(x: &Exprs, e: ExprId) -> bool {
     }
 }
 
-/// Locals assigned anywhere in `stmts` (their values change between pixel groups).
-pub(crate) fn assigned_locals(stmts: &[Stmt], out: &mut HashSet<LocalId>) {
-    crate::ir::for_each_assign(stmts, &mut |place, _| {
+/// Locals assigned anywhere in `block` of `f` (their values change between pixel groups).
+pub(crate) fn assigned_locals(f: &Function, block: &[StmtId], out: &mut HashSet<LocalId>) {
+    crate::ir::for_each_assign(&f.stmts, block, &mut |place, _| {
         out.insert(place.local);
     });
 }
@@ -178,17 +173,17 @@ pub(crate) fn assigned_locals(stmts: &[Stmt], out: &mut HashSet<LocalId>) {
 /// (screen_triangle's `int(Y * 16) - int(oy * 16)` and float edge terms) cost every pixel
 /// row of a span for nothing.
 pub(crate) fn pass_exprs(
-    x: &Exprs,
-    all: &[PStmt<'_>],
-    rest: &[Stmt],
+    f: &Function,
+    all: &[PStmt],
+    rest: &[StmtId],
     decidable: &[bool],
     live: &HashSet<LocalId>,
     decided: &HashMap<ExprId, bool>,
 ) -> HashSet<ExprId> {
     fn prefix(
         x: &Exprs,
-        all: &[PStmt<'_>],
-        stmts: &[PStmt<'_>],
+        all: &[PStmt],
+        stmts: &[PStmt],
         decidable: &[bool],
         live: &HashSet<LocalId>,
         out: &mut HashSet<ExprId>,
@@ -213,8 +208,8 @@ pub(crate) fn pass_exprs(
         }
     }
     let mut out = HashSet::new();
-    prefix(x, all, all, decidable, live, &mut out);
-    stmt_keys(x, rest, decided, &mut out);
+    prefix(&f.exprs, all, all, decidable, live, &mut out);
+    stmt_keys(f, rest, decided, &mut out);
     out
 }
 
@@ -226,37 +221,23 @@ pub(crate) fn expr_keys(x: &Exprs, e: ExprId, out: &mut HashSet<ExprId>) {
 
 /// The ids of every expression in `stmts`, but for the untaken side (and the condition) of
 /// each `if` that `decided` fixes (see [`super::unswitch`]).
-pub(crate) fn stmt_keys(x: &Exprs, stmts: &[Stmt], decided: &HashMap<ExprId, bool>, out: &mut HashSet<ExprId>) {
-    for s in stmts {
-        match &s.kind {
-            StmtKind::Assign { place, value } => {
-                place.indices.iter().for_each(|(i, _)| expr_keys(x, *i, out));
-                expr_keys(x, *value, out);
+pub(crate) fn stmt_keys(f: &Function, stmts: &[StmtId], decided: &HashMap<ExprId, bool>, out: &mut HashSet<ExprId>) {
+    let x = &f.exprs;
+    for &s in stmts {
+        let node = &f.stmts[s];
+        if let StmtKind::If { cond, then, otherwise } = node {
+            if let Some(&on) = decided.get(cond) {
+                stmt_keys(f, if on { then } else { otherwise }, decided, out);
+                continue;
             }
-            StmtKind::If { cond, then, otherwise } => match decided.get(cond) {
-                Some(&on) => stmt_keys(x, if on { then } else { otherwise }, decided, out),
-                None => {
-                    expr_keys(x, *cond, out);
-                    stmt_keys(x, then, decided, out);
-                    stmt_keys(x, otherwise, decided, out);
-                }
-            },
-            StmtKind::Loop { cond, body, step, .. } => {
-                cond.iter().for_each(|c| expr_keys(x, *c, out));
-                stmt_keys(x, body, decided, out);
-                stmt_keys(x, step, decided, out);
-            }
-            StmtKind::Interpolation { arms } => arms.iter().for_each(|a| stmt_keys(x, &a.body, decided, out)),
-            StmtKind::InterpolatorReturn(e) => e.iter().for_each(|e| expr_keys(x, *e, out)),
-            StmtKind::Bound(es) => es.iter().for_each(|e| expr_keys(x, *e, out)),
-            StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| expr_keys(x, *a, out)),
-            StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
         }
+        node.for_each_expr(|e| expr_keys(x, *e, out));
+        node.for_each_block(|b| stmt_keys(f, b, decided, out));
     }
 }
 
 /// Locals assigned by prefix statements (recursively).
-fn prefix_assigned(stmts: &[PStmt<'_>], out: &mut HashSet<LocalId>) {
+fn prefix_assigned(stmts: &[PStmt], out: &mut HashSet<LocalId>) {
     for s in stmts {
         match s {
             PStmt::Assign { local, .. } => {
@@ -273,7 +254,7 @@ fn prefix_assigned(stmts: &[PStmt<'_>], out: &mut HashSet<LocalId>) {
 
 /// Locals the pass variant's prefix reads outside `skip` (an `if` of the prefix): the values
 /// of assignments, the conditions of the guards it keeps and of uniform `if`s.
-fn prefix_reads(x: &Exprs, stmts: &[PStmt<'_>], skip: &PStmt<'_>, decidable: &[bool], out: &mut HashSet<LocalId>) {
+fn prefix_reads(x: &Exprs, stmts: &[PStmt], skip: &PStmt, decidable: &[bool], out: &mut HashSet<LocalId>) {
     for s in stmts {
         if std::ptr::eq(s, skip) {
             continue;
@@ -300,12 +281,12 @@ fn prefix_reads(x: &Exprs, stmts: &[PStmt<'_>], skip: &PStmt<'_>, decidable: &[b
 /// locals the pixel code after the prefix uses).
 pub(crate) fn no_effect_in_pass(
     x: &Exprs,
-    all: &[PStmt<'_>],
-    s: &PStmt<'_>,
+    all: &[PStmt],
+    s: &PStmt,
     decidable: &[bool],
     live: &HashSet<LocalId>,
 ) -> bool {
-    fn only_dropped(stmts: &[PStmt<'_>], decidable: &[bool]) -> bool {
+    fn only_dropped(stmts: &[PStmt], decidable: &[bool]) -> bool {
         stmts.iter().all(|s| match s {
             PStmt::Assign { .. } => true,
             PStmt::Guard { id, .. } => decidable[*id],

@@ -146,7 +146,7 @@ impl LocalBounds {
         loop {
             let mut changed = vec![false; table.locals.len()];
             for stmts in [&f.setup, &f.pixel] {
-                for_each_assign(stmts, &mut |place, value| {
+                for_each_assign(&f.stmts, stmts, &mut |place, value| {
                     let i = place.local.0 as usize;
                     let Some(Some(old)) = table.locals.get(i).copied() else {
                         return;

@@ -10,16 +10,16 @@
 //! that may record a run-time error, i.e. not speculable). The lowering then skips a setup
 //! assignment whose local is not live and that could have no effect but its value.
 
-use crate::ir::{ExprId, Exprs, LocalId, Stmt, StmtKind};
+use crate::ir::{ExprId, Exprs, Function, LocalId, StmtId, StmtKind};
 
 /// The locals read by live code (indexed by local), given `live`, the locals the pixel
 /// code reads or assigns as lowered, and `removable` (whether an assignment statement may
 /// be skipped when its local is dead).
 pub(crate) fn live_setup_locals(
-    x: &Exprs,
-    setup: &[Stmt],
+    f: &Function,
+    setup: &[StmtId],
     mut live: Vec<bool>,
-    removable: &dyn Fn(&Stmt) -> bool,
+    removable: &dyn Fn(StmtId) -> bool,
 ) -> Vec<bool> {
     // Statements are walked last to first, so in straight-line code an assignment is met
     // after the reads that make its local live, and one round finds everything unless an
@@ -29,7 +29,7 @@ pub(crate) fn live_setup_locals(
     let mut skipped = Vec::new();
     loop {
         skipped.clear();
-        walk(x, setup, &mut live, &mut skipped, removable);
+        walk(f, setup, &mut live, &mut skipped, removable);
         if !skipped
             .iter()
             .any(|l: &LocalId| live.get(l.0 as usize).copied().unwrap_or(true))
@@ -51,9 +51,16 @@ fn reads(x: &Exprs, e: ExprId, live: &mut [bool]) {
 
 /// One round: marks what live statements read; `skipped` gets the locals of the assignments
 /// left out as dead.
-fn walk(x: &Exprs, stmts: &[Stmt], live: &mut [bool], skipped: &mut Vec<LocalId>, removable: &dyn Fn(&Stmt) -> bool) {
-    for s in stmts.iter().rev() {
-        match &s.kind {
+fn walk(
+    f: &Function,
+    stmts: &[StmtId],
+    live: &mut [bool],
+    skipped: &mut Vec<LocalId>,
+    removable: &dyn Fn(StmtId) -> bool,
+) {
+    let x = &f.exprs;
+    for &s in stmts.iter().rev() {
+        match &f.stmts[s] {
             StmtKind::Assign { place, value } => {
                 let is_live = live.get(place.local.0 as usize).copied().unwrap_or(true);
                 if is_live || !removable(s) {
@@ -66,19 +73,19 @@ fn walk(x: &Exprs, stmts: &[Stmt], live: &mut [bool], skipped: &mut Vec<LocalId>
             }
             StmtKind::If { cond, then, otherwise } => {
                 reads(x, *cond, live);
-                walk(x, then, live, skipped, removable);
-                walk(x, otherwise, live, skipped, removable);
+                walk(f, then, live, skipped, removable);
+                walk(f, otherwise, live, skipped, removable);
             }
             StmtKind::Loop { cond, body, step, .. } => {
                 if let Some(c) = cond {
                     reads(x, *c, live);
                 }
-                walk(x, step, live, skipped, removable);
-                walk(x, body, live, skipped, removable);
+                walk(f, step, live, skipped, removable);
+                walk(f, body, live, skipped, removable);
             }
             StmtKind::Interpolation { arms } => {
                 for a in arms {
-                    walk(x, &a.body, live, skipped, removable);
+                    walk(f, &a.body, live, skipped, removable);
                 }
             }
             StmtKind::InterpolatorReturn(Some(e)) => reads(x, *e, live),
@@ -89,17 +96,18 @@ fn walk(x: &Exprs, stmts: &[Stmt], live: &mut [bool], skipped: &mut Vec<LocalId>
     }
 }
 
-/// Calls `f` for each assignment in `stmts` (nested ones too) with the local it assigns
-/// (whole or in part); a local assigned twice is passed twice. Tier 0's per-kernel walks
-/// collect into flags or a sorted list with it: a HashSet per walk cost more than the walk.
-pub(crate) fn visit_assigned(stmts: &[Stmt], f: &mut dyn FnMut(LocalId)) {
-    crate::ir::for_each_assign(stmts, &mut |place, _| f(place.local));
+/// Calls `visit` for each assignment in `stmts` of `f` (nested ones too) with the local it
+/// assigns (whole or in part); a local assigned twice is passed twice. Tier 0's per-kernel
+/// walks collect into flags or a sorted list with it: a HashSet per walk cost more than the
+/// walk.
+pub(crate) fn visit_assigned(f: &Function, stmts: &[StmtId], visit: &mut dyn FnMut(LocalId)) {
+    crate::ir::for_each_assign(&f.stmts, stmts, &mut |place, _| visit(place.local));
 }
 
-/// The locals `stmts` assigns, as a flag per local (`locals` of them).
-pub(crate) fn assigned_flags(stmts: &[Stmt], locals: usize) -> Vec<bool> {
-    let mut out = vec![false; locals];
-    visit_assigned(stmts, &mut |l| {
+/// The locals `stmts` of `f` assigns, as a flag per local.
+pub(crate) fn assigned_flags(f: &Function, stmts: &[StmtId]) -> Vec<bool> {
+    let mut out = vec![false; f.locals.len()];
+    visit_assigned(f, stmts, &mut |l| {
         if let Some(x) = out.get_mut(l.0 as usize) {
             *x = true;
         }
@@ -107,8 +115,8 @@ pub(crate) fn assigned_flags(stmts: &[Stmt], locals: usize) -> Vec<bool> {
     out
 }
 
-/// The locals `stmts` reads or assigns anywhere, as a flag per local (`locals` of them).
-pub(crate) fn mentioned_flags(x: &Exprs, stmts: &[Stmt], locals: usize) -> Vec<bool> {
+/// The locals `stmts` of `f` reads or assigns anywhere, as a flag per local.
+pub(crate) fn mentioned_flags(f: &Function, stmts: &[StmtId]) -> Vec<bool> {
     // Nothing removable: one round marks every read and every assigned local.
-    live_setup_locals(x, stmts, vec![false; locals], &|_| false)
+    live_setup_locals(f, stmts, vec![false; f.locals.len()], &|_| false)
 }

@@ -34,7 +34,7 @@ use std::collections::HashSet;
 use super::dead;
 use super::homes::{Home, Homes};
 use crate::abi::{BindingKind, VariantKey};
-use crate::ir::{ExprId, Function, Program, Stmt, StmtKind};
+use crate::ir::{ExprId, Function, Program, StmtId, StmtKind};
 
 /// Elements of the largest varying local flat pixel code may have. Clearing a bigger one
 /// is a loop (`Lower::zero_stack_bytes`), which needs blocks: a varying `float a[65536]`
@@ -63,8 +63,8 @@ pub(crate) fn pixel_code_is_flattenable(program: &Program, f: &Function, key: &V
     })
 }
 
-fn stmts_are_flattenable(f: &Function, stmts: &[Stmt]) -> bool {
-    stmts.iter().all(|s| match &s.kind {
+fn stmts_are_flattenable(f: &Function, stmts: &[StmtId]) -> bool {
+    stmts.iter().all(|&s| match &f.stmts[s] {
         StmtKind::Assign { place, .. } => f.locals.get(place.local.0 as usize).is_some_and(|l| l.var.is_varying()),
         StmtKind::If { then, otherwise, .. } => stmts_are_flattenable(f, then) && stmts_are_flattenable(f, otherwise),
         StmtKind::Loop {
@@ -82,8 +82,8 @@ fn stmts_are_flattenable(f: &Function, stmts: &[Stmt]) -> bool {
 /// (No loops: a `break` or `continue` under the `if` would leave a uniform loop; no
 /// `interpolation`: its stores are masked, but the construct is rare under a uniform `if`
 /// and is kept on the branching path.)
-pub(crate) fn maskable_stmts(f: &Function, stmts: &[Stmt]) -> bool {
-    stmts.iter().all(|s| match &s.kind {
+pub(crate) fn maskable_stmts(f: &Function, stmts: &[StmtId]) -> bool {
+    stmts.iter().all(|&s| match &f.stmts[s] {
         StmtKind::Assign { place, .. } => f.locals.get(place.local.0 as usize).is_some_and(|l| l.var.is_varying()),
         StmtKind::If { then, otherwise, .. } => maskable_stmts(f, then) && maskable_stmts(f, otherwise),
         StmtKind::Return => true,
@@ -93,9 +93,9 @@ pub(crate) fn maskable_stmts(f: &Function, stmts: &[Stmt]) -> bool {
 
 /// The conditions (by id) of the `if`s of `stmts` (flat pixel code of `f`), nested ones
 /// too, whose both sides are [`maskable_stmts`].
-pub(crate) fn maskable_ifs(f: &Function, stmts: &[Stmt], out: &mut HashSet<ExprId>) {
-    crate::ir::for_each_stmt(stmts, &mut |s| {
-        if let StmtKind::If { cond, then, otherwise } = &s.kind {
+pub(crate) fn maskable_ifs(f: &Function, stmts: &[StmtId], out: &mut HashSet<ExprId>) {
+    crate::ir::for_each_stmt(&f.stmts, stmts, &mut |_, s| {
+        if let StmtKind::If { cond, then, otherwise } = s {
             if maskable_stmts(f, then) && maskable_stmts(f, otherwise) {
                 out.insert(*cond);
             }
@@ -108,8 +108,8 @@ pub(crate) fn maskable_ifs(f: &Function, stmts: &[Stmt], out: &mut HashSet<ExprI
 /// setup's value until the pixel code assigns it), parameters aside, that live in SSA
 /// variables (`homes`).
 pub(crate) fn zeroed_locals(f: &Function, homes: &Homes) -> Vec<usize> {
-    let assigned = dead::assigned_flags(&f.pixel, f.locals.len());
-    let in_setup = dead::assigned_flags(&f.setup, f.locals.len());
+    let assigned = dead::assigned_flags(f, &f.pixel);
+    let in_setup = dead::assigned_flags(f, &f.setup);
     (0..f.locals.len())
         .filter(|&i| {
             f.locals[i].var.is_varying()

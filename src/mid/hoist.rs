@@ -48,7 +48,7 @@ use std::collections::{HashMap, HashSet};
 use super::view;
 use crate::abi::VariantKey;
 use crate::ir::{
-    BinOp, Builtin, ConstValue, Elem, ExprId, ExprKind, Function, LocalId, Scalar, Stmt, StmtKind, UnaryOp,
+    BinOp, Builtin, ConstValue, Elem, ExprId, ExprKind, Function, LocalId, Scalar, StmtId, StmtKind, UnaryOp,
 };
 
 /// One hoisted expression: where its components live in the row section.
@@ -115,15 +115,15 @@ impl Scope<'_> {
     pub(crate) fn collect_row_locals(&self, f: &Function, assigned: &HashSet<LocalId>) -> HashMap<LocalId, ExprId> {
         let y = unassigned_y(f, assigned);
         let mut pixel_assignments: HashMap<LocalId, u32> = HashMap::new();
-        crate::ir::for_each_assign(&f.pixel, &mut |place, _| {
+        crate::ir::for_each_assign(&f.stmts, &f.pixel, &mut |place, _| {
             *pixel_assignments.entry(place.local).or_default() += 1;
         });
         let mut setup_assigned = HashSet::new();
-        super::block::assigned_locals(&f.setup, &mut setup_assigned);
+        super::block::assigned_locals(f, &f.setup, &mut setup_assigned);
         let params: HashSet<LocalId> = f.params.iter().map(|p| p.local).collect();
         let mut rows = HashMap::new();
-        for s in &f.pixel {
-            let StmtKind::Assign { place, value } = &s.kind else {
+        for &s in &f.pixel {
+            let StmtKind::Assign { place, value } = &f.stmts[s] else {
                 continue;
             };
             let l = place.local;
@@ -160,15 +160,15 @@ impl Scope<'_> {
     fn hoists_in(
         &self,
         f: &Function,
-        stmts: &[Stmt],
+        stmts: &[StmtId],
         view: &[u32],
         y: Option<LocalId>,
         assigned: &HashSet<LocalId>,
         out: &mut Vec<Hoist>,
         next: &mut u32,
     ) {
-        for s in stmts {
-            match &s.kind {
+        for &s in stmts {
+            match &f.stmts[s] {
                 StmtKind::Assign { value, .. } => self.hoists_expr(f, *value, view, y, assigned, out, next),
                 StmtKind::If { cond, then, otherwise } => {
                     self.hoists_expr(f, *cond, view, y, assigned, out, next);

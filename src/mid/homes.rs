@@ -18,7 +18,7 @@
 
 use super::pred::const_int;
 use crate::abi::type_words;
-use crate::ir::{ExprId, ExprKind, Exprs, Function, LocalId, ParamRole, Stmt, StmtKind};
+use crate::ir::{ExprId, ExprKind, Exprs, Function, LocalId, ParamRole, StmtKind};
 
 /// Most components a local kept in SSA variables may have, and most such components a
 /// kernel may have in all its frames; the rest live on the stack. Cranelift allows at most
@@ -107,47 +107,24 @@ pub(crate) fn primitive_homes<'b>(
 /// address, so a stack slot).
 pub(crate) fn dynamic_locals(f: &Function) -> Vec<bool> {
     let mut dynamic = vec![false; f.locals.len()];
-    for s in f.setup.iter().chain(f.pixel.iter()) {
-        mark_dynamic_stmt(&f.exprs, s, &mut dynamic);
+    for part in [&f.setup, &f.pixel] {
+        crate::ir::for_each_stmt(&f.stmts, part, &mut |_, s| mark_dynamic_stmt(&f.exprs, s, &mut dynamic));
     }
     dynamic
 }
 
-fn mark_dynamic_stmt(x: &Exprs, s: &Stmt, dynamic: &mut [bool]) {
-    match &s.kind {
-        StmtKind::Assign { place, value } => {
-            for (i, _) in &place.indices {
-                if const_int(x, *i).is_none() {
-                    if let Some(d) = dynamic.get_mut(place.local.0 as usize) {
-                        *d = true;
-                    }
+/// Marks from the expressions and place of `s` itself (not those inside it).
+fn mark_dynamic_stmt(x: &Exprs, s: &StmtKind, dynamic: &mut [bool]) {
+    if let StmtKind::Assign { place, .. } = s {
+        for (i, _) in &place.indices {
+            if const_int(x, *i).is_none() {
+                if let Some(d) = dynamic.get_mut(place.local.0 as usize) {
+                    *d = true;
                 }
-                mark_dynamic_expr(x, *i, dynamic);
             }
-            mark_dynamic_expr(x, *value, dynamic);
         }
-        StmtKind::If { cond, then, otherwise } => {
-            mark_dynamic_expr(x, *cond, dynamic);
-            then.iter()
-                .chain(otherwise)
-                .for_each(|s| mark_dynamic_stmt(x, s, dynamic));
-        }
-        StmtKind::Loop { cond, body, step, .. } => {
-            if let Some(c) = cond {
-                mark_dynamic_expr(x, *c, dynamic);
-            }
-            body.iter().chain(step).for_each(|s| mark_dynamic_stmt(x, s, dynamic));
-        }
-        StmtKind::Interpolation { arms } => {
-            arms.iter()
-                .flat_map(|a| a.body.iter())
-                .for_each(|s| mark_dynamic_stmt(x, s, dynamic));
-        }
-        StmtKind::InterpolatorReturn(Some(e)) => mark_dynamic_expr(x, *e, dynamic),
-        StmtKind::Bound(es) => es.iter().for_each(|e| mark_dynamic_expr(x, *e, dynamic)),
-        StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| mark_dynamic_expr(x, *e, dynamic)),
-        StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return | StmtKind::InterpolatorReturn(None) => {}
     }
+    s.for_each_expr(|e| mark_dynamic_expr(x, *e, dynamic));
 }
 
 fn mark_dynamic_expr(x: &Exprs, e: ExprId, dynamic: &mut [bool]) {

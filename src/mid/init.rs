@@ -22,7 +22,7 @@
 //! every word of the slot (`Lower::assign_at` writes one component per word or fails).
 //! Everything else answers `true` (keep the clear).
 
-use crate::ir::{Elem, ExprId, Exprs, Function, LocalId, Stmt, StmtKind};
+use crate::ir::{Elem, ExprId, Exprs, Function, LocalId, StmtId, StmtKind, Stmts};
 
 /// Per local of `f`: may a read of it run before a whole assignment has stored every word
 /// of it (so its stack slot must start zeroed)? `true` for every local not tracked.
@@ -33,6 +33,7 @@ pub(crate) fn read_before_assigned(f: &Function) -> Vec<bool> {
         .map(|l| !l.var.is_varying() && matches!(l.ty.elem, Elem::Scalar(_)) && !l.ty.per_seq)
         .collect();
     let mut walk = Walk {
+        st: &f.stmts,
         x: &f.exprs,
         tracked: &tracked,
         needs: tracked.iter().map(|t| !t).collect(),
@@ -46,6 +47,7 @@ pub(crate) fn read_before_assigned(f: &Function) -> Vec<bool> {
 }
 
 struct Walk<'t> {
+    st: &'t Stmts,
     x: &'t Exprs,
     tracked: &'t [bool],
     /// The answer so far.
@@ -67,14 +69,15 @@ impl Walk<'_> {
         });
     }
 
-    fn stmts(&mut self, list: &[Stmt], assigned: &mut Vec<bool>) {
-        for s in list {
+    fn stmts(&mut self, list: &[StmtId], assigned: &mut Vec<bool>) {
+        for &s in list {
             self.stmt(s, assigned);
         }
     }
 
-    fn stmt(&mut self, s: &Stmt, assigned: &mut Vec<bool>) {
-        match &s.kind {
+    fn stmt(&mut self, s: StmtId, assigned: &mut Vec<bool>) {
+        let st = self.st;
+        match &st[s] {
             StmtKind::Assign { place, value } => {
                 // The value and the indices are read before the store.
                 for (i, _) in &place.indices {

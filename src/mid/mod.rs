@@ -71,7 +71,7 @@ use std::collections::{HashMap, HashSet};
 use std::sync::OnceLock;
 
 use crate::abi::{BindingKind, KernelError, VariantKey};
-use crate::ir::{Elem, ExprId, ExprKind, FuncId, FuncKind, Function, LocalId, Program, Scalar, SiteId, Stmt};
+use crate::ir::{Elem, ExprId, ExprKind, FuncId, FuncKind, Function, LocalId, Program, Scalar, SiteId, StmtId};
 use affine::Carry;
 use bounds::LocalBounds;
 use hoist::Hoist;
@@ -179,7 +179,7 @@ pub(crate) struct Plan<'a> {
     /// Tier 0, no pixel part: where the setup is split in two functions.
     pub setup_split: Option<SetupSplit>,
     /// The pixel part's plan; `None`: the function has none.
-    pub pixel: Option<PixelPlan<'a>>,
+    pub pixel: Option<PixelPlan>,
 }
 
 /// What the lowering needs of a shared interpolator it inlines.
@@ -191,7 +191,7 @@ pub(crate) struct Interpolator {
 }
 
 /// The plan of a primitive's pixel part (see the module doc, step 6).
-pub(crate) struct PixelPlan<'a> {
+pub(crate) struct PixelPlan {
     /// Tier 0: the pixel code is lowered flat ([`flat`]).
     pub flat: bool,
     /// Flat code: the uniform `if`s (by condition) lowered under masks instead of branches.
@@ -214,7 +214,7 @@ pub(crate) struct PixelPlan<'a> {
     /// The expressions of those locals' values: their row terms are not stored per row.
     pub unstored_terms: HashSet<ExprId>,
     /// The copies of the pixel loops ([`unswitch`]).
-    pub loops: Loops<'a>,
+    pub loops: Loops,
 }
 
 impl Plan<'_> {
@@ -290,7 +290,7 @@ pub(crate) fn plan<'a>(
 }
 
 /// Step 6 of the module doc.
-fn pixel_plan<'a>(program: &Program, f: &'a Function, key: &VariantKey, tier: Tier, homes: &Homes) -> PixelPlan<'a> {
+fn pixel_plan(program: &Program, f: &Function, key: &VariantKey, tier: Tier, homes: &Homes) -> PixelPlan {
     let fast = tier == Tier::Fast;
     // Tier 0: whether the pixel code runs flat, and if so which `if`s run under masks and
     // which locals a group starts at zero.
@@ -303,10 +303,10 @@ fn pixel_plan<'a>(program: &Program, f: &'a Function, key: &VariantKey, tier: Ti
     }
     // The locals the pixel code assigns are known.
     let mut assigned = HashSet::new();
-    block::assigned_locals(&f.pixel, &mut assigned);
+    block::assigned_locals(f, &f.pixel, &mut assigned);
     // The uniform frame's words are placed: every uniform local a row term may read is
     // known to stay put.
-    let assigned_flags = dead::assigned_flags(&f.pixel, f.locals.len());
+    let assigned_flags = dead::assigned_flags(f, &f.pixel);
     let mut frame = spill::place(f, key, homes, &assigned_flags);
     let mut scope = hoist::Scope {
         key,
@@ -380,13 +380,13 @@ fn pixel_plan<'a>(program: &Program, f: &'a Function, key: &VariantKey, tier: Ti
 /// `key` lowers it, and what setup statements that are not removable read.
 fn dead_setup(f: &Function, key: &VariantKey, homes: &Homes) -> Vec<bool> {
     let mut live = vec![false; f.locals.len()];
-    view::live_flags(&f.exprs, key, &f.pixel, &mut live);
+    view::live_flags(f, key, &f.pixel, &mut live);
     let in_vars = |l: LocalId| homes.in_vars(l);
-    let removable = |s: &Stmt| {
+    let removable = |s: StmtId| {
         let mut budget = usize::MAX;
-        pred::speculable_stmts(f, key, &in_vars, std::slice::from_ref(s), &mut budget)
+        pred::speculable_stmts(f, key, &in_vars, &[s], &mut budget)
     };
-    dead::live_setup_locals(&f.exprs, &f.setup, live, &removable)
+    dead::live_setup_locals(f, &f.setup, live, &removable)
 }
 
 /// The shared interpolators `key` binds (the ones the lowering may inline), by id.
@@ -429,18 +429,18 @@ fn converts_varying_float(f: &Function) -> bool {
 /// Whether `f`'s pixel code for `key` may spend fuel: it has a loop, or a shared
 /// interpolator the key binds (inlined into the pixel code) has one.
 pub(crate) fn pixel_code_has_loops(program: &Program, f: &Function, key: &VariantKey) -> bool {
-    fn loops(stmts: &[Stmt]) -> bool {
+    fn loops(f: &Function, stmts: &[StmtId]) -> bool {
         let mut found = false;
-        crate::ir::for_each_stmt(stmts, &mut |s| {
-            found |= matches!(s.kind, crate::ir::StmtKind::Loop { .. })
+        crate::ir::for_each_stmt(&f.stmts, stmts, &mut |_, s| {
+            found |= matches!(s, crate::ir::StmtKind::Loop { .. })
         });
         found
     }
-    loops(&f.pixel)
+    loops(f, &f.pixel)
         || key.bindings.iter().any(|b| match &b.kind {
             BindingKind::Shared(name) => program.find(name).is_some_and(|id| {
                 let g = program.func(id);
-                loops(&g.setup) || loops(&g.pixel)
+                loops(g, &g.setup) || loops(g, &g.pixel)
             }),
             BindingKind::Kind(_) | BindingKind::Constant => false,
         })

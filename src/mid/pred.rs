@@ -6,7 +6,7 @@
 //! that consults it mean the same thing by "speculable" or "constant".
 
 use crate::abi::VariantKey;
-use crate::ir::{ConstValue, ExprId, ExprKind, Exprs, Function, LocalId, Stmt, StmtKind, Type, UnaryOp};
+use crate::ir::{ConstValue, ExprId, ExprKind, Exprs, Function, LocalId, StmtId, StmtKind, Type, UnaryOp};
 
 /// `e` as an int constant: a literal, or the negation of one.
 pub(crate) fn const_int(x: &Exprs, e: ExprId) -> Option<i64> {
@@ -52,15 +52,15 @@ pub(crate) fn speculable_stmts(
     f: &Function,
     key: &VariantKey,
     in_vars: &dyn Fn(LocalId) -> bool,
-    stmts: &[Stmt],
+    stmts: &[StmtId],
     budget: &mut usize,
 ) -> bool {
-    stmts.iter().all(|s| {
+    stmts.iter().all(|&s| {
         if *budget == 0 {
             return false;
         }
         *budget -= 1;
-        match &s.kind {
+        match &f.stmts[s] {
             StmtKind::Assign { place, value } => {
                 let Some(local) = f.locals.get(place.local.0 as usize) else {
                     return false;

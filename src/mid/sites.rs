@@ -13,7 +13,7 @@
 use std::collections::HashSet;
 
 use super::pred::const_int;
-use crate::ir::{ExprId, ExprKind, Exprs, Function, SiteId, Stmt, StmtKind, Type};
+use crate::ir::{ExprId, ExprKind, Exprs, Function, SiteId, StmtId, StmtKind, Type};
 
 /// An index site: the static length of the array it indexes (`None`: a sequence, or not
 /// an array), its index and its site.
@@ -35,7 +35,7 @@ fn constant_in_fixed(x: &Exprs, site: &IndexSite) -> bool {
 
 /// Every index site of `stmts` (statements of `f`): in places (`a[i] = ...`, the local's
 /// type indexed one dimension per site) and in expressions.
-pub(crate) fn index_sites(f: &Function, stmts: &[Stmt], out: &mut Vec<IndexSite>) {
+pub(crate) fn index_sites(f: &Function, stmts: &[StmtId], out: &mut Vec<IndexSite>) {
     fn expr(x: &Exprs, e: ExprId, out: &mut Vec<IndexSite>) {
         if let ExprKind::Index { base, index, site } = &x[e].kind {
             out.push((static_len_of(&x[*base].ty), *index, *site));
@@ -44,7 +44,7 @@ pub(crate) fn index_sites(f: &Function, stmts: &[Stmt], out: &mut Vec<IndexSite>
     }
     let x = &f.exprs;
     // Each statement before those inside it; a place's sites before its index expressions.
-    crate::ir::for_each_stmt(stmts, &mut |s| match &s.kind {
+    crate::ir::for_each_stmt(&f.stmts, stmts, &mut |_, s| match s {
         StmtKind::Assign { place, value } => {
             if let Some(local) = f.locals.get(place.local.0 as usize) {
                 let mut ty = local.ty.clone();

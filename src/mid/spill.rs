@@ -60,7 +60,7 @@ pub(crate) fn place(f: &Function, key: &VariantKey, homes: &Homes, assigned: &[b
     // when only perspective_linear parameters are bound) are not stored: their setup
     // computations are then dead and Cranelift drops them.
     let mut pixel_used = vec![false; f.locals.len()];
-    view::live_flags(&f.exprs, key, &f.pixel, &mut pixel_used);
+    view::live_flags(f, key, &f.pixel, &mut pixel_used);
     let mut placed = vec![];
     let mut next_word = 0;
     let mut resident = vec![false; f.locals.len()];
@@ -116,22 +116,22 @@ pub(crate) fn deferred_stores(
     let at = f
         .pixel
         .iter()
-        .position(|s| matches!(&s.kind, StmtKind::If { cond: c, .. } if *c == cond))?;
-    let StmtKind::If { then, otherwise, .. } = &f.pixel[at].kind else {
+        .position(|&s| matches!(&f.stmts[s], StmtKind::If { cond: c, .. } if *c == cond))?;
+    let StmtKind::If { then, otherwise, .. } = &f.stmts[f.pixel[at]] else {
         return None;
     };
     let n = f.locals.len();
     let mut outside = vec![false; n];
-    view::visit_live_locals(&f.exprs, key, &f.pixel[..at], &mut mark(&mut outside));
-    view::visit_live_locals(&f.exprs, key, &f.pixel[at + 1..], &mut mark(&mut outside));
+    view::visit_live_locals(f, key, &f.pixel[..at], &mut mark(&mut outside));
+    view::visit_live_locals(f, key, &f.pixel[at + 1..], &mut mark(&mut outside));
     f.exprs.for_each_local(cond, &mut mark(&mut outside));
     for &e in early {
         f.exprs.for_each_local(e, &mut mark(&mut outside));
     }
     let mut in_then = vec![false; n];
     let mut in_else = vec![false; n];
-    view::visit_live_locals(&f.exprs, key, then, &mut mark(&mut in_then));
-    view::visit_live_locals(&f.exprs, key, otherwise, &mut mark(&mut in_else));
+    view::visit_live_locals(f, key, then, &mut mark(&mut in_then));
+    view::visit_live_locals(f, key, otherwise, &mut mark(&mut in_else));
     let mut deferred = HashMap::new();
     for &(i, word) in &layout.placed {
         if word.is_none() || outside[i] || in_then[i] == in_else[i] {

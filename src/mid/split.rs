@@ -13,7 +13,7 @@
 //! second.
 
 use super::dead;
-use crate::ir::{ExprId, ExprKind, Exprs, Function, Stmt};
+use crate::ir::{ExprId, ExprKind, Exprs, Function, StmtId};
 
 /// A setup this large (in [`stmt_size`] units) is split when the kernel has no pixel
 /// loops: NURB's is ~4 900, polygon's ~500.
@@ -30,17 +30,17 @@ pub(crate) struct SetupSplit {
 /// The split of `f`'s setup, if it is large enough and splits evenly enough (see the
 /// module doc).
 pub(crate) fn setup_split(f: &Function) -> Option<SetupSplit> {
-    let at = setup_split_point(&f.exprs, &f.setup)?;
-    let before = dead::mentioned_flags(&f.exprs, &f.setup[..at], f.locals.len());
-    let after = dead::mentioned_flags(&f.exprs, &f.setup[at..], f.locals.len());
+    let at = setup_split_point(f)?;
+    let before = dead::mentioned_flags(f, &f.setup[..at]);
+    let after = dead::mentioned_flags(f, &f.setup[at..]);
     let shared = before.iter().zip(&after).map(|(b, a)| *b && *a).collect();
     Some(SetupSplit { at, shared })
 }
 
 /// The top-level setup statement that halves the setup most evenly by size, if the setup
 /// is large enough and neither half is under a quarter of it.
-fn setup_split_point(x: &Exprs, setup: &[Stmt]) -> Option<usize> {
-    let sizes: Vec<usize> = setup.iter().map(|s| stmt_size(x, s)).collect();
+fn setup_split_point(f: &Function) -> Option<usize> {
+    let sizes: Vec<usize> = f.setup.iter().map(|&s| stmt_size(f, s)).collect();
     let total: usize = sizes.iter().sum();
     if total < SPLIT_SETUP_SIZE {
         return None;
@@ -60,11 +60,11 @@ fn setup_split_point(x: &Exprs, setup: &[Stmt]) -> Option<usize> {
 
 /// A statement's size with the statements inside it: the components their expressions
 /// compute (an operation on a point counts four), a rough measure of the CLIF it lowers to.
-fn stmt_size(x: &Exprs, s: &Stmt) -> usize {
+fn stmt_size(f: &Function, s: StmtId) -> usize {
     let mut size = 0;
-    crate::ir::for_each_stmt(std::slice::from_ref(s), &mut |s| {
+    crate::ir::for_each_stmt(&f.stmts, &[s], &mut |_, s| {
         size += 1;
-        s.for_each_expr(|e| size += expr_size(x, *e));
+        s.for_each_expr(|e| size += expr_size(&f.exprs, *e));
     });
     size
 }

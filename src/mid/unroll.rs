@@ -34,15 +34,15 @@
 //! records unchanged (`tests/jit/unroll.rs`).
 //!
 //! Invariants kept: the output is a checked program in the sense of [`crate::ir`] (same
-//! locals, sites, loop ids, parameter layout, its expressions numbered afresh by
-//! [`crate::ir::number::renumber`]); a folded expression is a uniform constant of the
+//! locals, sites, loop ids, parameter layout, its statements and expressions numbered
+//! afresh by [`crate::ir::number::renumber`]); a folded expression is a uniform constant of the
 //! expression's own type.
 
 use std::collections::HashMap;
 
 use crate::ir::{
-    BinOp, ConstValue, Elem, Expr, ExprId, ExprKind, Exprs, Function, Local, LocalId, LoopId, Scalar, Stmt, StmtKind,
-    UnaryOp, Variability,
+    BinOp, ConstValue, Elem, Expr, ExprId, ExprKind, Exprs, Function, Local, LocalId, LoopId, Scalar, StmtId, StmtKind,
+    Stmts, UnaryOp, Variability,
 };
 
 /// Longest loop unrolled (trips).
@@ -55,14 +55,15 @@ pub type Env = HashMap<LocalId, i32>;
 
 /// `f` with its constant-trip uniform loops unrolled and integer constants propagated.
 ///
-/// Rewritten in place: statements move from `f` into the output, and only unrolled loop
-/// bodies are copied (once per trip). (It took `&Function` and copied it whole first: a
-/// quarter of preparing nurb_surface's body.)
+/// Rewritten in place: statements keep their nodes, blocks are rebuilt, and only unrolled
+/// loop bodies are copied (once per trip; copying the whole function first was a quarter of
+/// preparing nurb_surface's body).
 pub(crate) fn unroll_function(mut f: Function) -> Function {
     let setup = std::mem::take(&mut f.setup);
     let pixel = std::mem::take(&mut f.pixel);
     let mut u = Unroller {
         locals: &f.locals,
+        st: &mut f.stmts,
         x: &mut f.exprs,
     };
     let mut env = Env::new();
@@ -70,22 +71,23 @@ pub(crate) fn unroll_function(mut f: Function) -> Function {
     // The pixel part runs once per pixel group after setup: what it assigns itself may hold
     // a previous group's value when it starts, so it is not known there.
     let mut assigned = vec![];
-    assigned_locals(&pixel, &mut assigned);
+    assigned_locals(u.st, &pixel, &mut assigned);
     for l in assigned {
         env.remove(&l);
     }
     let pixel = u.stmts(pixel, &mut env);
     f.setup = setup;
     f.pixel = pixel;
-    // Unrolled bodies are copies, and folding drops operands.
+    // Unrolled bodies are copies, and folding and unrolling drop nodes.
     crate::ir::number::renumber(&mut f);
     f
 }
 
 struct Unroller<'a> {
     locals: &'a [Local],
-    /// The function's arena: folding rewrites its nodes in place, and each trip of an
-    /// unrolled loop gets copies of the body's expressions.
+    /// The function's arenas: folding rewrites expression nodes in place, and each trip of
+    /// an unrolled loop gets copies of the body's statements and expressions.
+    st: &'a mut Stmts,
     x: &'a mut Exprs,
 }
 
@@ -97,7 +99,7 @@ impl Unroller<'_> {
         })
     }
 
-    fn stmts(&mut self, list: Vec<Stmt>, env: &mut Env) -> Vec<Stmt> {
+    fn stmts(&mut self, list: Vec<StmtId>, env: &mut Env) -> Vec<StmtId> {
         let mut out = Vec::with_capacity(list.len());
         for s in list {
             self.stmt(s, env, &mut out);
@@ -106,9 +108,12 @@ impl Unroller<'_> {
     }
 
     /// Append `s`, folded under `env` (and unrolled where it is such a loop), to `out`;
-    /// `env` then holds what is known after it.
-    fn stmt(&mut self, mut s: Stmt, env: &mut Env, out: &mut Vec<Stmt>) {
-        match &mut s.kind {
+    /// `env` then holds what is known after it. A statement replaced by others (a decided
+    /// `if`, a one-trip or unrolled loop) is left out of the arena's blocks.
+    fn stmt(&mut self, s: StmtId, env: &mut Env, out: &mut Vec<StmtId>) {
+        // Out of the arena while its blocks are rebuilt (they hold other nodes).
+        let mut node = self.st.take(s);
+        match &mut node {
             StmtKind::Assign { place, value } => {
                 fold_in(self.x, *value, env);
                 for (i, _) in &mut place.indices {
@@ -144,7 +149,7 @@ impl Unroller<'_> {
                 varying,
                 ..
             } => {
-                if one_trip(*id, *cond, body) {
+                if one_trip(self.st, *id, *cond, body) {
                     // An inlined helper: its body runs once, in place (see `one_trip`).
                     let mut body = std::mem::take(body);
                     body.pop();
@@ -161,8 +166,8 @@ impl Unroller<'_> {
                 }
                 // Kept: its body and step see only what holds on every trip.
                 let mut assigned = vec![];
-                assigned_locals(body, &mut assigned);
-                assigned_locals(step, &mut assigned);
+                assigned_locals(self.st, body, &mut assigned);
+                assigned_locals(self.st, step, &mut assigned);
                 for l in assigned {
                     env.remove(&l);
                 }
@@ -190,6 +195,7 @@ impl Unroller<'_> {
             StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|a| fold_in(self.x, *a, env)),
             StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return => {}
         }
+        self.st[s] = node;
         out.push(s);
     }
 
@@ -199,12 +205,12 @@ impl Unroller<'_> {
         &mut self,
         id: LoopId,
         cond: Option<ExprId>,
-        body: &[Stmt],
-        step: &[Stmt],
+        body: &[StmtId],
+        step: &[StmtId],
         env: &mut Env,
-    ) -> Option<Vec<Stmt>> {
+    ) -> Option<Vec<StmtId>> {
         let cond = cond?;
-        if jumps_to(body, id) || jumps_to(step, id) {
+        if jumps_to(self.st, body, id) || jumps_to(self.st, step, id) {
             return None;
         }
         let mut trip_env = env.clone();
@@ -219,15 +225,15 @@ impl Unroller<'_> {
                 ExprKind::Const(ConstValue::Bool(true)) => {}
                 _ => return None,
             }
-            for s in body.iter().chain(step) {
-                // Each trip folds its own copy of the statement's expressions.
-                let copy = s.clone().map_exprs(&mut |e| self.x.copy_tree(e));
+            for &s in body.iter().chain(step) {
+                // Each trip folds its own copy of the statement.
+                let copy = self.st.copy_tree(self.x, s);
                 self.stmt(copy, &mut trip_env, &mut out);
             }
             // A body that still holds a loop after unrolling gains nothing (its arrays stay
             // dynamically indexed) and only grows the code (measured: the NURB kernel's
             // `for (side < 4)` around run-time loops, +3% CLIF).
-            if count_stmts(&out) > MAX_UNROLLED_STMTS || contains_loop(&out) {
+            if count_stmts(self.st, &out) > MAX_UNROLLED_STMTS || contains_loop(self.st, &out) {
                 return None;
             }
         }
@@ -242,55 +248,41 @@ impl Unroller<'_> {
 /// a `break`); one whose only `return` is at its end is the body itself, without the loop's
 /// block structure, fuel check and the SSA block parameters for every variable live across
 /// it (an inlined helper in a setup was 5 loops and ~40 % of the sphere's tier-0 CLIF).
-fn one_trip(id: LoopId, cond: Option<ExprId>, body: &[Stmt]) -> bool {
+fn one_trip(st: &Stmts, id: LoopId, cond: Option<ExprId>, body: &[StmtId]) -> bool {
     match body.split_last() {
-        Some((
-            Stmt {
-                kind: StmtKind::Break(l),
-                ..
-            },
-            rest,
-        )) => cond.is_none() && *l == id && !jumps_to(rest, id),
-        _ => false,
+        Some((&last, rest)) => {
+            matches!(st[last], StmtKind::Break(l) if l == id) && cond.is_none() && !jumps_to(st, rest, id)
+        }
+        None => false,
     }
 }
 
 /// Whether a `break`/`continue` in `list` targets loop `id`.
-fn jumps_to(list: &[Stmt], id: LoopId) -> bool {
-    list.iter().any(|s| match &s.kind {
-        StmtKind::Break(l) | StmtKind::Continue(l) => *l == id,
-        StmtKind::If { then, otherwise, .. } => jumps_to(then, id) || jumps_to(otherwise, id),
-        StmtKind::Loop { body, step, .. } => jumps_to(body, id) || jumps_to(step, id),
-        StmtKind::Interpolation { arms } => arms.iter().any(|a| jumps_to(&a.body, id)),
-        _ => false,
-    })
+fn jumps_to(st: &Stmts, list: &[StmtId], id: LoopId) -> bool {
+    let mut found = false;
+    crate::ir::for_each_stmt(st, list, &mut |_, s| {
+        found |= matches!(s, StmtKind::Break(l) | StmtKind::Continue(l) if *l == id)
+    });
+    found
 }
 
-fn contains_loop(list: &[Stmt]) -> bool {
-    list.iter().any(|s| match &s.kind {
-        StmtKind::Loop { .. } => true,
-        StmtKind::If { then, otherwise, .. } => contains_loop(then) || contains_loop(otherwise),
-        StmtKind::Interpolation { arms } => arms.iter().any(|a| contains_loop(&a.body)),
-        _ => false,
-    })
+/// Whether `list` holds a loop (nested ones too).
+fn contains_loop(st: &Stmts, list: &[StmtId]) -> bool {
+    let mut found = false;
+    crate::ir::for_each_stmt(st, list, &mut |_, s| found |= matches!(s, StmtKind::Loop { .. }));
+    found
 }
 
-fn count_stmts(list: &[Stmt]) -> usize {
-    list.iter()
-        .map(|s| {
-            1 + match &s.kind {
-                StmtKind::If { then, otherwise, .. } => count_stmts(then) + count_stmts(otherwise),
-                StmtKind::Loop { body, step, .. } => count_stmts(body) + count_stmts(step),
-                StmtKind::Interpolation { arms } => arms.iter().map(|a| count_stmts(&a.body)).sum(),
-                _ => 0,
-            }
-        })
-        .sum()
+/// The statements of `list`, nested ones counted.
+fn count_stmts(st: &Stmts, list: &[StmtId]) -> usize {
+    let mut n = 0;
+    crate::ir::for_each_stmt(st, list, &mut |_, _| n += 1);
+    n
 }
 
 /// Every local assigned (whole or in part) anywhere in `list`.
-fn assigned_locals(list: &[Stmt], out: &mut Vec<LocalId>) {
-    crate::ir::for_each_assign(list, &mut |place, _| out.push(place.local));
+fn assigned_locals(st: &Stmts, list: &[StmtId], out: &mut Vec<LocalId>) {
+    crate::ir::for_each_assign(st, list, &mut |place, _| out.push(place.local));
 }
 
 fn is_scalar_of(e: &Expr, s: Scalar) -> bool {

@@ -32,7 +32,7 @@ use super::block::{self, Prefix};
 use super::pred::key_constant;
 use super::view;
 use crate::abi::VariantKey;
-use crate::ir::{ExprId, Exprs, Function, LocalId, Stmt, StmtKind};
+use crate::ir::{ExprId, Exprs, Function, LocalId, StmtId, StmtKind};
 
 /// Uniform conditions decided on one path through the unswitching tree. Each doubles the
 /// pixel loops' code (less the untaken sides); measured for screen_triangle (one
@@ -41,20 +41,20 @@ pub(crate) const MAX_UNSWITCHED: usize = 2;
 
 /// The copies of the pixel loops: one, or a condition decided before the loops and the
 /// copies for each of its sides.
-pub(crate) enum Loops<'a> {
-    Copy(Box<LoopsCopy<'a>>),
+pub(crate) enum Loops {
+    Copy(Box<LoopsCopy>),
     /// `sides[0]` runs when `cond` holds, `sides[1]` when it does not.
     Split {
         cond: ExprId,
-        sides: Box<[Loops<'a>; 2]>,
+        sides: Box<[Loops; 2]>,
     },
 }
 
 /// What one copy of the pixel loops lowers, under the conditions decided on its path.
-pub(crate) struct LoopsCopy<'a> {
+pub(crate) struct LoopsCopy {
     /// Tier 1, pixel code opening with guards: the guard prefix the block walk evaluates
     /// (`None`: the plain rows, no block walk).
-    pub prefix: Option<Prefix<'a>>,
+    pub prefix: Option<Prefix>,
     /// With a prefix: the locals the pixel statements after it use (as the key lowers them).
     pub rest_live: HashSet<LocalId>,
     /// Under decided conditions: the expressions the full pixel code lowers (the row terms
@@ -62,7 +62,7 @@ pub(crate) struct LoopsCopy<'a> {
     pub full_exprs: Option<HashSet<ExprId>>,
 }
 
-impl<'a> Loops<'a> {
+impl Loops {
     /// The condition decided first, before every copy (`None`: one copy).
     pub(crate) fn first_condition(&self) -> Option<ExprId> {
         match self {
@@ -74,22 +74,22 @@ impl<'a> Loops<'a> {
 
 /// The copies of `f`'s pixel loops for `key` (`assigned`: the locals the pixel code
 /// assigns); `tier1`: unswitch and plan the block walk's prefix.
-pub(crate) fn plan_loops<'a>(f: &'a Function, key: &VariantKey, assigned: &HashSet<LocalId>, tier1: bool) -> Loops<'a> {
+pub(crate) fn plan_loops(f: &Function, key: &VariantKey, assigned: &HashSet<LocalId>, tier1: bool) -> Loops {
     let mut decided = HashMap::new();
     plan_copies(f, key, assigned, tier1, &mut decided)
 }
 
-fn plan_copies<'a>(
-    f: &'a Function,
+fn plan_copies(
+    f: &Function,
     key: &VariantKey,
     assigned: &HashSet<LocalId>,
     tier1: bool,
     decided: &mut HashMap<ExprId, bool>,
-) -> Loops<'a> {
+) -> Loops {
     let cond = if !tier1 || decided.len() >= MAX_UNSWITCHED {
         None
     } else {
-        next_condition(&f.exprs, &f.pixel, decided, assigned, key)
+        next_condition(f, &f.pixel, decided, assigned, key)
     };
     if let Some(cond) = cond {
         let mut side = |on| {
@@ -111,7 +111,7 @@ fn plan_copies<'a>(
     };
     let mut rest_live = HashSet::new();
     if let Some(p) = &prefix {
-        view::live_locals(&f.exprs, key, &f.pixel[p.len..], &mut rest_live);
+        view::live_locals(f, key, &f.pixel[p.len..], &mut rest_live);
     }
     let full_exprs = (!decided.is_empty()).then(|| full_code_exprs(f, decided));
     Loops::Copy(Box::new(LoopsCopy {
@@ -124,28 +124,29 @@ fn plan_copies<'a>(
 /// The first (pre-order) unswitchable condition of `stmts` not decided in `decided`,
 /// looking only into the sides that `decided` and the variant key leave reachable.
 pub(crate) fn next_condition(
-    x: &Exprs,
-    stmts: &[Stmt],
+    f: &Function,
+    stmts: &[StmtId],
     decided: &HashMap<ExprId, bool>,
     assigned: &HashSet<LocalId>,
     key: &VariantKey,
 ) -> Option<ExprId> {
-    for s in stmts {
-        let found = match &s.kind {
+    let x = &f.exprs;
+    for &s in stmts {
+        let found = match &f.stmts[s] {
             StmtKind::If { cond, then, otherwise } => {
                 let fixed = decided.get(cond).copied().or_else(|| key_constant(x, *cond, key));
                 match fixed {
-                    Some(on) => next_condition(x, if on { then } else { otherwise }, decided, assigned, key),
+                    Some(on) => next_condition(f, if on { then } else { otherwise }, decided, assigned, key),
                     None if unswitchable(x, *cond, assigned) => Some(*cond),
-                    None => next_condition(x, then, decided, assigned, key)
-                        .or_else(|| next_condition(x, otherwise, decided, assigned, key)),
+                    None => next_condition(f, then, decided, assigned, key)
+                        .or_else(|| next_condition(f, otherwise, decided, assigned, key)),
                 }
             }
-            StmtKind::Loop { body, step, .. } => next_condition(x, body, decided, assigned, key)
-                .or_else(|| next_condition(x, step, decided, assigned, key)),
+            StmtKind::Loop { body, step, .. } => next_condition(f, body, decided, assigned, key)
+                .or_else(|| next_condition(f, step, decided, assigned, key)),
             StmtKind::Interpolation { arms } => arms
                 .iter()
-                .find_map(|a| next_condition(x, &a.body, decided, assigned, key)),
+                .find_map(|a| next_condition(f, &a.body, decided, assigned, key)),
             _ => None,
         };
         if found.is_some() {
@@ -169,6 +170,6 @@ fn unswitchable(x: &Exprs, cond_id: ExprId, assigned: &HashSet<LocalId>) -> bool
 /// (the untaken sides left out): the row terms a copy evaluates.
 pub(crate) fn full_code_exprs(f: &Function, decided: &HashMap<ExprId, bool>) -> HashSet<ExprId> {
     let mut out = HashSet::new();
-    block::stmt_keys(&f.exprs, &f.pixel, decided, &mut out);
+    block::stmt_keys(f, &f.pixel, decided, &mut out);
     out
 }

@@ -10,7 +10,7 @@
 use std::collections::HashSet;
 
 use crate::abi::{BindingKind, VariantKey};
-use crate::ir::{ArmKind, Exprs, InterpArm, LocalId, Stmt, StmtKind};
+use crate::ir::{ArmKind, Function, InterpArm, LocalId, StmtId, StmtKind};
 
 /// The kinds the named arms of an `interpolation` serve.
 pub(crate) fn named_kinds(arms: &[InterpArm]) -> Vec<&str> {
@@ -52,16 +52,16 @@ pub(crate) fn arm_view(key: &VariantKey, named: &[&str], arm: &InterpArm) -> Opt
 
 /// Every local read or assigned by `stmts` as `key` lowers them (arms the key gives
 /// nothing to do are skipped).
-pub(crate) fn live_locals(x: &Exprs, key: &VariantKey, stmts: &[Stmt], out: &mut HashSet<LocalId>) {
-    visit_live_locals(x, key, stmts, &mut |l| {
+pub(crate) fn live_locals(f: &Function, key: &VariantKey, stmts: &[StmtId], out: &mut HashSet<LocalId>) {
+    visit_live_locals(f, key, stmts, &mut |l| {
         out.insert(l);
     });
 }
 
 /// [`live_locals`] as a flag per local (tier 0's analyses: a HashSet cost more than the
 /// walk itself).
-pub(crate) fn live_flags(x: &Exprs, key: &VariantKey, stmts: &[Stmt], out: &mut [bool]) {
-    visit_live_locals(x, key, stmts, &mut |l| {
+pub(crate) fn live_flags(f: &Function, key: &VariantKey, stmts: &[StmtId], out: &mut [bool]) {
+    visit_live_locals(f, key, stmts, &mut |l| {
         if let Some(x) = out.get_mut(l.0 as usize) {
             *x = true;
         }
@@ -70,9 +70,10 @@ pub(crate) fn live_flags(x: &Exprs, key: &VariantKey, stmts: &[Stmt], out: &mut 
 
 /// Calls `out` with every local `stmts` reads or assigns as `key` lowers them (a local as
 /// often as it is mentioned).
-pub(crate) fn visit_live_locals(x: &Exprs, key: &VariantKey, stmts: &[Stmt], out: &mut dyn FnMut(LocalId)) {
-    for s in stmts {
-        match &s.kind {
+pub(crate) fn visit_live_locals(f: &Function, key: &VariantKey, stmts: &[StmtId], out: &mut dyn FnMut(LocalId)) {
+    let x = &f.exprs;
+    for &s in stmts {
+        match &f.stmts[s] {
             StmtKind::Assign { place, value } => {
                 out(place.local);
                 place.indices.iter().for_each(|(i, _)| x.for_each_local(*i, out));
@@ -80,21 +81,21 @@ pub(crate) fn visit_live_locals(x: &Exprs, key: &VariantKey, stmts: &[Stmt], out
             }
             StmtKind::If { cond, then, otherwise } => {
                 x.for_each_local(*cond, out);
-                visit_live_locals(x, key, then, out);
-                visit_live_locals(x, key, otherwise, out);
+                visit_live_locals(f, key, then, out);
+                visit_live_locals(f, key, otherwise, out);
             }
             StmtKind::Loop { cond, body, step, .. } => {
                 if let Some(c) = cond {
                     x.for_each_local(*c, out);
                 }
-                visit_live_locals(x, key, body, out);
-                visit_live_locals(x, key, step, out);
+                visit_live_locals(f, key, body, out);
+                visit_live_locals(f, key, step, out);
             }
             StmtKind::Interpolation { arms } => {
                 let named = named_kinds(arms);
                 for arm in arms {
                     if arm_view(key, &named, arm).is_some() {
-                        visit_live_locals(x, key, &arm.body, out);
+                        visit_live_locals(f, key, &arm.body, out);
                     }
                 }
             }

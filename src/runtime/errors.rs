@@ -108,7 +108,7 @@ fn site_owners(program: &Program) -> Vec<Option<(FuncId, bool)>> {
                     *o = Some((FuncId(i as u32), pixel));
                 }
             };
-            for_each_stmt(stmts, &mut |s| match &s.kind {
+            for_each_stmt(&f.stmts, stmts, &mut |_, s| match s {
                 StmtKind::Assign { place, value } => {
                     for (index, site) in &place.indices {
                         mark(*site);

@@ -3,7 +3,7 @@
 
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::ir::{
-    Elem, ExprKind, FixedFormat, FuncKind, Function, LocalKind, Program, Scalar, Stmt, StmtKind, Variability,
+    Elem, ExprKind, FixedFormat, FuncKind, Function, LocalKind, Program, Scalar, StmtId, StmtKind, Variability,
 };
 
 fn compile(src: &str) -> (Option<Program>, Diagnostics, SourceMap) {
@@ -32,10 +32,10 @@ fn var_of(f: &Function, name: &str) -> Variability {
 }
 
 /// Names of the locals assigned by top-level statements (`-` for other statements).
-fn assigned(f: &Function, stmts: &[Stmt]) -> Vec<String> {
+fn assigned(f: &Function, stmts: &[StmtId]) -> Vec<String> {
     stmts
         .iter()
-        .map(|s| match &s.kind {
+        .map(|&s| match &f.stmts[s] {
             StmtKind::Assign { place, .. } => f.local(place.local).name.clone(),
             StmtKind::If { .. } => "if".into(),
             StmtKind::Loop { .. } => "loop".into(),
@@ -98,7 +98,7 @@ fn varying_break_makes_the_loop_and_its_assignments_varying() {
         .setup
         .iter()
         .chain(&f.pixel)
-        .filter_map(|s| match s.kind {
+        .filter_map(|&s| match f.stmts[s] {
             StmtKind::Loop { varying, .. } => Some(varying),
             _ => None,
         })
@@ -135,7 +135,7 @@ fn fixed_operands_join_and_ints_and_floats_mix() {
         f.pixel
             .iter()
             .chain(&f.setup)
-            .find_map(|s| match &s.kind {
+            .find_map(|&s| match &f.stmts[s] {
                 StmtKind::Assign { place, value } if f.local(place.local).name == name => Some(f.exprs[*value].ty.elem),
                 _ => None,
             })
@@ -159,12 +159,12 @@ fn helpers_are_inlined_as_one_trip_loops() {
     assert_eq!(f.kind, FuncKind::Primitive);
     // v = k; loop { twice_result = v * 2; break } ; a = twice_result
     assert_eq!(assigned(f, &f.setup), ["v", "loop", "a"]);
-    let StmtKind::Loop { id, cond, body, .. } = &f.setup[1].kind else {
+    let StmtKind::Loop { id, cond, body, .. } = &f.stmts[f.setup[1]] else {
         panic!("loop expected")
     };
     assert!(cond.is_none());
-    assert!(matches!(body.last().map(|s| &s.kind), Some(StmtKind::Break(l)) if l == id));
-    let StmtKind::Assign { value, .. } = &f.setup[2].kind else {
+    assert!(matches!(body.last().map(|&s| &f.stmts[s]), Some(StmtKind::Break(l)) if l == id));
+    let StmtKind::Assign { value, .. } = &f.stmts[f.setup[2]] else {
         panic!()
     };
     let ExprKind::Local(result) = f.exprs[*value].kind else {
@@ -247,7 +247,7 @@ fn screen_triangle_like_body_splits_into_plane_setup_and_pixel_tests() {
     assert!(f
         .setup
         .iter()
-        .all(|s| !matches!(s.kind, StmtKind::InterpolatorReturn(_))));
+        .all(|&s| !matches!(f.stmts[s], StmtKind::InterpolatorReturn(_))));
 }
 
 #[test]
@@ -287,7 +287,7 @@ fn primitive_call_passes_pixel_parameters_and_fills_defaults() {
                 primitive short(float s; varying float X, Y; inout varying float Z) { }",
     );
     let f = func(&p, "root");
-    let StmtKind::CallPrimitive { callee, args } = &f.setup[0].kind else {
+    let StmtKind::CallPrimitive { callee, args } = &f.stmts[f.setup[0]] else {
         panic!("call in setup")
     };
     assert_eq!(p.func(*callee).name, "leaf");
@@ -311,14 +311,14 @@ fn varying_argument_for_a_uniform_helper_parameter_is_reported_at_the_call() {
 
 /// Every expression node of `stmts` (statements of `f`), nested statements and
 /// sub-expressions included.
-fn expr_nodes(f: &primflow::ir::Function, stmts: &[Stmt]) -> usize {
+fn expr_nodes(f: &primflow::ir::Function, stmts: &[StmtId]) -> usize {
     fn expr(x: &primflow::ir::Exprs, e: primflow::ir::ExprId) -> usize {
         let mut n = 1;
         x[e].for_each_child(|c| n += expr(x, c));
         n
     }
     let mut n = 0;
-    primflow::ir::for_each_assign(stmts, &mut |place, value| {
+    primflow::ir::for_each_assign(&f.stmts, stmts, &mut |place, value| {
         n += expr(&f.exprs, value) + place.indices.iter().map(|(i, _)| expr(&f.exprs, *i)).sum::<usize>()
     });
     n
@@ -341,7 +341,7 @@ fn an_array_filled_with_one_value_is_one_splat_node_whatever_its_size() {
         .setup
         .iter()
         .chain(&f.pixel)
-        .filter_map(|s| match &s.kind {
+        .filter_map(|&s| match &f.stmts[s] {
             StmtKind::Assign { value, .. } => Some(&f.exprs[*value]),
             _ => None,
         })

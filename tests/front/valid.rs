@@ -132,12 +132,10 @@ fn func<'p>(p: &'p mut Program, name: &str) -> &'p mut Function {
     &mut p.functions[id.0 as usize]
 }
 
-/// A statement of the IR (its expressions already in the function's arena).
-fn st(kind: StmtKind) -> Stmt {
-    Stmt {
-        kind,
-        span: Span::default(),
-    }
+/// A statement of the IR added to the arena `stmts` (its expressions, and the statements
+/// of its blocks, already in the function's arenas).
+fn st(stmts: &mut Stmts, kind: StmtKind) -> StmtId {
+    stmts.alloc(kind, Span::default())
 }
 
 /// A read of `name` (a local of `f`) with its type and variability.
@@ -162,25 +160,6 @@ fn place(f: &Function, name: &str) -> Place {
     }
 }
 
-/// Call `f` on every statement of `ss`, nested ones too, until it returns true.
-fn find_stmt(ss: &mut [Stmt], f: &mut dyn FnMut(&mut Stmt) -> bool) -> bool {
-    for s in ss {
-        if f(s) {
-            return true;
-        }
-        let found = match &mut s.kind {
-            StmtKind::If { then, otherwise, .. } => find_stmt(then, f) || find_stmt(otherwise, f),
-            StmtKind::Loop { body, step, .. } => find_stmt(body, f) || find_stmt(step, f),
-            StmtKind::Interpolation { arms } => arms.iter_mut().any(|a| find_stmt(&mut a.body, f)),
-            _ => false,
-        };
-        if found {
-            return true;
-        }
-    }
-    false
-}
-
 /// The first expression of `x` in the tree at `id` (outermost first) that `pick` takes.
 fn first_in(x: &Exprs, id: ExprId, pick: &dyn Fn(&Exprs, &Expr) -> bool) -> Option<ExprId> {
     if pick(x, &x[id]) {
@@ -192,26 +171,35 @@ fn first_in(x: &Exprs, id: ExprId, pick: &dyn Fn(&Exprs, &Expr) -> bool) -> Opti
 }
 
 /// Edit the first statement of `base`'s setup (`pixel`: its pixel part) that `pick` takes.
-/// `pick` and `edit` are given the function's arena too.
+/// `pick` and `edit` are given the function's expression arena too.
 fn edit_stmt(
     p: &mut Program,
     pixel: bool,
-    pick: impl Fn(&Exprs, &Stmt) -> bool,
-    edit: impl FnOnce(&mut Exprs, &mut Stmt),
+    pick: impl Fn(&Exprs, &StmtKind) -> bool,
+    edit: impl FnOnce(&mut Exprs, &mut StmtKind),
+) {
+    edit_stmt_in(p, pixel, pick, |x, _, s| edit(x, s));
+}
+
+/// [`edit_stmt`], `edit` given the statement arena too (the edited node is out of it).
+fn edit_stmt_in(
+    p: &mut Program,
+    pixel: bool,
+    pick: impl Fn(&Exprs, &StmtKind) -> bool,
+    edit: impl FnOnce(&mut Exprs, &mut Stmts, &mut StmtKind),
 ) {
     let f = func(p, "base");
-    let part = if pixel { &mut f.pixel } else { &mut f.setup };
-    let exprs = &mut f.exprs;
-    let mut edit = Some(edit);
-    let found = find_stmt(part, &mut |s| {
-        if pick(exprs, s) {
-            (edit.take().expect("once"))(exprs, s);
-            true
-        } else {
-            false
+    let part = if pixel { &f.pixel } else { &f.setup };
+    let mut found = None;
+    for_each_stmt(&f.stmts, part, &mut |id, s| {
+        if found.is_none() && pick(&f.exprs, s) {
+            found = Some(id);
         }
     });
-    assert!(found, "no statement to edit");
+    let id = found.expect("no statement to edit");
+    let mut node = f.stmts.take(id);
+    edit(&mut f.exprs, &mut f.stmts, &mut node);
+    f.stmts[id] = node;
 }
 
 /// Edit the first expression of `base`'s setup (`pixel`: its pixel part) that `pick` takes
@@ -225,7 +213,7 @@ fn edit_expr(
     let f = func(p, "base");
     let part = if pixel { &f.pixel } else { &f.setup };
     let mut found = None;
-    for_each_stmt(part, &mut |s| {
+    for_each_stmt(&f.stmts, part, &mut |_, s| {
         s.for_each_expr(|r| found = found.or_else(|| first_in(&f.exprs, *r, &pick)))
     });
     edit(&mut f.exprs, found.expect("no expression to edit"));
@@ -288,7 +276,7 @@ fn loop_id_in_range() {
 fn loop_id_unique() {
     rejects(Rule::LoopIdUnique, |p| {
         let f = func(p, "base");
-        let first = f.setup.iter().find_map(|s| match s.kind {
+        let first = f.setup.iter().find_map(|&s| match f.stmts[s] {
             StmtKind::Loop { id, .. } => Some(id),
             _ => None,
         });
@@ -296,9 +284,9 @@ fn loop_id_unique() {
         edit_stmt(
             p,
             true,
-            |_, s| matches!(s.kind, StmtKind::Loop { .. }),
+            |_, s| matches!(s, StmtKind::Loop { .. }),
             |_, s| {
-                if let StmtKind::Loop { id, .. } = &mut s.kind {
+                if let StmtKind::Loop { id, .. } = s {
                     *id = first;
                 }
             },
@@ -307,31 +295,99 @@ fn loop_id_unique() {
 }
 
 #[test]
+fn stmt_tree() {
+    // Not numbered again after the edit.
+    let breakings: [fn(&mut Program); 5] = [
+        // A statement added at the end of the arena for the setup part: out of pre-order
+        // (the pixel part's statements come after it).
+        |p| {
+            let f = func(p, "base");
+            f.setup.push(st(&mut f.stmts, StmtKind::Return));
+        },
+        // One statement in two blocks: the setup's first also its last.
+        |p| {
+            let f = func(p, "base");
+            let first = f.setup[0];
+            f.setup.push(first);
+        },
+        // A statement no block reaches.
+        |p| {
+            let f = func(p, "base");
+            st(&mut f.stmts, StmtKind::Return);
+        },
+        // A statement id past the arena, in the pixel part.
+        |p| func(p, "base").pixel.push(StmtId(u32::MAX)),
+        // A statement id past the arena, in a nested block.
+        |p| {
+            edit_stmt(
+                p,
+                false,
+                |_, s| matches!(s, StmtKind::If { .. }),
+                |_, s| {
+                    if let StmtKind::If { then, .. } = s {
+                        then.push(StmtId(u32::MAX));
+                    }
+                },
+            )
+        },
+    ];
+    for breaking in breakings {
+        let mut p = base();
+        breaking(&mut p);
+        rejected_with(Rule::StmtTree, &p);
+    }
+}
+
+#[test]
+fn a_statement_shared_by_two_blocks_is_copied_by_renumbering() {
+    // `rejects` renumbers what a breaking edit leaves: a statement in two blocks becomes
+    // two, and the function validates again.
+    let mut p = base();
+    let f = func(&mut p, "base");
+    let first = f.setup[0];
+    f.setup.push(first);
+    let before = f.stmts.len();
+    number::renumber(f);
+    assert!(f.stmts.len() > before, "the second occurrence is a copy");
+    assert_ne!(f.setup[0], *f.setup.last().expect("a statement"));
+    validate(&p).expect("a renumbered function validates");
+}
+
+#[test]
 fn expr_tree() {
     // Not numbered again after the edit.
     let breakings: [fn(&mut Program); 4] = [
         // An expression added at the end of the arena for a statement of the setup part:
-        // out of pre-order (the pixel part's expressions come after it).
+        // out of pre-order (the pixel part's expressions come after it). The statement is
+        // one already there (a new one would break `StmtTree` first).
         |p| {
             let f = func(p, "base");
             let acc = place(f, "acc");
             let value = f.exprs.intern(fc(1.0));
-            f.setup.push(st(StmtKind::Assign { place: acc, value }));
+            let at = f
+                .setup
+                .iter()
+                .copied()
+                .find(|&s| matches!(&f.stmts[s], StmtKind::Assign { place, .. } if place.local == acc.local));
+            f.stmts[at.expect("an assignment to acc in setup")] = StmtKind::Assign { place: acc, value };
         },
         // One node the operand of two parents: the first `if`'s condition also the
         // value of the first assignment (a DAG, not a tree).
         |p| {
             let f = func(p, "base");
-            let cond = f.setup.iter().find_map(|s| match s.kind {
+            let cond = f.setup.iter().find_map(|&s| match f.stmts[s] {
                 StmtKind::If { cond, .. } => Some(cond),
                 _ => None,
             });
             let cond = cond.expect("an if in setup");
-            let assign = f.setup.iter_mut().find_map(|s| match &mut s.kind {
-                StmtKind::Assign { value, .. } => Some(value),
-                _ => None,
-            });
-            *assign.expect("an assignment in setup") = cond;
+            let at = f
+                .setup
+                .iter()
+                .copied()
+                .find(|&s| matches!(f.stmts[s], StmtKind::Assign { .. }));
+            if let StmtKind::Assign { value, .. } = &mut f.stmts[at.expect("an assignment in setup")] {
+                *value = cond;
+            }
         },
         // A node no statement reaches.
         |p| {
@@ -362,7 +418,8 @@ fn expr_tree() {
 #[test]
 fn jump_target() {
     rejects(Rule::JumpTarget, |p| {
-        func(p, "base").setup.push(st(StmtKind::Break(LoopId(0))))
+        let f = func(p, "base");
+        f.setup.push(st(&mut f.stmts, StmtKind::Break(LoopId(0))))
     });
 }
 
@@ -378,9 +435,9 @@ fn call_callee() {
         edit_stmt(
             p,
             false,
-            |_, s| matches!(s.kind, StmtKind::CallPrimitive { .. }),
+            |_, s| matches!(s, StmtKind::CallPrimitive { .. }),
             |_, s| {
-                if let StmtKind::CallPrimitive { callee, .. } = &mut s.kind {
+                if let StmtKind::CallPrimitive { callee, .. } = s {
                     *callee = terp;
                 }
             },
@@ -502,10 +559,13 @@ fn interp_from_list() {
         );
         let f = func(p, "base");
         let dd = place(f, "dd");
-        f.pixel.push(st(StmtKind::Assign {
-            place: dd,
-            value: list.expect("the list"),
-        }));
+        f.pixel.push(st(
+            &mut f.stmts,
+            StmtKind::Assign {
+                place: dd,
+                value: list.expect("the list"),
+            },
+        ));
     });
 }
 
@@ -600,10 +660,10 @@ fn condition_type() {
         edit_stmt(
             p,
             false,
-            |_, s| matches!(s.kind, StmtKind::If { .. }),
+            |_, s| matches!(s, StmtKind::If { .. }),
             |x, s| {
                 let one = x.intern(ic(1));
-                if let StmtKind::If { cond, .. } = &mut s.kind {
+                if let StmtKind::If { cond, .. } = s {
                     *cond = one;
                 }
             },
@@ -617,10 +677,10 @@ fn assign_type() {
         edit_stmt(
             p,
             false,
-            |x, s| matches!(&s.kind, StmtKind::Assign { value, .. } if x[*value].ty == Type::float()),
+            |x, s| matches!(s, StmtKind::Assign { value, .. } if x[*value].ty == Type::float()),
             |x, s| {
                 let zero = x.intern(ic(0));
-                if let StmtKind::Assign { value, .. } = &mut s.kind {
+                if let StmtKind::Assign { value, .. } = s {
                     *value = zero;
                 }
             },
@@ -634,10 +694,10 @@ fn bound_type() {
         edit_stmt(
             p,
             false,
-            |_, s| matches!(s.kind, StmtKind::Bound(_)),
+            |_, s| matches!(s, StmtKind::Bound(_)),
             |x, s| {
                 let zero = x.intern(ic(0));
-                if let StmtKind::Bound(args) = &mut s.kind {
+                if let StmtKind::Bound(args) = s {
                     args[0] = zero;
                 }
             },
@@ -692,7 +752,7 @@ fn assign_read_only() {
         let f = func(p, "base");
         let n = place(f, "n");
         let value = f.exprs.intern(ic(1));
-        f.setup.push(st(StmtKind::Assign { place: n, value }));
+        f.setup.push(st(&mut f.stmts, StmtKind::Assign { place: n, value }));
     });
 }
 
@@ -721,7 +781,7 @@ fn varying_into_uniform() {
         let f = func(p, "base");
         let (acc, x) = (place(f, "acc"), read(f, "X"));
         let value = f.exprs.intern(x);
-        f.pixel.push(st(StmtKind::Assign { place: acc, value }));
+        f.pixel.push(st(&mut f.stmts, StmtKind::Assign { place: acc, value }));
     });
 }
 
@@ -744,11 +804,16 @@ fn uniform_under_varying_control() {
         let f = func(p, "base");
         let (cond, acc) = (x_below_one(f), place(f, "acc"));
         let (cond, one) = (f.exprs.intern(cond), f.exprs.intern(fc(1.0)));
-        f.pixel.push(st(StmtKind::If {
-            cond,
-            then: vec![st(StmtKind::Assign { place: acc, value: one })],
-            otherwise: vec![],
-        }));
+        let assign = st(&mut f.stmts, StmtKind::Assign { place: acc, value: one });
+        let if_ = st(
+            &mut f.stmts,
+            StmtKind::If {
+                cond,
+                then: vec![assign],
+                otherwise: vec![],
+            },
+        );
+        f.pixel.push(if_);
     });
 }
 
@@ -758,9 +823,9 @@ fn loop_varying() {
         edit_stmt(
             p,
             true,
-            |_, s| matches!(s.kind, StmtKind::Loop { varying: true, .. }),
+            |_, s| matches!(s, StmtKind::Loop { varying: true, .. }),
             |_, s| {
-                if let StmtKind::Loop { varying, .. } = &mut s.kind {
+                if let StmtKind::Loop { varying, .. } = s {
                     *varying = false;
                 }
             },
@@ -777,18 +842,27 @@ fn a_varying_jump_out_of_a_uniform_loop_is_rejected() {
         let cond = f.exprs.intern(cond);
         let id = LoopId(f.loops);
         f.loops += 1;
-        f.pixel.push(st(StmtKind::Loop {
-            id,
-            cond: None,
-            body: vec![st(StmtKind::If {
+        let ret = st(&mut f.stmts, StmtKind::Return);
+        let if_ = st(
+            &mut f.stmts,
+            StmtKind::If {
                 cond,
-                then: vec![st(StmtKind::Return)],
+                then: vec![ret],
                 otherwise: vec![],
-            })],
-            step: vec![],
-            varying: false,
-            site: SiteId(0),
-        }));
+            },
+        );
+        let loop_ = st(
+            &mut f.stmts,
+            StmtKind::Loop {
+                id,
+                cond: None,
+                body: vec![if_],
+                step: vec![],
+                varying: false,
+                site: SiteId(0),
+            },
+        );
+        f.pixel.push(loop_);
     });
 }
 
@@ -800,11 +874,14 @@ fn setup_uniform() {
         let f = func(p, "base");
         let cond = x_below_one(f);
         let cond = f.exprs.intern(cond);
-        f.setup.push(st(StmtKind::If {
-            cond,
-            then: vec![],
-            otherwise: vec![],
-        }));
+        f.setup.push(st(
+            &mut f.stmts,
+            StmtKind::If {
+                cond,
+                then: vec![],
+                otherwise: vec![],
+            },
+        ));
     });
 }
 
@@ -812,7 +889,7 @@ fn setup_uniform() {
 fn pixel_part() {
     rejects(Rule::PixelPart, |p| {
         let f = func(p, "base");
-        let at = f.setup.iter().position(|s| matches!(s.kind, StmtKind::Bound(_)));
+        let at = f.setup.iter().position(|&s| matches!(f.stmts[s], StmtKind::Bound(_)));
         let bound = f.setup.remove(at.expect("bound in setup"));
         f.pixel.insert(0, bound);
     });
@@ -828,14 +905,16 @@ fn interpolator_body() {
 
 // -- interpolation data
 
-fn interpolation_arms(p: &mut Program, edit: impl FnOnce(&mut Vec<InterpArm>)) {
-    edit_stmt(
+/// Edit the arms of the first `interpolation` of `base`'s pixel part (`edit` is given the
+/// statement arena too).
+fn interpolation_arms(p: &mut Program, edit: impl FnOnce(&mut Stmts, &mut Vec<InterpArm>)) {
+    edit_stmt_in(
         p,
         true,
-        |_, s| matches!(s.kind, StmtKind::Interpolation { .. }),
-        |_, s| {
-            if let StmtKind::Interpolation { arms } = &mut s.kind {
-                edit(arms);
+        |_, s| matches!(s, StmtKind::Interpolation { .. }),
+        |_, stmts, s| {
+            if let StmtKind::Interpolation { arms } = s {
+                edit(stmts, arms);
             }
         },
     );
@@ -844,8 +923,8 @@ fn interpolation_arms(p: &mut Program, edit: impl FnOnce(&mut Vec<InterpArm>)) {
 #[test]
 fn interpolation_placement() {
     rejects(Rule::InterpolationPlacement, |p| {
-        interpolation_arms(p, |arms| {
-            let nested = st(StmtKind::Interpolation { arms: arms.clone() });
+        interpolation_arms(p, |stmts, arms| {
+            let nested = st(stmts, StmtKind::Interpolation { arms: arms.clone() });
             arms[0].body.insert(0, nested);
         })
     });
@@ -854,7 +933,7 @@ fn interpolation_placement() {
 #[test]
 fn arm_kinds() {
     rejects(Rule::ArmKinds, |p| {
-        interpolation_arms(p, |arms| arms[1].kind = arms[0].kind.clone())
+        interpolation_arms(p, |_, arms| arms[1].kind = arms[0].kind.clone())
     });
 }
 
@@ -862,7 +941,7 @@ fn arm_kinds() {
 fn interpolator_return_placement() {
     rejects(Rule::InterpolatorReturnPlacement, |p| {
         let mut ret = None;
-        interpolation_arms(p, |arms| ret = Some(arms[0].body.last().expect("a return").clone()));
+        interpolation_arms(p, |_, arms| ret = Some(*arms[0].body.last().expect("a return")));
         func(p, "base").pixel.push(ret.expect("the linear arm's return"));
     });
 }
@@ -870,19 +949,19 @@ fn interpolator_return_placement() {
 #[test]
 fn interpolator_return_type() {
     rejects(Rule::InterpolatorReturnType, |p| {
-        interpolation_arms(p, |arms| {
-            let ret = arms[0].body.last_mut().expect("a return");
-            ret.kind = StmtKind::InterpolatorReturn(Some(ExprId(0)));
+        interpolation_arms(p, |stmts, arms| {
+            let ret = *arms[0].body.last().expect("a return");
+            stmts[ret] = StmtKind::InterpolatorReturn(Some(ExprId(0)));
         });
         // The value: an int, in the arena (numbered by `rejects`).
-        edit_stmt(
+        edit_stmt_in(
             p,
             true,
-            |_, s| matches!(s.kind, StmtKind::Interpolation { .. }),
-            |x, s| {
+            |_, s| matches!(s, StmtKind::Interpolation { .. }),
+            |x, stmts, s| {
                 let one = x.intern(ic(1));
-                if let StmtKind::Interpolation { arms } = &mut s.kind {
-                    arms[0].body.last_mut().expect("a return").kind = StmtKind::InterpolatorReturn(Some(one));
+                if let StmtKind::Interpolation { arms } = s {
+                    stmts[*arms[0].body.last().expect("a return")] = StmtKind::InterpolatorReturn(Some(one));
                 }
             },
         );
@@ -897,9 +976,9 @@ fn call_args(p: &mut Program, edit: impl FnOnce(&Function, &mut Exprs, &mut Vec<
     edit_stmt(
         p,
         false,
-        |_, s| matches!(s.kind, StmtKind::CallPrimitive { .. }),
+        |_, s| matches!(s, StmtKind::CallPrimitive { .. }),
         |x, s| {
-            if let StmtKind::CallPrimitive { args, .. } = &mut s.kind {
+            if let StmtKind::CallPrimitive { args, .. } = s {
                 edit(&f, x, args);
             }
         },

@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use primflow::diag::{Diagnostics, SourceMap};
 use primflow::ir::forward::forward_copies;
-use primflow::ir::{ExprKind, Program, Stmt, StmtKind};
+use primflow::ir::{ExprKind, Program, StmtId, StmtKind};
 use primflow::jit::{Jit, Tier};
 use primflow::runtime::{Registry, Renderer, Value};
 
@@ -118,9 +118,9 @@ fn inlined_array_parameters_of_the_nurb_surface_are_forwarded() {
 }
 
 /// Names of the locals assigned a whole other local in `list` (nested lists included).
-fn whole_array_copies(f: &primflow::ir::Function, list: &[Stmt], out: &mut Vec<String>) {
-    for s in list {
-        match &s.kind {
+fn whole_array_copies(f: &primflow::ir::Function, list: &[StmtId], out: &mut Vec<String>) {
+    for &s in list {
+        match &f.stmts[s] {
             StmtKind::Assign { place, value } => {
                 let local = f.local(place.local);
                 if place.indices.is_empty()

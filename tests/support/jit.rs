@@ -23,7 +23,7 @@ pub fn fixed(bits: u8, frac: u8) -> Type {
 }
 
 /// A function under construction: its parameters, locals and loops in `f`, its body as
-/// trees in `setup` and `pixel` until [`Fb::finish`] moves them into `f`'s arena.
+/// trees in `setup` and `pixel` until [`Fb::finish`] moves them into `f`'s arenas.
 pub struct Fb {
     pub f: Function,
     pub setup: Vec<Stmt<Tree>>,
@@ -42,6 +42,7 @@ impl Fb {
                 setup: vec![],
                 pixel: vec![],
                 loops: 0,
+                stmts: Stmts::new(),
                 exprs: Exprs::new(),
                 uses_spaces: false,
             },
@@ -49,10 +50,11 @@ impl Fb {
             pixel: vec![],
         }
     }
-    /// The function, its body in its arena (numbered as the checker numbers it).
+    /// The function, its body in its arenas (numbered as the checker numbers it).
     pub fn finish(self) -> Function {
         let mut f = self.f;
-        (f.setup, f.pixel, f.exprs) = intern_body(self.setup, self.pixel);
+        let body = intern_body(self.setup, self.pixel);
+        (f.setup, f.pixel, f.stmts, f.exprs) = (body.setup, body.pixel, body.stmts, body.exprs);
         f
     }
     fn add_local(&mut self, name: &str, ty: Type, var: Variability, kind: LocalKind) -> LocalId {

@@ -20,7 +20,7 @@ use primflow::abi::{Kernel, KernelError};
 use primflow::diag::{SourceMap, Span};
 use primflow::ir::{
     ConstValue, Elem, Exprs, FixedFormat, FuncId, FuncKind, Function, Local, LocalId, LocalKind, Param, ParamRole,
-    ParamSpace, Program, Scalar, SiteId, Type, Variability,
+    ParamSpace, Program, Scalar, SiteId, Stmts, Type, Variability,
 };
 use primflow::runtime::{KernelSource, Renderer};
 
@@ -49,6 +49,7 @@ impl FnBuilder {
                 setup: vec![],
                 pixel: vec![],
                 loops: 0,
+                stmts: Stmts::new(),
                 exprs: Exprs::new(),
                 uses_spaces: false,
             },

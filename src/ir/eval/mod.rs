@@ -444,6 +444,12 @@ impl<'p> Machine<'p, '_> {
         &f.exprs
     }
 
+    /// The statement arena of the function running in the innermost frame.
+    pub(crate) fn stmt_nodes(&self) -> &'p crate::ir::Stmts {
+        let f: &'p Function = self.frames.last().expect("a frame is pushed while evaluating").func;
+        &f.stmts
+    }
+
     pub(crate) fn kernel(&self) -> Res<&Kernel> {
         match self.kernels.last() {
             Some(k) => Ok(k),
@@ -586,7 +592,7 @@ impl<'p> Machine<'p, '_> {
         // The locals the pixel part assigns start every group with their setup values.
         let fi = self.kernel()?.frame;
         let mut assigned = vec![false; f.locals.len()];
-        for_each_assign(&f.pixel, &mut |p, _| {
+        for_each_assign(&f.stmts, &f.pixel, &mut |p, _| {
             if let Some(a) = assigned.get_mut(p.local.0 as usize) {
                 *a = true;
             }

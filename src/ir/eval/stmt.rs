@@ -15,12 +15,12 @@ use super::{and, any, malformed, Flow, LoopCtx, Machine, Mask, Res, NONE};
 use crate::abi::{
     interpolator_arg_words, type_words, ArgLayout, BindingKind, ParamSlot, ERR_CALL_DEPTH, ERR_FUEL, MAX_CALL_DEPTH,
 };
-use crate::ir::{ExprId, FuncId, FuncKind, InterpArm, LoopId, ParamRole, Scalar, SiteId, Stmt, StmtKind};
+use crate::ir::{ExprId, FuncId, FuncKind, InterpArm, LoopId, ParamRole, Scalar, SiteId, StmtId, StmtKind};
 use crate::mid::view;
 
 impl<'p> Machine<'p, '_> {
-    pub(crate) fn stmts(&mut self, stmts: &'p [Stmt]) -> Res<Flow> {
-        for s in stmts {
+    pub(crate) fn stmts(&mut self, stmts: &'p [StmtId]) -> Res<Flow> {
+        for &s in stmts {
             self.enter()?;
             let flow = self.stmt(s);
             self.leave();
@@ -32,8 +32,8 @@ impl<'p> Machine<'p, '_> {
         Ok(Flow::Normal)
     }
 
-    fn stmt(&mut self, s: &'p Stmt) -> Res<Flow> {
-        match &s.kind {
+    fn stmt(&mut self, s: StmtId) -> Res<Flow> {
+        match &self.stmt_nodes()[s] {
             StmtKind::Assign { place, value } => {
                 self.assign(place, *value)?;
                 Ok(Flow::Normal)
@@ -91,7 +91,7 @@ impl<'p> Machine<'p, '_> {
         }
     }
 
-    fn if_(&mut self, cond_id: ExprId, then: &'p [Stmt], otherwise: &'p [Stmt]) -> Res<Flow> {
+    fn if_(&mut self, cond_id: ExprId, then: &'p [StmtId], otherwise: &'p [StmtId]) -> Res<Flow> {
         let cond = &self.exprs()[cond_id];
         let c = self.eval(cond_id)?;
         let Some(c) = c
@@ -160,8 +160,8 @@ impl<'p> Machine<'p, '_> {
         &mut self,
         id: LoopId,
         cond: Option<ExprId>,
-        body: &'p [Stmt],
-        step: &'p [Stmt],
+        body: &'p [StmtId],
+        step: &'p [StmtId],
         site: SiteId,
     ) -> Res<Flow> {
         let frame = self.frames.len() - 1;
@@ -208,8 +208,8 @@ impl<'p> Machine<'p, '_> {
         &mut self,
         id: LoopId,
         cond: Option<ExprId>,
-        body: &'p [Stmt],
-        step: &'p [Stmt],
+        body: &'p [StmtId],
+        step: &'p [StmtId],
         site: SiteId,
     ) -> Res<Flow> {
         let entry = self.exec;
@@ -237,8 +237,8 @@ impl<'p> Machine<'p, '_> {
         &mut self,
         li: usize,
         cond: Option<ExprId>,
-        body: &'p [Stmt],
-        step: &'p [Stmt],
+        body: &'p [StmtId],
+        step: &'p [StmtId],
         site: SiteId,
     ) -> Res<Flow> {
         loop {

@@ -148,7 +148,7 @@ impl<'a> Lower<'a, '_> {
 
     /// Once per block row (pixel centres y in [y_lo, y_hi]): the prefix's subexpressions
     /// whose only varying input is Y, and its uniform ones.
-    pub(super) fn block_cache_row(&mut self, f: &'a Function, p: &Prefix<'a>, y: [ir::Value; 2]) -> Res<AbsCache> {
+    pub(super) fn block_cache_row(&mut self, f: &'a Function, p: &Prefix, y: [ir::Value; 2]) -> Res<AbsCache> {
         let mut env = self.block_env(f, Stage::Row, None, Some(y))?;
         let mut cache = AbsCache::default();
         let mut flags = Flags { dead: None, pass: None };
@@ -163,7 +163,7 @@ impl<'a> Lower<'a, '_> {
     pub(super) fn block_facts(
         &mut self,
         f: &'a Function,
-        p: &Prefix<'a>,
+        p: &Prefix,
         row: &AbsCache,
         x: [ir::Value; 2],
         y: [ir::Value; 2],
@@ -186,7 +186,7 @@ impl<'a> Lower<'a, '_> {
 
     fn abs_stmts(
         &mut self,
-        stmts: &[PStmt<'a>],
+        stmts: &[PStmt],
         env: &mut BlockEnv<'a>,
         cache: &mut AbsCache,
         flags: &mut Flags,
@@ -284,8 +284,8 @@ impl<'a> Lower<'a, '_> {
     fn abs_branch(
         &mut self,
         c: ir::Value,
-        then: &[PStmt<'a>],
-        otherwise: &[PStmt<'a>],
+        then: &[PStmt],
+        otherwise: &[PStmt],
         env: &mut BlockEnv<'a>,
         cache: &mut AbsCache,
         flags: &mut Flags,
@@ -861,17 +861,17 @@ impl<'a> Lower<'a, '_> {
     /// [`crate::mid::unswitch::LoopsCopy::rest_live`]).
     pub(super) fn prefix_without_guards(
         &mut self,
-        all: &[PStmt<'a>],
-        stmts: &[PStmt<'a>],
+        all: &[PStmt],
+        stmts: &[PStmt],
         decidable: &[bool],
         live: &HashSet<LocalId>,
     ) -> Res<()> {
         for s in stmts {
             match s {
-                PStmt::Assign { stmt, .. } | PStmt::Kill(stmt) => self.stmt(stmt)?,
+                PStmt::Assign { stmt, .. } | PStmt::Kill(stmt) => self.stmt(*stmt)?,
                 PStmt::Guard { stmt, id, cond } => {
                     if !decidable[*id] {
-                        self.stmt(stmt)?;
+                        self.stmt(*stmt)?;
                     } else {
                         // Dropped: the block facts proved it fires for no lane of the
                         // block, so every lane has `cond` false here, as after the guard.

@@ -73,7 +73,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let has = self.b.use_var(self.has_bound);
         // Tier 0: a `bound` among the setup's top-level statements runs on every path
         // that gets here (`has` is 1), so the viewport union is not emitted.
-        let always_bound = f.setup.iter().any(|s| matches!(s.kind, StmtKind::Bound(_)));
+        let always_bound = f.setup.iter().any(|&s| matches!(f.stmts[s], StmtKind::Bound(_)));
         if self.tier0() && always_bound {
             self.b.ins().jump(self.exit, &[]);
         } else {
@@ -198,7 +198,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         rect: &PassRect,
         ys: [ir::Value; 2],
         gs: [ir::Value; 2],
-        pass: Option<(&Prefix<'a>, &[bool])>,
+        pass: Option<(&Prefix, &[bool])>,
         done: Block,
     ) -> Res<()> {
         let first_block = self.b.func.dfg.num_blocks();
@@ -210,7 +210,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let used_exprs = match (pass, self.copy) {
             (Some((prefix, decidable)), Some(copy)) => {
                 pass_exprs = crate::mid::block::pass_exprs(
-                    &f.exprs,
+                    f,
                     &prefix.stmts,
                     &f.pixel[prefix.len..],
                     decidable,
@@ -257,7 +257,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         g: ir::Value,
         row_base: ir::Value,
         xy_f: [ir::Value; 2],
-        pass: Option<(&Prefix<'a>, &[bool])>,
+        pass: Option<(&Prefix, &[bool])>,
         next: Block,
     ) -> Res<()> {
         let [x_f, y_f] = xy_f;
@@ -637,7 +637,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// block goes on with the copies for that side. `depth`: conditions decided on the way.
     pub(super) fn unswitched_loops(
         &mut self,
-        copies: &'a Loops<'a>,
+        copies: &'a Loops,
         depth: usize,
         loops: &mut dyn FnMut(&mut Self) -> Res<()>,
     ) -> Res<()> {

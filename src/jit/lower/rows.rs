@@ -110,7 +110,7 @@ impl RowLoop {
         rect: &PassRect,
         used: Option<&std::collections::HashSet<ExprId>>,
         row_carry: &RowCarry,
-        pass: Option<(&Prefix<'a>, &[bool])>,
+        pass: Option<(&Prefix, &[bool])>,
         done: Block,
     ) -> Res<()> {
         l.b.ins().jump(self.row_hdr, &[]);
@@ -148,7 +148,7 @@ impl RowLoop {
         rect: &PassRect,
         row: &Row,
         carry: &CarryLoop,
-        pass: Option<(&Prefix<'a>, &[bool])>,
+        pass: Option<(&Prefix, &[bool])>,
     ) -> Res<()> {
         l.b.switch_to_block(self.grp_hdr);
         let g = l.b.use_var(self.gx);

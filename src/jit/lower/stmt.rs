@@ -19,7 +19,7 @@ use cranelift_frontend::Variable;
 
 use super::{err, key_constant, quiet_stmt, speculable_expr, LoopCtx, Lower, Res, Storage};
 use crate::abi::ERR_FUEL;
-use crate::ir::{for_each_assign, ExprId, Function, LocalId, LoopId, Scalar, SiteId, Stmt, StmtKind};
+use crate::ir::{for_each_assign, ExprId, Function, LocalId, LoopId, Scalar, SiteId, StmtId, StmtKind};
 use crate::jit::fixed;
 use crate::jit::value::{mask_const, splat, I32X4};
 
@@ -98,18 +98,19 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.set_exec(m);
     }
 
-    pub(super) fn stmts(&mut self, stmts: &'a [Stmt]) -> Res<()> {
+    pub(super) fn stmts(&mut self, stmts: &'a [StmtId]) -> Res<()> {
         // A guard's facts hold to the end of the statement list it is in.
         let mark = self.guard_facts.mark();
-        for s in stmts {
+        for &s in stmts {
             self.stmt(s)?;
         }
         self.guard_facts.truncate(mark);
         Ok(())
     }
 
-    pub(super) fn stmt(&mut self, s: &'a Stmt) -> Res<()> {
-        match &s.kind {
+    pub(super) fn stmt(&mut self, s: StmtId) -> Res<()> {
+        let st = self.stmt_nodes();
+        match &st[s] {
             StmtKind::Assign { place, value } => {
                 if self.dead_setup_assign(s, place.local) {
                     return Ok(());
@@ -131,7 +132,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 // `if (c) return;`: every lane still executing has `c` false.
                 if self.in_pixel()
                     && otherwise.is_empty()
-                    && matches!(then.as_slice(), [t] if matches!(t.kind, StmtKind::Return))
+                    && matches!(then.as_slice(), [t] if matches!(st[*t], StmtKind::Return))
                 {
                     self.assume_guard(*cond);
                 }
@@ -150,8 +151,8 @@ impl<'a, 'b> Lower<'a, 'b> {
                 // (Setup code has none: no walk there.)
                 if !self.guard_facts.is_empty() {
                     let frame = self.frames.len() - 1;
-                    for_each_assign(body, &mut |p, _| self.guard_facts.kill(frame, p.local));
-                    for_each_assign(step, &mut |p, _| self.guard_facts.kill(frame, p.local));
+                    for_each_assign(st, body, &mut |p, _| self.guard_facts.kill(frame, p.local));
+                    for_each_assign(st, step, &mut |p, _| self.guard_facts.kill(frame, p.local));
                 }
                 if *varying && self.in_pixel() {
                     self.varying_loop(*id, *cond, body, step, *site)
@@ -183,7 +184,7 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// Tier 0: `s`, an assignment to `local` in the primitive's setup, computes a value no
     /// live code reads and has no other effect (see [`crate::mid::dead`]).
-    pub(super) fn dead_setup_assign(&self, s: &Stmt, local: LocalId) -> bool {
+    pub(super) fn dead_setup_assign(&self, s: StmtId, local: LocalId) -> bool {
         let Some(live) = &self.plan.setup_live else {
             return false;
         };
@@ -191,15 +192,15 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.pix.is_none()
             && self.frames.len() == 1
             && !live.get(local.0 as usize).copied().unwrap_or(true)
-            && self.speculable_stmts(std::slice::from_ref(s), &mut budget)
+            && self.speculable_stmts(&[s], &mut budget)
     }
 
-    pub(super) fn lower_if(&mut self, cond: ExprId, then: &'a [Stmt], otherwise: &'a [Stmt]) -> Res<()> {
+    pub(super) fn lower_if(&mut self, cond: ExprId, then: &'a [StmtId], otherwise: &'a [StmtId]) -> Res<()> {
         // `clipping()` (possibly negated) is a constant of the key: lower only the branch it
         // selects, so a trivially accepted variant contains no clipping code at all.
         if let Some(on) = key_constant(self.exprs(), cond, self.key) {
             let taken = if on { then } else { otherwise };
-            for s in taken {
+            for &s in taken {
                 self.stmt(s)?;
             }
             return Ok(());
@@ -229,7 +230,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             // block, an unreachable block after its return and a join.
             if self.tier0()
                 && otherwise.is_empty()
-                && matches!(then, [s] if matches!(s.kind, StmtKind::Return))
+                && matches!(then, [s] if matches!(self.stmt_nodes()[*s], StmtKind::Return))
                 && self.pix.is_none()
                 && self.frame().interp_binding.is_none()
             {
@@ -276,11 +277,11 @@ impl<'a, 'b> Lower<'a, 'b> {
         &mut self,
         entry: ir::Value,
         c: ir::Value,
-        then: &'a [Stmt],
-        otherwise: &'a [Stmt],
+        then: &'a [StmtId],
+        otherwise: &'a [StmtId],
     ) -> Res<()> {
         if otherwise.is_empty()
-            && matches!(then, [s] if matches!(s.kind, StmtKind::Return))
+            && matches!(then, [s] if matches!(self.stmt_nodes()[*s], StmtKind::Return))
             && self.frame().interp_binding.is_none()
         {
             return self.varying_guard_return(entry, c);
@@ -306,7 +307,7 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// One side of [`Self::masked_if`]: `stmts` with `exec = mask`, skipped when `mask` is
     /// empty unless the pixel code is flat; `out` gets the lanes still executing after it.
-    pub(super) fn masked_side(&mut self, mask: ir::Value, stmts: &'a [Stmt], out: Variable) -> Res<()> {
+    pub(super) fn masked_side(&mut self, mask: ir::Value, stmts: &'a [StmtId], out: Variable) -> Res<()> {
         if self.flat {
             self.set_exec(mask);
             self.stmts(stmts)?;
@@ -348,12 +349,12 @@ impl<'a, 'b> Lower<'a, 'b> {
     pub(super) fn setup_stmts(&mut self, f: &'a Function) -> Res<Option<ir::Value>> {
         let setup = &f.setup;
         if !self.tier0() {
-            for (i, s) in setup.iter().enumerate() {
-                if let StmtKind::Bound(es) = &s.kind {
+            for (i, &s) in setup.iter().enumerate() {
+                if let StmtKind::Bound(es) = &f.stmts[s] {
                     // A bound run wants nothing but the bound: when the rest of the setup can
                     // neither widen it (another `bound`, a call) nor record an error, it ends
                     // here (the rest is the render run's work: edge and plane equations...).
-                    let last_effect = setup[i + 1..].iter().all(|t| quiet_stmt(f, t));
+                    let last_effect = setup[i + 1..].iter().all(|&t| quiet_stmt(f, t));
                     self.lower_bound(es, last_effect)?;
                 } else {
                     self.stmt(s)?;
@@ -363,7 +364,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         // The OR of the guards deferred so far in this run.
         let mut pending: Option<ir::Value> = None;
-        for (i, s) in setup.iter().enumerate() {
+        for (i, &s) in setup.iter().enumerate() {
             if self.outline.setup_split == Some(i) {
                 if let Some(p) = pending.take() {
                     self.return_if(p);
@@ -380,7 +381,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 continue;
             }
             let mut budget = usize::MAX;
-            if !self.speculable_stmts(std::slice::from_ref(s), &mut budget) {
+            if !self.speculable_stmts(&[s], &mut budget) {
                 if let Some(p) = pending.take() {
                     self.return_if(p);
                 }
@@ -391,11 +392,12 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// `c` of a setup statement `if (c) return;` whose condition cannot fail.
-    pub(super) fn deferrable_guard(&self, s: &'a Stmt) -> Option<ExprId> {
-        let StmtKind::If { cond, then, otherwise } = &s.kind else {
+    pub(super) fn deferrable_guard(&self, s: StmtId) -> Option<ExprId> {
+        let st = self.stmt_nodes();
+        let StmtKind::If { cond, then, otherwise } = &st[s] else {
             return None;
         };
-        let is_return = otherwise.is_empty() && matches!(then.as_slice(), [t] if matches!(t.kind, StmtKind::Return));
+        let is_return = otherwise.is_empty() && matches!(then.as_slice(), [t] if matches!(st[*t], StmtKind::Return));
         (is_return && key_constant(self.exprs(), *cond, self.key).is_none() && speculable_expr(self.exprs(), *cond))
             .then_some(*cond)
     }
@@ -418,14 +420,14 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// its first use: a value used inside one side and again after the join was computed
     /// twice (screen_triangle's snapped vertices, used for `px` in the `exact` side and for
     /// the integer edges after it: 6 of its setup's rounds and conversions repeated).
-    pub(super) fn if_convertible(&self, then: &[Stmt], otherwise: &[Stmt]) -> bool {
+    pub(super) fn if_convertible(&self, then: &[StmtId], otherwise: &[StmtId]) -> bool {
         const MAX_STMTS: usize = 24;
         let mut budget = MAX_STMTS;
         self.speculable_stmts(then, &mut budget) && self.speculable_stmts(otherwise, &mut budget)
     }
 
     /// See [`crate::mid::pred::speculable_stmts`], for the frame being lowered.
-    pub(super) fn speculable_stmts(&self, stmts: &[Stmt], budget: &mut usize) -> bool {
+    pub(super) fn speculable_stmts(&self, stmts: &[StmtId], budget: &mut usize) -> bool {
         let fr = self.frame();
         let in_vars = |l: LocalId| matches!(fr.storage.get(l.0 as usize), Some(Storage::Vars(_)));
         crate::mid::pred::speculable_stmts(fr.func, self.key, &in_vars, stmts, budget)
@@ -434,10 +436,11 @@ impl<'a, 'b> Lower<'a, 'b> {
     /// Lower `if (c) then else otherwise` (checked by [`Self::if_convertible`]) without
     /// branches: `then` from the entry values, `otherwise` from the entry values, then each
     /// assigned variable selects its `then` or `otherwise` value by `c`.
-    pub(super) fn if_converted(&mut self, c: ir::Value, then: &'a [Stmt], otherwise: &'a [Stmt]) -> Res<()> {
+    pub(super) fn if_converted(&mut self, c: ir::Value, then: &'a [StmtId], otherwise: &'a [StmtId]) -> Res<()> {
         let mut locals = vec![];
-        for_each_assign(then, &mut |p, _| locals.push(p.local));
-        for_each_assign(otherwise, &mut |p, _| locals.push(p.local));
+        let st = self.stmt_nodes();
+        for_each_assign(st, then, &mut |p, _| locals.push(p.local));
+        for_each_assign(st, otherwise, &mut |p, _| locals.push(p.local));
         locals.sort_unstable_by_key(|l| l.0);
         locals.dedup();
         let mut vars = vec![];
@@ -584,8 +587,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         &mut self,
         id: LoopId,
         cond: Option<ExprId>,
-        body: &'a [Stmt],
-        step: &'a [Stmt],
+        body: &'a [StmtId],
+        step: &'a [StmtId],
         site: SiteId,
     ) -> Res<()> {
         let header = self.b.create_block();
@@ -654,8 +657,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         &mut self,
         id: LoopId,
         cond: Option<ExprId>,
-        body: &'a [Stmt],
-        step: &'a [Stmt],
+        body: &'a [StmtId],
+        step: &'a [StmtId],
         site: SiteId,
     ) -> Res<()> {
         let entry = self.exec().expect("pixel context");

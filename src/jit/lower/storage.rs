@@ -148,6 +148,12 @@ impl<'a, 'b> Lower<'a, 'b> {
         &f.exprs
     }
 
+    /// The statement arena of the function the innermost frame lowers.
+    pub(crate) fn stmt_nodes(&self) -> &'a crate::ir::Stmts {
+        let f: &'a Function = self.frame().func;
+        &f.stmts
+    }
+
     pub(super) fn frame(&self) -> &Frame<'a> {
         self.frames.last().expect("a frame is always pushed while lowering")
     }

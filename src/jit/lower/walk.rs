@@ -183,13 +183,7 @@ impl BlockWalk {
 
     /// Fill the walk's blocks: the pixel code of `f` in its pass variant (`prefix`'s
     /// decidable guards dropped) for spans of pass blocks, in full for the others.
-    pub(super) fn emit<'a>(
-        &self,
-        l: &mut Lower<'a, '_>,
-        f: &'a Function,
-        rect: &PassRect,
-        prefix: &Prefix<'a>,
-    ) -> Res<()> {
+    pub(super) fn emit<'a>(&self, l: &mut Lower<'a, '_>, f: &'a Function, rect: &PassRect, prefix: &Prefix) -> Res<()> {
         let (y, y_end) = self.block_row_head(l);
         // The block row's stage: its first and last pixel rows' centres, and the prefix
         // terms that need no X.
@@ -254,7 +248,7 @@ impl BlockWalk {
         &self,
         l: &mut Lower<'a, '_>,
         f: &'a Function,
-        prefix: &Prefix<'a>,
+        prefix: &Prefix,
         row_cache: &AbsCache,
         ys: [ir::Value; 2],
     ) -> Res<BlockFacts> {
@@ -310,7 +304,7 @@ impl BlockWalk {
         l: &mut Lower<'a, '_>,
         f: &'a Function,
         rect: &PassRect,
-        prefix: &Prefix<'a>,
+        prefix: &Prefix,
         facts: &BlockFacts,
         ys: [ir::Value; 2],
     ) -> Res<()> {
