@@ -7,8 +7,8 @@
 //! handled by the lowering itself (they need the AST or parameter roles).
 
 use crate::diag::Span;
-use crate::ir::tree::{Tree, TreeKind};
 use crate::ir::noise::noise_dims;
+use crate::ir::tree::{Tree, TreeKind};
 use crate::ir::{Builtin, Elem, Scalar, Type, Variability};
 
 use super::types::{self, convert, type_name};

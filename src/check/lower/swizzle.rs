@@ -52,7 +52,10 @@ fn components(field: &ast::Ident, base: &Type) -> Result<Vec<u32>, Diagnostic> {
     if name.len() > MAX_LETTERS {
         return Err(err(
             "E0220",
-            format!("`.{name}` names {} components; a swizzle has at most {MAX_LETTERS}", name.len()),
+            format!(
+                "`.{name}` names {} components; a swizzle has at most {MAX_LETTERS}",
+                name.len()
+            ),
             field.span,
             "too many letters",
         ));
