@@ -7,6 +7,7 @@
 //! handled by the lowering itself (they need the AST or parameter roles).
 
 use crate::diag::Span;
+use crate::ir::noise::noise_dims;
 use crate::ir::tree::{Tree, TreeKind};
 use crate::ir::{Builtin, Elem, Scalar, Type, Variability};
 
@@ -44,6 +45,11 @@ pub fn lower(name: &str, args: Vec<Tree>, span: Span) -> Result<Option<Tree>, Bu
         "length" => (Length, &[1]),
         "normalize" => (Normalize, &[1]),
         "distance" => (Distance, &[2]),
+        "faceforward" => (Faceforward, &[2, 3]),
+        "reflect" => (Reflect, &[2]),
+        "refract" => (Refract, &[3]),
+        "noise" => (Noise, &[1, 2]),
+        "cellnoise" => (CellNoise, &[1, 2]),
         _ => return Ok(None),
     };
     if !arity.contains(&args.len()) {
@@ -80,6 +86,30 @@ pub fn lower(name: &str, args: Vec<Tree>, span: Span) -> Result<Option<Tree>, Bu
                 return Err(shape_error(name, &floats, span, "two float[3] vectors"));
             }
             float(vec![3])
+        }
+        Faceforward | Reflect => {
+            if floats.iter().any(|a| a.ty.dims != [3]) {
+                return Err(shape_error(name, &floats, span, "float[3] vectors"));
+            }
+            float(vec![3])
+        }
+        Refract => {
+            if floats[0].ty.dims != [3] || floats[1].ty.dims != [3] || !floats[2].ty.dims.is_empty() {
+                return Err(shape_error(name, &floats, span, "two float[3] vectors and a float"));
+            }
+            float(vec![3])
+        }
+        Noise | CellNoise => {
+            let shapes: Vec<&[u32]> = floats.iter().map(|a| a.ty.dims.as_slice()).collect();
+            if noise_dims(&shapes).is_none() {
+                return Err(shape_error(
+                    name,
+                    &floats,
+                    span,
+                    "(float), (float, float), (point) or (point, float)",
+                ));
+            }
+            Type::float()
         }
         Length | Normalize => {
             if floats[0].ty.dims.len() != 1 {

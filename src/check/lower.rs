@@ -13,7 +13,7 @@
 //!
 //! This file holds [`FnLower`]'s state, nesting depth, locals and scopes; its methods for
 //! statements are in [`stmt`], for calls (primitive calls and helper inlining) in [`call`],
-//! for expressions in [`expr`].
+//! for expressions in [`expr`], for component access (`p.x`, `c.rgb`) in [`swizzle`].
 //!
 //! Helper inlining: a call becomes pre-statements — the arguments assigned to fresh `Temp`
 //! locals, then `Loop { cond: None, body: [helper body..., Break(L)] }` in which `return e`
@@ -39,6 +39,7 @@ use super::{consts, Globals, LocalInfo, Signature, Sink};
 mod call;
 mod expr;
 mod stmt;
+mod swizzle;
 
 /// What an enclosing construct lets `break`/`continue` reach.
 #[derive(Clone, Copy)]
@@ -150,6 +151,11 @@ pub const BUILTIN_NAMES: &[&str] = &[
     "length",
     "normalize",
     "distance",
+    "faceforward",
+    "reflect",
+    "refract",
+    "noise",
+    "cellnoise",
     "transform",
     "vtransform",
     "ntransform",

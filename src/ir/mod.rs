@@ -48,6 +48,7 @@
 pub mod arena;
 pub mod eval;
 pub mod forward;
+pub mod noise;
 pub mod number;
 pub mod print;
 pub mod range;
@@ -544,6 +545,21 @@ pub enum Builtin {
     Normalize,
     /// `distance(a, b)` -> float
     Distance,
+    /// `faceforward(N, I)` or `faceforward(N, I, Nref)` of float[3] -> float[3]: `N` where
+    /// `dot(Nref, I) < 0`, else `-N` (`Nref` is `N` in the two-argument form).
+    Faceforward,
+    /// `reflect(I, N)` of float[3] -> float[3]: `I - 2 dot(N, I) N`.
+    Reflect,
+    /// `refract(I, N, eta)` of float[3], float[3], float -> float[3]; zero on total
+    /// internal reflection.
+    Refract,
+    /// `noise(x)`, `noise(x, y)`, `noise(p)`, `noise(p, t)` -> float in [0, 1]: gradient
+    /// noise of the arguments' components (a float[4] point contributes x, y, z), see
+    /// [`noise`].
+    Noise,
+    /// `cellnoise(...)`, the same arguments as `Noise` -> float in [0, 1), constant on
+    /// integer cells.
+    CellNoise,
     /// `transform(from, to, p)`: point between named spaces (homogeneous float[4], or float[3]
     /// taken with w = 1).
     TransformPoint {
@@ -560,6 +576,20 @@ pub enum Builtin {
         from: Space,
         to: Space,
     },
+}
+
+impl Builtin {
+    /// The fewest and most arguments a call has (`faceforward` and the noises vary).
+    pub fn arities(self) -> (usize, usize) {
+        use Builtin::*;
+        match self {
+            Min | Max | Pow | Step | Atan2 | Dot | Cross | Distance | Reflect => (2, 2),
+            Clamp | Mix | Smoothstep | Refract => (3, 3),
+            Faceforward => (2, 3),
+            Noise | CellNoise => (1, 2),
+            _ => (1, 1),
+        }
+    }
 }
 
 /// Named coordinate spaces for `transform`.

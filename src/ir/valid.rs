@@ -1227,16 +1227,19 @@ fn binary_ok(op: BinOp, l: &Type, r: &Type, ty: &Type) -> bool {
 /// The checker's typing of a built-in call (see `check::builtins`).
 fn builtin_ok(x: &super::Exprs, func: Builtin, args: &[ExprId], ty: &Type) -> bool {
     use Builtin::*;
-    let arity = match func {
-        Min | Max | Pow | Step | Atan2 | Dot | Cross | Distance => 2,
-        Clamp | Mix | Smoothstep => 3,
-        _ => 1,
-    };
-    if args.len() != arity || !args.iter().all(|a| is_float(&x[*a].ty)) || ty.per_seq {
+    let (fewest, most) = func.arities();
+    if !(fewest..=most).contains(&args.len()) || !args.iter().all(|a| is_float(&x[*a].ty)) || ty.per_seq {
         return false;
     }
     let a0 = &x[args[0]].ty;
+    let v3 = float_ty(vec![3]);
     match func {
+        Faceforward | Reflect => args.iter().all(|a| x[*a].ty == v3) && *ty == v3,
+        Refract => x[args[0]].ty == v3 && x[args[1]].ty == v3 && x[args[2]].ty == Type::float() && *ty == v3,
+        Noise | CellNoise => {
+            let shapes: Vec<&[u32]> = args.iter().map(|a| x[*a].ty.dims.as_slice()).collect();
+            super::noise::noise_dims(&shapes).is_some() && *ty == Type::float()
+        }
         Dot | Distance => a0.dims.len() == 1 && x[args[1]].ty == *a0 && *ty == Type::float(),
         Cross => *a0 == float_ty(vec![3]) && x[args[1]].ty == *a0 && *ty == *a0,
         Length => a0.dims.len() == 1 && *ty == Type::float(),

@@ -1,8 +1,9 @@
 //! Built-in functions: native Cranelift instructions where they exist (sqrt, abs, min, max,
 //! floor, ceil, nearest — on vectors too), short sequences for the rest (clamp, mix, step,
 //! smoothstep, sign, dot, cross, length, normalize, distance), libm calls for the
-//! transcendental ones (lane by lane on vectors), and `transform`/`vtransform`/`ntransform`
-//! with matrices read from the argument block's `spaces` part.
+//! transcendental ones (lane by lane on vectors), the shading ones (faceforward, reflect,
+//! refract, noise, cellnoise) in [`super::shading`], and `transform`/`vtransform`/
+//! `ntransform` with matrices read from the argument block's `spaces` part.
 //!
 //! Component-wise built-ins broadcast a single-component argument over the others (the
 //! checker allows `mix(a, b, t)` with a scalar `t` over colours).
@@ -29,7 +30,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// `mask ? a : b` for a scalar i8 condition or a vector lane mask.
-    fn fsel(&mut self, mask: ir::Value, a: ir::Value, b: ir::Value) -> ir::Value {
+    pub(super) fn fsel(&mut self, mask: ir::Value, a: ir::Value, b: ir::Value) -> ir::Value {
         if self.b.func.dfg.value_type(a).is_vector() {
             blend(&mut self.b, mask, a, b)
         } else {
@@ -38,7 +39,7 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// Bring all operands to one form and length (single components broadcast).
-    fn unify_all(&mut self, vals: Vec<Val>) -> Res<Vec<Val>> {
+    pub(super) fn unify_all(&mut self, vals: Vec<Val>) -> Res<Vec<Val>> {
         let varying = vals.iter().any(|v| v.varying);
         let len = vals.iter().map(|v| v.comps.len()).max().unwrap_or(0);
         let mut out = vec![];
@@ -56,7 +57,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         Ok(out)
     }
 
-    fn fl(&self, comps: Vec<ir::Value>, varying: bool) -> Val {
+    pub(super) fn fl(&self, comps: Vec<ir::Value>, varying: bool) -> Val {
         Val {
             comps,
             scalar: Scalar::Float,
@@ -64,7 +65,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
-    fn dot_comps(&mut self, a: &Val, c: &Val) -> ir::Value {
+    pub(super) fn dot_comps(&mut self, a: &Val, c: &Val) -> ir::Value {
         let mut acc = None;
         for (&x, &y) in a.comps.iter().zip(&c.comps) {
             let p = self.b.ins().fmul(x, y);
@@ -92,13 +93,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         for a in args {
             vals.push(self.eval(*a)?);
         }
-        let arity = match func {
-            Builtin::Min | Builtin::Max | Builtin::Atan2 | Builtin::Pow | Builtin::Step => 2,
-            Builtin::Dot | Builtin::Cross | Builtin::Distance => 2,
-            Builtin::Clamp | Builtin::Mix | Builtin::Smoothstep => 3,
-            _ => 1,
-        };
-        if vals.len() != arity {
+        let (fewest, most) = func.arities();
+        if !(fewest..=most).contains(&vals.len()) {
             return err(format!("{func:?} with {} arguments", vals.len()));
         }
         // Integer and fixed abs/min/max/clamp stay in their type.
@@ -111,6 +107,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         let vals: Vec<Val> = vals.into_iter().map(|v| self.float_val(v)).collect();
         match func {
+            Builtin::Faceforward | Builtin::Reflect | Builtin::Refract | Builtin::Noise | Builtin::CellNoise => {
+                self.shading_builtin(func, vals)
+            }
             Builtin::Sqrt
             | Builtin::Abs
             | Builtin::Floor

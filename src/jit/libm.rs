@@ -1,9 +1,13 @@
 //! Math functions Cranelift has no instruction for, as `extern "C"` Rust functions that the
-//! JIT module links kernels against by symbol name.
+//! JIT module links kernels against by symbol name: the transcendental functions and the
+//! noises of 1 to 4 coordinates ([`crate::ir::noise`]).
 //!
-//! Every function takes and returns `f32` (one or two arguments) and never panics or traps:
-//! out-of-domain inputs give NaN exactly as Rust's `f32` methods do. Vector operands are
-//! handled by the lowering, which calls these once per lane.
+//! Every function takes and returns `f32` (one to four arguments) and never panics or traps:
+//! out-of-domain inputs give NaN exactly as Rust's `f32` methods do (the noises give no NaN).
+//! Vector operands are handled by the lowering, which calls these once per lane. New
+//! functions go at the end of [`LibmFn::ALL`]: printed CLIF names an import by its position.
+
+use crate::ir::noise;
 
 /// A libm function a kernel may call.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -18,10 +22,20 @@ pub enum LibmFn {
     Pow,
     Exp,
     Log,
+    /// `noise` of 1, 2, 3, 4 coordinates.
+    Noise1,
+    Noise2,
+    Noise3,
+    Noise4,
+    /// `cellnoise` of 1, 2, 3, 4 coordinates.
+    CellNoise1,
+    CellNoise2,
+    CellNoise3,
+    CellNoise4,
 }
 
 impl LibmFn {
-    pub const ALL: [LibmFn; 10] = [
+    pub const ALL: [LibmFn; 18] = [
         LibmFn::Sin,
         LibmFn::Cos,
         LibmFn::Tan,
@@ -32,7 +46,26 @@ impl LibmFn {
         LibmFn::Pow,
         LibmFn::Exp,
         LibmFn::Log,
+        LibmFn::Noise1,
+        LibmFn::Noise2,
+        LibmFn::Noise3,
+        LibmFn::Noise4,
+        LibmFn::CellNoise1,
+        LibmFn::CellNoise2,
+        LibmFn::CellNoise3,
+        LibmFn::CellNoise4,
     ];
+
+    /// `noise` (or `cellnoise` when `cell`) of `dims` coordinates, 1 to 4.
+    pub fn noise(cell: bool, dims: usize) -> Option<LibmFn> {
+        use LibmFn::*;
+        let all = if cell {
+            [CellNoise1, CellNoise2, CellNoise3, CellNoise4]
+        } else {
+            [Noise1, Noise2, Noise3, Noise4]
+        };
+        all.get(dims.checked_sub(1)?).copied()
+    }
 
     /// The symbol name kernels import it under.
     pub fn symbol(self) -> &'static str {
@@ -47,22 +80,33 @@ impl LibmFn {
             LibmFn::Pow => "primflow_powf",
             LibmFn::Exp => "primflow_expf",
             LibmFn::Log => "primflow_logf",
+            LibmFn::Noise1 => "primflow_noise1",
+            LibmFn::Noise2 => "primflow_noise2",
+            LibmFn::Noise3 => "primflow_noise3",
+            LibmFn::Noise4 => "primflow_noise4",
+            LibmFn::CellNoise1 => "primflow_cellnoise1",
+            LibmFn::CellNoise2 => "primflow_cellnoise2",
+            LibmFn::CellNoise3 => "primflow_cellnoise3",
+            LibmFn::CellNoise4 => "primflow_cellnoise4",
         }
     }
 
     /// Number of f32 arguments.
     pub fn arity(self) -> usize {
         match self {
-            LibmFn::Atan2 | LibmFn::Pow => 2,
+            LibmFn::Atan2 | LibmFn::Pow | LibmFn::Noise2 | LibmFn::CellNoise2 => 2,
+            LibmFn::Noise3 | LibmFn::CellNoise3 => 3,
+            LibmFn::Noise4 | LibmFn::CellNoise4 => 4,
             _ => 1,
         }
     }
 
-    /// The function applied to `args` (`args[1]` is read only by the two-argument ones):
+    /// The function applied to `args` (its first [`Self::arity`] ones; missing ones are 0):
     /// the very functions kernels call, for the IR evaluator (`ir::eval`), which must give
     /// the same bits.
-    pub fn apply(self, args: [f32; 2]) -> f32 {
-        let [x, y] = args;
+    pub fn apply(self, args: &[f32]) -> f32 {
+        let arg = |i: usize| args.get(i).copied().unwrap_or(0.0);
+        let (x, y, z, w) = (arg(0), arg(1), arg(2), arg(3));
         match self {
             LibmFn::Sin => primflow_sinf(x),
             LibmFn::Cos => primflow_cosf(x),
@@ -74,6 +118,14 @@ impl LibmFn {
             LibmFn::Pow => primflow_powf(x, y),
             LibmFn::Exp => primflow_expf(x),
             LibmFn::Log => primflow_logf(x),
+            LibmFn::Noise1 => primflow_noise1(x),
+            LibmFn::Noise2 => primflow_noise2(x, y),
+            LibmFn::Noise3 => primflow_noise3(x, y, z),
+            LibmFn::Noise4 => primflow_noise4(x, y, z, w),
+            LibmFn::CellNoise1 => primflow_cellnoise1(x),
+            LibmFn::CellNoise2 => primflow_cellnoise2(x, y),
+            LibmFn::CellNoise3 => primflow_cellnoise3(x, y, z),
+            LibmFn::CellNoise4 => primflow_cellnoise4(x, y, z, w),
         }
     }
 
@@ -90,6 +142,14 @@ impl LibmFn {
             LibmFn::Pow => primflow_powf as *const u8,
             LibmFn::Exp => primflow_expf as *const u8,
             LibmFn::Log => primflow_logf as *const u8,
+            LibmFn::Noise1 => primflow_noise1 as *const u8,
+            LibmFn::Noise2 => primflow_noise2 as *const u8,
+            LibmFn::Noise3 => primflow_noise3 as *const u8,
+            LibmFn::Noise4 => primflow_noise4 as *const u8,
+            LibmFn::CellNoise1 => primflow_cellnoise1 as *const u8,
+            LibmFn::CellNoise2 => primflow_cellnoise2 as *const u8,
+            LibmFn::CellNoise3 => primflow_cellnoise3 as *const u8,
+            LibmFn::CellNoise4 => primflow_cellnoise4 as *const u8,
         }
     }
 }
@@ -124,4 +184,29 @@ extern "C" fn primflow_expf(x: f32) -> f32 {
 }
 extern "C" fn primflow_logf(x: f32) -> f32 {
     x.ln()
+}
+
+extern "C" fn primflow_noise1(x: f32) -> f32 {
+    noise::noise(&[x])
+}
+extern "C" fn primflow_noise2(x: f32, y: f32) -> f32 {
+    noise::noise(&[x, y])
+}
+extern "C" fn primflow_noise3(x: f32, y: f32, z: f32) -> f32 {
+    noise::noise(&[x, y, z])
+}
+extern "C" fn primflow_noise4(x: f32, y: f32, z: f32, w: f32) -> f32 {
+    noise::noise(&[x, y, z, w])
+}
+extern "C" fn primflow_cellnoise1(x: f32) -> f32 {
+    noise::cellnoise(&[x])
+}
+extern "C" fn primflow_cellnoise2(x: f32, y: f32) -> f32 {
+    noise::cellnoise(&[x, y])
+}
+extern "C" fn primflow_cellnoise3(x: f32, y: f32, z: f32) -> f32 {
+    noise::cellnoise(&[x, y, z])
+}
+extern "C" fn primflow_cellnoise4(x: f32, y: f32, z: f32, w: f32) -> f32 {
+    noise::cellnoise(&[x, y, z, w])
 }

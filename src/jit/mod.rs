@@ -62,6 +62,7 @@ mod builtin;
 mod fixed;
 pub mod libm;
 mod lower;
+mod shading;
 mod value;
 
 use std::cell::RefCell;

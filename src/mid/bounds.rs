@@ -322,7 +322,8 @@ impl LocalBounds {
             }
             // Comparisons select between constants: NaN in gives one of them too.
             Builtin::Sign => Some(unit),
-            Builtin::Step => Some(Interval { lo: 0.0, hi: 1.0 }),
+            // Never NaN: non-finite coordinates are taken as 0 (`ir::noise`).
+            Builtin::Step | Builtin::Noise | Builtin::CellNoise => Some(Interval { lo: 0.0, hi: 1.0 }),
             // Finite in, within [-1, 1] out (libm's sin and cos of infinity are NaN).
             Builtin::Sin | Builtin::Cos => arg(0).map(|_| unit),
             Builtin::Mix => {

@@ -287,6 +287,7 @@ impl Expr {
                 f(base);
                 f(index);
             }
+            ExprKind::Field { base, .. } => f(base),
             ExprKind::Int(_)
             | ExprKind::Float(_)
             | ExprKind::Bool(_)
@@ -318,6 +319,7 @@ impl Expr {
                 f(base);
                 f(index);
             }
+            ExprKind::Field { base, .. } => f(base),
             ExprKind::Int(_)
             | ExprKind::Float(_)
             | ExprKind::Bool(_)
@@ -344,6 +346,7 @@ impl Expr {
             ExprKind::Ternary { cond, then, otherwise } => out.extend([*cond, *then, *otherwise]),
             ExprKind::Call { args, .. } | ExprKind::Construct { args, .. } | ExprKind::List(args) => out.extend(args),
             ExprKind::Index { base, index } => out.extend([*base, *index]),
+            ExprKind::Field { base, .. } => out.push(*base),
             _ => {}
         }
     }
@@ -431,6 +434,11 @@ pub enum ExprKind {
     Index {
         base: Box<Expr>,
         index: Box<Expr>,
+    },
+    /// `p.x`, `c.rgb`: component access (a swizzle), the letters as written in `field`.
+    Field {
+        base: Box<Expr>,
+        field: Box<Ident>,
     },
     /// `{a, b, c}` — array, matrix or aggregate literal.
     List(Vec<Expr>),

@@ -107,6 +107,10 @@ pub enum Tok {
     Comma,
     #[token(":")]
     Colon,
+    // Component access `p.x`; `.5` and `1.` stay number literals (logos takes the longest
+    // match).
+    #[token(".")]
+    Dot,
     #[token("?")]
     Question,
     #[token("<")]
@@ -216,6 +220,7 @@ pub fn token_text(t: &Tok) -> &'static str {
         Semi => ";",
         Comma => ",",
         Colon => ":",
+        Dot => ".",
         Question => "?",
         Lt => "<",
         Gt => ">",

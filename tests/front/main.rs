@@ -1,5 +1,5 @@
-//! The front end: lexer and grammar (`parse`), the checker's diagnostics (`check_errors`, `check_ok`,
-//! with insta snapshots under `snapshots/`), its passes over the IR (`check_passes`) and a fuzz of
+//! The front end: lexer and grammar (`parse`), component access (`components`), the
+//! checker's diagnostics (`check_errors`, `check_ok`, with insta snapshots under `snapshots/`), its passes over the IR (`check_passes`) and a fuzz of
 //! mutated sources (`check_fuzz`), the depth and size limits (`limits`), long-line diagnostics
 //! and the error cap (`diag_limits`), the checker's type rules (`type_rules`), and the IR
 //! validator's rules (`valid`).
@@ -10,6 +10,7 @@ mod check_errors;
 mod check_fuzz;
 mod check_ok;
 mod check_passes;
+mod components;
 mod diag_limits;
 mod limits;
 mod parse;

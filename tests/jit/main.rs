@@ -45,6 +45,7 @@ mod row_locals;
 mod rows;
 mod setup;
 mod setup_split;
+mod shading;
 mod splat;
 #[path = "../support/mod.rs"]
 mod support;

@@ -168,6 +168,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                     span,
                 ))
             }
+            K::Field { base, field } => self.field(base, field, span, pre),
             K::List(items) => {
                 let mut vals = vec![];
                 for it in items {

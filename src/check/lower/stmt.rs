@@ -255,6 +255,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 place.span = e.span;
                 Some((place, ty.element()))
             }
+            ast::ExprKind::Field { base, field } => self.field_place(e, base, field, pre),
             _ => {
                 self.sink.push(err(
                     "E0403",

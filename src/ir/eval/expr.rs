@@ -425,7 +425,8 @@ impl Machine<'_, '_> {
         for a in args {
             vals.push(self.eval(*a)?);
         }
-        if vals.len() != arity(func) {
+        let (fewest, most) = func.arities();
+        if !(fewest..=most).contains(&vals.len()) {
             return malformed(format!("{func:?} with {} arguments", vals.len()));
         }
         let sc = vals[0].sc;
@@ -437,6 +438,9 @@ impl Machine<'_, '_> {
             return Ok(componentwise(&vs, sc, |a| int_builtin(func, sc, a)));
         }
         let vals: Vec<Val> = vals.iter().map(|v| v.converted(Scalar::Float)).collect();
+        if let Some(v) = super::shading::builtin(func, &vals) {
+            return v;
+        }
         let f = |x: f32| x.to_bits();
         let g = |w: u32| f32::from_bits(w);
         match func {

@@ -54,6 +54,7 @@
 
 mod expr;
 pub mod scalar;
+mod shading;
 mod stmt;
 
 use std::rc::Rc;

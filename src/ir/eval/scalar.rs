@@ -306,7 +306,7 @@ pub(super) fn int_builtin(func: Builtin, sc: Scalar, a: &[u32]) -> u32 {
 pub(super) fn float_builtin(func: Builtin, a: &[u32]) -> Option<u32> {
     let arg = |i: usize| f(a.get(i).copied().unwrap_or(0));
     let (x, y, z) = (arg(0), arg(1), arg(2));
-    let libm = |l: LibmFn| Some(w(l.apply([x, y])));
+    let libm = |l: LibmFn| Some(w(l.apply(&[x, y])));
     Some(w(match func {
         Builtin::Sqrt => x.sqrt(),
         Builtin::Abs => f(a.first().copied().unwrap_or(0) & 0x7fff_ffff),
@@ -353,12 +353,7 @@ pub(super) fn float_builtin(func: Builtin, a: &[u32]) -> Option<u32> {
     }))
 }
 
-/// The number of operands of a built-in (`jit::builtin`'s arity table).
+/// The most operands a built-in takes ([`Builtin::arities`]).
 pub(super) fn arity(func: Builtin) -> usize {
-    match func {
-        Builtin::Min | Builtin::Max | Builtin::Atan2 | Builtin::Pow | Builtin::Step => 2,
-        Builtin::Dot | Builtin::Cross | Builtin::Distance => 2,
-        Builtin::Clamp | Builtin::Mix | Builtin::Smoothstep => 3,
-        _ => 1,
-    }
+    func.arities().1
 }
