@@ -65,60 +65,10 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 continue;
             };
             match p.role {
-                ParamRole::X | ParamRole::Y | ParamRole::Z => {
-                    let want = match p.role {
-                        ParamRole::X => self.xyz[0],
-                        ParamRole::Y => self.xyz[1],
-                        _ => self.xyz[2],
-                    };
-                    let given = match &a.kind {
-                        ast::ExprKind::Name(id) => self.lookup(&id.name),
-                        _ => None,
-                    };
-                    match want {
-                        // The callee writes the caller's Z in place: the same type or nothing.
-                        Some(w) if given == Some(w) && self.locals[w.0 as usize].ty != p.ty => {
-                            let (mine, theirs) = (
-                                type_name(&self.locals[w.0 as usize].ty),
-                                type_name(&p.ty),
-                            );
-                            self.sink.push(
-                                err(
-                                    "E0410",
-                                    format!(
-                                        "`{}` of `{}` is `{theirs}`, but this primitive's own is `{mine}`",
-                                        p.name, callee.name
-                                    ),
-                                    a.span,
-                                    format!("this is `{mine}`"),
-                                )
-                                .help("a sub-primitive works on its caller's X, Y and Z in place: declare them with the callee's types"),
-                            );
-                            ok = false;
-                        }
-                        Some(w) if given == Some(w) => out.push(self.local_expr(w, a.span)),
-                        _ => {
-                            let rname = match p.role {
-                                ParamRole::X => "X",
-                                ParamRole::Y => "Y",
-                                _ => "Z",
-                            };
-                            self.sink.push(
-                                err(
-                                    "E0410",
-                                    format!(
-                                        "argument for `{}` of `{}` must be this primitive's own `{rname}`",
-                                        p.name, callee.name
-                                    ),
-                                    a.span,
-                                    format!("expected this primitive's `{rname}` parameter"),
-                                )
-                                .help("a sub-primitive renders at the same pixel: pass X, Y and Z through"),
-                            );
-                            ok = false;
-                        }
-                    }
-                }
+                ParamRole::X | ParamRole::Y | ParamRole::Z => match self.passed_through(p, a, &callee.name) {
+                    Some(e) => out.push(e),
+                    None => ok = false,
+                },
                 // A per-sequence-point parameter takes a fixed-size array of its elements: the
                 // callee's sequence points are that array's elements (the kernel builds the
                 // callee's argument block with a size known at compile time).
@@ -185,6 +135,65 @@ impl<'g, 'a> FnLower<'g, 'a> {
             },
             span,
         ))
+    }
+
+
+    /// The argument `a` for the callee's X, Y or Z parameter `p`: it must be this
+    /// primitive's own, of the callee's type, since the callee works on it in place (E0410
+    /// otherwise, and `None`).
+    fn passed_through(&mut self, p: &SigParam, a: &ast::Expr, callee: &str) -> Option<Tree> {
+        let want = match p.role {
+            ParamRole::X => self.xyz[0],
+            ParamRole::Y => self.xyz[1],
+            _ => self.xyz[2],
+        };
+        let given = match &a.kind {
+            ast::ExprKind::Name(id) => self.lookup(&id.name),
+            _ => None,
+        };
+        match want {
+            // The callee writes the caller's Z in place: the same type or nothing.
+            Some(w) if given == Some(w) && self.locals[w.0 as usize].ty != p.ty => {
+                let (mine, theirs) = (
+                    type_name(&self.locals[w.0 as usize].ty),
+                    type_name(&p.ty),
+                );
+                self.sink.push(
+                    err(
+                        "E0410",
+                        format!(
+                            "`{}` of `{}` is `{theirs}`, but this primitive's own is `{mine}`",
+                            p.name, callee
+                        ),
+                        a.span,
+                        format!("this is `{mine}`"),
+                    )
+                    .help("a sub-primitive works on its caller's X, Y and Z in place: declare them with the callee's types"),
+                );
+                None
+            }
+            Some(w) if given == Some(w) => Some(self.local_expr(w, a.span)),
+            _ => {
+                let rname = match p.role {
+                    ParamRole::X => "X",
+                    ParamRole::Y => "Y",
+                    _ => "Z",
+                };
+                self.sink.push(
+                    err(
+                        "E0410",
+                        format!(
+                            "argument for `{}` of `{}` must be this primitive's own `{rname}`",
+                            p.name, callee
+                        ),
+                        a.span,
+                        format!("expected this primitive's `{rname}` parameter"),
+                    )
+                    .help("a sub-primitive renders at the same pixel: pass X, Y and Z through"),
+                );
+                None
+            }
+        }
     }
 
     /// Whether helper `idx` may be inlined at this call: not recursive, within the inlining
