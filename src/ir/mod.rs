@@ -411,6 +411,19 @@ pub fn for_each_stmt<'s>(stmts: &'s Stmts, block: &[StmtId], f: &mut dyn FnMut(S
     }
 }
 
+/// Whether loop `id` with `body` can start a second trip: not when the body ends with a
+/// `break` of the loop itself and holds no `continue` of it, since then no trip reaches
+/// the step (an inlined helper's body is such a loop, so that its `return`s can leave it).
+/// Only a loop that can repeat spends fuel: kernels and the evaluator both ask here.
+pub fn loop_repeats(stmts: &Stmts, id: LoopId, body: &[StmtId]) -> bool {
+    if !matches!(body.last().map(|&s| &stmts[s]), Some(StmtKind::Break(l)) if *l == id) {
+        return true;
+    }
+    let mut continues = false;
+    for_each_stmt(stmts, body, &mut |_, s| continues |= matches!(s, StmtKind::Continue(l) if *l == id));
+    continues
+}
+
 /// Call `f` on every assignment of `block`, nested ones too, with its place and value; the
 /// walks that collect assigned locals go through it.
 pub fn for_each_assign(stmts: &Stmts, block: &[StmtId], f: &mut dyn FnMut(&Place, ExprId)) {

@@ -634,3 +634,39 @@ fn a_uniform_index_no_lane_runs_fails_for_no_pixel() {
         }
     }
 }
+
+/// A helper inlined after the group's loop ran out of fuel: lanes with `X` past the sum
+/// spin in the `while` until the fuel is gone. `scale` has a `return`, so its body is
+/// compiled as a loop that cannot repeat; it spends no fuel, so it runs, and Z is 1 for
+/// every drawn pixel. (Tier 0 ran it while the evaluator left it at its empty fuel check and
+/// read its unassigned result, which found this with loop unrolling off.)
+const HELPER_AFTER_FUEL: &str = r#"
+float scale(float a, b) { return a * b + 1; }
+primitive gen(float p0, p1, p2, p3; int n0, n1; float fa[5]; int ia[3];
+              varying float X, Y; inout varying fixed<32,32> Z)
+{
+    bound(p0 - 4, p1 - 4, p0 + p2 + 30, p1 + p3 + 20);
+    int i0 = n0 + 1, i1 = 0;
+    while (true) {
+        if ((fa[n0 * 0 + n0] + fa[n0 * 0 + n1]) < (X - 0.5)) continue;
+        i1 = i1 + 1;
+        if (i1 > 40) break;
+    }
+    i0 = 5 % ia[n0 * 0 + i1];
+    Z = scale(0.0, -(float(i0)));
+}
+"#;
+
+#[test]
+fn a_helper_after_the_group_ran_out_of_fuel_runs_at_both_tiers_and_in_the_evaluator() {
+    let mut sources = SourceMap::new();
+    let file = sources.add("helper_after_fuel.prim", HELPER_AFTER_FUEL);
+    let mut diags = Diagnostics::new();
+    let program = primflow::compile(&sources, &[file], &mut diags).expect("checks");
+    let program = Arc::new(program);
+    let mut seen = Seen::default();
+    for unroll in [false, true] {
+        random_arg_cases(&program, &["gen"], 2, small_budget(), unroll, &mut seen);
+    }
+    assert!(seen.fuel_errors > 0 && seen.drawn > 500, "{seen:?}");
+}

@@ -165,8 +165,9 @@ impl<'p> Machine<'p, '_> {
         site: SiteId,
     ) -> Res<Flow> {
         let frame = self.frames.len() - 1;
+        let repeats = crate::ir::loop_repeats(self.stmt_nodes(), id, body);
         loop {
-            if !self.spend_fuel(site)? {
+            if repeats && !self.spend_fuel(site)? {
                 return Ok(if self.pix.is_some() {
                     Flow::Normal
                 } else {
@@ -241,11 +242,12 @@ impl<'p> Machine<'p, '_> {
         step: &'p [StmtId],
         site: SiteId,
     ) -> Res<Flow> {
+        let repeats = self.loops[li].id.is_none_or(|id| crate::ir::loop_repeats(self.stmt_nodes(), id, body));
         loop {
             let alive = self.pix_mut()?.alive;
             let mask = and(self.loops[li].mask.unwrap_or(NONE), alive);
             self.loops[li].mask = Some(mask);
-            if !any(mask) || !self.spend_fuel(site)? {
+            if !any(mask) || (repeats && !self.spend_fuel(site)?) {
                 return Ok(Flow::Normal);
             }
             self.loops[li].cont = NONE;

@@ -601,7 +601,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
         self.b.ins().jump(header, &[]);
         self.b.switch_to_block(header);
-        self.spend_fuel(site, exit);
+        if crate::ir::loop_repeats(self.stmt_nodes(), id, body) {
+            self.spend_fuel(site, exit);
+        }
         if let Some(c) = cond {
             let v = self.eval_uniform(c)?;
             let v = fixed::convert(&mut self.b, v.scalar, Scalar::Bool, v.comps[0]);
@@ -685,7 +687,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.b.ins().brif(none, exit, &[], fuel_blk, &[]);
 
         self.b.switch_to_block(fuel_blk);
-        self.spend_fuel(site, exit);
+        if crate::ir::loop_repeats(self.stmt_nodes(), id, body) {
+            self.spend_fuel(site, exit);
+        }
         let none_mask = mask_const(&mut self.b, false);
         self.b.def_var(cont, none_mask);
         self.set_exec(lm);
