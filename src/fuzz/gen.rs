@@ -5,8 +5,9 @@
 //! (some out of range), uniform and varying `if`s, counted and open `while` and `for` loops
 //! with `break` and `continue` (some endless: fuel), early `return`s, helper calls (one with
 //! a loop and an early `return`), a primitive call in the setup, Z assigned on some paths,
-//! and interpolation arms. The same seed always gives the same text. Nearly every program
-//! checks (a few trip a rule the generator does not model); none is meant to be rejected.
+//! interpolation arms, component access and `noise`/`cellnoise`. The same seed always
+//! gives the same text. Nearly every program checks (a few trip a rule the generator does
+//! not model); none is meant to be rejected.
 
 use crate::workload::Lcg;
 
@@ -41,6 +42,7 @@ impl Gen {
                 1 => format!("la[{}]", self.index(d.saturating_sub(1))),
                 2 => format!("fa[{}]", self.index(d.saturating_sub(1))),
                 3 => format!("float({})", ["i0", "n1", "fx0", "fx1"][self.pick(4)]),
+                4 if self.chance(0.3) => format!("la.{}", ["x", "y", "z", "w"][self.pick(4)]),
                 _ => FLOATS[self.pick(FLOATS.len())].to_string(),
             };
         }
@@ -67,7 +69,13 @@ impl Gen {
             9 => format!("({} ? {} : {})", self.bexpr(d), self.fexpr(d), self.fexpr(d)),
             10 => format!("scale({}, {})", self.fexpr(d), self.fexpr(d)),
             11 => format!("climb({}, {})", self.fexpr(d), self.iexpr(d)),
-            12 => format!("(fx0 * {})", self.fexpr(d)),
+            12 if self.chance(0.5) => format!("(fx0 * {})", self.fexpr(d)),
+            12 => format!(
+                "{}({}, {})",
+                ["noise", "cellnoise"][self.pick(2)],
+                self.fexpr(d),
+                self.fexpr(d)
+            ),
             _ => format!("-({})", self.fexpr(d)),
         }
     }

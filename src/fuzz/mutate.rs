@@ -103,6 +103,16 @@ pub const PRIM_TOKENS: &[&str] = &[
     "if (Y) ",
     "for (;;) ",
     "float h(float v) { return h(v); }",
+    ".x",
+    ".w",
+    ".rgb",
+    ".xyzw",
+    ".xr",
+    "noise(",
+    "cellnoise(",
+    "reflect(",
+    "refract(",
+    "faceforward(",
 ];
 
 /// Tokens [`splice`] inserts into scenes.
