@@ -1,6 +1,6 @@
-//! The two arenas of a [`super::Function`]: [`Stmts`], every statement node indexed by
-//! [`StmtId`], and [`Exprs`], every expression node indexed by [`ExprId`]; each keeps its
-//! nodes' spans in a side table of the same length.
+//! The two arenas of a [`super::Function`], both an [`Arena`]: [`Stmts`], every statement
+//! node indexed by [`StmtId`], and [`Exprs`], every expression node indexed by [`ExprId`];
+//! each keeps its nodes' spans in a side table of the same length.
 //!
 //! A statement node ([`StmtKind`]) holds the ids of its expressions and the blocks of
 //! statement ids inside it; an expression node's operands are ids of other nodes of the
@@ -14,25 +14,70 @@
 
 use std::ops::{Index, IndexMut};
 
+use std::marker::PhantomData;
+
 use super::{Expr, ExprId, LocalId, StmtId, StmtKind};
 use crate::diag::Span;
 
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Exprs {
-    nodes: Vec<Expr>,
-    /// The span of each node, indexed like `nodes`.
-    spans: Vec<Span>,
+/// A handle type of an [`Arena`]: a dense index.
+pub trait Id: Copy {
+    fn from_index(i: u32) -> Self;
+    fn index(self) -> usize;
 }
 
-impl Exprs {
-    pub fn new() -> Exprs {
-        Exprs::default()
+impl Id for ExprId {
+    fn from_index(i: u32) -> ExprId {
+        ExprId(i)
+    }
+    fn index(self) -> usize {
+        self.0 as usize
+    }
+}
+
+impl Id for StmtId {
+    fn from_index(i: u32) -> StmtId {
+        StmtId(i)
+    }
+    fn index(self) -> usize {
+        self.0 as usize
+    }
+}
+
+/// Nodes of type `T` addressed by handles `I`, each node's span in a side table of the same
+/// length.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Arena<I, T> {
+    nodes: Vec<T>,
+    /// The span of each node, indexed like `nodes`.
+    spans: Vec<Span>,
+    id: PhantomData<I>,
+}
+
+/// Every expression node of a function, by [`ExprId`].
+pub type Exprs = Arena<ExprId, Expr>;
+/// Every statement node of a function, by [`StmtId`].
+pub type Stmts = Arena<StmtId, StmtKind>;
+
+impl<I, T> Default for Arena<I, T> {
+    fn default() -> Self {
+        Arena {
+            nodes: Vec::new(),
+            spans: Vec::new(),
+            id: PhantomData,
+        }
+    }
+}
+
+impl<I: Id, T> Arena<I, T> {
+    pub fn new() -> Self {
+        Self::default()
     }
 
-    pub fn with_capacity(n: usize) -> Exprs {
-        Exprs {
+    pub fn with_capacity(n: usize) -> Self {
+        Arena {
             nodes: Vec::with_capacity(n),
             spans: Vec::with_capacity(n),
+            id: PhantomData,
         }
     }
 
@@ -45,28 +90,55 @@ impl Exprs {
         self.nodes.is_empty()
     }
 
-    /// Add `e` (whose operands are already in the arena, or are added before it is read)
-    /// and return its id.
-    pub fn alloc(&mut self, e: Expr, span: Span) -> ExprId {
-        self.nodes.push(e);
+    /// Add `node` (whose operands or blocks name nodes already in the arena, or added
+    /// before it is read) and return its id.
+    pub fn alloc(&mut self, node: T, span: Span) -> I {
+        self.nodes.push(node);
         self.spans.push(span);
-        ExprId(self.nodes.len() as u32 - 1)
+        I::from_index(self.nodes.len() as u32 - 1)
     }
 
-    pub fn get(&self, id: ExprId) -> Option<&Expr> {
-        self.nodes.get(id.0 as usize)
+    pub fn get(&self, id: I) -> Option<&T> {
+        self.nodes.get(id.index())
     }
 
     /// The source span of `id`.
-    pub fn span(&self, id: ExprId) -> Span {
-        self.spans[id.0 as usize]
+    pub fn span(&self, id: I) -> Span {
+        self.spans[id.index()]
     }
 
     /// Every node with its id, in id order.
-    pub fn iter(&self) -> impl Iterator<Item = (ExprId, &Expr)> {
-        self.nodes.iter().enumerate().map(|(i, e)| (ExprId(i as u32), e))
+    pub fn iter(&self) -> impl Iterator<Item = (I, &T)> {
+        self.nodes.iter().enumerate().map(|(i, n)| (I::from_index(i as u32), n))
     }
 
+    /// Put `node`, with `span`, in the place of node `id` (whose operands or blocks are then
+    /// no longer its own).
+    pub fn replace(&mut self, id: I, node: T, span: Span) {
+        self.nodes[id.index()] = node;
+        self.spans[id.index()] = span;
+    }
+
+    /// Take the node `id` out, leaving `hole` in its place.
+    fn take_leaving(&mut self, id: I, hole: T) -> T {
+        std::mem::replace(&mut self.nodes[id.index()], hole)
+    }
+}
+
+impl<I: Id, T> Index<I> for Arena<I, T> {
+    type Output = T;
+    fn index(&self, id: I) -> &T {
+        &self.nodes[id.index()]
+    }
+}
+
+impl<I: Id, T> IndexMut<I> for Arena<I, T> {
+    fn index_mut(&mut self, id: I) -> &mut T {
+        &mut self.nodes[id.index()]
+    }
+}
+
+impl Exprs {
     /// A copy of the tree rooted at `id`, its nodes allocated afresh in pre-order (the
     /// copy shares no node with the original); returns the copy's root.
     pub fn copy_tree(&mut self, id: ExprId) -> ExprId {
@@ -77,16 +149,9 @@ impl Exprs {
         root
     }
 
-    /// Put `e`, with `span`, in the place of node `id` (whose operands are then no longer
-    /// its operands).
-    pub fn replace(&mut self, id: ExprId, e: Expr, span: Span) {
-        self.nodes[id.0 as usize] = e;
-        self.spans[id.0 as usize] = span;
-    }
-
     /// Take the node `id` out, leaving a placeholder.
     pub(super) fn take(&mut self, id: ExprId) -> Expr {
-        std::mem::replace(&mut self.nodes[id.0 as usize], hole())
+        self.take_leaving(id, hole())
     }
 
     /// Call `f` on every local the tree at `id` reads (once per occurrence).
@@ -115,70 +180,7 @@ pub(super) fn hole() -> Expr {
     )
 }
 
-impl Index<ExprId> for Exprs {
-    type Output = Expr;
-    fn index(&self, id: ExprId) -> &Expr {
-        &self.nodes[id.0 as usize]
-    }
-}
-
-impl IndexMut<ExprId> for Exprs {
-    fn index_mut(&mut self, id: ExprId) -> &mut Expr {
-        &mut self.nodes[id.0 as usize]
-    }
-}
-
-/// The statements of a function: [`StmtKind`] nodes by [`StmtId`], spans beside them.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Stmts {
-    nodes: Vec<StmtKind>,
-    /// The span of each node, indexed like `nodes`.
-    spans: Vec<Span>,
-}
-
 impl Stmts {
-    pub fn new() -> Stmts {
-        Stmts::default()
-    }
-
-    pub fn with_capacity(n: usize) -> Stmts {
-        Stmts {
-            nodes: Vec::with_capacity(n),
-            spans: Vec::with_capacity(n),
-        }
-    }
-
-    /// Number of nodes: their ids are `0..len`.
-    pub fn len(&self) -> u32 {
-        self.nodes.len() as u32
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.nodes.is_empty()
-    }
-
-    /// Add `s` (whose blocks name statements already in the arena, or added before it is
-    /// read) and return its id.
-    pub fn alloc(&mut self, s: StmtKind, span: Span) -> StmtId {
-        self.nodes.push(s);
-        self.spans.push(span);
-        StmtId(self.nodes.len() as u32 - 1)
-    }
-
-    pub fn get(&self, id: StmtId) -> Option<&StmtKind> {
-        self.nodes.get(id.0 as usize)
-    }
-
-    /// The source span of `id`.
-    pub fn span(&self, id: StmtId) -> Span {
-        self.spans[id.0 as usize]
-    }
-
-    /// Every node with its id, in id order.
-    pub fn iter(&self) -> impl Iterator<Item = (StmtId, &StmtKind)> {
-        self.nodes.iter().enumerate().map(|(i, s)| (StmtId(i as u32), s))
-    }
-
     /// A copy of statement `id` with the statements inside it and all their expressions,
     /// allocated afresh in pre-order in `self` and `x` (the copy shares no node with the
     /// original); returns the copy's id.
@@ -193,19 +195,6 @@ impl Stmts {
 
     /// Take the node `id` out, leaving a placeholder (a `Return`).
     pub fn take(&mut self, id: StmtId) -> StmtKind {
-        std::mem::replace(&mut self.nodes[id.0 as usize], StmtKind::Return)
-    }
-}
-
-impl Index<StmtId> for Stmts {
-    type Output = StmtKind;
-    fn index(&self, id: StmtId) -> &StmtKind {
-        &self.nodes[id.0 as usize]
-    }
-}
-
-impl IndexMut<StmtId> for Stmts {
-    fn index_mut(&mut self, id: StmtId) -> &mut StmtKind {
-        &mut self.nodes[id.0 as usize]
+        self.take_leaving(id, StmtKind::Return)
     }
 }
