@@ -50,7 +50,11 @@ pub struct Report {
 
 impl Report {
     pub fn total(&self, kind: &str) -> u64 {
-        self.counts.iter().filter(|((_, k), _)| *k == kind).map(|(_, n)| n).sum()
+        self.counts
+            .iter()
+            .filter(|((_, k), _)| *k == kind)
+            .map(|(_, n)| n)
+            .sum()
     }
 
     fn record(&mut self, i: u64, class: Class, len: usize, outcome: Outcome) {
@@ -119,7 +123,12 @@ pub fn campaign(opts: &Options, corpus: &Corpus, progress: &mut dyn Write) -> Re
             let d = done.load(Ordering::Relaxed);
             if d >= last + opts.inputs.div_ceil(10).max(1) {
                 last = d;
-                let _ = writeln!(progress, "{d} of {} inputs, {:.0} s", opts.inputs, started.elapsed().as_secs_f64());
+                let _ = writeln!(
+                    progress,
+                    "{d} of {} inputs, {:.0} s",
+                    opts.inputs,
+                    started.elapsed().as_secs_f64()
+                );
             }
         }
     });
@@ -143,8 +152,12 @@ fn run_chunk(exe: &std::path::Path, opts: &Options, from: u64, to: u64, report: 
     while next < to {
         let was = next;
         let mut cmd = Command::new(exe);
-        cmd.args(["fuzz-worker", "--seed", &opts.seed.to_string()])
-            .args(["--from", &next.to_string(), "--to", &to.to_string()]);
+        cmd.args(["fuzz-worker", "--seed", &opts.seed.to_string()]).args([
+            "--from",
+            &next.to_string(),
+            "--to",
+            &to.to_string(),
+        ]);
         if let Some(c) = opts.only {
             cmd.args(["--class", c.name()]);
         }
@@ -246,14 +259,14 @@ pub fn worker(seed: u64, from: u64, to: u64, only: Option<Class>, out: &mut dyn 
             injected(&inject, i);
             run(&corpus, &input)
         }))
-            .unwrap_or_else(|p| {
-                let msg = p
-                    .downcast_ref::<String>()
-                    .cloned()
-                    .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
-                    .unwrap_or_default();
-                Outcome::Panic(msg)
-            });
+        .unwrap_or_else(|p| {
+            let msg = p
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default();
+            Outcome::Panic(msg)
+        });
         let detail = match &outcome {
             Outcome::Rejected(code) => code.to_string(),
             Outcome::Ice(m) | Outcome::Mismatch(m) | Outcome::Panic(m) | Outcome::Signal(m) => m.replace('\n', " | "),
@@ -269,7 +282,9 @@ pub fn worker(seed: u64, from: u64, to: u64, only: Option<Class>, out: &mut dyn 
 /// (`panic:3,abort:5,hang:7`), so a test can check that each is seen and counted.
 fn injected(spec: &str, i: u64) {
     for item in spec.split(',') {
-        let Some((what, at)) = item.split_once(':') else { continue };
+        let Some((what, at)) = item.split_once(':') else {
+            continue;
+        };
         if at.parse() != Ok(i) {
             continue;
         }

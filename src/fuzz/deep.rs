@@ -15,9 +15,8 @@ pub fn source(rng: &mut Lcg) -> String {
     let shape = (rng.next() * SHAPES as f64) as usize % SHAPES;
     // Log-uniform sizes: most small, some near and past the limits.
     let n = (2f64.powf(rng.range(0.0, 14.3))) as usize;
-    let prim = |body: &str| {
-        format!("primitive deep(float a, b; varying float X, Y; inout varying float Z)\n{{\n{body}\n}}\n")
-    };
+    let prim =
+        |body: &str| format!("primitive deep(float a, b; varying float X, Y; inout varying float Z)\n{{\n{body}\n}}\n");
     match shape {
         // A long sum and a long product of X.
         0 => prim(&format!("    Z = {};", vec!["a"; n.max(1)].join(" + "))),

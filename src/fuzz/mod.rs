@@ -148,7 +148,9 @@ fn read_dir(dir: &Path, ext: &str) -> Result<Vec<(String, String)>, String> {
         .iter()
         .map(|p| {
             let text = std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
-            let name = p.file_name().map_or(String::new(), |n| n.to_string_lossy().into_owned());
+            let name = p
+                .file_name()
+                .map_or(String::new(), |n| n.to_string_lossy().into_owned());
             Ok((name, text))
         })
         .collect()

@@ -420,7 +420,9 @@ pub fn loop_repeats(stmts: &Stmts, id: LoopId, body: &[StmtId]) -> bool {
         return true;
     }
     let mut continues = false;
-    for_each_stmt(stmts, body, &mut |_, s| continues |= matches!(s, StmtKind::Continue(l) if *l == id));
+    for_each_stmt(stmts, body, &mut |_, s| {
+        continues |= matches!(s, StmtKind::Continue(l) if *l == id)
+    });
     continues
 }
 

@@ -27,7 +27,10 @@ fn a_mixed_campaign_ends_without_findings_and_reaches_every_class() {
         .expect("runs");
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{text}\n{}", String::from_utf8_lossy(&out.stderr));
-    assert!(text.contains("1500 inputs (seed 7)") && text.contains(": 0 findings"), "{text}");
+    assert!(
+        text.contains("1500 inputs (seed 7)") && text.contains(": 0 findings"),
+        "{text}"
+    );
     for class in ["source", "deep", "prim", "scene", "valid"] {
         assert!(count(&text, class, "accepted") > 0, "{class}: {text}");
     }
@@ -45,7 +48,17 @@ fn a_mixed_campaign_ends_without_findings_and_reaches_every_class() {
 #[test]
 fn an_injected_panic_abort_and_hang_are_each_one_finding() {
     let out = Command::new(EXE)
-        .args(["fuzz", "--inputs", "12", "--class", "source", "--jobs", "1", "--timeout", "2"])
+        .args([
+            "fuzz",
+            "--inputs",
+            "12",
+            "--class",
+            "source",
+            "--jobs",
+            "1",
+            "--timeout",
+            "2",
+        ])
         .env("PRIMFLOW_FUZZ_INJECT", "panic:3,abort:5,hang:7")
         .output()
         .expect("runs");
@@ -55,11 +68,17 @@ fn an_injected_panic_abort_and_hang_are_each_one_finding() {
     assert_eq!(count(&text, "source", "panic"), 1, "{text}");
     assert_eq!(count(&text, "source", "signal"), 1, "{text}");
     assert_eq!(count(&text, "source", "hang"), 1, "{text}");
-    assert_eq!(count(&text, "source", "accepted") + count(&text, "source", "rejected"), 9, "{text}");
+    assert_eq!(
+        count(&text, "source", "accepted") + count(&text, "source", "rejected"),
+        9,
+        "{text}"
+    );
     for (i, kind) in [(3, "panic"), (5, "signal"), (7, "hang")] {
         assert!(text.contains(&format!("finding: input {i} (source) {kind}")), "{text}");
         assert!(
-            text.contains(&format!("replay: primflow fuzz --seed 1 --start {i} --inputs 1 --class source")),
+            text.contains(&format!(
+                "replay: primflow fuzz --seed 1 --start {i} --inputs 1 --class source"
+            )),
             "{text}"
         );
     }

@@ -13,9 +13,9 @@ use crate::support;
 use std::sync::Arc;
 
 use primflow::diag::{Diagnostics, SourceMap};
+use primflow::fuzz::mutate::{literals as mutate, tokens, Kind};
 use primflow::jit::{Jit, Tier};
 use primflow::runtime::Renderer;
-use primflow::fuzz::mutate::{literals as mutate, tokens, Kind};
 use proptest::prelude::*;
 
 proptest! {

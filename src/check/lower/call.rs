@@ -137,7 +137,6 @@ impl<'g, 'a> FnLower<'g, 'a> {
         ))
     }
 
-
     /// The argument `a` for the callee's X, Y or Z parameter `p`: it must be this
     /// primitive's own, of the callee's type, since the callee works on it in place (E0410
     /// otherwise, and `None`).
@@ -154,10 +153,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         match want {
             // The callee writes the caller's Z in place: the same type or nothing.
             Some(w) if given == Some(w) && self.locals[w.0 as usize].ty != p.ty => {
-                let (mine, theirs) = (
-                    type_name(&self.locals[w.0 as usize].ty),
-                    type_name(&p.ty),
-                );
+                let (mine, theirs) = (type_name(&self.locals[w.0 as usize].ty), type_name(&p.ty));
                 self.sink.push(
                     err(
                         "E0410",

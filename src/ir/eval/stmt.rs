@@ -242,7 +242,9 @@ impl<'p> Machine<'p, '_> {
         step: &'p [StmtId],
         site: SiteId,
     ) -> Res<Flow> {
-        let repeats = self.loops[li].id.is_none_or(|id| crate::ir::loop_repeats(self.stmt_nodes(), id, body));
+        let repeats = self.loops[li]
+            .id
+            .is_none_or(|id| crate::ir::loop_repeats(self.stmt_nodes(), id, body));
         loop {
             let alive = self.pix_mut()?.alive;
             let mask = and(self.loops[li].mask.unwrap_or(NONE), alive);
