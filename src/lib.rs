@@ -32,6 +32,7 @@ pub mod fuzz;
 pub mod handwritten;
 pub mod ir;
 pub mod jit;
+pub mod link;
 pub mod limits;
 pub mod mid;
 pub mod ops;

@@ -50,6 +50,8 @@ pub fn lower(name: &str, args: Vec<Tree>, span: Span) -> Result<Option<Tree>, Bu
         "refract" => (Refract, &[3]),
         "noise" => (Noise, &[1, 2]),
         "cellnoise" => (CellNoise, &[1, 2]),
+        // Only in linked shader groups (`crate::link`): the caller refuses it elsewhere.
+        "__gbuffer" => (GBuffer, &[3]),
         _ => return Ok(None),
     };
     if !arity.contains(&args.len()) {
@@ -108,6 +110,12 @@ pub fn lower(name: &str, args: Vec<Tree>, span: Span) -> Result<Option<Tree>, Bu
                     span,
                     "(float), (float, float), (point) or (point, float)",
                 ));
+            }
+            Type::float()
+        }
+        GBuffer => {
+            if floats.iter().any(|a| !a.ty.dims.is_empty()) {
+                return Err(shape_error(name, &floats, span, "(plane, X, Y)"));
             }
             Type::float()
         }

@@ -45,8 +45,64 @@ use lower::{resolve_dims, resolve_type, var_of, FnLower, BUILTIN_NAMES};
 pub fn check(modules: &[&ast::Module], diags: &mut Diagnostics) -> ir::Program {
     let mut sink = Sink::default();
     let items = collect_items(modules, &mut sink);
-    let g = signatures(&items, &mut sink);
-    let g = find_recursion(g, &mut sink);
+    let (shaders, items): (Vec<&ast::Item>, Vec<&ast::Item>) = items.into_iter().partition(|i| i.kind.is_shader());
+    let mut program = check_items(&items, false, &mut sink);
+    if !shaders.is_empty() {
+        program.shading_items = shaders
+            .iter()
+            .chain(items.iter().filter(|i| i.kind == ast::ItemKind::Function))
+            .map(|i| (*i).clone())
+            .collect();
+    }
+    // Shaders are compiled per frame, linked (`crate::link`); here each is linked against
+    // every conventional plane and a light of each kind, to report its errors now.
+    if !sink.items.iter().any(|d| d.is_error()) {
+        let lights: Vec<&ast::Item> = shaders.iter().copied().filter(|s| s.kind == ast::ItemKind::Light).collect();
+        for &shader in &shaders {
+            match crate::link::canonical(shader, &lights) {
+                Ok(linked) => {
+                    let mut all = items.clone();
+                    all.extend(linked.items.iter());
+                    check_items(&all, true, &mut sink);
+                }
+                Err(e) => sink.push(
+                    Diagnostic::error("E0900", format!("internal compiler error: {e}")).primary(shader.name.span, "here"),
+                ),
+            }
+        }
+    }
+    finish(sink, diags);
+    program
+}
+
+/// Check the helpers of `program`'s shading items with the items of a linked shader group
+/// (`crate::link`) as one program: what the deferred pass compiles.
+pub fn check_linked(program: &ir::Program, linked: &[ast::Item], diags: &mut Diagnostics) -> ir::Program {
+    let mut sink = Sink::default();
+    let mut items: Vec<&ast::Item> = program
+        .shading_items
+        .iter()
+        .filter(|i| i.kind == ast::ItemKind::Function)
+        .collect();
+    items.extend(linked.iter());
+    let program = check_items(&items, true, &mut sink);
+    finish(sink, diags);
+    program
+}
+
+fn finish(sink: Sink, diags: &mut Diagnostics) {
+    let mut items = sink.items;
+    items.sort_by_key(|d| d.primary_span().map(|s| (s.file, s.start)));
+    for d in items {
+        diags.push(d);
+    }
+}
+
+/// Check `items` as one program (`linked`: a shader group's, which may read G-buffer planes).
+fn check_items(items: &[&ast::Item], linked: bool, sink: &mut Sink) -> ir::Program {
+    let mut g = signatures(items, sink);
+    g.linked = linked;
+    let g = find_recursion(g, sink);
     let roles: Vec<Vec<ParamRole>> = g
         .sigs
         .iter()
@@ -58,11 +114,12 @@ pub fn check(modules: &[&ast::Module], diags: &mut Diagnostics) -> ir::Program {
     let mut lowered_cleanly = vec![false; g.sigs.len()];
     for (idx, sig) in g.sigs.iter().enumerate() {
         match sig.item.kind {
-            ast::ItemKind::Function => check_helper(&g, idx, &mut sink, &mut program.sites, &mut lowered_cleanly),
+            ast::ItemKind::Function => check_helper(&g, idx, sink, &mut program.sites, &mut lowered_cleanly),
             ast::ItemKind::Primitive | ast::ItemKind::Interpolator => {
-                let f = lower_function(&g, idx, &roles, &mut sink, &mut program.sites, &mut lowered_cleanly);
+                let f = lower_function(&g, idx, &roles, sink, &mut program.sites, &mut lowered_cleanly);
                 program.functions.push(f);
             }
+            ast::ItemKind::Surface | ast::ItemKind::Light | ast::ItemKind::Atmosphere => {}
         }
     }
     // After this point the program obeys every rule of `ir::valid` (checked in test and
@@ -71,11 +128,6 @@ pub fn check(modules: &[&ast::Module], diags: &mut Diagnostics) -> ir::Program {
         if let Err(e) = ir::valid::validate(&program) {
             sink.push(Diagnostic::error("E0900", format!("internal compiler error: {e}")).primary(e.span, "here"));
         }
-    }
-    let mut items = sink.items;
-    items.sort_by_key(|d| d.primary_span().map(|s| (s.file, s.start)));
-    for d in items {
-        diags.push(d);
     }
     program
 }
@@ -164,6 +216,8 @@ pub struct Globals<'a> {
     pub by_name: FxHashMap<String, usize>,
     /// Helpers that are part of a call cycle.
     pub recursive: FxHashSet<usize>,
+    /// A linked shader group's program: `__gbuffer` is callable.
+    pub linked: bool,
 }
 
 fn collect_items<'a>(modules: &[&'a ast::Module], sink: &mut Sink) -> Vec<&'a ast::Item> {
@@ -233,6 +287,7 @@ fn signatures<'a>(items: &[&'a ast::Item], sink: &mut Sink) -> Globals<'a> {
         sigs,
         by_name,
         recursive: FxHashSet::default(),
+        linked: false,
     }
 }
 
@@ -547,6 +602,10 @@ fn stmt_calls(s: &ast::Stmt, out: &mut Vec<(String, Span)>) {
             if let Some(o) = otherwise {
                 block(o, out);
             }
+        }
+        K::Illuminance { args, body } => {
+            args.iter().for_each(|e| expr_calls(e, out));
+            block(body, out);
         }
         K::For { init, cond, step, body } => {
             if let Some(i) = init {

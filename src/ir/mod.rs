@@ -325,6 +325,10 @@ pub struct Program {
     pub functions: Vec<Function>,
     /// Span of each run-time failure site.
     pub sites: Vec<Span>,
+    /// The surface, light and atmosphere shaders of the sources, and their helper functions,
+    /// as written: a frame links the ones it uses into a program of its own
+    /// (`crate::link`). Empty when the sources define no shader.
+    pub shading_items: Vec<crate::syntax::ast::Item>,
 }
 
 impl Program {
@@ -575,6 +579,11 @@ pub enum Builtin {
     /// `cellnoise(...)`, the same arguments as `Noise` -> float in [0, 1), constant on
     /// integer cells.
     CellNoise,
+    /// `__gbuffer(plane, X, Y)` -> float: G-buffer plane `plane` (a constant) at the pixel
+    /// `(X, Y)`, which must be the function's own pixel centre (only linked shader groups
+    /// call it, `crate::link`, with their `X` and `Y`). A plane past `ctx.num_planes` reads
+    /// 0. Taking `X` and `Y` makes the value varying and keeps it in the pixel part.
+    GBuffer,
     /// `transform(from, to, p)`: point between named spaces (homogeneous float[4], or float[3]
     /// taken with w = 1).
     TransformPoint {
@@ -599,7 +608,7 @@ impl Builtin {
         use Builtin::*;
         match self {
             Min | Max | Pow | Step | Atan2 | Dot | Cross | Distance | Reflect => (2, 2),
-            Clamp | Mix | Smoothstep | Refract => (3, 3),
+            Clamp | Mix | Smoothstep | Refract | GBuffer => (3, 3),
             Faceforward => (2, 3),
             Noise | CellNoise => (1, 2),
             _ => (1, 1),

@@ -110,6 +110,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             Builtin::Faceforward | Builtin::Reflect | Builtin::Refract | Builtin::Noise | Builtin::CellNoise => {
                 self.shading_builtin(func, vals)
             }
+            Builtin::GBuffer => self.gbuffer_read(&vals[0]),
             Builtin::Sqrt
             | Builtin::Abs
             | Builtin::Floor

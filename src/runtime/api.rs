@@ -36,7 +36,9 @@ use crate::diag::Severity;
 use crate::ir::{FuncId, FuncKind, Function, ParamRole, Program};
 
 use super::geometry::{self, ClipOutcome, GeometryState};
+use super::shading::language::{LanguageShading, ShaderUse, SURFACE_PARAM};
 use super::shading::ShadingSetup;
+use crate::syntax::ast::ItemKind;
 use super::value::{encode, encode_default, EncodeError, Value};
 use crate::ir::ParamSpace;
 use crate::pipeline::face::{CullMode, Facing};
@@ -230,6 +232,9 @@ pub struct Renderer {
     pub geometry: GeometryState,
     /// Lights, materials, fog, texture: what the deferred shading pass does.
     pub shading_setup: ShadingSetup,
+    /// Language shaders: surface bindings, lights and the atmosphere (when any is given,
+    /// they shade the frame instead of `shading_setup`).
+    pub language: LanguageShading,
     /// Pipeline warnings already reported (each kind once per renderer).
     pipeline_warnings: Vec<Warning>,
     /// `--explain`: per (primitive, pipeline description, clip outcome), how many instances.
@@ -293,6 +298,7 @@ impl Renderer {
             options: RenderOptions::default(),
             geometry: GeometryState::new(RenderOptions::default().width, RenderOptions::default().height),
             shading_setup: ShadingSetup::default(),
+            language: LanguageShading::default(),
             pipeline_warnings: vec![],
             explain: std::collections::BTreeMap::new(),
             shading: vec![],
@@ -557,6 +563,65 @@ impl Renderer {
                 format!("{prim} x{n}: {outcome}; {choice}")
             })
             .collect()
+    }
+
+    // ---- language shaders ----
+
+    /// Bind surface shader `name` with `args` (by parameter name) to the primitives that
+    /// follow: the reserved shading parameter `__surface` takes the binding's number.
+    pub fn surface_shader(&mut self, name: &str, args: &[(String, Value)]) -> Result<(), ApiIssue> {
+        let shader = self.shader_use(name, args, ItemKind::Surface)?;
+        self.language.surfaces.push(shader);
+        let id = self.language.surfaces.len() as f32;
+        self.material(SURFACE_PARAM, &Value(vec![id]))
+    }
+
+    /// Add a light: light shader `name` with `args`.
+    pub fn light_shader(&mut self, name: &str, args: &[(String, Value)]) -> Result<(), ApiIssue> {
+        let shader = self.shader_use(name, args, ItemKind::Light)?;
+        self.language.lights.push(shader);
+        Ok(())
+    }
+
+    /// Set the frame's atmosphere shader.
+    pub fn atmosphere_shader(&mut self, name: &str, args: &[(String, Value)]) -> Result<(), ApiIssue> {
+        let shader = self.shader_use(name, args, ItemKind::Atmosphere)?;
+        self.language.atmosphere = Some(shader);
+        Ok(())
+    }
+
+    /// A shader use, its name and argument names checked against the program's shaders.
+    fn shader_use(&self, name: &str, args: &[(String, Value)], kind: ItemKind) -> Result<ShaderUse, ApiIssue> {
+        let what = match kind {
+            ItemKind::Surface => "surface",
+            ItemKind::Light => "light",
+            _ => "atmosphere",
+        };
+        let Some(item) = self
+            .program
+            .shading_items
+            .iter()
+            .find(|i| i.kind == kind && i.name.name == name)
+        else {
+            return Err(ApiIssue::error(
+                "E1002",
+                Target::Name,
+                format!("no {what} shader `{name}` (shaders are `{what} NAME(...)` items of the loaded .prim files)"),
+            ));
+        };
+        for (arg, _) in args {
+            if !item.params.iter().any(|p| &p.name.name == arg) {
+                return Err(ApiIssue::error(
+                    "E0702",
+                    Target::Name,
+                    format!("{what} shader `{name}` has no parameter `{arg}`"),
+                ));
+            }
+        }
+        Ok(ShaderUse {
+            name: name.to_string(),
+            args: args.iter().map(|(n, v)| (n.clone(), v.0.clone())).collect(),
+        })
     }
 
     // ---- shading parameters ----

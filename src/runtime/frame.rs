@@ -135,15 +135,15 @@ impl Tile {
 /// tasks, and no `&mut` slice of a buffer exists while the tiles render. Every rectangle
 /// lies inside its buffer: `(y1 - 1) * stride + x0 + group_columns() <= height * stride`.
 #[derive(Clone, Copy)]
-pub(super) struct FrameTarget<'f> {
-    pub(super) depth: *mut u32,
-    pub(super) planes: *mut f32,
+pub(crate) struct FrameTarget<'f> {
+    pub(crate) depth: *mut u32,
+    pub(crate) planes: *mut f32,
     /// Null when writes are not counted.
-    pub(super) counts: *mut u32,
-    pub(super) stride: usize,
+    pub(crate) counts: *mut u32,
+    pub(crate) stride: usize,
     /// Elements from one plane's start to the next ([`plane_pitch`]).
-    pub(super) plane_pitch: usize,
-    pub(super) num_planes: usize,
+    pub(crate) plane_pitch: usize,
+    pub(crate) num_planes: usize,
     _frame: std::marker::PhantomData<&'f mut Frame>,
 }
 
@@ -227,7 +227,7 @@ impl Frame {
 
     /// The frame's buffers for the tile tasks (see [`FrameTarget`]), borrowing the frame
     /// until the tiles are done.
-    pub(super) fn target(&mut self) -> FrameTarget<'_> {
+    pub(crate) fn target(&mut self) -> FrameTarget<'_> {
         FrameTarget {
             depth: self.depth.as_mut_ptr(),
             planes: self.planes.as_mut_ptr(),
@@ -318,6 +318,22 @@ impl Frame {
     /// Depth as a float in [0, 1).
     pub fn depth_f32_at(&self, x: u32, y: u32) -> Option<f32> {
         self.depth_at(x, y).map(|d| (f64::from(d) / 4294967296.0) as f32)
+    }
+
+    /// The colours of the language shading pass: planes `first..first + 3` at every pixel
+    /// whose depth was written, 0 elsewhere (padding included).
+    pub(crate) fn colors_from_planes(&mut self, first: u32) {
+        let len = self.plane_len();
+        let mut colors = fit(self.colors.take().unwrap_or_default(), len, [0.0; 3]);
+        let planes: Vec<Option<&[f32]>> = (0..3).map(|c| self.plane(first + c)).collect();
+        for (i, c) in colors.iter_mut().enumerate() {
+            let written = self.depth.get(i).is_some_and(|&d| d != 0);
+            *c = std::array::from_fn(|k| match planes[k] {
+                Some(p) if written => p.get(i).copied().unwrap_or(0.0),
+                _ => 0.0,
+            });
+        }
+        self.colors = Some(colors);
     }
 
     /// Whether a primitive wrote the pixel's depth.

@@ -25,7 +25,7 @@
 //! - [`kernels`]: the [`KernelSource`] seam between renderer and JIT.
 
 pub mod api;
-mod errors;
+pub(crate) mod errors;
 #[doc(hidden)]
 pub mod expand;
 pub mod frame;

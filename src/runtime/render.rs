@@ -184,7 +184,9 @@ impl Renderer {
         };
         // Refused before any work: a frame this large would abort the process when its
         // allocation fails.
-        let num_planes = self.num_planes();
+        // Language shading writes its colours into three planes after the parameters'.
+        let language = self.language.active();
+        let num_planes = self.num_planes() + if language { 3 } else { 0 };
         if let Some(too_large) = frame_too_large(opts, num_planes) {
             diags.push(too_large);
             *frame = Frame::empty();
@@ -279,11 +281,18 @@ impl Renderer {
         frame.reset(
             opts,
             num_planes,
-            self.shading_params().iter().map(|p| ParamPlanes {
-                name: p.name.clone(),
-                first_plane: p.first_plane,
-                components: p.components,
-            }),
+            self.shading_params()
+                .iter()
+                .map(|p| ParamPlanes {
+                    name: p.name.clone(),
+                    first_plane: p.first_plane,
+                    components: p.components,
+                })
+                .chain(language.then(|| ParamPlanes {
+                    name: "Ci".into(),
+                    first_plane: self.num_planes(),
+                    components: 3,
+                })),
         );
         let target = frame.target();
         let slices = bins.slices();
@@ -301,7 +310,11 @@ impl Renderer {
         let shade_started = Instant::now();
         stats.tiles_micros = micros_between(tiles_started, shade_started);
 
-        self.shade(frame);
+        if language {
+            self.shade_language(frame, opts, &mut diags);
+        } else {
+            self.shade(frame);
+        }
         stats.shade_micros = shade_started.elapsed().as_micros() as u64;
 
         // 4. Run-time errors, one warning per site with its count, in site order.
@@ -312,6 +325,51 @@ impl Renderer {
             diags,
             kernels: reports,
             effects: self.shading_setup.effects(),
+        }
+    }
+
+    /// Deferred shading by the scene's language shaders (`shading::language`).
+    fn shade_language(&self, frame: &mut Frame, opts: &RenderOptions, diags: &mut Diagnostics) {
+        let planes: Vec<crate::link::PlaneParam> = self
+            .shading_params()
+            .iter()
+            .map(|p| crate::link::PlaneParam {
+                name: p.name.clone(),
+                first_plane: p.first_plane,
+                components: p.components,
+            })
+            .collect();
+        let device_from_lighting = self.geometry.device_from_lighting();
+        let lighting_from_device = device_from_lighting.inverse();
+        // The eye: clip space's point at infinity along z, mapped back (as `Shader::new`).
+        let lighting_from_clip = lighting_from_device * self.geometry.device_from_clip();
+        let eye_h = lighting_from_clip * glam::DVec4::new(0.0, 0.0, 1.0, 0.0);
+        let eye = if eye_h.w.abs() > 1e-12 * eye_h.truncate().length() {
+            let e = eye_h.truncate() / eye_h.w;
+            [e.x, e.y, e.z, 1.0]
+        } else {
+            let at = |z: f64| {
+                let q = lighting_from_clip * glam::DVec4::new(0.0, 0.0, z, 1.0);
+                q.truncate() / q.w
+            };
+            let d = (at(1.0) - at(0.0)).normalize_or_zero();
+            [d.x, d.y, d.z, 0.0]
+        };
+        let spaces = super::shading::language::Spaces {
+            lighting_from_world: self.geometry.lighting_from_world(),
+            device_from_lighting,
+            eye,
+        };
+        let compiled = super::shading::language::compile(
+            self.program(),
+            &self.language,
+            &planes,
+            self.num_planes(),
+            &spaces,
+            diags,
+        );
+        if let Some(compiled) = compiled {
+            super::shading::language::shade_frame(&compiled.pass, frame, opts, diags);
         }
     }
 

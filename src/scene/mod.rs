@@ -36,6 +36,14 @@ pub struct Token {
     pub span: Span,
 }
 
+/// Which language shader a command binds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShaderCommand {
+    Surface,
+    Light,
+    Atmosphere,
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub enum CommandKind {
     Image {
@@ -89,6 +97,12 @@ pub enum CommandKind {
         material: SurfaceMaterial,
     },
     Fog(Fog),
+    /// `shader NAME [ARG=v...]`, `lightsource NAME [ARG=v...]`, `atmosphere NAME [ARG=v...]`.
+    Shader {
+        kind: ShaderCommand,
+        name: String,
+        args: Vec<(String, Value)>,
+    },
     Texture(Texture),
     LightingSpace(LightingSpaceChoice),
     /// A line that failed to parse; the command word if it was a known one (so a broken
@@ -152,6 +166,10 @@ impl Scene {
             match &c.kind {
                 CommandKind::Begin(name) => prims.push(name.as_str()),
                 CommandKind::MaterialInterp { kind, .. } => kinds.push(kind.as_str()),
+                CommandKind::Shader { name, .. } => {
+                    kinds.push(name.as_str());
+                    kinds.push(crate::runtime::shading::language::DEFAULT_SURFACE);
+                }
                 _ => {}
             }
         }
@@ -192,6 +210,9 @@ const COMMANDS: &[&str] = &[
     "surface",
     "fog",
     "texture",
+    "shader",
+    "lightsource",
+    "atmosphere",
     "lighting_space",
 ];
 
@@ -344,6 +365,25 @@ fn parse_command(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), Diagnosti
         "ortho" => CommandKind::Ortho(fixed_numbers::<6>(tokens)?),
         "perspective" => CommandKind::Perspective(fixed_numbers::<3>(tokens)?),
         "material_interp" => return parse_material_interp(tokens),
+        "shader" | "lightsource" | "atmosphere" => {
+            if tokens.len() < 2 {
+                return Err(arity_error(tokens, "a shader name and `name=value` arguments"));
+            }
+            let kind = match tokens[0].text.as_str() {
+                "shader" => ShaderCommand::Surface,
+                "lightsource" => ShaderCommand::Light,
+                _ => ShaderCommand::Atmosphere,
+            };
+            let (args, spans) = named_args(&tokens[2..])?;
+            return Ok((
+                CommandKind::Shader {
+                    kind,
+                    name: tokens[1].text.clone(),
+                    args,
+                },
+                spans,
+            ));
+        }
         "material" => {
             let (name, value) = name_and_values(tokens)?;
             CommandKind::Material { name, value }
@@ -499,9 +539,23 @@ fn parse_material_interp(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), D
     if tokens.len() < 3 {
         return Err(arity_error(tokens, "a parameter name and an interpolation kind"));
     }
+    let (args, spans) = named_args(&tokens[3..])?;
+    Ok((
+        CommandKind::MaterialInterp {
+            name: tokens[1].text.clone(),
+            kind: tokens[2].text.clone(),
+            args,
+        },
+        spans,
+    ))
+}
+
+/// `name=v[,v...]` arguments, a name's further values as separate tokens allowed
+/// (`axis=0 0 1`), with each argument's span.
+fn named_args(tokens: &[Token]) -> Result<(Vec<(String, Value)>, Vec<Span>), Diagnostic> {
     let mut args: Vec<(String, Value)> = vec![];
     let mut spans: Vec<Span> = vec![];
-    for token in &tokens[3..] {
+    for token in tokens {
         if let Some((name, values)) = token.text.split_once('=') {
             if name.is_empty() {
                 return Err(
@@ -535,14 +589,7 @@ fn parse_material_interp(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), D
                 .primary(spans[i], "expected `name=number`"),
         );
     }
-    Ok((
-        CommandKind::MaterialInterp {
-            name: tokens[1].text.clone(),
-            kind: tokens[2].text.clone(),
-            args,
-        },
-        spans,
-    ))
+    Ok((args, spans))
 }
 
 /// The Levenshtein distance between `a` and `b`, in characters: how the reader finds the
@@ -586,6 +633,11 @@ pub fn apply(scene: &Scene, renderer: &mut Renderer, diags: &mut Diagnostics) {
                 renderer.perspective_checked(f64::from(*fov), f64::from(*n), f64::from(*f))
             }
             CommandKind::MaterialInterp { name, kind, args } => renderer.material_interp(name, kind, args),
+            CommandKind::Shader { kind, name, args } => match kind {
+                ShaderCommand::Surface => renderer.surface_shader(name, args),
+                ShaderCommand::Light => renderer.light_shader(name, args),
+                ShaderCommand::Atmosphere => renderer.atmosphere_shader(name, args),
+            },
             CommandKind::Push => {
                 renderer.push_transform();
                 Ok(())

@@ -35,6 +35,21 @@ pub enum ItemKind {
     Interpolator,
     /// `TYPE NAME(PARAMS) { BODY }` or `void NAME(...)` — a helper function.
     Function,
+    /// `surface NAME(PARAMS) { BODY }` — a surface shader: sets `Ci`, `Oi` from the
+    /// shading globals (docs/shading.md). Shaders are not checked as functions of their
+    /// own: `crate::link` links a frame's surface, lights and atmosphere into one primitive
+    /// of the deferred pass and checks that.
+    Surface,
+    /// `light NAME(PARAMS) { BODY }` — a light shader: sets `L` and `Cl` for a surface point `Ps`.
+    Light,
+    /// `atmosphere NAME(PARAMS) { BODY }` — runs after the surface, changing `Ci`, `Oi`.
+    Atmosphere,
+}
+
+impl ItemKind {
+    pub fn is_shader(self) -> bool {
+        matches!(self, ItemKind::Surface | ItemKind::Light | ItemKind::Atmosphere)
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -206,6 +221,12 @@ pub enum StmtKind {
     InterpolatorReturn(Option<Expr>),
     /// `bound(xmin, ymin, xmax, ymax);` — arity checked by the checker.
     Bound(Vec<Expr>),
+    /// `illuminance(P [, axis, angle]) { ... }` — in a surface shader: the body once per
+    /// light of the frame (unrolled by `crate::link`), with `L` and `Cl` set.
+    Illuminance {
+        args: Vec<Expr>,
+        body: Block,
+    },
     Block(Block),
     /// A statement that did not parse; its error was already reported.
     Error,
@@ -253,6 +274,10 @@ impl Stmt {
             StmtKind::Return(e) | StmtKind::InterpolatorReturn(e) => e.iter().for_each(on_expr),
             StmtKind::Interpolation { arms } => arms.iter().flat_map(|a| &a.body).for_each(on_stmt),
             StmtKind::Bound(args) => args.iter().for_each(on_expr),
+            StmtKind::Illuminance { args, body } => {
+                args.iter().for_each(&mut on_expr);
+                body.stmts.iter().for_each(on_stmt);
+            }
             StmtKind::Block(b) => b.stmts.iter().for_each(on_stmt),
             StmtKind::Break | StmtKind::Continue | StmtKind::Error => {}
         }

@@ -133,3 +133,35 @@ pub fn group_arms(_file: FileId, items: Vec<InterpItem>, extra: &mut Vec<Diagnos
     }
     arms
 }
+
+/// An item introduced by a name (`surface`, `light`, `atmosphere`); any other name there
+/// is E0016 and the item is dropped.
+pub fn shader_item(
+    kw: Ident,
+    name: Ident,
+    params: Vec<Param>,
+    body: Block,
+    span: Span,
+    extra: &mut Vec<Diagnostic>,
+) -> Option<Item> {
+    let kind = match kw.name.as_str() {
+        "surface" => ItemKind::Surface,
+        "light" => ItemKind::Light,
+        "atmosphere" => ItemKind::Atmosphere,
+        other => {
+            extra.push(
+                Diagnostic::error("E0016", format!("`{other}` does not start an item"))
+                    .primary(kw.span, "expected a type, `primitive`, `interpolator`, `surface`, `light` or `atmosphere`"),
+            );
+            return None;
+        }
+    };
+    Some(Item {
+        kind,
+        ret: None,
+        name,
+        params,
+        body: Box::new(body),
+        span,
+    })
+}

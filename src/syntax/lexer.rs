@@ -73,6 +73,8 @@ pub enum Tok {
     Default,
     #[token("bound")]
     Bound,
+    #[token("illuminance")]
+    Illuminance,
     #[token("true")]
     True,
     #[token("false")]
@@ -205,6 +207,7 @@ pub fn token_text(t: &Tok) -> &'static str {
         InterpolatorReturn => "interpolator_return",
         Default => "default",
         Bound => "bound",
+        Illuminance => "illuminance",
         True => "true",
         False => "false",
         Ident(_) => "identifier",

@@ -181,6 +181,12 @@ fn push_stmt<'a>(s: &'a mut Stmt, depth: u32, work: &mut Vec<Work<'a>>) {
                 work.push(Work::Expr(e, 1));
             }
         }
+        StmtKind::Illuminance { args, body } => {
+            for e in args {
+                work.push(Work::Expr(e, 1));
+            }
+            block(body, work);
+        }
         StmtKind::Block(b) => block(b, work),
         StmtKind::Break
         | StmtKind::Continue

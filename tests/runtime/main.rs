@@ -26,6 +26,7 @@ mod scene_format;
 mod scene_library_subset;
 mod scene_tokens;
 mod shading_builds;
+mod shading_language;
 mod shading_fast;
 mod shading_fast_maths;
 mod shading_lanes;

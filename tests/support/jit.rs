@@ -255,6 +255,7 @@ pub fn program(funcs: Vec<Function>, sites: usize) -> Program {
     Program {
         functions: funcs,
         sites: vec![Span::default(); sites],
+        ..Program::default()
     }
 }
 

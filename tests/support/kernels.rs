@@ -182,6 +182,7 @@ pub fn program(sources: &mut SourceMap) -> Arc<Program> {
     Arc::new(Program {
         functions: vec![rect.f, tri.f, spacey.f, faulty.f, cyl.f],
         sites: vec![Span::new(file, site_start, site_start + 4)],
+        ..Program::default()
     })
 }
 

@@ -572,6 +572,15 @@ impl<'g, 'a> FnLower<'g, 'a> {
                     );
                     None
                 }
+                ast::ItemKind::Surface | ast::ItemKind::Light | ast::ItemKind::Atmosphere => {
+                    self.sink.push(err(
+                        "E0108",
+                        format!("shader `{}` cannot be called", callee.name),
+                        span,
+                        "called here",
+                    ));
+                    None
+                }
                 ast::ItemKind::Interpolator => {
                     self.sink.push(
                         err(
@@ -632,9 +641,10 @@ impl<'g, 'a> FnLower<'g, 'a> {
             vals.push(self.expr(a, pre));
         }
         let vals: Vec<Tree> = vals.into_iter().collect::<Option<_>>()?;
+        let internal = callee.name == "__gbuffer" && !self.g.linked;
         match super::super::builtins::lower(&callee.name, vals, span) {
-            Ok(Some(e)) => Some(e),
-            Ok(None) => {
+            Ok(Some(e)) if !internal => Some(e),
+            Ok(_) => {
                 self.sink.push(err(
                     "E0102",
                     format!("unknown function `{}`", callee.name),

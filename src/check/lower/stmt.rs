@@ -110,6 +110,11 @@ impl<'g, 'a> FnLower<'g, 'a> {
             K::Interpolation { arms } => self.interpolation(arms, s.span, out),
             K::InterpolatorReturn(value) => self.interpolator_return(value.as_ref(), s.span, out),
             K::Bound(args) => self.bound(args, s.span, out),
+            // A surface's `illuminance` is unrolled by `crate::link` before checking.
+            K::Illuminance { .. } => self.sink.push(
+                Diagnostic::error("E1001", "`illuminance` outside a surface shader")
+                    .primary(s.span, "only the body of a `surface` (or what it calls of it) may loop over lights"),
+            ),
             K::Block(b) => self.block(&b.stmts, out),
         }
     }
@@ -306,7 +311,10 @@ impl<'g, 'a> FnLower<'g, 'a> {
                         }
                         return;
                     }
-                    ast::ItemKind::Interpolator => {}
+                    ast::ItemKind::Interpolator
+                    | ast::ItemKind::Surface
+                    | ast::ItemKind::Light
+                    | ast::ItemKind::Atmosphere => {}
                 }
             }
         }

@@ -420,6 +420,30 @@ impl Machine<'_, '_> {
         }
     }
 
+    /// `__gbuffer(plane, X, Y)` at the group's pixels, as `jit::lower::planes` reads it: the
+    /// plane number converted saturating, a plane the tile lacks (or a lane outside the
+    /// tile's buffers) reads 0.
+    fn gbuffer_read(&self, plane: &Val) -> Res<Val> {
+        let Some((gx, y)) = self.pix.as_ref().map(|p| (p.gx, p.y)) else {
+            return malformed("`__gbuffer` outside per-pixel code");
+        };
+        let Some(k) = plane.comps.first() else {
+            return malformed("`__gbuffer` without a plane");
+        };
+        // `fcvt_to_uint_sat`: NaN and negatives to 0, the rest truncated and saturated.
+        let k = f32::from_bits(k[0]) as u32 as usize;
+        let lanes = std::array::from_fn(|l| {
+            match self.tile.index(gx + l as i32, y) {
+                Some(i) if k < self.tile.num_planes => self.tile.planes[k * self.tile.plane_stride + i].to_bits(),
+                _ => 0,
+            }
+        });
+        Ok(Val {
+            comps: vec![lanes],
+            sc: Scalar::Float,
+        })
+    }
+
     fn builtin(&mut self, func: Builtin, args: &[ExprId]) -> Res<Val> {
         let mut vals = vec![];
         for a in args {
@@ -438,6 +462,9 @@ impl Machine<'_, '_> {
             return Ok(componentwise(&vs, sc, |a| int_builtin(func, sc, a)));
         }
         let vals: Vec<Val> = vals.iter().map(|v| v.converted(Scalar::Float)).collect();
+        if func == Builtin::GBuffer {
+            return self.gbuffer_read(&vals[0]);
+        }
         if let Some(v) = super::shading::builtin(func, &vals) {
             return v;
         }

@@ -194,6 +194,39 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.plane_ptrs = Some(slot);
     }
 
+    /// `__gbuffer(plane, X, Y)`: plane `plane` (a uniform float, converted saturating) at
+    /// the group's pixels. A plane not below `ctx.num_planes` loads from the scratch slot
+    /// and reads as 0, so the load stays inside the buffers.
+    pub(crate) fn gbuffer_read(&mut self, plane: &Val) -> Res<Val> {
+        let Some(tile_idx) = self.pix.as_ref().map(|p| p.tile_idx) else {
+            return err("`__gbuffer` outside per-pixel code");
+        };
+        if plane.varying || plane.comps.len() != 1 {
+            return err("`__gbuffer` of a varying plane");
+        }
+        let k = self.b.ins().fcvt_to_uint_sat(types::I32, plane.comps[0]);
+        let num = self.load_ctx(types::I32, ctx_off::NUM_PLANES);
+        let valid = self.b.ins().icmp(IntCC::UnsignedLessThan, k, num);
+        let pstride = self.load_ctx(types::I32, ctx_off::PLANE_STRIDE);
+        let ps64 = self.b.ins().uextend(types::I64, pstride);
+        let k64 = self.b.ins().uextend(types::I64, k);
+        let start = self.b.ins().imul(k64, ps64);
+        let elem = self.b.ins().iadd(start, tile_idx);
+        let bytes = self.b.ins().ishl_imm_u(elem, 2);
+        let gbuf = self.load_ctx(types::I64, ctx_off::GBUF);
+        let real = self.b.ins().iadd(gbuf, bytes);
+        let dummy = self.slot_addr(self.scratch);
+        let addr = self.b.ins().select(valid, real, dummy);
+        let loaded = self.b.ins().load(F32X4, mem_flags(), addr, 0);
+        let zeros = zero(&mut self.b, Scalar::Float, true);
+        let v = self.b.ins().select(valid, loaded, zeros);
+        Ok(Val {
+            comps: vec![v],
+            scalar: Scalar::Float,
+            varying: true,
+        })
+    }
+
     pub(super) fn interpolator_return(&mut self, e: Option<ExprId>) -> Res<()> {
         if !self.in_pixel() {
             return err("`interpolator_return` outside per-pixel code");

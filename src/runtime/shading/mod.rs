@@ -45,6 +45,7 @@ use crate::pipeline::transform::NormalMatrix;
 
 #[doc(hidden)]
 pub mod fast;
+pub mod language;
 #[doc(hidden)]
 pub mod lanes;
 

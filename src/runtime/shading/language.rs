@@ -1,0 +1,434 @@
+//! The deferred pass of language shaders: the scene's surface bindings, lights and
+//! atmosphere, linked (`crate::link`) and JIT-compiled once per frame, run over every tile
+//! after its primitives.
+//!
+//! Per frame: one linked primitive per surface binding (binding 0 is the default surface,
+//! [`DEFAULT_SURFACE`], for pixels drawn before any `shader` line), each compiled by its
+//! own JIT at tier 1 with the key `[__out: 3 components]`. The G-buffer gets three more
+//! planes, after the shading parameters' (`Ci`); when the frame has more than one binding,
+//! the reserved shading parameter [`SURFACE_PARAM`] (a constant the API sets at each
+//! `shader` line) says which binding drew each pixel, and each binding's kernel shades only
+//! its own pixels. Then `Ci` becomes the frame's colours (0 where nothing was drawn).
+//!
+//! Arguments are uniform per binding: scene values or the declared defaults. `point`,
+//! `vector` and `normal` arguments are given in world coordinates and moved into lighting
+//! coordinates here, once per frame (a point's w is set to 1 after the move).
+//!
+//! Invariants: the kernels touch only their tile of the frame (the same contract as
+//! primitive kernels, `abi::ctx`), so the colours are the same for any tile size and thread
+//! count; anything that fails to link or compile is an error diagnostic and the frame keeps
+//! unshaded colours, never a panic.
+
+use std::sync::Arc;
+
+use glam::{DMat4, DVec4};
+use rayon::prelude::*;
+
+use crate::abi::{ArgLayout, Binding, BindingKind, Kernel, ParamSlot, VariantKey, MODE_RENDER};
+use crate::diag::{Diagnostic, Diagnostics};
+use crate::ir::{FuncId, Program};
+use crate::jit::Jit;
+use crate::link::{self, ArgSource, Group, PlaneParam};
+use crate::mid::Tier;
+use crate::syntax::ast::{self, ItemKind};
+
+/// The reserved shading parameter holding each pixel's surface binding.
+pub const SURFACE_PARAM: &str = "__surface";
+/// What pixels drawn before any `shader` line are shaded with.
+pub const DEFAULT_SURFACE: &str = "matte";
+
+/// A shader and the arguments the scene gives it by name.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShaderUse {
+    pub name: String,
+    pub args: Vec<(String, Vec<f32>)>,
+}
+
+/// What the scene asks of the language shaders.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LanguageShading {
+    /// Surface bindings in order; a pixel's binding number is its index + 1.
+    pub surfaces: Vec<ShaderUse>,
+    pub lights: Vec<ShaderUse>,
+    pub atmosphere: Option<ShaderUse>,
+}
+
+impl LanguageShading {
+    /// Whether the frame is shaded by language shaders (any `shader`, `lightsource` or
+    /// `atmosphere` line).
+    pub fn active(&self) -> bool {
+        !self.surfaces.is_empty() || !self.lights.is_empty() || self.atmosphere.is_some()
+    }
+}
+
+/// The frame's shading kernels, ready to run.
+pub(crate) struct CompiledShading {
+    /// Kept alive: the kernels' code lives in it.
+    _jits: Vec<Jit>,
+    pub(crate) pass: ShadingRuns,
+}
+
+/// The kernels of a [`CompiledShading`] and what they run with (shared by the tile tasks).
+pub(crate) struct ShadingRuns {
+    programs: Vec<Arc<Program>>,
+    /// (kernel, argument block) per binding.
+    runs: Vec<(Arc<Kernel>, Vec<u32>)>,
+    pub out_plane: u32,
+}
+
+/// The spaces a frame's arguments are moved by.
+pub(crate) struct Spaces {
+    pub lighting_from_world: DMat4,
+    pub device_from_lighting: DMat4,
+    /// Homogeneous eye in lighting coordinates (w = 0: parallel view, towards the viewer).
+    pub eye: [f64; 4],
+}
+
+/// Link and compile the frame's shading. `planes`: the shading parameters' planes;
+/// `out_plane`: the first of the three output planes. Errors go to `diags`.
+pub(crate) fn compile(
+    program: &Program,
+    shading: &LanguageShading,
+    planes: &[PlaneParam],
+    out_plane: u32,
+    spaces: &Spaces,
+    diags: &mut Diagnostics,
+) -> Option<CompiledShading> {
+    let find = |name: &str, kind: ItemKind| {
+        program
+            .shading_items
+            .iter()
+            .find(|i| i.kind == kind && i.name.name == name)
+    };
+    let mut lights = vec![];
+    for l in &shading.lights {
+        match find(&l.name, ItemKind::Light) {
+            Some(item) => lights.push(item),
+            None => {
+                diags.push(Diagnostic::error("E1002", format!("no light shader `{}`", l.name)));
+                return None;
+            }
+        }
+    }
+    let atmosphere = match &shading.atmosphere {
+        Some(a) => match find(&a.name, ItemKind::Atmosphere) {
+            Some(item) => Some(item),
+            None => {
+                diags.push(Diagnostic::error("E1002", format!("no atmosphere shader `{}`", a.name)));
+                return None;
+            }
+        },
+        None => None,
+    };
+    let default = ShaderUse {
+        name: DEFAULT_SURFACE.into(),
+        args: vec![],
+    };
+    let bindings: Vec<&ShaderUse> = std::iter::once(&default).chain(&shading.surfaces).collect();
+    let material = planes.iter().find(|p| p.name == SURFACE_PARAM).map(|p| p.first_plane);
+    let mut jits = vec![];
+    let mut programs = vec![];
+    let mut runs = vec![];
+    for (id, binding) in bindings.iter().enumerate() {
+        // Binding 0 runs only where a pixel can have no binding: a frame with bindings
+        // whose every pixel has one still runs it (it shades nothing there).
+        let Some(surface) = find(&binding.name, ItemKind::Surface) else {
+            diags.push(Diagnostic::error("E1002", format!("no surface shader `{}`", binding.name)));
+            return None;
+        };
+        let group = Group {
+            surface,
+            lights: lights.clone(),
+            atmosphere,
+            planes,
+            material: material.map(|p| (p, id as u32)),
+            out_plane,
+        };
+        let linked = match link::link(&group) {
+            Ok(l) => l,
+            Err(e) => {
+                diags.push(Diagnostic::error("E0900", format!("internal compiler error: {e}")));
+                return None;
+            }
+        };
+        for (name, _) in &linked.unprovided {
+            diags.push(Diagnostic::warning(
+                "W1001",
+                format!(
+                    "surface `{}` reads `{name}` per pixel, but no primitive of the frame provides it: its default is used",
+                    binding.name
+                ),
+            ));
+        }
+        let mut check_diags = Diagnostics::new();
+        let linked_program = crate::check::check_linked(program, &linked.items, &mut check_diags);
+        if check_diags.has_errors() {
+            diags.extend(check_diags);
+            return None;
+        }
+        let linked_program = Arc::new(linked_program);
+        let Some(func) = linked_program.find(link::SHADE) else {
+            diags.push(Diagnostic::error("E0900", "internal compiler error: no linked shading primitive"));
+            return None;
+        };
+        let key = VariantKey {
+            bindings: vec![Binding {
+                kind: BindingKind::Kind(link::OUT_KIND.into()),
+                components: 3,
+            }],
+            count_writes: false,
+            trivial_accept: false,
+        };
+        let mut jit = match Jit::at_tier(linked_program.clone(), Tier::Optimised) {
+            Ok(j) => j,
+            Err(e) => {
+                diags.push(Diagnostic::error("E0802", format!("cannot compile the shading pass: {e}")));
+                return None;
+            }
+        };
+        let kernel = match jit.kernel(func, &key) {
+            Ok(k) => k,
+            Err(e) => {
+                diags.push(Diagnostic::error("E0802", format!("cannot compile the shading pass: {e}")));
+                return None;
+            }
+        };
+        let uses = ShadingUses {
+            surface: binding,
+            lights: &shading.lights,
+            atmosphere: shading.atmosphere.as_ref(),
+            surface_item: surface,
+            light_items: &lights,
+            atmosphere_item: atmosphere,
+        };
+        let args = match argument_block(&linked_program, func, &key, &linked.args, &uses, out_plane, spaces) {
+            Ok(a) => a,
+            Err(e) => {
+                diags.push(e);
+                return None;
+            }
+        };
+        runs.push((kernel, args));
+        programs.push(linked_program);
+        jits.push(jit);
+    }
+    Some(CompiledShading {
+        _jits: jits,
+        pass: ShadingRuns {
+            programs,
+            runs,
+            out_plane,
+        },
+    })
+}
+
+struct ShadingUses<'a> {
+    surface: &'a ShaderUse,
+    lights: &'a [ShaderUse],
+    atmosphere: Option<&'a ShaderUse>,
+    surface_item: &'a ast::Item,
+    light_items: &'a [&'a ast::Item],
+    atmosphere_item: Option<&'a ast::Item>,
+}
+
+/// The argument block of a linked primitive: its parameters in [`link::Linked::args`]
+/// order, then the output planes' table.
+fn argument_block(
+    program: &Program,
+    func: FuncId,
+    key: &VariantKey,
+    sources: &[ArgSource],
+    uses: &ShadingUses,
+    out_plane: u32,
+    spaces: &Spaces,
+) -> Result<Vec<u32>, Diagnostic> {
+    let f = program.func(func);
+    let layout = ArgLayout::new(program, func, key);
+    let mut args = vec![0u32; layout.words(0)];
+    for c in 0..3 {
+        args[layout.plane_table as usize + c] = out_plane + c as u32;
+    }
+    let fixed: Vec<(usize, &crate::ir::Param, u32, u32)> = f
+        .params
+        .iter()
+        .zip(&layout.params)
+        .enumerate()
+        .filter_map(|(i, (p, slot))| match slot {
+            ParamSlot::Fixed { offset, words } => Some((i, p, *offset, *words)),
+            _ => None,
+        })
+        .collect();
+    if fixed.len() != sources.len() {
+        return Err(Diagnostic::error(
+            "E0900",
+            "internal compiler error: the linked shading primitive's parameters do not match its sources",
+        ));
+    }
+    for ((_, p, offset, words), source) in fixed.iter().zip(sources) {
+        let ty = &f.local(p.local).ty;
+        let given_default = || p.default.as_ref().map(|d| crate::runtime::value::encode_default(d, ty, crate::ir::ParamSpace::None, &glam::Mat4::IDENTITY));
+        let (given, decl, shader): (Option<&Vec<f32>>, Option<&ast::Param>, &str) = match source {
+            ArgSource::Surface(name) => (
+                uses.surface.args.iter().find(|(n, _)| n == name).map(|(_, v)| v),
+                uses.surface_item.params.iter().find(|q| &q.name.name == name),
+                &uses.surface.name,
+            ),
+            ArgSource::Light { index, name } => (
+                uses.lights[*index].args.iter().find(|(n, _)| n == name).map(|(_, v)| v),
+                uses.light_items[*index].params.iter().find(|q| &q.name.name == name),
+                &uses.lights[*index].name,
+            ),
+            ArgSource::Atmosphere(name) => (
+                uses.atmosphere.and_then(|a| a.args.iter().find(|(n, _)| n == name).map(|(_, v)| v)),
+                uses.atmosphere_item.and_then(|a| a.params.iter().find(|q| &q.name.name == name)),
+                uses.atmosphere.map(|a| a.name.as_str()).unwrap_or(""),
+            ),
+            ArgSource::LightingFromDevice => {
+                let m = spaces.device_from_lighting.inverse();
+                let rows: Vec<u32> = (0..4)
+                    .flat_map(|r| (0..4).map(move |c| (r, c)))
+                    .map(|(r, c)| (m.col(c)[r] as f32).to_bits())
+                    .collect();
+                write(&mut args, *offset, *words, &rows);
+                continue;
+            }
+            ArgSource::Eye => {
+                let e: Vec<u32> = spaces.eye.iter().map(|&x| (x as f32).to_bits()).collect();
+                write(&mut args, *offset, *words, &e);
+                continue;
+            }
+        };
+        // A point may be given as x y z (w = 1).
+        let padded: Option<Vec<f32>> = match (given, decl.map(|d| &d.ty.kind)) {
+            (Some(v), Some(ast::TypeKind::Point)) if v.len() == 3 => Some(vec![v[0], v[1], v[2], 1.0]),
+            _ => None,
+        };
+        let given = padded.as_ref().or(given);
+        let mut words_of = match given {
+            Some(v) => crate::runtime::value::encode(v, ty, crate::ir::ParamSpace::None, &glam::Mat4::IDENTITY)
+                .map_err(|e| {
+                    Diagnostic::error(
+                        "E0703",
+                        format!("argument `{}` of shader `{shader}`: {e:?}", p.name),
+                    )
+                })?,
+            None => given_default().unwrap_or_else(|| vec![0; *words as usize]),
+        };
+        // Positions and directions: world coordinates to lighting coordinates.
+        if let Some(decl) = decl {
+            let kind = decl.ty.kind.clone();
+            move_to_lighting(&mut words_of, &kind, &spaces.lighting_from_world);
+        }
+        write(&mut args, *offset, *words, &words_of);
+    }
+    Ok(args)
+}
+
+fn write(args: &mut [u32], offset: u32, words: u32, data: &[u32]) {
+    let at = offset as usize;
+    let n = (words as usize).min(data.len());
+    args[at..at + n].copy_from_slice(&data[..n]);
+}
+
+/// A point (x, y, z[, w]), vector or normal argument, from world to lighting coordinates,
+/// in place (floats as bits; arrays of them element by element).
+fn move_to_lighting(words: &mut [u32], kind: &ast::TypeKind, lighting_from_world: &DMat4) {
+    let f = |w: u32| f32::from_bits(w) as f64;
+    match kind {
+        ast::TypeKind::Point => {
+            for p in words.chunks_exact_mut(4) {
+                let q = *lighting_from_world * DVec4::new(f(p[0]), f(p[1]), f(p[2]), 1.0);
+                let q = if q.w != 0.0 { q / q.w } else { q };
+                p.copy_from_slice(&[q.x, q.y, q.z, 1.0].map(|x| (x as f32).to_bits()));
+            }
+        }
+        ast::TypeKind::Vector => {
+            for v in words.chunks_exact_mut(3) {
+                let q = *lighting_from_world * DVec4::new(f(v[0]), f(v[1]), f(v[2]), 0.0);
+                v.copy_from_slice(&[q.x, q.y, q.z].map(|x| (x as f32).to_bits()));
+            }
+        }
+        ast::TypeKind::Normal => {
+            let m = lighting_from_world.inverse().transpose();
+            for v in words.chunks_exact_mut(3) {
+                let q = m * DVec4::new(f(v[0]), f(v[1]), f(v[2]), 0.0);
+                v.copy_from_slice(&[q.x, q.y, q.z].map(|x| (x as f32).to_bits()));
+            }
+        }
+        _ => {}
+    }
+}
+
+impl ShadingRuns {
+    /// Run every binding's kernel over `tile` of the frame.
+    ///
+    /// # Safety
+    /// As `render::render_tile`: the caller owns `tile`'s rectangle of `target`.
+    pub(crate) unsafe fn shade_tile(
+        &self,
+        tile: &super::super::frame::Tile,
+        opts: &super::super::RenderOptions,
+        target: super::super::frame::FrameTarget<'_>,
+    ) -> Vec<(usize, crate::runtime::errors::Counts)> {
+        let origin = tile.y0 as usize * target.stride + tile.x0 as usize;
+        let mut out = vec![];
+        for (b, ((kernel, args), program)) in self.runs.iter().zip(&self.programs).enumerate() {
+            crate::runtime::errors::CountArrays::with(program, |counts| {
+                let mut ctx = super::super::expand::context(MODE_RENDER, opts);
+                ctx.x0 = tile.x0 as i32;
+                ctx.y0 = tile.y0 as i32;
+                ctx.x1 = tile.x1 as i32;
+                ctx.y1 = tile.y1 as i32;
+                ctx.stride = target.stride as u32;
+                ctx.depth = target.depth.wrapping_add(origin);
+                ctx.gbuf = target.planes.wrapping_add(origin);
+                ctx.plane_stride = target.plane_pitch as u32;
+                ctx.num_planes = target.num_planes as u32;
+                ctx.write_count = target.counts.wrapping_add(origin);
+                ctx.setup_counts = counts.scratch();
+                ctx.pixel_counts = counts.counts();
+                // SAFETY: the caller's contract; the argument block was built for this
+                // kernel's layout.
+                unsafe { (kernel.entry)(&mut ctx, args.as_ptr()) };
+                if ctx.error != 0 {
+                    let mut errors = vec![];
+                    counts.take(&mut errors);
+                    out.push((b, errors));
+                }
+            });
+        }
+        out
+    }
+
+    /// Report the run-time errors counted per binding.
+    pub(crate) fn report(&self, errors: &[(usize, crate::runtime::errors::Counts)], diags: &mut Diagnostics) {
+        for (b, program) in self.programs.iter().enumerate() {
+            let counts: crate::runtime::errors::Counts = errors
+                .iter()
+                .filter(|(k, _)| *k == b)
+                .flat_map(|(_, c)| c.iter().copied())
+                .collect();
+            if !counts.is_empty() {
+                crate::runtime::errors::report(program, &counts, diags);
+            }
+        }
+    }
+}
+
+/// The tiles of `opts`, shaded in parallel.
+pub(crate) fn shade_frame(
+    compiled: &ShadingRuns,
+    frame: &mut super::super::frame::Frame,
+    opts: &super::super::RenderOptions,
+    diags: &mut Diagnostics,
+) {
+    let tiles = super::super::render::tile_grid(opts);
+    let target = frame.target();
+    let errors: Vec<(usize, crate::runtime::errors::Counts)> = tiles
+        .par_iter()
+        // SAFETY: each tile is shaded by one task only, and `target` is the frame's.
+        .flat_map_iter(|t| unsafe { compiled.shade_tile(t, opts, target) })
+        .collect();
+    compiled.report(&errors, diags);
+    frame.colors_from_planes(compiled.out_plane);
+}

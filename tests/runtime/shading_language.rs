@@ -1,0 +1,216 @@
+//! Language shaders in the deferred pass (`runtime::shading::language`, `link`): the
+//! library surfaces, lights and fog of `prims/shaders.prim` driven through the scene
+//! reader, pixels against analytic values computed here in f64.
+
+use std::path::PathBuf;
+
+use primflow::diag::{Diagnostics, SourceMap};
+use primflow::jit::Jit;
+use primflow::runtime::{Frame, Registry, Renderer};
+
+/// Load the library (plus `extra`, written to a temporary .prim file), read `text` as a
+/// scene, render with `threads` threads.
+fn render(text: &str, extra: Option<&str>, threads: usize) -> (Frame, Vec<String>) {
+    let mut sources = SourceMap::new();
+    let mut diags = Diagnostics::new();
+    let files: Vec<PathBuf> = extra
+        .map(|src| {
+            let dir = std::env::temp_dir().join(format!("primflow-shading-{}", std::process::id()));
+            std::fs::create_dir_all(&dir).unwrap();
+            let path = dir.join(format!("extra-{:x}.prim", fxhash(src)));
+            std::fs::write(&path, src).unwrap();
+            path
+        })
+        .into_iter()
+        .collect();
+    let registry = Registry::load(&mut sources, &[], &files, &mut diags)
+        .unwrap_or_else(|| panic!("library does not compile:\n{}", diags.render(&sources)));
+    let file = sources.add("shading.scene", text);
+    let mut renderer = Renderer::new(registry.program.clone());
+    primflow::scene::load_into(&sources, file, &mut renderer, &mut diags);
+    let mut jit = Jit::new(registry.program.clone()).unwrap();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    let out = pool.install(|| renderer.render(&mut jit));
+    diags.extend(out.diags);
+    (out.frame, diags.codes_at(&sources))
+}
+
+fn fxhash(s: &str) -> u64 {
+    s.bytes().fold(0xcbf29ce484222325, |h, b| (h ^ u64::from(b)).wrapping_mul(0x100000001b3))
+}
+
+/// A camera at z = 4 looking at a 2 x 2 quad in the z = 0 plane (normal +z), then `rest`.
+fn quad_scene(setup: &str, rest: &str) -> String {
+    format!(
+        "image 64 64
+perspective 40 0.5 50
+look_at 0 0 4   0 0 0   0 1 0
+{setup}
+material Cs 0.8 0.4 0.2
+material N 0 0 1
+{rest}
+begin polygon
+vertex -1 -1 0
+vertex 1 -1 0
+vertex 1 1 0
+vertex -1 1 0
+end
+"
+    )
+}
+
+fn close(got: [f32; 3], want: [f64; 3], tol: f64, what: &str) {
+    for c in 0..3 {
+        assert!(
+            (f64::from(got[c]) - want[c]).abs() <= tol,
+            "{what}: channel {c} is {}, want {} (within {tol})",
+            got[c],
+            want[c]
+        );
+    }
+}
+
+const CS: [f64; 3] = [0.8, 0.4, 0.2];
+
+#[test]
+fn constant_surface_gives_cs_exactly_and_leaves_uncovered_pixels_black() {
+    let (frame, codes) = render(&quad_scene("", "shader constant"), None, 2);
+    assert!(codes.is_empty(), "{codes:?}");
+    assert!(frame.written(32, 32));
+    assert_eq!(frame.shaded_at(32, 32), Some([0.8f32, 0.4, 0.2]));
+    assert!(!frame.written(0, 0));
+    assert_eq!(frame.shaded_at(0, 0), Some([0.0; 3]));
+}
+
+#[test]
+fn matte_sums_ambient_and_lambert_over_the_lights() {
+    // Ambient 0.3, a distant light of 0.8 head-on and one of 0.5 at 60 degrees from the
+    // normal: Cs * (Ka * 0.3 + Kd * (0.8 * 1 + 0.5 * cos 60)).
+    let lights = "lightsource ambientlight intensity=0.3
+lightsource distantlight intensity=0.8 from=0,0,1 to=0,0,0
+lightsource distantlight intensity=0.5 from=0,0.8660254037844386,0.5 to=0,0,0";
+    let (frame, codes) = render(&quad_scene(lights, "shader matte Ka=1 Kd=0.5"), None, 2);
+    assert!(codes.is_empty(), "{codes:?}");
+    let k = 0.3 + 0.5 * (0.8 + 0.5 * 0.5);
+    for (x, y) in [(32, 32), (25, 40), (40, 25)] {
+        close(frame.shaded_at(x, y).unwrap(), CS.map(|c| c * k), 2e-5, &format!("pixel {x},{y}"));
+    }
+}
+
+#[test]
+fn a_light_behind_the_surface_adds_nothing() {
+    let lights = "lightsource distantlight intensity=1 from=0,0,-1 to=0,0,0";
+    let (frame, codes) = render(&quad_scene(lights, "shader matte"), None, 1);
+    assert!(codes.is_empty(), "{codes:?}");
+    close(frame.shaded_at(32, 32).unwrap(), [0.0; 3], 0.0, "centre");
+}
+
+#[test]
+fn point_light_falls_off_with_the_square_of_the_distance() {
+    // A point light of intensity 4 at (0, 0, 2): at the quad's centre L = (0, 0, 2),
+    // Cl = 4 / 4 = 1, head-on: Cs * 1. Off centre the analytic value at the pixel's point
+    // is computed from the ray through the pixel centre.
+    let lights = "lightsource pointlight intensity=4 from=0,0,2";
+    let (frame, codes) = render(&quad_scene(lights, "shader matte Ka=0"), None, 2);
+    assert!(codes.is_empty(), "{codes:?}");
+    // Pixel (x, y) centre -> the point on z = 0 seen through it (fov 40, 64 x 64, eye at z=4).
+    let at = |x: u32, y: u32| {
+        let t = (20f64).to_radians().tan();
+        let ndc = |p: u32| (f64::from(p) + 0.5) / 32.0 - 1.0;
+        (4.0 * t * ndc(x), -4.0 * t * ndc(y))
+    };
+    for (x, y) in [(32u32, 32u32), (20, 30), (45, 38)] {
+        let (px, py) = at(x, y);
+        let l = [-px, -py, 2.0];
+        let d2 = l[0] * l[0] + l[1] * l[1] + l[2] * l[2];
+        let cos = l[2] / d2.sqrt();
+        let want = CS.map(|c| c * 4.0 / d2 * cos);
+        close(frame.shaded_at(x, y).unwrap(), want, 1e-4, &format!("pixel {x},{y}"));
+    }
+}
+
+#[test]
+fn each_primitive_is_shaded_by_the_surface_bound_before_it() {
+    // Left half constant, right half matte under ambient 0.5 only.
+    let scene = "image 32 16
+lightsource ambientlight intensity=0.5
+material Cs 0.8 0.4 0.2
+shader constant
+begin screen_triangle
+rast_param screen_vertex 0 0 0.5 1   16 0 0.5 1   0 16 0.5 1
+end
+shader matte
+begin screen_triangle
+rast_param screen_vertex 16 0 0.5 1   32 0 0.5 1   32 16 0.5 1
+end
+";
+    let (frame, codes) = render(scene, None, 2);
+    assert!(codes.is_empty(), "{codes:?}");
+    assert_eq!(frame.shaded_at(2, 2), Some([0.8f32, 0.4, 0.2]));
+    close(frame.shaded_at(29, 2).unwrap(), CS.map(|c| c * 0.5), 1e-6, "matte side");
+}
+
+#[test]
+fn pixels_drawn_before_any_shader_line_get_the_default_matte() {
+    let scene = "image 16 16
+lightsource ambientlight intensity=0.25
+material Cs 1 1 1
+begin screen_triangle
+rast_param screen_vertex 0 0 0.5 1   16 0 0.5 1   0 16 0.5 1
+end
+";
+    let (frame, codes) = render(scene, None, 1);
+    assert!(codes.is_empty(), "{codes:?}");
+    close(frame.shaded_at(2, 2).unwrap(), [0.25; 3], 1e-7, "default surface");
+}
+
+#[test]
+fn fog_past_its_end_gives_the_background() {
+    let (frame, codes) = render(
+        &quad_scene("atmosphere fog background=0.1,0.2,0.3 start=0 end=0.001", "shader constant"),
+        None,
+        2,
+    );
+    assert!(codes.is_empty(), "{codes:?}");
+    close(frame.shaded_at(32, 32).unwrap(), [0.1, 0.2, 0.3], 1e-7, "fogged");
+}
+
+#[test]
+fn shaded_colours_are_the_same_for_any_thread_count_and_tile_size() {
+    let lights = "lightsource ambientlight intensity=0.2
+lightsource pointlight intensity=3 from=1,1,2
+lightsource spotlight intensity=5 from=0,2,2 to=0,0,0";
+    let a = render(&quad_scene(&format!("tile 16\n{lights}"), "shader plastic"), None, 1).0;
+    let b = render(&quad_scene(&format!("tile 64\n{lights}"), "shader marble"), None, 2).0;
+    let c = render(&quad_scene(&format!("tile 64\n{lights}"), "shader plastic"), None, 2).0;
+    assert_eq!(a.color_values(), c.color_values());
+    assert_ne!(a.color_values(), b.color_values(), "marble and plastic differ");
+}
+
+#[test]
+fn a_varying_parameter_no_primitive_provides_takes_its_default_with_a_warning() {
+    let extra = "surface tinted(varying color tint = {0.5, 0.5, 0.5}) { Ci = Cs * tint; }";
+    let scene = "image 16 16
+material Cs 1 1 1
+shader tinted
+begin screen_triangle
+rast_param screen_vertex 0 0 0.5 1   16 0 0.5 1   0 16 0.5 1
+end
+";
+    let (frame, codes) = render(scene, Some(extra), 1);
+    assert_eq!(codes, ["W1001"]);
+    close(frame.shaded_at(2, 2).unwrap(), [0.5; 3], 0.0, "default tint");
+    // With the parameter bound per vertex, the plane is read per pixel.
+    let scene = scene.replace("shader tinted", "material tint 0.25 1 0.5\nshader tinted");
+    let (frame, codes) = render(&scene, Some(extra), 1);
+    assert!(codes.is_empty(), "{codes:?}");
+    close(frame.shaded_at(2, 2).unwrap(), [0.25, 1.0, 0.5], 0.0, "tint plane");
+}
+
+#[test]
+fn unknown_shaders_and_arguments_are_scene_errors() {
+    let (_, codes) = render(&quad_scene("", "shader no_such_surface"), None, 1);
+    assert!(codes.iter().any(|c| c.starts_with("E1002")), "{codes:?}");
+    let (_, codes) = render(&quad_scene("lightsource pointlight wattage=3", "shader matte"), None, 1);
+    assert!(codes.iter().any(|c| c.starts_with("E0702")), "{codes:?}");
+}
