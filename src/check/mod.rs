@@ -57,7 +57,11 @@ pub fn check(modules: &[&ast::Module], diags: &mut Diagnostics) -> ir::Program {
     // Shaders are compiled per frame, linked (`crate::link`); here each is linked against
     // every conventional plane and a light of each kind, to report its errors now.
     if !sink.items.iter().any(|d| d.is_error()) {
-        let lights: Vec<&ast::Item> = shaders.iter().copied().filter(|s| s.kind == ast::ItemKind::Light).collect();
+        let lights: Vec<&ast::Item> = shaders
+            .iter()
+            .copied()
+            .filter(|s| s.kind == ast::ItemKind::Light)
+            .collect();
         for &shader in &shaders {
             match crate::link::canonical(shader, &lights) {
                 Ok(linked) => {
@@ -66,7 +70,8 @@ pub fn check(modules: &[&ast::Module], diags: &mut Diagnostics) -> ir::Program {
                     check_items(&all, true, &mut sink);
                 }
                 Err(e) => sink.push(
-                    Diagnostic::error("E0900", format!("internal compiler error: {e}")).primary(shader.name.span, "here"),
+                    Diagnostic::error("E0900", format!("internal compiler error: {e}"))
+                        .primary(shader.name.span, "here"),
                 ),
             }
         }

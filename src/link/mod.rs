@@ -93,11 +93,7 @@ pub const OUT_KIND: &str = "__out";
 /// The light-dependent built-ins of surfaces, as generated helpers: (name, extra
 /// parameters, body). `illuminance` in them is unrolled like the surface's own.
 const MODELS: &[(&str, &str, &str)] = &[
-    (
-        "ambient",
-        "",
-        "color C = 0; __ambient_lights(C); return C;",
-    ),
+    ("ambient", "", "color C = 0; __ambient_lights(C); return C;"),
     (
         "diffuse",
         "normal Nn",
@@ -187,7 +183,10 @@ pub fn link(group: &Group) -> Result<Linked, String> {
         "void __surface(vector P; normal N, Ng; vector I, E; float s, t; color Cs, Os; inout color Ci, Oi{light_params}) {{}}\n"
     ));
     for k in &light_kinds {
-        text.push_str(&format!("void __light_{}(vector Ps; inout vector L; inout color Cl) {{}}\n", k.name.name));
+        text.push_str(&format!(
+            "void __light_{}(vector Ps; inout vector L; inout color Cl) {{}}\n",
+            k.name.name
+        ));
     }
     if group.atmosphere.is_some() {
         text.push_str("void __atmosphere(vector P, I, E; inout color Ci, Oi) {}\n");
@@ -319,9 +318,7 @@ __surface(P, N, Ng, I, E, s, t, Cs, Os, Ci, Oi{surface_args}{light_args});
     }
 
     // Splice the shaders' parameters and bodies into their helpers.
-    let lit = LightInfo {
-        lights: &group.lights,
-    };
+    let lit = LightInfo { lights: &group.lights };
     for item in &mut items {
         let name = item.name.name.clone();
         if name == "__surface" {
@@ -449,7 +446,13 @@ fn plane_list(pl: &PlaneParam, p: &ast::Param) -> String {
     let reads: Vec<String> = (0..components_of(p))
         .map(|c| format!("__gbuffer({}, X, Y)", pl.first_plane + c))
         .collect();
-    if reads.len() == 1 && p.dims.is_empty() && !matches!(p.ty.kind, ast::TypeKind::Color | ast::TypeKind::Vector | ast::TypeKind::Normal | ast::TypeKind::Point) {
+    if reads.len() == 1
+        && p.dims.is_empty()
+        && !matches!(
+            p.ty.kind,
+            ast::TypeKind::Color | ast::TypeKind::Vector | ast::TypeKind::Normal | ast::TypeKind::Point
+        )
+    {
         reads[0].clone()
     } else {
         format!("{{{}}}", reads.join(", "))

@@ -38,12 +38,12 @@ use crate::ir::{FuncId, FuncKind, Function, ParamRole, Program};
 use super::geometry::{self, ClipOutcome, GeometryState};
 use super::shading::language::{LanguageShading, ShaderUse, SURFACE_PARAM};
 use super::shading::ShadingSetup;
-use crate::syntax::ast::ItemKind;
 use super::value::{encode, encode_default, EncodeError, Value};
 use crate::ir::ParamSpace;
 use crate::pipeline::face::{CullMode, Facing};
 use crate::pipeline::transform::{NormalMatrix, TransformError};
 use crate::pipeline::{GeometryType, Warning};
+use crate::syntax::ast::ItemKind;
 
 /// The reserved shading parameter that carries a facet's facing to shading (`distinguish`).
 pub const FACING_PARAM: &str = "facing";

@@ -330,6 +330,12 @@ impl Renderer {
 
     /// Deferred shading by the scene's language shaders (`shading::language`).
     fn shade_language(&self, frame: &mut Frame, opts: &RenderOptions, diags: &mut Diagnostics) {
+        if self.shading_setup.effects().any() {
+            diags.push(crate::diag::Diagnostic::warning(
+                "W1002",
+                "the scene has language shaders (`shader`, `lightsource`, `atmosphere`): its `light`, `surface`, `fog` and `texture` lines have no effect",
+            ));
+        }
         let planes: Vec<crate::link::PlaneParam> = self
             .shading_params()
             .iter()

@@ -150,8 +150,10 @@ pub fn shader_item(
         "atmosphere" => ItemKind::Atmosphere,
         other => {
             extra.push(
-                Diagnostic::error("E0016", format!("`{other}` does not start an item"))
-                    .primary(kw.span, "expected a type, `primitive`, `interpolator`, `surface`, `light` or `atmosphere`"),
+                Diagnostic::error("E0016", format!("`{other}` does not start an item")).primary(
+                    kw.span,
+                    "expected a type, `primitive`, `interpolator`, `surface`, `light` or `atmosphere`",
+                ),
             );
             return None;
         }

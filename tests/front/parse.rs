@@ -93,6 +93,7 @@ fn every_construct_parses() {
             StmtKind::Interpolation { .. } => "interpolation",
             StmtKind::InterpolatorReturn(_) => "interpolator_return",
             StmtKind::Bound(_) => "bound",
+            StmtKind::Illuminance { .. } => "illuminance",
             StmtKind::Block(_) => "block",
             StmtKind::Error => "error",
         })
@@ -296,5 +297,33 @@ mod fuzz {
             }
             let _ = diags.render(&sources);
         }
+    }
+}
+
+#[test]
+fn shader_items_and_illuminance_parse_and_their_keywords_stay_names_elsewhere() {
+    let src = "surface s(float k = 1) { illuminance(P, N, 1.5) { Ci += k * Cl; } }
+light l() { L = Ps; Cl = 1; }
+atmosphere a() { Ci = Ci; }
+primitive p(float light, surface; varying float X, Y; inout varying float Z) { float atmosphere = light + surface; }";
+    let mut diags = primflow::diag::Diagnostics::new();
+    let m = primflow::syntax::parse(0, src, &mut diags);
+    assert!(!diags.has_errors(), "{diags:?}");
+    let kinds: Vec<ItemKind> = m.items.iter().map(|i| i.kind).collect();
+    assert_eq!(
+        kinds,
+        [
+            ItemKind::Surface,
+            ItemKind::Light,
+            ItemKind::Atmosphere,
+            ItemKind::Primitive
+        ]
+    );
+    match &m.items[0].body.stmts[0].kind {
+        StmtKind::Illuminance { args, body } => {
+            assert_eq!(args.len(), 3);
+            assert_eq!(body.stmts.len(), 1);
+        }
+        other => panic!("expected illuminance, found {other:?}"),
     }
 }

@@ -36,7 +36,9 @@ fn render(text: &str, extra: Option<&str>, threads: usize) -> (Frame, Vec<String
 }
 
 fn fxhash(s: &str) -> u64 {
-    s.bytes().fold(0xcbf29ce484222325, |h, b| (h ^ u64::from(b)).wrapping_mul(0x100000001b3))
+    s.bytes().fold(0xcbf29ce484222325, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x100000001b3)
+    })
 }
 
 /// A camera at z = 4 looking at a 2 x 2 quad in the z = 0 plane (normal +z), then `rest`.
@@ -93,7 +95,12 @@ lightsource distantlight intensity=0.5 from=0,0.8660254037844386,0.5 to=0,0,0";
     assert!(codes.is_empty(), "{codes:?}");
     let k = 0.3 + 0.5 * (0.8 + 0.5 * 0.5);
     for (x, y) in [(32, 32), (25, 40), (40, 25)] {
-        close(frame.shaded_at(x, y).unwrap(), CS.map(|c| c * k), 2e-5, &format!("pixel {x},{y}"));
+        close(
+            frame.shaded_at(x, y).unwrap(),
+            CS.map(|c| c * k),
+            2e-5,
+            &format!("pixel {x},{y}"),
+        );
     }
 }
 
@@ -167,7 +174,10 @@ end
 #[test]
 fn fog_past_its_end_gives_the_background() {
     let (frame, codes) = render(
-        &quad_scene("atmosphere fog background=0.1,0.2,0.3 start=0 end=0.001", "shader constant"),
+        &quad_scene(
+            "atmosphere fog background=0.1,0.2,0.3 start=0 end=0.001",
+            "shader constant",
+        ),
         None,
         2,
     );

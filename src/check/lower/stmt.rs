@@ -113,7 +113,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
             // A surface's `illuminance` is unrolled by `crate::link` before checking.
             K::Illuminance { .. } => self.sink.push(
                 Diagnostic::error("E1001", "`illuminance` outside a surface shader")
-                    .primary(s.span, "only the body of a `surface` (or what it calls of it) may loop over lights"),
+                    .primary(s.span, "only the body of a `surface` may loop over lights"),
             ),
             K::Block(b) => self.block(&b.stmts, out),
         }

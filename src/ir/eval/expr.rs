@@ -432,11 +432,9 @@ impl Machine<'_, '_> {
         };
         // `fcvt_to_uint_sat`: NaN and negatives to 0, the rest truncated and saturated.
         let k = f32::from_bits(k[0]) as u32 as usize;
-        let lanes = std::array::from_fn(|l| {
-            match self.tile.index(gx + l as i32, y) {
-                Some(i) if k < self.tile.num_planes => self.tile.planes[k * self.tile.plane_stride + i].to_bits(),
-                _ => 0,
-            }
+        let lanes = std::array::from_fn(|l| match self.tile.index(gx + l as i32, y) {
+            Some(i) if k < self.tile.num_planes => self.tile.planes[k * self.tile.plane_stride + i].to_bits(),
+            _ => 0,
         });
         Ok(Val {
             comps: vec![lanes],

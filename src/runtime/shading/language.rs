@@ -133,7 +133,10 @@ pub(crate) fn compile(
         // Binding 0 runs only where a pixel can have no binding: a frame with bindings
         // whose every pixel has one still runs it (it shades nothing there).
         let Some(surface) = find(&binding.name, ItemKind::Surface) else {
-            diags.push(Diagnostic::error("E1002", format!("no surface shader `{}`", binding.name)));
+            diags.push(Diagnostic::error(
+                "E1002",
+                format!("no surface shader `{}`", binding.name),
+            ));
             return None;
         };
         let group = Group {
@@ -168,7 +171,10 @@ pub(crate) fn compile(
         }
         let linked_program = Arc::new(linked_program);
         let Some(func) = linked_program.find(link::SHADE) else {
-            diags.push(Diagnostic::error("E0900", "internal compiler error: no linked shading primitive"));
+            diags.push(Diagnostic::error(
+                "E0900",
+                "internal compiler error: no linked shading primitive",
+            ));
             return None;
         };
         let key = VariantKey {
@@ -182,14 +188,20 @@ pub(crate) fn compile(
         let mut jit = match Jit::at_tier(linked_program.clone(), Tier::Optimised) {
             Ok(j) => j,
             Err(e) => {
-                diags.push(Diagnostic::error("E0802", format!("cannot compile the shading pass: {e}")));
+                diags.push(Diagnostic::error(
+                    "E0802",
+                    format!("cannot compile the shading pass: {e}"),
+                ));
                 return None;
             }
         };
         let kernel = match jit.kernel(func, &key) {
             Ok(k) => k,
             Err(e) => {
-                diags.push(Diagnostic::error("E0802", format!("cannot compile the shading pass: {e}")));
+                diags.push(Diagnostic::error(
+                    "E0802",
+                    format!("cannot compile the shading pass: {e}"),
+                ));
                 return None;
             }
         };
@@ -266,7 +278,11 @@ fn argument_block(
     }
     for ((_, p, offset, words), source) in fixed.iter().zip(sources) {
         let ty = &f.local(p.local).ty;
-        let given_default = || p.default.as_ref().map(|d| crate::runtime::value::encode_default(d, ty, crate::ir::ParamSpace::None, &glam::Mat4::IDENTITY));
+        let given_default = || {
+            p.default.as_ref().map(|d| {
+                crate::runtime::value::encode_default(d, ty, crate::ir::ParamSpace::None, &glam::Mat4::IDENTITY)
+            })
+        };
         let (given, decl, shader): (Option<&Vec<f32>>, Option<&ast::Param>, &str) = match source {
             ArgSource::Surface(name) => (
                 uses.surface.args.iter().find(|(n, _)| n == name).map(|(_, v)| v),
@@ -279,8 +295,10 @@ fn argument_block(
                 &uses.lights[*index].name,
             ),
             ArgSource::Atmosphere(name) => (
-                uses.atmosphere.and_then(|a| a.args.iter().find(|(n, _)| n == name).map(|(_, v)| v)),
-                uses.atmosphere_item.and_then(|a| a.params.iter().find(|q| &q.name.name == name)),
+                uses.atmosphere
+                    .and_then(|a| a.args.iter().find(|(n, _)| n == name).map(|(_, v)| v)),
+                uses.atmosphere_item
+                    .and_then(|a| a.params.iter().find(|q| &q.name.name == name)),
                 uses.atmosphere.map(|a| a.name.as_str()).unwrap_or(""),
             ),
             ArgSource::LightingFromDevice => {
@@ -307,10 +325,7 @@ fn argument_block(
         let mut words_of = match given {
             Some(v) => crate::runtime::value::encode(v, ty, crate::ir::ParamSpace::None, &glam::Mat4::IDENTITY)
                 .map_err(|e| {
-                    Diagnostic::error(
-                        "E0703",
-                        format!("argument `{}` of shader `{shader}`: {e:?}", p.name),
-                    )
+                    Diagnostic::error("E0703", format!("argument `{}` of shader `{shader}`: {e:?}", p.name))
                 })?,
             None => given_default().unwrap_or_else(|| vec![0; *words as usize]),
         };

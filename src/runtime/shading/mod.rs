@@ -45,9 +45,9 @@ use crate::pipeline::transform::NormalMatrix;
 
 #[doc(hidden)]
 pub mod fast;
-pub mod language;
 #[doc(hidden)]
 pub mod lanes;
+pub mod language;
 
 use fast::FastSetup;
 pub use fast::{simd_build, RowInputs};
