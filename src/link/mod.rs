@@ -318,27 +318,27 @@ __surface(P, N, Ng, I, E, s, t, Cs, Os, Ci, Oi{surface_args}{light_args});
     }
 
     // Splice the shaders' parameters and bodies into their helpers.
-    let lit = LightInfo { lights: &group.lights };
+    let lit: &[&Item] = &group.lights;
     for item in &mut items {
         let name = item.name.name.clone();
         if name == "__surface" {
-            splice_params(item, &surface.params, "", Some(light_params_count(group)));
+            splice_params(item, &surface.params, Some(light_params_count(group)));
             let mut body = (*surface.body).clone();
-            rewrite_block(&mut body, &lit);
+            rewrite_block(&mut body, lit);
             item.body = Box::new(body);
         } else if let Some(kind) = name.strip_prefix("__light_") {
             if let Some(l) = light_kinds.iter().find(|l| l.name.name == kind) {
-                splice_params(item, &l.params, "", None);
+                splice_params(item, &l.params, None);
                 item.body = l.body.clone();
             }
         } else if name == "__atmosphere" {
             if let Some(a) = group.atmosphere {
-                splice_params(item, &a.params, "", None);
+                splice_params(item, &a.params, None);
                 item.body = a.body.clone();
             }
         } else if MODELS.iter().any(|(m, _, _)| name == format!("__{m}")) {
             let mut body = (*item.body).clone();
-            rewrite_block(&mut body, &lit);
+            rewrite_block(&mut body, lit);
             item.body = Box::new(body);
         }
     }
@@ -406,10 +406,6 @@ fn generated_item(text: &str, span: Span) -> Result<Item, String> {
         .ok_or_else(|| format!("generated item does not parse: {text}"))?;
     respan_item(&mut item, span);
     Ok(item)
-}
-
-struct LightInfo<'a> {
-    lights: &'a [&'a Item],
 }
 
 fn light_params_count(group: &Group) -> usize {
@@ -521,7 +517,7 @@ fn copy_declarations(items: &mut [Item], group: &Group) {
 
 /// Append the shader's parameters `params` to `item`'s (generated) ones, before the light
 /// arguments when `light_tail` counts those at the end.
-fn splice_params(item: &mut Item, params: &[ast::Param], _prefix: &str, light_tail: Option<usize>) {
+fn splice_params(item: &mut Item, params: &[ast::Param], light_tail: Option<usize>) {
     let at = item.params.len() - light_tail.unwrap_or(0);
     let mut own: Vec<ast::Param> = params
         .iter()
@@ -538,17 +534,17 @@ fn splice_params(item: &mut Item, params: &[ast::Param], _prefix: &str, light_ta
 }
 
 /// Unroll `illuminance` and route the light-dependent built-ins in `block`.
-fn rewrite_block(block: &mut ast::Block, lit: &LightInfo) {
+fn rewrite_block(block: &mut ast::Block, lit: &[&Item]) {
     for s in &mut block.stmts {
         rewrite_stmt(s, lit);
     }
 }
 
-fn rewrite_stmt(s: &mut Stmt, lit: &LightInfo) {
+fn rewrite_stmt(s: &mut Stmt, lit: &[&Item]) {
     if let StmtKind::Illuminance { args, body } = &mut s.kind {
         let span = s.span;
         let mut blocks = vec![];
-        for (i, l) in lit.lights.iter().enumerate() {
+        for (i, l) in lit.iter().enumerate() {
             if is_ambient(l) {
                 continue;
             }
@@ -602,7 +598,7 @@ fn rewrite_stmt(s: &mut Stmt, lit: &LightInfo) {
 }
 
 /// A call of a light-dependent built-in gets the surface point and every light argument.
-fn rewrite_expr(e: &mut Expr, lit: &LightInfo) {
+fn rewrite_expr(e: &mut Expr, lit: &[&Item]) {
     match &mut e.kind {
         ExprKind::Call { callee, args } => {
             for a in args.iter_mut() {
@@ -612,7 +608,7 @@ fn rewrite_expr(e: &mut Expr, lit: &LightInfo) {
                 callee.name = format!("__{}", callee.name);
                 let span = callee.span;
                 args.push(name_expr("P", span));
-                for (i, l) in lit.lights.iter().enumerate() {
+                for (i, l) in lit.iter().enumerate() {
                     for p in &l.params {
                         args.push(name_expr(&format!("__l{i}_{}", p.name.name), span));
                     }

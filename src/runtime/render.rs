@@ -85,6 +85,8 @@ pub struct RenderStats {
     /// and rendering the tiles into it (parallel).
     pub tiles_micros: u64,
     /// Of `render_micros`: the deferred shading pass (0 when the scene turns no effect on).
+    /// Language shaders run inside the tiles (`tiles_micros`); here only their colours are
+    /// gathered from the output planes.
     pub shade_micros: u64,
     /// Draw-tile pairs rendered (a draw — an instance, or a call an expanded instance made —
     /// counts once per tile it was binned into).
@@ -294,15 +296,35 @@ impl Renderer {
                     components: 3,
                 })),
         );
+        // Language shaders are linked and compiled now, and run in each tile's task right
+        // after its draws, while its G-buffer is in cache.
+        let shading = if language {
+            self.compile_language(&mut diags)
+        } else {
+            None
+        };
+        let shading_runs = shading.as_ref().map(|s| &s.pass);
         let target = frame.target();
         let slices = bins.slices();
         let (tile_errors, gated) = tiergate::run_items(compiler, tiles.len(), 1, |t| {
+            let (tile, bin) = (&tiles[t], slices[t]);
             // SAFETY: each tile index is run once (`tiles` holds each tile once), and
             // `target` is the frame reset for this grid.
-            unsafe { render_tile(&program, &tiles[t], slices[t], opts, target) }
+            let errors = unsafe { render_tile(&program, tile, bin, opts, target) };
+            // A tile without draws has nothing to shade.
+            let shading_errors = match shading_runs.filter(|_| !bin.is_empty()) {
+                // SAFETY: as above: this task owns `tile`.
+                Some(runs) => unsafe { runs.shade_tile(tile, opts, target) },
+                None => vec![],
+            };
+            (errors, shading_errors)
         });
         stats.add_gated(gated);
-        errors.extend(tile_errors.into_iter().flatten());
+        let mut shading_errors = vec![];
+        for (e, s) in tile_errors {
+            errors.extend(e);
+            shading_errors.extend(s);
+        }
         // The hold ends with the frame but keeps its deadline (`TierUpHold`'s drop): a
         // worker let go right here would compete with the caller's thread waking up.
         drop(held_compiler);
@@ -310,10 +332,15 @@ impl Renderer {
         let shade_started = Instant::now();
         stats.tiles_micros = micros_between(tiles_started, shade_started);
 
-        if language {
-            self.shade_language(frame, opts, &mut diags);
-        } else {
-            self.shade(frame);
+        match &shading {
+            Some(compiled) => {
+                compiled.pass.report(&shading_errors, &mut diags);
+                frame.colors_from_planes(compiled.pass.out_plane);
+            }
+            // Language shading that did not compile (its errors are reported) leaves no
+            // colours, not the previous frame's.
+            None if language => frame.colors = None,
+            None => self.shade(frame),
         }
         stats.shade_micros = shade_started.elapsed().as_micros() as u64;
 
@@ -328,8 +355,8 @@ impl Renderer {
         }
     }
 
-    /// Deferred shading by the scene's language shaders (`shading::language`).
-    fn shade_language(&self, frame: &mut Frame, opts: &RenderOptions, diags: &mut Diagnostics) {
+    /// Link and compile the scene's language shaders for this frame (`shading::language`).
+    fn compile_language(&self, diags: &mut Diagnostics) -> Option<super::shading::language::CompiledShading> {
         if self.shading_setup.effects().any() {
             diags.push(crate::diag::Diagnostic::warning(
                 "W1002",
@@ -366,17 +393,14 @@ impl Renderer {
             device_from_lighting,
             eye,
         };
-        let compiled = super::shading::language::compile(
+        super::shading::language::compile(
             self.program(),
             &self.language,
             &planes,
             self.num_planes(),
             &spaces,
             diags,
-        );
-        if let Some(compiled) = compiled {
-            super::shading::language::shade_frame(&compiled.pass, frame, opts, diags);
-        }
+        )
     }
 
     /// Deferred shading over the visible pixels of `frame`, compiled for the scene's
@@ -737,6 +761,26 @@ pub fn chunk_ranges(
     ranges
 }
 
+/// The `MODE_RENDER` context of a kernel run over `tile` of `target`, without count arrays.
+/// The buffer pointers are the frame's at the tile's origin (`wrapping_add`: a frame
+/// without planes or counts has empty buffers, and the kernel never dereferences those).
+pub(crate) fn tile_context(tile: &Tile, opts: &RenderOptions, target: &FrameTarget<'_>) -> TileCtx {
+    let origin = tile.y0 as usize * target.stride + tile.x0 as usize;
+    TileCtx {
+        x0: tile.x0 as i32,
+        y0: tile.y0 as i32,
+        x1: tile.x1 as i32,
+        y1: tile.y1 as i32,
+        stride: target.stride as u32,
+        depth: target.depth.wrapping_add(origin),
+        gbuf: target.planes.wrapping_add(origin),
+        plane_stride: target.plane_pitch as u32,
+        num_planes: target.num_planes as u32,
+        write_count: target.counts.wrapping_add(origin),
+        ..context(MODE_RENDER, opts)
+    }
+}
+
 /// Zero `tile`'s part of the frame and render its draws into it; returns the run-time
 /// errors the tile's pixel code counted (its setup code's are counted in the bound runs,
 /// see [`super::errors`]).
@@ -760,23 +804,10 @@ unsafe fn render_tile(
     if bin.is_empty() {
         return errors;
     }
-    let origin = tile.y0 as usize * target.stride + tile.x0 as usize;
     CountArrays::with(program, |counts| {
         // Every draw starts from this context (a copy: a kernel may change any field of its
-        // own, e.g. fuel, the error or the call depth). The buffer pointers are the frame's
-        // at the tile's origin (`wrapping_add`: a frame without planes or counts has empty
-        // buffers, and the kernel never dereferences those).
-        let mut start = context(MODE_RENDER, opts);
-        start.x0 = tile.x0 as i32;
-        start.y0 = tile.y0 as i32;
-        start.x1 = tile.x1 as i32;
-        start.y1 = tile.y1 as i32;
-        start.stride = target.stride as u32;
-        start.depth = target.depth.wrapping_add(origin);
-        start.gbuf = target.planes.wrapping_add(origin);
-        start.plane_stride = target.plane_pitch as u32;
-        start.num_planes = target.num_planes as u32;
-        start.write_count = target.counts.wrapping_add(origin);
+        // own, e.g. fuel, the error or the call depth).
+        let mut start = tile_context(tile, opts, &target);
         start.setup_counts = counts.scratch();
         start.pixel_counts = counts.counts();
         let mut failed = false;

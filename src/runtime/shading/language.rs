@@ -1,6 +1,6 @@
 //! The deferred pass of language shaders: the scene's surface bindings, lights and
-//! atmosphere, linked (`crate::link`) and JIT-compiled once per frame, run over every tile
-//! after its primitives.
+//! atmosphere, linked (`crate::link`) and JIT-compiled once per frame before the tiles, run
+//! in each tile's task right after its primitives (`render::Renderer::render_into`).
 //!
 //! Per frame: one linked primitive per surface binding (binding 0 is the default surface,
 //! [`DEFAULT_SURFACE`], for pixels drawn before any `shader` line), each compiled by its
@@ -8,7 +8,8 @@
 //! planes, after the shading parameters' (`Ci`); when the frame has more than one binding,
 //! the reserved shading parameter [`SURFACE_PARAM`] (a constant the API sets at each
 //! `shader` line) says which binding drew each pixel, and each binding's kernel shades only
-//! its own pixels. Then `Ci` becomes the frame's colours (0 where nothing was drawn).
+//! its own pixels. After the tiles, `Ci` becomes the frame's colours (0 where nothing was
+//! drawn).
 //!
 //! Arguments are uniform per binding: scene values or the declared defaults. `point`,
 //! `vector` and `normal` arguments are given in world coordinates and moved into lighting
@@ -22,9 +23,8 @@
 use std::sync::Arc;
 
 use glam::{DMat4, DVec4};
-use rayon::prelude::*;
 
-use crate::abi::{ArgLayout, Binding, BindingKind, Kernel, ParamSlot, VariantKey, MODE_RENDER};
+use crate::abi::{ArgLayout, Binding, BindingKind, Kernel, ParamSlot, VariantKey};
 use crate::diag::{Diagnostic, Diagnostics};
 use crate::ir::{FuncId, Program};
 use crate::jit::Jit;
@@ -385,21 +385,10 @@ impl ShadingRuns {
         opts: &super::super::RenderOptions,
         target: super::super::frame::FrameTarget<'_>,
     ) -> Vec<(usize, crate::runtime::errors::Counts)> {
-        let origin = tile.y0 as usize * target.stride + tile.x0 as usize;
         let mut out = vec![];
         for (b, ((kernel, args), program)) in self.runs.iter().zip(&self.programs).enumerate() {
             crate::runtime::errors::CountArrays::with(program, |counts| {
-                let mut ctx = super::super::expand::context(MODE_RENDER, opts);
-                ctx.x0 = tile.x0 as i32;
-                ctx.y0 = tile.y0 as i32;
-                ctx.x1 = tile.x1 as i32;
-                ctx.y1 = tile.y1 as i32;
-                ctx.stride = target.stride as u32;
-                ctx.depth = target.depth.wrapping_add(origin);
-                ctx.gbuf = target.planes.wrapping_add(origin);
-                ctx.plane_stride = target.plane_pitch as u32;
-                ctx.num_planes = target.num_planes as u32;
-                ctx.write_count = target.counts.wrapping_add(origin);
+                let mut ctx = super::super::render::tile_context(tile, opts, &target);
                 ctx.setup_counts = counts.scratch();
                 ctx.pixel_counts = counts.counts();
                 // SAFETY: the caller's contract; the argument block was built for this
@@ -428,22 +417,4 @@ impl ShadingRuns {
             }
         }
     }
-}
-
-/// The tiles of `opts`, shaded in parallel.
-pub(crate) fn shade_frame(
-    compiled: &ShadingRuns,
-    frame: &mut super::super::frame::Frame,
-    opts: &super::super::RenderOptions,
-    diags: &mut Diagnostics,
-) {
-    let tiles = super::super::render::tile_grid(opts);
-    let target = frame.target();
-    let errors: Vec<(usize, crate::runtime::errors::Counts)> = tiles
-        .par_iter()
-        // SAFETY: each tile is shaded by one task only, and `target` is the frame's.
-        .flat_map_iter(|t| unsafe { compiled.shade_tile(t, opts, target) })
-        .collect();
-    compiled.report(&errors, diags);
-    frame.colors_from_planes(compiled.out_plane);
 }
