@@ -1006,6 +1006,12 @@ pub fn format_workload(w: &WorkloadResult, threads: usize) -> String {
 pub struct EffectsRow {
     pub effects: String,
     pub set: EffectSet,
+    /// The frame is shaded by the library shaders the fixed lines map to (JIT), not by the
+    /// hand-written Rust pass.
+    pub language: bool,
+    /// For a language row: its frame time over the Rust row's of the same set (paired by
+    /// round); above 1 the language shaders are slower.
+    pub language_over_rust: Option<f64>,
     /// Whole frame (bound pass, tiles, shading), one thread.
     pub frame_ms: f64,
     /// Of which the tile kernels (the same primitives in every row).
@@ -1054,11 +1060,24 @@ pub fn effects_series(
     bar: &ProgressBar,
 ) -> Result<EffectsSeries, String> {
     let mut jit = Jit::new(program.clone()).map_err(|e| e.to_string())?;
-    let scenes: Vec<Renderer> = EFFECT_SETS
+    // Every set twice: the Rust pass, then the same fixed lines as library shaders (the
+    // `none` set has no shading either way).
+    let sets: Vec<(String, EffectSet, bool)> = EFFECT_SETS
         .iter()
-        .map(|&(_, set)| effects_scene(program, size, layers, set))
+        .flat_map(|&(name, set)| {
+            let language = (set != EFFECT_SETS[0].1).then(|| (format!("{name} [language]"), set, true));
+            std::iter::once((name.to_string(), set, false)).chain(language)
+        })
         .collect();
-    bar.inc_length((EFFECT_SETS.len() * (2 + 2 * runs)) as u64);
+    let scenes: Vec<Renderer> = sets
+        .iter()
+        .map(|&(_, set, language)| {
+            let mut r = effects_scene(program, size, layers, set);
+            r.options.fixed_shading_in_language = language;
+            r
+        })
+        .collect();
+    bar.inc_length((sets.len() * (2 + 2 * runs)) as u64);
     let render_timed = |r: &Renderer, jit: &mut Jit, pool: &rayon::ThreadPool| {
         let started = Instant::now();
         let out = pool.install(|| r.render(jit));
@@ -1070,7 +1089,7 @@ pub fn effects_series(
     };
 
     let mut none_colours: Option<Vec<[f32; 3]>> = None;
-    for ((name, set), r) in EFFECT_SETS.iter().zip(&scenes) {
+    for ((name, set, _), r) in sets.iter().zip(&scenes) {
         let (single, _) = render_timed(r, &mut jit, one)?;
         let (multi, _) = render_timed(r, &mut jit, all)?;
         if !same_frame(&single.frame, &multi.frame) || single.frame.color_values() != multi.frame.color_values() {
@@ -1118,16 +1137,21 @@ pub fn effects_series(
     let frames_of = |v: &[[f64; 3]]| v.iter().map(|x| x[0]).collect::<Vec<f64>>();
     let none_ms = med(&times[0][0], 0);
     let none_runs = frames_of(&times[0][0]);
-    let rows = EFFECT_SETS
+    let rows = sets
         .iter()
         .zip(&times)
-        .map(|(&(name, set), [t1, tn])| {
+        .enumerate()
+        .map(|(i, ((name, set, language), [t1, tn]))| {
             let frame_ms = med(t1, 0);
             let runs = frames_of(t1);
             let frame_ms_all_threads = med(tn, 0);
+            // A language row follows its Rust row.
+            let language_over_rust = language.then(|| paired(&runs, &frames_of(&times[i - 1][0])));
             EffectsRow {
-                effects: name.to_string(),
-                set,
+                effects: name.clone(),
+                set: *set,
+                language: *language,
+                language_over_rust,
                 frame_ms,
                 kernels_ms: med(t1, 1),
                 shading_ms: med(t1, 2),
@@ -1160,12 +1184,14 @@ fn rendered_colours(frame: &Frame) -> Vec<[f32; 3]> {
 pub fn format_effects(series: &EffectsSeries) -> String {
     let mut s = format!(
         "effects series: {size}x{size}, {layers} full-viewport layers (Cs, N, st perspective_linear), JIT; \
-         frame = bound pass + tile kernels (written straight into the frame) + deferred shading\n",
+         frame = bound pass + tile kernels (written straight into the frame) + deferred shading; \
+         [language] rows shade with the library shaders the fixed lines map to, inside the tile tasks \
+         (their shading ms is only gathering the colours), lang/rust = their frame over the Rust row's\n",
         size = series.size,
         layers = series.layers
     );
     s.push_str(&format!(
-        "{:<26} {:>9} {:>10} {:>10} {:>9} {:>8} {:>11} {:>10} {:>9}\n",
+        "{:<37} {:>9} {:>10} {:>10} {:>9} {:>8} {:>11} {:>10} {:>9} {:>8}\n",
         "effects",
         "frame ms",
         "kernels ms",
@@ -1174,11 +1200,12 @@ pub fn format_effects(series: &EffectsSeries) -> String {
         "x none",
         format!("{}t frame ms", series.threads),
         format!("{}t shade ms", series.threads),
-        format!("{}t/1t", series.threads)
+        format!("{}t/1t", series.threads),
+        "lang/rust"
     ));
     for r in &series.rows {
         s.push_str(&format!(
-            "{:<26} {:>9.2} {:>10.2} {:>10.2} {:>+9.2} {:>7.2}x {:>11.2} {:>10.2} {:>8.2}x\n",
+            "{:<37} {:>9.2} {:>10.2} {:>10.2} {:>+9.2} {:>7.2}x {:>11.2} {:>10.2} {:>8.2}x {:>8}\n",
             r.effects,
             r.frame_ms,
             r.kernels_ms,
@@ -1187,7 +1214,8 @@ pub fn format_effects(series: &EffectsSeries) -> String {
             r.ratio_to_none,
             r.frame_ms_all_threads,
             r.shading_ms_all_threads,
-            r.thread_scaling
+            r.thread_scaling,
+            r.language_over_rust.map(|x| format!("{x:.2}x")).unwrap_or_default()
         ));
     }
     s

@@ -701,12 +701,19 @@ fn write_explain(renderer: &Renderer, result: &crate::runtime::RenderOutput, out
         crate::runtime::shading::LightingSpaceChoice::World => "world coordinates",
         crate::runtime::shading::LightingSpaceChoice::Device => "device coordinates",
     };
-    let _ = writeln!(
-        out,
-        "shading effects: {} (lights: {}, lit in {space})",
-        result.effects,
-        renderer.shading_setup.lights.len()
-    );
+    if result.language_shading.is_empty() {
+        let _ = writeln!(
+            out,
+            "shading effects: {} (lights: {}, lit in {space})",
+            result.effects,
+            renderer.shading_setup.lights.len()
+        );
+    } else {
+        let _ = writeln!(out, "shading:");
+        for line in &result.language_shading {
+            let _ = writeln!(out, "  {line}");
+        }
+    }
 }
 
 fn bench(args: &BenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {

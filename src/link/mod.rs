@@ -50,8 +50,11 @@ pub enum ArgSource {
     /// frame's `device_from_lighting`).
     LightingFromDevice,
     /// `float[4]`: the eye in lighting coordinates, homogeneous (w = 0: a parallel view,
-    /// x, y, z the direction towards the viewer).
+    /// x, y, z the unit direction towards the viewer).
     Eye,
+    /// `float[3]`: the centre of the near plane in lighting coordinates (a parallel view's
+    /// distances are measured from it).
+    Near,
 }
 
 /// A frame's shading as the linker sees it.
@@ -127,6 +130,33 @@ pub fn is_ambient(light: &Item) -> bool {
         s.for_each_child(|c| work.push(c), |_| {});
     }
     !assigns_l
+}
+
+/// Every name `block` mentions as a variable (not as a callee).
+fn names_used(block: &ast::Block) -> std::collections::HashSet<String> {
+    let mut names = std::collections::HashSet::new();
+    let mut stmts: Vec<&Stmt> = block.stmts.iter().collect();
+    let mut exprs: Vec<&Expr> = vec![];
+    while let Some(s) = stmts.pop() {
+        s.for_each_child(|c| stmts.push(c), |e| exprs.push(e));
+        while let Some(e) = exprs.pop() {
+            match &e.kind {
+                ExprKind::Name(n) => {
+                    names.insert(n.name.clone());
+                }
+                ExprKind::Call { args, .. } | ExprKind::Construct { args, .. } | ExprKind::List(args) => {
+                    exprs.extend(args.iter())
+                }
+                ExprKind::Unary { expr, .. } => exprs.push(expr),
+                ExprKind::Binary { lhs, rhs, .. } => exprs.extend([&**lhs, &**rhs]),
+                ExprKind::Ternary { cond, then, otherwise } => exprs.extend([&**cond, &**then, &**otherwise]),
+                ExprKind::Index { base, index } => exprs.extend([&**base, &**index]),
+                ExprKind::Field { base, .. } => exprs.push(base),
+                _ => {}
+            }
+        }
+    }
+    names
 }
 
 fn root_name(e: &Expr) -> Option<&str> {
@@ -237,10 +267,25 @@ pub fn link(group: &Group) -> Result<Linked, String> {
             atmosphere_args.push_str(&format!(", __a_{}", p.name.name));
         }
     }
-    prim_params.push_str("float __lighting_from_device[4][4]; float __eye[4]; ");
+    prim_params.push_str("float __lighting_from_device[4][4]; float __eye[4]; float __near[3]; ");
     args.push(ArgSource::LightingFromDevice);
     args.push(ArgSource::Eye);
+    args.push(ArgSource::Near);
 
+    // A global's planes are read only when the surface or the atmosphere names it (a
+    // helper sees only what it is passed): an effect the shaders do not use reads nothing.
+    let mut used = names_used(&surface.body);
+    if let Some(a) = group.atmosphere {
+        used.extend(names_used(&a.body));
+    }
+    let plane = |name: &str| {
+        let wanted = match name {
+            "N" => used.contains("N") || used.contains("Ng"),
+            "s" | "t" | "st" => used.contains("s") || used.contains("t"),
+            other => used.contains(other),
+        };
+        plane(name).filter(|_| wanted)
+    };
     let read3 = |name: &str, default: &str, reads: &mut Vec<String>| -> String {
         match plane(name) {
             Some(pl) if pl.components >= 3 || pl.components == 1 => {
@@ -294,7 +339,7 @@ if (Z == 0) return;
 {material}float q[4] = __lighting_from_device * {{X, Y, float(Z), 1.0}};
 vector P = {{q[0] / q[3], q[1] / q[3], q[2] / q[3]}};
 vector E = {{__eye[0], __eye[1], __eye[2]}};
-vector I = __eye[3] == 0 ? -E : P - E;
+vector I = __eye[3] == 0 ? -E * max(dot({{__near[0], __near[1], __near[2]}} - P, E), 1e-20) : P - E;
 normal N = {n};
 normal Ng = N;
 float s = {s}, t = {t};

@@ -147,6 +147,10 @@ pub struct RenderOptions {
     /// (`TileCtx::group_fuel_floor`, `abi::DEFAULT_GROUP_FUEL_FLOOR`).
     pub pixel_fuel: u64,
     pub group_fuel_floor: u64,
+    /// Shade the fixed lines (`light`, `ambient`, `surface`, `fog`, `texture`) with the
+    /// library shaders they map to (`LanguageShading::from_fixed`) instead of the Rust
+    /// pass. Language shader lines, when a scene has any, win either way.
+    pub fixed_shading_in_language: bool,
 }
 
 /// Default `RenderOptions::expand_budget_words`: 2^25 words (128 MiB of recorded calls).
@@ -165,6 +169,7 @@ impl Default for RenderOptions {
             setup_fuel: crate::abi::DEFAULT_FUEL,
             pixel_fuel: crate::abi::DEFAULT_PIXEL_FUEL,
             group_fuel_floor: crate::abi::DEFAULT_GROUP_FUEL_FLOOR,
+            fixed_shading_in_language: false,
         }
     }
 }

@@ -62,6 +62,7 @@ use super::errors::{CountArrays, Counts};
 use super::expand::{context, expand_instance, Budget, Draw, Expanded, TileRect};
 use super::frame::{plane_pitch, row_stride, tile_side, Frame, FrameTarget, ParamPlanes, Tile};
 use super::kernels::KernelSource;
+use super::shading::language::LanguageShading;
 use super::shading::{Effects, Shader, ShadingSpaces};
 use super::tiergate::{self, Compiler, GateStats};
 
@@ -118,6 +119,9 @@ pub struct RenderOutput {
     pub kernels: Vec<KernelReport>,
     /// The effects the shading pass was compiled for.
     pub effects: Effects,
+    /// What the language shading pass compiled, one line per kernel (`render --explain`);
+    /// empty when the Rust pass (or nothing) shaded the frame.
+    pub language_shading: Vec<String>,
 }
 
 /// What [`Renderer::render_into`] returns besides the frame it filled: the same as a
@@ -129,6 +133,9 @@ pub struct RenderReport {
     pub kernels: Vec<KernelReport>,
     /// The effects the shading pass was compiled for.
     pub effects: Effects,
+    /// What the language shading pass compiled, one line per kernel (`render --explain`);
+    /// empty when the Rust pass (or nothing) shaded the frame.
+    pub language_shading: Vec<String>,
 }
 
 /// One compiled kernel variant (`render --explain`).
@@ -153,6 +160,7 @@ impl Renderer {
             diags,
             kernels,
             effects,
+            language_shading,
         } = self.render_into(source, &mut frame);
         RenderOutput {
             frame,
@@ -160,6 +168,7 @@ impl Renderer {
             diags,
             kernels,
             effects,
+            language_shading,
         }
     }
 
@@ -187,7 +196,26 @@ impl Renderer {
         // Refused before any work: a frame this large would abort the process when its
         // allocation fails.
         // Language shading writes its colours into three planes after the parameters'.
-        let language = self.language.active();
+        let mapped;
+        let language_shading = if self.language.active() {
+            if self.shading_setup.effects().any() {
+                diags.push(crate::diag::Diagnostic::warning(
+                    "W1002",
+                    "the scene has language shaders (`shader`, `lightsource`, `atmosphere`): its `light`, `surface`, `fog` and `texture` lines have no effect",
+                ));
+            }
+            Some(&self.language)
+        } else if opts.fixed_shading_in_language && self.shading_setup.effects().any() {
+            let (shading, notes) = LanguageShading::from_fixed(&self.shading_setup);
+            for note in notes {
+                diags.push(crate::diag::Diagnostic::warning("W1003", note));
+            }
+            mapped = shading;
+            Some(&mapped)
+        } else {
+            None
+        };
+        let language = language_shading.is_some();
         let num_planes = self.num_planes() + if language { 3 } else { 0 };
         if let Some(too_large) = frame_too_large(opts, num_planes) {
             diags.push(too_large);
@@ -198,6 +226,7 @@ impl Renderer {
                 diags,
                 kernels: vec![],
                 effects: self.shading_setup.effects(),
+                language_shading: vec![],
             };
         }
 
@@ -298,11 +327,7 @@ impl Renderer {
         );
         // Language shaders are linked and compiled now, and run in each tile's task right
         // after its draws, while its G-buffer is in cache.
-        let shading = if language {
-            self.compile_language(&mut diags)
-        } else {
-            None
-        };
+        let shading = language_shading.and_then(|l| self.compile_language(l, &mut diags));
         let shading_runs = shading.as_ref().map(|s| &s.pass);
         let target = frame.target();
         let slices = bins.slices();
@@ -352,17 +377,16 @@ impl Renderer {
             diags,
             kernels: reports,
             effects: self.shading_setup.effects(),
+            language_shading: shading.as_ref().map(|s| s.explain.clone()).unwrap_or_default(),
         }
     }
 
     /// Link and compile the scene's language shaders for this frame (`shading::language`).
-    fn compile_language(&self, diags: &mut Diagnostics) -> Option<super::shading::language::CompiledShading> {
-        if self.shading_setup.effects().any() {
-            diags.push(crate::diag::Diagnostic::warning(
-                "W1002",
-                "the scene has language shaders (`shader`, `lightsource`, `atmosphere`): its `light`, `surface`, `fog` and `texture` lines have no effect",
-            ));
-        }
+    fn compile_language(
+        &self,
+        shading: &LanguageShading,
+        diags: &mut Diagnostics,
+    ) -> Option<super::shading::language::CompiledShading> {
         let planes: Vec<crate::link::PlaneParam> = self
             .shading_params()
             .iter()
@@ -377,30 +401,26 @@ impl Renderer {
         // The eye: clip space's point at infinity along z, mapped back (as `Shader::new`).
         let lighting_from_clip = lighting_from_device * self.geometry.device_from_clip();
         let eye_h = lighting_from_clip * glam::DVec4::new(0.0, 0.0, 1.0, 0.0);
+        // Clip z = 1 is the near plane, z = 0 the far one.
+        let at = |z: f64| {
+            let q = lighting_from_clip * glam::DVec4::new(0.0, 0.0, z, 1.0);
+            q.truncate() / q.w
+        };
+        let near = at(1.0);
         let eye = if eye_h.w.abs() > 1e-12 * eye_h.truncate().length() {
             let e = eye_h.truncate() / eye_h.w;
             [e.x, e.y, e.z, 1.0]
         } else {
-            let at = |z: f64| {
-                let q = lighting_from_clip * glam::DVec4::new(0.0, 0.0, z, 1.0);
-                q.truncate() / q.w
-            };
-            let d = (at(1.0) - at(0.0)).normalize_or_zero();
+            let d = (near - at(0.0)).normalize_or_zero();
             [d.x, d.y, d.z, 0.0]
         };
         let spaces = super::shading::language::Spaces {
             lighting_from_world: self.geometry.lighting_from_world(),
             device_from_lighting,
             eye,
+            near: if near.is_finite() { near.to_array() } else { [0.0; 3] },
         };
-        super::shading::language::compile(
-            self.program(),
-            &self.language,
-            &planes,
-            self.num_planes(),
-            &spaces,
-            diags,
-        )
+        super::shading::language::compile(self.program(), shading, &planes, self.num_planes(), &spaces, diags)
     }
 
     /// Deferred shading over the visible pixels of `frame`, compiled for the scene's

@@ -104,6 +104,9 @@ pub enum CommandKind {
         args: Vec<(String, Value)>,
     },
     Texture(Texture),
+    /// `shading_pass rust|language`: whether the fixed shading lines run as library
+    /// shaders (`language`) or in the Rust pass (`rust`, the default).
+    ShadingPass(bool),
     LightingSpace(LightingSpaceChoice),
     /// A line that failed to parse; the command word if it was a known one (so a broken
     /// `begin` still opens a block and a broken `end` still closes it).
@@ -166,6 +169,7 @@ impl Scene {
             match &c.kind {
                 CommandKind::Begin(name) => prims.push(name.as_str()),
                 CommandKind::MaterialInterp { kind, .. } => kinds.push(kind.as_str()),
+                CommandKind::ShadingPass(true) => kinds.push("fixed_phong"),
                 CommandKind::Shader { name, .. } => {
                     kinds.push(name.as_str());
                     kinds.push(crate::runtime::shading::language::DEFAULT_SURFACE);
@@ -214,6 +218,7 @@ const COMMANDS: &[&str] = &[
     "lightsource",
     "atmosphere",
     "lighting_space",
+    "shading_pass",
 ];
 
 /// Split a line into tokens, stopping at `#`.
@@ -426,6 +431,7 @@ fn parse_command(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), Diagnosti
             _ => CullMode::None,
         }),
         "distinguish" => CommandKind::Distinguish(word_arg(tokens, &["on", "off"])? == "on"),
+        "shading_pass" => CommandKind::ShadingPass(word_arg(tokens, &["rust", "language"])? == "language"),
         "lighting_space" => CommandKind::LightingSpace(match word_arg(tokens, &["lc", "wc", "dc"])? {
             "wc" => LightingSpaceChoice::World,
             "dc" => LightingSpaceChoice::Device,
@@ -689,6 +695,10 @@ pub fn apply(scene: &Scene, renderer: &mut Renderer, diags: &mut Diagnostics) {
             }
             CommandKind::Texture(t) => {
                 renderer.shading_setup.texture = Some(t.clone());
+                Ok(())
+            }
+            CommandKind::ShadingPass(language) => {
+                renderer.options.fixed_shading_in_language = *language;
                 Ok(())
             }
             CommandKind::LightingSpace(space) => {

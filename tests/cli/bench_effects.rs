@@ -162,16 +162,31 @@ fn series_table_has_a_row_per_effect_set() {
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
     let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
     let series = effects_series(&program, SIZE, LAYERS, 1, &one, &two, &ProgressBar::hidden()).unwrap();
-    assert_eq!(series.rows.len(), EFFECT_SETS.len());
+    // Every set with the Rust pass, and every set but `none` again with language shaders,
+    // right after it.
+    assert_eq!(series.rows.len(), 2 * EFFECT_SETS.len() - 1);
     assert_eq!(series.threads, 2);
     let table = format_effects(&series);
-    for ((name, s), row) in EFFECT_SETS.iter().zip(&series.rows) {
+    let rust: Vec<_> = series.rows.iter().filter(|r| !r.language).collect();
+    for ((name, s), row) in EFFECT_SETS.iter().zip(&rust) {
         assert_eq!(&row.effects, name);
         assert_eq!(row.set, *s);
+        assert!(row.language_over_rust.is_none());
         assert!(
             table.lines().any(|l| l.starts_with(name)),
             "no row for {name} in\n{table}"
         );
+    }
+    for pair in series.rows[1..].chunks(2) {
+        let (r, l) = (&pair[0], &pair[1]);
+        assert!(
+            !r.language && l.language && l.set == r.set,
+            "{} then {}",
+            r.effects,
+            l.effects
+        );
+        assert_eq!(l.effects, format!("{} [language]", r.effects));
+        assert!(l.language_over_rust.is_some_and(|x| x > 0.0 && x.is_finite()));
     }
     assert_eq!(series.rows[0].ratio_to_none, 1.0);
     assert_eq!(series.rows[0].extra_ms, 0.0);

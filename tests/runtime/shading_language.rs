@@ -11,6 +11,11 @@ use primflow::runtime::{Frame, Registry, Renderer};
 /// Load the library (plus `extra`, written to a temporary .prim file), read `text` as a
 /// scene, render with `threads` threads.
 fn render(text: &str, extra: Option<&str>, threads: usize) -> (Frame, Vec<String>) {
+    let (out, codes) = render_output(text, extra, threads);
+    (out.frame, codes)
+}
+
+fn render_output(text: &str, extra: Option<&str>, threads: usize) -> (primflow::runtime::RenderOutput, Vec<String>) {
     let mut sources = SourceMap::new();
     let mut diags = Diagnostics::new();
     let files: Vec<PathBuf> = extra
@@ -30,9 +35,10 @@ fn render(text: &str, extra: Option<&str>, threads: usize) -> (Frame, Vec<String
     primflow::scene::load_into(&sources, file, &mut renderer, &mut diags);
     let mut jit = Jit::new(registry.program.clone()).unwrap();
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-    let out = pool.install(|| renderer.render(&mut jit));
-    diags.extend(out.diags);
-    (out.frame, diags.codes_at(&sources))
+    let mut out = pool.install(|| renderer.render(&mut jit));
+    diags.extend(std::mem::take(&mut out.diags));
+    let codes = diags.codes_at(&sources);
+    (out, codes)
 }
 
 fn fxhash(s: &str) -> u64 {
@@ -223,4 +229,96 @@ fn unknown_shaders_and_arguments_are_scene_errors() {
     assert!(codes.iter().any(|c| c.starts_with("E1002")), "{codes:?}");
     let (_, codes) = render(&quad_scene("lightsource pointlight wattage=3", "shader matte"), None, 1);
     assert!(codes.iter().any(|c| c.starts_with("E0702")), "{codes:?}");
+}
+
+/// Largest channel difference between two frames' shaded colours over covered pixels.
+fn max_colour_difference(a: &Frame, b: &Frame) -> f32 {
+    let (ca, cb) = (a.color_values().unwrap(), b.color_values().unwrap());
+    let depth = a.depth_values();
+    ca.iter()
+        .zip(&cb)
+        .zip(&depth)
+        .filter(|(_, &d)| d != 0)
+        .flat_map(|((p, q), _)| (0..3).map(move |c| (p[c] - q[c]).abs()))
+        .fold(0.0, f32::max)
+}
+
+#[test]
+fn fixed_lines_mapped_to_library_shaders_match_the_rust_pass() {
+    // Perspective: a directional and an attenuated point light, ambient, Phong with a
+    // specular term, a checker over st and fog; then the same in a parallel (device
+    // coordinate) view, where fog is measured from the near plane.
+    let lit = "light directional 1 2 1   0.8 0.8 0.8
+light point -0.5 0.5 1.5   0.6 0.5 0.3   1 0.1 0
+ambient 0.2 0.2 0.2
+surface front 1 0.8 0.4 24
+fog 0.05 0.05 0.1 3 8
+texture checker st 2
+material_interp st perspective_linear
+material st 0 0";
+    let perspective = quad_scene(lit, "");
+    let rust = render(&perspective, None, 2);
+    let language = render(&format!("shading_pass language\n{perspective}"), None, 2);
+    assert!(
+        rust.1.is_empty() && language.1.is_empty(),
+        "{:?} {:?}",
+        rust.1,
+        language.1
+    );
+    let d = max_colour_difference(&rust.0, &language.0);
+    assert!(d < 2e-3, "perspective: largest difference {d}");
+    assert!(rust.0.covered_pixels() > 1000);
+
+    let parallel = "image 32 32
+light directional 0.3 0.2 1   0.7 0.7 0.7
+ambient 0.1 0.1 0.1
+surface front 1 0.9 0.5 16
+fog 0.6 0.7 0.9 0 0.5
+material_interp N linear
+material Cs 0.8 0.5 0.3
+begin screen_triangle
+rast_param screen_vertex 0 0 0.3 1   32 0 0.6 1   0 32 0.5 1
+material N 0 0 1
+sequence_point
+material N 0.3 0 1
+sequence_point
+material N 0 -0.3 1
+sequence_point
+end
+";
+    let rust = render(parallel, None, 1);
+    let language = render(&format!("shading_pass language\n{parallel}"), None, 1);
+    assert!(
+        rust.1.is_empty() && language.1.is_empty(),
+        "{:?} {:?}",
+        rust.1,
+        language.1
+    );
+    let d = max_colour_difference(&rust.0, &language.0);
+    assert!(d < 2e-3, "parallel: largest difference {d}");
+}
+
+#[test]
+fn only_the_planes_a_shader_names_are_read_and_explain_says_which() {
+    // The frame has Cs, N and st; plastic names Cs and N (through N and I), checker also
+    // s and t.
+    let st = "material_interp st perspective_linear\nmaterial st 0 0";
+    let (out, codes) = render_output(&quad_scene(st, "shader plastic"), None, 1);
+    assert!(codes.is_empty(), "{codes:?}");
+    let plastic = out
+        .language_shading
+        .iter()
+        .find(|l| l.contains("`plastic`"))
+        .expect("a plastic line");
+    assert!(plastic.contains("reads plane(s) of [Cs, N]"), "{plastic}");
+    let (out, _) = render_output(&quad_scene(st, "shader checker"), None, 1);
+    let checker = out
+        .language_shading
+        .iter()
+        .find(|l| l.contains("`checker`"))
+        .expect("a checker line");
+    assert!(checker.contains("reads plane(s) of [Cs, N, st]"), "{checker}");
+    // The Rust pass reports no language shading.
+    let (out, _) = render_output(&quad_scene("light directional 0 0 1 1 1 1", ""), None, 1);
+    assert!(out.language_shading.is_empty());
 }

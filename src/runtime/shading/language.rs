@@ -32,6 +32,8 @@ use crate::link::{self, ArgSource, Group, PlaneParam};
 use crate::mid::Tier;
 use crate::syntax::ast::{self, ItemKind};
 
+use super::{SceneLight, ShadingSetup};
+
 /// The reserved shading parameter holding each pixel's surface binding.
 pub const SURFACE_PARAM: &str = "__surface";
 /// What pixels drawn before any `shader` line are shaded with.
@@ -47,6 +49,8 @@ pub struct ShaderUse {
 /// What the scene asks of the language shaders.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct LanguageShading {
+    /// What shades pixels drawn before the first binding ([`DEFAULT_SURFACE`] when `None`).
+    pub default_surface: Option<ShaderUse>,
     /// Surface bindings in order; a pixel's binding number is its index + 1.
     pub surfaces: Vec<ShaderUse>,
     pub lights: Vec<ShaderUse>,
@@ -54,6 +58,91 @@ pub struct LanguageShading {
 }
 
 impl LanguageShading {
+    /// The fixed shading lines as library shaders: `ambient` an `ambientlight`, each
+    /// `light` a `distantlight` or an `attenuated_pointlight`, the front material, the
+    /// checker texture (over `st` only) and "no light, no lighting" the default surface
+    /// `fixed_phong`, `fog` the `fog` atmosphere. Returns what does not carry over.
+    pub fn from_fixed(setup: &ShadingSetup) -> (LanguageShading, Vec<String>) {
+        let mut notes = vec![];
+        let arg = |name: &str, v: &[f64]| (name.to_string(), v.iter().map(|&x| x as f32).collect::<Vec<f32>>());
+        let mut lights = vec![];
+        if setup.ambient_light != [0.0; 3] {
+            lights.push(ShaderUse {
+                name: "ambientlight".into(),
+                args: vec![arg("lightcolor", &setup.ambient_light)],
+            });
+        }
+        for l in &setup.lights {
+            lights.push(match *l {
+                SceneLight::Directional { towards_light, colour } => ShaderUse {
+                    name: "distantlight".into(),
+                    args: vec![
+                        arg("lightcolor", &colour),
+                        arg("from", &towards_light),
+                        arg("to", &[0.0; 3]),
+                    ],
+                },
+                SceneLight::Positional {
+                    position,
+                    colour,
+                    attenuation,
+                } => ShaderUse {
+                    name: "attenuated_pointlight".into(),
+                    args: vec![
+                        arg("lightcolor", &colour),
+                        arg("from", &position),
+                        arg("c0", &attenuation[..1]),
+                        arg("c1", &attenuation[1..2]),
+                        arg("c2", &attenuation[2..]),
+                    ],
+                },
+            });
+        }
+        let m = &setup.front;
+        let mut surface = vec![
+            arg("Ka", &[m.ka]),
+            arg("Kd", &[m.kd]),
+            arg("Ks", &[m.ks]),
+            arg("shininess", &[m.shininess]),
+            arg("specularcolor", &m.specular_colour),
+            arg("lit", &[if setup.lights.is_empty() { 0.0 } else { 1.0 }]),
+        ];
+        if let Some(t) = &setup.texture {
+            if t.param == "st" {
+                surface.push(arg("checker_scale", &[t.scale]));
+                surface.push(arg("checker_dark", &[t.dark]));
+            } else {
+                notes.push(format!(
+                    "the checker texture over `{}` is not mapped (the language shaders read s and t from `st`)",
+                    t.param
+                ));
+            }
+        }
+        if setup.back.is_some() {
+            notes.push("the back material is not mapped (`fixed_phong` faces the normal forward)".into());
+        }
+        let atmosphere = setup.fog.map(|f| ShaderUse {
+            name: "fog".into(),
+            args: vec![
+                arg("background", &f.colour),
+                arg("start", &[f.start]),
+                arg("end", &[f.end]),
+            ],
+        });
+        (
+            LanguageShading {
+                default_surface: Some(ShaderUse {
+                    name: "fixed_phong".into(),
+                    args: surface,
+                }),
+                surfaces: vec![],
+                lights,
+                atmosphere,
+            },
+            notes,
+        )
+    }
+
     /// Whether the frame is shaded by language shaders (any `shader`, `lightsource` or
     /// `atmosphere` line).
     pub fn active(&self) -> bool {
@@ -65,6 +154,8 @@ impl LanguageShading {
 pub(crate) struct CompiledShading {
     /// Kept alive: the kernels' code lives in it.
     _jits: Vec<Jit>,
+    /// What was compiled, one line per kernel (`render --explain`).
+    pub explain: Vec<String>,
     pub(crate) pass: ShadingRuns,
 }
 
@@ -82,6 +173,8 @@ pub(crate) struct Spaces {
     pub device_from_lighting: DMat4,
     /// Homogeneous eye in lighting coordinates (w = 0: parallel view, towards the viewer).
     pub eye: [f64; 4],
+    /// The centre of the near plane in lighting coordinates.
+    pub near: [f64; 3],
 }
 
 /// Link and compile the frame's shading. `planes`: the shading parameters' planes;
@@ -124,11 +217,18 @@ pub(crate) fn compile(
         name: DEFAULT_SURFACE.into(),
         args: vec![],
     };
-    let bindings: Vec<&ShaderUse> = std::iter::once(&default).chain(&shading.surfaces).collect();
+    let default = shading.default_surface.as_ref().unwrap_or(&default);
+    let bindings: Vec<&ShaderUse> = std::iter::once(default).chain(&shading.surfaces).collect();
     let material = planes.iter().find(|p| p.name == SURFACE_PARAM).map(|p| p.first_plane);
     let mut jits = vec![];
     let mut programs = vec![];
     let mut runs = vec![];
+    let light_names: Vec<&str> = shading.lights.iter().map(|l| l.name.as_str()).collect();
+    let mut explain = vec![format!(
+        "language shaders: lights [{}], atmosphere {}; G-buffer: {out_plane} shading-parameter plane(s) + 3 output planes (Ci) from plane {out_plane}",
+        light_names.join(", "),
+        shading.atmosphere.as_ref().map_or("none", |a| a.name.as_str()),
+    )];
     for (id, binding) in bindings.iter().enumerate() {
         // Binding 0 runs only where a pixel can have no binding: a frame with bindings
         // whose every pixel has one still runs it (it shades nothing there).
@@ -163,6 +263,21 @@ pub(crate) fn compile(
                 ),
             ));
         }
+        explain.push(format!(
+            "surface `{}` (binding {id}{}): reads plane(s) of [{}]{}",
+            binding.name,
+            if id == 0 {
+                ", pixels drawn before any `shader` line"
+            } else {
+                ""
+            },
+            linked.reads.join(", "),
+            if material.is_some() {
+                format!(", only where `{SURFACE_PARAM}` is {id}")
+            } else {
+                String::new()
+            }
+        ));
         let mut check_diags = Diagnostics::new();
         let linked_program = crate::check::check_linked(program, &linked.items, &mut check_diags);
         if check_diags.has_errors() {
@@ -226,6 +341,7 @@ pub(crate) fn compile(
     }
     Some(CompiledShading {
         _jits: jits,
+        explain,
         pass: ShadingRuns {
             programs,
             runs,
@@ -310,8 +426,13 @@ fn argument_block(
                 write(&mut args, *offset, *words, &rows);
                 continue;
             }
-            ArgSource::Eye => {
-                let e: Vec<u32> = spaces.eye.iter().map(|&x| (x as f32).to_bits()).collect();
+            ArgSource::Eye | ArgSource::Near => {
+                let v: &[f64] = if *source == ArgSource::Eye {
+                    &spaces.eye
+                } else {
+                    &spaces.near
+                };
+                let e: Vec<u32> = v.iter().map(|&x| (x as f32).to_bits()).collect();
                 write(&mut args, *offset, *words, &e);
                 continue;
             }
