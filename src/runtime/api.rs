@@ -36,7 +36,7 @@ use crate::diag::Severity;
 use crate::ir::{FuncId, FuncKind, Function, ParamRole, Program};
 
 use super::geometry::{self, ClipOutcome, GeometryState};
-use super::shading::language::{LanguageShading, ShaderUse, SURFACE_PARAM};
+use super::shading::language::{LanguageShading, ShaderUse, ShadingCache, SURFACE_PARAM};
 use super::shading::ShadingSetup;
 use super::value::{encode, encode_default, EncodeError, Value};
 use crate::ir::ParamSpace;
@@ -240,6 +240,8 @@ pub struct Renderer {
     /// Language shaders: surface bindings, lights and the atmosphere (when any is given,
     /// they shade the frame instead of `shading_setup`).
     pub language: LanguageShading,
+    /// The language shading compiled for the last frame.
+    pub(crate) shading_cache: ShadingCache,
     /// Pipeline warnings already reported (each kind once per renderer).
     pipeline_warnings: Vec<Warning>,
     /// `--explain`: per (primitive, pipeline description, clip outcome), how many instances.
@@ -304,6 +306,7 @@ impl Renderer {
             geometry: GeometryState::new(RenderOptions::default().width, RenderOptions::default().height),
             shading_setup: ShadingSetup::default(),
             language: LanguageShading::default(),
+            shading_cache: ShadingCache::default(),
             pipeline_warnings: vec![],
             explain: std::collections::BTreeMap::new(),
             shading: vec![],

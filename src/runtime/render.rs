@@ -386,7 +386,7 @@ impl Renderer {
         &self,
         shading: &LanguageShading,
         diags: &mut Diagnostics,
-    ) -> Option<super::shading::language::CompiledShading> {
+    ) -> Option<Arc<super::shading::language::CompiledShading>> {
         let planes: Vec<crate::link::PlaneParam> = self
             .shading_params()
             .iter()
@@ -420,7 +420,15 @@ impl Renderer {
             eye,
             near: if near.is_finite() { near.to_array() } else { [0.0; 3] },
         };
-        super::shading::language::compile(self.program(), shading, &planes, self.num_planes(), &spaces, diags)
+        super::shading::language::compile_cached(
+            &self.shading_cache,
+            self.program(),
+            shading,
+            &planes,
+            self.num_planes(),
+            &spaces,
+            diags,
+        )
     }
 
     /// Deferred shading over the visible pixels of `frame`, compiled for the scene's

@@ -322,3 +322,40 @@ fn only_the_planes_a_shader_names_are_read_and_explain_says_which() {
     let (out, _) = render_output(&quad_scene("light directional 0 0 1 1 1 1", ""), None, 1);
     assert!(out.language_shading.is_empty());
 }
+
+#[test]
+fn a_renderer_reuses_its_compiled_shading_until_the_shading_changes() {
+    let mut sources = SourceMap::new();
+    let mut diags = Diagnostics::new();
+    let registry = Registry::load(&mut sources, &[], &[], &mut diags).expect("library");
+    let file = sources.add(
+        "reuse.scene",
+        quad_scene(
+            "lightsource distantlight intensity=0.5 from=0,0,1 to=0,0,0",
+            "shader matte Ka=0",
+        ),
+    );
+    let mut renderer = Renderer::new(registry.program.clone());
+    primflow::scene::load_into(&sources, file, &mut renderer, &mut diags);
+    assert!(!diags.has_errors());
+    let mut jit = Jit::new(registry.program.clone()).unwrap();
+    let first = renderer.render(&mut jit);
+    let second = renderer.render(&mut jit);
+    assert_eq!(first.frame.color_values(), second.frame.color_values());
+    assert_eq!(first.language_shading, second.language_shading);
+    close(
+        second.frame.shaded_at(32, 32).unwrap(),
+        CS.map(|c| c * 0.5),
+        1e-6,
+        "cached",
+    );
+    // A changed argument is a new compile (here only the argument block differs).
+    renderer.language.lights[0].args[0].1 = vec![0.25];
+    let third = renderer.render(&mut jit);
+    close(
+        third.frame.shaded_at(32, 32).unwrap(),
+        CS.map(|c| c * 0.25),
+        1e-6,
+        "recompiled",
+    );
+}

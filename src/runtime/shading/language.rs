@@ -152,8 +152,9 @@ impl LanguageShading {
 
 /// The frame's shading kernels, ready to run.
 pub(crate) struct CompiledShading {
-    /// Kept alive: the kernels' code lives in it.
-    _jits: Vec<Jit>,
+    /// Kept alive: the kernels' code lives in them (behind a lock only so that the
+    /// compiled shading can be shared; nothing uses them after the compile).
+    _jits: std::sync::Mutex<Vec<Jit>>,
     /// What was compiled, one line per kernel (`render --explain`).
     pub explain: Vec<String>,
     pub(crate) pass: ShadingRuns,
@@ -168,6 +169,7 @@ pub(crate) struct ShadingRuns {
 }
 
 /// The spaces a frame's arguments are moved by.
+#[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Spaces {
     pub lighting_from_world: DMat4,
     pub device_from_lighting: DMat4,
@@ -175,6 +177,53 @@ pub(crate) struct Spaces {
     pub eye: [f64; 4],
     /// The centre of the near plane in lighting coordinates.
     pub near: [f64; 3],
+}
+
+/// The last frame's compiled shading and what it was compiled from: a renderer that
+/// renders frame after frame with the same shaders, lights and planes links and compiles
+/// them once.
+#[derive(Default)]
+pub(crate) struct ShadingCache(std::sync::Mutex<Option<CacheEntry>>);
+
+struct CacheEntry {
+    shading: LanguageShading,
+    planes: Vec<PlaneParam>,
+    out_plane: u32,
+    spaces: Spaces,
+    compiled: Arc<CompiledShading>,
+    /// The compile's warnings, reported again with every frame that uses it.
+    diags: Diagnostics,
+}
+
+/// [`compile`], or the cached result when the inputs are those of the last compile.
+pub(crate) fn compile_cached(
+    cache: &ShadingCache,
+    program: &Program,
+    shading: &LanguageShading,
+    planes: &[PlaneParam],
+    out_plane: u32,
+    spaces: &Spaces,
+    diags: &mut Diagnostics,
+) -> Option<Arc<CompiledShading>> {
+    let mut slot = cache.0.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some(e) = slot.as_ref() {
+        if e.shading == *shading && e.planes == planes && e.out_plane == out_plane && e.spaces == *spaces {
+            diags.extend(e.diags.clone());
+            return Some(e.compiled.clone());
+        }
+    }
+    let mut own = Diagnostics::new();
+    let compiled = compile(program, shading, planes, out_plane, spaces, &mut own).map(Arc::new);
+    diags.extend(own.clone());
+    *slot = compiled.clone().map(|compiled| CacheEntry {
+        shading: shading.clone(),
+        planes: planes.to_vec(),
+        out_plane,
+        spaces: spaces.clone(),
+        compiled,
+        diags: own,
+    });
+    compiled
 }
 
 /// Link and compile the frame's shading. `planes`: the shading parameters' planes;
@@ -340,7 +389,7 @@ pub(crate) fn compile(
         jits.push(jit);
     }
     Some(CompiledShading {
-        _jits: jits,
+        _jits: std::sync::Mutex::new(jits),
         explain,
         pass: ShadingRuns {
             programs,
