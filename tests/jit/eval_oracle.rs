@@ -670,3 +670,71 @@ fn a_helper_after_the_group_ran_out_of_fuel_runs_at_both_tiers_and_in_the_evalua
     }
     assert!(seen.fuel_errors > 0 && seen.drawn > 500, "{seen:?}");
 }
+
+#[test]
+fn linked_shader_groups_match_the_evaluator_at_both_tiers() {
+    // The library's surfaces with every light shader and fog, linked against a G-buffer of
+    // Cs, N and st (output planes after them), on random arguments: `__gbuffer` reads and
+    // the unrolled lights agree bit for bit.
+    use primflow::link::{self, Group, PlaneParam};
+    use primflow::syntax::ast::ItemKind;
+    let (_, program) = support::library_and_sources();
+    let find = |kind: ItemKind, name: &str| {
+        program
+            .shading_items
+            .iter()
+            .find(|i| i.kind == kind && i.name.name == name)
+            .unwrap_or_else(|| panic!("no {name}"))
+    };
+    let lights: Vec<_> = ["ambientlight", "pointlight", "distantlight", "spotlight"]
+        .iter()
+        .map(|n| find(ItemKind::Light, n))
+        .collect();
+    let planes = [("Cs", 0, 3), ("N", 3, 3), ("st", 6, 2)].map(|(n, first, c)| PlaneParam {
+        name: n.into(),
+        first_plane: first,
+        components: c,
+    });
+    let mut seen = Seen::default();
+    let mut rng = Lcg(36);
+    for surface in ["matte", "plastic", "checker", "marble", "fixed_phong"] {
+        let group = Group {
+            surface: find(ItemKind::Surface, surface),
+            lights: lights.clone(),
+            atmosphere: Some(find(ItemKind::Atmosphere, "fog")),
+            planes: &planes,
+            material: None,
+            out_plane: 8,
+        };
+        let linked = link::link(&group).expect("links");
+        let mut diags = Diagnostics::new();
+        let linked_program = Arc::new(primflow::check::check_linked(&program, &linked.items, &mut diags));
+        assert!(!diags.has_errors(), "{surface}: {diags:?}");
+        let func = linked_program.find(link::SHADE).expect("__shade");
+        let key = VariantKey {
+            bindings: vec![Binding {
+                kind: BindingKind::Kind(link::OUT_KIND.into()),
+                components: 3,
+            }],
+            ..VariantKey::default()
+        };
+        let mut args = random_args(&linked_program, func, &key, 0, &mut rng);
+        let layout = ArgLayout::new(&linked_program, func, &key);
+        for c in 0..3 {
+            args[layout.plane_table as usize + c] = 8 + c as u32;
+        }
+        let case = Case {
+            what: format!("linked `{surface}`"),
+            func,
+            key,
+            args,
+            size: (32, 16),
+            planes: 11,
+            budget: Budget::default(),
+        };
+        let mut jits = tiers(&linked_program, true);
+        compare(&linked_program, &mut jits, &case, 1, &mut seen);
+    }
+    assert_eq!(seen.unsupported, 0, "{seen:?}");
+    assert!(seen.nonzero_planes > 1000, "{seen:?}");
+}
