@@ -50,6 +50,10 @@ pub fn lower(name: &str, args: Vec<Tree>, span: Span) -> Result<Option<Tree>, Bu
         "refract" => (Refract, &[3]),
         "noise" => (Noise, &[1, 2]),
         "cellnoise" => (CellNoise, &[1, 2]),
+        // Only in shaders: the caller refuses them elsewhere.
+        "Dx" => (Dx, &[1]),
+        "Dy" => (Dy, &[1]),
+        "filterwidth" => (FilterWidth, &[1]),
         // Only in linked shader groups (`crate::link`): the caller refuses it elsewhere.
         "__gbuffer" => (GBuffer, &[3]),
         _ => return Ok(None),

@@ -584,6 +584,16 @@ pub enum Builtin {
     /// call it, `crate::link`, with their `X` and `Y`). A plane past `ctx.num_planes` reads
     /// 0. Taking `X` and `Y` makes the value varying and keeps it in the pixel part.
     GBuffer,
+    /// `Dx(v)`, `Dy(v)`: per component, the change of `v` from one pixel to the next along
+    /// screen x (y) within the 2x2 quad of pixels a shading group holds (lanes 0, 1 the
+    /// quad's upper row, 2, 3 its lower one): the difference across the lane's own row
+    /// (column) when both of its pixels execute, else across the other row (column) when
+    /// both of those do, else 0. A uniform `v` gives 0. Only shaders call them
+    /// (`crate::link` runs such groups on quads).
+    Dx,
+    Dy,
+    /// `filterwidth(v)` = `sqrt(Dx(v)^2 + Dy(v)^2)` per component.
+    FilterWidth,
     /// `transform(from, to, p)`: point between named spaces (homogeneous float[4], or float[3]
     /// taken with w = 1).
     TransformPoint {

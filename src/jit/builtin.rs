@@ -111,6 +111,10 @@ impl<'a, 'b> Lower<'a, 'b> {
                 self.shading_builtin(func, vals)
             }
             Builtin::GBuffer => self.gbuffer_read(&vals[0]),
+            Builtin::Dx | Builtin::Dy | Builtin::FilterWidth => {
+                let varying = self.exprs()[args[0]].var.is_varying();
+                self.derivative(func, &vals[0], varying)
+            }
             Builtin::Sqrt
             | Builtin::Abs
             | Builtin::Floor

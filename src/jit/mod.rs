@@ -59,6 +59,7 @@
 
 mod batch;
 mod builtin;
+mod derivative;
 mod fixed;
 pub mod libm;
 mod lower;

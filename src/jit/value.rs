@@ -184,7 +184,7 @@ pub fn args_flags() -> MemFlagsData {
     MemFlagsData::new().with_notrap().with_readonly().with_can_move()
 }
 
-fn bitcast_flags() -> MemFlagsData {
+pub(super) fn bitcast_flags() -> MemFlagsData {
     MemFlagsData::new().with_endianness(ir::Endianness::Little)
 }
 

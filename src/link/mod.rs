@@ -69,6 +69,10 @@ pub struct Group<'a> {
     pub material: Option<(u32, u32)>,
     /// The first of the three output planes (`Ci`).
     pub out_plane: u32,
+    /// `__shade` runs on 2x2 quads of pixels (a shader of the frame [`takes_derivatives`]):
+    /// it reads each pixel's centre from the planes `out_plane + 3` (x) and `out_plane + 4`
+    /// (y) instead of its `X` and `Y`.
+    pub quads: bool,
 }
 
 /// A linked shader group: items to check with the program's helpers.
@@ -132,32 +136,45 @@ pub fn is_ambient(light: &Item) -> bool {
     !assigns_l
 }
 
-/// Every name `block` mentions as a variable (not as a callee).
-fn names_used(block: &ast::Block) -> std::collections::HashSet<String> {
-    let mut names = std::collections::HashSet::new();
-    let mut stmts: Vec<&Stmt> = block.stmts.iter().collect();
-    let mut exprs: Vec<&Expr> = vec![];
-    while let Some(s) = stmts.pop() {
-        s.for_each_child(|c| stmts.push(c), |e| exprs.push(e));
-        while let Some(e) = exprs.pop() {
-            match &e.kind {
-                ExprKind::Name(n) => {
-                    names.insert(n.name.clone());
+/// The names `block` mentions as variables, and the functions it calls.
+#[derive(Default)]
+struct Uses {
+    names: std::collections::HashSet<String>,
+    calls: std::collections::HashSet<String>,
+}
+
+impl Uses {
+    fn of(block: &ast::Block) -> Uses {
+        let mut uses = Uses::default();
+        let mut stmts: Vec<&Stmt> = block.stmts.iter().collect();
+        let mut exprs: Vec<&Expr> = vec![];
+        while let Some(s) = stmts.pop() {
+            s.for_each_child(|c| stmts.push(c), |e| exprs.push(e));
+            while let Some(e) = exprs.pop() {
+                match &e.kind {
+                    ExprKind::Name(n) => {
+                        uses.names.insert(n.name.clone());
+                    }
+                    ExprKind::Call { callee, .. } => {
+                        uses.calls.insert(callee.name.clone());
+                    }
+                    _ => {}
                 }
-                ExprKind::Call { args, .. } | ExprKind::Construct { args, .. } | ExprKind::List(args) => {
-                    exprs.extend(args.iter())
-                }
-                ExprKind::Unary { expr, .. } => exprs.push(expr),
-                ExprKind::Binary { lhs, rhs, .. } => exprs.extend([&**lhs, &**rhs]),
-                ExprKind::Ternary { cond, then, otherwise } => exprs.extend([&**cond, &**then, &**otherwise]),
-                ExprKind::Index { base, index } => exprs.extend([&**base, &**index]),
-                ExprKind::Field { base, .. } => exprs.push(base),
-                _ => {}
+                e.for_each_child(|c| exprs.push(c));
             }
         }
+        uses
     }
-    names
 }
+
+/// Whether shader `item` takes a screen-space derivative: its frame then shades on quads.
+pub fn takes_derivatives(item: &Item) -> bool {
+    let calls = Uses::of(&item.body).calls;
+    DERIVATIVES.iter().any(|d| calls.contains(*d))
+}
+
+/// The built-ins that take screen-space derivatives.
+const DERIVATIVES: &[&str] = &["Dx", "Dy", "filterwidth"];
 
 fn root_name(e: &Expr) -> Option<&str> {
     match &e.kind {
@@ -274,10 +291,14 @@ pub fn link(group: &Group) -> Result<Linked, String> {
 
     // A global's planes are read only when the surface or the atmosphere names it (a
     // helper sees only what it is passed): an effect the shaders do not use reads nothing.
-    let mut used = names_used(&surface.body);
+    let mut uses = Uses::of(&surface.body);
     if let Some(a) = group.atmosphere {
-        used.extend(names_used(&a.body));
+        let more = Uses::of(&a.body);
+        uses.names.extend(more.names);
+        uses.calls.extend(more.calls);
     }
+    let quads = group.quads;
+    let used = &uses.names;
     let plane = |name: &str| {
         let wanted = match name {
             "N" => used.contains("N") || used.contains("Ng"),
@@ -332,11 +353,19 @@ pub fn link(group: &Group) -> Result<Linked, String> {
     } else {
         String::new()
     };
+    // On quads the group's lanes are not a row of the tile: the pixel centres come from
+    // the two planes after the outputs (`runtime::shading::quads`).
+    let (px, py) = if quads {
+        let x = group.out_plane + 3;
+        (format!("__gbuffer({x}, X, Y)"), format!("__gbuffer({}, X, Y)", x + 1))
+    } else {
+        ("X".to_string(), "Y".to_string())
+    };
     text.push_str(&format!(
         "primitive {SHADE}({prim_params}varying float X, Y; inout varying fixed<32,32> Z) {{
 bound(0, 0, 1e30, 1e30);
 if (Z == 0) return;
-{material}float q[4] = __lighting_from_device * {{X, Y, float(Z), 1.0}};
+{material}float q[4] = __lighting_from_device * {{{px}, {py}, float(Z), 1.0}};
 vector P = {{q[0] / q[3], q[1] / q[3], q[2] / q[3]}};
 vector E = {{__eye[0], __eye[1], __eye[2]}};
 vector I = __eye[3] == 0 ? -E * max(dot({{__near[0], __near[1], __near[2]}} - P, E), 1e-20) : P - E;
@@ -431,6 +460,7 @@ pub fn canonical(shader: &Item, lights: &[&Item]) -> Result<Linked, String> {
         planes: &planes,
         material: None,
         out_plane: 15,
+        quads: takes_derivatives(shader),
     })
 }
 

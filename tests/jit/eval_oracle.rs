@@ -697,14 +697,25 @@ fn linked_shader_groups_match_the_evaluator_at_both_tiers() {
     });
     let mut seen = Seen::default();
     let mut rng = Lcg(36);
-    for surface in ["matte", "plastic", "checker", "marble", "fixed_phong"] {
+    for surface in [
+        "matte",
+        "plastic",
+        "checker",
+        "filtered_checker",
+        "marble",
+        "fixed_phong",
+    ] {
+        let surface_item = find(ItemKind::Surface, surface);
         let group = Group {
-            surface: find(ItemKind::Surface, surface),
+            surface: surface_item,
             lights: lights.clone(),
             atmosphere: Some(find(ItemKind::Atmosphere, "fog")),
             planes: &planes,
             material: None,
             out_plane: 8,
+            // `filtered_checker` takes derivatives: its lanes are a quad, its pixel centres
+            // read from planes 11 and 12 (random here, like the rest of the G-buffer).
+            quads: link::takes_derivatives(surface_item),
         };
         let linked = link::link(&group).expect("links");
         let mut diags = Diagnostics::new();
@@ -729,7 +740,7 @@ fn linked_shader_groups_match_the_evaluator_at_both_tiers() {
             key,
             args,
             size: (32, 16),
-            planes: 11,
+            planes: 13,
             budget: Budget::default(),
         };
         let mut jits = tiers(&linked_program, true);

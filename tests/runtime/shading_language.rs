@@ -359,3 +359,132 @@ fn a_renderer_reuses_its_compiled_shading_until_the_shading_changes() {
         "recompiled",
     );
 }
+
+/// A surface showing `Dx(s)`, `Dy(s)` and `filterwidth(t)` as its colour.
+const DERIVATIVES: &str = "surface derivatives() { Ci = {Dx(s), Dy(s), filterwidth(t)}; }";
+
+/// A 64 x 64 screen triangle with s = x/4 + y/2 and t = (x - y)/8, affine in screen space,
+/// shaded by `derivatives`, in tiles of `tile`.
+fn affine_scene(tile: u32) -> String {
+    format!(
+        "image 64 64
+tile {tile}
+material_interp s linear
+material_interp t linear
+shader derivatives
+begin screen_triangle
+rast_param screen_vertex 0 0 0.5 1   64 0 0.5 1   0 64 0.5 1
+material s 0
+material t 0
+sequence_point
+material s 16
+material t 8
+sequence_point
+material s 32
+material t -8
+sequence_point
+end
+"
+    )
+}
+
+#[test]
+fn derivatives_are_exact_on_affine_fields_and_zero_for_a_pixel_alone_in_its_quad() {
+    let (frame, codes) = render(&affine_scene(16), Some(DERIVATIVES), 2);
+    assert!(codes.is_empty(), "{codes:?}");
+    let on = |x: u32, y: u32| frame.written(x, y);
+    let (mut exact, mut alone) = (0, 0);
+    for y in 0..64 {
+        for x in 0..64 {
+            if !on(x, y) {
+                continue;
+            }
+            // The pixel's quad starts at even coordinates: a derivative needs a row
+            // (column) of it whose two pixels are both shaded.
+            let (qx, qy) = (x & !1, y & !1);
+            let row = |r: u32| on(qx, r) && on(qx + 1, r);
+            let col = |c: u32| on(c, qy) && on(c, qy + 1);
+            let (has_dx, has_dy) = (row(qy) || row(qy + 1), col(qx) || col(qx + 1));
+            let got = frame.shaded_at(x, y).unwrap();
+            let want_dx = if has_dx { 0.25 } else { 0.0 };
+            let want_dy = if has_dy { 0.5 } else { 0.0 };
+            let want_fw = match (has_dx, has_dy) {
+                (true, true) => 0.125 * 2f64.sqrt(),
+                (false, false) => 0.0,
+                _ => 0.125,
+            };
+            close(got, [want_dx, want_dy, want_fw], 1e-5, &format!("pixel {x},{y}"));
+            if has_dx && has_dy {
+                exact += 1;
+            } else {
+                alone += 1;
+            }
+        }
+    }
+    assert!(exact > 1800, "{exact} pixels with both derivatives");
+    assert!(alone > 0, "no pixel on the diagonal edge tested the fallback");
+}
+
+#[test]
+fn quad_shading_is_the_same_for_any_thread_count_and_tile_size() {
+    let a = render(&affine_scene(16), Some(DERIVATIVES), 1).0;
+    let b = render(&affine_scene(64), Some(DERIVATIVES), 2).0;
+    assert_eq!(a.color_values(), b.color_values());
+    let lights = "lightsource ambientlight intensity=0.2
+lightsource distantlight intensity=0.8 from=0,1,2 to=0,0,0
+material_interp st perspective_linear";
+    let checker = |tile: u32, threads: usize| {
+        let scene = quad_scene(&format!("tile {tile}\n{lights}"), "shader filtered_checker frequency=9")
+            .replace("vertex -1 -1 0", "material st 0 0\nvertex -1 -1 0")
+            .replace("vertex 1 -1 0", "material st 1 0\nvertex 1 -1 0")
+            .replace("vertex 1 1 0", "material st 1 1\nvertex 1 1 0")
+            .replace("vertex -1 1 0", "material st 0 1\nvertex -1 1 0");
+        render(&scene, None, threads)
+    };
+    let (c, codes) = checker(16, 1);
+    assert!(codes.is_empty(), "{codes:?}");
+    assert_eq!(c.color_values(), checker(64, 2).0.color_values());
+}
+
+#[test]
+fn the_filtered_checker_averages_squares_smaller_than_a_pixel() {
+    // 64 x 64 pixels over s, t in [0, 1] at 256 squares a side: each pixel spans 4 x 4
+    // squares, half of them black, so every interior pixel is Cs half-way to black; the
+    // point-sampled checker gives Cs or black.
+    let scene = |shader: &str| {
+        format!(
+            "image 64 64
+material_interp s linear
+material_interp t linear
+material Cs 0.8 0.8 0.8
+shader {shader} frequency=256 Kd=0
+lightsource ambientlight intensity=1
+begin screen_triangle
+rast_param screen_vertex -64 0 0.5 1   128 0 0.5 1   -64 192 0.5 1
+material s -1
+material t 0
+sequence_point
+material s 2
+material t 0
+sequence_point
+material s -1
+material t 3
+sequence_point
+end
+"
+        )
+    };
+    let (filtered, codes) = render(&scene("filtered_checker"), None, 2);
+    assert!(codes.is_empty(), "{codes:?}");
+    let (point, _) = render(&scene("checker"), None, 2);
+    for (x, y) in [(10, 10), (30, 20), (50, 5)] {
+        close(
+            filtered.shaded_at(x, y).unwrap(),
+            [0.4; 3],
+            1e-3,
+            &format!("filtered {x},{y}"),
+        );
+        let p = point.shaded_at(x, y).unwrap()[0];
+        assert!(p == 0.0 || (p - 0.8).abs() < 1e-6, "point-sampled {x},{y}: {p}");
+    }
+}

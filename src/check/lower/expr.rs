@@ -642,6 +642,15 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
         let vals: Vec<Tree> = vals.into_iter().collect::<Option<_>>()?;
         let internal = callee.name == "__gbuffer" && !self.g.linked;
+        if matches!(callee.name.as_str(), "Dx" | "Dy" | "filterwidth") && !self.g.linked {
+            self.sink.push(err(
+                "E1003",
+                format!("`{}` outside a shader", callee.name),
+                callee.span,
+                "derivatives are taken between the pixels a shader runs on: only surface, light and atmosphere shaders take them",
+            ));
+            return None;
+        }
         match super::super::builtins::lower(&callee.name, vals, span) {
             Ok(Some(e)) if !internal => Some(e),
             Ok(_) => {

@@ -463,6 +463,10 @@ impl Machine<'_, '_> {
         if func == Builtin::GBuffer {
             return self.gbuffer_read(&vals[0]);
         }
+        if matches!(func, Builtin::Dx | Builtin::Dy | Builtin::FilterWidth) {
+            let varying = self.pix.is_some() && self.exprs()[args[0]].var.is_varying();
+            return Ok(super::derivative::derivative(func, &vals[0], varying, self.exec));
+        }
         if let Some(v) = super::shading::builtin(func, &vals) {
             return v;
         }

@@ -52,6 +52,7 @@
 //!   then groups row by row. The JIT's block walk visits groups in another order, so only a
 //!   setup's first error is comparable.
 
+mod derivative;
 mod expr;
 pub mod scalar;
 mod shading;

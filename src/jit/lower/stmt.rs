@@ -55,7 +55,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
-    pub(super) fn exec(&mut self) -> Option<ir::Value> {
+    pub(crate) fn exec(&mut self) -> Option<ir::Value> {
         let e = self.pix.as_ref()?.exec;
         Some(self.b.use_var(e))
     }

@@ -166,6 +166,8 @@ pub(crate) struct ShadingRuns {
     /// (kernel, argument block) per binding.
     runs: Vec<(Arc<Kernel>, Vec<u32>)>,
     pub out_plane: u32,
+    /// The kernels run on 2x2 quads of pixels (`super::quads`).
+    quads: bool,
 }
 
 /// The spaces a frame's arguments are moved by.
@@ -278,6 +280,17 @@ pub(crate) fn compile(
         light_names.join(", "),
         shading.atmosphere.as_ref().map_or("none", |a| a.name.as_str()),
     )];
+    // One layout for the whole frame: on quads as soon as any of its shaders takes a
+    // derivative.
+    let mut items: Vec<&ast::Item> = lights.clone();
+    items.extend(atmosphere);
+    for b in &bindings {
+        items.extend(find(&b.name, ItemKind::Surface));
+    }
+    let quads = items.iter().any(|i| link::takes_derivatives(i));
+    if quads {
+        explain.push("shading on 2x2 quads of pixels: a shader takes screen-space derivatives".into());
+    }
     for (id, binding) in bindings.iter().enumerate() {
         // Binding 0 runs only where a pixel can have no binding: a frame with bindings
         // whose every pixel has one still runs it (it shades nothing there).
@@ -295,6 +308,7 @@ pub(crate) fn compile(
             planes,
             material: material.map(|p| (p, id as u32)),
             out_plane,
+            quads,
         };
         let linked = match link::link(&group) {
             Ok(l) => l,
@@ -395,6 +409,7 @@ pub(crate) fn compile(
             programs,
             runs,
             out_plane,
+            quads,
         },
     })
 }
@@ -556,9 +571,16 @@ impl ShadingRuns {
         target: super::super::frame::FrameTarget<'_>,
     ) -> Vec<(usize, crate::runtime::errors::Counts)> {
         let mut out = vec![];
+        // SAFETY: the caller's contract.
+        let mut quads = self
+            .quads
+            .then(|| unsafe { super::quads::QuadTile::gather(tile, &target) });
         for (b, ((kernel, args), program)) in self.runs.iter().zip(&self.programs).enumerate() {
             crate::runtime::errors::CountArrays::with(program, |counts| {
                 let mut ctx = super::super::render::tile_context(tile, opts, &target);
+                if let Some(q) = &mut quads {
+                    ctx = q.context(ctx);
+                }
                 ctx.setup_counts = counts.scratch();
                 ctx.pixel_counts = counts.counts();
                 // SAFETY: the caller's contract; the argument block was built for this
@@ -570,6 +592,11 @@ impl ShadingRuns {
                     out.push((b, errors));
                 }
             });
+        }
+        if let Some(q) = &quads {
+            let first = self.out_plane as usize;
+            // SAFETY: the caller's contract.
+            unsafe { q.scatter(tile, &target, first..first + 3) };
         }
         out
     }

@@ -48,6 +48,7 @@ pub mod fast;
 #[doc(hidden)]
 pub mod lanes;
 pub mod language;
+pub(crate) mod quads;
 
 use fast::FastSetup;
 pub use fast::{simd_build, RowInputs};
