@@ -20,6 +20,8 @@
 //!   clipping, culling, points to device and normals to lighting coordinates.
 //! - [`shading`]: the deferred shading pass (Phong, fog, texture), one monomorphised
 //!   instance per effect set.
+//! - [`texture`]: image textures for shaders' `texture()`: PNG loading, mip chains,
+//!   bilinear / trilinear filtering, wrap modes, and the kernels' entry `primflow_texture`.
 //! - [`transform`]: `ortho` / `perspective` device_from_object matrices (kept for callers
 //!   that build a device transform themselves).
 //! - [`kernels`]: the [`KernelSource`] seam between renderer and JIT.
@@ -35,6 +37,7 @@ pub mod pool;
 pub mod registry;
 pub mod render;
 pub mod shading;
+pub mod texture;
 #[doc(hidden)]
 pub mod tiergate;
 pub mod transform;

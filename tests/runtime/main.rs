@@ -35,6 +35,7 @@ mod shading_phong;
 mod shading_rows;
 #[path = "../support/mod.rs"]
 mod support;
+mod texture;
 mod tier_gate;
 mod tier_gate_jobs;
 mod value_encoding;
