@@ -329,6 +329,37 @@ pub struct Program {
     /// as written: a frame links the ones it uses into a program of its own
     /// (`crate::link`). Empty when the sources define no shader.
     pub shading_items: Vec<crate::syntax::ast::Item>,
+    /// The image textures its `texture` calls name.
+    pub textures: Textures,
+}
+
+/// The image textures of a program, by slot ([`Builtin::Texture`]).
+#[derive(Clone, Debug, Default)]
+pub struct Textures {
+    /// The file names as written, each once.
+    pub names: Vec<String>,
+    /// Once loaded (`runtime::shading::language`, before anything renders): the set and each
+    /// slot's texture in it. Kernels and the evaluator read black without it.
+    pub loaded: Option<(std::sync::Arc<crate::runtime::texture::TextureSet>, Vec<u32>)>,
+}
+
+impl PartialEq for Textures {
+    fn eq(&self, other: &Textures) -> bool {
+        let same_set = match (&self.loaded, &other.loaded) {
+            (None, None) => true,
+            (Some((a, ia)), Some((b, ib))) => std::sync::Arc::ptr_eq(a, b) && ia == ib,
+            _ => false,
+        };
+        self.names == other.names && same_set
+    }
+}
+
+impl Textures {
+    /// The set and the texture id of `slot`, when loaded.
+    pub fn lookup(&self, slot: u32) -> Option<(&crate::runtime::texture::TextureSet, u32)> {
+        let (set, ids) = self.loaded.as_ref()?;
+        Some((set, *ids.get(slot as usize)?))
+    }
 }
 
 impl Program {
@@ -594,6 +625,13 @@ pub enum Builtin {
     Dy,
     /// `filterwidth(v)` = `sqrt(Dx(v)^2 + Dy(v)^2)` per component.
     FilterWidth,
+    /// `texture("file", s, t)` -> float[3]: image texture `slot` of [`Program::textures`]
+    /// filtered at `(s, t)` with wrap mode `wrap` (`runtime::texture::Wrap` as a number);
+    /// the operands are `s, t, Dx(s), Dx(t), Dy(s), Dy(t)`. Only shaders call it.
+    Texture {
+        slot: u32,
+        wrap: u32,
+    },
     /// `transform(from, to, p)`: point between named spaces (homogeneous float[4], or float[3]
     /// taken with w = 1).
     TransformPoint {
@@ -619,6 +657,7 @@ impl Builtin {
         match self {
             Min | Max | Pow | Step | Atan2 | Dot | Cross | Distance | Reflect => (2, 2),
             Clamp | Mix | Smoothstep | Refract | GBuffer => (3, 3),
+            Texture { .. } => (6, 6),
             Faceforward => (2, 3),
             Noise | CellNoise => (1, 2),
             _ => (1, 1),

@@ -1236,6 +1236,7 @@ fn builtin_ok(x: &super::Exprs, func: Builtin, args: &[ExprId], ty: &Type) -> bo
     match func {
         Faceforward | Reflect => args.iter().all(|a| x[*a].ty == v3) && *ty == v3,
         Refract => x[args[0]].ty == v3 && x[args[1]].ty == v3 && x[args[2]].ty == Type::float() && *ty == v3,
+        Texture { .. } => args.iter().all(|a| x[*a].ty == Type::float()) && *ty == v3,
         Noise | CellNoise => {
             let shapes: Vec<&[u32]> = args.iter().map(|a| x[*a].ty.dims.as_slice()).collect();
             super::noise::noise_dims(&shapes).is_some() && *ty == Type::float()

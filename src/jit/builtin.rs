@@ -111,6 +111,7 @@ impl<'a, 'b> Lower<'a, 'b> {
                 self.shading_builtin(func, vals)
             }
             Builtin::GBuffer => self.gbuffer_read(&vals[0]),
+            Builtin::Texture { slot, wrap } => self.texture(slot, wrap, vals),
             Builtin::Dx | Builtin::Dy | Builtin::FilterWidth => {
                 let varying = self.exprs()[args[0]].var.is_varying();
                 self.derivative(func, &vals[0], varying)

@@ -58,6 +58,7 @@ mod rows;
 mod spill;
 mod stmt;
 mod storage;
+mod texture;
 mod walk;
 
 pub(crate) use outline::pixel_signature;

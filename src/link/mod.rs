@@ -141,6 +141,8 @@ pub fn is_ambient(light: &Item) -> bool {
 struct Uses {
     names: std::collections::HashSet<String>,
     calls: std::collections::HashSet<String>,
+    /// The file names of `texture` calls, with their spans, in source order.
+    textures: Vec<(String, Span)>,
 }
 
 impl Uses {
@@ -155,8 +157,18 @@ impl Uses {
                     ExprKind::Name(n) => {
                         uses.names.insert(n.name.clone());
                     }
-                    ExprKind::Call { callee, .. } => {
+                    ExprKind::Call { callee, args } => {
                         uses.calls.insert(callee.name.clone());
+                        if let (
+                            true,
+                            Some(Expr {
+                                kind: ExprKind::Str(file),
+                                span,
+                            }),
+                        ) = (callee.name == "texture", args.first())
+                        {
+                            uses.textures.push((file.clone(), *span));
+                        }
                     }
                     _ => {}
                 }
@@ -173,8 +185,16 @@ pub fn takes_derivatives(item: &Item) -> bool {
     DERIVATIVES.iter().any(|d| calls.contains(*d))
 }
 
-/// The built-ins that take screen-space derivatives.
-const DERIVATIVES: &[&str] = &["Dx", "Dy", "filterwidth"];
+/// The built-ins that take screen-space derivatives (`texture` for its footprint).
+const DERIVATIVES: &[&str] = &["Dx", "Dy", "filterwidth", "texture"];
+
+/// The texture files shader `item` names (as written, with the span of each name), in
+/// source order: a frame loads them before anything renders. Only shaders call `texture`.
+pub fn texture_files(item: &Item) -> Vec<(String, Span)> {
+    let mut files = Uses::of(&item.body).textures;
+    files.sort_by_key(|(_, span)| (span.file, span.start));
+    files
+}
 
 fn root_name(e: &Expr) -> Option<&str> {
     match &e.kind {

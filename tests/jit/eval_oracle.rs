@@ -749,3 +749,76 @@ fn linked_shader_groups_match_the_evaluator_at_both_tiers() {
     assert_eq!(seen.unsupported, 0, "{seen:?}");
     assert!(seen.nonzero_planes > 1000, "{seen:?}");
 }
+
+#[test]
+fn texture_lookups_on_quads_match_the_evaluator_at_both_tiers() {
+    // A surface sampling a generated texture at derivatives-selected levels, in every wrap
+    // mode, on random G-buffer contents (so random quads of shaded lanes): the kernels'
+    // `primflow_texture` calls and the evaluator's `sample` give the same bits.
+    use primflow::link::{self, Group, PlaneParam};
+    use primflow::runtime::texture::{TextureSet, TEXTURE_MEMORY_LIMIT};
+    let (_, program) = support::library_and_sources();
+    let source = "surface textured() {
+    Ci = texture(\"a.png\", s * 3, t * 5) + texture(\"b.png\", t, s, \"wrap\", \"mirror\")
+        + texture(\"a.png\", s * 40, -t, \"wrap\", \"black\") * {1, 0.5, 0.25};
+}";
+    let mut diags = Diagnostics::new();
+    let module = primflow::syntax::parse(0, source, &mut diags);
+    assert!(!diags.has_errors(), "{diags:?}");
+    let surface = &module.items[0];
+    let planes = [("st", 0, 2)].map(|(n, first, c)| PlaneParam {
+        name: n.into(),
+        first_plane: first,
+        components: c,
+    });
+    let group = Group {
+        surface,
+        lights: vec![],
+        atmosphere: None,
+        planes: &planes,
+        material: None,
+        out_plane: 2,
+        quads: true,
+    };
+    let linked = link::link(&group).expect("links");
+    let mut linked_program = primflow::check::check_linked(&program, &linked.items, &mut diags);
+    assert!(!diags.has_errors(), "{diags:?}");
+    assert_eq!(linked_program.textures.names, ["a.png", "b.png"]);
+    let mut set = TextureSet::new();
+    let mut rng = Lcg(38);
+    for (name, (w, h)) in [("a.png", (16, 8)), ("b.png", (5, 3))] {
+        let texels = (0..w * h)
+            .map(|_| [0, 1, 2].map(|_| (bits(&mut rng) >> 8) as f32 / (1 << 24) as f32))
+            .collect();
+        set.insert(name, w, h, texels, TEXTURE_MEMORY_LIMIT).expect("fits");
+    }
+    linked_program.textures.loaded = Some((Arc::new(set), vec![0, 1]));
+    let linked_program = Arc::new(linked_program);
+    let func = linked_program.find(link::SHADE).expect("__shade");
+    let key = VariantKey {
+        bindings: vec![Binding {
+            kind: BindingKind::Kind(link::OUT_KIND.into()),
+            components: 3,
+        }],
+        ..VariantKey::default()
+    };
+    let mut args = random_args(&linked_program, func, &key, 0, &mut rng);
+    let layout = ArgLayout::new(&linked_program, func, &key);
+    for c in 0..3 {
+        args[layout.plane_table as usize + c] = 2 + c as u32;
+    }
+    let case = Case {
+        what: "linked `textured`".into(),
+        func,
+        key,
+        args,
+        size: (32, 16),
+        planes: 7,
+        budget: Budget::default(),
+    };
+    let mut seen = Seen::default();
+    let mut jits = tiers(&linked_program, true);
+    compare(&linked_program, &mut jits, &case, 1, &mut seen);
+    assert_eq!(seen.unsupported, 0, "{seen:?}");
+    assert!(seen.nonzero_planes > 100, "{seen:?}");
+}

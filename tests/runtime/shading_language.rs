@@ -38,6 +38,8 @@ fn render_output(text: &str, extra: Option<&str>, threads: usize) -> (primflow::
     let mut out = pool.install(|| renderer.render(&mut jit));
     diags.extend(std::mem::take(&mut out.diags));
     let codes = diags.codes_at(&sources);
+    // Every diagnostic, the scene reader's too, back in the output for tests that read them.
+    out.diags = diags;
     (out, codes)
 }
 
@@ -487,4 +489,135 @@ end
         let p = point.shaded_at(x, y).unwrap()[0];
         assert!(p == 0.0 || (p - 0.8).abs() < 1e-6, "point-sampled {x},{y}: {p}");
     }
+}
+
+/// A 4 x 4 RGB texture written to a temporary PNG: texel (i, j) is (i, j, i + j) * 17 / 255.
+fn texture_file(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("primflow-shading-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    let img = image::RgbImage::from_fn(4, 4, |i, j| {
+        image::Rgb([(i * 17) as u8, (j * 17) as u8, ((i + j) * 17) as u8])
+    });
+    img.save(&path).unwrap();
+    path
+}
+
+/// A triangle with (s, t) = (x, y) / 64 over the 64 x 64 image, in tiles of `tile`,
+/// shaded by `textured` with `scale`.
+fn texture_scene(tile: u32, scale: f32) -> String {
+    format!(
+        "image 64 64
+tile {tile}
+material_interp s linear
+material_interp t linear
+shader textured scale={scale}
+begin screen_triangle
+rast_param screen_vertex 0 0 0.5 1   128 0 0.5 1   0 128 0.5 1
+material s 0
+material t 0
+sequence_point
+material s 2
+material t 0
+sequence_point
+material s 0
+material t 2
+sequence_point
+end
+"
+    )
+}
+
+#[test]
+fn texture_lookups_pick_the_mip_level_of_the_footprint_and_filter_bilinearly() {
+    let file = texture_file("grid.png");
+    let shader = format!(
+        "surface textured(float scale = 1) {{ Ci = texture(\"{}\", s * scale, t * scale, \"wrap\", \"clamp\"); }}",
+        file.display()
+    );
+    // Bilinear in f64 over a level of `n` x `n` texels (clamped indices).
+    let bilinear = |level: &dyn Fn(i64, i64) -> [f64; 3], n: i64, s: f64, t: f64| -> [f64; 3] {
+        let (u, v) = (s * n as f64 - 0.5, t * n as f64 - 0.5);
+        let (i0, j0) = (u.floor() as i64, v.floor() as i64);
+        let (fu, fv) = (u - i0 as f64, v - j0 as f64);
+        let at = |i: i64, j: i64| level(i.clamp(0, n - 1), j.clamp(0, n - 1));
+        std::array::from_fn(|c| {
+            at(i0, j0)[c] * (1.0 - fu) * (1.0 - fv)
+                + at(i0 + 1, j0)[c] * fu * (1.0 - fv)
+                + at(i0, j0 + 1)[c] * (1.0 - fu) * fv
+                + at(i0 + 1, j0 + 1)[c] * fu * fv
+        })
+    };
+    let level0 = |i: i64, j: i64| {
+        [
+            i as f64 * 17.0 / 255.0,
+            j as f64 * 17.0 / 255.0,
+            (i + j) as f64 * 17.0 / 255.0,
+        ]
+    };
+    // Level 1 averages 2 x 2 texels of level 0.
+    let level1 = |i: i64, j: i64| {
+        let (a, b) = ((2 * i) as f64 + 0.5, (2 * j) as f64 + 0.5);
+        [a * 17.0 / 255.0, b * 17.0 / 255.0, (a + b) * 17.0 / 255.0]
+    };
+    // Scale 1: 64 pixels over 4 texels, a footprint of 1/16 texel: level 0.
+    let (frame, codes) = render(&texture_scene(16, 1.0), Some(&shader), 2);
+    assert!(codes.is_empty(), "{codes:?}");
+    for (x, y) in [(3, 5), (10, 20), (20, 10), (31, 2), (0, 0)] {
+        let (s, t) = ((x as f64 + 0.5) / 64.0, (y as f64 + 0.5) / 64.0);
+        close(
+            frame.shaded_at(x, y).unwrap(),
+            bilinear(&level0, 4, s, t),
+            1e-5,
+            &format!("level 0 at {x},{y}"),
+        );
+    }
+    // Scale 32: each pixel spans 2 texels (s moves by 0.5 a pixel): level 1, bilinear there.
+    let (frame, _) = render(&texture_scene(16, 32.0), Some(&shader), 2);
+    for (x, y) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+        let (s, t) = ((x as f64 + 0.5) / 2.0, (y as f64 + 0.5) / 2.0);
+        close(
+            frame.shaded_at(x, y).unwrap(),
+            bilinear(&level1, 2, s, t),
+            1e-4,
+            &format!("level 1 at {x},{y}"),
+        );
+    }
+}
+
+#[test]
+fn a_missing_or_corrupt_texture_is_an_error_naming_the_file_before_anything_renders() {
+    let missing = std::env::temp_dir().join("primflow-no-such-texture.png");
+    let corrupt = std::env::temp_dir().join(format!("primflow-corrupt-{}.png", std::process::id()));
+    std::fs::write(&corrupt, b"\x89PNG\r\n\x1a\nnot really").unwrap();
+    for file in [missing, corrupt] {
+        let shader = format!(
+            "surface textured(float scale = 1) {{ Ci = texture(\"{}\", s, t); }}",
+            file.display()
+        );
+        let (out, codes) = render_output(&texture_scene(16, 1.0), Some(&shader), 1);
+        assert!(codes.iter().any(|c| c.starts_with("E1004")), "{codes:?}");
+        let messages = format!("{:?}", out.diags);
+        assert!(messages.contains(&file.display().to_string()), "{messages}");
+        assert!(
+            out.frame.shaded_at(10, 10).is_none_or(|c| c == [0.0; 3]),
+            "nothing shaded"
+        );
+    }
+}
+
+#[test]
+fn textured_quads_are_the_same_for_any_thread_count_and_tile_size() {
+    let file = texture_file("grid2.png");
+    let shader = format!(
+        "surface textured(float scale = 1) {{ Ci = texture(\"{}\", s * scale, t * 3); }}",
+        file.display()
+    );
+    let a = render(&texture_scene(16, 7.0), Some(&shader), 1).0;
+    let b = render(&texture_scene(64, 7.0), Some(&shader), 2).0;
+    assert_eq!(a.color_values(), b.color_values());
+    assert!(
+        a.color_values().unwrap().iter().any(|c| c[0] > 0.1),
+        "something textured"
+    );
 }

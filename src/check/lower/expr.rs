@@ -597,6 +597,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
         match callee.name.as_str() {
             "transform" | "vtransform" | "ntransform" => return self.transform(callee, args, span, pre),
+            "texture" => return self.texture(callee, args, span, pre),
             "clipping" => {
                 if !args.is_empty() {
                     self.sink.push(err(
@@ -667,6 +668,117 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 None
             }
         }
+    }
+
+    /// `texture("file", s, t)` or `texture("file", s, t, "wrap", "MODE")`: the file's slot,
+    /// and `s`, `t` with their derivatives as operands (only shaders take derivatives).
+    pub(super) fn texture(
+        &mut self,
+        callee: &ast::Ident,
+        args: &[ast::Expr],
+        span: Span,
+        pre: &mut Vec<Stmt<Tree>>,
+    ) -> Option<Tree> {
+        use crate::runtime::texture::Wrap;
+        if !self.g.linked {
+            self.sink.push(err(
+                "E1003",
+                "`texture` outside a shader",
+                callee.span,
+                "a texture lookup filters over the pixel's footprint, from derivatives only shaders take",
+            ));
+            return None;
+        }
+        if args.len() != 3 && args.len() != 5 {
+            self.sink.push(err(
+                "E0210",
+                format!("`texture` takes 3 or 5 arguments, found {}", args.len()),
+                span,
+                "texture(\"file.png\", s, t) or texture(\"file.png\", s, t, \"wrap\", \"clamp\")",
+            ));
+            return None;
+        }
+        let literal = |e: &ast::Expr| match &e.kind {
+            ast::ExprKind::Str(s) => Some(s.clone()),
+            _ => None,
+        };
+        let Some(name) = literal(&args[0]) else {
+            self.sink.push(err(
+                "E0210",
+                "`texture` takes the file name as a string literal",
+                args[0].span,
+                "not a string literal",
+            ));
+            return None;
+        };
+        let mut wrap = Wrap::Periodic;
+        if args.len() == 5 {
+            let mode = literal(&args[4]).and_then(|m| Wrap::from_name(&m));
+            match (literal(&args[3]).as_deref(), mode) {
+                (Some("wrap"), Some(m)) => wrap = m,
+                _ => {
+                    self.sink.push(
+                        err(
+                            "E0210",
+                            "unknown `texture` option",
+                            args[3].span.to(args[4].span),
+                            "not a wrap mode",
+                        )
+                        .help(format!("the option is \"wrap\", one of {:?}", Wrap::NAMES)),
+                    );
+                    return None;
+                }
+            }
+        }
+        let mut coords = vec![];
+        for a in &args[1..3] {
+            let v = self.expr(a, pre)?;
+            if !(matches!(v.ty.elem, Elem::Scalar(s) if types::is_number(s)) && v.ty.dims.is_empty() && !v.ty.per_seq) {
+                self.sink.push(err(
+                    "E0210",
+                    format!("`texture` takes float coordinates, found {}", type_name(&v.ty)),
+                    a.span,
+                    "not a float",
+                ));
+                return None;
+            }
+            coords.push(convert(v, Scalar::Float));
+        }
+        let slot = {
+            let mut names = self.g.textures.borrow_mut();
+            match names.iter().position(|n| *n == name) {
+                Some(i) => i,
+                None => {
+                    names.push(name);
+                    names.len() - 1
+                }
+            }
+        } as u32;
+        let d = |func: Builtin, v: &Tree| {
+            mk(
+                TreeKind::Builtin {
+                    func,
+                    args: vec![v.clone()],
+                },
+                Type::float(),
+                span,
+            )
+        };
+        let (s, t) = (&coords[0], &coords[1]);
+        let operands = vec![
+            s.clone(),
+            t.clone(),
+            d(Builtin::Dx, s),
+            d(Builtin::Dx, t),
+            d(Builtin::Dy, s),
+            d(Builtin::Dy, t),
+        ];
+        let func = Builtin::Texture {
+            slot,
+            wrap: wrap as u32,
+        };
+        let ty = Type::array(Elem::Scalar(Scalar::Float), vec![3]);
+        Some(mk(TreeKind::Builtin { func, args: operands }, ty, span))
     }
 
     pub(super) fn transform(

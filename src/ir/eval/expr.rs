@@ -442,6 +442,31 @@ impl Machine<'_, '_> {
         })
     }
 
+    /// `texture`: `TextureSet::sample` per lane, as the kernels' `primflow_texture` calls
+    /// it; black without a loaded set (a uniform result is the same in every lane).
+    fn texture(&self, slot: u32, wrap: u32, vals: &[Val]) -> Val {
+        use crate::runtime::texture::Wrap;
+        let arg = |k: usize, l: usize| {
+            vals.get(k)
+                .and_then(|v| v.comps.first())
+                .map_or(0.0, |c| f32::from_bits(c[l]))
+        };
+        let mut comps = vec![[0u32; 4]; 3];
+        if let Some((set, id)) = self.program.textures.lookup(slot) {
+            for l in 0..4 {
+                let a = |k| arg(k, l);
+                let rgb = set.sample(id, Wrap::from_u32(wrap), a(0), a(1), a(2), a(3), a(4), a(5));
+                for c in 0..3 {
+                    comps[c][l] = rgb[c].to_bits();
+                }
+            }
+        }
+        Val {
+            comps,
+            sc: Scalar::Float,
+        }
+    }
+
     fn builtin(&mut self, func: Builtin, args: &[ExprId]) -> Res<Val> {
         let mut vals = vec![];
         for a in args {
@@ -462,6 +487,9 @@ impl Machine<'_, '_> {
         let vals: Vec<Val> = vals.iter().map(|v| v.converted(Scalar::Float)).collect();
         if func == Builtin::GBuffer {
             return self.gbuffer_read(&vals[0]);
+        }
+        if let Builtin::Texture { slot, wrap } = func {
+            return Ok(self.texture(slot, wrap, &vals));
         }
         if matches!(func, Builtin::Dx | Builtin::Dy | Builtin::FilterWidth) {
             let varying = self.pix.is_some() && self.exprs()[args[0]].var.is_varying();

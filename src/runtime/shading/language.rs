@@ -30,6 +30,7 @@ use crate::ir::{FuncId, Program};
 use crate::jit::Jit;
 use crate::link::{self, ArgSource, Group, PlaneParam};
 use crate::mid::Tier;
+use crate::runtime::texture::{TextureSet, TEXTURE_MEMORY_LIMIT};
 use crate::syntax::ast::{self, ItemKind};
 
 use super::{SceneLight, ShadingSetup};
@@ -291,6 +292,32 @@ pub(crate) fn compile(
     if quads {
         explain.push("shading on 2x2 quads of pixels: a shader takes screen-space derivatives".into());
     }
+    // Every texture the shaders name, loaded once for the frame before anything renders.
+    let mut textures = TextureSet::new();
+    let mut texture_ids: std::collections::HashMap<String, u32> = Default::default();
+    for item in &items {
+        for (file, span) in link::texture_files(item) {
+            if texture_ids.contains_key(&file) {
+                continue;
+            }
+            match textures.load(std::path::Path::new(&file), TEXTURE_MEMORY_LIMIT) {
+                Ok(id) => {
+                    if let Some((w, h)) = textures.level_size(id, 0) {
+                        explain.push(format!(
+                            "texture `{file}`: {w}x{h}, {} mip level(s)",
+                            textures.levels(id)
+                        ));
+                    }
+                    texture_ids.insert(file, id);
+                }
+                Err(e) => {
+                    diags.push(Diagnostic::error("E1004", e.to_string()).primary(span, "named here"));
+                    return None;
+                }
+            }
+        }
+    }
+    let textures = Arc::new(textures);
     for (id, binding) in bindings.iter().enumerate() {
         // Binding 0 runs only where a pixel can have no binding: a frame with bindings
         // whose every pixel has one still runs it (it shades nothing there).
@@ -342,10 +369,19 @@ pub(crate) fn compile(
             }
         ));
         let mut check_diags = Diagnostics::new();
-        let linked_program = crate::check::check_linked(program, &linked.items, &mut check_diags);
+        let mut linked_program = crate::check::check_linked(program, &linked.items, &mut check_diags);
         if check_diags.has_errors() {
             diags.extend(check_diags);
             return None;
+        }
+        if !linked_program.textures.names.is_empty() {
+            let ids = linked_program
+                .textures
+                .names
+                .iter()
+                .map(|n| texture_ids.get(n).copied().unwrap_or(u32::MAX))
+                .collect();
+            linked_program.textures.loaded = Some((textures.clone(), ids));
         }
         let linked_program = Arc::new(linked_program);
         let Some(func) = linked_program.find(link::SHADE) else {
