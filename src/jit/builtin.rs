@@ -8,7 +8,7 @@
 //! Component-wise built-ins broadcast a single-component argument over the others (the
 //! checker allows `mix(a, b, t)` with a scalar `t` over colours).
 
-use cranelift_codegen::ir::{self, condcodes::FloatCC, InstBuilder};
+use cranelift_codegen::ir::{self, condcodes::FloatCC, types, InstBuilder};
 
 use super::libm::LibmFn;
 use super::lower::{err, Lower, Res};
@@ -137,6 +137,14 @@ impl<'a, 'b> Lower<'a, 'b> {
                 }
                 Ok(self.fl(comps, v.varying))
             }
+            Builtin::Pow if vals[0].varying && !vals[1].varying && vals[1].comps.len() == 1 => {
+                let y = vals[1].comps[0];
+                let mut comps = vec![];
+                for &x in &vals[0].comps {
+                    comps.push(self.pow_uniform_exponent(x, y)?);
+                }
+                Ok(self.fl(comps, true))
+            }
             Builtin::Min | Builtin::Max | Builtin::Atan2 | Builtin::Pow | Builtin::Step => {
                 let vs = self.unify_all(vals)?;
                 let mut comps = vec![];
@@ -217,6 +225,53 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     /// One component of a two-operand float built-in (min, max, atan2, pow, step).
+    /// `pow` of a varying `x` by a uniform `y`: when `y` is a small integer, the vector form
+    /// of `libm::pow_int` (a few multiplies for four lanes), else `powf` lane by lane. The
+    /// same bits as `primflow_powf` per lane either way.
+    fn pow_uniform_exponent(&mut self, x: ir::Value, y: ir::Value) -> Res<ir::Value> {
+        let floor = self.b.ins().floor(y);
+        let whole = self.b.ins().fcmp(FloatCC::Equal, floor, y);
+        let mag = self.b.ins().fabs(y);
+        let limit = self.f32const_here(super::libm::POW_INT_MAX);
+        let small = self.b.ins().fcmp(FloatCC::LessThanOrEqual, mag, limit);
+        let int = self.b.ins().band(whole, small);
+        let int_blk = self.b.create_block();
+        let call_blk = self.b.create_block();
+        let join = self.b.create_block();
+        let result = self.b.append_block_param(join, F32X4);
+        self.b.ins().brif(int, int_blk, &[], call_blk, &[]);
+
+        self.b.switch_to_block(int_blk);
+        let n = self.b.ins().fcvt_to_uint_sat(types::I32, mag);
+        let one = self.f32const_here(1.0);
+        let mut r = self.b.ins().splat(F32X4, one);
+        let mut base = x;
+        let bits = super::libm::POW_INT_BITS;
+        for bit in 0..bits {
+            let shifted = self.b.ins().ushr_imm_u(n, i64::from(bit));
+            let set = self.b.ins().band_imm_u(shifted, 1);
+            let product = self.b.ins().fmul(r, base);
+            r = self.b.ins().select(set, product, r);
+            if bit + 1 < bits {
+                base = self.b.ins().fmul(base, base);
+            }
+        }
+        let zero = self.f32const_here(0.0);
+        let negative = self.b.ins().fcmp(FloatCC::LessThan, y, zero);
+        let ones = self.b.ins().splat(F32X4, one);
+        let inverse = self.b.ins().fdiv(ones, r);
+        let r = self.b.ins().select(negative, inverse, r);
+        self.b.ins().jump(join, &[r.into()]);
+
+        self.b.switch_to_block(call_blk);
+        let ys = self.b.ins().splat(F32X4, y);
+        let r = self.call_libm(LibmFn::Pow, &[x, ys])?;
+        self.b.ins().jump(join, &[r.into()]);
+
+        self.b.switch_to_block(join);
+        Ok(result)
+    }
+
     fn binary_float(&mut self, func: Builtin, x: ir::Value, y: ir::Value) -> Res<ir::Value> {
         Ok(match func {
             Builtin::Min => self.b.ins().fmin(x, y),

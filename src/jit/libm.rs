@@ -176,9 +176,51 @@ extern "C" fn primflow_atanf(x: f32) -> f32 {
 extern "C" fn primflow_atan2f(y: f32, x: f32) -> f32 {
     y.atan2(x)
 }
+/// `pow`: by repeated squaring when `y` is an integer of magnitude at most
+/// [`POW_INT_MAX`] ([`pow_int`]), else Rust's `powf`.
 extern "C" fn primflow_powf(x: f32, y: f32) -> f32 {
-    x.powf(y)
+    if is_small_int(y) {
+        pow_int(x, y)
+    } else {
+        x.powf(y)
+    }
 }
+
+/// The largest integer exponent `pow` raises to by repeated squaring.
+pub const POW_INT_MAX: f32 = 64.0;
+
+/// `y` is an integer in `[-POW_INT_MAX, POW_INT_MAX]` (NaN is not).
+pub fn is_small_int(y: f32) -> bool {
+    y.floor() == y && y.abs() <= POW_INT_MAX
+}
+
+/// `x^y` for an integer `y` of magnitude at most [`POW_INT_MAX`]: `r = 1`, `b = x`, for each
+/// of the 7 bits of `|y|` from the lowest, `r = r * b` when it is set, then `b = b * b`
+/// (not after the last); `1 / r` for a negative `y`. The JIT emits exactly these f32
+/// operations on vectors when the exponent is uniform (`jit::builtin`), so both give these
+/// bits. Each multiply rounds once: `x^n` is within about `2n` ulps (a few for the small
+/// exponents of specular highlights), not correctly rounded as `powf` nearly is.
+pub fn pow_int(x: f32, y: f32) -> f32 {
+    let n = y.abs() as u32;
+    let mut r = 1.0f32;
+    let mut b = x;
+    for bit in 0..POW_INT_BITS {
+        if (n >> bit) & 1 == 1 {
+            r *= b;
+        }
+        if bit + 1 < POW_INT_BITS {
+            b *= b;
+        }
+    }
+    if y < 0.0 {
+        1.0 / r
+    } else {
+        r
+    }
+}
+
+/// Bits of the largest exponent [`pow_int`] handles.
+pub const POW_INT_BITS: u32 = 7;
 extern "C" fn primflow_expf(x: f32) -> f32 {
     x.exp()
 }

@@ -260,3 +260,58 @@ fn transforms_use_the_space_matrices() {
         assert_eq!(got, want, "lane {lane}");
     }
 }
+
+#[test]
+fn pow_by_an_integer_exponent_is_repeated_squaring_on_uniform_and_varying_exponents() {
+    use primflow::jit::libm::{is_small_int, pow_int};
+    let exponents = [-3.0f32, -0.0, 0.0, 1.0, 2.0, 5.0, 16.0, 63.0, 64.0, 65.0, 2.5, -1.5];
+    let outs = run(
+        |x| {
+            // Base X - 7.5 + 0.25 (signs vary, no integer bases): a uniform exponent takes
+            // the vector path; a varying exponent (X - 3.5, integers) and a uniform base the
+            // per-lane calls.
+            let base = bin(BinOp::Sub, x.clone(), fc(7.25));
+            let mut v: Vec<Tree> = exponents
+                .iter()
+                .map(|&n| call(Builtin::Pow, vec![base.clone(), fc(n)], float()))
+                .collect();
+            v.push(call(
+                Builtin::Pow,
+                vec![fc(1.1), bin(BinOp::Sub, x.clone(), fc(3.5))],
+                float(),
+            ));
+            v
+        },
+        None,
+    );
+    for lane in 0..W {
+        let x = lane as f32 + 0.5 - 7.25;
+        for (k, &n) in exponents.iter().enumerate() {
+            let got = outs[k][lane];
+            let want = if is_small_int(n) { pow_int(x, n) } else { x.powf(n) };
+            assert!(
+                got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+                "pow({x}, {n}) = {got}, want {want}"
+            );
+            if is_small_int(n) {
+                // Within (2|n| + 2) roundings of the exact power (f64), or both past f32.
+                let exact = f64::from(x).powi(n as i32);
+                let bound = (2.0 * f64::from(n.abs()) + 2.0) * 2f64.powi(-24);
+                let ok = if exact.abs() > f64::from(f32::MAX) {
+                    got.is_infinite()
+                } else if exact.abs() < 1e-30 {
+                    f64::from(got).abs() < 1e-29
+                } else {
+                    ((f64::from(got) - exact) / exact).abs() <= bound
+                };
+                assert!(ok, "pow({x}, {n}) = {got}, exact {exact}");
+            }
+        }
+        let y = lane as f32 + 0.5 - 3.5;
+        assert_eq!(
+            outs[exponents.len()][lane].to_bits(),
+            pow_int(1.1, y).to_bits(),
+            "pow(1.1, {y})"
+        );
+    }
+}
