@@ -67,6 +67,9 @@ pub struct Group<'a> {
     /// The plane holding each pixel's surface binding and this binding's number in it, when
     /// the frame has several bindings.
     pub material: Option<(u32, u32)>,
+    /// The values of the surface's `string` parameters the scene gives, by name (the
+    /// others take their defaults).
+    pub surface_text: &'a [(String, String)],
     /// The first of the three output planes (`Ci`).
     pub out_plane: u32,
     /// `__shade` runs on 2x2 quads of pixels (a shader of the frame [`takes_derivatives`]):
@@ -141,8 +144,15 @@ pub fn is_ambient(light: &Item) -> bool {
 struct Uses {
     names: std::collections::HashSet<String>,
     calls: std::collections::HashSet<String>,
-    /// The file names of `texture` calls, with their spans, in source order.
-    textures: Vec<(String, Span)>,
+    /// The file names of `texture` calls, with their spans.
+    textures: Vec<(TextureName, Span)>,
+}
+
+/// What a `texture` call names its file by.
+enum TextureName {
+    File(String),
+    /// A `string` parameter of the surface.
+    Parameter(String),
 }
 
 impl Uses {
@@ -159,15 +169,16 @@ impl Uses {
                     }
                     ExprKind::Call { callee, args } => {
                         uses.calls.insert(callee.name.clone());
-                        if let (
-                            true,
-                            Some(Expr {
-                                kind: ExprKind::Str(file),
-                                span,
-                            }),
-                        ) = (callee.name == "texture", args.first())
-                        {
-                            uses.textures.push((file.clone(), *span));
+                        if callee.name == "texture" {
+                            match args.first().map(|a| (&a.kind, a.span)) {
+                                Some((ExprKind::Str(file), span)) => {
+                                    uses.textures.push((TextureName::File(file.clone()), span))
+                                }
+                                Some((ExprKind::Name(n), span)) => {
+                                    uses.textures.push((TextureName::Parameter(n.name.clone()), span))
+                                }
+                                _ => {}
+                            }
                         }
                     }
                     _ => {}
@@ -189,9 +200,20 @@ pub fn takes_derivatives(item: &Item) -> bool {
 const DERIVATIVES: &[&str] = &["Dx", "Dy", "filterwidth", "texture"];
 
 /// The texture files shader `item` names (as written, with the span of each name), in
-/// source order: a frame loads them before anything renders. Only shaders call `texture`.
-pub fn texture_files(item: &Item) -> Vec<(String, Span)> {
-    let mut files = Uses::of(&item.body).textures;
+/// source order, its `string` parameters given `text` (the others their defaults): a frame
+/// loads them before anything renders. Only shaders call `texture`; an empty name reads
+/// white and names no file.
+pub fn texture_files(item: &Item, text: &[(String, String)]) -> Vec<(String, Span)> {
+    let values = text_values(item, text);
+    let mut files: Vec<(String, Span)> = Uses::of(&item.body)
+        .textures
+        .into_iter()
+        .filter_map(|(name, span)| match name {
+            TextureName::File(f) => Some((f, span)),
+            TextureName::Parameter(p) => values.iter().find(|(n, _)| *n == p).map(|(_, v)| (v.clone(), span)),
+        })
+        .filter(|(f, _)| !f.is_empty())
+        .collect();
     files.sort_by_key(|(_, span)| (span.file, span.start));
     files
 }
@@ -207,7 +229,12 @@ fn root_name(e: &Expr) -> Option<&str> {
 /// Link `group` (see the module documentation). Errors only for generated text that does
 /// not parse, which is a bug of this module.
 pub fn link(group: &Group) -> Result<Linked, String> {
-    let surface = group.surface;
+    // `string` parameters are constants of the code: their values replace their names in
+    // the body (`Rewrite`), and the surface has no such parameter at run time.
+    let text_args = text_values(group.surface, group.surface_text);
+    let mut surface_owned = group.surface.clone();
+    surface_owned.params.retain(|p| p.ty.kind != ast::TypeKind::String);
+    let surface = &surface_owned;
     let span = surface.name.span;
     let plane = |name: &str| group.planes.iter().find(|p| p.name == name);
     let mut reads = vec![];
@@ -412,13 +439,16 @@ __surface(P, N, Ng, I, E, s, t, Cs, Os, Ci, Oi{surface_args}{light_args});
     }
 
     // Splice the shaders' parameters and bodies into their helpers.
-    let lit: &[&Item] = &group.lights;
+    let lit = Rewrite {
+        lights: &group.lights,
+        text: &text_args,
+    };
     for item in &mut items {
         let name = item.name.name.clone();
         if name == "__surface" {
             splice_params(item, &surface.params, Some(light_params_count(group)));
             let mut body = (*surface.body).clone();
-            rewrite_block(&mut body, lit);
+            rewrite_block(&mut body, &lit);
             item.body = Box::new(body);
         } else if let Some(kind) = name.strip_prefix("__light_") {
             if let Some(l) = light_kinds.iter().find(|l| l.name.name == kind) {
@@ -432,7 +462,7 @@ __surface(P, N, Ng, I, E, s, t, Cs, Os, Ci, Oi{surface_args}{light_args});
             }
         } else if MODELS.iter().any(|(m, _, _)| name == format!("__{m}")) {
             let mut body = (*item.body).clone();
-            rewrite_block(&mut body, lit);
+            rewrite_block(&mut body, &lit);
             item.body = Box::new(body);
         }
     }
@@ -479,6 +509,7 @@ pub fn canonical(shader: &Item, lights: &[&Item]) -> Result<Linked, String> {
         atmosphere,
         planes: &planes,
         material: None,
+        surface_text: &[],
         out_plane: 15,
         quads: takes_derivatives(shader),
     })
@@ -629,22 +660,52 @@ fn splice_params(item: &mut Item, params: &[ast::Param], light_tail: Option<usiz
 }
 
 /// Unroll `illuminance` and route the light-dependent built-ins in `block`.
-fn rewrite_block(block: &mut ast::Block, lit: &[&Item]) {
+/// The value of each `string` parameter of `surface`: the scene's, else its default (a
+/// string literal), else empty.
+fn text_values(surface: &Item, given: &[(String, String)]) -> Vec<(String, String)> {
+    surface
+        .params
+        .iter()
+        .filter(|p| p.ty.kind == ast::TypeKind::String)
+        .map(|p| {
+            let name = p.name.name.clone();
+            let value = match given.iter().find(|(n, _)| *n == name) {
+                Some((_, v)) => v.clone(),
+                None => match &p.default {
+                    Some(Expr {
+                        kind: ExprKind::Str(v), ..
+                    }) => v.clone(),
+                    _ => String::new(),
+                },
+            };
+            (name, value)
+        })
+        .collect()
+}
+
+/// What the rewrite of a surface's body (and the models') needs: the frame's lights, and
+/// the values of the surface's `string` parameters, which replace their names.
+struct Rewrite<'a> {
+    lights: &'a [&'a Item],
+    text: &'a [(String, String)],
+}
+
+fn rewrite_block(block: &mut ast::Block, rw: &Rewrite) {
     for s in &mut block.stmts {
-        rewrite_stmt(s, lit);
+        rewrite_stmt(s, rw);
     }
 }
 
-fn rewrite_stmt(s: &mut Stmt, lit: &[&Item]) {
+fn rewrite_stmt(s: &mut Stmt, rw: &Rewrite) {
     if let StmtKind::Illuminance { args, body } = &mut s.kind {
         let span = s.span;
         let mut blocks = vec![];
-        for (i, l) in lit.iter().enumerate() {
+        for (i, l) in rw.lights.iter().enumerate() {
             if is_ambient(l) {
                 continue;
             }
             let mut inner = body.clone();
-            rewrite_block(&mut inner, lit);
+            rewrite_block(&mut inner, rw);
             blocks.push(light_block(l, i, args, inner, span));
         }
         s.kind = StmtKind::Block(ast::Block { stmts: blocks, span });
@@ -654,80 +715,85 @@ fn rewrite_stmt(s: &mut Stmt, lit: &[&Item]) {
         StmtKind::Decl { vars, .. } => {
             for v in vars {
                 if let Some(init) = &mut v.init {
-                    rewrite_expr(init, lit);
+                    rewrite_expr(init, rw);
                 }
             }
         }
         StmtKind::Assign { target, value, .. } => {
-            rewrite_expr(target, lit);
-            rewrite_expr(value, lit);
+            rewrite_expr(target, rw);
+            rewrite_expr(value, rw);
         }
-        StmtKind::Expr(e) => rewrite_expr(e, lit),
-        StmtKind::Return(Some(e)) => rewrite_expr(e, lit),
+        StmtKind::Expr(e) => rewrite_expr(e, rw),
+        StmtKind::Return(Some(e)) => rewrite_expr(e, rw),
         StmtKind::If { cond, then, otherwise } => {
-            rewrite_expr(cond, lit);
-            rewrite_block(then, lit);
+            rewrite_expr(cond, rw);
+            rewrite_block(then, rw);
             if let Some(o) = otherwise {
-                rewrite_block(o, lit);
+                rewrite_block(o, rw);
             }
         }
         StmtKind::For { init, cond, step, body } => {
             if let Some(i) = init {
-                rewrite_stmt(i, lit);
+                rewrite_stmt(i, rw);
             }
             if let Some(c) = cond {
-                rewrite_expr(c, lit);
+                rewrite_expr(c, rw);
             }
             if let Some(st) = step {
-                rewrite_stmt(st, lit);
+                rewrite_stmt(st, rw);
             }
-            rewrite_block(body, lit);
+            rewrite_block(body, rw);
         }
         StmtKind::While { cond, body } => {
-            rewrite_expr(cond, lit);
-            rewrite_block(body, lit);
+            rewrite_expr(cond, rw);
+            rewrite_block(body, rw);
         }
-        StmtKind::Block(b) => rewrite_block(b, lit),
+        StmtKind::Block(b) => rewrite_block(b, rw),
         _ => {}
     }
 }
 
 /// A call of a light-dependent built-in gets the surface point and every light argument.
-fn rewrite_expr(e: &mut Expr, lit: &[&Item]) {
+fn rewrite_expr(e: &mut Expr, rw: &Rewrite) {
     match &mut e.kind {
         ExprKind::Call { callee, args } => {
             for a in args.iter_mut() {
-                rewrite_expr(a, lit);
+                rewrite_expr(a, rw);
             }
             if MODELS.iter().any(|(m, _, _)| callee.name == *m) {
                 callee.name = format!("__{}", callee.name);
                 let span = callee.span;
                 args.push(name_expr("P", span));
-                for (i, l) in lit.iter().enumerate() {
+                for (i, l) in rw.lights.iter().enumerate() {
                     for p in &l.params {
                         args.push(name_expr(&format!("__l{i}_{}", p.name.name), span));
                     }
                 }
             }
         }
-        ExprKind::Unary { expr, .. } => rewrite_expr(expr, lit),
+        ExprKind::Unary { expr, .. } => rewrite_expr(expr, rw),
         ExprKind::Binary { lhs, rhs, .. } => {
-            rewrite_expr(lhs, lit);
-            rewrite_expr(rhs, lit);
+            rewrite_expr(lhs, rw);
+            rewrite_expr(rhs, rw);
         }
         ExprKind::Ternary { cond, then, otherwise } => {
-            rewrite_expr(cond, lit);
-            rewrite_expr(then, lit);
-            rewrite_expr(otherwise, lit);
+            rewrite_expr(cond, rw);
+            rewrite_expr(then, rw);
+            rewrite_expr(otherwise, rw);
         }
         ExprKind::Index { base, index } => {
-            rewrite_expr(base, lit);
-            rewrite_expr(index, lit);
+            rewrite_expr(base, rw);
+            rewrite_expr(index, rw);
         }
-        ExprKind::Field { base, .. } => rewrite_expr(base, lit),
+        ExprKind::Field { base, .. } => rewrite_expr(base, rw),
+        ExprKind::Name(n) => {
+            if let Some((_, text)) = rw.text.iter().find(|(name, _)| *name == n.name) {
+                e.kind = ExprKind::Str(text.clone());
+            }
+        }
         ExprKind::Construct { args, .. } | ExprKind::List(args) => {
             for a in args {
-                rewrite_expr(a, lit);
+                rewrite_expr(a, rw);
             }
         }
         _ => {}

@@ -36,7 +36,7 @@ use crate::diag::Severity;
 use crate::ir::{FuncId, FuncKind, Function, ParamRole, Program};
 
 use super::geometry::{self, ClipOutcome, GeometryState};
-use super::shading::language::{LanguageShading, ShaderUse, ShadingCache, SURFACE_PARAM};
+use super::shading::language::{LanguageShading, ShaderArg, ShaderUse, ShadingCache, SURFACE_PARAM};
 use super::shading::ShadingSetup;
 use super::value::{encode, encode_default, EncodeError, Value};
 use crate::ir::ParamSpace;
@@ -577,7 +577,7 @@ impl Renderer {
 
     /// Bind surface shader `name` with `args` (by parameter name) to the primitives that
     /// follow: the reserved shading parameter `__surface` takes the binding's number.
-    pub fn surface_shader(&mut self, name: &str, args: &[(String, Value)]) -> Result<(), ApiIssue> {
+    pub fn surface_shader(&mut self, name: &str, args: &[(String, ShaderArg)]) -> Result<(), ApiIssue> {
         let shader = self.shader_use(name, args, ItemKind::Surface)?;
         self.language.surfaces.push(shader);
         let id = self.language.surfaces.len() as f32;
@@ -585,21 +585,21 @@ impl Renderer {
     }
 
     /// Add a light: light shader `name` with `args`.
-    pub fn light_shader(&mut self, name: &str, args: &[(String, Value)]) -> Result<(), ApiIssue> {
+    pub fn light_shader(&mut self, name: &str, args: &[(String, ShaderArg)]) -> Result<(), ApiIssue> {
         let shader = self.shader_use(name, args, ItemKind::Light)?;
         self.language.lights.push(shader);
         Ok(())
     }
 
     /// Set the frame's atmosphere shader.
-    pub fn atmosphere_shader(&mut self, name: &str, args: &[(String, Value)]) -> Result<(), ApiIssue> {
+    pub fn atmosphere_shader(&mut self, name: &str, args: &[(String, ShaderArg)]) -> Result<(), ApiIssue> {
         let shader = self.shader_use(name, args, ItemKind::Atmosphere)?;
         self.language.atmosphere = Some(shader);
         Ok(())
     }
 
     /// A shader use, its name and argument names checked against the program's shaders.
-    fn shader_use(&self, name: &str, args: &[(String, Value)], kind: ItemKind) -> Result<ShaderUse, ApiIssue> {
+    fn shader_use(&self, name: &str, args: &[(String, ShaderArg)], kind: ItemKind) -> Result<ShaderUse, ApiIssue> {
         let what = match kind {
             ItemKind::Surface => "surface",
             ItemKind::Light => "light",
@@ -617,19 +617,39 @@ impl Renderer {
                 format!("no {what} shader `{name}` (shaders are `{what} NAME(...)` items of the loaded .prim files)"),
             ));
         };
-        for (arg, _) in args {
-            if !item.params.iter().any(|p| &p.name.name == arg) {
+        let mut shader = ShaderUse {
+            name: name.to_string(),
+            ..ShaderUse::default()
+        };
+        for (arg, value) in args {
+            let Some(param) = item.params.iter().find(|p| &p.name.name == arg) else {
                 return Err(ApiIssue::error(
                     "E0702",
                     Target::Name,
                     format!("{what} shader `{name}` has no parameter `{arg}`"),
                 ));
+            };
+            let text_param = param.ty.kind == crate::syntax::ast::TypeKind::String;
+            match value {
+                ShaderArg::Numbers(v) if !text_param => shader.args.push((arg.clone(), v.0.clone())),
+                ShaderArg::Text(t) if text_param => shader.text.push((arg.clone(), t.clone())),
+                _ => {
+                    return Err(ApiIssue::error(
+                        "E0703",
+                        Target::Values,
+                        format!(
+                            "parameter `{arg}` of {what} shader `{name}` takes {}",
+                            if text_param {
+                                "text in quotes (`name=\"file.png\"`)"
+                            } else {
+                                "numbers"
+                            }
+                        ),
+                    ))
+                }
             }
         }
-        Ok(ShaderUse {
-            name: name.to_string(),
-            args: args.iter().map(|(n, v)| (n.clone(), v.0.clone())).collect(),
-        })
+        Ok(shader)
     }
 
     // ---- shading parameters ----

@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 
 use crate::diag::{Diagnostic, Diagnostics, FileId, SourceMap, Span};
 use crate::pipeline::face::CullMode;
+use crate::runtime::shading::language::ShaderArg;
 use crate::runtime::shading::{Fog, LightingSpaceChoice, SceneLight, SurfaceMaterial, Texture};
 use crate::runtime::{ApiIssue, Renderer, Target, Value};
 
@@ -101,7 +102,7 @@ pub enum CommandKind {
     Shader {
         kind: ShaderCommand,
         name: String,
-        args: Vec<(String, Value)>,
+        args: Vec<(String, ShaderArg)>,
     },
     Texture(Texture),
     /// `shading_pass rust|language`: whether the fixed shading lines run as library
@@ -379,7 +380,7 @@ fn parse_command(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), Diagnosti
                 "lightsource" => ShaderCommand::Light,
                 _ => ShaderCommand::Atmosphere,
             };
-            let (args, spans) = named_args(&tokens[2..])?;
+            let (args, spans) = shader_args(&tokens[2..])?;
             return Ok((
                 CommandKind::Shader {
                     kind,
@@ -554,6 +555,37 @@ fn parse_material_interp(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), D
         },
         spans,
     ))
+}
+
+/// A shader's arguments: `name="text"` (no spaces inside the quotes) for a `string`
+/// parameter, the rest as [`named_args`].
+fn shader_args(tokens: &[Token]) -> Result<(Vec<(String, ShaderArg)>, Vec<Span>), Diagnostic> {
+    let mut args = vec![];
+    let mut spans = vec![];
+    let mut numbers: Vec<Token> = vec![];
+    let flush = |numbers: &mut Vec<Token>, args: &mut Vec<_>, spans: &mut Vec<Span>| -> Result<(), Diagnostic> {
+        let (a, s) = named_args(numbers)?;
+        args.extend(a.into_iter().map(|(n, v)| (n, ShaderArg::Numbers(v))));
+        spans.extend(s);
+        numbers.clear();
+        Ok(())
+    };
+    for token in tokens {
+        let text = token.text.split_once('=').and_then(|(name, value)| {
+            let inner = value.strip_prefix('"')?.strip_suffix('"')?;
+            Some((name, inner))
+        });
+        match text {
+            Some((name, inner)) if !name.is_empty() => {
+                flush(&mut numbers, &mut args, &mut spans)?;
+                args.push((name.to_string(), ShaderArg::Text(inner.to_string())));
+                spans.push(token.span);
+            }
+            _ => numbers.push(token.clone()),
+        }
+    }
+    flush(&mut numbers, &mut args, &mut spans)?;
+    Ok((args, spans))
 }
 
 /// `name=v[,v...]` arguments, a name's further values as separate tokens allowed

@@ -712,6 +712,7 @@ fn linked_shader_groups_match_the_evaluator_at_both_tiers() {
             atmosphere: Some(find(ItemKind::Atmosphere, "fog")),
             planes: &planes,
             material: None,
+            surface_text: &[],
             out_plane: 8,
             // `filtered_checker` takes derivatives: its lanes are a quad, its pixel centres
             // read from planes 11 and 12 (random here, like the rest of the G-buffer).
@@ -777,6 +778,7 @@ fn texture_lookups_on_quads_match_the_evaluator_at_both_tiers() {
         atmosphere: None,
         planes: &planes,
         material: None,
+        surface_text: &[],
         out_plane: 2,
         quads: true,
     };

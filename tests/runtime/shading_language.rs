@@ -621,3 +621,65 @@ fn textured_quads_are_the_same_for_any_thread_count_and_tile_size() {
         "something textured"
     );
 }
+
+#[test]
+fn a_string_parameter_names_the_texture_from_the_scene_and_empty_means_white() {
+    let file = texture_file("painted.png");
+    let scene = |texture_arg: &str| {
+        format!(
+            "image 64 64
+material_interp s linear
+material_interp t linear
+material Cs 0.5 1 1
+lightsource ambientlight intensity=1
+shader paintedplastic Kd=0 Ks=0 {texture_arg}
+begin screen_triangle
+rast_param screen_vertex 0 0 0.5 1   128 0 0.5 1   0 128 0.5 1
+material s 0
+material t 0
+sequence_point
+material s 2
+material t 0
+sequence_point
+material s 0
+material t 2
+sequence_point
+end
+"
+        )
+    };
+    let (frame, codes) = render(&scene(&format!("texturename=\"{}\"", file.display())), None, 2);
+    assert!(codes.is_empty(), "{codes:?}");
+    // Ci = Cs * texture: bilinear over the 4 x 4 texels, periodic (level 0: a footprint of
+    // 1/16 texel), against an f64 reference.
+    for (x, y) in [(7u32, 7u32), (20, 30), (40, 10), (5, 50)] {
+        let (s, t) = ((x as f64 + 0.5) / 64.0, (y as f64 + 0.5) / 64.0);
+        let (u, v) = (s * 4.0 - 0.5, t * 4.0 - 0.5);
+        let (i0, j0) = (u.floor() as i64, v.floor() as i64);
+        let (fu, fv) = (u - i0 as f64, v - j0 as f64);
+        let texel = |i: i64, j: i64| {
+            let (i, j) = (i.rem_euclid(4) as f64, j.rem_euclid(4) as f64);
+            [i * 17.0 / 255.0, j * 17.0 / 255.0, (i + j) * 17.0 / 255.0]
+        };
+        let tex: [f64; 3] = std::array::from_fn(|c| {
+            texel(i0, j0)[c] * (1.0 - fu) * (1.0 - fv)
+                + texel(i0 + 1, j0)[c] * fu * (1.0 - fv)
+                + texel(i0, j0 + 1)[c] * (1.0 - fu) * fv
+                + texel(i0 + 1, j0 + 1)[c] * fu * fv
+        });
+        let want = [0.5 * tex[0], tex[1], tex[2]];
+        close(frame.shaded_at(x, y).unwrap(), want, 1e-5, &format!("pixel {x},{y}"));
+    }
+    let (plain, codes) = render(&scene(""), None, 2);
+    assert!(codes.is_empty(), "{codes:?}");
+    close(
+        plain.shaded_at(20, 20).unwrap(),
+        [0.5, 1.0, 1.0],
+        1e-6,
+        "no texture: white",
+    );
+    let (_, codes) = render(&scene("texturename=3"), None, 1);
+    assert!(codes.iter().any(|c| c.starts_with("E0703")), "{codes:?}");
+    let (_, codes) = render(&scene("Ka=\"x\""), None, 1);
+    assert!(codes.iter().any(|c| c.starts_with("E0703")), "{codes:?}");
+}

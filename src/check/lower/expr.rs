@@ -711,6 +711,12 @@ impl<'g, 'a> FnLower<'g, 'a> {
             ));
             return None;
         };
+        if name.is_empty() {
+            // No texture (a `string` parameter left empty): white.
+            let one = || types::const_expr(ConstValue::Float(1.0), Scalar::Float, span);
+            let ty = Type::array(Elem::Scalar(Scalar::Float), vec![3]);
+            return Some(mk(TreeKind::List(vec![one(), one(), one()]), ty, span));
+        }
         let mut wrap = Wrap::Periodic;
         if args.len() == 5 {
             let mode = literal(&args[4]).and_then(|m| Wrap::from_name(&m));

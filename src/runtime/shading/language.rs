@@ -41,10 +41,21 @@ pub const SURFACE_PARAM: &str = "__surface";
 pub const DEFAULT_SURFACE: &str = "matte";
 
 /// A shader and the arguments the scene gives it by name.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct ShaderUse {
     pub name: String,
     pub args: Vec<(String, Vec<f32>)>,
+    /// The values of its `string` parameters (surfaces only), by name: constants of its
+    /// code, substituted when the frame is linked (`crate::link`).
+    pub text: Vec<(String, String)>,
+}
+
+/// One argument of a shader line.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ShaderArg {
+    Numbers(crate::runtime::Value),
+    /// For a `string` parameter.
+    Text(String),
 }
 
 /// What the scene asks of the language shaders.
@@ -69,6 +80,7 @@ impl LanguageShading {
         let mut lights = vec![];
         if setup.ambient_light != [0.0; 3] {
             lights.push(ShaderUse {
+                text: vec![],
                 name: "ambientlight".into(),
                 args: vec![arg("lightcolor", &setup.ambient_light)],
             });
@@ -76,6 +88,7 @@ impl LanguageShading {
         for l in &setup.lights {
             lights.push(match *l {
                 SceneLight::Directional { towards_light, colour } => ShaderUse {
+                    text: vec![],
                     name: "distantlight".into(),
                     args: vec![
                         arg("lightcolor", &colour),
@@ -88,6 +101,7 @@ impl LanguageShading {
                     colour,
                     attenuation,
                 } => ShaderUse {
+                    text: vec![],
                     name: "attenuated_pointlight".into(),
                     args: vec![
                         arg("lightcolor", &colour),
@@ -123,6 +137,7 @@ impl LanguageShading {
             notes.push("the back material is not mapped (`fixed_phong` faces the normal forward)".into());
         }
         let atmosphere = setup.fog.map(|f| ShaderUse {
+            text: vec![],
             name: "fog".into(),
             args: vec![
                 arg("background", &f.colour),
@@ -133,6 +148,7 @@ impl LanguageShading {
         (
             LanguageShading {
                 default_surface: Some(ShaderUse {
+                    text: vec![],
                     name: "fixed_phong".into(),
                     args: surface,
                 }),
@@ -266,6 +282,7 @@ pub(crate) fn compile(
         None => None,
     };
     let default = ShaderUse {
+        text: vec![],
         name: DEFAULT_SURFACE.into(),
         args: vec![],
     };
@@ -283,20 +300,20 @@ pub(crate) fn compile(
     )];
     // One layout for the whole frame: on quads as soon as any of its shaders takes a
     // derivative.
-    let mut items: Vec<&ast::Item> = lights.clone();
-    items.extend(atmosphere);
+    let mut items: Vec<(&ast::Item, &[(String, String)])> = lights.iter().map(|l| (*l, &[][..])).collect();
+    items.extend(atmosphere.map(|a| (a, &[][..])));
     for b in &bindings {
-        items.extend(find(&b.name, ItemKind::Surface));
+        items.extend(find(&b.name, ItemKind::Surface).map(|s| (s, &b.text[..])));
     }
-    let quads = items.iter().any(|i| link::takes_derivatives(i));
+    let quads = items.iter().any(|(i, _)| link::takes_derivatives(i));
     if quads {
         explain.push("shading on 2x2 quads of pixels: a shader takes screen-space derivatives".into());
     }
     // Every texture the shaders name, loaded once for the frame before anything renders.
     let mut textures = TextureSet::new();
     let mut texture_ids: std::collections::HashMap<String, u32> = Default::default();
-    for item in &items {
-        for (file, span) in link::texture_files(item) {
+    for (item, text) in &items {
+        for (file, span) in link::texture_files(item, text) {
             if texture_ids.contains_key(&file) {
                 continue;
             }
@@ -334,6 +351,7 @@ pub(crate) fn compile(
             atmosphere,
             planes,
             material: material.map(|p| (p, id as u32)),
+            surface_text: &binding.text,
             out_plane,
             quads,
         };
