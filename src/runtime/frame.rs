@@ -72,6 +72,10 @@ pub struct ParamPlanes {
     pub components: u32,
 }
 
+/// The colour of a pixel whose language shading gave a NaN or infinite channel (magenta,
+/// with warning W1004).
+pub const NON_FINITE_COLOR: [f32; 3] = [1.0, 0.0, 1.0];
+
 /// The rendered frame: depth, G-buffer planes, (when counted) depth-write counts and (when
 /// shaded) colours, read through the accessors (`depth_at`, `plane_at`, `param_at`,
 /// `write_count_at`, `color_at`, the `*_values` copies and the images).
@@ -322,18 +326,26 @@ impl Frame {
 
     /// The colours of the language shading pass: planes `first..first + 3` at every pixel
     /// whose depth was written, 0 elsewhere (padding included).
-    pub(crate) fn colors_from_planes(&mut self, first: u32) {
+    /// A shaded colour with a NaN or infinite channel becomes [`NON_FINITE_COLOR`]; returns
+    /// how many did.
+    pub(crate) fn colors_from_planes(&mut self, first: u32) -> usize {
         let len = self.plane_len();
         let mut colors = fit(self.colors.take().unwrap_or_default(), len, [0.0; 3]);
         let planes: Vec<Option<&[f32]>> = (0..3).map(|c| self.plane(first + c)).collect();
+        let mut non_finite = 0;
         for (i, c) in colors.iter_mut().enumerate() {
             let written = self.depth.get(i).is_some_and(|&d| d != 0);
             *c = std::array::from_fn(|k| match planes[k] {
                 Some(p) if written => p.get(i).copied().unwrap_or(0.0),
                 _ => 0.0,
             });
+            if c.iter().any(|v| !v.is_finite()) {
+                *c = NON_FINITE_COLOR;
+                non_finite += 1;
+            }
         }
         self.colors = Some(colors);
+        non_finite
     }
 
     /// Whether a primitive wrote the pixel's depth.

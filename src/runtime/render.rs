@@ -360,7 +360,13 @@ impl Renderer {
         match &shading {
             Some(compiled) => {
                 compiled.pass.report(&shading_errors, &mut diags);
-                frame.colors_from_planes(compiled.pass.out_plane);
+                let non_finite = frame.colors_from_planes(compiled.pass.out_plane);
+                if non_finite > 0 {
+                    diags.push(Diagnostic::warning(
+                        "W1004",
+                        format!("{non_finite} pixel(s) shaded to a NaN or infinite colour: shown magenta (1, 0, 1)"),
+                    ));
+                }
             }
             // Language shading that did not compile (its errors are reported) leaves no
             // colours, not the previous frame's.

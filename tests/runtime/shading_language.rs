@@ -683,3 +683,13 @@ end
     let (_, codes) = render(&scene("Ka=\"x\""), None, 1);
     assert!(codes.iter().any(|c| c.starts_with("E0703")), "{codes:?}");
 }
+
+#[test]
+fn a_nan_or_infinite_shading_result_is_magenta_with_a_warning() {
+    let shader = "surface broken() { float z = s * 0; Ci = {z / z, 1 / z, 0.5}; }";
+    let scene = quad_scene("material s 0", "shader broken");
+    let (frame, codes) = render(&scene, Some(shader), 2);
+    assert!(codes.iter().any(|c| c.starts_with("W1004")), "{codes:?}");
+    assert_eq!(frame.shaded_at(32, 32), Some([1.0, 0.0, 1.0]));
+    assert_eq!(frame.shaded_at(0, 0), Some([0.0; 3]), "not drawn: black");
+}
