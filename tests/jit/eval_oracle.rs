@@ -671,6 +671,34 @@ fn a_helper_after_the_group_ran_out_of_fuel_runs_at_both_tiers_and_in_the_evalua
     assert!(seen.fuel_errors > 0 && seen.drawn > 500, "{seen:?}");
 }
 
+/// A case running the `__shade` primitive of a linked shader group on random arguments,
+/// its output planes from `out_plane`, over a G-buffer of `planes` random planes.
+fn shade_case(linked_program: &Program, what: String, out_plane: u32, planes: usize, rng: &mut Lcg) -> Case {
+    use primflow::link;
+    let func = linked_program.find(link::SHADE).expect("__shade");
+    let key = VariantKey {
+        bindings: vec![Binding {
+            kind: BindingKind::Kind(link::OUT_KIND.into()),
+            components: 3,
+        }],
+        ..VariantKey::default()
+    };
+    let mut args = random_args(linked_program, func, &key, 0, rng);
+    let layout = ArgLayout::new(linked_program, func, &key);
+    for c in 0..3 {
+        args[layout.plane_table as usize + c] = out_plane + c as u32;
+    }
+    Case {
+        what,
+        func,
+        key,
+        args,
+        size: (32, 16),
+        planes,
+        budget: Budget::default(),
+    }
+}
+
 #[test]
 fn linked_shader_groups_match_the_evaluator_at_both_tiers() {
     // The library's surfaces with every light shader and fog, linked against a G-buffer of
@@ -722,28 +750,7 @@ fn linked_shader_groups_match_the_evaluator_at_both_tiers() {
         let mut diags = Diagnostics::new();
         let linked_program = Arc::new(primflow::check::check_linked(&program, &linked.items, &mut diags));
         assert!(!diags.has_errors(), "{surface}: {diags:?}");
-        let func = linked_program.find(link::SHADE).expect("__shade");
-        let key = VariantKey {
-            bindings: vec![Binding {
-                kind: BindingKind::Kind(link::OUT_KIND.into()),
-                components: 3,
-            }],
-            ..VariantKey::default()
-        };
-        let mut args = random_args(&linked_program, func, &key, 0, &mut rng);
-        let layout = ArgLayout::new(&linked_program, func, &key);
-        for c in 0..3 {
-            args[layout.plane_table as usize + c] = 8 + c as u32;
-        }
-        let case = Case {
-            what: format!("linked `{surface}`"),
-            func,
-            key,
-            args,
-            size: (32, 16),
-            planes: 13,
-            budget: Budget::default(),
-        };
+        let case = shade_case(&linked_program, format!("linked `{surface}`"), 8, 13, &mut rng);
         let mut jits = tiers(&linked_program, true);
         compare(&linked_program, &mut jits, &case, 1, &mut seen);
     }
@@ -796,28 +803,7 @@ fn texture_lookups_on_quads_match_the_evaluator_at_both_tiers() {
     }
     linked_program.textures.loaded = Some((Arc::new(set), vec![0, 1]));
     let linked_program = Arc::new(linked_program);
-    let func = linked_program.find(link::SHADE).expect("__shade");
-    let key = VariantKey {
-        bindings: vec![Binding {
-            kind: BindingKind::Kind(link::OUT_KIND.into()),
-            components: 3,
-        }],
-        ..VariantKey::default()
-    };
-    let mut args = random_args(&linked_program, func, &key, 0, &mut rng);
-    let layout = ArgLayout::new(&linked_program, func, &key);
-    for c in 0..3 {
-        args[layout.plane_table as usize + c] = 2 + c as u32;
-    }
-    let case = Case {
-        what: "linked `textured`".into(),
-        func,
-        key,
-        args,
-        size: (32, 16),
-        planes: 7,
-        budget: Budget::default(),
-    };
+    let case = shade_case(&linked_program, "linked `textured`".into(), 2, 7, &mut rng);
     let mut seen = Seen::default();
     let mut jits = tiers(&linked_program, true);
     compare(&linked_program, &mut jits, &case, 1, &mut seen);

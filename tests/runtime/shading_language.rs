@@ -503,15 +503,14 @@ fn texture_file(name: &str) -> PathBuf {
     path
 }
 
-/// A triangle with (s, t) = (x, y) / 64 over the 64 x 64 image, in tiles of `tile`,
-/// shaded by `textured` with `scale`.
-fn texture_scene(tile: u32, scale: f32) -> String {
+/// A triangle over the 64 x 64 image with (s, t) = (x, y) / 64, after `setup` (its
+/// shader lines).
+fn st_triangle(setup: &str) -> String {
     format!(
         "image 64 64
-tile {tile}
 material_interp s linear
 material_interp t linear
-shader textured scale={scale}
+{setup}
 begin screen_triangle
 rast_param screen_vertex 0 0 0.5 1   128 0 0.5 1   0 128 0.5 1
 material s 0
@@ -528,6 +527,30 @@ end
     )
 }
 
+/// [`st_triangle`] in tiles of `tile`, shaded by `textured` with `scale`.
+fn texture_scene(tile: u32, scale: f32) -> String {
+    st_triangle(&format!("tile {tile}\nshader textured scale={scale}"))
+}
+
+/// The test texture's texel (i, j) of level 0 (see [`texture_file`]), in f64.
+fn grid_texel(i: i64, j: i64) -> [f64; 3] {
+    [i, j, i + j].map(|v| v as f64 * 17.0 / 255.0)
+}
+
+/// Bilinear filtering in f64 over a level of `n` x `n` texels, `texel` applying the wrap
+/// mode to its indices.
+fn bilinear_reference(texel: &dyn Fn(i64, i64) -> [f64; 3], n: i64, s: f64, t: f64) -> [f64; 3] {
+    let (u, v) = (s * n as f64 - 0.5, t * n as f64 - 0.5);
+    let (i0, j0) = (u.floor() as i64, v.floor() as i64);
+    let (fu, fv) = (u - i0 as f64, v - j0 as f64);
+    std::array::from_fn(|c| {
+        texel(i0, j0)[c] * (1.0 - fu) * (1.0 - fv)
+            + texel(i0 + 1, j0)[c] * fu * (1.0 - fv)
+            + texel(i0, j0 + 1)[c] * (1.0 - fu) * fv
+            + texel(i0 + 1, j0 + 1)[c] * fu * fv
+    })
+}
+
 #[test]
 fn texture_lookups_pick_the_mip_level_of_the_footprint_and_filter_bilinearly() {
     let file = texture_file("grid.png");
@@ -535,26 +558,10 @@ fn texture_lookups_pick_the_mip_level_of_the_footprint_and_filter_bilinearly() {
         "surface textured(float scale = 1) {{ Ci = texture(\"{}\", s * scale, t * scale, \"wrap\", \"clamp\"); }}",
         file.display()
     );
-    // Bilinear in f64 over a level of `n` x `n` texels (clamped indices).
-    let bilinear = |level: &dyn Fn(i64, i64) -> [f64; 3], n: i64, s: f64, t: f64| -> [f64; 3] {
-        let (u, v) = (s * n as f64 - 0.5, t * n as f64 - 0.5);
-        let (i0, j0) = (u.floor() as i64, v.floor() as i64);
-        let (fu, fv) = (u - i0 as f64, v - j0 as f64);
-        let at = |i: i64, j: i64| level(i.clamp(0, n - 1), j.clamp(0, n - 1));
-        std::array::from_fn(|c| {
-            at(i0, j0)[c] * (1.0 - fu) * (1.0 - fv)
-                + at(i0 + 1, j0)[c] * fu * (1.0 - fv)
-                + at(i0, j0 + 1)[c] * (1.0 - fu) * fv
-                + at(i0 + 1, j0 + 1)[c] * fu * fv
-        })
+    let bilinear = |level: &dyn Fn(i64, i64) -> [f64; 3], n: i64, s: f64, t: f64| {
+        bilinear_reference(&|i, j| level(i.clamp(0, n - 1), j.clamp(0, n - 1)), n, s, t)
     };
-    let level0 = |i: i64, j: i64| {
-        [
-            i as f64 * 17.0 / 255.0,
-            j as f64 * 17.0 / 255.0,
-            (i + j) as f64 * 17.0 / 255.0,
-        ]
-    };
+    let level0 = grid_texel;
     // Level 1 averages 2 x 2 texels of level 0.
     let level1 = |i: i64, j: i64| {
         let (a, b) = ((2 * i) as f64 + 0.5, (2 * j) as f64 + 0.5);
@@ -626,27 +633,9 @@ fn textured_quads_are_the_same_for_any_thread_count_and_tile_size() {
 fn a_string_parameter_names_the_texture_from_the_scene_and_empty_means_white() {
     let file = texture_file("painted.png");
     let scene = |texture_arg: &str| {
-        format!(
-            "image 64 64
-material_interp s linear
-material_interp t linear
-material Cs 0.5 1 1
-lightsource ambientlight intensity=1
-shader paintedplastic Kd=0 Ks=0 {texture_arg}
-begin screen_triangle
-rast_param screen_vertex 0 0 0.5 1   128 0 0.5 1   0 128 0.5 1
-material s 0
-material t 0
-sequence_point
-material s 2
-material t 0
-sequence_point
-material s 0
-material t 2
-sequence_point
-end
-"
-        )
+        st_triangle(&format!(
+            "material Cs 0.5 1 1\nlightsource ambientlight intensity=1\nshader paintedplastic Kd=0 Ks=0 {texture_arg}"
+        ))
     };
     let (frame, codes) = render(&scene(&format!("texturename=\"{}\"", file.display())), None, 2);
     assert!(codes.is_empty(), "{codes:?}");
@@ -654,19 +643,7 @@ end
     // 1/16 texel), against an f64 reference.
     for (x, y) in [(7u32, 7u32), (20, 30), (40, 10), (5, 50)] {
         let (s, t) = ((x as f64 + 0.5) / 64.0, (y as f64 + 0.5) / 64.0);
-        let (u, v) = (s * 4.0 - 0.5, t * 4.0 - 0.5);
-        let (i0, j0) = (u.floor() as i64, v.floor() as i64);
-        let (fu, fv) = (u - i0 as f64, v - j0 as f64);
-        let texel = |i: i64, j: i64| {
-            let (i, j) = (i.rem_euclid(4) as f64, j.rem_euclid(4) as f64);
-            [i * 17.0 / 255.0, j * 17.0 / 255.0, (i + j) * 17.0 / 255.0]
-        };
-        let tex: [f64; 3] = std::array::from_fn(|c| {
-            texel(i0, j0)[c] * (1.0 - fu) * (1.0 - fv)
-                + texel(i0 + 1, j0)[c] * fu * (1.0 - fv)
-                + texel(i0, j0 + 1)[c] * (1.0 - fu) * fv
-                + texel(i0 + 1, j0 + 1)[c] * fu * fv
-        });
+        let tex = bilinear_reference(&|i, j| grid_texel(i.rem_euclid(4), j.rem_euclid(4)), 4, s, t);
         let want = [0.5 * tex[0], tex[1], tex[2]];
         close(frame.shaded_at(x, y).unwrap(), want, 1e-5, &format!("pixel {x},{y}"));
     }
