@@ -127,7 +127,7 @@ fn check_items(items: &[&ast::Item], linked: bool, sink: &mut Sink) -> ir::Progr
             ast::ItemKind::Surface | ast::ItemKind::Light | ast::ItemKind::Atmosphere => {}
         }
     }
-    program.textures.names = g.textures.take();
+    (program.textures.names, program.textures.spans) = g.textures.take().into_iter().unzip();
     // After this point the program obeys every rule of `ir::valid` (checked in test and
     // debug builds; a broken rule is a bug of the checker, reported as one).
     if cfg!(debug_assertions) && !sink.items.iter().any(|d| d.is_error()) {
@@ -224,8 +224,9 @@ pub struct Globals<'a> {
     pub recursive: FxHashSet<usize>,
     /// A linked shader group's program: `__gbuffer` is callable.
     pub linked: bool,
-    /// The texture file names `texture` calls have named so far, by slot.
-    pub textures: std::cell::RefCell<Vec<String>>,
+    /// The texture file names `texture` calls have named so far, by slot, with the span
+    /// of each first use.
+    pub textures: std::cell::RefCell<Vec<(String, Span)>>,
 }
 
 fn collect_items<'a>(modules: &[&'a ast::Module], sink: &mut Sink) -> Vec<&'a ast::Item> {

@@ -336,8 +336,9 @@ pub struct Program {
 /// The image textures of a program, by slot ([`Builtin::Texture`]).
 #[derive(Clone, Debug, Default)]
 pub struct Textures {
-    /// The file names as written, each once.
+    /// The file names as written, each once, and where each is first named.
     pub names: Vec<String>,
+    pub spans: Vec<crate::diag::Span>,
     /// Once loaded (`runtime::shading::language`, before anything renders): the set and each
     /// slot's texture in it. Kernels and the evaluator read black without it.
     pub loaded: Option<(std::sync::Arc<crate::runtime::texture::TextureSet>, Vec<u32>)>,
@@ -350,7 +351,7 @@ impl PartialEq for Textures {
             (Some((a, ia)), Some((b, ib))) => std::sync::Arc::ptr_eq(a, b) && ia == ib,
             _ => false,
         };
-        self.names == other.names && same_set
+        self.names == other.names && self.spans == other.spans && same_set
     }
 }
 

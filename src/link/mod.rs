@@ -144,15 +144,6 @@ pub fn is_ambient(light: &Item) -> bool {
 struct Uses {
     names: std::collections::HashSet<String>,
     calls: std::collections::HashSet<String>,
-    /// The file names of `texture` calls, with their spans.
-    textures: Vec<(TextureName, Span)>,
-}
-
-/// What a `texture` call names its file by.
-enum TextureName {
-    File(String),
-    /// A `string` parameter of the surface.
-    Parameter(String),
 }
 
 impl Uses {
@@ -167,19 +158,8 @@ impl Uses {
                     ExprKind::Name(n) => {
                         uses.names.insert(n.name.clone());
                     }
-                    ExprKind::Call { callee, args } => {
+                    ExprKind::Call { callee, .. } => {
                         uses.calls.insert(callee.name.clone());
-                        if callee.name == "texture" {
-                            match args.first().map(|a| (&a.kind, a.span)) {
-                                Some((ExprKind::Str(file), span)) => {
-                                    uses.textures.push((TextureName::File(file.clone()), span))
-                                }
-                                Some((ExprKind::Name(n), span)) => {
-                                    uses.textures.push((TextureName::Parameter(n.name.clone()), span))
-                                }
-                                _ => {}
-                            }
-                        }
                     }
                     _ => {}
                 }
@@ -198,25 +178,6 @@ pub fn takes_derivatives(item: &Item) -> bool {
 
 /// The built-ins that take screen-space derivatives (`texture` for its footprint).
 const DERIVATIVES: &[&str] = &["Dx", "Dy", "filterwidth", "texture"];
-
-/// The texture files shader `item` names (as written, with the span of each name), in
-/// source order, its `string` parameters given `text` (the others their defaults): a frame
-/// loads them before anything renders. Only shaders call `texture`; an empty name reads
-/// white and names no file.
-pub fn texture_files(item: &Item, text: &[(String, String)]) -> Vec<(String, Span)> {
-    let values = text_values(item, text);
-    let mut files: Vec<(String, Span)> = Uses::of(&item.body)
-        .textures
-        .into_iter()
-        .filter_map(|(name, span)| match name {
-            TextureName::File(f) => Some((f, span)),
-            TextureName::Parameter(p) => values.iter().find(|(n, _)| *n == p).map(|(_, v)| (v.clone(), span)),
-        })
-        .filter(|(f, _)| !f.is_empty())
-        .collect();
-    files.sort_by_key(|(_, span)| (span.file, span.start));
-    files
-}
 
 fn root_name(e: &Expr) -> Option<&str> {
     match &e.kind {
@@ -340,9 +301,7 @@ pub fn link(group: &Group) -> Result<Linked, String> {
     // helper sees only what it is passed): an effect the shaders do not use reads nothing.
     let mut uses = Uses::of(&surface.body);
     if let Some(a) = group.atmosphere {
-        let more = Uses::of(&a.body);
-        uses.names.extend(more.names);
-        uses.calls.extend(more.calls);
+        uses.names.extend(Uses::of(&a.body).names);
     }
     let quads = group.quads;
     let used = &uses.names;

@@ -643,13 +643,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
         let vals: Vec<Tree> = vals.into_iter().collect::<Option<_>>()?;
         let internal = callee.name == "__gbuffer" && !self.g.linked;
-        if matches!(callee.name.as_str(), "Dx" | "Dy" | "filterwidth") && !self.g.linked {
-            self.sink.push(err(
-                "E1003",
-                format!("`{}` outside a shader", callee.name),
-                callee.span,
-                "derivatives are taken between the pixels a shader runs on: only surface, light and atmosphere shaders take them",
-            ));
+        if matches!(callee.name.as_str(), "Dx" | "Dy" | "filterwidth") && !self.in_shader(callee) {
             return None;
         }
         match super::super::builtins::lower(&callee.name, vals, span) {
@@ -670,6 +664,20 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
     }
 
+    /// Whether the code is a shader's (a linked group's), where built-ins that take
+    /// derivatives (`callee`) may be called; E1003 if not.
+    fn in_shader(&mut self, callee: &ast::Ident) -> bool {
+        if !self.g.linked {
+            self.sink.push(err(
+                "E1003",
+                format!("`{}` outside a shader", callee.name),
+                callee.span,
+                "derivatives are taken between the pixels a shader runs on: only surface, light and atmosphere shaders take them",
+            ));
+        }
+        self.g.linked
+    }
+
     /// `texture("file", s, t)` or `texture("file", s, t, "wrap", "MODE")`: the file's slot,
     /// and `s`, `t` with their derivatives as operands (only shaders take derivatives).
     pub(super) fn texture(
@@ -680,13 +688,7 @@ impl<'g, 'a> FnLower<'g, 'a> {
         pre: &mut Vec<Stmt<Tree>>,
     ) -> Option<Tree> {
         use crate::runtime::texture::Wrap;
-        if !self.g.linked {
-            self.sink.push(err(
-                "E1003",
-                "`texture` outside a shader",
-                callee.span,
-                "a texture lookup filters over the pixel's footprint, from derivatives only shaders take",
-            ));
+        if !self.in_shader(callee) {
             return None;
         }
         if args.len() != 3 && args.len() != 5 {
@@ -752,10 +754,10 @@ impl<'g, 'a> FnLower<'g, 'a> {
         }
         let slot = {
             let mut names = self.g.textures.borrow_mut();
-            match names.iter().position(|n| *n == name) {
+            match names.iter().position(|(n, _)| *n == name) {
                 Some(i) => i,
                 None => {
-                    names.push(name);
+                    names.push((name, args[0].span));
                     names.len() - 1
                 }
             }

@@ -300,41 +300,17 @@ pub(crate) fn compile(
     )];
     // One layout for the whole frame: on quads as soon as any of its shaders takes a
     // derivative.
-    let mut items: Vec<(&ast::Item, &[(String, String)])> = lights.iter().map(|l| (*l, &[][..])).collect();
-    items.extend(atmosphere.map(|a| (a, &[][..])));
+    let mut items: Vec<&ast::Item> = lights.clone();
+    items.extend(atmosphere);
     for b in &bindings {
-        items.extend(find(&b.name, ItemKind::Surface).map(|s| (s, &b.text[..])));
+        items.extend(find(&b.name, ItemKind::Surface));
     }
-    let quads = items.iter().any(|(i, _)| link::takes_derivatives(i));
+    let quads = items.iter().any(|i| link::takes_derivatives(i));
     if quads {
         explain.push("shading on 2x2 quads of pixels: a shader takes screen-space derivatives".into());
     }
-    // Every texture the shaders name, loaded once for the frame before anything renders.
-    let mut textures = TextureSet::new();
-    let mut texture_ids: std::collections::HashMap<String, u32> = Default::default();
-    for (item, text) in &items {
-        for (file, span) in link::texture_files(item, text) {
-            if texture_ids.contains_key(&file) {
-                continue;
-            }
-            match textures.load(std::path::Path::new(&file), TEXTURE_MEMORY_LIMIT) {
-                Ok(id) => {
-                    if let Some((w, h)) = textures.level_size(id, 0) {
-                        explain.push(format!(
-                            "texture `{file}`: {w}x{h}, {} mip level(s)",
-                            textures.levels(id)
-                        ));
-                    }
-                    texture_ids.insert(file, id);
-                }
-                Err(e) => {
-                    diags.push(Diagnostic::error("E1004", e.to_string()).primary(span, "named here"));
-                    return None;
-                }
-            }
-        }
-    }
-    let textures = Arc::new(textures);
+    // Link and check every binding, then load the textures they name, then compile.
+    let mut checked = vec![];
     for (id, binding) in bindings.iter().enumerate() {
         // Binding 0 runs only where a pixel can have no binding: a frame with bindings
         // whose every pixel has one still runs it (it shades nothing there).
@@ -387,18 +363,46 @@ pub(crate) fn compile(
             }
         ));
         let mut check_diags = Diagnostics::new();
-        let mut linked_program = crate::check::check_linked(program, &linked.items, &mut check_diags);
+        let linked_program = crate::check::check_linked(program, &linked.items, &mut check_diags);
         if check_diags.has_errors() {
             diags.extend(check_diags);
             return None;
         }
-        if !linked_program.textures.names.is_empty() {
-            let ids = linked_program
-                .textures
-                .names
-                .iter()
-                .map(|n| texture_ids.get(n).copied().unwrap_or(u32::MAX))
-                .collect();
+        checked.push((binding, surface, linked, linked_program));
+    }
+    // Every texture the shaders name, loaded once for the frame before anything renders.
+    let mut textures = TextureSet::new();
+    let mut texture_ids: std::collections::HashMap<&str, u32> = Default::default();
+    for (_, _, _, linked_program) in &checked {
+        let named = &linked_program.textures;
+        for (file, span) in named.names.iter().zip(&named.spans) {
+            if texture_ids.contains_key(file.as_str()) {
+                continue;
+            }
+            match textures.load(std::path::Path::new(file), TEXTURE_MEMORY_LIMIT) {
+                Ok(id) => {
+                    if let Some((w, h)) = textures.level_size(id, 0) {
+                        explain.push(format!(
+                            "texture `{file}`: {w}x{h}, {} mip level(s)",
+                            textures.levels(id)
+                        ));
+                    }
+                    texture_ids.insert(file, id);
+                }
+                Err(e) => {
+                    diags.push(Diagnostic::error("E1004", e.to_string()).primary(*span, "named here"));
+                    return None;
+                }
+            }
+        }
+    }
+    let ids: Vec<Vec<u32>> = checked
+        .iter()
+        .map(|(.., p)| p.textures.names.iter().map(|n| texture_ids[n.as_str()]).collect())
+        .collect();
+    let textures = Arc::new(textures);
+    for ((binding, surface, linked, mut linked_program), ids) in checked.into_iter().zip(ids) {
+        if !ids.is_empty() {
             linked_program.textures.loaded = Some((textures.clone(), ids));
         }
         let linked_program = Arc::new(linked_program);
