@@ -172,7 +172,7 @@ pub fn run_scene(opts: &SceneBenchOptions) -> Result<SceneBenchReport, String> {
     bar.set_message("compiles");
     let compile = r
         .variants()
-        .0
+        .list()
         .iter()
         .map(|(func, key)| compile_timing(&program, "", *func, key, &all))
         .collect::<Result<Vec<_>, _>>()?;

@@ -506,6 +506,8 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
         return 1;
     };
     renderer.options.count_writes = args.count_writes;
+    // A parameter written as an image keeps its planes whether or not a shader reads it.
+    renderer.options.keep_params = args.param.chunks(2).map(|pair| pair[0].clone()).collect();
     // Tiered: the frame starts on tier-0 kernels (compiled in a millisecond or two) and
     // switches to tier-1 ones as the background compiler finishes them, mid-frame.
     let mut jit = match Jit::tiered(renderer.program().clone()) {

@@ -151,6 +151,10 @@ pub struct RenderOptions {
     /// library shaders they map to (`LanguageShading::from_fixed`) instead of the Rust
     /// pass. Language shader lines, when a scene has any, win either way.
     pub fixed_shading_in_language: bool,
+    /// Shading parameters the caller reads from the frame after the render (`render
+    /// --param`, test expectations). A frame shaded by language shaders allocates planes
+    /// only for the parameters its shaders read and these (`super::live`).
+    pub keep_params: Vec<String>,
 }
 
 /// Default `RenderOptions::expand_budget_words`: 2^25 words (128 MiB of recorded calls).
@@ -170,6 +174,7 @@ impl Default for RenderOptions {
             pixel_fuel: crate::abi::DEFAULT_PIXEL_FUEL,
             group_fuel_floor: crate::abi::DEFAULT_GROUP_FUEL_FLOOR,
             fixed_shading_in_language: false,
+            keep_params: vec![],
         }
     }
 }
@@ -261,7 +266,7 @@ pub struct Renderer {
 /// instance's by index, without comparing, hashing or cloning keys per instance per frame.
 /// Keys are compared without `count_writes` (the renderer sets that from its options).
 #[derive(Default)]
-struct Variants {
+pub(crate) struct Variants {
     /// (primitive, key), first-use order.
     list: Vec<(FuncId, VariantKey)>,
     /// Per instance, in order: its index into `list`.
@@ -271,8 +276,16 @@ struct Variants {
 }
 
 impl Variants {
+    /// The distinct (primitive, key) pairs, first-use order.
+    pub(crate) fn list(&self) -> &[(FuncId, VariantKey)] {
+        &self.list
+    }
+    /// Per instance: its index into [`Variants::list`].
+    pub(crate) fn of_instance(&self) -> &[usize] {
+        &self.of_instance
+    }
     /// Record the next instance's variant.
-    fn add(&mut self, inst: &Instance) {
+    pub(crate) fn add(&mut self, inst: &Instance) {
         // Consecutive instances mostly share their primitive and key: compare with the
         // previous one before hashing.
         let previous = self.of_instance.last().copied();
@@ -325,9 +338,10 @@ impl Renderer {
         &self.instances
     }
     /// The distinct (primitive, key) pairs of the instances, in first-use order (keys with
-    /// `count_writes` false), and per instance the index of its pair.
-    pub(crate) fn variants(&self) -> (&[(FuncId, VariantKey)], &[usize]) {
-        (&self.variants.list, &self.variants.of_instance)
+    /// `count_writes` false), and per instance the index of its pair (every shading
+    /// parameter bound: a frame may drop some, `super::live`).
+    pub(crate) fn variants(&self) -> &Variants {
+        &self.variants
     }
     pub fn shading_params(&self) -> &[ShadingParam] {
         &self.shading

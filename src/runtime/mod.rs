@@ -9,6 +9,8 @@
 //! - [`value`]: API values and their encoding into argument words.
 //! - [`api`]: `begin` / `rast_param` / `material` / `material_interp` / `sequence_point` /
 //!   `vertex` / `end`, the current transform, instances and their argument blocks.
+//! - [`live`]: dead-parameter elimination: the planes a language-shaded frame keeps, and
+//!   the instances re-laid out without the bindings it drops.
 //! - [`frame`]: the [`Frame`]'s buffers (depth, G-buffer planes, colours), their layout, the
 //!   shading pass over them and its images.
 //! - [`render`]: the render loop: compiling, binning, parallel tile rendering.
@@ -33,6 +35,7 @@ pub mod expand;
 pub mod frame;
 pub mod geometry;
 pub mod kernels;
+pub mod live;
 pub mod pool;
 pub mod registry;
 pub mod render;

@@ -62,6 +62,7 @@ use super::errors::{CountArrays, Counts};
 use super::expand::{context, expand_instance, Budget, Draw, Expanded, TileRect};
 use super::frame::{plane_pitch, row_stride, tile_side, Frame, FrameTarget, ParamPlanes, Tile};
 use super::kernels::KernelSource;
+use super::live::{self, LivePlanes};
 use super::shading::language::LanguageShading;
 use super::shading::{Effects, Shader, ShadingSpaces};
 use super::tiergate::{self, Compiler, GateStats};
@@ -216,7 +217,15 @@ impl Renderer {
             None
         };
         let language = language_shading.is_some();
-        let num_planes = self.num_planes() + if language { 3 } else { 0 };
+        // Language shaders are linked and compiled first: the planes they read are the
+        // planes the frame allocates and the primitives fill (`super::live`). They run in
+        // each tile's task right after its draws, while its G-buffer is in cache.
+        let shading = language_shading.and_then(|l| self.compile_language(l, &opts.keep_params, &mut diags));
+        let live = match &shading {
+            Some(s) => LivePlanes::only(self.shading_params(), |name| s.planes.iter().any(|p| p.name == name)),
+            None => LivePlanes::all(self.shading_params()),
+        };
+        let num_planes = live.num_planes + if language { 3 } else { 0 };
         if let Some(too_large) = frame_too_large(opts, num_planes) {
             diags.push(too_large);
             *frame = Frame::empty();
@@ -236,17 +245,22 @@ impl Renderer {
         let compiler = source.tier_up();
         let mut held_compiler = compiler.as_ref().map(|w| w.hold());
 
-        // 1. Compile each (func, key) once, in first-use order.
-        let (variants, variant_of) = self.variants();
-        let (kernels, reports) = compile_variants(&program, source, variants, opts, &mut stats, &mut diags);
+        // 1. Compile each (func, key) once, in first-use order, for the bindings the frame
+        // keeps.
+        let stripped = live.drops_any().then(|| live::strip(&program, self.instances(), &live));
+        let (instances, variants) = match &stripped {
+            Some(s) => (&s.instances[..], &s.variants),
+            None => (self.instances(), self.variants()),
+        };
+        let variant_of = variants.of_instance();
+        let (kernels, reports) = compile_variants(&program, source, variants.list(), opts, &mut stats, &mut diags);
         let compiled = Instant::now();
         stats.kernels_micros = micros_between(started, compiled);
         if let (Some(hold), Some(watch)) = (&mut held_compiler, &compiler) {
             hold.release_at(compiled + watch.grace(compiled.duration_since(started)));
         }
         // Never hand a kernel an argument block shorter than its layout reads.
-        let ready: Vec<Option<&Kernel>> = self
-            .instances()
+        let ready: Vec<Option<&Kernel>> = instances
             .iter()
             .zip(variant_of)
             .map(|(inst, &v)| {
@@ -262,7 +276,6 @@ impl Renderer {
         let tiles = tile_grid(opts);
         let tiles_x = opts.width.div_ceil(opts.tile_size) as usize;
         let mut errors = Counts::new();
-        let instances = self.instances();
         let budget = Budget::new(opts.expand_budget_words);
         // While the source's background compiler (a tiered JIT's tier 1) has a compile
         // pending, the parallel passes leave it a core (`tiergate`); checked per pass.
@@ -312,22 +325,14 @@ impl Renderer {
         frame.reset(
             opts,
             num_planes,
-            self.shading_params()
-                .iter()
-                .map(|p| ParamPlanes {
-                    name: p.name.clone(),
-                    first_plane: p.first_plane,
-                    components: p.components,
-                })
+            live.params(self.shading_params())
+                .into_iter()
                 .chain(language.then(|| ParamPlanes {
                     name: "Ci".into(),
-                    first_plane: self.num_planes(),
+                    first_plane: live.num_planes,
                     components: 3,
                 })),
         );
-        // Language shaders are linked and compiled now, and run in each tile's task right
-        // after its draws, while its G-buffer is in cache.
-        let shading = language_shading.and_then(|l| self.compile_language(l, &mut diags));
         let shading_runs = shading.as_ref().map(|s| &s.pass);
         let target = frame.target();
         let slices = bins.slices();
@@ -391,6 +396,7 @@ impl Renderer {
     fn compile_language(
         &self,
         shading: &LanguageShading,
+        keep: &[String],
         diags: &mut Diagnostics,
     ) -> Option<Arc<super::shading::language::CompiledShading>> {
         let planes: Vec<crate::link::PlaneParam> = self
@@ -431,7 +437,7 @@ impl Renderer {
             self.program(),
             shading,
             &planes,
-            self.num_planes(),
+            keep,
             &spaces,
             diags,
         )

@@ -375,7 +375,16 @@ pub fn run_case(path: &Path, options: &TestOptions) -> CaseResult {
         .iter()
         .any(|e| matches!(e.check, Check::WritesAtMost { .. } | Check::WritesExactly { .. }));
 
-    let (frame, diags, sources) = render_case(path, base, options, count_writes);
+    // The parameters the expectations read stay in the G-buffer whether or not a shader
+    // reads them.
+    let keep_params = expectations
+        .iter()
+        .filter_map(|e| match &e.check {
+            Check::Param { name, .. } => Some(name.clone()),
+            _ => None,
+        })
+        .collect();
+    let (frame, diags, sources) = render_case(path, base, options, count_writes, keep_params);
     // Diagnostics: every announced code must appear, nothing unannounced may.
     let seen: Vec<(String, String)> = diags
         .items
@@ -426,6 +435,7 @@ fn render_case(
     base: &Path,
     options: &TestOptions,
     count_writes: bool,
+    keep_params: Vec<String>,
 ) -> (Option<Frame>, Diagnostics, SourceMap) {
     let mut sources = SourceMap::new();
     let mut diags = Diagnostics::new();
@@ -450,6 +460,7 @@ fn render_case(
     };
     let mut renderer = Renderer::new(registry.program.clone());
     renderer.options.count_writes = count_writes;
+    renderer.options.keep_params = keep_params;
     crate::scene::apply(&scene, &mut renderer, &mut diags);
     if diags.has_errors() {
         return (None, diags, sources);

@@ -16,6 +16,7 @@ mod frame_images;
 mod frame_layout;
 mod fuel;
 mod kernels;
+mod live_planes;
 mod plane_layout;
 mod pool_pinning;
 mod registry_loading;

@@ -172,8 +172,12 @@ pub(crate) struct CompiledShading {
     /// Kept alive: the kernels' code lives in them (behind a lock only so that the
     /// compiled shading can be shared; nothing uses them after the compile).
     _jits: std::sync::Mutex<Vec<Jit>>,
-    /// What was compiled, one line per kernel (`render --explain`).
+    /// What was compiled, one line per kernel and per plane (`render --explain`).
     pub explain: Vec<String>,
+    /// The frame's shading-parameter planes: those a shader reads, the binding plane and
+    /// the ones the caller keeps, numbered from 0 in the API's order. The output planes
+    /// follow them.
+    pub planes: Vec<PlaneParam>,
     pub(crate) pass: ShadingRuns,
 }
 
@@ -207,7 +211,7 @@ pub(crate) struct ShadingCache(std::sync::Mutex<Option<CacheEntry>>);
 struct CacheEntry {
     shading: LanguageShading,
     planes: Vec<PlaneParam>,
-    out_plane: u32,
+    keep: Vec<String>,
     spaces: Spaces,
     compiled: Arc<CompiledShading>,
     /// The compile's warnings, reported again with every frame that uses it.
@@ -220,24 +224,24 @@ pub(crate) fn compile_cached(
     program: &Program,
     shading: &LanguageShading,
     planes: &[PlaneParam],
-    out_plane: u32,
+    keep: &[String],
     spaces: &Spaces,
     diags: &mut Diagnostics,
 ) -> Option<Arc<CompiledShading>> {
     let mut slot = cache.0.lock().unwrap_or_else(|p| p.into_inner());
     if let Some(e) = slot.as_ref() {
-        if e.shading == *shading && e.planes == planes && e.out_plane == out_plane && e.spaces == *spaces {
+        if e.shading == *shading && e.planes == planes && e.keep == keep && e.spaces == *spaces {
             diags.extend(e.diags.clone());
             return Some(e.compiled.clone());
         }
     }
     let mut own = Diagnostics::new();
-    let compiled = compile(program, shading, planes, out_plane, spaces, &mut own).map(Arc::new);
+    let compiled = compile(program, shading, planes, keep, spaces, &mut own).map(Arc::new);
     diags.extend(own.clone());
     *slot = compiled.clone().map(|compiled| CacheEntry {
         shading: shading.clone(),
         planes: planes.to_vec(),
-        out_plane,
+        keep: keep.to_vec(),
         spaces: spaces.clone(),
         compiled,
         diags: own,
@@ -245,13 +249,15 @@ pub(crate) fn compile_cached(
     compiled
 }
 
-/// Link and compile the frame's shading. `planes`: the shading parameters' planes;
-/// `out_plane`: the first of the three output planes. Errors go to `diags`.
+/// Link and compile the frame's shading. `all_planes`: every shading parameter's planes
+/// as the API allocated them; `keep`: the parameters the caller reads from the frame,
+/// whether or not a shader does. The frame's planes are [`CompiledShading::planes`], then
+/// the three output planes. Errors go to `diags`.
 pub(crate) fn compile(
     program: &Program,
     shading: &LanguageShading,
-    planes: &[PlaneParam],
-    out_plane: u32,
+    all_planes: &[PlaneParam],
+    keep: &[String],
     spaces: &Spaces,
     diags: &mut Diagnostics,
 ) -> Option<CompiledShading> {
@@ -288,13 +294,12 @@ pub(crate) fn compile(
     };
     let default = shading.default_surface.as_ref().unwrap_or(&default);
     let bindings: Vec<&ShaderUse> = std::iter::once(default).chain(&shading.surfaces).collect();
-    let material = planes.iter().find(|p| p.name == SURFACE_PARAM).map(|p| p.first_plane);
     let mut jits = vec![];
     let mut programs = vec![];
     let mut runs = vec![];
     let light_names: Vec<&str> = shading.lights.iter().map(|l| l.name.as_str()).collect();
     let mut explain = vec![format!(
-        "language shaders: lights [{}], atmosphere {}; G-buffer: {out_plane} shading-parameter plane(s) + 3 output planes (Ci) from plane {out_plane}",
+        "language shaders: lights [{}], atmosphere {}",
         light_names.join(", "),
         shading.atmosphere.as_ref().map_or("none", |a| a.name.as_str()),
     )];
@@ -309,35 +314,110 @@ pub(crate) fn compile(
     if quads {
         explain.push("shading on 2x2 quads of pixels: a shader takes screen-space derivatives".into());
     }
-    // Link and check every binding, then load the textures they name, then compile.
-    let mut checked = vec![];
-    for (id, binding) in bindings.iter().enumerate() {
-        // Binding 0 runs only where a pixel can have no binding: a frame with bindings
-        // whose every pixel has one still runs it (it shades nothing there).
-        let Some(surface) = find(&binding.name, ItemKind::Surface) else {
-            diags.push(Diagnostic::error(
-                "E1002",
-                format!("no surface shader `{}`", binding.name),
-            ));
-            return None;
-        };
-        let group = Group {
-            surface,
+    let mut surfaces = vec![];
+    for binding in &bindings {
+        match find(&binding.name, ItemKind::Surface) {
+            Some(surface) => surfaces.push(surface),
+            None => {
+                diags.push(Diagnostic::error(
+                    "E1002",
+                    format!("no surface shader `{}`", binding.name),
+                ));
+                return None;
+            }
+        }
+    }
+    // Binding 0 runs only where a pixel can have no binding: a frame with bindings whose
+    // every pixel has one still runs it (it shades nothing there).
+    let link_all = |planes: &[PlaneParam]| -> Result<Vec<link::Linked>, String> {
+        let material = planes.iter().find(|p| p.name == SURFACE_PARAM).map(|p| p.first_plane);
+        let out_plane = planes.iter().map(|p| p.components).sum();
+        let group = |id: usize| Group {
+            surface: surfaces[id],
             lights: lights.clone(),
             atmosphere,
             planes,
             material: material.map(|p| (p, id as u32)),
-            surface_text: &binding.text,
+            surface_text: &bindings[id].text,
             out_plane,
             quads,
         };
-        let linked = match link::link(&group) {
+        (0..bindings.len()).map(|id| link::link(&group(id))).collect()
+    };
+    // Linked against every plane the API allocated, the shaders say what they read; the
+    // frame keeps only those planes (`runtime::live`), and they are linked again against
+    // the planes' new numbers.
+    let ice = |e: String| Diagnostic::error("E0900", format!("internal compiler error: {e}"));
+    let mut linked_all = match link_all(all_planes) {
+        Ok(l) => l,
+        Err(e) => {
+            diags.push(ice(e));
+            return None;
+        }
+    };
+    let why = |name: &str| -> Option<String> {
+        let readers: Vec<&str> = bindings
+            .iter()
+            .zip(&linked_all)
+            .filter(|(_, l)| l.reads.iter().any(|r| r == name))
+            .map(|(b, _)| b.name.as_str())
+            .collect();
+        if name == SURFACE_PARAM {
+            Some("which surface binding drew each pixel".into())
+        } else if !readers.is_empty() {
+            Some(format!("read by surface(s) {}", readers.join(", ")))
+        } else if keep.iter().any(|k| k == name) {
+            Some("kept for the caller (`--param`, a test expectation)".into())
+        } else {
+            None
+        }
+    };
+    let mut planes = vec![];
+    let mut dead = vec![];
+    let mut next = 0;
+    for p in all_planes {
+        match why(&p.name) {
+            Some(reason) => {
+                let last = next + p.components - 1;
+                let at = if last == next {
+                    format!("plane {next}")
+                } else {
+                    format!("planes {next}-{last}")
+                };
+                explain.push(format!("G-buffer {at}: `{}` ({reason})", p.name));
+                planes.push(PlaneParam {
+                    first_plane: next,
+                    ..p.clone()
+                });
+                next += p.components;
+            }
+            None => dead.push(format!("`{}`", p.name)),
+        }
+    }
+    let out_plane = next;
+    explain.push(format!(
+        "G-buffer planes {out_plane}-{}: `Ci` (the shaders' output)",
+        out_plane + 2
+    ));
+    if !dead.is_empty() {
+        explain.push(format!(
+            "not allocated, not interpolated by any primitive: {} (no shader of the frame reads them)",
+            dead.join(", ")
+        ));
+    }
+    if planes != all_planes {
+        linked_all = match link_all(&planes) {
             Ok(l) => l,
             Err(e) => {
-                diags.push(Diagnostic::error("E0900", format!("internal compiler error: {e}")));
+                diags.push(ice(e));
                 return None;
             }
         };
+    }
+    let material = planes.iter().any(|p| p.name == SURFACE_PARAM);
+    // Check every binding, then load the textures they name, then compile.
+    let mut checked = vec![];
+    for (id, ((binding, surface), linked)) in bindings.iter().zip(surfaces).zip(linked_all).enumerate() {
         for (name, _) in &linked.unprovided {
             diags.push(Diagnostic::warning(
                 "W1001",
@@ -356,7 +436,7 @@ pub(crate) fn compile(
                 ""
             },
             linked.reads.join(", "),
-            if material.is_some() {
+            if material {
                 format!(", only where `{SURFACE_PARAM}` is {id}")
             } else {
                 String::new()
@@ -463,6 +543,7 @@ pub(crate) fn compile(
     Some(CompiledShading {
         _jits: std::sync::Mutex::new(jits),
         explain,
+        planes,
         pass: ShadingRuns {
             programs,
             runs,
