@@ -443,6 +443,20 @@ impl Renderer {
         )
     }
 
+    /// The language shading of `frame`, the last frame this renderer rendered, computed
+    /// again by the IR evaluator (`shading::reference`): `Ci` per pixel, row-major.
+    pub fn evaluate_shading(&self, frame: &Frame) -> Result<super::shading::reference::Colours, String> {
+        let compiled = self
+            .shading_cache
+            .last()
+            .ok_or("the renderer has not shaded a frame with language shaders")?;
+        let out = compiled.pass.out_plane;
+        if frame.param("Ci").map(|p| p.first_plane) != Some(out) || frame.num_planes() != out + 3 {
+            return Err("the frame is not the last one the renderer shaded with language shaders".into());
+        }
+        compiled.evaluate(frame, &self.options)
+    }
+
     /// Deferred shading over the visible pixels of `frame`, compiled for the scene's
     /// effects. The previous frame's colour buffer (if any) is reused; without an effect
     /// there is none.

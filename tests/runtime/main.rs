@@ -33,6 +33,7 @@ mod shading_lanes;
 mod shading_language;
 mod shading_lighting;
 mod shading_phong;
+mod shading_reference;
 mod shading_rows;
 #[path = "../support/mod.rs"]
 mod support;

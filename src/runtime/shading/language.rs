@@ -183,12 +183,25 @@ pub(crate) struct CompiledShading {
 
 /// The kernels of a [`CompiledShading`] and what they run with (shared by the tile tasks).
 pub(crate) struct ShadingRuns {
-    programs: Vec<Arc<Program>>,
-    /// (kernel, argument block) per binding.
-    runs: Vec<(Arc<Kernel>, Vec<u32>)>,
+    pub(super) programs: Vec<Arc<Program>>,
+    /// (kernel, argument block) per binding, each compiled for [`out_key`].
+    pub(super) runs: Vec<(Arc<Kernel>, Vec<u32>)>,
     pub out_plane: u32,
     /// The kernels run on 2x2 quads of pixels (`super::quads`).
-    quads: bool,
+    pub(super) quads: bool,
+}
+
+/// The key every binding's `__shade` is compiled for: its one binding, the three output
+/// planes.
+pub(super) fn out_key() -> VariantKey {
+    VariantKey {
+        bindings: vec![Binding {
+            kind: BindingKind::Kind(link::OUT_KIND.into()),
+            components: 3,
+        }],
+        count_writes: false,
+        trivial_accept: false,
+    }
 }
 
 /// The spaces a frame's arguments are moved by.
@@ -216,6 +229,14 @@ struct CacheEntry {
     compiled: Arc<CompiledShading>,
     /// The compile's warnings, reported again with every frame that uses it.
     diags: Diagnostics,
+}
+
+impl ShadingCache {
+    /// The compiled shading of the last compile (the last language-shaded frame's).
+    pub(crate) fn last(&self) -> Option<Arc<CompiledShading>> {
+        let slot = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        slot.as_ref().map(|e| e.compiled.clone())
+    }
 }
 
 /// [`compile`], or the cached result when the inputs are those of the last compile.
@@ -493,14 +514,7 @@ pub(crate) fn compile(
             ));
             return None;
         };
-        let key = VariantKey {
-            bindings: vec![Binding {
-                kind: BindingKind::Kind(link::OUT_KIND.into()),
-                components: 3,
-            }],
-            count_writes: false,
-            trivial_accept: false,
-        };
+        let key = out_key();
         let mut jit = match Jit::at_tier(linked_program.clone(), Tier::Optimised) {
             Ok(j) => j,
             Err(e) => {

@@ -49,6 +49,7 @@ pub mod fast;
 pub mod lanes;
 pub mod language;
 pub(crate) mod quads;
+pub mod reference;
 
 use fast::FastSetup;
 pub use fast::{simd_build, RowInputs};
