@@ -2,7 +2,9 @@
 //! real tile contexts and checked pixel by pixel against Rust references, at both tiers; and the
 //! pieces beside code generation that the kernels' results rest on: the IR evaluator's scalar
 //! semantics (`eval_scalar`), the middle end's constant folding and intervals
-//! (`constant_folding`, `intervals`) and the libm functions kernels call (`libm`).
+//! (`constant_folding`, `intervals`) and the libm functions kernels call (`libm`); and the
+//! evaluator's f64 precision, the reference the kernels' f32 shading is measured against
+//! (`eval_f64`).
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
@@ -18,6 +20,7 @@ mod deep_programs;
 mod disassembly;
 mod edges;
 mod error_order;
+mod eval_f64;
 mod eval_generated;
 mod eval_oracle;
 mod eval_scalar;

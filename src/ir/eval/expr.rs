@@ -2,14 +2,16 @@
 //! lane, [`Machine::assign`] stores into a place, as `jit::lower`'s `expr`, `storage` and
 //! `builtin` do.
 //!
-//! Invariants: a value holds the components of its type as the JIT's `Val` does:
+//! Invariants: a value holds the components of its type as the JIT's `Val` does, as lane
+//! words of the run's precision ([`super::precision`]):
 //! interpolation data only the current view's components (a local or parameter of it holds
 //! all of them per element, and reading it gathers the view); single components broadcast
 //! over the other operand's. Every index is clamped per lane into its array, and the error
 //! counted when an executing lane was out of range ([`Machine::exec`] is narrowed to the
 //! lanes that take an arm of `?:` or the right side of `&&`/`||` while it is evaluated).
 
-use super::scalar::{self, arity, convert, float_builtin, int_builtin};
+use super::precision::{in_precision, Float, Precision};
+use super::scalar::{self, arity, convert_lane, float_builtin, int_builtin};
 use super::{any, malformed, Lanes, Machine, Res};
 use crate::abi::{ParamSlot, ERR_INDEX};
 use crate::ir::{
@@ -24,17 +26,17 @@ pub(crate) struct Val {
 }
 
 impl Val {
-    fn map(&self, sc: Scalar, f: impl Fn(u32) -> u32) -> Val {
+    fn map(&self, sc: Scalar, f: impl Fn(u64) -> u64) -> Val {
         Val {
             comps: self.comps.iter().map(|c| c.map(&f)).collect(),
             sc,
         }
     }
 
-    /// Every component converted to `to`.
-    pub(crate) fn converted(&self, to: Scalar) -> Val {
+    /// Every component converted to `to` in precision `p`.
+    pub(crate) fn converted(&self, to: Scalar, p: Precision) -> Val {
         let from = self.sc;
-        self.map(to, |w| convert(from, to, w))
+        self.map(to, |w| convert_lane(p, from, to, w))
     }
 }
 
@@ -70,9 +72,9 @@ fn fixed_len(dims: &[u32]) -> usize {
     dims.iter().map(|&d| d as usize).product()
 }
 
-fn bools(v: &Val) -> Res<Lanes> {
+fn bools(v: &Val, p: Precision) -> Res<Lanes> {
     match v.comps.first() {
-        Some(c) => Ok(c.map(|w| convert(v.sc, Scalar::Bool, w))),
+        Some(c) => Ok(c.map(|w| convert_lane(p, v.sc, Scalar::Bool, w))),
         None => malformed("a condition without components"),
     }
 }
@@ -117,7 +119,7 @@ impl Machine<'_, '_> {
 
     /// The number of sequence points as indices see it (at least 1).
     fn seq_len(&self) -> Res<u32> {
-        Ok(self.frame()?.args.first().copied().unwrap_or(0).max(1))
+        Ok(self.frame()?.args.n_seq().max(1))
     }
 
     fn local_access(&self, local: LocalId) -> Res<Access> {
@@ -194,7 +196,8 @@ impl Machine<'_, '_> {
         let Some(&lanes) = idx.comps.first() else {
             return malformed("an index without components");
         };
-        let idx: Lanes = lanes.map(|w| convert(idx.sc, Scalar::Int, w));
+        let p = self.precision;
+        let idx: [u32; 4] = lanes.map(|w| convert_lane(p, idx.sc, Scalar::Int, w) as u32);
         // A uniform index of pixel code fails for the group as the JIT checks it: once,
         // when some lane executes it, under the guards of the arms around it; a varying one
         // where an executing lane is out of range.
@@ -214,10 +217,14 @@ impl Machine<'_, '_> {
         Ok(acc)
     }
 
-    fn word(&self, root: &Root, at: usize, lane: usize) -> Res<u32> {
+    /// Component `at` of `root` in `lane`, a lane word of scalar type `sc`.
+    fn word(&self, root: &Root, at: usize, lane: usize, sc: Scalar) -> Res<u64> {
         let got = match root {
             Root::Local(i) => self.frame()?.locals.get(*i).and_then(|v| v.get(at)).map(|c| c[lane]),
-            Root::Args(start) => self.frame()?.args.get(start + at).copied(),
+            Root::Args(start) => self
+                .frame()?
+                .args
+                .lane_word(start + at, sc == Scalar::Float, self.precision),
             Root::Temp(v) => v.comps.get(at).map(|c| c[lane]),
         };
         match got {
@@ -232,7 +239,7 @@ impl Machine<'_, '_> {
         for o in offs {
             let mut c = [0; 4];
             for (l, w) in c.iter_mut().enumerate() {
-                *w = self.word(&acc.root, acc.base[l] + o, l)?;
+                *w = self.word(&acc.root, acc.base[l] + o, l, acc.sc)?;
             }
             comps.push(c);
         }
@@ -250,7 +257,7 @@ impl Machine<'_, '_> {
         let Root::Local(li) = acc.root else {
             return malformed("assignment to a parameter");
         };
-        let v = self.eval(value)?.converted(acc.sc);
+        let v = self.eval(value)?.converted(acc.sc, self.precision);
         let offs = self.comp_offsets(acc.elem, fixed_len(&acc.dims), false);
         let comps = if v.comps.len() == 1 && offs.len() != 1 {
             vec![v.comps[0]; offs.len()]
@@ -322,16 +329,17 @@ impl Machine<'_, '_> {
     fn eval_inner(&mut self, e_id: ExprId) -> Res<Val> {
         let e = &self.exprs()[e_id];
         let sc = elem_scalar(&e.ty);
+        let p = self.precision;
         match &e.kind {
             ExprKind::Const(c) => {
                 let (from, w) = match *c {
-                    ConstValue::Float(x) => (Scalar::Float, x.to_bits()),
-                    ConstValue::Int(i) => (Scalar::Int, i as u32),
-                    ConstValue::Bool(b) => (Scalar::Bool, u32::from(b)),
-                    ConstValue::Fixed(i) => (sc, i as u32),
+                    ConstValue::Float(x) => (Scalar::Float, p.from_f32(x)),
+                    ConstValue::Int(i) => (Scalar::Int, u64::from(i as u32)),
+                    ConstValue::Bool(b) => (Scalar::Bool, u64::from(b)),
+                    ConstValue::Fixed(i) => (sc, u64::from(i as u32)),
                 };
                 Ok(Val {
-                    comps: vec![[convert(from, sc, w); 4]],
+                    comps: vec![[convert_lane(p, from, sc, w); 4]],
                     sc,
                 })
             }
@@ -342,23 +350,23 @@ impl Machine<'_, '_> {
             ExprKind::Unary { op, expr } => {
                 let v = self.eval(*expr)?;
                 Ok(match op {
-                    UnaryOp::Neg => v.map(v.sc, |w| scalar::neg(v.sc, w)),
-                    UnaryOp::Not => v.map(Scalar::Bool, |w| convert(v.sc, Scalar::Bool, w) ^ 1),
+                    UnaryOp::Neg => v.map(v.sc, |w| scalar::neg_lane(p, v.sc, w)),
+                    UnaryOp::Not => v.map(Scalar::Bool, |w| convert_lane(p, v.sc, Scalar::Bool, w) ^ 1),
                 })
             }
             ExprKind::Binary { op, lhs, rhs } => {
                 let a = self.eval(*lhs)?;
                 let c = match op {
                     BinOp::And | BinOp::Or if a.sc == Scalar::Bool => {
-                        let cond = bools(&a)?;
+                        let cond = bools(&a, p)?;
                         self.eval_guarded(*rhs, cond, self.exprs()[*lhs].var.is_varying(), *op == BinOp::And)?
                     }
                     _ => self.eval(*rhs)?,
                 };
-                binary(*op, a, c)
+                binary(p, *op, a, c)
             }
             ExprKind::Convert(inner) => {
-                let v = self.eval(*inner)?.converted(sc);
+                let v = self.eval(*inner)?.converted(sc, p);
                 if e.ty.elem == Elem::Interp && self.exprs()[*inner].ty.elem != Elem::Interp && v.comps.len() == 1 {
                     let n = self.comp_offsets(e.ty.elem, fixed_len(&e.ty.dims), true).len();
                     return Ok(Val {
@@ -369,7 +377,7 @@ impl Machine<'_, '_> {
                 Ok(v)
             }
             ExprKind::Select { cond, then, otherwise } => {
-                let c = bools(&self.eval(*cond)?)?;
+                let c = bools(&self.eval(*cond)?, p)?;
                 let varying = self.exprs()[*cond].var.is_varying();
                 let t = self.eval_guarded(*then, c, varying, true)?;
                 let o = self.eval_guarded(*otherwise, c, varying, false)?;
@@ -386,12 +394,12 @@ impl Machine<'_, '_> {
             ExprKind::List(items) => {
                 let mut comps = vec![];
                 for it in items {
-                    comps.extend(self.eval(*it)?.converted(sc).comps);
+                    comps.extend(self.eval(*it)?.converted(sc, p).comps);
                 }
                 Ok(Val { comps, sc })
             }
             ExprKind::Splat(item) => {
-                let one = self.eval(*item)?.converted(sc).comps;
+                let one = self.eval(*item)?.converted(sc, p).comps;
                 let n = fixed_len(&e.ty.dims);
                 if one.len().saturating_mul(n) > 1 << 26 {
                     return Err(super::EvalError::Unsupported("a splat of over 2^26 components".into()));
@@ -402,19 +410,20 @@ impl Machine<'_, '_> {
                 })
             }
             ExprKind::MatMul { lhs, rhs } => {
-                let a = self.eval(*lhs)?.converted(Scalar::Float);
-                let c = self.eval(*rhs)?.converted(Scalar::Float);
-                matmul(&a, &c, &self.exprs()[*lhs].ty.dims, &self.exprs()[*rhs].ty.dims)
+                let a = self.eval(*lhs)?.converted(Scalar::Float, p);
+                let c = self.eval(*rhs)?.converted(Scalar::Float, p);
+                let (ldims, rdims) = (&self.exprs()[*lhs].ty.dims, &self.exprs()[*rhs].ty.dims);
+                in_precision!(p, F => matmul::<F>(&a, &c, ldims, rdims))
             }
             ExprKind::SeqCount => {
-                let n = self.frame()?.args.first().copied().unwrap_or(0);
+                let n = u64::from(self.frame()?.args.n_seq());
                 Ok(Val {
                     comps: vec![[n; 4]],
                     sc: Scalar::Int,
                 })
             }
             ExprKind::ClipFlag => Ok(Val {
-                comps: vec![[u32::from(!self.key.trivial_accept); 4]],
+                comps: vec![[u64::from(!self.key.trivial_accept); 4]],
                 sc: Scalar::Bool,
             }),
         }
@@ -422,7 +431,7 @@ impl Machine<'_, '_> {
 
     /// `__gbuffer(plane, X, Y)` at the group's pixels, as `jit::lower::planes` reads it: the
     /// plane number converted saturating, a plane the tile lacks (or a lane outside the
-    /// tile's buffers) reads 0.
+    /// tile's buffers) reads 0; the plane's f32 widened to the run's precision.
     fn gbuffer_read(&self, plane: &Val) -> Res<Val> {
         let Some((gx, y)) = self.pix.as_ref().map(|p| (p.gx, p.y)) else {
             return malformed("`__gbuffer` outside per-pixel code");
@@ -431,9 +440,10 @@ impl Machine<'_, '_> {
             return malformed("`__gbuffer` without a plane");
         };
         // `fcvt_to_uint_sat`: NaN and negatives to 0, the rest truncated and saturated.
-        let k = f32::from_bits(k[0]) as u32 as usize;
+        let p = self.precision;
+        let k = in_precision!(p, F => F::from_word(k[0]).to_u32()) as usize;
         let lanes = std::array::from_fn(|l| match self.tile.index(gx + l as i32, y) {
-            Some(i) if k < self.tile.num_planes => self.tile.planes[k * self.tile.plane_stride + i].to_bits(),
+            Some(i) if k < self.tile.num_planes => p.from_f32(self.tile.planes[k * self.tile.plane_stride + i]),
             _ => 0,
         });
         Ok(Val {
@@ -443,21 +453,23 @@ impl Machine<'_, '_> {
     }
 
     /// `texture`: `TextureSet::sample` per lane, as the kernels' `primflow_texture` calls
-    /// it; black without a loaded set (a uniform result is the same in every lane).
+    /// it; black without a loaded set (a uniform result is the same in every lane). The
+    /// sampler is f32: it takes the operands rounded to f32, its result is widened.
     fn texture(&self, slot: u32, wrap: u32, vals: &[Val]) -> Val {
         use crate::runtime::texture::Wrap;
+        let p = self.precision;
         let arg = |k: usize, l: usize| {
             vals.get(k)
                 .and_then(|v| v.comps.first())
-                .map_or(0.0, |c| f32::from_bits(c[l]))
+                .map_or(0.0, |c| p.to_f32(c[l]))
         };
-        let mut comps = vec![[0u32; 4]; 3];
+        let mut comps = vec![[0u64; 4]; 3];
         if let Some((set, id)) = self.program.textures.lookup(slot) {
             for l in 0..4 {
                 let a = |k| arg(k, l);
                 let rgb = set.sample(id, Wrap::from_u32(wrap), a(0), a(1), a(2), a(3), a(4), a(5));
                 for c in 0..3 {
-                    comps[c][l] = rgb[c].to_bits();
+                    comps[c][l] = p.from_f32(rgb[c]);
                 }
             }
         }
@@ -484,7 +496,8 @@ impl Machine<'_, '_> {
             let vs = unify_all(vals)?;
             return Ok(componentwise(&vs, sc, |a| int_builtin(func, sc, a)));
         }
-        let vals: Vec<Val> = vals.iter().map(|v| v.converted(Scalar::Float)).collect();
+        let p = self.precision;
+        let vals: Vec<Val> = vals.iter().map(|v| v.converted(Scalar::Float, p)).collect();
         if func == Builtin::GBuffer {
             return self.gbuffer_read(&vals[0]);
         }
@@ -493,19 +506,24 @@ impl Machine<'_, '_> {
         }
         if matches!(func, Builtin::Dx | Builtin::Dy | Builtin::FilterWidth) {
             let varying = self.pix.is_some() && self.exprs()[args[0]].var.is_varying();
-            return Ok(super::derivative::derivative(func, &vals[0], varying, self.exec));
+            return Ok(super::derivative::derivative(p, func, &vals[0], varying, self.exec));
         }
-        if let Some(v) = super::shading::builtin(func, &vals) {
+        if let Some(v) = super::shading::builtin(p, func, &vals) {
             return v;
         }
-        let f = |x: f32| x.to_bits();
-        let g = |w: u32| f32::from_bits(w);
+        in_precision!(p, F => self.float_builtin::<F>(func, vals))
+    }
+
+    /// A built-in of float operands `vals` (converted), computed in `F`: the vector ones
+    /// and the component-wise ones.
+    fn float_builtin<F: Float>(&self, func: Builtin, vals: Vec<Val>) -> Res<Val> {
+        let g = F::from_word;
         match func {
             Builtin::Dot => {
                 let vs = unify_all(vals)?;
-                Ok(one(dot(&vs[0], &vs[1])))
+                Ok(one(dot::<F>(&vs[0], &vs[1])))
             }
-            Builtin::Length => Ok(one(dot(&vals[0], &vals[0]).map(|d| f(g(d).sqrt())))),
+            Builtin::Length => Ok(one(dot::<F>(&vals[0], &vals[0]).map(|d| g(d).sqrt().word()))),
             Builtin::Distance => {
                 let vs = unify_all(vals)?;
                 let diff = Val {
@@ -513,19 +531,19 @@ impl Machine<'_, '_> {
                         .comps
                         .iter()
                         .zip(&vs[1].comps)
-                        .map(|(x, y)| std::array::from_fn(|l| f(g(x[l]) - g(y[l]))))
+                        .map(|(x, y)| std::array::from_fn(|l| (g(x[l]) - g(y[l])).word()))
                         .collect(),
                     sc: Scalar::Float,
                 };
-                Ok(one(dot(&diff, &diff).map(|d| f(g(d).sqrt()))))
+                Ok(one(dot::<F>(&diff, &diff).map(|d| g(d).sqrt().word())))
             }
             Builtin::Normalize => {
-                let len = dot(&vals[0], &vals[0]).map(|d| g(d).sqrt());
+                let len = dot::<F>(&vals[0], &vals[0]).map(|d| g(d).sqrt());
                 Ok(Val {
                     comps: vals[0]
                         .comps
                         .iter()
-                        .map(|x| std::array::from_fn(|l| f(g(x[l]) / len[l])))
+                        .map(|x| std::array::from_fn(|l| (g(x[l]) / len[l]).word()))
                         .collect(),
                     sc: Scalar::Float,
                 })
@@ -538,7 +556,7 @@ impl Machine<'_, '_> {
                 let (a, c) = (&vs[0].comps, &vs[1].comps);
                 let comps = [(1, 2), (2, 0), (0, 1)]
                     .iter()
-                    .map(|&(i, j)| std::array::from_fn(|l| f(g(a[i][l]) * g(c[j][l]) - g(a[j][l]) * g(c[i][l]))))
+                    .map(|&(i, j)| std::array::from_fn(|l| (g(a[i][l]) * g(c[j][l]) - g(a[j][l]) * g(c[i][l])).word()))
                     .collect();
                 Ok(Val {
                     comps,
@@ -546,16 +564,16 @@ impl Machine<'_, '_> {
                 })
             }
             Builtin::TransformPoint { from, to } => {
-                let m = self.space_matrix(to, from)?;
+                let m = self.space_matrix::<F>(to, from)?;
                 apply_point(m, &vals[0])
             }
             Builtin::TransformVector { from, to } => {
-                let m = self.space_matrix(to, from)?;
+                let m = self.space_matrix::<F>(to, from)?;
                 apply_3x3(m, &vals[0], false)
             }
             Builtin::TransformNormal { from, to } => {
                 // The inverse transpose of to_from_from is the transpose of from_from_to.
-                let m = self.space_matrix(from, to)?;
+                let m = self.space_matrix::<F>(from, to)?;
                 apply_3x3(m, &vals[0], true)
             }
             _ => {
@@ -563,7 +581,7 @@ impl Machine<'_, '_> {
                 let vs = if unary { vals } else { unify_all(vals)? };
                 let mut bad = false;
                 let v = componentwise(&vs, Scalar::Float, |a| {
-                    float_builtin(func, a).unwrap_or_else(|| {
+                    float_builtin::<F>(func, a).unwrap_or_else(|| {
                         bad = true;
                         0
                     })
@@ -576,16 +594,17 @@ impl Machine<'_, '_> {
         }
     }
 
-    /// A matrix of the argument block's `spaces` (row-major); `None` when the kernel's
-    /// function has none (the JIT then takes every space as the identity).
-    fn load_matrix(&self, word: u32) -> Res<Option<[f32; 16]>> {
+    /// A matrix of the argument block's `spaces` (row-major, f32 words widened to `F`);
+    /// `None` when the kernel's function has none (the JIT then takes every space as the
+    /// identity).
+    fn load_matrix<F: Float>(&self, word: u32) -> Res<Option<[F; 16]>> {
         let k = self.kernel()?;
         let Some(base) = k.layout.spaces else { return Ok(None) };
         let args = &self.frames[k.frame].args;
-        let mut m = [0.0; 16];
+        let mut m = [F::ZERO; 16];
         for (i, x) in m.iter_mut().enumerate() {
-            match args.get((base + word) as usize + i) {
-                Some(&w) => *x = f32::from_bits(w),
+            match args.float((base + word) as usize + i, self.precision) {
+                Some(w) => *x = F::from_word(w),
                 None => return malformed("space matrices past the argument block"),
             }
         }
@@ -593,7 +612,7 @@ impl Machine<'_, '_> {
     }
 
     /// `to_from_from` = to_from_device * device_from_from (`None`: the identity).
-    fn space_matrix(&self, to: Space, from: Space) -> Res<Option<[f32; 16]>> {
+    fn space_matrix<F: Float>(&self, to: Space, from: Space) -> Res<Option<[F; 16]>> {
         if to == from {
             return Ok(None);
         }
@@ -604,11 +623,11 @@ impl Machine<'_, '_> {
             Space::Lighting => Some(base + 32),
         };
         let a = match word(to, 48) {
-            Some(w) => self.load_matrix(w)?,
+            Some(w) => self.load_matrix::<F>(w)?,
             None => None,
         };
         let c = match word(from, 0) {
-            Some(w) => self.load_matrix(w)?,
+            Some(w) => self.load_matrix::<F>(w)?,
             None => None,
         };
         Ok(match (a, c) {
@@ -617,7 +636,7 @@ impl Machine<'_, '_> {
                 let (i, j) = (ij / 4, ij % 4);
                 let mut acc = a[i * 4] * c[j];
                 for k in 1..4 {
-                    acc += a[i * 4 + k] * c[k * 4 + j];
+                    acc = acc + a[i * 4 + k] * c[k * 4 + j];
                 }
                 acc
             })),
@@ -632,11 +651,11 @@ fn one(c: Lanes) -> Val {
     }
 }
 
-/// `Σ a[i] * b[i]` left to right, per lane (0 without components).
-fn dot(a: &Val, c: &Val) -> Lanes {
-    let g = |w: u32| f32::from_bits(w);
+/// `Σ a[i] * b[i]` left to right in `F`, per lane (0 without components).
+fn dot<F: Float>(a: &Val, c: &Val) -> Lanes {
+    let g = F::from_word;
     std::array::from_fn(|l| {
-        let mut acc: Option<f32> = None;
+        let mut acc: Option<F> = None;
         for (x, y) in a.comps.iter().zip(&c.comps) {
             let p = g(x[l]) * g(y[l]);
             acc = Some(match acc {
@@ -644,29 +663,29 @@ fn dot(a: &Val, c: &Val) -> Lanes {
                 Some(s) => s + p,
             });
         }
-        acc.unwrap_or(0.0).to_bits()
+        acc.unwrap_or(F::ZERO).word()
     })
 }
 
-fn apply_point(m: Option<[f32; 16]>, v: &Val) -> Res<Val> {
+fn apply_point<F: Float>(m: Option<[F; 16]>, v: &Val) -> Res<Val> {
     let Some(m) = m else { return Ok(v.clone()) };
     let n = v.comps.len();
     if n != 3 && n != 4 {
         return malformed("transform of a point that has neither 3 nor 4 components");
     }
-    let g = |w: u32| f32::from_bits(w);
+    let g = F::from_word;
     let comps = (0..n)
         .map(|i| {
             std::array::from_fn(|l| {
                 // A 3-component point is taken with w = 1 (no divide afterwards).
                 let mut acc = m[i * 4 + 3];
                 if n == 4 {
-                    acc *= g(v.comps[3][l]);
+                    acc = acc * g(v.comps[3][l]);
                 }
                 for j in 0..3 {
-                    acc += m[i * 4 + j] * g(v.comps[j][l]);
+                    acc = acc + m[i * 4 + j] * g(v.comps[j][l]);
                 }
-                acc.to_bits()
+                acc.word()
             })
         })
         .collect();
@@ -676,21 +695,21 @@ fn apply_point(m: Option<[f32; 16]>, v: &Val) -> Res<Val> {
     })
 }
 
-fn apply_3x3(m: Option<[f32; 16]>, v: &Val, transpose: bool) -> Res<Val> {
+fn apply_3x3<F: Float>(m: Option<[F; 16]>, v: &Val, transpose: bool) -> Res<Val> {
     let Some(m) = m else { return Ok(v.clone()) };
     if v.comps.len() < 3 {
         return malformed("transform of a direction with fewer than 3 components");
     }
-    let g = |w: u32| f32::from_bits(w);
+    let g = F::from_word;
     let mut comps: Vec<Lanes> = (0..3)
         .map(|i| {
             std::array::from_fn(|l| {
                 let at = |j: usize| if transpose { j * 4 + i } else { i * 4 + j };
                 let mut acc = m[at(0)] * g(v.comps[0][l]);
                 for j in 1..3 {
-                    acc += m[at(j)] * g(v.comps[j][l]);
+                    acc = acc + m[at(j)] * g(v.comps[j][l]);
                 }
-                acc.to_bits()
+                acc.word()
             })
         })
         .collect();
@@ -702,7 +721,7 @@ fn apply_3x3(m: Option<[f32; 16]>, v: &Val, transpose: bool) -> Res<Val> {
     })
 }
 
-fn matmul(a: &Val, c: &Val, ldims: &[u32], rdims: &[u32]) -> Res<Val> {
+fn matmul<F: Float>(a: &Val, c: &Val, ldims: &[u32], rdims: &[u32]) -> Res<Val> {
     let (n, m) = match ldims {
         [n, m] => (*n as usize, *m as usize),
         _ => return malformed("matrix product with a non-2-D left side"),
@@ -715,12 +734,12 @@ fn matmul(a: &Val, c: &Val, ldims: &[u32], rdims: &[u32]) -> Res<Val> {
     if a.comps.len() < n * m || c.comps.len() < m * k {
         return malformed("matrix product operands shorter than their shapes");
     }
-    let g = |w: u32| f32::from_bits(w);
+    let g = F::from_word;
     let mut comps = Vec::with_capacity(n * k);
     for i in 0..n {
         for j in 0..k {
             comps.push(std::array::from_fn(|l| {
-                let mut acc: Option<f32> = None;
+                let mut acc: Option<F> = None;
                 for t in 0..m {
                     let p = g(a.comps[i * m + t][l]) * g(c.comps[t * k + j][l]);
                     acc = Some(match acc {
@@ -728,7 +747,7 @@ fn matmul(a: &Val, c: &Val, ldims: &[u32], rdims: &[u32]) -> Res<Val> {
                         Some(s) => s + p,
                     });
                 }
-                acc.unwrap_or(0.0).to_bits()
+                acc.unwrap_or(F::ZERO).word()
             }));
         }
     }
@@ -773,13 +792,13 @@ fn unify_all(vals: Vec<Val>) -> Res<Vec<Val>> {
 }
 
 /// `f` of the operands' i-th components, lane by lane, for every i.
-fn componentwise(vs: &[Val], sc: Scalar, mut f: impl FnMut(&[u32]) -> u32) -> Val {
+fn componentwise(vs: &[Val], sc: Scalar, mut f: impl FnMut(&[u64]) -> u64) -> Val {
     let n = vs.first().map_or(0, |v| v.comps.len());
     let comps = (0..n)
         .map(|i| {
             let mut c = [0; 4];
             for (l, out) in c.iter_mut().enumerate() {
-                let args: Vec<u32> = vs.iter().map(|v| v.comps[i][l]).collect();
+                let args: Vec<u64> = vs.iter().map(|v| v.comps[i][l]).collect();
                 *out = f(&args);
             }
             c
@@ -788,9 +807,9 @@ fn componentwise(vs: &[Val], sc: Scalar, mut f: impl FnMut(&[u32]) -> u32) -> Va
     Val { comps, sc }
 }
 
-fn binary(op: BinOp, a: Val, c: Val) -> Res<Val> {
+fn binary(p: Precision, op: BinOp, a: Val, c: Val) -> Res<Val> {
     // Operands share a scalar type (checker); converted as the JIT does if they do not.
-    let c = if c.sc != a.sc { c.converted(a.sc) } else { c };
+    let c = if c.sc != a.sc { c.converted(a.sc, p) } else { c };
     let (a, c) = unify(a, c)?;
     let sc = a.sc;
     let out = if matches!(
@@ -805,7 +824,7 @@ fn binary(op: BinOp, a: Val, c: Val) -> Res<Val> {
     for (x, y) in a.comps.iter().zip(&c.comps) {
         let mut r = [0; 4];
         for l in 0..4 {
-            match scalar::binop(op, sc, x[l], y[l]) {
+            match scalar::binop_lane(p, op, sc, x[l], y[l]) {
                 Some(w) => r[l] = w,
                 None => return malformed(format!("{op:?} on {sc:?}")),
             }

@@ -17,12 +17,42 @@
 //! JIT inlines them (`interpolator_return;`), for the executing lanes. `MODE_BOUND` and
 //! `MODE_EXPAND` runs are not modelled.
 //!
+//! It computes floats in one of two precisions ([`Precision`], [`Evaluator::with_precision`]):
+//! - `F32` ([`Evaluator::new`]): the JIT's oracle, bit for bit, as the rest of this doc
+//!   describes.
+//! - `F64`: the f64 reference the f32 kernels' shading is measured against. Every float
+//!   value is an f64 in each lane and every float operation is done in f64, in the order
+//!   the JIT does it in f32: arithmetic, comparisons, conversions between float and int,
+//!   fixed or bool, the component-wise built-ins, the transcendental functions (Rust's f64
+//!   ones; `pow` is `powf` for every exponent), the vector built-ins, the space transforms,
+//!   `faceforward`/`reflect`/`refract`, `Dx`/`Dy`/`filterwidth`, the pixel centres X and Y.
+//!   Ints, bools and fixed values are computed as in `F32`. Control flow, masks, fuel and
+//!   errors follow the f64 values (a comparison that goes the other way in f32 takes the
+//!   other branch). F64 meets f32 only where the program's data is f32 in both modes:
+//!   - float constants of the IR are f32 (the checker rounds literals, `PI` and constant
+//!     conversions to f32); they are widened;
+//!   - the argument block's floats (parameters, constant bindings, the space matrices) are
+//!     f32 words; they are widened. A primitive call passes its float arguments exactly:
+//!     the callee's block holds them rounded to f32, as the JIT's would, and the evaluator
+//!     reads the f64 value it keeps beside the word (`args`);
+//!   - the G-buffer planes stay f32 ([`Tile::planes`]): a `__gbuffer` read widens the
+//!     plane's value, every store (`interpolator_return`, constant bindings) rounds to f32;
+//!   - the depth buffer stays `fixed<32,32>`: Z is converted to it from its f64 value (the
+//!     f64 product with 2^32, rounded to even and saturated), a Z read from it is the raw
+//!     value in f64 (exact);
+//!   - `noise`/`cellnoise` and `texture` are defined by their f32 implementations
+//!     (`jit::libm`, the texture sampler): they take their operands rounded to f32 and
+//!     their result is widened;
+//!   - [`Outcome::bound`] is the last bound rounded to f32; the pass rectangle is computed
+//!     from the f64 bound, in f64.
+//!
 //! Invariants:
-//! - *Bit-exact values.* Every component is a raw 32-bit word per lane; the arithmetic in
-//!   `scalar` is the JIT's instruction for instruction (f32 operations in the same order,
-//!   fixed point in the same 64-bit intermediates, the same saturations, the libm functions
-//!   kernels call). NaN payloads are the one thing a caller should not compare: Rust and
-//!   Cranelift agree on which results are NaN, not on which NaN.
+//! - *Bit-exact values (F32).* Every component is a 32-bit word per lane (f32 bits, i32,
+//!   bool 0/1, fixed raw), held zero-extended in a 64-bit lane word (`precision`); the
+//!   arithmetic in `scalar` is the JIT's instruction for instruction (f32 operations in the
+//!   same order, fixed point in the same 64-bit intermediates, the same saturations, the
+//!   libm functions kernels call). NaN payloads are the one thing a caller should not
+//!   compare: Rust and Cranelift agree on which results are NaN, not on which NaN.
 //! - *The JIT's lanes.* The pixel part runs on groups of 4 lanes under the masks tier 1
 //!   keeps (`alive`, `exec`, a mask and a continue mask per varying loop, the lanes that
 //!   assigned Z), with the same early exits: a varying `if` skips a side no lane takes, a
@@ -47,16 +77,21 @@
 //!   program, within `crate::limits`, stays far below); every loop spends fuel.
 //!
 //! Where it differs from the JIT:
+//! - In F64, every float result, and what follows from it (above).
 //! - `ERR_STACK` is never recorded: locals do not live on the native stack here.
 //! - [`Outcome::first_error`] is the first error in this evaluator's order: setup first,
 //!   then groups row by row. The JIT's block walk visits groups in another order, so only a
 //!   setup's first error is comparable.
 
+mod args;
 mod derivative;
 mod expr;
+mod precision;
 pub mod scalar;
 mod shading;
 mod stmt;
+
+pub use precision::Precision;
 
 use std::rc::Rc;
 
@@ -65,6 +100,8 @@ use crate::abi::{
     DEFAULT_PIXEL_FUEL, GROUP,
 };
 use crate::ir::{for_each_assign, FuncId, FuncKind, Function, ParamRole, Program};
+use args::ArgBlock;
+use precision::{in_precision, Float};
 
 /// Recursion levels (statements, expressions, calls together) [`Evaluator::run`] evaluates before it
 /// refuses with [`EvalError::Unsupported`]: a checked program nests at most ~1100 levels per
@@ -74,8 +111,9 @@ pub const MAX_NESTING: usize = 1 << 15;
 /// Stack of the thread [`Evaluator::run`] evaluates on: [`MAX_NESTING`] levels of at most ~2 KiB.
 const EVAL_STACK: usize = 128 << 20;
 
-/// One component per lane, as raw words (f32 bits, i32, bool 0/1, fixed raw).
-pub(crate) type Lanes = [u32; 4];
+/// One component per lane, as lane words: a float of the run's precision, or a 32-bit word
+/// (i32, bool 0/1, fixed raw) zero-extended (`precision`).
+pub(crate) type Lanes = [u64; 4];
 /// Which of a group's 4 lanes a mask holds.
 pub(crate) type Mask = [bool; 4];
 
@@ -106,7 +144,7 @@ pub struct Tile {
     pub depth: Vec<u32>,
     /// Depth writes per pixel (the JIT's `write_count` of a key that counts them).
     pub writes: Vec<u32>,
-    /// G-buffer planes, one after another.
+    /// G-buffer planes, one after another: f32 in both precisions.
     pub planes: Vec<f32>,
     pub plane_stride: usize,
     pub num_planes: usize,
@@ -177,7 +215,7 @@ pub struct Outcome {
     /// ran out (`abi::setup_fuel_ran_out`).
     pub fuel: u64,
     /// The last `bound` the primitive's own setup executed (its pass rectangle before
-    /// clipping), if any.
+    /// clipping), if any; rounded to f32 in F64.
     pub bound: Option<[f32; 4]>,
 }
 
@@ -225,14 +263,22 @@ pub(crate) fn malformed<T>(m: impl Into<String>) -> Res<T> {
 /// The evaluator of one program: its primitives' bodies as the JIT lowers them
 /// (`mid::body`: whole-array copies forwarded, and with `unroll_loops` as in
 /// `JitOptions::unroll_loops`, constant-trip loops unrolled, which then spend no fuel).
-/// Shared interpolators run as checked, as the JIT inlines them.
+/// Shared interpolators run as checked, as the JIT inlines them. Floats are computed in
+/// `precision` (see the module doc).
 pub struct Evaluator<'p> {
     program: &'p Program,
     bodies: Vec<Option<Function>>,
+    precision: Precision,
 }
 
 impl<'p> Evaluator<'p> {
+    /// The JIT's oracle: floats in f32, bit for bit as kernels compute them.
     pub fn new(program: &'p Program, unroll_loops: bool) -> Evaluator<'p> {
+        Evaluator::with_precision(program, unroll_loops, Precision::F32)
+    }
+
+    /// An evaluator computing floats in `precision`.
+    pub fn with_precision(program: &'p Program, unroll_loops: bool, precision: Precision) -> Evaluator<'p> {
         let bodies = (0..program.functions.len())
             .map(|i| {
                 let id = FuncId(i as u32);
@@ -240,7 +286,16 @@ impl<'p> Evaluator<'p> {
                     .then(|| crate::mid::body(program, id, unroll_loops).function)
             })
             .collect();
-        Evaluator { program, bodies }
+        Evaluator {
+            program,
+            bodies,
+            precision,
+        }
+    }
+
+    /// The precision it computes floats in.
+    pub fn precision(&self) -> Precision {
+        self.precision
     }
 
     /// Run primitive `func` for `key` on the argument block `args` (laid out by
@@ -258,9 +313,7 @@ impl<'p> Evaluator<'p> {
             let worker = std::thread::Builder::new()
                 .name("ir-eval".into())
                 .stack_size(EVAL_STACK)
-                .spawn_scoped(s, || {
-                    run_here(self.program, &self.bodies, func, key, args, tile, budget)
-                });
+                .spawn_scoped(s, || run_here(self, func, key, args, tile, budget));
             match worker {
                 Ok(handle) => handle
                     .join()
@@ -272,8 +325,7 @@ impl<'p> Evaluator<'p> {
 }
 
 fn run_here(
-    program: &Program,
-    bodies: &[Option<Function>],
+    evaluator: &Evaluator,
     func: FuncId,
     key: &VariantKey,
     args: &[u32],
@@ -293,10 +345,12 @@ fn run_here(
     {
         return malformed("tile buffers smaller than the tile");
     }
+    let (program, precision) = (evaluator.program, evaluator.precision);
     let slots = count_slots(program);
     let mut m = Machine {
         program,
-        bodies,
+        bodies: &evaluator.bodies,
+        precision,
         key,
         n_interp: key.interp_components(),
         tile,
@@ -321,9 +375,9 @@ fn run_here(
         arm: None,
         nesting: 0,
     };
-    let bound = m.invoke(func, Rc::from(args))?;
+    let bound = m.invoke(func, Rc::new(ArgBlock::new(args.to_vec())))?;
     m.out.fuel = m.fuel as u64;
-    m.out.bound = bound;
+    m.out.bound = bound.map(|b| b.map(|w| precision.to_f32(w)));
     Ok(m.out)
 }
 
@@ -332,7 +386,7 @@ fn run_here(
 pub(crate) struct Frame<'p> {
     pub func: &'p Function,
     /// The argument block its parameters are read from (an interpolator's: its kernel's).
-    pub args: Rc<[u32]>,
+    pub args: Rc<ArgBlock>,
     pub slots: Vec<ParamSlot>,
     pub fixed_words: u32,
     /// Every local's components (parameters read from `args` have none).
@@ -341,11 +395,12 @@ pub(crate) struct Frame<'p> {
     pub interp_binding: Option<usize>,
 }
 
-/// One kernel run in progress: its primitive's frame and argument layout, its pass bound.
+/// One kernel run in progress: its primitive's frame and argument layout, its pass bound
+/// (float lane words).
 pub(crate) struct Kernel {
     pub frame: usize,
     pub layout: Rc<ArgLayout>,
-    pub bound: Option<[f32; 4]>,
+    pub bound: Option<Lanes>,
 }
 
 /// A loop being run: uniform loops jump (`mask` is `None`), varying ones and the one-trip
@@ -364,7 +419,8 @@ pub(crate) struct Pix {
     /// Lane 0's column, the row.
     pub gx: i32,
     pub y: i32,
-    /// Lane centres as f32 bits, and the depth the group started with (when it reads one).
+    /// Lane centres as float lane words, and the depth the group started with (when it
+    /// reads one: raw, zero-extended).
     pub x_f: Lanes,
     pub y_f: Lanes,
     pub z_raw: Option<Lanes>,
@@ -390,6 +446,8 @@ pub(crate) enum Flow {
 
 pub(crate) struct Machine<'p, 't> {
     pub program: &'p Program,
+    /// What float lane words hold and float arithmetic computes in.
+    pub precision: Precision,
     /// The primitives' bodies as lowered (`None` for interpolators).
     pub bodies: &'p [Option<Function>],
     pub key: &'p VariantKey,
@@ -485,14 +543,14 @@ impl<'p> Machine<'p, '_> {
     }
 
     /// One kernel run of primitive `func` on `args`: its setup, then its pixel passes.
-    /// Returns the last bound its setup executed.
-    pub(crate) fn invoke(&mut self, func: FuncId, args: Rc<[u32]>) -> Res<Option<[f32; 4]>> {
+    /// Returns the last bound its setup executed (float lane words).
+    pub(crate) fn invoke(&mut self, func: FuncId, args: Rc<ArgBlock>) -> Res<Option<Lanes>> {
         let program = self.program;
         let Some(Some(f)) = self.bodies.get(func.0 as usize) else {
             return malformed(format!("no primitive {}", func.0));
         };
         let layout = ArgLayout::new(program, func, self.key);
-        let n_seq = args.first().copied().unwrap_or(0);
+        let n_seq = args.n_seq();
         if args.len() < layout.words(n_seq) {
             return malformed(format!("argument block of `{}` shorter than its layout", f.name));
         }
@@ -531,7 +589,7 @@ impl<'p> Machine<'p, '_> {
     pub(crate) fn new_frame(
         &self,
         f: &'p Function,
-        args: Rc<[u32]>,
+        args: Rc<ArgBlock>,
         slots: Vec<ParamSlot>,
         fixed_words: u32,
         interp_binding: Option<usize>,
@@ -569,14 +627,15 @@ impl<'p> Machine<'p, '_> {
     /// The pixel passes of the kernel on top (render mode): every group of the pass
     /// rectangle in the tile, each from the state the setup left.
     fn pixel_passes(&mut self, f: &'p Function) -> Res<()> {
-        let b = self
-            .kernel()?
-            .bound
-            .unwrap_or([f32::NEG_INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::INFINITY]);
+        let p = self.precision;
+        let b = match self.kernel()?.bound {
+            Some(b) => b,
+            None => [f32::NEG_INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::INFINITY].map(|x| p.from_f32(x)),
+        };
         let group_fuel = if crate::mid::pixel_code_has_loops(self.program, f, self.key) {
             let (w, h) = (self.tile.width as i32, self.tile.height as i32);
-            let (lo_x, hi_x) = pass_range(b[0], b[2], 0, w);
-            let (lo_y, hi_y) = pass_range(b[1], b[3], 0, h);
+            let (lo_x, hi_x) = pass_range(p, b[0], b[2], 0, w);
+            let (lo_y, hi_y) = pass_range(p, b[1], b[3], 0, h);
             let cols = ((hi_x as u32).wrapping_add(3) >> 2).wrapping_sub(lo_x as u32 >> 2);
             let rows = (hi_y as u32).wrapping_sub(lo_y as u32);
             let groups = (u64::from(rows).wrapping_mul(u64::from(cols))).max(1);
@@ -585,9 +644,9 @@ impl<'p> Machine<'p, '_> {
             0
         };
         let (x0, y0, x1, y1) = (self.tile.x0, self.tile.y0, self.tile.x1, self.tile.y1);
-        let (lo_x, hi_x) = pass_range(b[0], b[2], x0, x1);
-        let (lo_y, mut hi_y) = pass_range(b[1], b[3], y0, y1);
-        if b.iter().any(|v| v.is_nan()) {
+        let (lo_x, hi_x) = pass_range(p, b[0], b[2], x0, x1);
+        let (lo_y, mut hi_y) = pass_range(p, b[1], b[3], y0, y1);
+        if b.iter().any(|&v| p.is_nan(v)) {
             hi_y = lo_y;
         }
         let gx_start = x0 + ((lo_x - x0) & !3);
@@ -634,11 +693,14 @@ impl<'p> Machine<'p, '_> {
                 self.tile
                     .index(gx + l as i32, y)
                     .and_then(|i| self.tile.depth.get(i).copied())
-                    .unwrap_or(0)
+                    .map_or(0, u64::from)
             })
         });
-        let x_f: Lanes = std::array::from_fn(|l| ((gx + l as i32) as f32 + 0.5).to_bits());
-        let y_f: Lanes = [(y as f32 + 0.5).to_bits(); 4];
+        // Pixel centres: n + 0.5, exact in both precisions.
+        let (x_f, y_f): (Lanes, Lanes) = in_precision!(self.precision, F => {
+            let centre = |n: i32| (F::from_i32(n) + F::from_f32(0.5)).word();
+            (std::array::from_fn(|l| centre(gx + l as i32)), [centre(y); 4])
+        });
         self.pix = Some(Pix {
             alive: mask,
             z_written: NONE,
@@ -675,7 +737,8 @@ impl<'p> Machine<'p, '_> {
             let Some(i) = self.tile.index(gx + l as i32, y) else {
                 return malformed("a lane outside the tile wrote Z");
             };
-            self.tile.depth[i] = scalar::convert(zsc, crate::ir::Scalar::Fixed(scalar::DEPTH), zl);
+            self.tile.depth[i] =
+                scalar::convert_lane(self.precision, zsc, crate::ir::Scalar::Fixed(scalar::DEPTH), zl) as u32;
             self.tile.writes[i] = self.tile.writes[i].wrapping_add(1);
         }
         Ok(())
@@ -708,7 +771,7 @@ impl<'p> Machine<'p, '_> {
                 },
                 _ => continue,
             };
-            let v = src.map(|w| scalar::convert(from, sc, w));
+            let v = src.map(|w| scalar::convert_lane(self.precision, from, sc, w));
             match self.frames[fi]
                 .locals
                 .get_mut(p.local.0 as usize)
@@ -722,12 +785,17 @@ impl<'p> Machine<'p, '_> {
     }
 }
 
-/// Pixels [lo, hi) of the range [t0, t1) whose centres lie in [bmin, bmax]
-/// (`Lower::pass_range`: clamped in float first, NaN to 0).
-fn pass_range(bmin: f32, bmax: f32, t0: i32, t1: i32) -> (i32, i32) {
-    let (t0f, t1f) = (t0 as f32, t1 as f32);
-    let lo = scalar::fmin(scalar::fmax((bmin - 0.5).ceil(), t0f), t1f);
-    let hi = scalar::fmin(scalar::fmax((bmax - 0.5).floor() + 1.0, t0f), t1f);
-    let (lo_i, hi_i) = (lo as i32, hi as i32);
+/// Pixels [lo, hi) of the range [t0, t1) whose centres lie in [bmin, bmax] (float lane
+/// words of precision `p`; `Lower::pass_range`: clamped in float first, NaN to 0).
+fn pass_range(p: Precision, bmin: u64, bmax: u64, t0: i32, t1: i32) -> (i32, i32) {
+    in_precision!(p, F => pass_range_in::<F>(F::from_word(bmin), F::from_word(bmax), t0, t1))
+}
+
+fn pass_range_in<F: Float>(bmin: F, bmax: F, t0: i32, t1: i32) -> (i32, i32) {
+    let (t0f, t1f) = (F::from_i32(t0), F::from_i32(t1));
+    let half = F::from_f32(0.5);
+    let lo = scalar::fmin_in(scalar::fmax_in((bmin - half).ceil(), t0f), t1f);
+    let hi = scalar::fmin_in(scalar::fmax_in((bmax - half).floor() + F::ONE, t0f), t1f);
+    let (lo_i, hi_i) = (lo.to_i32(), hi.to_i32());
     (lo_i, hi_i.max(lo_i))
 }

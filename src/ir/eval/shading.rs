@@ -1,24 +1,28 @@
-//! The shading built-ins in the evaluator: `faceforward`, `reflect`, `refract` (the f32
-//! operations of `jit::shading`, in the same order) and `noise`/`cellnoise` (the same
-//! [`LibmFn`] functions kernels call, lane by lane).
+//! The shading built-ins in the evaluator: `faceforward`, `reflect`, `refract` (the
+//! operations of `jit::shading`, in the same order, in the run's precision) and
+//! `noise`/`cellnoise` (the same [`LibmFn`] functions kernels call, lane by lane).
+//!
+//! The noises are defined in f32 only: in F64 they take their coordinates rounded to f32
+//! and their f32 result is widened.
 //!
 //! Invariant: operands of the wrong shape are an `EvalError` (malformed IR), never a panic.
 
 use super::expr::Val;
+use super::precision::{in_precision, Float, Precision};
 use super::{malformed, Lanes, Res};
 use crate::ir::Builtin;
 use crate::ir::Scalar;
 use crate::jit::libm::LibmFn;
 
-fn g(w: u32) -> f32 {
-    f32::from_bits(w)
+fn g<F: Float>(w: u64) -> F {
+    F::from_word(w)
 }
 
 /// `Σ a[k] * b[k]` over three components in lane `l`, left to right (`jit`'s `dot_comps`).
-fn dot3(a: &[Lanes], b: &[Lanes], l: usize) -> f32 {
-    let mut acc = g(a[0][l]) * g(b[0][l]);
+fn dot3<F: Float>(a: &[Lanes], b: &[Lanes], l: usize) -> F {
+    let mut acc = g::<F>(a[0][l]) * g::<F>(b[0][l]);
     for k in 1..3 {
-        acc += g(a[k][l]) * g(b[k][l]);
+        acc = acc + g::<F>(a[k][l]) * g::<F>(b[k][l]);
     }
     acc
 }
@@ -42,59 +46,67 @@ fn three<'v>(vals: &'v [Val], which: &[usize]) -> Res<Vec<&'v [Lanes]>> {
 }
 
 /// `faceforward(N, I[, Nref])`: `N` where `dot(Nref, I) < 0`, else `-N`.
-fn faceforward(vals: &[Val]) -> Res<Val> {
+fn faceforward<F: Float>(vals: &[Val]) -> Res<Val> {
     let nref_at = if vals.len() == 3 { 2 } else { 0 };
     let v = three(vals, &[0, 1, nref_at])?;
     let (n, i, nref) = (v[0], v[1], v[2]);
-    let d: [f32; 4] = std::array::from_fn(|l| dot3(nref, i, l));
+    let d: [F; 4] = std::array::from_fn(|l| dot3(nref, i, l));
     Ok(vec3(
         (0..3)
-            .map(|k| std::array::from_fn(|l| if d[l] < 0.0 { n[k][l] } else { n[k][l] ^ 0x8000_0000 }))
+            .map(|k| {
+                std::array::from_fn(|l| {
+                    if d[l] < F::ZERO {
+                        n[k][l]
+                    } else {
+                        (-g::<F>(n[k][l])).word()
+                    }
+                })
+            })
             .collect(),
     ))
 }
 
 /// `reflect(I, N)`: `I - (d + d) N` with `d = dot(N, I)`.
-fn reflect(vals: &[Val]) -> Res<Val> {
+fn reflect<F: Float>(vals: &[Val]) -> Res<Val> {
     let v = three(vals, &[0, 1])?;
     let (i, n) = (v[0], v[1]);
-    let s: [f32; 4] = std::array::from_fn(|l| {
-        let d = dot3(n, i, l);
+    let s: [F; 4] = std::array::from_fn(|l| {
+        let d: F = dot3(n, i, l);
         d + d
     });
     Ok(vec3(
         (0..3)
-            .map(|k| std::array::from_fn(|l| (g(i[k][l]) - s[l] * g(n[k][l])).to_bits()))
+            .map(|k| std::array::from_fn(|l| (g::<F>(i[k][l]) - s[l] * g::<F>(n[k][l])).word()))
             .collect(),
     ))
 }
 
 /// `refract(I, N, eta)`: with `d = dot(N, I)` and `k = 1 - eta² (1 - d²)`, zero where
 /// `k < 0` (total internal reflection), else `eta I - (eta d + √k) N`.
-fn refract(vals: &[Val]) -> Res<Val> {
+fn refract<F: Float>(vals: &[Val]) -> Res<Val> {
     let v = three(vals, &[0, 1])?;
     let (i, n) = (v[0], v[1]);
     let Some(eta) = vals.get(2).and_then(|e| e.comps.first()) else {
         return malformed("refract without eta");
     };
     let mut tir = [false; 4];
-    let mut c = [0f32; 4];
+    let mut c = [F::ZERO; 4];
     for l in 0..4 {
-        let e = g(eta[l]);
-        let d = dot3(n, i, l);
-        let k = 1.0 - (e * e) * (1.0 - d * d);
-        tir[l] = k < 0.0;
+        let e = g::<F>(eta[l]);
+        let d: F = dot3(n, i, l);
+        let k = F::ONE - (e * e) * (F::ONE - d * d);
+        tir[l] = k < F::ZERO;
         c[l] = e * d + k.sqrt();
     }
     Ok(vec3(
         (0..3)
             .map(|k| {
                 std::array::from_fn(|l| {
-                    let r = g(eta[l]) * g(i[k][l]) - c[l] * g(n[k][l]);
+                    let r = g::<F>(eta[l]) * g::<F>(i[k][l]) - c[l] * g::<F>(n[k][l]);
                     if tir[l] {
-                        0
+                        F::ZERO.word()
                     } else {
-                        r.to_bits()
+                        r.word()
                     }
                 })
             })
@@ -103,15 +115,15 @@ fn refract(vals: &[Val]) -> Res<Val> {
 }
 
 /// `noise`/`cellnoise`: the arguments' components (at most 3 of an aggregate: a point's w
-/// is not a coordinate) as coordinates, per lane.
-fn noise(func: Builtin, vals: &[Val]) -> Res<Val> {
+/// is not a coordinate) as coordinates, per lane, rounded to f32 (exact in F32).
+fn noise<F: Float>(func: Builtin, vals: &[Val]) -> Res<Val> {
     let coords: Vec<&Lanes> = vals.iter().flat_map(|v| v.comps.iter().take(3)).collect();
     let Some(lib) = LibmFn::noise(func == Builtin::CellNoise, coords.len()) else {
         return malformed(format!("{func:?} of {} coordinates", coords.len()));
     };
     let lanes = std::array::from_fn(|l| {
-        let p: Vec<f32> = coords.iter().map(|c| g(c[l])).collect();
-        lib.apply(&p).to_bits()
+        let p: Vec<f32> = coords.iter().map(|c| g::<F>(c[l]).to_f32()).collect();
+        F::from_f32(lib.apply(&p)).word()
     });
     Ok(Val {
         comps: vec![lanes],
@@ -119,13 +131,13 @@ fn noise(func: Builtin, vals: &[Val]) -> Res<Val> {
     })
 }
 
-/// A shading built-in of float operands; `None` for the other built-ins.
-pub(super) fn builtin(func: Builtin, vals: &[Val]) -> Option<Res<Val>> {
-    Some(match func {
-        Builtin::Faceforward => faceforward(vals),
-        Builtin::Reflect => reflect(vals),
-        Builtin::Refract => refract(vals),
-        Builtin::Noise | Builtin::CellNoise => noise(func, vals),
+/// A shading built-in of float operands in precision `p`; `None` for the other built-ins.
+pub(super) fn builtin(p: Precision, func: Builtin, vals: &[Val]) -> Option<Res<Val>> {
+    in_precision!(p, F => Some(match func {
+        Builtin::Faceforward => faceforward::<F>(vals),
+        Builtin::Reflect => reflect::<F>(vals),
+        Builtin::Refract => refract::<F>(vals),
+        Builtin::Noise | Builtin::CellNoise => noise::<F>(func, vals),
         _ => return None,
-    })
+    }))
 }

@@ -1,6 +1,8 @@
 //! Statements, the lane masks they run under, fuel, interpolation and primitive calls, as
 //! `jit::lower`'s `stmt`, `planes` and `call` lower them (tier 1's control structure).
 //!
+//! G-buffer stores round the run's floats to f32: the planes are f32 in both precisions.
+//!
 //! Invariants: setup code runs for all four lanes; pixel code for `exec`, a subset of the
 //! group's `alive` lanes. A varying `if` runs each side no lane skips under its mask; a
 //! varying loop keeps a mask (and a continue mask) in [`super::LoopCtx`] and runs while it
@@ -10,8 +12,10 @@
 
 use std::rc::Rc;
 
+use super::args::ArgBlock;
 use super::expr::{elem_scalar, Val};
-use super::{and, any, malformed, Flow, LoopCtx, Machine, Mask, Res, NONE};
+use super::scalar::convert_lane;
+use super::{and, any, malformed, Flow, Lanes, LoopCtx, Machine, Mask, Res, NONE};
 use crate::abi::{
     interpolator_arg_words, type_words, ArgLayout, BindingKind, ParamSlot, ERR_CALL_DEPTH, ERR_FUEL, MAX_CALL_DEPTH,
 };
@@ -62,13 +66,17 @@ impl<'p> Machine<'p, '_> {
                 if self.pix.is_some() || self.frames.len() != self.kernel()?.frame + 1 {
                     return malformed("`bound` in per-pixel code");
                 }
-                let mut r = [0.0f32; 4];
+                // Lane words of the run's precision (0 is 0.0 in both).
+                let mut r = [0u64; 4];
                 for (i, e) in es.iter().enumerate() {
-                    let v = self.eval(*e)?.converted(Scalar::Float);
+                    let v = self.eval(*e)?.converted(Scalar::Float, self.precision);
                     let Some(c) = v.comps.first() else {
                         return malformed("a bound without components");
                     };
-                    r[i] = f32::from_bits(c[0]);
+                    match r.get_mut(i) {
+                        Some(slot) => *slot = c[0],
+                        None => return malformed("a bound of more than 4 values"),
+                    }
                 }
                 if let Some(k) = self.kernels.last_mut() {
                     k.bound = Some(r);
@@ -94,10 +102,11 @@ impl<'p> Machine<'p, '_> {
     fn if_(&mut self, cond_id: ExprId, then: &'p [StmtId], otherwise: &'p [StmtId]) -> Res<Flow> {
         let cond = &self.exprs()[cond_id];
         let c = self.eval(cond_id)?;
+        let p = self.precision;
         let Some(c) = c
             .comps
             .first()
-            .map(|w| w.map(|x| super::scalar::convert(c.sc, Scalar::Bool, x)))
+            .map(|w| w.map(|x| convert_lane(p, c.sc, Scalar::Bool, x)))
         else {
             return malformed("a condition without components");
         };
@@ -179,7 +188,7 @@ impl<'p> Machine<'p, '_> {
                 let Some(w) = v.comps.first() else {
                     return malformed("a loop condition without components");
                 };
-                if super::scalar::convert(v.sc, Scalar::Bool, w[0]) == 0 {
+                if convert_lane(self.precision, v.sc, Scalar::Bool, w[0]) == 0 {
                     return Ok(Flow::Normal);
                 }
             }
@@ -259,8 +268,8 @@ impl<'p> Machine<'p, '_> {
                 let Some(w) = v.comps.first() else {
                     return malformed("a loop condition without components");
                 };
-                let taken: Mask =
-                    std::array::from_fn(|l| mask[l] && super::scalar::convert(v.sc, Scalar::Bool, w[l]) != 0);
+                let p = self.precision;
+                let taken: Mask = std::array::from_fn(|l| mask[l] && convert_lane(p, v.sc, Scalar::Bool, w[l]) != 0);
                 self.loops[li].mask = Some(taken);
                 self.exec = taken;
                 if !any(taken) {
@@ -362,9 +371,9 @@ impl<'p> Machine<'p, '_> {
         Ok(Flow::Normal)
     }
 
-    /// `(global component, value)` stores into the G-buffer for the executing lanes;
-    /// a plane the tile lacks is not written.
-    fn store_planes(&mut self, stores: &[(u32, [u32; 4])]) -> Res<()> {
+    /// `(global component, float value)` stores into the G-buffer for the executing lanes,
+    /// rounded to f32; a plane the tile lacks is not written.
+    fn store_planes(&mut self, stores: &[(u32, Lanes)]) -> Res<()> {
         let (gx, y) = match &self.pix {
             Some(p) => (p.gx, p.y),
             None => return malformed("G-buffer store outside per-pixel code"),
@@ -373,7 +382,7 @@ impl<'p> Machine<'p, '_> {
         let table = k.layout.plane_table as usize;
         let args = self.frames[k.frame].args.clone();
         for &(g, v) in stores {
-            let Some(&plane) = args.get(table + g as usize) else {
+            let Some(plane) = args.word(table + g as usize) else {
                 return malformed("plane table past the argument block");
             };
             if plane as usize >= self.tile.num_planes {
@@ -386,7 +395,7 @@ impl<'p> Machine<'p, '_> {
                 let Some(i) = self.tile.index(gx + l as i32, y) else {
                     return malformed("an executing lane outside the tile");
                 };
-                self.tile.planes[plane as usize * self.tile.plane_stride + i] = f32::from_bits(v[l]);
+                self.tile.planes[plane as usize * self.tile.plane_stride + i] = self.precision.to_f32(v[l]);
             }
         }
         Ok(())
@@ -403,11 +412,11 @@ impl<'p> Machine<'p, '_> {
         }
         if let Some(bi) = self.frame()?.interp_binding {
             if let Some(e) = e {
-                let v = self.eval(e)?.converted(Scalar::Float);
+                let v = self.eval(e)?.converted(Scalar::Float, self.precision);
                 let comps = self.key.bindings[bi].components as usize;
                 let g0 = self.global_offset(bi);
                 if v.comps.len() == 1 || v.comps.len() == comps {
-                    let batch: Vec<(u32, [u32; 4])> = (0..comps)
+                    let batch: Vec<(u32, Lanes)> = (0..comps)
                         .map(|c| (g0 + c as u32, v.comps[if v.comps.len() == 1 { 0 } else { c }]))
                         .collect();
                     self.store_planes(&batch)?;
@@ -428,7 +437,7 @@ impl<'p> Machine<'p, '_> {
     fn store_kind_bindings(&mut self, e_id: ExprId) -> Res<()> {
         let e = &self.exprs()[e_id];
         let is_interp = e.ty.elem == crate::ir::Elem::Interp && e.ty.dims.is_empty();
-        let v: Val = self.eval(e_id)?.converted(Scalar::Float);
+        let v: Val = self.eval(e_id)?.converted(Scalar::Float, self.precision);
         let mut offsets = vec![];
         let (mut ic, mut gc) = (0u32, 0u32);
         for (i, b) in self.key.bindings.iter().enumerate() {
@@ -448,7 +457,7 @@ impl<'p> Machine<'p, '_> {
                 continue;
             };
             let comps = self.key.bindings[bi].components;
-            let vals: Option<Vec<[u32; 4]>> = (0..comps)
+            let vals: Option<Vec<Lanes>> = (0..comps)
                 .map(|c| {
                     if is_interp {
                         self.view
@@ -485,7 +494,7 @@ impl<'p> Machine<'p, '_> {
                     let args = self.frames[k.frame].args.clone();
                     let g0 = self.global_offset(bi);
                     for c in 0..b.components {
-                        let Some(&w) = args.get((data + c) as usize) else {
+                        let Some(w) = args.float((data + c) as usize, self.precision) else {
                             return malformed("constant binding past the argument block");
                         };
                         self.store_planes(&[(g0 + c, [w; 4])])?;
@@ -603,8 +612,8 @@ impl<'p> Machine<'p, '_> {
                 "a call's argument block over 2^26 words".into(),
             ));
         }
-        let mut block = vec![0u32; words.max(1)];
-        block[0] = n_seq;
+        let mut block = ArgBlock::new(vec![0u32; words.max(1)]);
+        block.set(0, n_seq);
         let key = self.key;
         let prefix_end = 1
             + key.total_components()
@@ -623,13 +632,11 @@ impl<'p> Machine<'p, '_> {
         let k = self.kernel()?;
         let caller_args = self.frames[k.frame].args.clone();
         let caller_spaces = k.layout.spaces;
-        let copy = |block: &mut Vec<u32>, from: usize, to: usize| -> Res<()> {
-            match (caller_args.get(from), block.get_mut(to)) {
-                (Some(&w), Some(slot)) => {
-                    *slot = w;
-                    Ok(())
-                }
-                _ => malformed("a call's argument block past its end"),
+        let copy = |block: &mut ArgBlock, from: usize, to: usize| -> Res<()> {
+            if block.copy(&caller_args, from, to) {
+                Ok(())
+            } else {
+                malformed("a call's argument block past its end")
             }
         };
         for w in 1..prefix_end as usize {
@@ -641,7 +648,7 @@ impl<'p> Machine<'p, '_> {
                     Some(src) => copy(&mut block, src as usize + w, dst as usize + w)?,
                     None => {
                         let one = if (w % 16) % 5 == 0 { 1.0f32 } else { 0.0 };
-                        block[dst as usize + w] = one.to_bits();
+                        block.set(dst as usize + w, one.to_bits());
                     }
                 }
             }
@@ -655,9 +662,14 @@ impl<'p> Machine<'p, '_> {
             let v = self.eval(args[i])?;
             for w in 0..(words * elems) as usize {
                 let word = v.comps.get(w).map_or(0, |c| c[0]);
-                match block.get_mut(start as usize + w) {
-                    Some(slot) => *slot = word,
-                    None => return malformed("a call's argument past its block"),
+                let at = start as usize + w;
+                let set = if v.sc == Scalar::Float {
+                    block.set_float(at, word, self.precision)
+                } else {
+                    block.set(at, word as u32)
+                };
+                if !set {
+                    return malformed("a call's argument past its block");
                 }
             }
         }
@@ -665,7 +677,7 @@ impl<'p> Machine<'p, '_> {
         let r = if self.call_depth > MAX_CALL_DEPTH {
             self.record(ERR_CALL_DEPTH, u32::MAX, true)
         } else {
-            self.invoke(callee, Rc::from(block)).map(|_| ())
+            self.invoke(callee, Rc::new(block)).map(|_| ())
         };
         self.call_depth = self.call_depth.wrapping_sub(1);
         r?;
