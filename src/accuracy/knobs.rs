@@ -9,6 +9,7 @@
 //! | arithmetic | a jittered mesh of small triangles sharing edges | int 1/16 snap (library), fixed<32,16>, fixed<32,8>, f32, f64 | pixels unlike the exact rasteriser |
 //! | lighting | a lit icosphere in a wide perspective | per-vertex Phong in LC, WC, DC | colour error |
 //! | depth | a decal 2 mm above a floor, 1 to 300 m away | depth as fixed<32,32>, f32, fixed<24,24>, fixed<16,16>, f16-like | z-fighting pixels |
+//! | shading | a floor and a sphere under every library light and the fog | each library surface | colour error of the f32 kernels against the f64 evaluator (`super::shading`) |
 //!
 //! Every figure compares a setting's buffers with the [`reference`](super::reference)
 //! frame of the same scene; the reference is rendered once per knob, untimed.
@@ -124,7 +125,7 @@ impl Scenes {
 }
 
 /// Every knob, in the order of the issue.
-pub fn all<'a>(scenes: &'a Scenes, quick: bool, _ctx: &Ctx) -> Vec<Knob<'a>> {
+pub fn all<'a>(scenes: &'a Scenes, quick: bool, ctx: &Ctx) -> Vec<Knob<'a>> {
     vec![
         sphere_knob(scenes, quick),
         nurb_knob(
@@ -145,6 +146,7 @@ pub fn all<'a>(scenes: &'a Scenes, quick: bool, _ctx: &Ctx) -> Vec<Knob<'a>> {
         arithmetic_knob(quick),
         lighting_knob(quick),
         depth_knob(quick),
+        super::shading::shading_knob(ctx, quick),
     ]
 }
 
@@ -393,7 +395,7 @@ fn sphere_knob<'a>(scenes: &'a Scenes, quick: bool) -> Knob<'a> {
         name: "sphere",
         title: "sphere: procedural vs tessellated (silhouette error)",
         settings,
-        measure: Box::new(move |out| {
+        measure: Box::new(move |_, out| {
             let b = buffers(out);
             let mut silhouette = vec![];
             let mut normal = vec![];
@@ -578,7 +580,7 @@ pub fn nurb_knob<'a>(
         name,
         title,
         settings,
-        measure: Box::new(move |out| {
+        measure: Box::new(move |_, out| {
             let b = buffers(out);
             let mut geometric = vec![];
             let mut edge = 0u64;
@@ -682,7 +684,7 @@ fn interpolation_knob<'a>(quick: bool) -> Knob<'a> {
         name: "interpolation",
         title: "interpolation on a grazing plane (texture-coordinate error)",
         settings,
-        measure: Box::new(move |out| {
+        measure: Box::new(move |_, out| {
             let b = buffers(out);
             let mut errors = vec![];
             let mut displacement = vec![];
@@ -802,7 +804,7 @@ fn arithmetic_knob<'a>(quick: bool) -> Knob<'a> {
         name: "arithmetic",
         title: "coverage arithmetic: X, Y and edge functions (pixels unlike the exact rasteriser)",
         settings,
-        measure: Box::new(move |out| {
+        measure: Box::new(move |_, out| {
             let b = buffers(out);
             let total = reference.count.iter().filter(|&&c| c > 0).count() as u64;
             let (mut wrong, mut cracks, mut overdraw) = (0u64, 0u64, 0u64);
@@ -966,7 +968,7 @@ fn lighting_knob<'a>(quick: bool) -> Knob<'a> {
         name: "lighting",
         title: "per-vertex lighting space (colour error)",
         settings,
-        measure: Box::new(move |out| {
+        measure: Box::new(move |_, out| {
             let b = buffers(out);
             let mut errors = vec![];
             for i in 0..reference.count.len() {
@@ -1080,7 +1082,7 @@ fn depth_knob<'a>(quick: bool) -> Knob<'a> {
         name: "depth",
         title: "depth precision: decal 2 mm above a floor, 1-300 m (z-fighting pixels)",
         settings,
-        measure: Box::new(move |out| {
+        measure: Box::new(move |_, out| {
             let b = buffers(out);
             let decal_pixels = (0..reference.count.len())
                 .filter(|&i| reference.covered(i) && item_id[reference.item[i] as usize] == 1.0)

@@ -2,7 +2,7 @@
 //!
 //! Every *knob* (procedural vs tessellated sphere, NURB tessellation tolerance, linear vs
 //! perspective-correct interpolation, the arithmetic of coverage, the lighting space, depth
-//! precision) is a list of *settings*, each a way to render one standard scene. Each setting
+//! precision, the library shaders) is a list of *settings*, each a way to render one standard scene. Each setting
 //! renders once for correctness and its error figures, computed against the f64
 //! [`reference`] renderer of the same [`scene::Scene`] (never a constant); then all settings
 //! of the knob are timed interleaved (A, B, C, A, B, C, ...) in this one process on one
@@ -19,6 +19,7 @@ pub mod knobs;
 pub mod plot;
 pub mod reference;
 pub mod scene;
+pub mod shading;
 
 use std::path::Path;
 use std::sync::Arc;
@@ -70,7 +71,7 @@ pub const VARIANT_PRIMS: [(&str, &str); 7] = [
 #[derive(Clone, Debug)]
 pub struct AccuracyOptions {
     /// Only knobs whose name contains this (`sphere`, `nurb`, `nurb_polynomial`, `interpolation`,
-    /// `arithmetic`, `lighting`, `depth`).
+    /// `arithmetic`, `lighting`, `depth`, `shading`).
     pub filter: Option<String>,
     /// Small images, fewer settings and runs: under a minute on two cores.
     pub quick: bool,
@@ -207,9 +208,10 @@ pub struct Knob<'a> {
     pub name: &'static str,
     pub title: &'static str,
     pub settings: Vec<Setting<'a>>,
-    /// Error figures of one output; the first is the knob's primary figure (plotted, and
-    /// deciding which setting is the most accurate).
-    pub measure: Box<dyn Fn(&Output) -> Result<Vec<Metric>, String> + 'a>,
+    /// Error figures of the output of setting `i` (the first argument); the first figure
+    /// is the knob's primary one (plotted, and deciding which setting is the most
+    /// accurate).
+    pub measure: Box<dyn Fn(usize, &Output) -> Result<Vec<Metric>, String> + 'a>,
     /// Settings the knob would have but cannot run here, with the reason.
     pub missing: Vec<String>,
 }
@@ -256,10 +258,10 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// Measure one knob: every setting once for its errors, then interleaved timed runs.
 pub fn measure_knob(knob: &mut Knob, ctx: &mut Ctx, runs: usize, bar: &ProgressBar) -> Result<KnobReport, String> {
     let mut metrics = vec![];
-    for s in &mut knob.settings {
+    for (i, s) in knob.settings.iter_mut().enumerate() {
         bar.set_message(format!("{}: {}", knob.name, s.label));
         let out = (s.run)(ctx).map_err(|e| format!("{} / {}: {e}", knob.name, s.label))?;
-        metrics.push((knob.measure)(&out).map_err(|e| format!("{} / {}: {e}", knob.name, s.label))?);
+        metrics.push((knob.measure)(i, &out).map_err(|e| format!("{} / {}: {e}", knob.name, s.label))?);
         bar.inc(1);
     }
     let mut times = vec![vec![]; knob.settings.len()];
@@ -311,7 +313,7 @@ pub fn run(opts: &AccuracyOptions) -> Result<Report, String> {
         selected.retain(|k| k.name.contains(f.as_str()));
         if selected.is_empty() {
             return Err(format!(
-                "no knob matches `{f}` (knobs: sphere, nurb, nurb_polynomial, interpolation, arithmetic, lighting, depth)"
+                "no knob matches `{f}` (knobs: sphere, nurb, nurb_polynomial, interpolation, arithmetic, lighting, depth, shading)"
             ));
         }
     }

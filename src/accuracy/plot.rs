@@ -82,6 +82,8 @@ pub fn knob_plot(knob: &KnobReport, path: &Path) -> Result<(), String> {
         .configure_mesh()
         .x_desc("median time per frame (ms, one thread)")
         .y_desc(y_desc)
+        // Log-scale ticks like 1e-5 print as 9.99...e-6 through `{}`: three significant digits.
+        .y_label_formatter(&|v: &f64| format!("{v:.2e}"))
         .draw()
         .map_err(|e| err(Box::new(e)))?;
     for (k, s) in series.iter().enumerate() {

@@ -444,8 +444,13 @@ impl Renderer {
     }
 
     /// The language shading of `frame`, the last frame this renderer rendered, computed
-    /// again by the IR evaluator (`shading::reference`): `Ci` per pixel, row-major.
-    pub fn evaluate_shading(&self, frame: &Frame) -> Result<super::shading::reference::Colours, String> {
+    /// again by the IR evaluator at `precision` (`shading::reference`): `Ci` per pixel,
+    /// row-major.
+    pub fn evaluate_shading(
+        &self,
+        frame: &Frame,
+        precision: crate::ir::eval::Precision,
+    ) -> Result<super::shading::reference::Colours, String> {
         let compiled = self
             .shading_cache
             .last()
@@ -454,7 +459,7 @@ impl Renderer {
         if frame.param("Ci").map(|p| p.first_plane) != Some(out) || frame.num_planes() != out + 3 {
             return Err("the frame is not the last one the renderer shaded with language shaders".into());
         }
-        compiled.evaluate(frame, &self.options)
+        compiled.evaluate(frame, &self.options, precision)
     }
 
     /// Deferred shading over the visible pixels of `frame`, compiled for the scene's

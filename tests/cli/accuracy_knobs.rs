@@ -303,3 +303,52 @@ fn icosphere_sizes_and_normal_angles() {
     assert!((angle_degrees(DVec3::new(0.0, 2.0, 0.0), m) - 90.0).abs() < 1e-12);
     assert_eq!(angle_degrees(DVec3::ZERO, m), 180.0);
 }
+
+#[test]
+fn library_shaders_in_f32_stay_within_their_bound_of_the_f64_evaluator() {
+    let k = knob("shading");
+    let colour = rows(&k, "colour");
+    let names: Vec<&str> = colour.iter().map(|r| r.setting.as_str()).collect();
+    for surface in [
+        "constant",
+        "matte",
+        "plastic",
+        "metal",
+        "checker",
+        "filtered_checker",
+        "marble",
+        "paintedplastic",
+    ] {
+        assert!(names.contains(&surface), "no row for `{surface}`: {names:?}");
+    }
+    for r in &colour {
+        // Every pixel of the floor and the sphere is measured.
+        assert!(r.pixels > 800, "{}: {} pixels", r.setting, r.pixels);
+        // The bounds docs/accuracy.md states for the library shaders: 1e-5 for the smooth
+        // ones; marble's noise amplifies the f32 rounding of P; the filtered checker's
+        // floor may put a pixel on the other side of an edge (bounded in count below).
+        match r.setting.as_str() {
+            "marble" => assert!(r.max <= 1e-3, "marble: colour error {}", r.max),
+            "filtered_checker" => assert!(r.mean <= 1e-3, "filtered_checker: mean colour error {}", r.mean),
+            s => assert!(r.max <= 1e-5, "{s}: colour error {} past 1e-5", r.max),
+        }
+        // Yet the f32 result is not the f64 one: the reference computes in f64.
+        assert!(
+            r.max > 0.0,
+            "{}: no difference at all from the f64 evaluator",
+            r.setting
+        );
+    }
+    for r in rows(&k, "pixels off by more than 1e-4") {
+        assert!(
+            r.mean <= 0.05,
+            "{}: {} of the pixels off by more than 1e-4",
+            r.setting,
+            r.mean
+        );
+    }
+    // The f32 evaluator is the kernels' oracle: no pixel differs in any bit.
+    for r in rows(&k, "pixels unlike the f32 evaluator") {
+        assert_eq!(r.max, 0.0, "{}", r.setting);
+    }
+}

@@ -3,6 +3,7 @@
 //! own bits for every library surface, light and the fog atmosphere, on rows and on quads.
 
 use primflow::diag::{Diagnostics, SourceMap};
+use primflow::ir::eval::Precision;
 use primflow::jit::Jit;
 use primflow::runtime::{Frame, Registry, Renderer};
 
@@ -92,7 +93,7 @@ fn the_f32_evaluation_is_the_kernels_bits() {
     for surface in surfaces() {
         let (renderer, frame) = render(&scene(&surface));
         let colours = renderer
-            .evaluate_shading(&frame)
+            .evaluate_shading(&frame, Precision::F32)
             .unwrap_or_else(|e| panic!("{surface}: {e}"));
         let mut shaded = 0;
         for y in 0..frame.height {
@@ -125,5 +126,5 @@ fn a_frame_the_renderer_did_not_shade_is_refused() {
         .collect();
     let (_, other) = render(&unshaded);
     assert!(!other.is_shaded());
-    assert!(renderer.evaluate_shading(&other).is_err());
+    assert!(renderer.evaluate_shading(&other, Precision::F32).is_err());
 }

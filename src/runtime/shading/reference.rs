@@ -13,7 +13,7 @@
 //! numbered for it); nothing here panics (a program the evaluator refuses is an `Err`).
 
 use crate::abi::GROUP;
-use crate::ir::eval::{Budget, Evaluator, Tile};
+use crate::ir::eval::{Budget, Evaluator, Precision, Tile};
 use crate::runtime::frame::Frame;
 use crate::runtime::RenderOptions;
 
@@ -24,8 +24,9 @@ use super::language::CompiledShading;
 pub type Colours = Vec<[f32; 3]>;
 
 impl CompiledShading {
-    /// Evaluate the frame's shading at `precision` over `frame` (see the module doc).
-    pub fn evaluate(&self, frame: &Frame, opts: &RenderOptions) -> Result<Colours, String> {
+    /// Evaluate the frame's shading over `frame` at `precision`: `F32` gives the kernels'
+    /// bits, `F64` the reference (see the module doc).
+    pub fn evaluate(&self, frame: &Frame, opts: &RenderOptions, precision: Precision) -> Result<Colours, String> {
         let runs = &self.pass;
         let (w, h) = (frame.width as usize, frame.height as usize);
         let inputs = runs.out_plane as usize + 3;
@@ -82,7 +83,7 @@ impl CompiledShading {
         let key = super::language::out_key();
         for (program, (_, args)) in runs.programs.iter().zip(&runs.runs) {
             let func = program.find(crate::link::SHADE).ok_or("no linked shading primitive")?;
-            Evaluator::new(program, true)
+            Evaluator::with_precision(program, true, precision)
                 .run(func, &key, args, &mut tile, budget)
                 .map_err(|e| e.to_string())?;
         }
