@@ -32,45 +32,10 @@ fn texture_file() -> String {
     path.to_str().unwrap().to_string()
 }
 
-/// Every library light and the fog around a floor (per-vertex st) and a sphere, the floor
-/// and sphere both shaded by `surface`.
+/// The accuracy knob's scene: every library light and the fog around a floor (per-vertex
+/// st) and a sphere, both shaded by `surface`.
 fn scene(surface: &str) -> String {
-    format!(
-        "image 40 32
-perspective 60 0.5 50
-look_at 0 1.5 4   0 0 0   0 1 0
-lightsource ambientlight intensity=0.2
-lightsource distantlight intensity=0.6 from=1,2,1 to=0,0,0
-lightsource pointlight intensity=2 lightcolor=1,0.8,0.6 from=-2,2,2
-lightsource attenuated_pointlight intensity=1 from=2,1,2
-lightsource spotlight intensity=4 from=0,3,1 to=0,0,0 coneangle=0.6
-atmosphere fog background=0.05,0.05,0.1 start=3 end=8
-material_interp Cs perspective_linear
-material_interp N perspective_linear
-material_interp st perspective_linear
-material Cs 0.9 0.6 0.3
-material N 0 1 0
-material st 0 0
-shader {surface}
-begin polygon
-material st 0 0
-vertex -2 0 2
-material st 1 0
-vertex 2 0 2
-material st 1 1
-vertex 2 0 -2
-material st 0 1
-vertex -2 0 -2
-end
-material_interp N implicit
-material_interp Cs constant
-material_interp st constant
-begin sphere
-rast_param center 0.3 0.6 0.2
-rast_param radius 0.6
-end
-"
-    )
+    primflow::accuracy::shading::scene_text(40, 32, surface)
 }
 
 fn surfaces() -> Vec<String> {

@@ -90,7 +90,47 @@ pub(crate) trait Float:
     fn libm(func: LibmFn, x: Self, y: Self) -> Self;
 }
 
+/// The methods both float types share, by the same names as the types' own.
+macro_rules! shared_float_methods {
+    ($F:ident) => {
+        fn to_i32(self) -> i32 {
+            self as i32
+        }
+        fn to_u32(self) -> u32 {
+            self as u32
+        }
+        fn to_i64(self) -> i64 {
+            self as i64
+        }
+        fn is_nan(self) -> bool {
+            $F::is_nan(self)
+        }
+        fn is_sign_negative(self) -> bool {
+            $F::is_sign_negative(self)
+        }
+        fn abs(self) -> $F {
+            $F::abs(self)
+        }
+        fn sqrt(self) -> $F {
+            $F::sqrt(self)
+        }
+        fn floor(self) -> $F {
+            $F::floor(self)
+        }
+        fn ceil(self) -> $F {
+            $F::ceil(self)
+        }
+        fn trunc(self) -> $F {
+            $F::trunc(self)
+        }
+        fn round_ties_even(self) -> $F {
+            $F::round_ties_even(self)
+        }
+    };
+}
+
 impl Float for f32 {
+    shared_float_methods!(f32);
     const ZERO: f32 = 0.0;
     const ONE: f32 = 1.0;
     fn from_word(w: u64) -> f32 {
@@ -114,39 +154,6 @@ impl Float for f32 {
     fn from_u32(x: u32) -> f32 {
         x as f32
     }
-    fn to_i32(self) -> i32 {
-        self as i32
-    }
-    fn to_u32(self) -> u32 {
-        self as u32
-    }
-    fn to_i64(self) -> i64 {
-        self as i64
-    }
-    fn is_nan(self) -> bool {
-        f32::is_nan(self)
-    }
-    fn is_sign_negative(self) -> bool {
-        f32::is_sign_negative(self)
-    }
-    fn abs(self) -> f32 {
-        f32::abs(self)
-    }
-    fn sqrt(self) -> f32 {
-        f32::sqrt(self)
-    }
-    fn floor(self) -> f32 {
-        f32::floor(self)
-    }
-    fn ceil(self) -> f32 {
-        f32::ceil(self)
-    }
-    fn trunc(self) -> f32 {
-        f32::trunc(self)
-    }
-    fn round_ties_even(self) -> f32 {
-        f32::round_ties_even(self)
-    }
     /// The very function kernels call (`jit::libm`): `pow` by repeated squaring for small
     /// integer exponents.
     fn libm(func: LibmFn, x: f32, y: f32) -> f32 {
@@ -155,6 +162,7 @@ impl Float for f32 {
 }
 
 impl Float for f64 {
+    shared_float_methods!(f64);
     const ZERO: f64 = 0.0;
     const ONE: f64 = 1.0;
     fn from_word(w: u64) -> f64 {
@@ -177,39 +185,6 @@ impl Float for f64 {
     }
     fn from_u32(x: u32) -> f64 {
         f64::from(x)
-    }
-    fn to_i32(self) -> i32 {
-        self as i32
-    }
-    fn to_u32(self) -> u32 {
-        self as u32
-    }
-    fn to_i64(self) -> i64 {
-        self as i64
-    }
-    fn is_nan(self) -> bool {
-        f64::is_nan(self)
-    }
-    fn is_sign_negative(self) -> bool {
-        f64::is_sign_negative(self)
-    }
-    fn abs(self) -> f64 {
-        f64::abs(self)
-    }
-    fn sqrt(self) -> f64 {
-        f64::sqrt(self)
-    }
-    fn floor(self) -> f64 {
-        f64::floor(self)
-    }
-    fn ceil(self) -> f64 {
-        f64::ceil(self)
-    }
-    fn trunc(self) -> f64 {
-        f64::trunc(self)
-    }
-    fn round_ties_even(self) -> f64 {
-        f64::round_ties_even(self)
     }
     /// Rust's f64 functions (`pow` is `powf` for every exponent). The noises have no f64
     /// definition: they are the f32 ones on the operands rounded to f32, widened.
