@@ -6,9 +6,8 @@
 //! [`Precision::F32`] and its f64 bits in [`Precision::F64`]; an int, a bool or a fixed
 //! value's raw bits is a 32-bit word zero-extended in both.
 
-use std::ops::{Add, Div, Mul, Neg, Sub};
-
 use crate::jit::libm::LibmFn;
+use crate::pipeline::real::Real;
 
 /// What a float lane holds and what float arithmetic computes in.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -54,25 +53,15 @@ impl Precision {
     }
 }
 
-/// A float type the evaluator computes in: its lane words, conversions (Rust's `as`:
-/// rounding to nearest, float to int truncated and saturated with NaN to 0, as Cranelift's
+/// A float type the evaluator computes in: the pipeline's [`Real`] (arithmetic, `ZERO`,
+/// `ONE`, `from_f64`, `sqrt`, `abs`) plus its lane words, conversions (Rust's `as`: rounding
+/// to nearest, float to int truncated and saturated with NaN to 0, as Cranelift's
 /// `fcvt_*_sat`), and the operations the built-ins need.
-pub(crate) trait Float:
-    Copy
-    + PartialOrd
-    + Add<Output = Self>
-    + Sub<Output = Self>
-    + Mul<Output = Self>
-    + Div<Output = Self>
-    + Neg<Output = Self>
-{
-    const ZERO: Self;
-    const ONE: Self;
+pub(crate) trait Float: Real {
     fn from_word(w: u64) -> Self;
     fn word(self) -> u64;
     fn from_f32(x: f32) -> Self;
     fn to_f32(self) -> f32;
-    fn from_f64(x: f64) -> Self;
     fn from_i32(x: i32) -> Self;
     fn from_u32(x: u32) -> Self;
     fn to_i32(self) -> i32;
@@ -80,8 +69,6 @@ pub(crate) trait Float:
     fn to_i64(self) -> i64;
     fn is_nan(self) -> bool;
     fn is_sign_negative(self) -> bool;
-    fn abs(self) -> Self;
-    fn sqrt(self) -> Self;
     fn floor(self) -> Self;
     fn ceil(self) -> Self;
     fn trunc(self) -> Self;
@@ -108,12 +95,6 @@ macro_rules! shared_float_methods {
         fn is_sign_negative(self) -> bool {
             $F::is_sign_negative(self)
         }
-        fn abs(self) -> $F {
-            $F::abs(self)
-        }
-        fn sqrt(self) -> $F {
-            $F::sqrt(self)
-        }
         fn floor(self) -> $F {
             $F::floor(self)
         }
@@ -131,8 +112,6 @@ macro_rules! shared_float_methods {
 
 impl Float for f32 {
     shared_float_methods!(f32);
-    const ZERO: f32 = 0.0;
-    const ONE: f32 = 1.0;
     fn from_word(w: u64) -> f32 {
         f32::from_bits(w as u32)
     }
@@ -144,9 +123,6 @@ impl Float for f32 {
     }
     fn to_f32(self) -> f32 {
         self
-    }
-    fn from_f64(x: f64) -> f32 {
-        x as f32
     }
     fn from_i32(x: i32) -> f32 {
         x as f32
@@ -163,8 +139,6 @@ impl Float for f32 {
 
 impl Float for f64 {
     shared_float_methods!(f64);
-    const ZERO: f64 = 0.0;
-    const ONE: f64 = 1.0;
     fn from_word(w: u64) -> f64 {
         f64::from_bits(w)
     }
@@ -176,9 +150,6 @@ impl Float for f64 {
     }
     fn to_f32(self) -> f32 {
         self as f32
-    }
-    fn from_f64(x: f64) -> f64 {
-        x
     }
     fn from_i32(x: i32) -> f64 {
         f64::from(x)
