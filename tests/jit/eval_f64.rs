@@ -93,30 +93,8 @@ fn key(planes: u32) -> VariantKey {
 /// [`DERIVATIVES`] linked as the `__shade` primitive of a frame shading on quads: `s` and
 /// `t` in planes 0 and 1, `Ci` into planes 2 to 4, the pixel centres in planes 5 and 6.
 fn shade_program() -> Arc<Program> {
-    use primflow::link::{self, Group, PlaneParam};
     let (_, library) = crate::support::library_and_sources();
-    let mut diags = Diagnostics::new();
-    let module = primflow::syntax::parse(0, DERIVATIVES, &mut diags);
-    assert!(!diags.has_errors(), "{diags:?}");
-    let planes = [PlaneParam {
-        name: "st".into(),
-        first_plane: 0,
-        components: 2,
-    }];
-    let group = Group {
-        surface: &module.items[0],
-        lights: vec![],
-        atmosphere: None,
-        planes: &planes,
-        material: None,
-        surface_text: &[],
-        out_plane: 2,
-        quads: true,
-    };
-    let linked = link::link(&group).expect("links");
-    let program = primflow::check::check_linked(&library, &linked.items, &mut diags);
-    assert!(!diags.has_errors(), "{diags:?}");
-    Arc::new(program)
+    Arc::new(crate::support::link_quad_surface(&library, DERIVATIVES))
 }
 
 /// `name`'s argument block under `key`: `words` fill its per-primitive parameters in

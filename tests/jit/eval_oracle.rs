@@ -763,35 +763,13 @@ fn texture_lookups_on_quads_match_the_evaluator_at_both_tiers() {
     // A surface sampling a generated texture at derivatives-selected levels, in every wrap
     // mode, on random G-buffer contents (so random quads of shaded lanes): the kernels'
     // `primflow_texture` calls and the evaluator's `sample` give the same bits.
-    use primflow::link::{self, Group, PlaneParam};
     use primflow::runtime::texture::{TextureSet, TEXTURE_MEMORY_LIMIT};
     let (_, program) = support::library_and_sources();
     let source = "surface textured() {
     Ci = texture(\"a.png\", s * 3, t * 5) + texture(\"b.png\", t, s, \"wrap\", \"mirror\")
         + texture(\"a.png\", s * 40, -t, \"wrap\", \"black\") * {1, 0.5, 0.25};
 }";
-    let mut diags = Diagnostics::new();
-    let module = primflow::syntax::parse(0, source, &mut diags);
-    assert!(!diags.has_errors(), "{diags:?}");
-    let surface = &module.items[0];
-    let planes = [("st", 0, 2)].map(|(n, first, c)| PlaneParam {
-        name: n.into(),
-        first_plane: first,
-        components: c,
-    });
-    let group = Group {
-        surface,
-        lights: vec![],
-        atmosphere: None,
-        planes: &planes,
-        material: None,
-        surface_text: &[],
-        out_plane: 2,
-        quads: true,
-    };
-    let linked = link::link(&group).expect("links");
-    let mut linked_program = primflow::check::check_linked(&program, &linked.items, &mut diags);
-    assert!(!diags.has_errors(), "{diags:?}");
+    let mut linked_program = support::link_quad_surface(&program, source);
     assert_eq!(linked_program.textures.names, ["a.png", "b.png"]);
     let mut set = TextureSet::new();
     let mut rng = Lcg(38);

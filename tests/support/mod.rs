@@ -268,6 +268,35 @@ pub fn library_and_sources() -> (SourceMap, Arc<Program>) {
     (sources, registry.program)
 }
 
+/// The surface in `source` linked, against `library`, as the `__shade` primitive of a frame
+/// shading on quads with no lights: `s` and `t` in planes 0 and 1, `Ci` into planes 2 to 4,
+/// the pixel centres in planes 5 and 6.
+pub fn link_quad_surface(library: &Program, source: &str) -> Program {
+    use primflow::link::{self, Group, PlaneParam};
+    let mut diags = Diagnostics::new();
+    let module = primflow::syntax::parse(0, source, &mut diags);
+    assert!(!diags.has_errors(), "{diags:?}");
+    let planes = [PlaneParam {
+        name: "st".into(),
+        first_plane: 0,
+        components: 2,
+    }];
+    let group = Group {
+        surface: &module.items[0],
+        lights: vec![],
+        atmosphere: None,
+        planes: &planes,
+        material: None,
+        surface_text: &[],
+        out_plane: 2,
+        quads: true,
+    };
+    let linked = link::link(&group).expect("links");
+    let program = primflow::check::check_linked(library, &linked.items, &mut diags);
+    assert!(!diags.has_errors(), "{diags:?}");
+    program
+}
+
 /// `examples/NAME` loaded into a renderer for `program` (panics on scene errors).
 pub fn example_scene(sources: &mut SourceMap, program: &Arc<Program>, name: &str) -> Renderer {
     let path = format!("{}/examples/{name}", env!("CARGO_MANIFEST_DIR"));
