@@ -62,12 +62,19 @@ pub fn check(modules: &[&ast::Module], diags: &mut Diagnostics) -> ir::Program {
             .copied()
             .filter(|s| s.kind == ast::ItemKind::Light)
             .collect();
+        let helpers: Vec<&ast::Item> = items
+            .iter()
+            .copied()
+            .filter(|i| i.kind == ast::ItemKind::Function)
+            .collect();
         for &shader in &shaders {
             match crate::link::canonical(shader, &lights) {
                 Ok(linked) => {
-                    let mut all = items.clone();
-                    all.extend(linked.items.iter());
-                    check_items(&all, true, &mut sink);
+                    // What the deferred pass compiles: the helpers and the linked group
+                    // (`check_linked`); the primitives were checked above.
+                    let mut group: Vec<&ast::Item> = helpers.clone();
+                    group.extend(linked.items.iter());
+                    check_items(&group, true, &mut sink);
                 }
                 Err(e) => sink.push(
                     Diagnostic::error("E0900", format!("internal compiler error: {e}"))
