@@ -192,12 +192,13 @@ pub fn setup_fuel_ran_out(fuel: u64) -> Option<SiteId> {
 }
 
 /// Where a run-time error is counted (`TileCtx::setup_counts`, `TileCtx::pixel_counts`):
-/// index 0 counts calls skipped for depth, `1 + 2 * site` index errors and `2 + 2 * site`
-/// loops out of fuel at a `SiteId`, `1 + 2 * sites + func` stack errors of a function's
-/// kernel (`sites`: `Program::sites.len()`).
+/// index 0 counts calls a hand-written kernel skipped for depth (its calls have no source
+/// site); at a `SiteId`, `1 + 3 * site` counts index errors, `2 + 3 * site` loops out of
+/// fuel and `3 + 3 * site` calls skipped for depth; `1 + 3 * sites + func` counts stack
+/// errors of a function's kernel (`sites`: `Program::sites.len()`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum ErrorSlot {
-    CallDepth,
+    CallDepth(Option<SiteId>),
     Index(SiteId),
     Fuel(SiteId),
     Stack(FuncId),
@@ -205,12 +206,12 @@ pub enum ErrorSlot {
 
 impl ErrorSlot {
     /// The slot of error `code` recorded with `site` (a `SiteId`, or for `ERR_STACK` a
-    /// `FuncId`; ignored for `ERR_CALL_DEPTH`); `None` for an unknown code.
+    /// `FuncId`; `u32::MAX` for a hand-written kernel's call); `None` for an unknown code.
     pub fn of(code: u32, site: u32) -> Option<ErrorSlot> {
         match code {
             ERR_INDEX => Some(ErrorSlot::Index(SiteId(site))),
             ERR_FUEL => Some(ErrorSlot::Fuel(SiteId(site))),
-            ERR_CALL_DEPTH => Some(ErrorSlot::CallDepth),
+            ERR_CALL_DEPTH => Some(ErrorSlot::CallDepth((site != u32::MAX).then_some(SiteId(site)))),
             ERR_STACK => Some(ErrorSlot::Stack(FuncId(site))),
             _ => None,
         }
@@ -219,7 +220,7 @@ impl ErrorSlot {
     /// The error code counted here.
     pub fn code(self) -> u32 {
         match self {
-            ErrorSlot::CallDepth => ERR_CALL_DEPTH,
+            ErrorSlot::CallDepth(_) => ERR_CALL_DEPTH,
             ErrorSlot::Index(_) => ERR_INDEX,
             ErrorSlot::Fuel(_) => ERR_FUEL,
             ErrorSlot::Stack(_) => ERR_STACK,
@@ -229,33 +230,34 @@ impl ErrorSlot {
     /// Its index in a count array of a program with `sites` sites.
     pub fn index(self, sites: usize) -> usize {
         match self {
-            ErrorSlot::CallDepth => 0,
-            ErrorSlot::Index(s) => 1 + 2 * s.0 as usize,
-            ErrorSlot::Fuel(s) => 2 + 2 * s.0 as usize,
-            ErrorSlot::Stack(f) => 1 + 2 * sites + f.0 as usize,
+            ErrorSlot::CallDepth(None) => 0,
+            ErrorSlot::Index(s) => 1 + 3 * s.0 as usize,
+            ErrorSlot::Fuel(s) => 2 + 3 * s.0 as usize,
+            ErrorSlot::CallDepth(Some(s)) => 3 + 3 * s.0 as usize,
+            ErrorSlot::Stack(f) => 1 + 3 * sites + f.0 as usize,
         }
     }
 
     /// The slot at `index` of a count array of a program with `sites` sites.
     pub fn at(index: usize, sites: usize) -> ErrorSlot {
         match index {
-            0 => ErrorSlot::CallDepth,
-            i if i <= 2 * sites => {
-                let site = SiteId(((i - 1) / 2) as u32);
-                if i % 2 == 1 {
-                    ErrorSlot::Index(site)
-                } else {
-                    ErrorSlot::Fuel(site)
+            0 => ErrorSlot::CallDepth(None),
+            i if i <= 3 * sites => {
+                let site = SiteId(((i - 1) / 3) as u32);
+                match (i - 1) % 3 {
+                    0 => ErrorSlot::Index(site),
+                    1 => ErrorSlot::Fuel(site),
+                    _ => ErrorSlot::CallDepth(Some(site)),
                 }
             }
-            i => ErrorSlot::Stack(FuncId((i - 1 - 2 * sites) as u32)),
+            i => ErrorSlot::Stack(FuncId((i - 1 - 3 * sites) as u32)),
         }
     }
 }
 
 /// Length of the error count arrays of `program`'s kernels: one slot per [`ErrorSlot`].
 pub fn count_slots(program: &Program) -> usize {
-    1 + 2 * program.sites.len() + program.functions.len()
+    1 + 3 * program.sites.len() + program.functions.len()
 }
 
 /// Zeroed error counts for running `program`'s kernels: hand [`ErrorCounts::ptr`] to a
@@ -412,9 +414,9 @@ pub unsafe fn call_primitive(ctx: *mut TileCtx, entry: KernelFn, args: &[u32]) {
             c.error_site = u32::MAX;
         }
         if !c.setup_counts.is_null() {
-            let at = ErrorSlot::CallDepth.index(0);
+            let at = ErrorSlot::CallDepth(None).index(0);
             // SAFETY: the context's counts hold every slot of the program (`TileCtx`), and
-            // the call-depth slot is the first.
+            // a hand-written kernel's call-depth slot is the first.
             unsafe { *c.setup_counts.add(at) = (*c.setup_counts.add(at)).wrapping_add(1) };
         }
     } else if c.mode == MODE_EXPAND {

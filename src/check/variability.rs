@@ -268,7 +268,7 @@ impl State<'_> {
                     );
                 }
             }
-            StmtKind::CallPrimitive { callee, args } => {
+            StmtKind::CallPrimitive { callee, args, .. } => {
                 let callee_roles = roles.get(callee.0 as usize);
                 for (k, a) in args.iter_mut().enumerate() {
                     let (v, cause) = self.expr(*a);

@@ -818,5 +818,7 @@ pub enum StmtKind<E: Form = ExprId> {
     CallPrimitive {
         callee: FuncId,
         args: Vec<E>,
+        /// Where a call skipped for depth (`abi::MAX_CALL_DEPTH`) is counted and reported.
+        site: SiteId,
     },
 }

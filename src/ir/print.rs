@@ -220,9 +220,15 @@ impl Printer<'_> {
                 let a: Vec<String> = args.iter().map(|e| self.expr(*e)).collect();
                 writeln!(out, "{pad}bound({})", a.join(", "))
             }
-            StmtKind::CallPrimitive { callee, args } => {
+            StmtKind::CallPrimitive { callee, args, site } => {
                 let a: Vec<String> = args.iter().map(|e| self.expr(*e)).collect();
-                writeln!(out, "{pad}call primitive#{}({})", callee.0, a.join(", "))
+                writeln!(
+                    out,
+                    "{pad}call primitive#{}({}) @site{}",
+                    callee.0,
+                    a.join(", "),
+                    site.0
+                )
             }
         }
     }

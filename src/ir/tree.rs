@@ -211,9 +211,10 @@ fn intern_stmt(stmts: &mut Stmts, x: &mut Exprs, s: Stmt<Tree>) -> StmtId {
         },
         StmtKind::InterpolatorReturn(e) => StmtKind::InterpolatorReturn(e.map(put)),
         StmtKind::Bound(es) => StmtKind::Bound(es.map(put)),
-        StmtKind::CallPrimitive { callee, args } => StmtKind::CallPrimitive {
+        StmtKind::CallPrimitive { callee, args, site } => StmtKind::CallPrimitive {
             callee,
             args: args.into_iter().map(put).collect(),
+            site,
         },
     };
     stmts[id] = kind;

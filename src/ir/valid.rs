@@ -867,7 +867,10 @@ impl<'a> Validator<'a> {
                 }
                 Ok(())
             }
-            StmtKind::CallPrimitive { callee, args } => self.call(s, *callee, args),
+            StmtKind::CallPrimitive { callee, args, site } => {
+                self.site(*site, stmt_node(&self.f.stmts[s]), self.f.stmts.span(s))?;
+                self.call(s, *callee, args)
+            }
         }
     }
 

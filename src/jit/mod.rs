@@ -51,8 +51,8 @@
 //! [`Jit::disassembly`] show what a kernel is made of before and after Cranelift (the
 //! latter with its count of register-allocator spills, see [`Disassembly`]).
 //!
-//! Run-time errors a kernel records carry a `SiteId` in `TileCtx::error_site`, except
-//! `ERR_CALL_DEPTH`, which has no site and records `u32::MAX`, and `ERR_STACK` (every kernel,
+//! Run-time errors a kernel records carry a `SiteId` in `TileCtx::error_site` (an
+//! `ERR_CALL_DEPTH` the site of the call it skipped), except `ERR_STACK` (every kernel,
 //! and every outlined pixel function, begins by comparing its stack pointer with
 //! `TileCtx::stack_limit`), which records the kernel's `FuncId`. `TileCtx::error` keeps the
 //! first; every one is also counted at its `abi::ErrorSlot` (`lower::frame`).

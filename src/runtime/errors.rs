@@ -125,7 +125,10 @@ fn site_owners(program: &Program) -> Vec<Option<(FuncId, bool)>> {
                 }
                 StmtKind::InterpolatorReturn(Some(e)) => expr(x, *e, &mut mark),
                 StmtKind::Bound(es) => es.iter().for_each(|e| expr(x, *e, &mut mark)),
-                StmtKind::CallPrimitive { args, .. } => args.iter().for_each(|e| expr(x, *e, &mut mark)),
+                StmtKind::CallPrimitive { args, site, .. } => {
+                    mark(*site);
+                    args.iter().for_each(|e| expr(x, *e, &mut mark))
+                }
                 _ => {}
             });
         }
@@ -143,8 +146,8 @@ fn times(n: u64) -> String {
 }
 
 /// One W0801 per slot of `counts` (summed per slot), in slot order: the site's function,
-/// what failed and how often, located at the site (a stack error at its function; calls
-/// too deep have no place).
+/// what failed and how often, located at the site (a stack error at its function; a call a
+/// hand-written kernel skipped for depth has no place).
 pub(crate) fn report(program: &Program, counts: &[(u32, u64)], diags: &mut Diagnostics) {
     let mut total: BTreeMap<u32, u64> = BTreeMap::new();
     for &(slot, n) in counts {
@@ -160,12 +163,12 @@ pub(crate) fn report(program: &Program, counts: &[(u32, u64)], diags: &mut Diagn
     for (slot, n) in total {
         let slot = ErrorSlot::at(slot as usize, sites);
         let (owner, span) = match slot {
-            ErrorSlot::Index(s) | ErrorSlot::Fuel(s) => (
+            ErrorSlot::Index(s) | ErrorSlot::Fuel(s) | ErrorSlot::CallDepth(Some(s)) => (
                 owners.get(s.0 as usize).copied().flatten(),
                 program.sites.get(s.0 as usize).copied(),
             ),
             ErrorSlot::Stack(f) => (Some((f, false)), program.functions.get(f.0 as usize).map(|f| f.span)),
-            ErrorSlot::CallDepth => (None, None),
+            ErrorSlot::CallDepth(None) => (None, None),
         };
         let in_pixels = owner.is_some_and(|(_, pixel)| pixel);
         let what = match slot.code() {

@@ -287,7 +287,7 @@ fn primitive_call_passes_pixel_parameters_and_fills_defaults() {
                 primitive short(float s; varying float X, Y; inout varying float Z) { }",
     );
     let f = func(&p, "root");
-    let StmtKind::CallPrimitive { callee, args } = &f.stmts[f.setup[0]] else {
+    let StmtKind::CallPrimitive { callee, args, .. } = &f.stmts[f.setup[0]] else {
         panic!("call in setup")
     };
     assert_eq!(p.func(*callee).name, "leaf");

@@ -76,6 +76,7 @@ fn caller(name: &str, callees: &[u32], tail: Vec<Stmt<Tree>>) -> Function {
             s(StmtKind::CallPrimitive {
                 callee: FuncId(c),
                 args: vec![x.clone(), y.clone(), z.clone()],
+                site: SiteId(0),
             })
         })
         .collect();
@@ -96,7 +97,7 @@ fn a_function_that_fails_to_lower_fails_its_batch_and_defines_nothing() {
             caller("outer_broken", &[0, 1], vec![]), // 2
             caller("outer", &[0], vec![]),           // 3
         ],
-        0,
+        1,
     ));
     let key = kind_key(&[]);
     for threads in [1, 2] {

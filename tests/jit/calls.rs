@@ -62,6 +62,7 @@ fn outer() -> Function {
             list(vec![fc(0.1), fc(0.2), fc(0.25)]),
             data,
         ],
+        site: SiteId(0),
     })];
     fb.finish()
 }
@@ -109,16 +110,14 @@ fn recursive_primitive_stops_at_max_call_depth() {
     fb.setup = vec![s(StmtKind::CallPrimitive {
         callee: FuncId(0),
         args: vec![x, y, z.clone()],
+        site: SiteId(0),
     })];
     fb.pixel = vec![assign(&z, fc(0.5))];
-    let mut jit = Jit::new(Arc::new(program(vec![fb.finish()], 0))).unwrap();
+    let mut jit = Jit::new(Arc::new(program(vec![fb.finish()], 1))).unwrap();
     let k = jit.kernel(FuncId(0), &kind_key(&[])).unwrap();
     let mut tile = Tile::new(0);
     let ctx = tile.render(&k, &[1]);
-    assert_eq!(
-        (ctx.error, ctx.error_site, ctx.call_depth),
-        (ERR_CALL_DEPTH, u32::MAX, 0)
-    );
+    assert_eq!((ctx.error, ctx.error_site, ctx.call_depth), (ERR_CALL_DEPTH, 0, 0));
     assert!(tile.depth.iter().all(|&d| d == raw_depth(0.5)));
 }
 

@@ -445,10 +445,20 @@ fn recursion_stops_at_the_call_depth_limit_expanded_too() {
     let mut jit = Jit::new(program.clone()).unwrap();
     let (expanded, _) = same_either_way(&mut r, &mut jit, "chain");
     // Chain at depth d (0..=15) draws its triangle at depth d + 1; chain at depth 16 calls
-    // deeper than the limit: neither its triangle nor the next link is drawn.
+    // deeper than the limit: neither its triangle nor the next link is drawn. Each skipped
+    // call is reported once, at the call.
     let warnings: Vec<_> = expanded.diags.items.iter().filter(|d| d.code == "W0801").collect();
-    assert_eq!(warnings.len(), 1, "{:?}", expanded.diags.items);
-    assert!(warnings[0].message.contains("too deep"), "{}", warnings[0].message);
+    assert_eq!(warnings.len(), 2, "{:?}", expanded.diags.items);
+    let calls: Vec<&str> = warnings
+        .iter()
+        .map(|w| {
+            assert!(w.message.contains("in `chain`") && w.message.contains("too deep") && w.message.ends_with("once"));
+            let span = w.labels[0].span;
+            &USER_PRIMS[span.start as usize..span.end as usize]
+        })
+        .collect();
+    assert!(calls[0].starts_with("screen_triangle(v, data"), "{calls:?}");
+    assert!(calls[1].starts_with("chain(next, size"), "{calls:?}");
     assert_eq!(expanded.stats.expanded_instances, 1);
     assert_eq!(expanded.stats.expanded_calls, 16);
     assert!(written(&expanded) > 16 * 20);

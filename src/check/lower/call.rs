@@ -128,10 +128,12 @@ impl<'g, 'a> FnLower<'g, 'a> {
         if !ok {
             return None;
         }
+        let site = self.new_site(span);
         Some(stmt(
             StmtKind::CallPrimitive {
                 callee: sig.func.expect("primitives have a FuncId"),
                 args: out,
+                site,
             },
             span,
         ))

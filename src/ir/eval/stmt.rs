@@ -83,11 +83,11 @@ impl<'p> Machine<'p, '_> {
                 }
                 Ok(Flow::Normal)
             }
-            StmtKind::CallPrimitive { callee, args } => {
+            StmtKind::CallPrimitive { callee, args, site } => {
                 if self.pix.is_some() || self.frames.len() != self.kernel()?.frame + 1 {
                     return malformed("primitive call in per-pixel code");
                 }
-                self.call(*callee, args)
+                self.call(*callee, args, *site)
             }
         }
     }
@@ -586,7 +586,7 @@ impl<'p> Machine<'p, '_> {
 
     /// A primitive call: the callee's argument block built as the JIT builds it, then a
     /// kernel run of the callee on the same tile, sharing the setup fuel.
-    fn call(&mut self, callee: FuncId, args: &'p [ExprId]) -> Res<Flow> {
+    fn call(&mut self, callee: FuncId, args: &'p [ExprId], site: SiteId) -> Res<Flow> {
         let program = self.program;
         let Some(cf) = program.functions.get(callee.0 as usize) else {
             return malformed(format!("call of unknown function {}", callee.0));
@@ -675,7 +675,7 @@ impl<'p> Machine<'p, '_> {
         }
         self.call_depth = self.call_depth.wrapping_add(1);
         let r = if self.call_depth > MAX_CALL_DEPTH {
-            self.record(ERR_CALL_DEPTH, u32::MAX, true)
+            self.record(ERR_CALL_DEPTH, site.0, true)
         } else {
             self.invoke(callee, Rc::new(block)).map(|_| ())
         };

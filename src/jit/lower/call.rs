@@ -15,12 +15,12 @@ use super::{err, word_of, Lower, Res};
 use crate::abi::{
     interpolator_arg_words, ArgLayout, BindingKind, ParamSlot, ERR_CALL_DEPTH, MAX_CALL_DEPTH, MODE_EXPAND,
 };
-use crate::ir::{ExprId, FuncId, FuncKind};
+use crate::ir::{ExprId, FuncId, FuncKind, SiteId};
 use crate::jit::value::{args_flags, ctx_off, mem_flags};
 use crate::jit::JitError;
 
 impl<'a, 'b> Lower<'a, 'b> {
-    pub(super) fn call_primitive(&mut self, callee: FuncId, args: &'a [ExprId]) -> Res<()> {
+    pub(super) fn call_primitive(&mut self, callee: FuncId, args: &'a [ExprId], site: SiteId) -> Res<()> {
         let Some(cf) = self.program.functions.get(callee.0 as usize) else {
             return err(format!("call of unknown function {}", callee.0));
         };
@@ -70,7 +70,7 @@ impl<'a, 'b> Lower<'a, 'b> {
         let after = self.b.create_block();
         self.b.ins().brif(too_deep, deep_blk, &[], call_blk, &[]);
         self.b.switch_to_block(deep_blk);
-        self.record_error(ERR_CALL_DEPTH, u32::MAX, None);
+        self.record_error(ERR_CALL_DEPTH, site.0, None);
         self.b.ins().jump(after, &[]);
         self.b.switch_to_block(call_blk);
         let fref = self.linker.kernel_ref(self.b.func, callee)?;

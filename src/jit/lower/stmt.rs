@@ -171,13 +171,13 @@ impl<'a, 'b> Lower<'a, 'b> {
                 }
                 self.lower_bound(es, false)
             }
-            StmtKind::CallPrimitive { callee, args } => {
+            StmtKind::CallPrimitive { callee, args, site } => {
                 if self.in_pixel() || self.frames.len() > 1 {
                     return err("primitive call in per-pixel code");
                 }
                 // The callee (compiled for the same key) answers for the bindings itself.
                 self.written.iter_mut().for_each(|w| *w = true);
-                self.call_primitive(*callee, args)
+                self.call_primitive(*callee, args, *site)
             }
         }
     }
