@@ -157,7 +157,7 @@ pub struct RenderArgs {
 #[derive(clap::Args, Debug)]
 pub struct TestArgs {
     /// Case files or directories searched for `*.scene` files with `# expect:` lines
-    /// (default: the library's own prims/tests).
+    /// (default: the library's own prims/tests and every `--prims` directory).
     #[arg(value_name = "PATH")]
     pub paths: Vec<PathBuf>,
     /// Extra directory of .prim files (repeatable).
@@ -330,8 +330,12 @@ fn fuzz(args: &FuzzArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
 }
 
 fn test(args: &TestArgs, out: &mut dyn Write) -> i32 {
+    // With no paths: the library's cases, and the cases kept beside each `--prims`
+    // directory's primitives (in it or below it).
     let paths = if args.paths.is_empty() {
-        vec![crate::testing::default_dir()]
+        let mut paths = vec![crate::testing::default_dir()];
+        paths.extend(args.prims.iter().cloned());
+        paths
     } else {
         args.paths.clone()
     };

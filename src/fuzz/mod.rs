@@ -418,15 +418,25 @@ fn compare_tiers(other_tile: Option<u32>, mut load: impl FnMut() -> (SourceMap, 
     if let Some(t) = other_tile {
         runs.push((Tier::Optimised, Some(t)));
     }
+    // One JIT per tier: the second tile size reuses tier 1's kernels (the same program).
+    let mut jits: Vec<(Tier, Jit)> = vec![];
     for (tier, tile) in runs {
         let (sources, mut r, diags) = load();
         let _ = diags.render(&sources);
         if diags.has_errors() {
             return judge(&diags);
         }
-        let Ok(mut jit) = Jit::at_tier(r.program().clone(), tier) else {
-            return Outcome::Accepted;
+        let at = match jits.iter().position(|(t, _)| *t == tier) {
+            Some(at) => at,
+            None => {
+                let Ok(jit) = Jit::at_tier(r.program().clone(), tier) else {
+                    return Outcome::Accepted;
+                };
+                jits.push((tier, jit));
+                jits.len() - 1
+            }
         };
+        let jit = &mut jits[at].1;
         if let Some(t) = tile {
             let _ = r.set_tile_size(t);
         }
@@ -434,7 +444,7 @@ fn compare_tiers(other_tile: Option<u32>, mut load: impl FnMut() -> (SourceMap, 
         r.options.setup_fuel = 1 << 14;
         r.options.pixel_fuel = 1 << 12;
         r.options.group_fuel_floor = crate::abi::DEFAULT_GROUP_FUEL_FLOOR / 16;
-        let out = r.render(&mut jit);
+        let out = r.render(jit);
         let _ = out.diags.render(&sources);
         if let Outcome::Ice(m) = judge(&out.diags) {
             return Outcome::Ice(format!("{tier:?}: {m}"));

@@ -25,11 +25,15 @@
 //!
 //! Invariants: a case passes only if every expectation holds AND the run reported no
 //! diagnostic the case did not announce with `diag` (so a new warning fails the library's
-//! tests instead of scrolling past). Malformed expectation lines fail the case with the line
-//! number; nothing here panics on bad input. Write counting is switched on only for cases
-//! that ask about write counts. Cases run one after the other, each on a fresh JIT; a
-//! directory is searched recursively for `*.scene` files holding at least one `expect:`
-//! line, in sorted order.
+//! tests instead of scrolling past). Every failure is reported as `file:line: why`, a
+//! malformed expectation line among them; the other lines are still checked. Nothing here
+//! panics on bad input. `depth` and `param` values are compared as a scene gives them and
+//! the frame stores them (the nearest f32, then for depth the nearest 2^-32 step), so
+//! `tol=0` means "exactly the stored value nearest the decimal written". `--bless` writes a missing golden image only when
+//! every other check of its case passed. Write counting is switched on only for cases that
+//! ask about write counts. Cases run one after the other, each on a fresh JIT; a directory
+//! is searched recursively for `*.scene` files holding at least one `expect:` line, in
+//! sorted order.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -170,15 +174,15 @@ fn expect_text(line: &str) -> Option<&str> {
     rest.strip_prefix("expect:").map(str::trim)
 }
 
-/// Parse every expectation line of a scene's text. Errors are `line N: message`.
-pub fn parse_expectations(text: &str, base: &Path) -> (Vec<Expectation>, Vec<String>) {
+/// Parse every expectation line of a scene's text. Errors are (1-based line, message).
+pub fn parse_expectations(text: &str, base: &Path) -> (Vec<Expectation>, Vec<(usize, String)>) {
     let mut out = vec![];
     let mut errors = vec![];
     for (i, line) in text.lines().enumerate() {
         let Some(body) = expect_text(line) else { continue };
         match parse_check(body, base) {
             Ok(check) => out.push(Expectation { line: i + 1, check }),
-            Err(e) => errors.push(format!("line {}: {e}", i + 1)),
+            Err(e) => errors.push((i + 1, e)),
         }
     }
     (out, errors)
@@ -348,20 +352,26 @@ pub fn run_case(path: &Path, options: &TestOptions) -> CaseResult {
         checked: 0,
         failures: vec![],
     };
+    let at = |line: usize, why: &str| format!("{}:{line}: {why}", path.display());
     let text = match std::fs::read_to_string(path) {
         Ok(t) => t,
         Err(e) => {
-            result.failures.push(format!("cannot read the case: {e}"));
+            result
+                .failures
+                .push(format!("{}: cannot read the case: {e}", path.display()));
             return result;
         }
     };
     let base = path.parent().unwrap_or(Path::new("."));
     let (expectations, errors) = parse_expectations(&text, base);
-    result.failures.extend(errors);
-    if expectations.is_empty() && result.failures.is_empty() {
-        result.failures.push("no `# expect:` lines: nothing to check".into());
-    }
-    if !result.failures.is_empty() {
+    // A malformed line fails the case; the well-formed ones are still checked.
+    result.failures.extend(errors.iter().map(|(line, e)| at(*line, e)));
+    if expectations.is_empty() {
+        if errors.is_empty() {
+            result
+                .failures
+                .push(format!("{}: no `# expect:` lines: nothing to check", path.display()));
+        }
         return result;
     }
     let expected_codes: BTreeSet<&str> = expectations
@@ -389,8 +399,16 @@ pub fn run_case(path: &Path, options: &TestOptions) -> CaseResult {
     let seen: Vec<(String, String)> = diags
         .items
         .iter()
-        .zip(diags.codes_at(&sources))
-        .map(|(d, at)| (d.code.to_string(), format!("{at}: {}", d.message)))
+        .map(|d| {
+            let place = match d.primary_span() {
+                Some(s) => {
+                    let (l, c) = sources.line_col(s.file, s.start);
+                    format!("{}:{l}:{c}", sources.file(s.file).name)
+                }
+                None => path.display().to_string(),
+            };
+            (d.code.to_string(), format!("{place}: {} {}", d.code, d.message))
+        })
         .collect();
     for (code, text) in &seen {
         if !expected_codes.contains(code.as_str()) {
@@ -403,26 +421,42 @@ pub fn run_case(path: &Path, options: &TestOptions) -> CaseResult {
             if !seen.iter().any(|(c, _)| c == code) {
                 result
                     .failures
-                    .push(format!("line {}: expected diagnostic {code}, none reported", e.line));
+                    .push(at(e.line, &format!("expected diagnostic {code}, none reported")));
             }
         }
     }
     let Some(frame) = frame else {
         let frame_checks = expectations.iter().filter(|e| !matches!(e.check, Check::Diag { .. }));
         for e in frame_checks {
-            result
-                .failures
-                .push(format!("line {}: nothing was rendered to check", e.line));
+            result.failures.push(at(e.line, "nothing was rendered to check"));
         }
         return result;
     };
-    for e in &expectations {
-        if matches!(e.check, Check::Diag { .. }) {
-            continue;
-        }
+    // Golden images last: `--bless` writes one only for a case whose other checks passed.
+    let (golden, others): (Vec<&Expectation>, Vec<&Expectation>) = expectations
+        .iter()
+        .filter(|e| !matches!(e.check, Check::Diag { .. }))
+        .partition(|e| matches!(e.check, Check::Golden { .. }));
+    for e in others {
         result.checked += 1;
         if let Err(why) = check_frame(&e.check, &frame, options) {
-            result.failures.push(format!("line {}: {why}", e.line));
+            result.failures.push(at(e.line, &why));
+        }
+    }
+    let failed = result.failures.len();
+    let bless = TestOptions {
+        bless: options.bless && failed == 0,
+        ..options.clone()
+    };
+    for e in golden {
+        result.checked += 1;
+        match check_frame(&e.check, &frame, &bless) {
+            Err(why) if options.bless && failed > 0 => result.failures.push(at(
+                e.line,
+                &format!("{why}; not blessed: {failed} other check(s) of this case failed"),
+            )),
+            Err(why) => result.failures.push(at(e.line, &why)),
+            Ok(()) => {}
         }
     }
     result
@@ -544,13 +578,19 @@ pub fn check_frame(check: &Check, frame: &Frame, options: &TestOptions) -> Resul
                 return Err(format!("pixel ({x}, {y}) is not covered; expected depth {value}"));
             }
             let raw = frame.depth_at(*x, *y).unwrap_or(0);
-            let got = f64::from(raw) / 4294967296.0;
-            if (got - value).abs() <= *tol {
+            let got = f64::from(raw) / DEPTH_STEPS;
+            let want = stored_depth(*value);
+            if (got - want).abs() <= *tol {
                 Ok(())
             } else {
+                let stored = if want == *value {
+                    String::new()
+                } else {
+                    format!(" (stored as {want})")
+                };
                 Err(format!(
-                    "depth at ({x}, {y}) is {got}, expected {value} ± {tol} (off by {:.3e})",
-                    (got - value).abs()
+                    "depth at ({x}, {y}) is {got}, expected {value}{stored} ± {tol} (off by {:.3e})",
+                    (got - want).abs()
                 ))
             }
         }
@@ -581,7 +621,8 @@ pub fn check_frame(check: &Check, frame: &Frame, options: &TestOptions) -> Resul
                 .iter()
                 .zip(values)
                 .map(|(&g, &v)| {
-                    let d = (f64::from(g) - v).abs();
+                    // As stored: the nearest f32 (a decimal like 0.1 has no exact one).
+                    let d = (f64::from(g) - f64::from(v as f32)).abs();
                     if d.is_nan() {
                         f64::INFINITY
                     } else {
@@ -658,6 +699,19 @@ pub fn check_frame(check: &Check, frame: &Frame, options: &TestOptions) -> Resul
     }
 }
 
+/// Depth steps per unit: the frame keeps depth as a fraction of 2^32.
+const DEPTH_STEPS: f64 = 4294967296.0;
+
+/// `value` as a scene gives it and the frame holds it: the nearest f32 (a scene's numbers
+/// are f32), then the nearest depth step in [0, 1).
+fn stored_depth(value: f64) -> f64 {
+    let value = f64::from(value as f32);
+    if value.is_nan() {
+        return value;
+    }
+    (value * DEPTH_STEPS).round().clamp(0.0, DEPTH_STEPS - 1.0) / DEPTH_STEPS
+}
+
 fn covered_in(frame: &Frame, r: [u32; 4]) -> u64 {
     let mut n = 0;
     for y in r[1]..r[3] {
@@ -714,7 +768,10 @@ fn check_golden(frame: &Frame, file: &Path, tol: u8, bad: u64, bless: bool) -> R
 /// Run every case under `paths`, printing one line per case (and its reasons) to `out`.
 /// Returns the results; the caller decides the exit code.
 pub fn run_all(paths: &[PathBuf], options: &TestOptions, out: &mut dyn std::io::Write) -> Vec<CaseResult> {
-    let (cases, errors) = collect_cases(paths);
+    let (mut cases, errors) = collect_cases(paths);
+    // A case reached twice (a `--prims` directory inside another path) runs once.
+    let mut seen = std::collections::HashSet::new();
+    cases.retain(|c| seen.insert(std::fs::canonicalize(c).unwrap_or_else(|_| c.clone())));
     let mut results: Vec<CaseResult> = errors
         .into_iter()
         .map(|e| CaseResult {
