@@ -238,3 +238,43 @@ fn a_scene_past_the_size_limit_is_refused_before_it_is_read() {
     assert!(err.contains("E0606") && err.contains("huge.scene"), "{err}");
     assert!(!out.exists(), "nothing rendered");
 }
+
+/// The numbers of a `check` summary line, in order: files, primitives, interpolators,
+/// helpers, shaders.
+fn summary_counts(err: &str) -> Vec<usize> {
+    let line = err.lines().last().unwrap_or_default();
+    assert!(line.starts_with("ok: ") && line.contains(" checked ("), "{err}");
+    line.split(|c: char| !c.is_ascii_digit())
+        .filter_map(|w| w.parse().ok())
+        .take(5)
+        .collect()
+}
+
+#[test]
+fn check_prints_a_summary_of_what_it_checked() {
+    let library_file = concat!(env!("CARGO_MANIFEST_DIR"), "/prims/screen_triangle.prim");
+    let (code, out, err) = cli(&["check", library_file]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.is_empty(), "the summary goes to stderr: {out}");
+    assert!(err.ends_with(" checked (no warnings)\n"), "{err}");
+    let library = summary_counts(&err);
+    // One more file: one primitive, two helpers, and a warning (W0001, Z not inout).
+    let prim = temp_file(
+        "summary.prim",
+        "float h1(float x) { return x; }\nfloat h2(float x) { return x; }\n\
+         primitive summed(varying float X, Y; varying float Z) { Z = h1(h2(0.5)); }\n",
+    );
+    let (code, _, err) = cli(&["check", prim.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.contains("W0001") && err.ends_with(" checked (1 warning)\n"),
+        "{err}"
+    );
+    let with_file = summary_counts(&err);
+    let added: Vec<usize> = with_file.iter().zip(&library).map(|(a, b)| a - b).collect();
+    assert_eq!(
+        added,
+        [1, 1, 0, 2, 0],
+        "files, primitives, interpolators, helpers, shaders: {err}"
+    );
+}
