@@ -278,3 +278,50 @@ fn check_prints_a_summary_of_what_it_checked() {
         "files, primitives, interpolators, helpers, shaders: {err}"
     );
 }
+
+/// A directory of primitives named twice, spelled differently (with `./`, `..`, a trailing
+/// slash; by `--prims` and by a scene's `prims` line), is loaded once.
+#[test]
+fn one_directory_given_twice_is_loaded_once() {
+    let dir = std::env::temp_dir().join(format!("primflow-cli-twice-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let prim = dir.join("twice.prim");
+    std::fs::write(
+        &prim,
+        "primitive twice_fill(varying float X, Y; inout varying float Z) { Z = 0.5; }\n",
+    )
+    .unwrap();
+    let name = dir.file_name().unwrap().to_str().unwrap();
+    let spellings = [
+        dir.display().to_string(),
+        format!("{}/./", dir.display()),
+        format!("{}/../{name}", dir.display()),
+    ];
+    let (code, _, err) = cli(&[
+        "check",
+        "--prims",
+        &spellings[0],
+        "--prims",
+        &spellings[1],
+        "--prims",
+        &spellings[2],
+        prim.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("defined twice"), "{err}");
+
+    let scene = dir.join("twice.scene");
+    std::fs::write(&scene, "image 8 8\nprims .\nbegin twice_fill\nend\n").unwrap();
+    let png = dir.join("twice.png");
+    let (code, out, err) = cli(&[
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "--prims",
+        &spellings[1],
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("defined twice"), "{err}");
+    assert!(out.starts_with("rendered 8x8: 1 primitive(s)"), "{out}");
+}
