@@ -5,6 +5,10 @@
 //! `W0xxx` for warnings), a message naming the construct, and labelled spans; it is rendered
 //! only at the edge (the CLI, or a test snapshot) against the [`SourceMap`], rustc-style:
 //! `file:line:col` and the underlined source.
+//!
+//! An unknown name (a variable, function, primitive, parameter, scene command...) gets a
+//! "did you mean" help from [`did_you_mean`], the one place that decides what is close
+//! enough to suggest.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -219,6 +223,14 @@ impl Diagnostic {
     pub fn help(mut self, help: impl Into<String>) -> Diagnostic {
         self.help = Some(help.into());
         self
+    }
+    /// For an unknown `name`: help "did you mean `x`?" when one of `candidates` (the names
+    /// visible there) is close to it ([`did_you_mean`]); unchanged otherwise.
+    pub fn suggest<'c>(self, name: &str, candidates: impl IntoIterator<Item = &'c str>) -> Diagnostic {
+        match did_you_mean(name, candidates) {
+            Some(help) => self.help(help),
+            None => self,
+        }
     }
     pub fn is_error(&self) -> bool {
         self.severity == Severity::Error
@@ -497,6 +509,43 @@ fn ceil_char_boundary(s: &str, mut i: usize) -> usize {
         i += 1;
     }
     i
+}
+
+/// Names longer than this get no suggestion: the distance takes time and memory of the
+/// product of the two lengths, and a generated name of megabytes is no typo.
+const MAX_SUGGESTED_LEN: usize = 64;
+
+/// The candidate an unknown `name` was most likely meant to be, as the help text
+/// "did you mean `x`?"; `None` when none is close. The rule: a candidate that differs from
+/// `name` only in letter case, else the one at the smallest Damerau-Levenshtein distance
+/// (one insertion, deletion, substitution or swap of neighbours each), if that distance is
+/// at most a third of `name`'s length in characters (so a name of 1 or 2 characters gets
+/// no suggestion, one of 3 to 5 a suggestion one edit away, one of 6 to 8 two edits
+/// away). Ties go to the alphabetically first, so the answer does not depend on the order
+/// of `candidates`. `name` itself is never suggested.
+pub fn did_you_mean<'c>(name: &str, candidates: impl IntoIterator<Item = &'c str>) -> Option<String> {
+    let len = name.chars().count();
+    if len > MAX_SUGGESTED_LEN {
+        return None;
+    }
+    let limit = len / 3;
+    let mut best: Option<(usize, &str)> = None;
+    for c in candidates {
+        // The distance is at least the difference in length (counted no further than
+        // that needs: a candidate may be a generated name of megabytes).
+        if c == name || c.chars().take(len + limit + 1).count().abs_diff(len) > limit {
+            continue;
+        }
+        let distance = if c.eq_ignore_ascii_case(name) {
+            0
+        } else {
+            strsim::damerau_levenshtein(name, c)
+        };
+        if distance <= limit && best.is_none_or(|b| (distance, c) < b) {
+            best = Some((distance, c));
+        }
+    }
+    best.map(|(_, c)| format!("did you mean `{c}`?"))
 }
 
 /// The most errors a [`Diagnostics`] sink keeps. The next one is replaced by an `E0099`

@@ -390,6 +390,25 @@ impl<'g, 'a> FnLower<'g, 'a> {
         self.scopes.iter().rev().find_map(|s| s.get(name).copied())
     }
 
+    /// The names a value may be read from here (for "did you mean"): the locals and
+    /// parameters in scope (an inlined helper's scopes are only its own) and `PI`.
+    fn visible_values(&self) -> impl Iterator<Item = &str> {
+        self.scopes
+            .iter()
+            .flat_map(|s| s.keys().map(String::as_str))
+            .chain(["PI"])
+    }
+
+    /// The names a call may name (for "did you mean"): the built-in functions, the helpers
+    /// and the primitives.
+    fn visible_functions(&self) -> impl Iterator<Item = &str> {
+        let items = self.g.sigs.iter().filter_map(|s| {
+            matches!(s.item.kind, ast::ItemKind::Function | ast::ItemKind::Primitive)
+                .then_some(s.item.name.name.as_str())
+        });
+        BUILTIN_NAMES.iter().copied().filter(|&n| n != "PI").chain(items)
+    }
+
     fn new_site(&mut self, span: Span) -> SiteId {
         self.sites.push(span);
         SiteId((self.sites.len() - 1) as u32)

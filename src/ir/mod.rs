@@ -373,6 +373,25 @@ impl Program {
             .position(|f| f.name == name)
             .map(|i| FuncId(i as u32))
     }
+
+    /// The interpolation kinds the functions' `interpolation` arms name (`linear:`,
+    /// `implicit:`...), sorted, each once.
+    pub fn arm_kinds(&self) -> Vec<String> {
+        let mut kinds = std::collections::BTreeSet::new();
+        for f in &self.functions {
+            for block in [&f.setup, &f.pixel] {
+                for_each_stmt(&f.stmts, block, &mut |_, s| {
+                    if let StmtKind::Interpolation { arms } = s {
+                        kinds.extend(arms.iter().filter_map(|a| match &a.kind {
+                            ArmKind::Named(k) => Some(k.clone()),
+                            ArmKind::Default => None,
+                        }));
+                    }
+                });
+            }
+        }
+        kinds.into_iter().collect()
+    }
 }
 
 /// An expression node of a function's arena ([`Function::exprs`]): its operands are the

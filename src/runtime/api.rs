@@ -78,7 +78,9 @@ pub enum Target {
     Name,
     /// The value components.
     Values,
-    /// The i-th `name=value` argument of `material_interp`.
+    /// The interpolation kind of `material_interp`.
+    Kind,
+    /// The i-th `name=value` argument of `material_interp` or of a shader line.
     Arg(usize),
 }
 
@@ -90,6 +92,8 @@ pub struct ApiIssue {
     pub code: &'static str,
     pub message: String,
     pub target: Target,
+    /// "did you mean `x`?" for an unknown name with a close known one.
+    pub help: Option<String>,
 }
 
 impl ApiIssue {
@@ -99,6 +103,7 @@ impl ApiIssue {
             code,
             message: message.into(),
             target,
+            help: None,
         }
     }
     fn warning(code: &'static str, target: Target, message: impl Into<String>) -> ApiIssue {
@@ -107,7 +112,14 @@ impl ApiIssue {
             code,
             message: message.into(),
             target,
+            help: None,
         }
+    }
+    /// For an unknown `name`: the help [`crate::diag::did_you_mean`] gives among
+    /// `candidates`, the names known there.
+    fn suggest<'c>(mut self, name: &str, candidates: impl IntoIterator<Item = &'c str>) -> ApiIssue {
+        self.help = crate::diag::did_you_mean(name, candidates);
+        self
     }
 }
 
@@ -259,6 +271,9 @@ pub struct Renderer {
     /// The instances' distinct (primitive, key) pairs, kept as instances are added.
     variants: Variants,
     warnings: Vec<ApiIssue>,
+    /// The kinds the program's `interpolation` arms name, found at the first
+    /// `material_interp` of a per-sequence-point kind (see `warn_unknown_kind`).
+    arm_kinds: Option<Vec<String>>,
 }
 
 /// The distinct (primitive, key) pairs of the submitted instances in first-use order, and
@@ -328,6 +343,7 @@ impl Renderer {
             instances: vec![],
             variants: Variants::default(),
             warnings: vec![],
+            arm_kinds: None,
         }
     }
 
@@ -625,23 +641,26 @@ impl Renderer {
             .iter()
             .find(|i| i.kind == kind && i.name.name == name)
         else {
+            let shaders = self.program.shading_items.iter().filter(|i| i.kind == kind);
             return Err(ApiIssue::error(
                 "E1002",
                 Target::Name,
                 format!("no {what} shader `{name}` (shaders are `{what} NAME(...)` items of the loaded .prim files)"),
-            ));
+            )
+            .suggest(name, shaders.map(|i| i.name.name.as_str())));
         };
         let mut shader = ShaderUse {
             name: name.to_string(),
             ..ShaderUse::default()
         };
-        for (arg, value) in args {
+        for (i, (arg, value)) in args.iter().enumerate() {
             let Some(param) = item.params.iter().find(|p| &p.name.name == arg) else {
                 return Err(ApiIssue::error(
                     "E0702",
-                    Target::Name,
+                    Target::Arg(i),
                     format!("{what} shader `{name}` has no parameter `{arg}`"),
-                ));
+                )
+                .suggest(arg, item.params.iter().map(|p| p.name.name.as_str())));
             };
             let text_param = param.ty.kind == crate::syntax::ast::TypeKind::String;
             match value {
@@ -752,7 +771,7 @@ impl Renderer {
         if !is_identifier(kind) {
             return Err(ApiIssue::error(
                 "E0707",
-                Target::Values,
+                Target::Kind,
                 format!("`{kind}` is not an interpolation kind (an identifier)"),
             ));
         }
@@ -761,7 +780,7 @@ impl Renderer {
         if func.is_some() && shared.is_none() {
             return Err(ApiIssue::error(
                 "E0707",
-                Target::Values,
+                Target::Kind,
                 format!("`{kind}` is a primitive, not an interpolation kind or shared interpolator"),
             ));
         }
@@ -773,11 +792,11 @@ impl Renderer {
                     format!("interpolation kind `{kind}` takes no arguments (`{arg}` given)"),
                 ));
             }
-            return Ok(if kind == "constant" {
-                Interp::Constant
-            } else {
-                Interp::Kind(kind.to_string())
-            });
+            if kind == "constant" {
+                return Ok(Interp::Constant);
+            }
+            self.warn_unknown_kind(kind);
+            return Ok(Interp::Kind(kind.to_string()));
         };
         let f = self.program.func(id);
         let mut words = vec![];
@@ -815,17 +834,49 @@ impl Renderer {
             words.extend(encoded);
         }
         if let Some(i) = used.iter().position(|u| !u) {
+            let settable = f
+                .params
+                .iter()
+                .filter(|p| !matches!(p.role, ParamRole::X | ParamRole::Y | ParamRole::Z));
             return Err(ApiIssue::error(
                 "E0707",
                 Target::Arg(i),
                 format!("interpolator `{kind}` has no parameter `{}`", args[i].0),
-            ));
+            )
+            .suggest(&args[i].0, settable.map(|p| p.name.as_str())));
         }
         debug_assert_eq!(words.len() as u32, interpolator_arg_words(&self.program, id));
         Ok(Interp::Shared {
             name: kind.to_string(),
             args: words,
         })
+    }
+
+    /// W0705 for a per-sequence-point `kind` no `interpolation` arm of the program names,
+    /// when a known kind is close to it: probably a typo, which no arm would handle. A kind
+    /// no arm names is otherwise allowed (a primitive written later may understand it), so
+    /// without a close one nothing is said.
+    fn warn_unknown_kind(&mut self, kind: &str) {
+        let program = &self.program;
+        let arm_kinds = self.arm_kinds.get_or_insert_with(|| program.arm_kinds());
+        if arm_kinds.iter().any(|k| k == kind) {
+            return;
+        }
+        let shared = program.functions.iter().filter(|f| f.kind == FuncKind::Interpolator);
+        let known = arm_kinds
+            .iter()
+            .map(String::as_str)
+            .chain(["constant"])
+            .chain(shared.map(|f| f.name.as_str()));
+        let issue = ApiIssue::warning(
+            "W0705",
+            Target::Kind,
+            format!("no `interpolation` arm of the loaded primitives names the kind `{kind}`"),
+        )
+        .suggest(kind, known);
+        if issue.help.is_some() {
+            self.warnings.push(issue);
+        }
     }
 
     // ---- primitives ----
@@ -850,11 +901,13 @@ impl Renderer {
             warned_no_vertex: false,
         });
         match func {
-            None => Err(ApiIssue::error(
-                "E0701",
-                Target::Name,
-                format!("unknown primitive `{prim}`"),
-            )),
+            None => {
+                let prims = self.program.functions.iter().filter(|f| f.kind == FuncKind::Primitive);
+                Err(
+                    ApiIssue::error("E0701", Target::Name, format!("unknown primitive `{prim}`"))
+                        .suggest(prim, prims.map(|f| f.name.as_str())),
+                )
+            }
             Some(_) if !is_prim => Err(ApiIssue::error(
                 "E0701",
                 Target::Name,
@@ -897,11 +950,17 @@ impl Renderer {
         };
         let f = program.func(id);
         let Some(index) = f.params.iter().position(|p| p.name == name) else {
+            // Only the parameters `rast_param` may set are suggested.
+            let settable = f
+                .params
+                .iter()
+                .filter(|p| matches!(p.role, ParamRole::PerPrimitive | ParamRole::PerSequencePoint));
             return Err(ApiIssue::error(
                 "E0702",
                 Target::Name,
                 format!("primitive `{}` has no parameter `{name}`", f.name),
-            ));
+            )
+            .suggest(name, settable.map(|p| p.name.as_str())));
         };
         let p = &f.params[index];
         let ty = &f.local(p.local).ty;

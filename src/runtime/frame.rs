@@ -410,6 +410,16 @@ impl Frame {
         self.params.iter().find(|p| p.name == name)
     }
 
+    /// The error for `name`, a shading parameter the frame does not have, with a "did you
+    /// mean" for a close one it has.
+    pub fn no_param_message(&self, name: &str) -> String {
+        let message = format!("the scene has no shading parameter `{name}`");
+        match crate::diag::did_you_mean(name, self.params.iter().map(|p| p.name.as_str())) {
+            Some(help) => format!("{message}: {help}"),
+            None => message,
+        }
+    }
+
     /// A shading parameter's components at a pixel.
     pub fn param_at(&self, name: &str, x: u32, y: u32) -> Option<Vec<f32>> {
         let p = self.param(name)?;
@@ -627,9 +637,7 @@ impl Frame {
     /// A shading parameter as an image: 1 component as gray normalised to its range over the
     /// written pixels (unwritten pixels black), 3 components as RGB clamped to [0, 1].
     pub fn param_image(&self, name: &str) -> Result<RgbImage, String> {
-        let p = self
-            .param(name)
-            .ok_or_else(|| format!("the scene has no shading parameter `{name}`"))?;
+        let p = self.param(name).ok_or_else(|| self.no_param_message(name))?;
         if p.components != 1 && p.components != 3 {
             return Err(format!(
                 "shading parameter `{name}` has {} components; only 1 (gray) or 3 (RGB) can be written as an image",

@@ -46,8 +46,12 @@ impl Registry {
 
     /// Load the sources without compiling: all loaded files in order, and the ids of the
     /// single `files` (a file that is also in a library directory is loaded once, so
-    /// checking `prims/polygon.prim` does not define `polygon` twice). A missing built-in
-    /// directory is not an error (a binary installed without it simply has no library).
+    /// checking `prims/polygon.prim` does not define `polygon` twice). A directory is loaded
+    /// once however often and however spelled it is given (`prims`, `./prims/`, an absolute
+    /// path, a symbolic link: compared canonicalised), so `--prims DIR` and a scene's own
+    /// `prims DIR` line for the same directory do not define its items twice. A missing
+    /// built-in directory is not an error (a binary installed without it simply has no
+    /// library).
     pub fn load_sources(
         sources: &mut SourceMap,
         dirs: &[PathBuf],
@@ -56,11 +60,16 @@ impl Registry {
     ) -> (Vec<FileId>, Vec<FileId>) {
         let mut loaded = vec![];
         let builtin = Registry::builtin_dir();
-        if builtin.is_dir() {
-            load_dir(sources, &builtin, &mut loaded, diags);
-        }
-        for dir in dirs {
-            load_dir(sources, dir, &mut loaded, diags);
+        let builtin = builtin.is_dir().then_some(builtin);
+        // A directory that cannot be canonicalised (a missing one) is kept as written, for
+        // `load_dir` to report.
+        let mut seen: Vec<PathBuf> = vec![];
+        for dir in builtin.iter().chain(dirs) {
+            let canonical = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.clone());
+            if !seen.contains(&canonical) {
+                seen.push(canonical);
+                load_dir(sources, dir, &mut loaded, diags);
+            }
         }
         let mut given = vec![];
         for file in files {

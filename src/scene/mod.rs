@@ -462,12 +462,9 @@ fn parse_command(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), Diagnosti
             })
         }
         other => {
-            let mut d =
-                Diagnostic::error("E0601", format!("unknown command `{other}`")).primary(cmd.span, "unknown command");
-            if let Some(close) = COMMANDS.iter().find(|c| edit_distance(c, other) <= 2) {
-                d = d.help(format!("did you mean `{close}`?"));
-            }
-            return Err(d);
+            return Err(Diagnostic::error("E0601", format!("unknown command `{other}`"))
+                .primary(cmd.span, "unknown command")
+                .suggest(other, COMMANDS.iter().copied()));
         }
     };
     Ok((kind, vec![]))
@@ -484,7 +481,8 @@ fn word_arg<'t>(tokens: &'t [Token], allowed: &[&str]) -> Result<&'t str, Diagno
     } else {
         Err(
             Diagnostic::error("E0604", format!("`{word}` is not one of {}", allowed.join(", ")))
-                .primary(tokens[1].span, "unknown choice"),
+                .primary(tokens[1].span, "unknown choice")
+                .suggest(word, allowed.iter().copied()),
         )
     }
 }
@@ -630,23 +628,6 @@ fn named_args(tokens: &[Token]) -> Result<(Vec<(String, Value)>, Vec<Span>), Dia
     Ok((args, spans))
 }
 
-/// The Levenshtein distance between `a` and `b`, in characters: how the reader finds the
-/// command an unknown word was probably meant to be.
-pub fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut prev = row[0];
-        row[0] = i + 1;
-        for j in 0..b.len() {
-            let cur = row[j + 1];
-            row[j + 1] = (prev + usize::from(ca != b[j])).min(row[j] + 1).min(cur + 1);
-            prev = cur;
-        }
-    }
-    row[b.len()]
-}
-
 /// Make the scene's calls on `renderer`. API errors and warnings go to `diags` at the
 /// offending token.
 pub fn apply(scene: &Scene, renderer: &mut Renderer, diags: &mut Diagnostics) {
@@ -788,6 +769,7 @@ fn issue_diagnostic(issue: &ApiIssue, c: &Command) -> Diagnostic {
         Target::Call => "this call",
         Target::Name => "this name",
         Target::Values => "these values",
+        Target::Kind => "this kind",
         Target::Arg(_) => "this argument",
     };
     let span = match issue.target {
@@ -805,13 +787,18 @@ fn issue_diagnostic(issue: &ApiIssue, c: &Command) -> Diagnostic {
                 tokens[0].span
             }
         }
+        Target::Kind => tokens.get(2).map_or(tokens[0].span, |t| t.span),
         Target::Arg(i) => c.arg_spans.get(i).copied().unwrap_or(tokens[0].span),
     };
     let base = match issue.severity {
         crate::diag::Severity::Error => Diagnostic::error(issue.code, issue.message.clone()),
         crate::diag::Severity::Warning => Diagnostic::warning(issue.code, issue.message.clone()),
     };
-    base.primary(span, label)
+    let d = base.primary(span, label);
+    match &issue.help {
+        Some(help) => d.help(help.clone()),
+        None => d,
+    }
 }
 
 /// A scene file made ready to render, as `primflow render` and `primflow bench --scene` load

@@ -603,7 +603,7 @@ pub fn check_frame(check: &Check, frame: &Frame, options: &TestOptions) -> Resul
         } => {
             pixel_in(frame, *x, *y)?;
             let Some(got) = frame.param_at(name, *x, *y) else {
-                return Err(format!("the scene has no shading parameter `{name}`"));
+                return Err(frame.no_param_message(name));
             };
             if got.len() != values.len() {
                 return Err(format!(

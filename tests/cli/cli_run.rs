@@ -238,3 +238,90 @@ fn a_scene_past_the_size_limit_is_refused_before_it_is_read() {
     assert!(err.contains("E0606") && err.contains("huge.scene"), "{err}");
     assert!(!out.exists(), "nothing rendered");
 }
+
+/// The numbers of a `check` summary line, in order: files, primitives, interpolators,
+/// helpers, shaders.
+fn summary_counts(err: &str) -> Vec<usize> {
+    let line = err.lines().last().unwrap_or_default();
+    assert!(line.starts_with("ok: ") && line.contains(" checked ("), "{err}");
+    line.split(|c: char| !c.is_ascii_digit())
+        .filter_map(|w| w.parse().ok())
+        .take(5)
+        .collect()
+}
+
+#[test]
+fn check_prints_a_summary_of_what_it_checked() {
+    let library_file = concat!(env!("CARGO_MANIFEST_DIR"), "/prims/screen_triangle.prim");
+    let (code, out, err) = cli(&["check", library_file]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.is_empty(), "the summary goes to stderr: {out}");
+    assert!(err.ends_with(" checked (no warnings)\n"), "{err}");
+    let library = summary_counts(&err);
+    // One more file: one primitive, two helpers, and a warning (W0001, Z not inout).
+    let prim = temp_file(
+        "summary.prim",
+        "float h1(float x) { return x; }\nfloat h2(float x) { return x; }\n\
+         primitive summed(varying float X, Y; varying float Z) { Z = h1(h2(0.5)); }\n",
+    );
+    let (code, _, err) = cli(&["check", prim.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.contains("W0001") && err.ends_with(" checked (1 warning)\n"),
+        "{err}"
+    );
+    let with_file = summary_counts(&err);
+    let added: Vec<usize> = with_file.iter().zip(&library).map(|(a, b)| a - b).collect();
+    assert_eq!(
+        added,
+        [1, 1, 0, 2, 0],
+        "files, primitives, interpolators, helpers, shaders: {err}"
+    );
+}
+
+/// A directory of primitives named twice, spelled differently (with `./`, `..`, a trailing
+/// slash; by `--prims` and by a scene's `prims` line), is loaded once.
+#[test]
+fn one_directory_given_twice_is_loaded_once() {
+    let dir = std::env::temp_dir().join(format!("primflow-cli-twice-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let prim = dir.join("twice.prim");
+    std::fs::write(
+        &prim,
+        "primitive twice_fill(varying float X, Y; inout varying float Z) { Z = 0.5; }\n",
+    )
+    .unwrap();
+    let name = dir.file_name().unwrap().to_str().unwrap();
+    let spellings = [
+        dir.display().to_string(),
+        format!("{}/./", dir.display()),
+        format!("{}/../{name}", dir.display()),
+    ];
+    let (code, _, err) = cli(&[
+        "check",
+        "--prims",
+        &spellings[0],
+        "--prims",
+        &spellings[1],
+        "--prims",
+        &spellings[2],
+        prim.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("defined twice"), "{err}");
+
+    let scene = dir.join("twice.scene");
+    std::fs::write(&scene, "image 8 8\nprims .\nbegin twice_fill\nend\n").unwrap();
+    let png = dir.join("twice.png");
+    let (code, out, err) = cli(&[
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "--prims",
+        &spellings[1],
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("defined twice"), "{err}");
+    assert!(out.starts_with("rendered 8x8: 1 primitive(s)"), "{out}");
+}

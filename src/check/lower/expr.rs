@@ -200,12 +200,9 @@ impl<'g, 'a> FnLower<'g, 'a> {
                 "used as a value",
             ));
         } else {
-            self.sink.push(err(
-                "E0101",
-                format!("unknown variable `{}`", id.name),
-                span,
-                "not declared",
-            ));
+            let d = err("E0101", format!("unknown variable `{}`", id.name), span, "not declared")
+                .suggest(&id.name, self.visible_values());
+            self.sink.push(d);
         }
         None
     }
@@ -649,12 +646,14 @@ impl<'g, 'a> FnLower<'g, 'a> {
         match super::super::builtins::lower(&callee.name, vals, span) {
             Ok(Some(e)) if !internal => Some(e),
             Ok(_) => {
-                self.sink.push(err(
+                let d = err(
                     "E0102",
                     format!("unknown function `{}`", callee.name),
                     callee.span,
                     "not defined",
-                ));
+                )
+                .suggest(&callee.name, self.visible_functions());
+                self.sink.push(d);
                 None
             }
             Err((sp, msg, label)) => {

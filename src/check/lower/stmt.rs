@@ -220,12 +220,14 @@ impl<'g, 'a> FnLower<'g, 'a> {
         match &e.kind {
             ast::ExprKind::Name(id) => {
                 let Some(local) = self.lookup(&id.name) else {
-                    self.sink.push(err(
+                    let d = err(
                         "E0101",
                         format!("unknown variable `{}`", id.name),
                         id.span,
                         "not declared",
-                    ));
+                    )
+                    .suggest(&id.name, self.visible_values());
+                    self.sink.push(d);
                     return None;
                 };
                 if self.infos[local.0 as usize].read_only {
