@@ -3,7 +3,11 @@
 //! (dEQP, piglit, the D3D11 functional spec's rasterization rules, pbrt-v4):
 //!
 //! - [`shared_edges`]: shared edges at every size, including triangles far over the
-//!   1,024 px exact integer path (the two-limb path, up to 2^24 px);
+//!   1,024 px exact integer path (the two-limb path, up to 2^24 px), and shared edges
+//!   clipped by the runtime;
+//! - [`huge_coordinates`]: far vertices through the clipper alone;
+//! - [`w_crossings`]: w at, near and below 0 (vertices on and behind the eye plane), in the
+//!   clipper;
 //! - [`near_and_eye_plane`]: spheres crossing the eye plane.
 //!
 //! The rule: every test asserts a real outcome against an exact or f64 reference (coverage,
@@ -16,9 +20,12 @@ use support::*;
 use std::sync::Arc;
 
 use primflow::ir::Program;
+use primflow::pipeline::clip::{ClipPolygon, DEFAULT_W_EPSILON};
 
+mod huge_coordinates;
 mod near_and_eye_plane;
 mod shared_edges;
+mod w_crossings;
 
 /// Exact coverage of a triangle by pixel centres on the 1/16 grid with the top-left rule, in
 /// i64, snapping as the prim does (nearest, ties to even). The D3D11 functional spec's
@@ -75,4 +82,54 @@ pub(super) fn twice_and_holes(counts: &[u32]) -> (usize, usize) {
         counts.iter().filter(|&&c| c > 1).count(),
         counts.iter().filter(|&&c| c == 0).count(),
     )
+}
+
+/// Every vertex of a clipped piece is finite, has w at or above the clipper's floor, and
+/// projects into the view volume within `tol`.
+pub(super) fn assert_inside_and_finite<T: primflow::pipeline::real::Real>(piece: &ClipPolygon<T>, tol: f64) {
+    for p in piece.positions() {
+        let [x, y, z, w] = p.map(|c| c.to_f64());
+        assert!(p.iter().all(|c| c.is_finite()), "non-finite vertex {p:?}");
+        assert!(w >= DEFAULT_W_EPSILON, "w {w} below the floor");
+        let (x, y, z) = (x / w, y / w, z / w);
+        assert!(x.is_finite() && y.is_finite() && z.is_finite());
+        assert!(
+            x.abs() <= 1.0 + tol && y.abs() <= 1.0 + tol && (-tol..=1.0 + tol).contains(&z),
+            "outside: {p:?}"
+        );
+    }
+}
+
+/// Sutherland-Hodgman in 2D against the square [-1, 1]^2, f64: the reference for projected
+/// polygons whose vertices all have w > 0.
+pub(super) fn clip_square_2d(mut poly: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
+    let planes: [fn([f64; 2]) -> f64; 4] = [|p| 1.0 - p[0], |p| 1.0 + p[0], |p| 1.0 - p[1], |p| 1.0 + p[1]];
+    for d in planes {
+        let mut out = vec![];
+        for i in 0..poly.len() {
+            let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+            let (da, db) = (d(a), d(b));
+            if da >= 0.0 {
+                out.push(a);
+            }
+            if (da >= 0.0) != (db >= 0.0) {
+                let t = da / (da - db);
+                out.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+            }
+        }
+        poly = out;
+        if poly.is_empty() {
+            break;
+        }
+    }
+    poly
+}
+
+/// Signed area of a 2D polygon (shoelace).
+pub(super) fn area_2d(poly: &[[f64; 2]]) -> f64 {
+    let n = poly.len();
+    (0..n)
+        .map(|i| poly[i][0] * poly[(i + 1) % n][1] - poly[(i + 1) % n][0] * poly[i][1])
+        .sum::<f64>()
+        * 0.5
 }

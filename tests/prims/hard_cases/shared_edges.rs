@@ -1,9 +1,12 @@
 //! Shared edges at every size: triangle fans and pairs whose far vertices are 1e3 to 1e7 px
 //! away (over the 1,024 px exact path, through the two-limb path), against the exact i64
-//! rasterizer.
+//! rasterizer, and shared edges clipped by the runtime's homogeneous clipper.
 
 use super::{exact_coverage, twice_and_holes, write_counts};
 use crate::support::*;
+
+use glam::DVec4;
+use primflow::pipeline::clip::{clip_polygon_to_view, ClipOptions, ClipPolygon, PyramidMode};
 
 /// A fan of `n` triangles around `centre` whose outer vertices lie at `radius` px, at
 /// irregular angles (some triangles narrow, some wider than 90 degrees), so its triangles
@@ -115,4 +118,82 @@ fn random_pairs_far_away_share_their_edge_exactly() {
         }
     }
     assert!(failed.is_empty(), "pairs (case, differing pixels): {failed:?}");
+}
+
+/// Random triangle pairs sharing an edge, with vertices beyond the view and behind the eye,
+/// clipped by the homogeneous clipper from either side: every new vertex made on the shared
+/// edge is bit-identical in both neighbours. Source: the D3D11 rasterization rules' promise
+/// that a shared edge covers each pixel once, which after clipping holds only if both sides
+/// clip the edge to the same vertices (docs/pipeline.md: "a shared edge clips to
+/// bit-identical vertices from either side"); tolerance 0 (bits).
+#[test]
+fn shared_edge_clips_to_bit_identical_vertices_from_both_sides() {
+    let mut rng = SplitMix(11);
+    let mut shared_new_vertices = 0;
+    for _ in 0..3000 {
+        let mut vert = || -> [f32; 4] {
+            let w = rng.range(0.1, 4.0);
+            [
+                rng.range(-3.0 * w, 3.0 * w) as f32,
+                rng.range(-3.0 * w, 3.0 * w) as f32,
+                rng.range(-w, 2.0 * w) as f32,
+                if rng.next().is_multiple_of(8) {
+                    -w as f32
+                } else {
+                    w as f32
+                },
+            ]
+        };
+        let (p, q, r, s) = (vert(), vert(), vert(), vert());
+        let attrs = |i: f32| [i, 2.0 * i + 1.0, -i];
+        let mut a = ClipPolygon::new(3);
+        a.push(p, &attrs(1.0)).unwrap();
+        a.push(q, &attrs(2.0)).unwrap();
+        a.push(r, &attrs(3.0)).unwrap();
+        // The neighbour runs the shared edge the other way: q -> p.
+        let mut b = ClipPolygon::new(3);
+        b.push(q, &attrs(2.0)).unwrap();
+        b.push(p, &attrs(1.0)).unwrap();
+        b.push(s, &attrs(4.0)).unwrap();
+        let opts = ClipOptions::default();
+        let out_a = clip_polygon_to_view(&a, &[], PyramidMode::Single, opts).unwrap();
+        let out_b = clip_polygon_to_view(&b, &[], PyramidMode::Single, opts).unwrap();
+        let verts = |out: &[ClipPolygon<f32>]| -> Vec<Vec<u32>> {
+            out.iter()
+                .flat_map(|poly| (0..poly.len()).map(move |i| poly.vertex(i).iter().map(|c| c.to_bits()).collect()))
+                .collect()
+        };
+        let (va, vb) = (verts(&out_a), verts(&out_b));
+        // Every vertex of A on the segment pq (by f64 collinearity) appears bit for bit in B.
+        let (p64, q64) = (
+            DVec4::from_array(p.map(|c| c as f64)),
+            DVec4::from_array(q.map(|c| c as f64)),
+        );
+        let d = q64 - p64;
+        for v in &va {
+            let pos = DVec4::new(
+                f32::from_bits(v[0]) as f64,
+                f32::from_bits(v[1]) as f64,
+                f32::from_bits(v[2]) as f64,
+                f32::from_bits(v[3]) as f64,
+            );
+            let t = (pos - p64).dot(d) / d.dot(d);
+            let residual = (pos - (p64 + d * t)).length();
+            let on_edge = (-1e-6..=1.0 + 1e-6).contains(&t) && residual <= 1e-5 * (p64.length() + q64.length());
+            // Only vertices made by clipping the shared edge can be checked (originals p, q
+            // are trivially shared); an attribute value that is not 1 or 2 marks a new one.
+            let attr0 = f32::from_bits(v[4]);
+            if on_edge && attr0 != 1.0 && attr0 != 2.0 {
+                shared_new_vertices += 1;
+                assert!(
+                    vb.contains(v),
+                    "new vertex {pos} on the shared edge differs between neighbours"
+                );
+            }
+        }
+    }
+    assert!(
+        shared_new_vertices > 200,
+        "only {shared_new_vertices} shared-edge vertices exercised"
+    );
 }
