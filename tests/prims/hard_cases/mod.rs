@@ -8,7 +8,10 @@
 //! - [`huge_coordinates`]: far vertices through the clipper alone;
 //! - [`w_crossings`]: w at, near and below 0 (vertices on and behind the eye plane), in the
 //!   clipper;
-//! - [`near_and_eye_plane`]: spheres crossing the eye plane.
+//! - [`near_and_eye_plane`]: spheres cut by the hither plane, around, behind and crossing the eye
+//!   plane;
+//! - [`nurb_extremes`]: NURB weights and control points at the extremes;
+//! - [`cameras`]: far cameras and singular views, narrow fields of view.
 //!
 //! The rule: every test asserts a real outcome against an exact or f64 reference (coverage,
 //! write counts, depth, areas) and says in a comment what its source of truth is and what
@@ -22,8 +25,10 @@ use std::sync::Arc;
 use primflow::ir::Program;
 use primflow::pipeline::clip::{ClipPolygon, DEFAULT_W_EPSILON};
 
+mod cameras;
 mod huge_coordinates;
 mod near_and_eye_plane;
+mod nurb_extremes;
 mod shared_edges;
 mod w_crossings;
 

@@ -1,10 +1,63 @@
-//! Spheres crossing the eye plane (beside, around and across the view), against an f64
-//! ray-sphere reference (pbrt-v4).
+//! Spheres at the near (hither) plane and the eye plane: one a unit in front of the eye,
+//! one cut by the hither plane, spheres crossing the eye plane (beside, around and across
+//! the view), and spheres behind the eye, against f64 ray-sphere references (pbrt-v4).
 
+use crate::sphere::{assert_figures, check};
 use crate::support::*;
 
 use glam::{DMat4, DVec3, Mat4};
 use primflow::runtime::{transform, Frame, Value};
+
+/// Source (this test and the next): the f64 ray-sphere reference of tests/prims/sphere.rs
+/// (pbrt-v4 `Sphere::BasicIntersect`: both roots, the nearer one between the hither and
+/// yon planes); tolerance (`assert_figures`): coverage exact except within 0.5 px of the
+/// silhouette or the hither cut, depth within 1e-4 relative, normal components within 1e-4.
+#[test]
+fn huge_sphere_one_unit_in_front_of_the_eye() {
+    // Radius 1e4, centre 10001 away, slightly off axis: the surface is about one unit in
+    // front of the eye and fills the view. The near plane is at 0.5.
+    let m = transform::perspective(60.0, 0.5, 3e4, 64, 48);
+    let fig = check(m, 64, 48, [3.0, -2.0, -10001.0], 1e4);
+    assert_figures("huge near", &fig, 64 * 48);
+}
+
+#[test]
+fn sphere_cut_by_the_hither_plane_shows_its_far_side() {
+    // Centre 1.2 in front of the eye, radius 0.8: the near plane at 1 cuts it; through the
+    // cut the far side is visible (depth below 1, normals pointing away).
+    let m = transform::perspective(90.0, 1.0, 10.0, 64, 48);
+    let fig = check(m, 64, 48, [0.0, 0.0, -1.2], 0.8);
+    assert_figures("hither cut", &fig, 500);
+}
+
+/// Spheres wholly behind the eye, beyond the yon plane, or with a radius or centre that is
+/// not a sphere: nothing is drawn. Source: pbrt-v4's ray-sphere intersection (no root in the
+/// ray's range, no hit) and docs/primitives.md; tolerance 0 pixels.
+#[test]
+fn spheres_behind_the_eye_or_degenerate_draw_nothing() {
+    let program = library();
+    let mut r = renderer(&program, 32, 24, false);
+    r.perspective(60.0, 1.0, 10.0);
+    for (center, radius) in [
+        ([0.0, 0.0, 5.0], 1.0),            // behind the eye
+        ([0.0, 0.0, -5.0], 0.0),           // zero radius
+        ([0.0, 0.0, -5.0], -1.0),          // negative radius
+        ([f32::NAN, 0.0, -5.0], 1.0),      // not finite
+        ([0.0, 0.0, -5.0], f32::INFINITY), // not finite
+        ([0.0, 0.0, -50.0], 1.0),          // beyond the far plane
+    ] {
+        r.begin("sphere").unwrap();
+        r.rast_param("center", &Value(center.to_vec())).unwrap();
+        r.rast_param("radius", &Value(vec![radius])).unwrap();
+        r.end().unwrap();
+    }
+    let frame = render(&r, 1);
+    let covered = (0..24)
+        .flat_map(|y| (0..32).map(move |x| (x, y)))
+        .filter(|&(x, y)| frame.written(x, y))
+        .count();
+    assert_eq!(covered, 0);
+}
 
 /// The nearest visible point of the sphere on the device line through (x, y) (largest
 /// device depth in [0, 1], in front of the eye), in f64: pbrt-v4's sphere intersection
