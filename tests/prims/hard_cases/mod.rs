@@ -5,6 +5,8 @@
 //! - [`shared_edges`]: shared edges at every size, including triangles far over the
 //!   1,024 px exact integer path (the two-limb path, up to 2^24 px), and shared edges
 //!   clipped by the runtime;
+//! - [`slivers`]: triangles thinner than a pixel, 10 px to 1e5 px long, alone and in pairs
+//!   and stacks sharing their long edges;
 //! - [`huge_coordinates`]: far vertices through the clipper alone;
 //! - [`w_crossings`]: w at, near and below 0 (vertices on and behind the eye plane), in the
 //!   clipper;
@@ -30,6 +32,7 @@ mod huge_coordinates;
 mod near_and_eye_plane;
 mod nurb_extremes;
 mod shared_edges;
+mod slivers;
 mod w_crossings;
 
 /// Exact coverage of a triangle by pixel centres on the 1/16 grid with the top-left rule, in
