@@ -9,7 +9,7 @@
 //!   and stacks sharing their long edges;
 //! - [`huge_coordinates`]: far vertices through the clipper alone;
 //! - [`w_crossings`]: w at, near and below 0 (vertices on and behind the eye plane), in the
-//!   clipper;
+//!   clipper and rendered;
 //! - [`near_and_eye_plane`]: spheres cut by the hither plane, around, behind and crossing the eye
 //!   plane;
 //! - [`nurb_extremes`]: NURB weights and control points at the extremes;
@@ -24,8 +24,11 @@ use support::*;
 
 use std::sync::Arc;
 
+use glam::{DMat4, DVec3, DVec4};
 use primflow::ir::Program;
 use primflow::pipeline::clip::{ClipPolygon, DEFAULT_W_EPSILON};
+use primflow::pipeline::transform::{device_from_clip, perspective_matrix, Viewport};
+use primflow::runtime::{Frame, Renderer};
 
 mod cameras;
 mod huge_coordinates;
@@ -140,4 +143,137 @@ pub(super) fn area_2d(poly: &[[f64; 2]]) -> f64 {
         .map(|i| poly[i][0] * poly[(i + 1) % n][1] - poly[(i + 1) % n][0] * poly[i][1])
         .sum::<f64>()
         * 0.5
+}
+
+// ---- Coverage and depth against an f64 reference -----------------------------------------
+
+/// Within this many pixels of an edge of an f64 reference either answer is accepted: the
+/// kernel snaps vertices to 1/16 px, which moves an edge by at most sqrt(2)/32 = 0.044 px
+/// (the allowance of docs/primitives.md's hither-plane tests).
+pub(super) const SNAP_BAND: f64 = 0.05;
+
+/// A frame against an f64 reference.
+#[derive(Debug, Default)]
+pub(super) struct Comparison {
+    /// Pixels drawn.
+    pub covered: usize,
+    /// Pixels whose coverage differs from the reference's farther than [`SNAP_BAND`] from
+    /// its edges: (x, y, drawn).
+    pub wrong: Vec<(u32, u32, bool)>,
+    /// Pixels written more than once (the frame must count writes).
+    pub twice: usize,
+    /// Largest |depth - reference depth| over the pixels both cover.
+    pub depth_err: f64,
+}
+
+/// Compare every pixel of `frame` with `reference(x, y)`: the depth there and which surface
+/// it belongs to, `None` outside. A pixel within `SNAP_BAND` of a change of the reference's
+/// answer (an edge, or an occluding surface's edge) may be either.
+pub(super) fn compare(frame: &Frame, reference: impl Fn(f64, f64) -> Option<(f64, usize)>) -> Comparison {
+    let mut c = Comparison::default();
+    for py in 0..frame.height {
+        for px in 0..frame.width {
+            let (x, y) = (f64::from(px) + 0.5, f64::from(py) + 0.5);
+            let want = reference(x, y);
+            let got = frame.written(px, py);
+            c.covered += usize::from(got);
+            c.twice += usize::from(frame.write_count_at(px, py).unwrap_or(0) > 1);
+            let near_edge = || {
+                (0..16).any(|k| {
+                    let t = f64::from(k) / 16.0 * std::f64::consts::TAU;
+                    let ring = reference(x + SNAP_BAND * t.cos(), y + SNAP_BAND * t.sin());
+                    ring.map(|r| r.1) != want.map(|w| w.1)
+                })
+            };
+            if got != want.is_some() {
+                if !near_edge() {
+                    c.wrong.push((px, py, got));
+                }
+            } else if let Some((depth, _)) = want {
+                if !near_edge() {
+                    let got = f64::from(frame.depth_at(px, py).unwrap()) / 4294967296.0;
+                    c.depth_err = c.depth_err.max((got - depth).abs());
+                }
+            }
+        }
+    }
+    c
+}
+
+// ---- The eye-space camera ----------------------------------------------------------------
+
+/// The camera of the eye-space renders: 48 x 48 pixels, a 60 degree field of view, hither 1,
+/// yon 100, at the origin looking down -z (the renderer's `perspective` with no `look_at`).
+pub(super) const EYE_SIZE: u32 = 48;
+const EYE_FOV: f64 = 60.0;
+const EYE_NEAR: f64 = 1.0;
+const EYE_FAR: f64 = 100.0;
+
+/// A renderer (write counts on) with the eye-space camera.
+pub(super) fn eye_renderer(program: &Arc<Program>) -> Renderer {
+    let mut r = renderer(program, EYE_SIZE, EYE_SIZE, true);
+    r.perspective_checked(EYE_FOV, EYE_NEAR, EYE_FAR).unwrap();
+    r
+}
+
+/// The eye-space camera in f64, and the ray cast of pbrt-v4 through it.
+pub(super) struct EyeCamera {
+    device_from_eye: DMat4,
+    eye_from_device: DMat4,
+}
+
+impl EyeCamera {
+    pub(super) fn new() -> EyeCamera {
+        let size = f64::from(EYE_SIZE);
+        let viewport = Viewport {
+            x0: 0.0,
+            y0: 0.0,
+            width: size,
+            height: size,
+        };
+        let device_from_eye =
+            device_from_clip(viewport) * perspective_matrix(EYE_FOV.to_radians(), 1.0, EYE_NEAR, EYE_FAR).unwrap();
+        EyeCamera {
+            device_from_eye,
+            eye_from_device: device_from_eye.inverse(),
+        }
+    }
+
+    /// The device depth where the line of sight through device point (x, y) meets the
+    /// eye-space triangle `t` between the hither and yon planes (depth 1 and 0), in f64: the
+    /// ray from the eye through the pixel's point on the hither plane, the plane through `t`,
+    /// and the three edge tests in that plane (pbrt-v4's ray-triangle intersection, with
+    /// the edge functions taken about the triangle's normal). Nothing is divided by w <= 0
+    /// and no vertex is projected, so vertices behind the eye or 1e30 away are exact inputs.
+    pub(super) fn triangle_depth(&self, t: &[DVec3; 3], x: f64, y: f64) -> Option<f64> {
+        let h = self.eye_from_device * DVec4::new(x, y, 1.0, 1.0);
+        let dir = h.truncate() / h.w;
+        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        let s = n.dot(t[0]) / n.dot(dir);
+        if !(s > 0.0 && s.is_finite()) {
+            return None;
+        }
+        let p = dir * s;
+        let inside = (0..3).all(|i| {
+            let (a, b) = (t[i], t[(i + 1) % 3]);
+            (b - a).cross(p - a).dot(n) >= 0.0
+        });
+        let q = self.device_from_eye * p.extend(1.0);
+        let depth = q.z / q.w;
+        (inside && q.w > 0.0 && (0.0..=1.0).contains(&depth)).then_some(depth)
+    }
+}
+
+/// A triangle of `prim` (`triangle` or `polygon`) with its vertices given in object space.
+pub(super) fn submit_triangle(r: &mut Renderer, prim: &str, t: &[[f32; 3]; 3]) {
+    r.begin(prim).unwrap();
+    for p in t {
+        r.vertex(p[0], p[1], p[2], 1.0).unwrap();
+    }
+    r.end().unwrap();
+}
+
+/// The f32 vertices widened to f64.
+pub(super) fn widen(t: &[[f32; 3]; 3]) -> [DVec3; 3] {
+    t.map(|p| DVec3::new(p[0].into(), p[1].into(), p[2].into()))
 }
