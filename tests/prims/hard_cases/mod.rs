@@ -7,7 +7,9 @@
 //!   clipped by the runtime;
 //! - [`slivers`]: triangles thinner than a pixel, 10 px to 1e5 px long, alone and in pairs
 //!   and stacks sharing their long edges;
-//! - [`huge_coordinates`]: far vertices through the clipper alone;
+//! - [`huge_coordinates`]: far vertices through the clipper alone, and end to end through
+//!   the renderer with the runtime's clipping (1e6 to 1e15 px in device space, 1e6 to 1e12
+//!   units under a camera) and without it (screen triangles up to 2^24 px);
 //! - [`w_crossings`]: w at, near and below 0 (vertices on and behind the eye plane), in the
 //!   clipper and rendered;
 //! - [`near_and_eye_plane`]: spheres cut by the hither plane, around, behind and crossing the eye
@@ -198,6 +200,39 @@ pub(super) fn compare(frame: &Frame, reference: impl Fn(f64, f64) -> Option<(f64
         }
     }
     c
+}
+
+/// The nearest (largest depth) of several references' answers, tagged by their index.
+pub(super) fn nearest(answers: impl Iterator<Item = Option<f64>>) -> Option<(f64, usize)> {
+    answers
+        .enumerate()
+        .filter_map(|(i, a)| a.map(|d| (d, i)))
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+}
+
+/// The device depth of a screen-space triangle (x, y in pixels, z depth; f64) at (x, y), if
+/// the point is inside it (either winding): the plane through its vertices. Each edge
+/// function is taken from the edge's endpoint nearer the point, so a vertex 1e30 px away
+/// does not swamp the answer near the other one (barycentrics measured from the far vertex
+/// would lose every digit).
+pub(super) fn screen_triangle_depth(t: &[[f64; 3]; 3], x: f64, y: f64) -> Option<f64> {
+    let edge = |p: [f64; 3], q: [f64; 3]| {
+        let base = if (p[0] - x).abs() + (p[1] - y).abs() <= (q[0] - x).abs() + (q[1] - y).abs() {
+            p
+        } else {
+            q
+        };
+        (q[0] - p[0]) * (y - base[1]) - (q[1] - p[1]) * (x - base[0])
+    };
+    let area = (t[1][0] - t[0][0]) * (t[2][1] - t[0][1]) - (t[1][1] - t[0][1]) * (t[2][0] - t[0][0]);
+    // l[i]: the edge opposite vertex i over the doubled area.
+    let l = [
+        edge(t[1], t[2]) / area,
+        edge(t[2], t[0]) / area,
+        edge(t[0], t[1]) / area,
+    ];
+    (l.iter().all(|&v| v >= 0.0) && area != 0.0 && area.is_finite())
+        .then(|| l[0] * t[0][2] + l[1] * t[1][2] + l[2] * t[2][2])
 }
 
 // ---- The eye-space camera ----------------------------------------------------------------
