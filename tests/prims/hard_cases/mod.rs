@@ -15,7 +15,9 @@
 //! - [`near_and_eye_plane`]: spheres cut by the hither plane, around, behind and crossing the eye
 //!   plane;
 //! - [`nurb_extremes`]: NURB weights and control points at the extremes;
-//! - [`cameras`]: far cameras and singular views, narrow fields of view.
+//! - [`cameras`]: far cameras and singular views, narrow fields of view;
+//! - [`depth_precision`]: the smallest depth step the `fixed<32,32>` buffer resolves, and
+//!   depth against the f64 plane.
 //!
 //! The rule: every test asserts a real outcome against an exact or f64 reference (coverage,
 //! write counts, depth, areas) and says in a comment what its source of truth is and what
@@ -33,6 +35,7 @@ use primflow::pipeline::transform::{device_from_clip, perspective_matrix, Viewpo
 use primflow::runtime::{Frame, Renderer};
 
 mod cameras;
+mod depth_precision;
 mod huge_coordinates;
 mod near_and_eye_plane;
 mod nurb_extremes;
