@@ -12,8 +12,8 @@
 //!   units under a camera) and without it (screen triangles up to 2^24 px);
 //! - [`w_crossings`]: w at, near and below 0 (vertices on and behind the eye plane), in the
 //!   clipper and rendered;
-//! - [`near_and_eye_plane`]: spheres cut by the hither plane, around, behind and crossing the eye
-//!   plane;
+//! - [`near_and_eye_plane`]: spheres cut by or touching the hither plane, around, behind and
+//!   crossing the eye plane;
 //! - [`nurb_extremes`]: NURB weights and control points at the extremes;
 //! - [`cameras`]: far cameras and singular views, narrow fields of view;
 //! - [`depth_precision`]: the smallest depth step the `fixed<32,32>` buffer resolves, and

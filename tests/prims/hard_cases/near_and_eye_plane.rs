@@ -30,6 +30,29 @@ fn sphere_cut_by_the_hither_plane_shows_its_far_side() {
     assert_figures("hither cut", &fig, 500);
 }
 
+/// Spheres whose nearest point is 1e-2 to 1e-6 in front of or behind the hither plane, or
+/// exactly on it (a tangent cut), and spheres whose centre lies on the hither plane, one
+/// small (half of it cut away: its inside shows through the cut) and one holding the eye (a
+/// sky sphere). Source: the f64 ray-sphere reference of tests/prims/sphere.rs (pbrt-v4's
+/// two roots, the nearer one between the hither and yon planes: where the hither plane cuts
+/// the sphere the far side shows, docs/primitives.md); tolerance (`assert_figures`): coverage
+/// exact except within 0.5 px of the silhouette or the cut, depth within 1e-4 relative,
+/// normal components within 1e-4.
+#[test]
+fn spheres_touching_or_centred_on_the_hither_plane_match_the_analytic_answer() {
+    let near = 1.0f32;
+    let m = transform::perspective(60.0, near, 20.0, 64, 48);
+    for gap in [1e-2f32, 1e-4, 1e-6, 0.0, -1e-6, -1e-4, -1e-2] {
+        // Radius 1, nearest point `gap` beyond the hither plane (negative: cut).
+        let fig = check(m, 64, 48, [0.2, -0.1, -(near + 1.0 + gap)], 1.0);
+        assert_figures(&format!("hither gap {gap:e}"), &fig, 1000);
+    }
+    let fig = check(m, 64, 48, [0.1, 0.05, -near], 0.5);
+    assert_figures("centre on the hither plane", &fig, 500);
+    let fig = check(m, 64, 48, [0.1, 0.05, -near], 3.0);
+    assert_figures("eye inside, centre on the hither plane", &fig, 64 * 48);
+}
+
 /// Spheres wholly behind the eye, beyond the yon plane, or with a radius or centre that is
 /// not a sphere: nothing is drawn. Source: pbrt-v4's ray-sphere intersection (no root in the
 /// ray's range, no hit) and docs/primitives.md; tolerance 0 pixels.
