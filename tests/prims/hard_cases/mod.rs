@@ -22,6 +22,12 @@
 //! The rule: every test asserts a real outcome against an exact or f64 reference (coverage,
 //! write counts, depth, areas) and says in a comment what its source of truth is and what
 //! tolerance it allows, and why.
+//!
+//! Not asserted, because primflow fails them today: screen triangles past 2^24 px (the f32
+//! edge path is not watertight where edges meet, and a doubled area of 1e30 px^2 or more
+//! draws nothing), facets 1e20 px out or 1e14 units out under a camera (the clipper
+//! interpolates new vertices from the far endpoint), and write-once coverage of NURB patches
+//! tessellated at the 128-step cap.
 
 use crate::support;
 use support::*;
