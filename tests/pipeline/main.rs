@@ -6,7 +6,6 @@
 mod clip;
 mod face;
 mod factor;
-mod far_camera;
 mod geometry_explain;
 mod geometry_render;
 mod lighting;

@@ -1,7 +1,8 @@
 //! The NURB surface (prims/nurb_surface.prim): evaluation of the 9-point rational quadratic
 //! circle, a bicubic patch after tessellation against an f64 de Boor reference, two patches
 //! sharing a curved edge without gaps or double writes, the normals, and the rejection of
-//! bad weights and knots.
+//! bad weights and knots. Weights and coordinates at the extremes are in the hard-case suite,
+//! tests/prims/hard_cases/nurb_extremes.rs.
 
 use crate::support;
 use support::*;
@@ -93,7 +94,7 @@ fn rational_quadratic_circle_has_constant_radius() {
 }
 
 /// The 4 x 4 Bezier patch of the accuracy test, in device coordinates (identity camera).
-fn bicubic_net() -> Vec<[f64; 3]> {
+pub(crate) fn bicubic_net() -> Vec<[f64; 3]> {
     let mut net = vec![];
     for j in 0..4 {
         for i in 0..4 {
@@ -316,7 +317,7 @@ fn render_patch(weight5: f32, edit: impl Fn(&mut Renderer)) -> (Frame, Vec<Strin
     (out.frame, messages)
 }
 
-fn covered(frame: &Frame) -> usize {
+pub(crate) fn covered(frame: &Frame) -> usize {
     (0..frame.height)
         .flat_map(|y| (0..frame.width).map(move |x| (x, y)))
         .filter(|&(x, y)| frame.written(x, y))
@@ -373,58 +374,6 @@ fn bad_weights_and_knots_are_rejected_with_the_reason() {
     let text = out.diags.render(&sources);
     assert!(text.contains("rejected_weights_must_be_positive"), "{text}");
     assert!(text.contains("nurb_surface.prim:"), "{text}");
-}
-
-/// Render the bicubic patch with every weight `w`, control point 5 at `p5` (device space)
-/// and `tolerance`: its frame and diagnostic codes.
-fn render_net(w: f32, p5: Option<[f32; 3]>, tolerance: f32) -> (Frame, Vec<&'static str>) {
-    let program = library();
-    let mut r = renderer(&program, 64, 48, false);
-    r.begin("nurb_surface").unwrap();
-    r.rast_param("weight", &Value(vec![w])).unwrap();
-    r.rast_param("tolerance", &Value(vec![tolerance])).unwrap();
-    for (i, p) in bicubic_net().iter().enumerate() {
-        let p = match p5 {
-            Some(q) if i == 5 => q,
-            _ => p.map(|c| c as f32),
-        };
-        r.vertex(p[0], p[1], p[2], 1.0).unwrap();
-    }
-    r.end().unwrap();
-    let mut jit = Jit::new(program.clone()).unwrap();
-    let out = r.render(&mut jit);
-    (out.frame, out.diags.items.iter().map(|d| d.code).collect())
-}
-
-#[test]
-fn extreme_weights_draw_as_weights_of_one_and_bad_points_or_tolerances_are_rejected() {
-    let (reference, diags) = render_net(1.0, None, 0.5);
-    assert!(diags.is_empty(), "{diags:?}");
-    assert!(covered(&reference) > 1000);
-    // Weights are scaled so the largest is 1: the same surface, bit for bit.
-    for w in [1e-45f32, 1e-30, 3e38, f32::MAX] {
-        let (frame, diags) = render_net(w, None, 0.5);
-        assert!(diags.is_empty(), "weights {w}: {diags:?}");
-        assert!(frame.depth == reference.depth, "weights {w}: another surface");
-    }
-    // Rejected with W0801 naming the reason; nothing drawn.
-    for (what, p5, tolerance) in [
-        ("a control point at 1e30", Some([1e30, 10.0, 0.5]), 0.5),
-        ("a control point past 1e15", Some([20.0, -2e15, 0.5]), 0.5),
-        ("an infinite control point", Some([f32::INFINITY, 10.0, 0.5]), 0.5),
-        ("a NaN control point", Some([20.0, f32::NAN, 0.5]), 0.5),
-        ("tolerance 0", None, 0.0),
-        ("tolerance -1", None, -1.0),
-        ("tolerance NaN", None, f32::NAN),
-    ] {
-        let (frame, diags) = render_net(1.0, p5, tolerance);
-        assert_eq!(covered(&frame), 0, "{what}: something was drawn");
-        assert!(diags.contains(&"W0801"), "{what}: {diags:?}");
-    }
-    // Weights past the float range are not finite: rejected.
-    let (frame, diags) = render_net(f32::INFINITY, None, 0.5);
-    assert_eq!(covered(&frame), 0);
-    assert!(diags.contains(&"W0801"), "{diags:?}");
 }
 
 #[test]

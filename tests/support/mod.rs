@@ -190,6 +190,25 @@ pub fn barycentric(v: [[f64; 2]; 3], x: f64, y: f64) -> [f64; 3] {
 /// seed-less RNG).
 pub use primflow::workload::Lcg;
 
+/// splitmix64: the clipper tests' generator (64-bit integers for bit patterns, and floats),
+/// shared by the pipeline binary and the hard-case suite.
+pub struct SplitMix(pub u64);
+impl SplitMix {
+    pub fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    pub fn unit(&mut self) -> f64 {
+        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+}
+
 /// A value of `rng` on the 1/16 grid in [lo, hi).
 pub fn grid(rng: &mut Lcg, lo: f64, hi: f64) -> f64 {
     (rng.range(lo, hi) * 16.0).floor() / 16.0
