@@ -1,5 +1,5 @@
 //! Criterion benches of the JIT kernels against their hand-written twins on the same scenes
-//! (`cargo bench --bench kernels`): screen_triangle (scalar, SSE4.1 at the JIT's 4 lanes, AVX2)
+//! (`cargo bench -p primflow-kernel-bench`): screen_triangle (scalar, SSE4.1 at the JIT's 4 lanes, AVX2)
 //! on the fill and small workloads, and sphere, polygon (clipped at the hither plane) and NURB
 //! surface against the hand-written forms each has.
 //!
