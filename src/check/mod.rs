@@ -479,6 +479,64 @@ fn check_param_quals(item: &ast::Item, p: &ast::Param, role: ParamRole, ty: &Typ
     }
 }
 
+/// The geometry type primitive `item` declares (`Surface` when none), checked against its
+/// parameters: the runtime clips and splits a `facet` or `line` primitive's `point vertex[]`
+/// and carries only interpolation data along, so those are its only per-sequence-point
+/// parameters (E0509). An unknown name is E0508.
+fn declared_geometry(item: &ast::Item, f: &ir::Function, sink: &mut Sink) -> ir::Geometry {
+    let Some(name) = &item.geometry else {
+        return ir::Geometry::Surface;
+    };
+    let Some(&(_, geometry)) = ir::Geometry::NAMES.iter().find(|(n, _)| *n == name.name) else {
+        let mut d = Diagnostic::error("E0508", format!("unknown geometry type `{}`", name.name))
+            .primary(name.span, "not a geometry type");
+        d = match crate::diag::did_you_mean(&name.name, ir::Geometry::NAMES.iter().map(|(n, _)| *n)) {
+            Some(hint) => d.help(hint),
+            None => d.help("write `primitive facet NAME(...)`, `primitive line NAME(...)`, or no geometry type"),
+        };
+        sink.push(d);
+        return ir::Geometry::Surface;
+    };
+    let kind = geometry.name();
+    let vertex = f.params.iter().find(|p| p.name == "vertex");
+    let vertex_ok = vertex.is_some_and(|p| {
+        let ty = &f.local(p.local).ty;
+        p.space == ParamSpace::Point && ty.per_seq && ty.dims.len() == 1
+    });
+    if !vertex_ok {
+        let at = vertex.map_or(item.name.span, |p| p.span);
+        sink.push(
+            Diagnostic::error(
+                "E0509",
+                format!("a `{kind}` primitive takes its points in `point vertex[]`"),
+            )
+            .primary(
+                at,
+                if vertex.is_some() {
+                    "not `point vertex[]`"
+                } else {
+                    "no `vertex` parameter"
+                },
+            )
+            .help("the runtime clips and splits the points of `vertex[]`, one per sequence point"),
+        );
+        return geometry;
+    }
+    for p in &f.params {
+        if p.name != "vertex" && f.local(p.local).ty.per_seq && p.role != ParamRole::InterpData {
+            sink.push(
+                Diagnostic::error(
+                    "E0509",
+                    format!("per-sequence-point parameter `{}` in a `{kind}` primitive", p.name),
+                )
+                .primary(p.span, "neither `vertex` nor interpolation data")
+                .help("clipping makes new sequence points and carries only interpolation data to them"),
+            );
+        }
+    }
+    geometry
+}
+
 /// Report each cycle of helper calls once and mark its helpers as not inlinable.
 fn find_recursion<'a>(mut g: Globals<'a>, sink: &mut Sink) -> Globals<'a> {
     let n = g.sigs.len();
@@ -809,6 +867,7 @@ fn lower_function(
     let mut f = ir::Function {
         name: sig.item.name.name.clone(),
         kind,
+        geometry: ir::Geometry::Surface,
         span: sig.item.name.span,
         params,
         locals,
@@ -819,6 +878,7 @@ fn lower_function(
         exprs: body.exprs,
         uses_spaces,
     };
+    f.geometry = declared_geometry(sig.item, &f, sink);
     let errors_before = sink.error_count();
     variability::analyze(&mut f, &infos, roles, sink);
     check_local_bytes(&f, sink);

@@ -283,10 +283,40 @@ pub enum FuncKind {
     Interpolator,
 }
 
+/// What a primitive's sequence points are, as it declares after `primitive` (docs/language.md
+/// section 2): it decides what the runtime's geometry stage does with them before the kernel
+/// runs (docs/pipeline.md, "Geometry types"). Interpolators are `Surface`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Geometry {
+    /// Nothing declared: points are transformed and passed as given; the primitive decides
+    /// coverage alone (sphere, NURB surface, a user's own shapes).
+    Surface,
+    /// `primitive facet`: `point vertex[]` holds a planar polygon's corners: clip codes,
+    /// clipping, face culling and a fan of instances.
+    Facet,
+    /// `primitive line`: `point vertex[]` holds a polyline: each segment clipped alone and
+    /// drawn as one instance with its neighbours (docs/pipeline.md, "Lines").
+    Line,
+}
+
+impl Geometry {
+    /// The declaration's names, as written after `primitive`.
+    pub const NAMES: [(&'static str, Geometry); 2] = [("facet", Geometry::Facet), ("line", Geometry::Line)];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Geometry::Surface => "surface",
+            Geometry::Facet => "facet",
+            Geometry::Line => "line",
+        }
+    }
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Function {
     pub name: String,
     pub kind: FuncKind,
+    pub geometry: Geometry,
     /// The function's name where it is declared (what a diagnostic about the whole
     /// function underlines).
     pub span: Span,

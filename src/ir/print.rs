@@ -9,8 +9,8 @@
 use std::fmt::{self, Write};
 
 use super::{
-    ArmKind, BinOp, Builtin, ConstValue, Elem, ExprId, ExprKind, FuncKind, Function, LocalKind, Program, Scalar, Space,
-    StmtId, StmtKind, Type, UnaryOp, Variability,
+    ArmKind, BinOp, Builtin, ConstValue, Elem, ExprId, ExprKind, FuncKind, Function, Geometry, LocalKind, Program,
+    Scalar, Space, StmtId, StmtKind, Type, UnaryOp, Variability,
 };
 
 impl fmt::Display for Program {
@@ -31,7 +31,11 @@ impl fmt::Display for Function {
             FuncKind::Primitive => "primitive",
             FuncKind::Interpolator => "interpolator",
         };
-        write!(f, "{kind} {}", self.name)?;
+        write!(f, "{kind} ")?;
+        if self.geometry != Geometry::Surface {
+            write!(f, "{} ", self.geometry.name())?;
+        }
+        write!(f, "{}", self.name)?;
         if self.uses_spaces {
             write!(f, " (uses spaces)")?;
         }

@@ -27,7 +27,7 @@
 //! | well-behaved: M affine and invertible, V canonical, single pyramid, finite data | [`choose_pipeline`] | CC / LC pipelines, lighting in MC or LC (correct) |
 //! | w <= 0 model data (9.2) | [`transform::sanitize_model_w`] | negative w: whole point negated (same projective point); w = 0: small positive w (expedient, [`Warning::NonPositiveModelW`]) |
 //! | projective M (9.3) | [`transform::classify_model`] | full 4x4 transform, w assumed positive; normals per point by [`transform::transform_normal_projective`]; lighting in WC (expedient for facets, [`Warning::ProjectiveModel`]) |
-//! | singular M (9.4) | [`transform::NormalMatrix::of`] | normals by the cofactor matrix, zero ones replaced by +z; the facet pipelines light ambient-only as 9.4 suggests ([`Warning::SingularModel`], [`Warning::DegenerateNormal`]) |
+//! | singular M (9.4) | [`transform::NormalMatrix::of`] | the `N` shading parameter given under it is zeroed, which shading lights ambient-only as 9.4 suggests; `normal` parameters by the cofactor matrix, zero ones replaced by +z ([`Warning::SingularModel`], [`Warning::DegenerateNormal`]) |
 //! | non-factorizable V (9.5) | [`factor::factor_view`] `Err` | E = I, GQ = V: LC pipelines run in WC (correct, [`Warning::NonFactorizableView`]) |
 //! | singular V (9.1) | [`factor::NotFactorizable::Singular`] | no model clipping, no LC (expedient, [`Warning::SingularView`]) |
 //! | double pyramid (9.6) | [`transform::normalise_pyramid`] | 7-bit codes with the W sign bit, two-piece clipping ([`clip::PyramidMode::Double`], correct, [`Warning::DoublePyramidView`]) |
@@ -80,7 +80,7 @@ impl fmt::Display for Warning {
         match self {
             Warning::SingularModel => write!(
                 f,
-                "model transform is singular: normals use its cofactor matrix and facets are lit with ambient light only"
+                "model transform is singular: `N` values given under it are zeroed, so the pixels they shade get ambient light only; `normal` parameters use its cofactor matrix"
             ),
             Warning::DegenerateNormal => {
                 write!(f, "a normal transformed to the zero vector and was replaced by (0, 0, 1)")
@@ -104,7 +104,10 @@ impl fmt::Display for Warning {
                 f,
                 "view volume wraps around infinity (double pyramid): 7-bit clip codes and two-piece clipping"
             ),
-            Warning::NonFiniteVertex => write!(f, "a vertex has a NaN or infinite coordinate; its primitive is dropped"),
+            Warning::NonFiniteVertex => write!(
+                f,
+                "a vertex has a NaN or infinite coordinate; its primitive is dropped (a line only its segments at that vertex)"
+            ),
         }
     }
 }
@@ -239,8 +242,6 @@ impl PipelineState {
 pub struct PipelineChoice {
     pub kind: PipelineKind,
     pub lighting: LightingSpace,
-    /// Only ambient light (singular M, seed 000 9.4).
-    pub ambient_only: bool,
     pub pyramid: PyramidMode,
     pub do_view_clipping: bool,
     /// False when requested but impossible (singular V, 9.1).
@@ -258,9 +259,6 @@ impl fmt::Display for PipelineChoice {
             LightingSpace::World => "lit in world coordinates",
         };
         write!(f, ", {lighting}")?;
-        if self.ambient_only {
-            write!(f, " (ambient only)")?;
-        }
         let pyramid = match self.pyramid {
             PyramidMode::Single => "single-pyramid",
             PyramidMode::Double => "double-pyramid",
@@ -317,7 +315,6 @@ pub fn choose_pipeline(state: &PipelineState) -> PipelineChoice {
             (wc, LightingSpace::World)
         }
     };
-    let mut ambient_only = false;
     let (kind, lighting) = match state.geometry {
         GeometryType::Point => (PipelineKind::CcPoint, LightingSpace::None),
         GeometryType::PointWithExtent => (PipelineKind::CcPointWithExtent, LightingSpace::None),
@@ -334,7 +331,6 @@ pub fn choose_pipeline(state: &PipelineState) -> PipelineChoice {
             }
             ModelClass::Singular => {
                 note_model(&mut warnings);
-                ambient_only = true;
                 (PipelineKind::CcFacet, LightingSpace::Model)
             }
             _ => {
@@ -344,7 +340,6 @@ pub fn choose_pipeline(state: &PipelineState) -> PipelineChoice {
         },
         GeometryType::Surface => {
             note_model(&mut warnings);
-            ambient_only = state.lit && state.model == ModelClass::Singular;
             let (k, space) = lc_or_wc(PipelineKind::LcSurface, PipelineKind::WcSurface, &mut warnings);
             (k, if state.lit { space } else { LightingSpace::None })
         }
@@ -352,7 +347,6 @@ pub fn choose_pipeline(state: &PipelineState) -> PipelineChoice {
     PipelineChoice {
         kind,
         lighting,
-        ambient_only,
         pyramid: state.pyramid,
         do_view_clipping: state.do_view_clipping,
         do_model_clipping,

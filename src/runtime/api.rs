@@ -33,7 +33,7 @@ use glam::{DMat4, DVec3, DVec4, Mat4};
 
 use crate::abi::{interpolator_arg_words, ArgLayout, Binding, BindingKind, ParamSlot, VariantKey};
 use crate::diag::Severity;
-use crate::ir::{FuncId, FuncKind, Function, ParamRole, Program};
+use crate::ir::{FuncId, FuncKind, Function, Geometry, ParamRole, Program};
 
 use super::geometry::{self, ClipOutcome, GeometryState};
 use super::shading::language::{LanguageShading, ShaderArg, ShaderUse, ShadingCache, SURFACE_PARAM};
@@ -591,7 +591,7 @@ impl Renderer {
             .iter()
             .map(|((prim, choice, outcome), n)| {
                 let outcome = match outcome {
-                    ClipOutcome::NotClipped => "transformed, not a facet: clipping left to its kernel",
+                    ClipOutcome::NotClipped => "transformed, no geometry type: clipping left to its kernel",
                     ClipOutcome::TriviallyRejected => "trivially rejected (no kernel run)",
                     ClipOutcome::TriviallyAccepted => "trivially accepted",
                     ClipOutcome::Clipped => "clipped by the runtime",
@@ -695,7 +695,14 @@ impl Renderer {
         if name == NORMAL_PARAM && value.len() == 3 {
             let mut warnings = vec![];
             let normals = self.geometry.lighting_normal_matrix();
-            let n = geometry::normal_to_lighting(&normals, [value.0[0], value.0[1], value.0[2]], &mut warnings);
+            // Under a singular M the normal is zeroed, which shading lights with ambient
+            // light only (seed 000 9.4; `pipeline::lighting`).
+            let n = if normals.singular {
+                geometry::note(&mut warnings, Warning::SingularModel);
+                [0.0; 3]
+            } else {
+                geometry::normal_to_lighting(&normals, [value.0[0], value.0[1], value.0[2]], &mut warnings)
+            };
             let lit = Value(n.to_vec());
             self.record_warnings(&warnings);
             return self.material_raw(name, &lit);
@@ -1258,12 +1265,16 @@ impl Renderer {
             &lighting_from_object,
             &mut warnings,
         );
-        let vertex_index = facet_vertex(f, &layout).filter(|_| inst.n_seq >= 3);
-        let is_facet = vertex_index.is_some();
+        // The checker made sure a facet or line primitive has `point vertex[]`.
+        let vertex_index = match f.geometry {
+            Geometry::Facet if inst.n_seq >= 3 => f.params.iter().position(|p| p.name == "vertex"),
+            Geometry::Line => f.params.iter().position(|p| p.name == "vertex"),
+            _ => None,
+        };
         let lit = self.shading_setup.lit();
         let name = f.name.clone();
 
-        if !is_facet {
+        if vertex_index.is_none() {
             for (p, slot) in f.params.iter().zip(&layout.params) {
                 if p.space != ParamSpace::Point {
                     continue;
@@ -1287,7 +1298,7 @@ impl Renderer {
             return vec![inst];
         }
 
-        // Facet: positions and interpolation data per sequence point.
+        // Facet or line: positions and interpolation data per sequence point.
         let vi = vertex_index.unwrap_or(0);
         let vertex_spans = spans_of(&layout.params[vi]);
         let interp_slot = f
@@ -1314,6 +1325,14 @@ impl Renderer {
                     .unwrap_or_default()
             })
             .collect();
+        if f.geometry == Geometry::Line {
+            let result = self.geometry.clip_polyline(&positions, &device, &attrs, &mut warnings);
+            let choice = self
+                .geometry
+                .choose(GeometryType::Line, lit, matches!(result.outcome, ClipOutcome::Clipped));
+            self.record(&name, &choice, result.outcome, warnings);
+            return line_instances(&inst, &layout, vi, interp_slot, &result.segments);
+        }
         let result = self.geometry.clip_facet(&positions, &device, &attrs, &mut warnings);
         let choice = self
             .geometry
@@ -1468,19 +1487,63 @@ fn directions_to_lighting(
     }
 }
 
-/// The index of `f`'s `vertex` parameter when `f` is a facet: its only per-sequence-point
-/// parameters are `point vertex[]` and interpolation data, and it has no other point.
-fn facet_vertex(f: &Function, layout: &ArgLayout) -> Option<usize> {
-    let vi = f.params.iter().position(|p| p.name == "vertex")?;
-    let facet = f
-        .params
+/// One instance per segment of a clipped polyline (docs/pipeline.md, "Lines"): four
+/// sequence points, the point before the segment, its start and end, and the point after.
+/// A joint's neighbour is the far end of the adjacent segment *as clipped*, so the two
+/// segments at a joint are handed the same three points, bit for bit, and shape the joint
+/// alike; an end that is no joint (the polyline's, or one the clipper made) repeats itself.
+/// Interpolation data goes with the start (sequence points 0 and 1) and the end (2 and 3).
+fn line_instances(
+    inst: &Instance,
+    layout: &ArgLayout,
+    vertex: usize,
+    interp: Option<usize>,
+    segments: &[geometry::Segment],
+) -> Vec<Instance> {
+    let fixed = layout.fixed_words as usize;
+    segments
         .iter()
-        .zip(&layout.params)
         .enumerate()
-        .all(|(i, (p, slot))| match slot {
-            ParamSlot::Seq { words, .. } if i == vi => p.space == ParamSpace::Point && *words == 4,
-            ParamSlot::Seq { .. } => p.role == ParamRole::InterpData,
-            _ => p.space != ParamSpace::Point,
-        });
-    facet.then_some(vi)
+        .map(|(k, s)| {
+            // The adjacent segment when `end` of this one is a joint with it.
+            let joint = |other: usize, end: usize| -> Option<&geometry::Segment> {
+                let o = segments.get(other)?;
+                let adjacent = if end == 0 {
+                    o.index + 1 == s.index
+                } else {
+                    o.index == s.index + 1
+                };
+                (s.original[end] && o.original[1 - end] && adjacent).then_some(o)
+            };
+            let before = k
+                .checked_sub(1)
+                .and_then(|j| joint(j, 0))
+                .map_or(&s.ends[0], |o| &o.ends[0]);
+            let after = joint(k + 1, 1).map_or(&s.ends[1], |o| &o.ends[1]);
+            let points = [before, &s.ends[0], &s.ends[1], after];
+            let data = [&s.ends[0].1, &s.ends[0].1, &s.ends[1].1, &s.ends[1].1];
+            let mut args = vec![0u32; layout.words(4)];
+            args[..fixed].copy_from_slice(&inst.args[..fixed]);
+            args[0] = 4;
+            for i in 0..4 {
+                if let ParamSlot::Seq { seq_offset, words } = &layout.params[vertex] {
+                    let at = fixed + 4 * *seq_offset as usize + i * *words as usize;
+                    write_words(&mut args, at, &points[i].0.as_vec4().to_array().map(f32::to_bits));
+                }
+                if let Some(ParamSlot::Seq { seq_offset, words }) = interp.map(|k| &layout.params[k]) {
+                    let at = fixed + 4 * *seq_offset as usize + i * *words as usize;
+                    let words: Vec<u32> = data[i].iter().map(|x| x.to_bits()).collect();
+                    write_words(&mut args, at, &words);
+                }
+            }
+            let mut key = inst.key.clone();
+            key.trivial_accept = true;
+            Instance {
+                func: inst.func,
+                key,
+                n_seq: 4,
+                args,
+            }
+        })
+        .collect()
 }

@@ -5,9 +5,8 @@
 //! [`GeometryState::process`] turns the instance into zero or more instances ready for a
 //! kernel:
 //! 1. Model data with `w <= 0` is fixed as seed 000 9.2 says (with a warning).
-//! 2. Points go to clip space (`clip_from_object`, f64). A *facet* primitive — one whose
-//!    per-sequence-point parameters are exactly a `point vertex[]` and, optionally,
-//!    interpolation data (polygon, triangle) — gets branch-free clip codes per vertex,
+//! 2. Points go to clip space (`clip_from_object`, f64). A *facet* primitive (declared
+//!    `primitive facet`: polygon, triangle) gets branch-free clip codes per vertex,
 //!    ANDed and ORed (seed 002): all vertices outside one view plane or one model clip plane
 //!    = trivially rejected (no kernel runs); no vertex outside the guard band, the far
 //!    plane, `w > 0` or a model plane = no runtime clipping. Otherwise the runtime clips the
@@ -29,8 +28,12 @@
 //!    A facet with fewer than three sequence points, and any non-finite point of a
 //!    non-facet, is passed to its kernel as it is (the kernel draws nothing).
 //!
-//! Other primitives (sphere, NURB surface, user primitives) are not polygons, so the runtime
-//! cannot clip them: their points are transformed, their key keeps `clipping()` true, and
+//! A *line* primitive (`primitive line`) has each polyline segment clipped alone
+//! ([`GeometryState::clip_polyline`], Liang-Barsky) and becomes one instance per segment
+//! with its neighbours (docs/pipeline.md, "Lines"); lines are never culled.
+//!
+//! Primitives with no geometry type (sphere, NURB surface, user primitives) are not
+//! polygons, so the runtime cannot clip them: their points are transformed, their key keeps `clipping()` true, and
 //! a primitive whose points are all outside one plane is still sent to its kernel (points
 //! need not bound its surface).
 //!
@@ -353,6 +356,130 @@ impl GeometryState {
         result
     }
 
+    /// Clip-code and clip each segment of a polyline alone (seed 000 6.1): a segment with
+    /// both ends outside one view or model plane is dropped, one with both ends inside the
+    /// guard band, the near and far planes, every model plane and `w >= epsilon` is kept as
+    /// it is, and any other is clipped by Liang-Barsky in homogeneous clip space against
+    /// exactly the planes its ends' codes cross (the near plane included: a line primitive
+    /// has no clipping of its own). `positions` are clip space, `device` the same points by
+    /// `device_from_object`; attributes are interpolated linearly in clip space
+    /// (perspective-correct). In a double-pyramid view the segment is also clipped negated
+    /// (the same projective points with `w > 0`), giving up to two pieces.
+    pub fn clip_polyline(
+        &self,
+        positions: &[DVec4],
+        device: &[DVec4],
+        attrs: &[Vec<f32>],
+        warnings: &mut Vec<Warning>,
+    ) -> PolylineResult {
+        let (_, mode) = self.clip_from_world();
+        let mut result = PolylineResult {
+            outcome: ClipOutcome::TriviallyAccepted,
+            segments: vec![],
+        };
+        let planes = match self.clip_space_planes() {
+            Some(p) => p,
+            None => {
+                note(warnings, Warning::SingularView);
+                vec![]
+            }
+        };
+        let (gx, gy) = self.guard_scale();
+        let guard = |p: DVec4| DVec4::new(p.x / gx, p.y / gy, p.z, p.w);
+        let guard_planes: Vec<DVec4> = planes
+            .iter()
+            .map(|m| DVec4::new(m.x * gx, m.y * gy, m.z, m.w))
+            .collect();
+        let d = self.device_from_clip();
+        let (mut any_kept, mut any_clipped) = (false, false);
+        for index in 0..positions.len().saturating_sub(1) {
+            let (a, b) = (positions[index], positions[index + 1]);
+            if !a.is_finite() || !b.is_finite() {
+                note(warnings, Warning::NonFiniteVertex);
+                continue;
+            }
+            let mut view = ClipAccumulator::new();
+            view.add(clip_code_f64(a.to_array(), mode));
+            view.add(clip_code_f64(b.to_array(), mode));
+            let outside_model = |p: DVec4| planes.iter().map(|m| m.dot(p) < 0.0).collect::<Vec<_>>();
+            let (ma, mb) = (outside_model(a), outside_model(b));
+            if matches!(view.verdict(mode), ClipVerdict::Reject) || ma.iter().zip(&mb).any(|(x, y)| *x && *y) {
+                continue;
+            }
+            let signs: &[f64] = match mode {
+                PyramidMode::Single => &[1.0],
+                PyramidMode::Double => &[1.0, -1.0],
+            };
+            for &sign in signs {
+                let (ga, gb) = (guard(a) * sign, guard(b) * sign);
+                // Every half-space as an affine function of the guard-space point, kept
+                // where it is >= 0: w >= epsilon, the four guard-band planes, near, far,
+                // and the model planes.
+                // Every half-space kept, as `n . p + c >= 0` in guard space: w >= epsilon,
+                // the four guard-band planes, near (z <= w), far (z >= 0), the model planes.
+                let view = [
+                    (DVec4::W, -self.w_epsilon),
+                    (DVec4::new(-1.0, 0.0, 0.0, 1.0), 0.0),
+                    (DVec4::new(1.0, 0.0, 0.0, 1.0), 0.0),
+                    (DVec4::new(0.0, -1.0, 0.0, 1.0), 0.0),
+                    (DVec4::new(0.0, 1.0, 0.0, 1.0), 0.0),
+                    (DVec4::new(0.0, 0.0, -1.0, 1.0), 0.0),
+                    (DVec4::Z, 0.0),
+                ];
+                let half_spaces = view.into_iter().chain(guard_planes.iter().map(|&m| (m, 0.0)));
+                let (mut t0, mut t1) = (0.0f64, 1.0f64);
+                let mut rejected = false;
+                for (n, c) in half_spaces {
+                    let (d0, d1) = (n.dot(ga) + c, n.dot(gb) + c);
+                    if d0 < 0.0 && d1 < 0.0 {
+                        rejected = true;
+                        break;
+                    }
+                    if d0 < 0.0 {
+                        t0 = t0.max(d0 / (d0 - d1));
+                    } else if d1 < 0.0 {
+                        t1 = t1.min(d0 / (d0 - d1));
+                    }
+                }
+                if rejected || !(t0 < t1) {
+                    continue;
+                }
+                let end = |t: f64, k: usize| -> (DVec4, Vec<f32>) {
+                    if t == [0.0, 1.0][k] && sign > 0.0 {
+                        return (device[index + k], attrs.get(index + k).cloned().unwrap_or_default());
+                    }
+                    let p = (a + (b - a) * t) * sign;
+                    let (fa, fb) = (
+                        attrs.get(index).map_or(&[][..], Vec::as_slice),
+                        attrs.get(index + 1).map_or(&[][..], Vec::as_slice),
+                    );
+                    let data = fa
+                        .iter()
+                        .zip(fb)
+                        .map(|(&x, &y)| (f64::from(x) + (f64::from(y) - f64::from(x)) * t) as f32)
+                        .collect();
+                    (d * p, data)
+                };
+                let original = [t0 == 0.0 && sign > 0.0, t1 == 1.0 && sign > 0.0];
+                any_clipped |= !(original[0] && original[1]);
+                any_kept = true;
+                result.segments.push(Segment {
+                    index,
+                    ends: [end(t0, 0), end(t1, 1)],
+                    original,
+                });
+            }
+        }
+        result.outcome = if !any_kept {
+            ClipOutcome::TriviallyRejected
+        } else if any_clipped {
+            ClipOutcome::Clipped
+        } else {
+            ClipOutcome::TriviallyAccepted
+        };
+        result
+    }
+
     /// Face culling in device space, then (for clipped pieces) a fan of triangles.
     fn cull_and_fan(&self, pieces: Vec<Piece>, fan: bool, outcome: &mut ClipOutcome) -> Vec<(Piece, Facing)> {
         let mut out = vec![];
@@ -373,6 +500,26 @@ impl GeometryState {
         }
         out
     }
+}
+
+/// One clipped segment of a polyline ([`GeometryState::clip_polyline`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Segment {
+    /// The polyline segment it comes from: vertex `index` to vertex `index + 1`.
+    pub index: usize,
+    /// Its two ends in homogeneous device coordinates, with their attributes.
+    pub ends: [(DVec4, Vec<f32>); 2],
+    /// Whether each end is the polyline's own vertex (with its `device_from_object` bits),
+    /// not a point the clipper made: only such an end can be a joint.
+    pub original: [bool; 2],
+}
+
+/// What [`GeometryState::clip_polyline`] produced.
+#[derive(Debug)]
+pub struct PolylineResult {
+    pub outcome: ClipOutcome,
+    /// The surviving segments, in polyline order.
+    pub segments: Vec<Segment>,
 }
 
 /// A polygon in homogeneous device coordinates with per-vertex attributes.

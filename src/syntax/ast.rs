@@ -29,7 +29,7 @@ pub struct Module {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ItemKind {
-    /// `primitive NAME(PARAMS) { BODY }`
+    /// `primitive [GEOMETRY] NAME(PARAMS) { BODY }`
     Primitive,
     /// `interpolator NAME(PARAMS) { BODY }` — a shared interpolator (seed 004, 3.4).
     Interpolator,
@@ -57,6 +57,9 @@ pub struct Item {
     pub kind: ItemKind,
     /// Return type of a helper function (`None` for `void`, primitives and interpolators).
     pub ret: Option<Box<TypeExpr>>,
+    /// A primitive's geometry type as written (`primitive facet polygon(...)`): the name
+    /// the checker resolves to an [`crate::ir::Geometry`]; `None` when not written.
+    pub geometry: Option<Ident>,
     pub name: Ident,
     pub params: Vec<Param>,
     pub body: Box<Block>,

@@ -161,6 +161,7 @@ pub fn shader_item(
     Some(Item {
         kind,
         ret: None,
+        geometry: None,
         name,
         params,
         body: Box::new(body),

@@ -413,3 +413,49 @@ fn projective_model_non_factorizable_view_and_double_pyramid_are_named_and_survi
         );
     }
 }
+
+/// A lit quad facing the camera with `N = (0, 0, 1)`, under the model transform `model`
+/// (a scene line), with the directional light on or black (ambient light only: a scene
+/// with no light at all is not shaded); the shaded centre pixel and the warnings.
+fn lit_quad_centre(model: &str, light: bool) -> ([f32; 3], Vec<String>) {
+    let light = if light { "0.8 0.8 0.8" } else { "0 0 0" };
+    let light = format!("light directional 0 0 1   {light}");
+    let text = format!(
+        "image 32 32\nperspective 60 0.5 50\nlook_at 0 0 3   0 0 0   0 1 0\n{light}\nambient 0.2 0.2 0.2\n\
+         material_interp Cs perspective_linear\nmaterial_interp N perspective_linear\n\
+         material Cs 0.9 0.6 0.3\n{model}\nmaterial N 0 0 1\n\
+         begin polygon\nvertex -1 -1 0\nvertex 1 -1 0\nvertex 1 1 0\nvertex -1 1 0\nend\n"
+    );
+    let mut sources = primflow::diag::SourceMap::new();
+    let program = support::library();
+    let file = sources.add("quad.scene", text);
+    let mut r = Renderer::new(program);
+    let mut diags = primflow::diag::Diagnostics::new();
+    primflow::scene::load_into(&sources, file, &mut r, &mut diags);
+    assert!(!diags.has_errors(), "{}", diags.render(&sources));
+    let warnings = diags.items.iter().map(|d| d.message.clone()).collect();
+    let frame = support::render(&r, 1);
+    (frame.shaded_at(16, 16).expect("the quad covers the centre"), warnings)
+}
+
+#[test]
+fn a_singular_model_transform_lights_its_normals_with_ambient_light_only() {
+    // Seed 000 9.4 and the W0704 text: `N` given under a singular M (here z scaled to 0,
+    // which leaves the quad in z = 0 where it was) shades with ambient light only. Source of
+    // truth: the same quad under a black directional light, which must match exactly; the
+    // invertible M must be brighter (the light faces the quad).
+    let (singular, warnings) = lit_quad_centre("scale 1 1 0", true);
+    let (ambient, _) = lit_quad_centre("", false);
+    let (lit, _) = lit_quad_centre("", true);
+    assert_eq!(singular, ambient, "singular M: ambient only");
+    assert!(
+        lit[0] > ambient[0] + 0.3,
+        "invertible M: lit {lit:?} vs ambient {ambient:?}"
+    );
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.contains("model transform is singular") && w.contains("ambient light only")),
+        "{warnings:?}"
+    );
+}

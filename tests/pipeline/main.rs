@@ -9,6 +9,7 @@ mod factor;
 mod geometry_explain;
 mod geometry_render;
 mod lighting;
+mod lines;
 #[path = "../support/mod.rs"]
 mod support;
 mod transform;

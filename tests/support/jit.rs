@@ -36,6 +36,7 @@ impl Fb {
             f: Function {
                 name: name.into(),
                 kind,
+                geometry: primflow::ir::Geometry::Surface,
                 span: Span::default(),
                 params: vec![],
                 locals: vec![],

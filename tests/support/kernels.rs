@@ -43,6 +43,7 @@ impl FnBuilder {
             f: Function {
                 name: name.into(),
                 kind,
+                geometry: primflow::ir::Geometry::Surface,
                 span: Span::default(),
                 params: vec![],
                 locals: vec![],

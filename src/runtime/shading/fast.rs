@@ -528,8 +528,8 @@ impl Shader {
         let mut has_n = Mask::none();
         if let Some(normal) = row.normal {
             let g = map3!(normal, plane => F64s::from_f32(F32s::load(plane, x0)));
-            // NormalMatrix::transform: to the space lit in, unit, (0, 0, 1) if degenerate;
-            // then normalize3 as the lighting does.
+            // NormalMatrix::transform: to the space lit in, unit; a degenerate one stays zero
+            // (ambient light only, as the reference); then normalize3 as the lighting does.
             let t = xyz!(i => na[i] * g[0] + nb[i] * g[1] + nc[i] * g[2]);
             let len = F64s::dot(&t, &t).sqrt();
             let ok = positive_finite(len);
@@ -537,7 +537,7 @@ impl Shader {
             let t = [
                 ok.select(t[0] / safe_len, zero),
                 ok.select(t[1] / safe_len, zero),
-                ok.select(t[2] / safe_len, one),
+                ok.select(t[2] / safe_len, zero),
             ];
             let len2 = F64s::dot(&t, &t).sqrt();
             has_n = positive_finite(len2);

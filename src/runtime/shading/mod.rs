@@ -421,9 +421,14 @@ impl Shader {
             };
             let mut c = base;
             if LIT {
+                // A zero normal stays zero (ambient light only, `pipeline::lighting`): the
+                // API zeroes `N` given under a singular M (seed 000 9.4).
                 let normal = px
                     .normal
-                    .map(|n| self.normals_from_lighting.transform(DVec3::from_array(n)).0.to_array())
+                    .and_then(|n| match self.normals_from_lighting.transform(DVec3::from_array(n)) {
+                        (t, true) => Some(t.to_array()),
+                        (_, false) => None,
+                    })
                     .unwrap_or([0.0; 3]);
                 let sample = Sample {
                     point: position.to_array(),
