@@ -24,7 +24,14 @@
 //! tolerance it allows, and why.
 //!
 //! Not asserted, because primflow fails them today: write-once coverage of NURB patches
-//! tessellated at the 128-step cap.
+//! tessellated at the 128-step cap with weight ratios of 1e-3 and below (the flat bilinear
+//! patches of [`nurb_extremes`]: 3 to 13 pixels of the quad written more than once, always
+//! an odd number of times, 3 to 89: straight triangles between the evaluated points fold
+//! over where the rational parametrisation crowds them, so some pixels are covered by k
+//! triangles of one winding and k - 1 of the other; not a crack, the coverage is right),
+//! and triangles more than 2e14 units out under a camera (of [`huge_coordinates`]'s random
+//! ones, at 3e14 one in ten misses a pixel, at 1e16 one misses 11 along an edge at depths
+//! 0.06 to 0.1; not yet explained).
 
 use crate::support;
 use support::*;
