@@ -58,9 +58,12 @@
 //! `w = w_epsilon` (whenever the OR has the W bit or some vertex has `w < w_epsilon`), so
 //! *every output vertex has `w >= w_epsilon > 0`*: nothing downstream divides by `w <= 0`.
 //! Per-vertex attributes (any number of floats) are interpolated linearly in clip space,
-//! which is perspective-correct. New vertices are computed from the edge's endpoints in a
-//! canonical order (lexicographic on the position bits), so an edge shared by two polygons
-//! yields bit-identical new vertices whichever polygon clips it and in which direction.
+//! which is perspective-correct. A new vertex is interpolated from the edge's endpoint nearer
+//! the plane (smaller |distance|; ties to the lexicographically smaller position bits), so
+//! its rounding is relative to that endpoint's distance from the plane, not to the edge's
+//! length (a far endpoint 1e20 away would move it by 2^-53 of 1e20), and an edge shared by
+//! two polygons yields bit-identical new vertices whichever polygon clips it and in which
+//! direction (the choice depends on the two endpoints only).
 //! A new vertex on a view plane is snapped exactly onto it (`x = w` etc.), so it is inside
 //! by its own code. Positions whose magnitude nears overflow are first scaled by a common
 //! power of two (the projective points, the projection and the attributes do not change).
@@ -548,9 +551,18 @@ fn clip_against<T: Real>(input: &[T], stride: usize, plane: Plane<T>, eps: T, ou
         let prev_in = d_prev >= T::ZERO;
         let cur_in = d_cur >= T::ZERO;
         if prev_in != cur_in {
-            // Canonical order: the parameter is always measured from the smaller endpoint,
-            // so both polygons sharing this edge compute the same bits.
-            let (a, b, da, db) = if position_less(prev, cur) {
+            // The parameter is measured from the endpoint nearer the plane (smaller |d|):
+            // `a + t (b - a)` then moves `a` by about its own small distance, so the
+            // rounding is relative to that and not to the edge's length (from a far
+            // endpoint 1e20 away, 2^-53 of the length is 1e4 units of drift). Ties go to the
+            // bit-order-smaller endpoint. The choice depends only on the two endpoints, so
+            // both polygons sharing this edge compute the same bits whichever way they run it.
+            let prev_first = match d_prev.abs().total_cmp(&d_cur.abs()) {
+                std::cmp::Ordering::Less => true,
+                std::cmp::Ordering::Greater => false,
+                std::cmp::Ordering::Equal => position_less(prev, cur),
+            };
+            let (a, b, da, db) = if prev_first {
                 (prev, cur, d_prev, d_cur)
             } else {
                 (cur, prev, d_cur, d_prev)

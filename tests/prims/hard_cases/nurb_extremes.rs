@@ -119,7 +119,8 @@ fn inside_quad(quad: &[[f32; 2]; 4], x: f64, y: f64) -> bool {
 /// corners' quad (its boundary curves are straight: rational linear), so every pixel of the
 /// quad is drawn and no other; only the tessellation cap's W0801 may be reported. Where the
 /// cap is not reached each pixel is written once; where it is (ratios of 1e-3 and below)
-/// that is not asserted: today 3 to 13 pixels of this quad are written twice there.
+/// that is not asserted: today 3 to 13 pixels of this quad are written an odd number of
+/// times (3 to 89) there, where the straight triangles fold over (hard_cases/mod.rs).
 /// Source: the convex quad in f64 (Piegl and Tiller, The NURBS Book, chapter 4: positive
 /// weights keep the convex-hull property and degree-1 boundaries straight); tolerance:
 /// coverage exact except within `SNAP_BAND` of the quad's edges, depth 0.5 within 2^-20,
