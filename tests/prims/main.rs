@@ -10,6 +10,7 @@ mod handwritten_twins;
 mod hard_cases;
 mod interpolators;
 mod library;
+mod lines;
 mod nurb;
 mod polygon;
 mod sphere;
