@@ -1331,7 +1331,10 @@ impl Renderer {
                 .geometry
                 .choose(GeometryType::Line, lit, matches!(result.outcome, ClipOutcome::Clipped));
             self.record(&name, &choice, result.outcome, warnings);
-            return line_instances(&inst, &layout, vi, interp_slot, &result.segments);
+            // A polyline whose last point repeats its first (bit for bit, as given) is closed:
+            // its last segment joins its first.
+            let closing = (count >= 4 && objects[0] == objects[count - 1]).then_some(count - 2);
+            return line_instances(&inst, &layout, vi, interp_slot, &result.segments, closing);
         }
         let result = self.geometry.clip_facet(&positions, &device, &attrs, &mut warnings);
         let choice = self
@@ -1493,14 +1496,21 @@ fn directions_to_lighting(
 /// segments at a joint are handed the same three points, bit for bit, and shape the joint
 /// alike; an end that is no joint (the polyline's, or one the clipper made) repeats itself.
 /// Interpolation data goes with the start (sequence points 0 and 1) and the end (2 and 3).
+/// A closed polyline (`closing`: the index of its last segment) has a joint there too.
 fn line_instances(
     inst: &Instance,
     layout: &ArgLayout,
     vertex: usize,
     interp: Option<usize>,
     segments: &[geometry::Segment],
+    closing: Option<usize>,
 ) -> Vec<Instance> {
     let fixed = layout.fixed_words as usize;
+    // Segment `o` follows segment `s` along the polyline (the last one is followed by the
+    // first when the polyline closes at segment index `closing`).
+    let follows = |o: &geometry::Segment, s: &geometry::Segment| {
+        o.index == s.index + 1 || (closing == Some(s.index) && o.index == 0)
+    };
     segments
         .iter()
         .enumerate()
@@ -1508,18 +1518,12 @@ fn line_instances(
             // The adjacent segment when `end` of this one is a joint with it.
             let joint = |other: usize, end: usize| -> Option<&geometry::Segment> {
                 let o = segments.get(other)?;
-                let adjacent = if end == 0 {
-                    o.index + 1 == s.index
-                } else {
-                    o.index == s.index + 1
-                };
+                let adjacent = if end == 0 { follows(s, o) } else { follows(o, s) };
                 (s.original[end] && o.original[1 - end] && adjacent).then_some(o)
             };
-            let before = k
-                .checked_sub(1)
-                .and_then(|j| joint(j, 0))
-                .map_or(&s.ends[0], |o| &o.ends[0]);
-            let after = joint(k + 1, 1).map_or(&s.ends[1], |o| &o.ends[1]);
+            let last = segments.len() - 1;
+            let before = joint(if k == 0 { last } else { k - 1 }, 0).map_or(&s.ends[0], |o| &o.ends[0]);
+            let after = joint(if k == last { 0 } else { k + 1 }, 1).map_or(&s.ends[1], |o| &o.ends[1]);
             let points = [before, &s.ends[0], &s.ends[1], after];
             let data = [&s.ends[0].1, &s.ends[0].1, &s.ends[1].1, &s.ends[1].1];
             let mut args = vec![0u32; layout.words(4)];

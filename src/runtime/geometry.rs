@@ -427,7 +427,10 @@ impl GeometryState {
                     (DVec4::Z, 0.0),
                 ];
                 let half_spaces = view.into_iter().chain(guard_planes.iter().map(|&m| (m, 0.0)));
-                let (mut t0, mut t1) = (0.0f64, 1.0f64);
+                // Each end as its parameter along a -> b and along b -> a, from the plane
+                // that set it: a new end is computed from the endpoint nearer it (as the
+                // polygon clipper does), so a far endpoint's magnitude does not swamp it.
+                let (mut start, mut stop) = ((0.0f64, 1.0f64), (1.0f64, 0.0f64));
                 let mut rejected = false;
                 for (n, c) in half_spaces {
                     let (d0, d1) = (n.dot(ga) + c, n.dot(gb) + c);
@@ -435,20 +438,22 @@ impl GeometryState {
                         rejected = true;
                         break;
                     }
-                    if d0 < 0.0 {
-                        t0 = t0.max(d0 / (d0 - d1));
-                    } else if d1 < 0.0 {
-                        t1 = t1.min(d0 / (d0 - d1));
+                    let crossing = (d0 / (d0 - d1), d1 / (d1 - d0));
+                    if d0 < 0.0 && crossing.0 > start.0 {
+                        start = crossing;
+                    } else if d1 < 0.0 && crossing.0 < stop.0 {
+                        stop = crossing;
                     }
                 }
-                if rejected || !(t0 < t1) {
+                if rejected || !(start.0 < stop.0) {
                     continue;
                 }
-                let end = |t: f64, k: usize| -> (DVec4, Vec<f32>) {
-                    if t == [0.0, 1.0][k] && sign > 0.0 {
+                let lerp = |x: f64, y: f64, (t, s): (f64, f64)| if t <= s { x + (y - x) * t } else { y + (x - y) * s };
+                let end = |(t, s): (f64, f64), k: usize| -> (DVec4, Vec<f32>) {
+                    if [t, s][k] == 0.0 && sign > 0.0 {
                         return (device[index + k], attrs.get(index + k).cloned().unwrap_or_default());
                     }
-                    let p = (a + (b - a) * t) * sign;
+                    let p = DVec4::from_array([0, 1, 2, 3].map(|i| lerp(a[i], b[i], (t, s)))) * sign;
                     let (fa, fb) = (
                         attrs.get(index).map_or(&[][..], Vec::as_slice),
                         attrs.get(index + 1).map_or(&[][..], Vec::as_slice),
@@ -456,16 +461,16 @@ impl GeometryState {
                     let data = fa
                         .iter()
                         .zip(fb)
-                        .map(|(&x, &y)| (f64::from(x) + (f64::from(y) - f64::from(x)) * t) as f32)
+                        .map(|(&x, &y)| lerp(f64::from(x), f64::from(y), (t, s)) as f32)
                         .collect();
                     (d * p, data)
                 };
-                let original = [t0 == 0.0 && sign > 0.0, t1 == 1.0 && sign > 0.0];
+                let original = [start.0 == 0.0 && sign > 0.0, stop.1 == 0.0 && sign > 0.0];
                 any_clipped |= !(original[0] && original[1]);
                 any_kept = true;
                 result.segments.push(Segment {
                     index,
-                    ends: [end(t0, 0), end(t1, 1)],
+                    ends: [end(start, 0), end(stop, 1)],
                     original,
                 });
             }

@@ -567,3 +567,77 @@ fn degenerate_segments_draw_nothing() {
     // The good segment itself draws.
     assert!(lines.render(&[good], 3.0).covered_pixels() > 100);
 }
+
+// ---- Through the runtime: the `polyline` primitive -----------------------------------------
+
+/// Random polylines (SplitMix seed 29) drawn as one `polyline` each, through the runtime's
+/// `line` geometry (split into segments with their neighbours, docs/pipeline.md "Lines"),
+/// under the identity device transform: the write counts equal those of the same segments
+/// handed to `screen_segment` directly with the adjacency [`polyline_rows`] states. Source of
+/// truth: that adjacency and the f64 rule (the union is also the reference's); tolerance 0.
+#[test]
+fn polylines_through_the_runtime_match_their_segments_drawn_directly() {
+    let mut lines = Lines::new();
+    let mut rng = SplitMix(29);
+    let mut done = 0;
+    while done < 9 {
+        let width = [1.0f32, 2.5, 7.0][done % 3];
+        let joints = 3 + (rng.next() % 10) as usize;
+        let points = random_polyline(&mut rng, joints, 120.0);
+        let segments = polyline_rows(&points);
+        let (want, near, _) = reference_counts(&segments, width);
+        if near > 0 || want.iter().any(|&c| c > 1) {
+            continue;
+        }
+        let mut r = renderer(&lines.program, SIZE, SIZE, true);
+        r.begin("polyline").unwrap();
+        r.rast_param("width", &Value(vec![width])).unwrap();
+        for p in &points {
+            r.vertex(p[0] as f32, p[1] as f32, 0.5, 1.0).unwrap();
+        }
+        r.end().unwrap();
+        assert!(r.take_warnings().is_empty());
+        let got = counts(&render_with(&r, &mut lines.jit, 2));
+        assert_eq!(
+            got,
+            counts(&lines.render(&segments, width)),
+            "width {width}, {points:?}"
+        );
+        assert_eq!(differences(&got, &want), vec![], "width {width}, {points:?}");
+        done += 1;
+    }
+}
+
+/// A closed outline (its last point repeats its first) drawn as one `polyline`: the runtime
+/// joins the last segment to the first, so the closing corner is mitered like the others.
+/// Source of truth: the same segments handed to `screen_segment` with that cyclic adjacency,
+/// and the f64 rule; every pixel written at most once; tolerance 0.
+#[test]
+fn a_closed_polyline_is_mitered_at_its_closing_corner() {
+    let mut lines = Lines::new();
+    let points = [[20.0, 20.0], [70.25, 24.5], [60.5, 71.0], [18.75, 55.5], [20.0, 20.0]];
+    let n = points.len();
+    let row = |p: [f64; 2]| [p[0] as f32, p[1] as f32, 0.5, 1.0];
+    let segments: Vec<Rows> = (0..n - 1)
+        .map(|i| {
+            let before = if i == 0 { points[n - 2] } else { points[i - 1] };
+            let after = if i + 2 < n { points[i + 2] } else { points[1] };
+            [row(before), row(points[i]), row(points[i + 1]), row(after)]
+        })
+        .collect();
+    for width in [1.0f32, 4.0] {
+        let (want, near, _) = reference_counts(&segments, width);
+        assert_eq!(near, 0, "no near-ties in this case");
+        assert!(want.iter().all(|&c| c <= 1));
+        let mut r = renderer(&lines.program, SIZE, SIZE, true);
+        r.begin("polyline").unwrap();
+        r.rast_param("width", &Value(vec![width])).unwrap();
+        for p in &points {
+            r.vertex(p[0] as f32, p[1] as f32, 0.5, 1.0).unwrap();
+        }
+        r.end().unwrap();
+        let got = counts(&render_with(&r, &mut lines.jit, 2));
+        assert!(got.iter().all(|&c| c <= 1), "width {width}: a pixel written twice");
+        assert_eq!(differences(&got, &want), vec![], "width {width}");
+    }
+}
