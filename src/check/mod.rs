@@ -480,7 +480,7 @@ fn check_param_quals(item: &ast::Item, p: &ast::Param, role: ParamRole, ty: &Typ
 }
 
 /// The geometry type primitive `item` declares (`Surface` when none), checked against its
-/// parameters: the runtime clips and splits a `facet` or `line` primitive's `point vertex[]`
+/// parameters: the runtime clips and splits a `facet`, `line` or `point` primitive's `point vertex[]`
 /// and carries only interpolation data along, so those are its only per-sequence-point
 /// parameters (E0509). An unknown name is E0508.
 fn declared_geometry(item: &ast::Item, f: &ir::Function, sink: &mut Sink) -> ir::Geometry {
@@ -492,7 +492,7 @@ fn declared_geometry(item: &ast::Item, f: &ir::Function, sink: &mut Sink) -> ir:
             .primary(name.span, "not a geometry type");
         d = match crate::diag::did_you_mean(&name.name, ir::Geometry::NAMES.iter().map(|(n, _)| *n)) {
             Some(hint) => d.help(hint),
-            None => d.help("write `primitive facet NAME(...)`, `primitive line NAME(...)`, or no geometry type"),
+            None => d.help("write `primitive facet`, `line` or `point NAME(...)`, or no geometry type"),
         };
         sink.push(d);
         return ir::Geometry::Surface;

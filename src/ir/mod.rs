@@ -297,17 +297,25 @@ pub enum Geometry {
     /// `primitive line`: `point vertex[]` holds a polyline: each segment clipped alone and
     /// drawn as one instance with its neighbours (docs/pipeline.md, "Lines").
     Line,
+    /// `primitive point`: `point vertex[]` holds separate points: each one outside the view
+    /// dropped, the others drawn as one instance each (docs/pipeline.md, "Points").
+    Point,
 }
 
 impl Geometry {
     /// The declaration's names, as written after `primitive`.
-    pub const NAMES: [(&'static str, Geometry); 2] = [("facet", Geometry::Facet), ("line", Geometry::Line)];
+    pub const NAMES: [(&'static str, Geometry); 3] = [
+        ("facet", Geometry::Facet),
+        ("line", Geometry::Line),
+        ("point", Geometry::Point),
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             Geometry::Surface => "surface",
             Geometry::Facet => "facet",
             Geometry::Line => "line",
+            Geometry::Point => "point",
         }
     }
 }

@@ -1268,7 +1268,7 @@ impl Renderer {
         // The checker made sure a facet or line primitive has `point vertex[]`.
         let vertex_index = match f.geometry {
             Geometry::Facet if inst.n_seq >= 3 => f.params.iter().position(|p| p.name == "vertex"),
-            Geometry::Line => f.params.iter().position(|p| p.name == "vertex"),
+            Geometry::Line | Geometry::Point => f.params.iter().position(|p| p.name == "vertex"),
             _ => None,
         };
         let lit = self.shading_setup.lit();
@@ -1325,6 +1325,15 @@ impl Renderer {
                     .unwrap_or_default()
             })
             .collect();
+        if f.geometry == Geometry::Point {
+            let (outcome, kept) = self.geometry.clip_points(&positions, &mut warnings);
+            let choice = self.geometry.choose(GeometryType::Point, lit, false);
+            self.record(&name, &choice, outcome, warnings);
+            return kept
+                .into_iter()
+                .map(|i| one_point_instance(&inst, &layout, vi, interp_slot, (device[i], &attrs[i])))
+                .collect();
+        }
         if f.geometry == Geometry::Line {
             let result = self.geometry.clip_polyline(&positions, &device, &attrs, &mut warnings);
             let choice = self
@@ -1487,6 +1496,37 @@ fn directions_to_lighting(
                 write_words(args, c, &out.map(f32::to_bits));
             }
         }
+    }
+}
+
+/// The instance of one point of a `point` primitive: one sequence point, its position in
+/// homogeneous device coordinates and its interpolation data.
+fn one_point_instance(
+    inst: &Instance,
+    layout: &ArgLayout,
+    vertex: usize,
+    interp: Option<usize>,
+    (position, data): (DVec4, &[f32]),
+) -> Instance {
+    let fixed = layout.fixed_words as usize;
+    let mut args = vec![0u32; layout.words(1)];
+    args[..fixed].copy_from_slice(&inst.args[..fixed]);
+    args[0] = 1;
+    if let ParamSlot::Seq { seq_offset, .. } = &layout.params[vertex] {
+        let at = fixed + *seq_offset as usize;
+        write_words(&mut args, at, &position.as_vec4().to_array().map(f32::to_bits));
+    }
+    if let Some(ParamSlot::Seq { seq_offset, .. }) = interp.map(|k| &layout.params[k]) {
+        let words: Vec<u32> = data.iter().map(|x| x.to_bits()).collect();
+        write_words(&mut args, fixed + *seq_offset as usize, &words);
+    }
+    let mut key = inst.key.clone();
+    key.trivial_accept = true;
+    Instance {
+        func: inst.func,
+        key,
+        n_seq: 1,
+        args,
     }
 }
 

@@ -28,6 +28,9 @@
 //!    A facet with fewer than three sequence points, and any non-finite point of a
 //!    non-facet, is passed to its kernel as it is (the kernel draws nothing).
 //!
+//! A *point* primitive (`primitive point`) has each point tested by its centre
+//! ([`GeometryState::clip_points`]) and drawn as one instance of its own.
+//!
 //! A *line* primitive (`primitive line`) has each polyline segment clipped alone
 //! ([`GeometryState::clip_polyline`], Liang-Barsky) and becomes one instance per segment
 //! with its neighbours (docs/pipeline.md, "Lines"); lines are never culled.
@@ -483,6 +486,44 @@ impl GeometryState {
             ClipOutcome::TriviallyAccepted
         };
         result
+    }
+
+    /// The points of a `point` primitive that are drawn (seed 000 5.1): those whose centre
+    /// is finite and inside the guard band, the near and far planes, every model plane and
+    /// `w >= epsilon` (in a double-pyramid view, either as given or negated). A point is
+    /// clipped by its centre alone: one whose centre is out of the guard band is dropped
+    /// whatever its size, as OpenGL drops a wide point. Returns the outcome and the indices.
+    pub fn clip_points(&self, positions: &[DVec4], warnings: &mut Vec<Warning>) -> (ClipOutcome, Vec<usize>) {
+        let (_, mode) = self.clip_from_world();
+        let planes = self.clip_space_planes().unwrap_or_else(|| {
+            note(warnings, Warning::SingularView);
+            vec![]
+        });
+        let (gx, gy) = self.guard_scale();
+        let inside = |p: DVec4| {
+            p.w >= self.w_epsilon
+                && p.x.abs() / gx <= p.w
+                && p.y.abs() / gy <= p.w
+                && p.z >= 0.0
+                && p.z <= p.w
+                && planes.iter().all(|m| m.dot(p) >= 0.0)
+        };
+        let mut kept = vec![];
+        for (i, &p) in positions.iter().enumerate() {
+            if !p.is_finite() {
+                note(warnings, Warning::NonFiniteVertex);
+            } else if inside(p) || (mode == PyramidMode::Double && inside(-p)) {
+                kept.push(i);
+            }
+        }
+        let outcome = if kept.is_empty() {
+            ClipOutcome::TriviallyRejected
+        } else if kept.len() < positions.len() {
+            ClipOutcome::Clipped
+        } else {
+            ClipOutcome::TriviallyAccepted
+        };
+        (outcome, kept)
     }
 
     /// Face culling in device space, then (for clipped pieces) a fan of triangles.

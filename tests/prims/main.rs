@@ -12,6 +12,7 @@ mod interpolators;
 mod library;
 mod lines;
 mod nurb;
+mod points;
 mod polygon;
 mod sphere;
 #[path = "../support/mod.rs"]
