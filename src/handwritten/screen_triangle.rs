@@ -25,13 +25,10 @@ pub(crate) struct Setup<const T: usize> {
     pub ea: [i32; 3],
     pub eb: [i32; 3],
     pub ec: [i32; 3],
-    /// Past 2^24 px (the far path, neither `exact` nor `wide`): the snapped corners (global
-    /// 1/16 grid), the orientation, and whether each edge is top-left (a tie `e == 0` keeps
-    /// the pixel). The edges' signs are exact ([`far_edge_sign`]), as the prim's float
-    /// expansions are.
-    pub fx: [f32; 3],
-    pub fy: [f32; 3],
-    pub forient: i32,
+    pub fa: [f32; 3],
+    pub fb: [f32; 3],
+    pub fc: [f32; 3],
+    /// Float edges: whether each is top-left (a tie `e == 0` keeps the pixel).
     pub ftl: [bool; 3],
     /// Over 1024 px with every vertex within 2^24 px: the edges in exact integers on the
     /// global 1/16 grid (the prim's two-limb `limb_sign`, here in i64): `wa * (16 x - gx) +
@@ -182,19 +179,14 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32, e: Extent) -> Optio
             px[i] = fx / 16.0;
             py[i] = fy / 16.0;
         }
-    }
-    let far = !exact && !wide;
-    // The far path's differences are scaled by 2^-40 (as the prim's, whose squares would
-    // overflow f32 otherwise); 1 elsewhere, which changes no bit.
-    let far_scale: f32 = if far { 1.0 / 1_099_511_627_776.0 } else { 1.0 };
-    if far {
+    } else if !exact {
         for i in 0..3 {
-            px[i] = (sv(i, 0) * 16.0).round_ties_even() / 16.0;
-            py[i] = (sv(i, 1) * 16.0).round_ties_even() / 16.0;
+            px[i] = sv(i, 0);
+            py[i] = sv(i, 1);
         }
     }
-    let (dx1, dy1) = ((px[1] - px[0]) * far_scale, (py[1] - py[0]) * far_scale);
-    let (dx2, dy2) = ((px[2] - px[0]) * far_scale, (py[2] - py[0]) * far_scale);
+    let (dx1, dy1) = (px[1] - px[0], py[1] - py[0]);
+    let (dx2, dy2) = (px[2] - px[0], py[2] - py[0]);
     let det = dx1 * dy2 - dx2 * dy1;
     let mut orient: i32 = if det > 0.0 { 1 } else { -1 };
     if wide {
@@ -203,15 +195,11 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32, e: Extent) -> Optio
         if orient == 0 {
             return None;
         }
-    } else if far {
-        orient = far_edge_sign([px[0], py[0]], [px[1], py[1]], [px[2], py[2]]);
-        if orient == 0 {
-            return None;
-        }
-    } else if det == 0.0 {
+    } else if det == 0.0 || !(det.abs() < 1e30) {
         return None;
     }
     let (mut ea, mut eb, mut ec) = ([0i32; 3], [0i32; 3], [0i32; 3]);
+    let (mut fa, mut fb, mut fc) = ([0f32; 3], [0f32; 3], [0f32; 3]);
     let (mut wa, mut wb, mut wtl) = ([0i64; 3], [0i64; 3], [0i64; 3]);
     let mut ftl = [false; 3];
     for i in 0..3 {
@@ -225,21 +213,29 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32, e: Extent) -> Optio
             wb[i] = i64::from(orient) * (gx[j] - gx[i]);
             wtl[i] = i64::from(wa[i] > 0 || (wa[i] == 0 && wb[i] < 0));
         }
-        if far {
-            // The top-left rule on the oriented edge (the float differences have the
-            // exact differences' signs).
-            let (a, b) = (-orient as f32 * (py[j] - py[i]), orient as f32 * (px[j] - px[i]));
-            ftl[i] = a > 0.0 || (a == 0.0 && b < 0.0);
-        }
+        // The float edge from its endpoints in canonical order, then oriented (as the prim).
+        let (lo, hi) = if px[j] < px[i] || (px[j] == px[i] && py[j] < py[i]) {
+            (j, i)
+        } else {
+            (i, j)
+        };
+        let a = -(py[hi] - py[lo]);
+        let b = px[hi] - px[lo];
+        let c = -(a * px[lo] + b * py[lo]);
+        let sign = if lo == i { orient } else { -orient } as f32;
+        fa[i] = sign * a;
+        fb[i] = sign * b;
+        fc[i] = sign * c;
+        ftl[i] = fa[i] > 0.0 || (fa[i] == 0.0 && fb[i] < 0.0);
     }
     // The planes go through the vertices as given, not as snapped (as in
     // prims/screen_triangle.prim): the values belong to those positions. Degenerate as
     // given but not as snapped: the snapped corners give the planes.
     let (mut ux, mut uy) = ([sv(0, 0), sv(1, 0), sv(2, 0)], [sv(0, 1), sv(1, 1), sv(2, 1)]);
-    let (mut ux1, mut uy1) = ((ux[1] - ux[0]) * far_scale, (uy[1] - uy[0]) * far_scale);
-    let (mut ux2, mut uy2) = ((ux[2] - ux[0]) * far_scale, (uy[2] - uy[0]) * far_scale);
+    let (mut ux1, mut uy1) = (ux[1] - ux[0], uy[1] - uy[0]);
+    let (mut ux2, mut uy2) = (ux[2] - ux[0], uy[2] - uy[0]);
     let mut plane_det = ux1 * uy2 - ux2 * uy1;
-    if plane_det == 0.0 || !(plane_det.abs() < 1e38) {
+    if plane_det == 0.0 || !(plane_det.abs() < 1e30) {
         ux = px;
         uy = py;
         (ux1, uy1, ux2, uy2) = (dx1, dy1, dx2, dy2);
@@ -248,8 +244,8 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32, e: Extent) -> Optio
     let inv_det = 1.0 / plane_det;
     let z1 = sv(1, 2) - sv(0, 2);
     let z2 = sv(2, 2) - sv(0, 2);
-    let za = (z1 * uy2 - z2 * uy1) * inv_det * far_scale;
-    let zb = (z2 * ux1 - z1 * ux2) * inv_det * far_scale;
+    let za = (z1 * uy2 - z2 * uy1) * inv_det;
+    let zb = (z2 * ux1 - z1 * ux2) * inv_det;
     let zc = sv(0, 2) - za * ux[0] - zb * uy[0];
 
     let q0 = 1.0 / sv(0, 3);
@@ -268,9 +264,9 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32, e: Extent) -> Optio
         ea,
         eb,
         ec,
-        fx: px,
-        fy: py,
-        forient: orient,
+        fa,
+        fb,
+        fc,
         ftl,
         wide,
         wa,
@@ -290,17 +286,17 @@ pub(crate) unsafe fn setup<const T: usize>(args: *const u32, e: Extent) -> Optio
     for c in 0..T {
         let (d0, d1, d2) = (data(0, c), data(1, c), data(2, c));
         let (l1, l2) = (d1 - d0, d2 - d0);
-        s.la[c] = (l1 * uy2 - l2 * uy1) * inv_det * far_scale;
-        s.lb[c] = (l2 * ux1 - l1 * ux2) * inv_det * far_scale;
+        s.la[c] = (l1 * uy2 - l2 * uy1) * inv_det;
+        s.lb[c] = (l2 * ux1 - l1 * ux2) * inv_det;
         s.lc[c] = d0 - s.la[c] * ux[0] - s.lb[c] * uy[0];
         let g1 = d1 * q1 - d0 * q0;
         let g2 = d2 * q2 - d0 * q0;
-        s.ga[c] = (g1 * uy2 - g2 * uy1) * inv_det * far_scale;
-        s.gb[c] = (g2 * ux1 - g1 * ux2) * inv_det * far_scale;
+        s.ga[c] = (g1 * uy2 - g2 * uy1) * inv_det;
+        s.gb[c] = (g2 * ux1 - g1 * ux2) * inv_det;
         s.gc[c] = d0 * q0 - s.ga[c] * ux[0] - s.gb[c] * uy[0];
     }
-    let qa = ((q1 - q0) * uy2 - (q2 - q0) * uy1) * inv_det * far_scale;
-    let qb = ((q2 - q0) * ux1 - (q1 - q0) * ux2) * inv_det * far_scale;
+    let qa = ((q1 - q0) * uy2 - (q2 - q0) * uy1) * inv_det;
+    let qb = ((q2 - q0) * ux1 - (q1 - q0) * ux2) * inv_det;
     let qc = q0 - qa * ux[0] - qb * uy[0];
     s.q = [qa, qb, qc];
     Some(s)
@@ -441,53 +437,14 @@ pub(crate) fn wide_inside<const T: usize>(s: &Setup<T>, x: f32, y: f32) -> bool 
     (0..3).all(|i| s.wa[i] * (sx - s.gx[i]) + s.wb[i] * (sy - s.gy[i]) + s.wtl[i] > 0)
 }
 
-/// The far path's edge tests at the pixel centre (x, y): each edge's exact sign, oriented;
-/// outside, or on a non-top-left edge, fails (as the prim's).
+/// The float path's edge tests: outside, or on a non-top-left edge, fails (a NaN edge
+/// value keeps the pixel, as the prim returns only on `e < 0 || (e == 0 && !top_left)`).
 #[inline]
-pub(crate) fn far_inside<const T: usize>(s: &Setup<T>, x: f32, y: f32) -> bool {
+pub(crate) fn float_inside<const T: usize>(s: &Setup<T>, x: f32, y: f32) -> bool {
     (0..3).all(|i| {
-        let j = (i + 1) % 3;
-        let side = s.forient * far_edge_sign([s.fx[i], s.fy[i]], [s.fx[j], s.fy[j]], [x, y]);
-        side > 0 || (side == 0 && s.ftl[i])
+        let e = s.fa[i] * x + s.fb[i] * y + s.fc[i];
+        !(e < 0.0 || (e == 0.0 && !s.ftl[i]))
     })
-}
-
-/// The exact sign (-1, 0 or 1) of `(b - a) x (q - a)` = `(bx - ax)(qy - ay) - (by - ay)(qx - ax)`
-/// for finite f32 points: the differences as exact two-term f64 sums, their products as
-/// exact two-term products (fused multiply-add), the sixteen terms summed exactly
-/// (Shewchuk's Grow-Expansion), whose largest nonzero component has the sign. The prim
-/// does the same in f32 (on coordinates scaled by 2^-40); exact, so the two agree.
-pub(crate) fn far_edge_sign(a: [f32; 2], b: [f32; 2], q: [f32; 2]) -> i32 {
-    fn two_sum(a: f64, b: f64) -> [f64; 2] {
-        let s = a + b;
-        let bv = s - a;
-        let av = s - bv;
-        [s, (a - av) + (b - bv)]
-    }
-    let d = |u: f32, v: f32| two_sum(f64::from(u), -f64::from(v));
-    let (bx, by, qx, qy) = (d(b[0], a[0]), d(b[1], a[1]), d(q[0], a[0]), d(q[1], a[1]));
-    let mut e = [0f64; 16];
-    let mut n = 0;
-    for (u, v, sign) in [(bx, qy, 1.0), (by, qx, -1.0)] {
-        for ui in u {
-            for vi in v {
-                let p = sign * ui * vi;
-                for term in [p, (sign * ui).mul_add(vi, -p)] {
-                    // Grow-Expansion: e[..n] plus term, exactly, into e[..=n].
-                    let mut carry = term;
-                    for c in e.iter_mut().take(n) {
-                        [carry, *c] = two_sum(carry, *c);
-                    }
-                    e[n] = carry;
-                    n += 1;
-                }
-            }
-        }
-    }
-    e.iter()
-        .rev()
-        .find(|&&c| c != 0.0)
-        .map_or(0, |&c| if c > 0.0 { 1 } else { -1 })
 }
 
 /// Portable scalar kernel.
@@ -525,7 +482,7 @@ pub unsafe extern "C" fn scalar<const P: usize, const L: usize, const T: usize, 
             } else if s.wide {
                 wide_inside(&s, x, y)
             } else {
-                far_inside(&s, x, y)
+                float_inside(&s, x, y)
             };
             if !inside {
                 continue;
@@ -596,6 +553,7 @@ pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, co
         let sy = ((y * 16.0) as i32).wrapping_sub(s.oy16);
         let erow: [__m256i; 3] =
             std::array::from_fn(|i| _mm256_set1_epi32(s.eb[i].wrapping_mul(sy).wrapping_add(s.ec[i])));
+        let fby: [__m256; 3] = std::array::from_fn(|i| _mm256_set1_ps(s.fb[i] * y));
         let mut px = rx0;
         while px < rx1 {
             let n = (rx1 - px).min(8);
@@ -619,12 +577,21 @@ pub unsafe extern "C" fn avx2<const P: usize, const L: usize, const T: usize, co
                 let lanes = unsafe { _mm256_loadu_si256(lanes.as_ptr() as *const __m256i) };
                 mask = _mm256_and_si256(mask, lanes);
             } else {
-                // Rarer still (past 2^24 px): the exact test per lane.
-                let lanes: [i32; 8] =
-                    std::array::from_fn(|k| -i32::from(far_inside(&s, (px + k as i32) as f32 + 0.5, y)));
-                // SAFETY: an unaligned load of 8 i32 from a local array.
-                let lanes = unsafe { _mm256_loadu_si256(lanes.as_ptr() as *const __m256i) };
-                mask = _mm256_and_si256(mask, lanes);
+                for i in 0..3 {
+                    // (a*x + b*y) + c, in the prim's order (not re-associated: bit-equal).
+                    let e = _mm256_add_ps(
+                        _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(s.fa[i]), x), fby[i]),
+                        _mm256_set1_ps(s.fc[i]),
+                    );
+                    // As the prim returns: !(e < 0) on a top-left edge, !(e <= 0) on another
+                    // (a NaN edge value keeps the pixel).
+                    let keep = if s.ftl[i] {
+                        _mm256_cmp_ps::<_CMP_NLT_UQ>(e, zero)
+                    } else {
+                        _mm256_cmp_ps::<_CMP_NLE_UQ>(e, zero)
+                    };
+                    mask = _mm256_and_si256(mask, _mm256_castps_si256(keep));
+                }
             }
             if _mm256_testz_si256(mask, mask) != 0 {
                 px += 8;
@@ -741,8 +708,8 @@ pub(crate) fn exact_span<const T: usize>(s: &Setup<T>, py: i32, rx0: i32, rx1: i
 /// `(za * x + zb * y) + zc` is). Per group: depth converted and tested, then every store is
 /// a plain store when all four lanes pass and a load + blend + store otherwise. Groups start
 /// at tile-aligned x, like the JIT's, so a 4-lane load or store never leaves the row.
-/// Narrow rectangles, rows whose edge values could wrap, and triangles on the wide and far
-/// paths test the edges per group.
+/// Narrow rectangles, rows whose edge values could wrap, and triangles on the float edge
+/// path test the edges per group.
 macro_rules! sse_kernel {
     ($(#[$doc:meta])* $name:ident, $features:literal) => {
         $(#[$doc])*
@@ -814,6 +781,7 @@ macro_rules! sse_kernel {
                         _mm_set1_epi32(s.eb[i].wrapping_mul(sy).wrapping_add(s.ec[i])),
                     )
                 });
+                let fby: [__m128; 3] = std::array::from_fn(|i| splat(s.fb[i] * y));
 
                 while gx < cx1 {
                     let mut live = if gx < cx0 || gx + 4 > cx1 {
@@ -838,12 +806,13 @@ macro_rules! sse_kernel {
                             let lanes = unsafe { _mm_loadu_si128(lanes.as_ptr() as *const __m128i) };
                             live = _mm_and_si128(live, lanes);
                         } else {
-                            // Rarer still (past 2^24 px): the exact test per lane.
-                            let lanes: [i32; 4] =
-                                std::array::from_fn(|k| -i32::from(far_inside(&s, (gx + k as i32) as f32 + 0.5, y)));
-                            // SAFETY: an unaligned load of 4 i32 from a local array.
-                            let lanes = unsafe { _mm_loadu_si128(lanes.as_ptr() as *const __m128i) };
-                            live = _mm_and_si128(live, lanes);
+                            for i in 0..3 {
+                                let e = plane(splat(s.fa[i]), x, fby[i], splat(s.fc[i]));
+                                // As the prim returns: !(e < 0) on a top-left edge, !(e <= 0)
+                                // on another (NaN keeps the pixel).
+                                let keep = if s.ftl[i] { _mm_cmpnlt_ps(e, zero) } else { _mm_cmpnle_ps(e, zero) };
+                                live = _mm_and_si128(live, _mm_castps_si128(keep));
+                            }
                         }
                     }
                     let z = plane(za, x, zby, zc);

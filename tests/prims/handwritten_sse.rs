@@ -47,7 +47,7 @@ fn draw(kernel: KernelFn, tris: &[Vec<u32>]) -> (Vec<u32>, Vec<u32>, Vec<f32>) {
 
 /// The legacy-encoded and VEX-encoded SSE kernels draw exactly what the scalar one
 /// does (which tests/prims/handwritten_twins.rs holds to the JIT) on one tile, with a plane
-/// the frame lacks (index 7 of 3), wide, narrow and huge (two-limb edge) triangles.
+/// the frame lacks (index 7 of 3), wide, narrow and huge (float edge) triangles.
 #[test]
 fn sse_forms_match_scalar_on_a_tile() {
     let mut seed = 12345u64;

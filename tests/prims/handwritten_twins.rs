@@ -98,7 +98,7 @@ fn render_handwritten(r: &Renderer, flavor: Flavor, threads: usize) -> Frame {
 }
 
 /// The SSE kernel's own paths: wide triangles (per-row spans, whole groups without edge
-/// tests or blends), narrow ones (edges per group), huge ones (two-limb edges), vertices on
+/// tests or blends), narrow ones (edges per group), huge ones (float edges), vertices on
 /// pixel centres and grid points (top-left ties), shared edges, depths on both sides of
 /// 2^31 and exactly 1 (the saturating end of the conversion), with and without write
 /// counts, for several perspective/linear shapes.

@@ -3,13 +3,13 @@
 //! (dEQP, piglit, the D3D11 functional spec's rasterization rules, pbrt-v4):
 //!
 //! - [`shared_edges`]: shared edges at every size, including triangles far over the
-//!   1,024 px exact integer path (the two-limb path, up to 2^24 px, and the far path's
-//!   exact float expansions, up to 1e29 px), and shared edges clipped by the runtime;
+//!   1,024 px exact integer path (the two-limb path, up to 2^24 px), and shared edges
+//!   clipped by the runtime;
 //! - [`slivers`]: triangles thinner than a pixel, 10 px to 1e5 px long, alone and in pairs
 //!   and stacks sharing their long edges;
 //! - [`huge_coordinates`]: far vertices through the clipper alone, and end to end through
-//!   the renderer with the runtime's clipping (1e6 to 1e30 px in device space, 1e6 to 2e14
-//!   units under a camera) and without it (screen triangles up to 1e29 px);
+//!   the renderer with the runtime's clipping (1e6 to 1e15 px in device space, 1e6 to 1e12
+//!   units under a camera) and without it (screen triangles up to 2^24 px);
 //! - [`w_crossings`]: w at, near and below 0 (vertices on and behind the eye plane), in the
 //!   clipper and rendered;
 //! - [`near_and_eye_plane`]: spheres cut by or touching the hither plane, around, behind and
@@ -23,7 +23,10 @@
 //! write counts, depth, areas) and says in a comment what its source of truth is and what
 //! tolerance it allows, and why.
 //!
-//! Not asserted, because primflow fails them today: write-once coverage of NURB patches
+//! Not asserted, because primflow fails them today: screen triangles past 2^24 px (the f32
+//! edge path is not watertight where edges meet, and a doubled area of 1e30 px^2 or more
+//! draws nothing; an exact path with f32 expansions was written and tripled the kernel's
+//! compile time, so it is not in), write-once coverage of NURB patches
 //! tessellated at the 128-step cap with weight ratios of 1e-3 and below (the flat bilinear
 //! patches of [`nurb_extremes`]: 3 to 13 pixels of the quad written more than once, always
 //! an odd number of times, 3 to 89: straight triangles between the evaluated points fold
@@ -86,66 +89,6 @@ pub(super) fn exact_coverage(v: [[f32; 2]; 3], width: u32, height: u32) -> Vec<u
         }
     }
     out
-}
-
-/// [`exact_coverage`] for any finite f32 vertices (the far path's up to 1e30 px): the same
-/// snapping and top-left rule, with the edge products taken whole in 256 bits (a snapped
-/// coordinate is an integer below 2^105 sixteenths, so a product is below 2^212).
-pub(super) fn exact_coverage_far(v: [[f32; 2]; 3], width: u32, height: u32) -> Vec<u32> {
-    let snap = |c: f32| (f64::from(c) * 16.0).round_ties_even() as i128;
-    let p: Vec<(i128, i128)> = v.iter().map(|q| (snap(q[0]), snap(q[1]))).collect();
-    // The sign of (b - a) x (q - a), exactly.
-    let orient = |a: (i128, i128), b: (i128, i128), q: (i128, i128)| {
-        let left = (b.0 - a.0, q.1 - a.1);
-        let right = (b.1 - a.1, q.0 - a.0);
-        compare_products(left, right)
-    };
-    let det = orient(p[0], p[1], p[2]);
-    let mut out = vec![0; (width * height) as usize];
-    if det == 0 {
-        return out;
-    }
-    for py in 0..i128::from(height) {
-        for px in 0..i128::from(width) {
-            let q = (16 * px + 8, 16 * py + 8);
-            let inside = (0..3).all(|i| {
-                let j = (i + 1) % 3;
-                let a = -det * (p[j].1 - p[i].1).signum();
-                let b = det * (p[j].0 - p[i].0).signum();
-                let top_left = a > 0 || (a == 0 && b < 0);
-                let e = det * orient(p[i], p[j], q);
-                e > 0 || (e == 0 && top_left)
-            });
-            out[(py * i128::from(width) + px) as usize] = u32::from(inside);
-        }
-    }
-    out
-}
-
-/// The sign of `l.0 * l.1 - r.0 * r.1` for |factors| below 2^126, exactly (in 256 bits).
-fn compare_products(l: (i128, i128), r: (i128, i128)) -> i128 {
-    // |x| * |y| as (high, low) 128-bit halves, from 64-bit limbs.
-    let magnitude = |x: i128, y: i128| -> (u128, u128) {
-        let (x, y) = (x.unsigned_abs(), y.unsigned_abs());
-        let (x1, x0, y1, y0) = (x >> 64, x & u128::from(u64::MAX), y >> 64, y & u128::from(u64::MAX));
-        let (low, mid_a, mid_b, high) = (x0 * y0, x1 * y0, x0 * y1, x1 * y1);
-        let (mid, mid_carry) = mid_a.overflowing_add(mid_b);
-        let (lo, lo_carry) = low.overflowing_add(mid << 64);
-        let hi = high + (mid >> 64) + (u128::from(mid_carry) << 64) + u128::from(lo_carry);
-        (hi, lo)
-    };
-    let sign = |x: i128, y: i128| x.signum() * y.signum();
-    let (sl, sr) = (sign(l.0, l.1), sign(r.0, r.1));
-    if sl != sr {
-        // Different signs (or one zero): l - r has the sign of whichever is larger.
-        return if sl > sr { 1 } else { -1 };
-    }
-    // Same sign s: l - r = s (|l| - |r|).
-    match magnitude(l.0, l.1).cmp(&magnitude(r.0, r.1)) {
-        std::cmp::Ordering::Greater => sl,
-        std::cmp::Ordering::Less => -sl,
-        std::cmp::Ordering::Equal => 0,
-    }
 }
 
 /// Render `triangles` (flat, depth 0.5) with write counting and return the counts.
