@@ -492,7 +492,7 @@ fn declared_geometry(item: &ast::Item, f: &ir::Function, sink: &mut Sink) -> ir:
             .primary(name.span, "not a geometry type");
         d = match crate::diag::did_you_mean(&name.name, ir::Geometry::NAMES.iter().map(|(n, _)| *n)) {
             Some(hint) => d.help(hint),
-            None => d.help("write `primitive facet`, `line` or `point NAME(...)`, or no geometry type"),
+            None => d.help("the geometry types are `facet`, `line` and `point`; a primitive may have none"),
         };
         sink.push(d);
         return ir::Geometry::Surface;
