@@ -26,7 +26,7 @@
 //! |---|---|---|
 //! | well-behaved: M affine and invertible, V canonical, single pyramid, finite data | [`choose_pipeline`] | CC / LC pipelines, lighting in MC or LC (correct) |
 //! | w <= 0 model data (9.2) | [`transform::sanitize_model_w`] | negative w: whole point negated (same projective point); w = 0: small positive w (expedient, [`Warning::NonPositiveModelW`]) |
-//! | projective M (9.3) | [`transform::classify_model`] | full 4x4 transform, w assumed positive; normals per point by [`transform::transform_normal_projective`]; lighting in WC (expedient for facets, [`Warning::ProjectiveModel`]) |
+//! | projective M (9.3) | [`transform::classify_model`] | full 4x4 transform, w assumed positive; normals by the cofactor matrix of M's upper 3x3 like an affine M's (not yet per point: [`transform::transform_normal_projective`] is written but not called); lighting in WC (expedient, [`Warning::ProjectiveModel`]) |
 //! | singular M (9.4) | [`transform::NormalMatrix::of`] | the `N` shading parameter given under it is zeroed, which shading lights ambient-only as 9.4 suggests; `normal` parameters by the cofactor matrix, zero ones replaced by +z ([`Warning::SingularModel`], [`Warning::DegenerateNormal`]) |
 //! | non-factorizable V (9.5) | [`factor::factor_view`] `Err` | E = I, GQ = V: LC pipelines run in WC (correct, [`Warning::NonFactorizableView`]) |
 //! | singular V (9.1) | [`factor::NotFactorizable::Singular`] | no model clipping, no LC (expedient, [`Warning::SingularView`]) |
