@@ -1331,7 +1331,16 @@ impl Renderer {
             self.record(&name, &choice, outcome, warnings);
             return kept
                 .into_iter()
-                .map(|i| one_point_instance(&inst, &layout, vi, interp_slot, (device[i], &attrs[i])))
+                .map(|i| {
+                    instance_with_points(
+                        &inst,
+                        &layout,
+                        vi,
+                        interp_slot,
+                        &[(device[i], attrs[i].as_slice())],
+                        true,
+                    )
+                })
                 .collect();
         }
         if f.geometry == Geometry::Line {
@@ -1353,38 +1362,15 @@ impl Renderer {
         let facing_binding = self.shading.iter().position(|p| p.name == FACING_PARAM);
         let mut out = vec![];
         for (piece, facing) in result.pieces {
-            let n = piece.len() as u32;
-            let mut key = inst.key.clone();
-            key.trivial_accept = !result.near_crossed;
-            // Same key bindings: the fixed part of the layout is unchanged.
-            let mut args = vec![0u32; layout.words(n)];
-            let fixed = layout.fixed_words as usize;
-            args[..fixed].copy_from_slice(&inst.args[..fixed]);
-            args[0] = n;
-            let n_out = n.max(1) as usize;
-            for (i, (position, data)) in piece.iter().enumerate() {
-                if let ParamSlot::Seq { seq_offset, words } = &layout.params[vi] {
-                    let at = fixed + n_out * *seq_offset as usize + i * *words as usize;
-                    write_words(&mut args, at, &position.as_vec4().to_array().map(f32::to_bits));
-                }
-                if let Some(ParamSlot::Seq { seq_offset, words }) = interp_slot.map(|k| &layout.params[k]) {
-                    let at = fixed + n_out * *seq_offset as usize + i * *words as usize;
-                    let words: Vec<u32> = data.iter().map(|x| x.to_bits()).collect();
-                    write_words(&mut args, at, &words);
-                }
-            }
+            let points: Vec<(DVec4, &[f32])> = piece.iter().map(|(p, d)| (*p, d.as_slice())).collect();
+            let mut out_inst = instance_with_points(&inst, &layout, vi, interp_slot, &points, !result.near_crossed);
             if let (Some(b), true) = (facing_binding, self.geometry.distinguish) {
                 if let Some(Some(at)) = layout.binding_data.get(b) {
                     let v: f32 = if facing == Facing::Front { 1.0 } else { -1.0 };
-                    write_words(&mut args, *at as usize, &[v.to_bits()]);
+                    write_words(&mut out_inst.args, *at as usize, &[v.to_bits()]);
                 }
             }
-            out.push(Instance {
-                func: inst.func,
-                key,
-                n_seq: n,
-                args,
-            });
+            out.push(out_inst);
         }
         out
     }
@@ -1499,33 +1485,43 @@ fn directions_to_lighting(
     }
 }
 
-/// The instance of one point of a `point` primitive: one sequence point, its position in
-/// homogeneous device coordinates and its interpolation data.
-fn one_point_instance(
+/// An instance of `inst`'s primitive with the sequence points `points` (homogeneous device
+/// position and interpolation data each): the fixed part of the arguments as they are (the
+/// key's bindings do not change), then each point's `vertex` and interpolation data.
+/// `trivial_accept` goes into the key (no near plane left for the kernel to clip).
+fn instance_with_points(
     inst: &Instance,
     layout: &ArgLayout,
     vertex: usize,
     interp: Option<usize>,
-    (position, data): (DVec4, &[f32]),
+    points: &[(DVec4, &[f32])],
+    trivial_accept: bool,
 ) -> Instance {
+    let n = points.len() as u32;
     let fixed = layout.fixed_words as usize;
-    let mut args = vec![0u32; layout.words(1)];
+    let mut args = vec![0u32; layout.words(n)];
     args[..fixed].copy_from_slice(&inst.args[..fixed]);
-    args[0] = 1;
-    if let ParamSlot::Seq { seq_offset, .. } = &layout.params[vertex] {
-        let at = fixed + *seq_offset as usize;
-        write_words(&mut args, at, &position.as_vec4().to_array().map(f32::to_bits));
-    }
-    if let Some(ParamSlot::Seq { seq_offset, .. }) = interp.map(|k| &layout.params[k]) {
-        let words: Vec<u32> = data.iter().map(|x| x.to_bits()).collect();
-        write_words(&mut args, fixed + *seq_offset as usize, &words);
+    args[0] = n;
+    let n_out = n.max(1) as usize;
+    let at = |slot: &ParamSlot, i: usize| match slot {
+        ParamSlot::Seq { seq_offset, words } => Some(fixed + n_out * *seq_offset as usize + i * *words as usize),
+        _ => None,
+    };
+    for (i, (position, data)) in points.iter().enumerate() {
+        if let Some(at) = at(&layout.params[vertex], i) {
+            write_words(&mut args, at, &position.as_vec4().to_array().map(f32::to_bits));
+        }
+        if let Some(at) = interp.and_then(|k| at(&layout.params[k], i)) {
+            let words: Vec<u32> = data.iter().map(|x| x.to_bits()).collect();
+            write_words(&mut args, at, &words);
+        }
     }
     let mut key = inst.key.clone();
-    key.trivial_accept = true;
+    key.trivial_accept = trivial_accept;
     Instance {
         func: inst.func,
         key,
-        n_seq: 1,
+        n_seq: n,
         args,
     }
 }
@@ -1545,7 +1541,6 @@ fn line_instances(
     segments: &[geometry::Segment],
     closing: Option<usize>,
 ) -> Vec<Instance> {
-    let fixed = layout.fixed_words as usize;
     // Segment `o` follows segment `s` along the polyline (the last one is followed by the
     // first when the polyline closes at segment index `closing`).
     let follows = |o: &geometry::Segment, s: &geometry::Segment| {
@@ -1564,30 +1559,13 @@ fn line_instances(
             let last = segments.len() - 1;
             let before = joint(if k == 0 { last } else { k - 1 }, 0).map_or(&s.ends[0], |o| &o.ends[0]);
             let after = joint(if k == last { 0 } else { k + 1 }, 1).map_or(&s.ends[1], |o| &o.ends[1]);
-            let points = [before, &s.ends[0], &s.ends[1], after];
-            let data = [&s.ends[0].1, &s.ends[0].1, &s.ends[1].1, &s.ends[1].1];
-            let mut args = vec![0u32; layout.words(4)];
-            args[..fixed].copy_from_slice(&inst.args[..fixed]);
-            args[0] = 4;
-            for i in 0..4 {
-                if let ParamSlot::Seq { seq_offset, words } = &layout.params[vertex] {
-                    let at = fixed + 4 * *seq_offset as usize + i * *words as usize;
-                    write_words(&mut args, at, &points[i].0.as_vec4().to_array().map(f32::to_bits));
-                }
-                if let Some(ParamSlot::Seq { seq_offset, words }) = interp.map(|k| &layout.params[k]) {
-                    let at = fixed + 4 * *seq_offset as usize + i * *words as usize;
-                    let words: Vec<u32> = data[i].iter().map(|x| x.to_bits()).collect();
-                    write_words(&mut args, at, &words);
-                }
-            }
-            let mut key = inst.key.clone();
-            key.trivial_accept = true;
-            Instance {
-                func: inst.func,
-                key,
-                n_seq: 4,
-                args,
-            }
+            let points = [
+                (before.0, s.ends[0].1.as_slice()),
+                (s.ends[0].0, s.ends[0].1.as_slice()),
+                (s.ends[1].0, s.ends[1].1.as_slice()),
+                (after.0, s.ends[1].1.as_slice()),
+            ];
+            instance_with_points(inst, layout, vertex, interp, &points, true)
         })
         .collect()
 }

@@ -570,6 +570,19 @@ fn degenerate_segments_draw_nothing() {
 
 // ---- Through the runtime: the `polyline` primitive -----------------------------------------
 
+/// A renderer (write counting) with one `polyline` through `points` (depth 0.5) of `width`.
+fn polyline_scene(program: &Arc<Program>, points: &[[f64; 2]], width: f32) -> Renderer {
+    let mut r = renderer(program, SIZE, SIZE, true);
+    r.begin("polyline").unwrap();
+    r.rast_param("width", &Value(vec![width])).unwrap();
+    for p in points {
+        r.vertex(p[0] as f32, p[1] as f32, 0.5, 1.0).unwrap();
+    }
+    r.end().unwrap();
+    assert!(r.take_warnings().is_empty());
+    r
+}
+
 /// Random polylines (SplitMix seed 29) drawn as one `polyline` each, through the runtime's
 /// `line` geometry (split into segments with their neighbours, docs/pipeline.md "Lines"),
 /// under the identity device transform: the write counts equal those of the same segments
@@ -589,14 +602,7 @@ fn polylines_through_the_runtime_match_their_segments_drawn_directly() {
         if near > 0 || want.iter().any(|&c| c > 1) {
             continue;
         }
-        let mut r = renderer(&lines.program, SIZE, SIZE, true);
-        r.begin("polyline").unwrap();
-        r.rast_param("width", &Value(vec![width])).unwrap();
-        for p in &points {
-            r.vertex(p[0] as f32, p[1] as f32, 0.5, 1.0).unwrap();
-        }
-        r.end().unwrap();
-        assert!(r.take_warnings().is_empty());
+        let r = polyline_scene(&lines.program, &points, width);
         let got = counts(&render_with(&r, &mut lines.jit, 2));
         assert_eq!(
             got,
@@ -629,13 +635,7 @@ fn a_closed_polyline_is_mitered_at_its_closing_corner() {
         let (want, near, _) = reference_counts(&segments, width);
         assert_eq!(near, 0, "no near-ties in this case");
         assert!(want.iter().all(|&c| c <= 1));
-        let mut r = renderer(&lines.program, SIZE, SIZE, true);
-        r.begin("polyline").unwrap();
-        r.rast_param("width", &Value(vec![width])).unwrap();
-        for p in &points {
-            r.vertex(p[0] as f32, p[1] as f32, 0.5, 1.0).unwrap();
-        }
-        r.end().unwrap();
+        let r = polyline_scene(&lines.program, &points, width);
         let got = counts(&render_with(&r, &mut lines.jit, 2));
         assert!(got.iter().all(|&c| c <= 1), "width {width}: a pixel written twice");
         assert_eq!(differences(&got, &want), vec![], "width {width}");
