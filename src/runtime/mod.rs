@@ -34,6 +34,7 @@ pub(crate) mod errors;
 pub mod expand;
 pub mod frame;
 pub mod geometry;
+mod instances;
 pub mod kernels;
 pub mod live;
 pub mod pool;
