@@ -21,13 +21,31 @@
 //! time for each accuracy knob (`primflow accuracy`); [`ops`] holds the operator enums the
 //! AST and the IR share; [`workload`] the deterministic scenes that bench, accuracy and the
 //! tests draw.
+//!
+//! Using it from Rust (`examples/api.rs` is a complete program):
+//!
+//! ```text
+//! let registry = runtime::Registry::load(&mut sources, &[], &[], &mut diags)?; // the embedded library
+//! let mut renderer = runtime::Renderer::new(registry.program.clone());
+//! renderer.set_image_size(160, 120)?;  // ... the scene format's calls (docs/scene.md)
+//! let mut jit = jit::Jit::new(renderer.program().clone())?;
+//! let frame = renderer.render(&mut jit).frame;
+//! ```
+//!
+//! The default feature `cli` adds the `primflow` binary and the modules only it needs
+//! ([`cli`], [`bench`], [`accuracy`], [`fuzz`]) with their dependencies; build with
+//! `default-features = false` for the compiler and renderer alone.
 
 pub mod abi;
+#[cfg(feature = "cli")]
 pub mod accuracy;
+#[cfg(feature = "cli")]
 pub mod bench;
 pub mod check;
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod diag;
+#[cfg(feature = "cli")]
 pub mod fuzz;
 pub mod handwritten;
 pub mod ir;
@@ -41,6 +59,8 @@ pub mod runtime;
 pub mod scene;
 pub mod syntax;
 pub mod testing;
+// The benchmark workloads (`Workload`, `GlScene`) are read by `bench` only.
+#[cfg_attr(not(feature = "cli"), allow(dead_code))]
 pub mod workload;
 
 use diag::{Diagnostics, FileId, SourceMap};

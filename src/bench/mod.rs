@@ -248,8 +248,8 @@ pub struct BenchReport {
     pub llvmpipe_status: String,
 }
 
-/// The built-in library, with every primitive the workloads draw (a binary moved away from
-/// its `prims/` directory has none: an error, not a panic while building a scene).
+/// The library, with every primitive the workloads draw (a `PRIMFLOW_PRIMS` file replacing
+/// one of the library's without it: an error, not a panic while building a scene).
 fn library(sources: &mut SourceMap) -> Result<Arc<Program>, String> {
     let mut diags = Diagnostics::new();
     let program = Registry::load(sources, &[], &[], &mut diags)
@@ -261,8 +261,7 @@ fn library(sources: &mut SourceMap) -> Result<Arc<Program>, String> {
         .collect();
     if !missing.is_empty() {
         return Err(format!(
-            "the primitive library at {} lacks {} (the bench draws them)",
-            Registry::builtin_dir().display(),
+            "the primitive library lacks {} (the bench draws them)",
             missing.join(", ")
         ));
     }

@@ -330,10 +330,21 @@ fn fuzz(args: &FuzzArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
 }
 
 fn test(args: &TestArgs, out: &mut dyn Write) -> i32 {
-    // With no paths: the library's cases, and the cases kept beside each `--prims`
-    // directory's primitives (in it or below it).
+    // With no paths: the library's cases (in the source tree the binary was built from,
+    // when it is still there: an installed binary embeds the library, not its cases), and
+    // the cases kept beside each `--prims` directory's primitives (in it or below it).
     let paths = if args.paths.is_empty() {
-        let mut paths = vec![crate::testing::default_dir()];
+        let library_cases = crate::testing::default_dir();
+        if !library_cases.is_dir() && args.prims.is_empty() {
+            let _ = writeln!(
+                out,
+                "error: no test cases given, and the library's own ({}) are not here: they stay in the \
+                 source tree the binary was built from; name a directory or file of cases",
+                library_cases.display()
+            );
+            return 1;
+        }
+        let mut paths: Vec<PathBuf> = library_cases.is_dir().then_some(library_cases).into_iter().collect();
         paths.extend(args.prims.iter().cloned());
         paths
     } else {

@@ -119,7 +119,10 @@ impl Corpus {
     /// The corpus of the source tree this binary was built from.
     pub fn load() -> Result<Corpus, String> {
         let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-        let library = read_dir(&Registry::builtin_dir(), "prim")?;
+        let library: Vec<(String, String)> = crate::runtime::LIBRARY
+            .iter()
+            .map(|(name, text)| (name.to_string(), text.to_string()))
+            .collect();
         let mut prims = library.clone();
         prims.extend(read_dir(&root.join("tests/check/ok"), "prim")?);
         prims.extend(read_dir(&root.join("fuzz/corpus"), "prim")?);

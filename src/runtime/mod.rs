@@ -54,6 +54,6 @@ pub use api::{
 pub use frame::{Frame, ParamPlanes};
 pub use kernels::KernelSource;
 pub use pool::render_pool;
-pub use registry::Registry;
+pub use registry::{Registry, LIBRARY, PRIMS_ENV};
 pub use render::{describe_key, KernelReport, RenderOutput, RenderReport, RenderStats};
 pub use value::Value;

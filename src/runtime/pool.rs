@@ -107,6 +107,7 @@ fn sibling_rank(cpu: usize) -> usize {
 
 /// Pin the calling thread (and the threads it starts from then on, which inherit its mask)
 /// to the first CPU the process may use: which one, or `None` where nothing was pinned.
+#[cfg(feature = "cli")]
 pub(crate) fn pin_to_one_cpu() -> Option<usize> {
     let cpu = *allowed_cpus()?.first()?;
     pin_current_thread(cpu);

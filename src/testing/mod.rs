@@ -127,7 +127,7 @@ pub struct TestOptions {
 
 /// The default place of the library's own cases: `prims/tests` of the crate.
 pub fn default_dir() -> PathBuf {
-    Registry::builtin_dir().join("tests")
+    Registry::source_dir().join("tests")
 }
 
 /// The case files under `paths` (files as given, directories searched recursively), sorted

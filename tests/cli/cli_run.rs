@@ -3,7 +3,7 @@
 
 use crate::support;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use primflow::abi::{Binding, BindingKind};
 use primflow::cli::parse_key;
@@ -324,4 +324,44 @@ fn one_directory_given_twice_is_loaded_once() {
     assert_eq!(code, 0, "{err}");
     assert!(!err.contains("defined twice"), "{err}");
     assert!(out.starts_with("rendered 8x8: 1 primitive(s)"), "{out}");
+}
+
+/// The binary run from a directory of its own, as an installed one is: the library is
+/// embedded (the example scene's triangles render), and `PRIMFLOW_PRIMS` adds a directory
+/// whose primitive a scene draws.
+#[test]
+fn the_binary_renders_from_any_directory_and_reads_primflow_prims() {
+    let dir = std::env::temp_dir().join(format!("primflow-installed-{}", std::process::id()));
+    let prims = dir.join("my-prims");
+    std::fs::create_dir_all(&prims).unwrap();
+    std::fs::write(
+        prims.join("halfplane.prim"),
+        "primitive halfplane(float depth; varying float X, Y; inout varying fixed<32,32> Z) {\n\
+         \x20   if (X > 8) return;\n    Z = depth;\n    interpolator_return;\n}\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("mine.scene"),
+        "image 16 4\nmaterial_interp Cs constant\nmaterial Cs 1 0 0\nbegin halfplane\nrast_param depth 0.5\nend\n",
+    )
+    .unwrap();
+    let triangles = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/triangles.scene");
+    let run = |args: &[&str], env: Option<&Path>| {
+        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_primflow"));
+        cmd.args(args).current_dir(&dir).env_remove("PRIMFLOW_PRIMS");
+        if let Some(p) = env {
+            cmd.env("PRIMFLOW_PRIMS", p);
+        }
+        cmd.output().unwrap()
+    };
+    let out = run(&["render", triangles, "-o", "t.png"], None);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = run(&["render", "mine.scene", "-o", "m.png"], None);
+    assert_eq!(out.status.code(), Some(1), "halfplane is not in the library");
+    let out = run(&["render", "mine.scene", "-o", "m.png"], Some(&prims));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let image = image::open(dir.join("m.png")).unwrap().to_rgb8();
+    let red: Vec<bool> = (0..16).map(|x| image.get_pixel(x, 1).0 == [255, 0, 0]).collect();
+    assert_eq!(red, (0..16).map(|x| x < 8).collect::<Vec<_>>());
+    std::fs::remove_dir_all(&dir).unwrap();
 }

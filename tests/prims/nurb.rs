@@ -21,7 +21,7 @@ use primflow::runtime::{Frame, Registry, Renderer, Value};
 fn library_with_probes() -> Arc<Program> {
     let mut sources = SourceMap::new();
     let mut diags = Diagnostics::new();
-    let probes = Registry::builtin_dir().join("tests").join("prims");
+    let probes = Registry::source_dir().join("tests").join("prims");
     match Registry::load(&mut sources, &[probes], &[], &mut diags) {
         Some(reg) => reg.program,
         None => panic!("library does not compile:\n{}", diags.render(&sources)),

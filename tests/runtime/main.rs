@@ -6,6 +6,7 @@
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
 mod api;
+mod api_example;
 mod binning;
 mod camera_matrices;
 mod e2e;

@@ -134,3 +134,67 @@ fn directory_files_load_sorted_by_name() {
     assert_eq!(names, vec!["a.prim", "b.prim"]);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The loaded files' names (as diagnostics show them), in load order.
+fn loaded_names(dirs: &[PathBuf], files: &[PathBuf]) -> (Vec<String>, Vec<String>, Vec<String>) {
+    let mut sources = SourceMap::new();
+    let mut diags = Diagnostics::new();
+    let (loaded, given) = Registry::load_sources(&mut sources, dirs, files, &mut diags);
+    let name = |&f: &u32| sources.file(f).name.clone();
+    (
+        loaded.iter().map(name).collect(),
+        given.iter().map(name).collect(),
+        diags.codes_at(&sources),
+    )
+}
+
+#[test]
+fn the_library_is_embedded_and_named_after_its_source_files() {
+    // Every prims/*.prim of the source tree, by name, with the text on disk: the binary
+    // needs no prims/ directory at run time.
+    let mut on_disk: Vec<(String, String)> = std::fs::read_dir(Registry::source_dir())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "prim"))
+        .map(|p| {
+            let text = std::fs::read_to_string(&p).unwrap();
+            (p.file_name().unwrap().to_string_lossy().into_owned(), text)
+        })
+        .collect();
+    on_disk.sort();
+    let embedded: Vec<(String, String)> = primflow::runtime::LIBRARY
+        .iter()
+        .map(|(n, t)| (n.to_string(), t.to_string()))
+        .collect();
+    assert_eq!(embedded, on_disk);
+    let (names, _, codes) = loaded_names(&[], &[]);
+    let expected: Vec<String> = on_disk.iter().map(|(n, _)| format!("prims/{n}")).collect();
+    assert_eq!((names, codes), (expected, vec![]));
+}
+
+#[test]
+fn a_user_file_named_like_a_library_file_replaces_it() {
+    let dir = std::env::temp_dir().join(format!("primflow-override-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mine = "primitive sphere(varying float X, Y; inout varying fixed<32,32> Z) { Z = 0.25; }";
+    std::fs::write(dir.join("sphere.prim"), mine).unwrap();
+    let (names, _, codes) = loaded_names(std::slice::from_ref(&dir), &[]);
+    assert!(codes.is_empty(), "{codes:?}");
+    assert!(!names.contains(&"prims/sphere.prim".to_string()), "{names:?}");
+    assert_eq!(names.last().unwrap(), &dir.join("sphere.prim").display().to_string());
+    // It compiles as the library's replacement: `sphere` defined once, by the user's file.
+    let mut sources = SourceMap::new();
+    let mut diags = Diagnostics::new();
+    let registry = Registry::load(&mut sources, std::slice::from_ref(&dir), &[], &mut diags).unwrap();
+    let sphere = registry.program.find("sphere").unwrap();
+    assert_eq!(registry.program.func(sphere).params.len(), 3);
+    std::fs::remove_dir_all(&dir).unwrap();
+
+    // A single file does the same: checking the source tree's own prims/polygon.prim
+    // defines `polygon` once, from that file.
+    let polygon = Registry::source_dir().join("polygon.prim");
+    let (names, given, codes) = loaded_names(&[], std::slice::from_ref(&polygon));
+    assert!(codes.is_empty(), "{codes:?}");
+    assert_eq!(given, [polygon.display().to_string()]);
+    assert_eq!(names.len(), primflow::runtime::LIBRARY.len());
+}
