@@ -20,6 +20,8 @@ use crate::ir::{FuncKind, Program};
 use crate::jit::Jit;
 use crate::runtime::{describe_key, Registry, Renderer};
 
+mod watch;
+
 #[derive(Parser, Debug)]
 #[command(
     name = "primflow",
@@ -37,6 +39,9 @@ pub enum Command {
     Check(CheckArgs),
     /// Render a scene file to a PNG image.
     Render(RenderArgs),
+    /// Render a scene, then again each time it or a .prim file it may read is saved (until
+    /// interrupted); errors are printed and the watch goes on.
+    Watch(RenderArgs),
     /// Run primitive test cases: scene files with `# expect:` lines (default: prims/tests).
     Test(TestArgs),
     /// Benchmark JIT kernels against hand-written Rust kernels of the same primitives and
@@ -258,6 +263,7 @@ where
     match cli.command {
         Command::Check(args) => check(&args, out, err),
         Command::Render(args) => render(&args, out, err),
+        Command::Watch(args) => watch::watch(&args, out, err),
         Command::Test(args) => test(&args, out),
         Command::Bench(args) => bench(&args, out, err),
         Command::Accuracy(args) => accuracy(&args, out, err),

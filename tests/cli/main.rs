@@ -16,3 +16,4 @@ mod fuzz_campaign;
 mod output_files;
 #[path = "../support/mod.rs"]
 mod support;
+mod watch;
