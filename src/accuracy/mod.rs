@@ -26,7 +26,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::diag::{Diagnostics, SourceMap};
 use crate::ir::Program;
@@ -217,7 +217,7 @@ pub struct Knob<'a> {
 }
 
 /// One table row: a setting's figure.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Row {
     pub knob: String,
     pub setting: String,
@@ -231,7 +231,7 @@ pub struct Row {
     pub time_ratio: f64,
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct KnobReport {
     pub name: String,
     pub title: String,
@@ -241,7 +241,7 @@ pub struct KnobReport {
     pub missing: Vec<String>,
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Report {
     pub machine: String,
     pub quick: bool,

@@ -1,11 +1,13 @@
 //! One PNG per knob: every error figure of the knob (max over pixels) against the median
-//! frame time, both on log scales, one series per figure (the sphere's silhouette error in
-//! px and normal error in degrees, a NURB's geometric error and differing pixels, ...).
-//! The primary figure's points carry the setting labels; the legend names each series
-//! with its unit, which is what makes sharing one log axis between units readable.
+//! frame time, one panel per figure, stacked over one shared time axis, each panel with its
+//! own error axis named with its unit (the sphere's silhouette error in px and normal error
+//! in degrees, a NURB's geometric error and differing pixels, ...). Both axes are log
+//! scales; each spans at least a decade, so it has at least two labelled ticks, and tick
+//! labels are the round values they stand for ([`tick_label`]: `1e-5`, `0.25`, `300`).
+//! Every point carries its setting's label.
 //!
 //! A log scale has no zero: an error of exactly 0 (a setting that matches the reference,
-//! or a pixel count of none) is drawn at the bottom edge of the plot, marked "= 0" in its
+//! or a pixel count of none) is drawn at the bottom edge of its panel, marked "= 0" in its
 //! label, so it stays visible instead of vanishing.
 
 use std::path::Path;
@@ -18,6 +20,53 @@ use super::KnobReport;
 struct Series {
     name: String,
     points: Vec<(String, f64, f64)>,
+}
+
+fn positive(v: f64) -> bool {
+    v > 0.0 && v.is_finite()
+}
+
+/// The log-scale range drawn for values `lo..=hi` (positive, or infinite/0 when there are
+/// none): a `margin` factor each side, widened about its middle to at least a decade.
+fn log_range(lo: f64, hi: f64, margin: (f64, f64)) -> (f64, f64) {
+    if !lo.is_finite() || !positive(hi) {
+        return (0.1, 10.0);
+    }
+    let (lo, hi) = (lo / margin.0, hi * margin.1);
+    if hi / lo >= 10.0 {
+        (lo, hi)
+    } else {
+        let middle = (lo * hi).sqrt();
+        (middle / 10f64.sqrt(), middle * 10f64.sqrt())
+    }
+}
+
+/// A tick's label: the value to three significant digits, as plain decimals from 0.001 to
+/// 99,999 and as `Me±X` beyond (`1e-5`, `2.5e6`), with no trailing zeros. A log axis's tick
+/// at 1e-5 is computed as 9.999...e-6; it prints as `1e-5`.
+pub fn tick_label(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let mut exp = v.abs().log10().floor() as i32;
+    let mut mantissa = (v / 10f64.powi(exp) * 100.0).round() / 100.0;
+    if mantissa.abs() >= 10.0 {
+        mantissa /= 10.0;
+        exp += 1;
+    }
+    let trim = |s: String| {
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    };
+    if (-3..5).contains(&exp) {
+        let decimals = (2 - exp).max(0) as usize;
+        trim(format!("{:.*}", decimals, mantissa * 10f64.powi(exp)))
+    } else {
+        format!("{}e{exp}", trim(format!("{mantissa:.2}")))
+    }
 }
 
 /// Draw `knob`'s plot into `path`.
@@ -37,82 +86,64 @@ pub fn knob_plot(knob: &KnobReport, path: &Path) -> Result<(), String> {
     if series.is_empty() {
         return Ok(());
     }
-    let all = || series.iter().flat_map(|s| s.points.iter());
-    let positive = |v: f64| v > 0.0 && v.is_finite();
-    let t_lo = all()
-        .map(|p| p.1)
-        .filter(|&t| positive(t))
-        .fold(f64::INFINITY, f64::min);
-    let t_hi = all().map(|p| p.1).filter(|&t| positive(t)).fold(0.0, f64::max);
-    let e_lo = all()
-        .map(|p| p.2)
-        .filter(|&e| positive(e))
-        .fold(f64::INFINITY, f64::min);
-    let e_hi = all().map(|p| p.2).filter(|&e| positive(e)).fold(0.0, f64::max);
-    // Ranges with a margin of a factor 2 (a decade when everything is one value).
-    let (t_lo, t_hi) = if t_lo.is_finite() {
-        // Room on the right for the labels of the slowest points.
-        (t_lo / 2.0, t_hi * 5.0)
-    } else {
-        (0.1, 10.0)
+    let times = || {
+        series
+            .iter()
+            .flat_map(|s| s.points.iter().map(|p| p.1))
+            .filter(|&t| positive(t))
     };
-    let (e_lo, e_hi) = if e_lo.is_finite() {
-        (e_lo / 4.0, e_hi * 4.0)
-    } else {
-        (0.1, 10.0)
-    };
-    let floor = e_lo * 1.2;
+    // Room on the right for the labels of the slowest points.
+    let (t_lo, t_hi) = log_range(
+        times().fold(f64::INFINITY, f64::min),
+        times().fold(0.0, f64::max),
+        (2.0, 5.0),
+    );
 
     let err = |e: Box<dyn std::error::Error>| format!("plot `{}`: {e}", path.display());
-    let root = BitMapBackend::new(path, (800, 560)).into_drawing_area();
+    let panel_height = 380;
+    let root = BitMapBackend::new(path, (860, 60 + panel_height * series.len() as u32)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(Box::new(e)))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(knob.title.as_str(), ("sans-serif", 20))
-        .margin(16)
-        .x_label_area_size(48)
-        .y_label_area_size(80)
-        .build_cartesian_2d((t_lo..t_hi).log_scale(), (e_lo..e_hi).log_scale())
+    let root = root
+        .titled(knob.title.as_str(), ("sans-serif", 20))
         .map_err(|e| err(Box::new(e)))?;
-    let y_desc = if series.len() == 1 {
-        series[0].name.clone()
-    } else {
-        "max error (units in the legend)".to_string()
-    };
-    chart
-        .configure_mesh()
-        .x_desc("median time per frame (ms, one thread)")
-        .y_desc(y_desc)
-        // Log-scale ticks like 1e-5 print as 9.99...e-6 through `{}`: three significant digits.
-        .y_label_formatter(&|v: &f64| format!("{v:.2e}"))
-        .draw()
-        .map_err(|e| err(Box::new(e)))?;
-    for (k, s) in series.iter().enumerate() {
+    let panels = root.split_evenly((series.len(), 1));
+    for (k, (s, panel)) in series.iter().zip(&panels).enumerate() {
+        let errors = || s.points.iter().map(|p| p.2).filter(|&e| positive(e));
+        let (e_lo, e_hi) = log_range(
+            errors().fold(f64::INFINITY, f64::min),
+            errors().fold(0.0, f64::max),
+            (4.0, 4.0),
+        );
+        let floor = e_lo * 1.2;
+        let mut chart = ChartBuilder::on(panel)
+            .margin(16)
+            .x_label_area_size(48)
+            .y_label_area_size(90)
+            .build_cartesian_2d((t_lo..t_hi).log_scale(), (e_lo..e_hi).log_scale())
+            .map_err(|e| err(Box::new(e)))?;
+        chart
+            .configure_mesh()
+            .x_desc("median time per frame (ms, one thread)")
+            .y_desc(s.name.as_str())
+            .x_label_formatter(&|v: &f64| tick_label(*v))
+            .y_label_formatter(&|v: &f64| tick_label(*v))
+            .draw()
+            .map_err(|e| err(Box::new(e)))?;
         let colour = Palette99::pick(4 + 3 * k).to_rgba();
-        let primary = k == 0;
         let at = |e: f64| if positive(e) { e } else { floor };
         chart
             .draw_series(s.points.iter().map(|(label, t, e)| {
-                let text = match (primary, positive(*e)) {
-                    (false, _) => String::new(),
-                    (true, true) => label.clone(),
-                    (true, false) => format!("{label} (= 0)"),
+                let text = if positive(*e) {
+                    label.clone()
+                } else {
+                    format!("{label} (= 0)")
                 };
-                let size = if primary { 5 } else { 4 };
                 EmptyElement::at((*t, at(*e)))
-                    + Circle::new((0, 0), size, colour.filled())
+                    + Circle::new((0, 0), 5, colour.filled())
                     + Text::new(text, (8, -14), ("sans-serif", 13))
             }))
-            .map_err(|e| err(Box::new(e)))?
-            .label(s.name.clone())
-            .legend(move |(x, y)| Circle::new((x + 10, y), 5, colour.filled()));
+            .map_err(|e| err(Box::new(e)))?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(|e| err(Box::new(e)))?;
     root.present().map_err(|e| err(Box::new(e)))?;
     Ok(())
 }

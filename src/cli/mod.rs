@@ -219,6 +219,10 @@ pub struct AccuracyArgs {
     /// No progress bar.
     #[arg(long)]
     pub no_progress: bool,
+    /// Measure nothing: read a saved run's accuracy.json and write its table, CSV and
+    /// plots again (into `--out`).
+    #[arg(long, value_name = "FILE.json", conflicts_with_all = ["scene", "quick"])]
+    pub from: Option<PathBuf>,
 }
 
 /// Turn transparent huge pages off for this process (Linux; elsewhere nothing). The binary's
@@ -832,7 +836,14 @@ fn accuracy(args: &AccuracyArgs, out: &mut dyn Write, err: &mut dyn Write) -> i3
         runs: args.runs,
         progress: !args.no_progress,
     };
-    let report = match crate::accuracy::run(&opts) {
+    let report = match &args.from {
+        Some(path) => std::fs::read_to_string(path)
+            .map_err(|e| e.to_string())
+            .and_then(|text| serde_json::from_str(&text).map_err(|e| e.to_string()))
+            .map_err(|e| format!("cannot read a saved run from `{}`: {e}", path.display())),
+        None => crate::accuracy::run(&opts),
+    };
+    let report = match report {
         Ok(report) => report,
         Err(message) => {
             let _ = writeln!(err, "error: {message}");
