@@ -17,6 +17,7 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
 
 use super::{ArgLayout, KernelFn, VariantKey};
+use crate::diag::Span;
 use crate::ir::FuncId;
 
 /// A compiled kernel for one (primitive, variant key).
@@ -30,7 +31,32 @@ pub struct Kernel {
     /// Wall time spent building and compiling this kernel (callees excluded), microseconds.
     pub compile_micros: u64,
     /// Things the specialisation noticed (a bound parameter no arm writes, ...).
-    pub warnings: Vec<String>,
+    pub warnings: Vec<KernelWarning>,
+}
+
+/// Something the specialisation noticed about one binding of its key (the runtime reports
+/// it as W0802, naming the shading parameter: a source knows only its index).
+#[derive(Clone, Debug, PartialEq)]
+pub struct KernelWarning {
+    /// Index into the key's bindings.
+    pub binding: usize,
+    /// What happens to the parameter; `{param}` stands for its name.
+    pub message: String,
+    /// The source it is about (an arm, an `interpolator_return` value, a primitive's name).
+    pub span: Span,
+    /// What the underline says.
+    pub label: String,
+}
+
+impl KernelWarning {
+    /// The message with the parameter's name (or its index, when `names` has none for it).
+    pub fn message_for(&self, names: &[&str]) -> String {
+        let name = match names.get(self.binding) {
+            Some(n) => format!("`{n}`"),
+            None => format!("{}", self.binding),
+        };
+        self.message.replace("{param}", &name)
+    }
 }
 
 /// Why a kernel source could not make a kernel (the JIT calls it `JitError`).

@@ -19,7 +19,9 @@
 //!    into `pixel`; an interpolator's whole body is its pixel part; then
 //!    [`ir::number::renumber`] gives each expression its id;
 //! 7. **validate** (test and debug builds) — [`ir::valid::validate`] checks the rules code
-//!    generation relies on; a broken one is an internal compiler error (E0900).
+//!    generation relies on; a broken one is an internal compiler error (E0900);
+//! 8. **lints** — [`lint::program`] warns about primitives that check but do not do what
+//!    they look like they do (W0003 to W0005), when the program has no error.
 //!
 //! Diagnostics are collected in a [`Sink`] that drops exact duplicates (a helper's type
 //! error is found once standalone and again at every call site it is inlined at) and
@@ -27,6 +29,7 @@
 
 mod builtins;
 mod consts;
+mod lint;
 mod lower;
 pub mod types;
 mod variability;
@@ -141,6 +144,9 @@ fn check_items(items: &[&ast::Item], linked: bool, sink: &mut Sink) -> ir::Progr
         if let Err(e) = ir::valid::validate(&program) {
             sink.push(Diagnostic::error("E0900", format!("internal compiler error: {e}")).primary(e.span, "here"));
         }
+    }
+    if !linked && sink.error_count() == 0 {
+        lint::program(&program, sink);
     }
     program
 }

@@ -150,6 +150,36 @@ pub fn convert_const(c: ConstValue, from: Scalar, to: Scalar) -> Option<ConstVal
     })
 }
 
+/// What converting a constant to a fixed format loses, when it loses its meaning (W0006).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FixedLoss {
+    /// Outside the format's range by more than one step: it becomes the nearest end.
+    Saturates { value: f64, result: f64 },
+    /// Not zero, but nearer to zero than half a step: it becomes 0.
+    Vanishes { value: f64 },
+}
+
+/// How constant `c` of scalar `from` fares converted to `f` ([`convert_const`]'s rounding
+/// and saturation), if it loses its meaning. A value one step past the top (`1` as
+/// `fixed<32,32>`, the depth buffer's largest value) is taken as meant.
+pub fn fixed_loss(c: ConstValue, from: Scalar, f: FixedFormat) -> Option<FixedLoss> {
+    if from == Scalar::Fixed(f) || from == Scalar::Bool {
+        return None;
+    }
+    let value = const_value_f64(c, from);
+    if !value.is_finite() {
+        return None;
+    }
+    let result = const_value_f64(ConstValue::Fixed(fixed_raw(value, f)), Scalar::Fixed(f));
+    if (value - result).abs() > 1.0 / f.scale() {
+        Some(FixedLoss::Saturates { value, result })
+    } else if value != 0.0 && result == 0.0 {
+        Some(FixedLoss::Vanishes { value })
+    } else {
+        None
+    }
+}
+
 // Kept out of line so `convert_const` reads as the table it is; the bool case is excluded
 // by the early return above.
 fn unreachable_bool() -> ConstValue {

@@ -72,7 +72,7 @@ pub(super) struct CompiledFunction {
     /// machine code calls.
     pub pixels: Option<MachineCode>,
     pub layout: ArgLayout,
-    pub warnings: Vec<String>,
+    pub warnings: Vec<crate::abi::KernelWarning>,
     /// A tiered JIT's upgrade word, which the code reads (see `super::UpgradeWord`).
     pub upgrade: Option<&'static AtomicUsize>,
     /// Lowering and compiling it (and the kernel compiled apart from its outlined pixel
@@ -463,7 +463,7 @@ impl<'j> BatchWork<'j> {
         pixels: &mut ir::Function,
         linker: &mut BatchLinker,
         upgrade: Option<&'static AtomicUsize>,
-    ) -> Res<(ArgLayout, Vec<String>, bool)> {
+    ) -> Res<(ArgLayout, Vec<crate::abi::KernelWarning>, bool)> {
         let layout = ArgLayout::new(self.program, f, self.key);
         let body = super::body_of(self.bodies, self.program, self.unroll_loops, f);
         let plan = crate::mid::plan(self.program, f, &body, self.key, self.tier)?;

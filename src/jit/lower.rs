@@ -357,6 +357,9 @@ pub(crate) struct Lower<'a, 'b> {
     /// Per binding component: its G-buffer plane's base address (see `plane_table`).
     plane_ptrs: Option<StackSlot>,
     written: Vec<bool>,
+    /// Per binding: the last `interpolation` arm lowered for it (its kind, span), so the
+    /// warning for a binding never written says which arm left it so.
+    served_by: Vec<Option<(crate::ir::ArmKind, crate::diag::Span)>>,
     /// Walk pass rectangles in blocks with interval facts (see [`block`]); off in tier 0,
     /// where the extra variant of the pixel code costs more compile time than it saves.
     /// Off means tier 0 (see [`Self::tier0`]).
@@ -393,7 +396,7 @@ pub(crate) struct Lower<'a, 'b> {
     live_targets: std::collections::HashSet<Block>,
     /// Spare component-offset lists (see [`Self::comp_offsets`]).
     offs_spare: Vec<Vec<u32>>,
-    pub(crate) warnings: Vec<String>,
+    pub(crate) warnings: Vec<crate::abi::KernelWarning>,
     /// The types of the SSA variables declared so far, in order (see [`outline`]).
     var_types: Vec<ir::Type>,
     /// Tier 0: the pixel loops' own function (see [`outline`]).
@@ -407,7 +410,7 @@ pub(crate) struct Lower<'a, 'b> {
 
 /// What [`lower_kernel`] made besides the kernel's CLIF.
 pub(crate) struct Lowered {
-    pub warnings: Vec<String>,
+    pub warnings: Vec<crate::abi::KernelWarning>,
     /// The pixel loops went to the function given for them (see [`outline`]).
     pub outlined: bool,
 }
@@ -522,6 +525,7 @@ pub(crate) fn lower_kernel<'b>(
         scratch,
         plane_ptrs: None,
         written: vec![false; key.bindings.len()],
+        served_by: vec![None; key.bindings.len()],
         block_culling,
         error_guard: None,
         vn: VnTable::default(),
@@ -550,10 +554,8 @@ pub(crate) fn lower_kernel<'b>(
     for (i, b) in key.bindings.iter().enumerate() {
         if let BindingKind::Kind(k) = &b.kind {
             if !l.written[i] {
-                l.warnings.push(format!(
-                    "`{}`: shading parameter {} is bound to kind `{}` but no interpolation arm writes it",
-                    f.name, i, k
-                ));
+                let w = unwritten_warning(f, i, k, l.served_by[i].take());
+                l.warnings.push(w);
             }
         }
     }
@@ -565,6 +567,43 @@ pub(crate) fn lower_kernel<'b>(
     };
     l.b.finalize(frontend);
     Ok(lowered)
+}
+
+/// W0802 for Kind binding `binding` (kind `kind`) that no lowered code of `f` stores,
+/// saying why: no arm serves the kind, or the arm that does (`served_by`) stores no value.
+fn unwritten_warning(
+    f: &crate::ir::Function,
+    binding: usize,
+    kind: &str,
+    served_by: Option<(crate::ir::ArmKind, crate::diag::Span)>,
+) -> crate::abi::KernelWarning {
+    let keeps = "its pixels keep the value drawn there before";
+    let (why, span, label) = match served_by {
+        None => (
+            format!("no `interpolation` arm of `{}` handles kind `{kind}`", f.name),
+            f.span,
+            format!("no `{kind}:` or `default:` arm"),
+        ),
+        Some((crate::ir::ArmKind::Named(_), span)) => (
+            format!("its `{kind}:` arm stores no value"),
+            span,
+            "no `interpolator_return(value)` runs in this arm".to_string(),
+        ),
+        Some((crate::ir::ArmKind::Default, span)) => (
+            format!("the `default:` arm handles kind `{kind}` but stores no value"),
+            span,
+            "no `interpolator_return(value)` runs in this arm (a bare `interpolator_return;` runs only shared interpolators and constants)".to_string(),
+        ),
+    };
+    crate::abi::KernelWarning {
+        binding,
+        message: format!(
+            "`{}` never writes shading parameter {{param}}, bound to kind `{kind}`: {why}; {keeps}",
+            f.name
+        ),
+        span,
+        label,
+    }
 }
 
 /// The kernel's first instructions: when the frame its prologue reserved reaches below

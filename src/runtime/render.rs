@@ -253,7 +253,23 @@ impl Renderer {
             None => (self.instances(), self.variants()),
         };
         let variant_of = variants.of_instance();
-        let (kernels, reports) = compile_variants(&program, source, variants.list(), opts, &mut stats, &mut diags);
+        // Binding k of a key is the k-th shading parameter the frame keeps (`live`).
+        let param_names: Vec<&str> = self
+            .shading_params()
+            .iter()
+            .zip(&live.first_plane)
+            .filter(|(_, first)| first.is_some())
+            .map(|(p, _)| p.name.as_str())
+            .collect();
+        let (kernels, reports) = compile_variants(
+            &program,
+            source,
+            variants.list(),
+            &param_names,
+            opts,
+            &mut stats,
+            &mut diags,
+        );
         let compiled = Instant::now();
         stats.kernels_micros = micros_between(started, compiled);
         if let (Some(hold), Some(watch)) = (&mut held_compiler, &compiler) {
@@ -299,6 +315,7 @@ impl Renderer {
         let (expanded, gated) = tiergate::run_items(compiler, instances.len(), BOUND_JOB, expand_one);
         stats.add_gated(gated);
         drop(ready);
+        report_unbounded(&program, variants.list(), variant_of, &expanded, opts, &mut diags);
         let mut draws = 0;
         for e in &expanded {
             let Some(e) = e else { continue };
@@ -504,11 +521,13 @@ fn frame_too_large(opts: &RenderOptions, num_planes: u32) -> Option<Diagnostic> 
 
 /// Compile every variant (`(func, key)`, in first-use order) through `source`, with the
 /// frame's `count_writes`; a variant that fails has `None` and its errors in `diags`.
+/// `param_names`: the shading parameter of each binding, in key order (for warnings).
 /// Returns the kernels, indexed like `variants`, and a report of each compiled one.
 fn compile_variants(
     program: &Program,
     source: &mut dyn KernelSource,
     variants: &[(FuncId, VariantKey)],
+    param_names: &[&str],
     opts: &RenderOptions,
     stats: &mut RenderStats,
     diags: &mut Diagnostics,
@@ -521,7 +540,7 @@ fn compile_variants(
                 count_writes: opts.count_writes,
                 ..key.clone()
             };
-            let kernel = compile_one(program, source, *func, &key, diags);
+            let kernel = compile_one(program, source, *func, &key, param_names, diags);
             if let Some(k) = &kernel {
                 stats.kernels_compiled += 1;
                 stats.compile_micros += k.compile_micros;
@@ -559,6 +578,74 @@ fn frame_bytes(opts: &RenderOptions, num_planes: u32) -> u64 {
 /// next to the bound runs (a small triangle's takes well under a microsecond).
 const BOUND_JOB: usize = 512;
 
+/// W0803 for each primitive with per-pixel code and no `bound` (the checker's W0004) that
+/// the frame drew as itself: how many instances, and over how many pixels their per-pixel
+/// code ran (the pixels of the tiles each was binned into: without a bound, every tile).
+/// Counts, because the renderer keeps no time per primitive; an instance that returned in
+/// its setup is binned nowhere and not counted.
+fn report_unbounded(
+    program: &Program,
+    variants: &[(FuncId, VariantKey)],
+    variant_of: &[usize],
+    expanded: &[Option<Expanded>],
+    opts: &RenderOptions,
+    diags: &mut Diagnostics,
+) {
+    let unbounded: Vec<bool> = variants
+        .iter()
+        .map(|(f, _)| {
+            let f = program.func(*f);
+            !f.pixel.is_empty() && !f.stmts.iter().any(|(_, s)| matches!(s, crate::ir::StmtKind::Bound(_)))
+        })
+        .collect();
+    if !unbounded.contains(&true) {
+        return;
+    }
+    let ts = opts.tile_size as u64;
+    let tile_pixels = |(tx0, ty0, tx1, ty1): TileRect| {
+        let span = |t0: usize, t1: usize, side: u32| {
+            (((t1 as u64 + 1) * ts).min(u64::from(side))).saturating_sub(t0 as u64 * ts)
+        };
+        span(tx0, tx1, opts.width) * span(ty0, ty1, opts.height)
+    };
+    // Per primitive, in first-drawn order: instances and pixels.
+    let mut seen: Vec<(FuncId, u64, u64)> = vec![];
+    for (e, &v) in expanded.iter().zip(variant_of) {
+        let Some(Expanded::Itself { tiles: Some(tiles), .. }) = e else {
+            continue;
+        };
+        if !unbounded[v] {
+            continue;
+        }
+        let func = variants[v].0;
+        let i = match seen.iter().position(|s| s.0 == func) {
+            Some(i) => i,
+            None => {
+                seen.push((func, 0, 0));
+                seen.len() - 1
+            }
+        };
+        seen[i].1 += 1;
+        seen[i].2 += tile_pixels(*tiles);
+    }
+    for (func, instances, pixels) in seen {
+        let f = program.func(func);
+        diags.push(
+            Diagnostic::warning(
+                "W0803",
+                format!(
+                    "`{}` has no `bound`: its {instances} instance(s) ran their per-pixel code over {pixels} pixels, {} each on average (the viewport has {})",
+                    f.name,
+                    pixels / instances,
+                    u64::from(opts.width) * u64::from(opts.height)
+                ),
+            )
+            .primary(f.span, "no path of this primitive calls `bound`")
+            .help("with `bound(xmin, ymin, xmax, ymax)` around what an instance covers, its per-pixel code runs only over that rectangle"),
+        );
+    }
+}
+
 fn micros_between(from: Instant, to: Instant) -> u64 {
     to.duration_since(from).as_micros() as u64
 }
@@ -568,6 +655,7 @@ fn compile_one(
     source: &mut dyn KernelSource,
     func: FuncId,
     key: &VariantKey,
+    param_names: &[&str],
     diags: &mut Diagnostics,
 ) -> Option<Arc<Kernel>> {
     let name = &program.func(func).name;
@@ -582,8 +670,7 @@ fn compile_one(
                 return None;
             }
             for w in &kernel.warnings {
-                // Kernel warnings already name their primitive.
-                diags.push(Diagnostic::warning("W0802", w.clone()));
+                diags.push(Diagnostic::warning("W0802", w.message_for(param_names)).primary(w.span, w.label.clone()));
             }
             Some(kernel)
         }

@@ -262,7 +262,7 @@ fn check_prints_a_summary_of_what_it_checked() {
     let prim = temp_file(
         "summary.prim",
         "float h1(float x) { return x; }\nfloat h2(float x) { return x; }\n\
-         primitive summed(varying float X, Y; varying float Z) { Z = h1(h2(0.5)); }\n",
+         primitive summed(varying float X, Y; varying float Z) { bound(0, 0, 1, 1); Z = h1(h2(0.5)); }\n",
     );
     let (code, _, err) = cli(&["check", prim.to_str().unwrap()]);
     assert_eq!(code, 0, "{err}");

@@ -80,10 +80,12 @@ fn fields_bind_like_indexing() {
     assert!(matches!(&base.kind, ExprKind::Field { base, .. } if matches!(base.kind, ExprKind::Index { .. })));
 }
 
-/// The codes `body`, inside a primitive, reports.
+/// The codes `body`, inside a primitive that draws (a bound and a depth write on line 2, so
+/// no W0003 or W0004), reports.
 fn codes(body: &str) -> Vec<String> {
-    let text =
-        format!("primitive p(point q; color c; vector v; varying float X, Y; inout varying float Z)\n{{\n{body}\n}}\n");
+    let text = format!(
+        "primitive p(point q; color c; vector v; varying float X, Y; inout varying float Z)\n{{ bound(0, 0, 1, 1); Z = 0.5;\n{body}\n}}\n"
+    );
     let mut sources = SourceMap::new();
     let f = sources.add("t.prim", text);
     let mut diags = Diagnostics::new();

@@ -28,9 +28,12 @@ fn codes(text: String) -> Vec<String> {
         .unwrap()
 }
 
-/// A primitive whose body is `body` (line 3 on).
+/// A primitive whose body is `body` (line 3 on), after a bound and a depth write on line 2
+/// (so that it draws: no W0003 or W0004).
 fn prim(body: &str) -> String {
-    format!("primitive deep(float rect[4]; varying float X, Y; inout varying float Z)\n{{\n{body}\n}}\n")
+    format!(
+        "primitive deep(float rect[4]; varying float X, Y; inout varying float Z)\n{{ bound(rect[0], rect[1], rect[2], rect[3]); Z = 0.5;\n{body}\n}}\n"
+    )
 }
 
 /// `float a = X + X + ... + X;` with `n` terms, on line 3 from column 5.

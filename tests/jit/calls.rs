@@ -176,7 +176,11 @@ fn bare_interpolator_return_writes_constants_and_shared_interpolators() {
     let mut jit = Jit::new(Arc::new(program(vec![fb.finish(), ix(), early()], 0))).unwrap();
     let k = jit.kernel(FuncId(0), &key).unwrap();
     assert_eq!(k.warnings.len(), 1, "{:?}", k.warnings);
-    assert!(k.warnings[0].contains("linear"));
+    assert_eq!(k.warnings[0].binding, 2);
+    assert_eq!(
+        k.warnings[0].message_for(&["Cs", "s", "t"]),
+        "`p` never writes shading parameter `t`, bound to kind `linear`: no `interpolation` arm of `p` handles kind `linear`; its pixels keep the value drawn there before"
+    );
     // n_seq; plane table (7 components); constant (3 floats); ix: scale, offset; early: none.
     let mut args = vec![1, 0, 1, 2, 3, 4, 5, 6];
     args.extend([fw(0.25), fw(0.5), fw(0.75), fw(2.0), fw(-1.0)]);

@@ -75,7 +75,11 @@ fn kind_binding_without_arm_is_reported() {
     let key = kind_key(&[("linear", 1), ("perspective_linear", 2)]);
     let k = jit.kernel(FuncId(0), &key).unwrap();
     assert_eq!(k.warnings.len(), 1, "{:?}", k.warnings);
-    assert!(k.warnings[0].contains("perspective_linear"));
+    assert_eq!(k.warnings[0].binding, 1);
+    assert_eq!(
+        k.warnings[0].message_for(&["a", "b"]),
+        "`half_plane` never writes shading parameter `b`, bound to kind `perspective_linear`: no `interpolation` arm of `half_plane` handles kind `perspective_linear`; its pixels keep the value drawn there before"
+    );
 }
 
 /// `int i = 0; while (i < X) i = i + 1; Z = float(i) / 32;` — a varying loop whose lanes

@@ -59,6 +59,7 @@ primitive corner(int axis; float k; float k2; float depth;
                  varying float X, Y;
                  inout varying fixed<32,32> Z)
 {
+    bound(0, 0, 1e6, 1e6);                 // the whole image, without W0803
     float t;
     if (axis == 0) {
         t = X - k;

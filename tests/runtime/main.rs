@@ -36,6 +36,7 @@ mod shading_lighting;
 mod shading_phong;
 mod shading_reference;
 mod shading_rows;
+mod silent_mistakes;
 #[path = "../support/mod.rs"]
 mod support;
 mod texture;

@@ -76,15 +76,56 @@ impl<'g, 'a> FnLower<'g, 'a> {
             }
             (Elem::Scalar(t), Elem::Scalar(s)) if types::implicitly_converts(s, t) => {
                 if v.ty.dims == ty.dims {
-                    Some(convert(v, t))
+                    Some(self.convert_to(v, t))
                 } else if v.ty.dims.is_empty() {
-                    Some(broadcast(convert(v, t), &ty.dims))
+                    Some(broadcast(self.convert_to(v, t), &ty.dims))
                 } else {
                     mismatch(self, &v)
                 }
             }
             _ => mismatch(self, &v),
         }
+    }
+
+    /// [`convert`] to `to`, warning (W0006) where it turns a constant into a fixed value
+    /// that has lost its meaning ([`types::fixed_loss`]): the constant is still as written
+    /// here, and folded after.
+    pub(super) fn convert_to(&mut self, v: Tree, to: Scalar) -> Tree {
+        if let (TreeKind::Const(c), Some(from), Scalar::Fixed(f)) = (&v.kind, scalar_of(&v.ty), to) {
+            let fmt = type_name(&Type::scalar(to));
+            // A float constant as written (the f32 it is, not its f64 widening).
+            let shown = |value: f64| match from {
+                Scalar::Float => format!("{}", value as f32),
+                _ => format!("{value}"),
+            };
+            let d = match types::fixed_loss(*c, from, f) {
+                Some(types::FixedLoss::Saturates { value, result }) => Some(
+                    Diagnostic::warning(
+                        "W0006",
+                        format!("the constant {} saturates to {result} as {fmt}", shown(value)),
+                    )
+                    .primary(v.span, format!("this becomes {result}"))
+                    .help(format!(
+                        "{fmt} holds {} to {}; convert the other operand to a wider type, or use a float",
+                        f.raw_range().0 as f64 / f.scale(),
+                        f.raw_range().1 as f64 / f.scale()
+                    )),
+                ),
+                Some(types::FixedLoss::Vanishes { value }) => Some(
+                    Diagnostic::warning("W0006", format!("the constant {} becomes 0 as {fmt}", shown(value)))
+                        .primary(v.span, "this becomes 0")
+                        .help(format!(
+                            "{fmt} has steps of {}; a constant nearer to 0 than half a step rounds to 0",
+                            1.0 / f.scale()
+                        )),
+                ),
+                None => None,
+            };
+            if let Some(d) = d {
+                self.sink.push(d);
+            }
+        }
+        convert(v, to)
     }
 
     pub fn expr(&mut self, e: &ast::Expr, pre: &mut Vec<Stmt<Tree>>) -> Option<Tree> {
@@ -445,7 +486,8 @@ impl<'g, 'a> FnLower<'g, 'a> {
                     ));
                     return None;
                 };
-                Some(bin(iop, convert(l, s), convert(r, s), Type::bool(), span))
+                let (l, r) = (self.convert_to(l, s), self.convert_to(r, s));
+                Some(bin(iop, l, r, Type::bool(), span))
             }
             B::Add | B::Sub | B::Mul | B::Div | B::Rem => self.arith(op, iop, l, r, span),
         }
@@ -537,13 +579,8 @@ impl<'g, 'a> FnLower<'g, 'a> {
             ));
             return None;
         };
-        Some(bin(
-            iop,
-            convert(l, s),
-            convert(r, s),
-            Type::array(Elem::Scalar(s), dims),
-            span,
-        ))
+        let (l, r) = (self.convert_to(l, s), self.convert_to(r, s));
+        Some(bin(iop, l, r, Type::array(Elem::Scalar(s), dims), span))
     }
 
     pub(super) fn call_expr(

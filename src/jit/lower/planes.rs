@@ -16,7 +16,7 @@
 use cranelift_codegen::ir::{self, condcodes::IntCC, types, InstBuilder, StackSlotData, StackSlotKind};
 
 use super::{elem_scalar, err, ArmInfo, LoopCtx, Lower, Res, Storage, ALL_LANE_BITS, DEPTH_FORMAT};
-use crate::abi::{interpolator_arg_words, type_words, BindingKind, ParamSlot};
+use crate::abi::{interpolator_arg_words, type_words, BindingKind, KernelWarning, ParamSlot};
 use crate::ir::{Elem, ExprId, FuncKind, ParamRole, Scalar};
 use crate::jit::fixed;
 use crate::jit::value::{args_flags, blend, ctx_off, mask_const, mem_flags, zero, Val, F32X4, I32X4};
@@ -49,6 +49,9 @@ impl<'a, 'b> Lower<'a, 'b> {
             let Some((view, bindings)) = view::arm_view(self.key, &named, arm) else {
                 continue;
             };
+            for &bi in &bindings {
+                self.served_by[bi] = Some((arm.kind.clone(), arm.span));
+            }
             let saved_view = std::mem::replace(&mut self.view, view);
             let saved_arm = self.arm.replace(ArmInfo { bindings });
             let r = self.stmts(&arm.body);
@@ -251,12 +254,17 @@ impl<'a, 'b> Lower<'a, 'b> {
                         .collect();
                     self.store_planes(&batch);
                 } else {
-                    self.warnings.push(format!(
-                        "interpolator `{}` returns {} components for a parameter of {}; not stored",
-                        self.frame().func.name,
-                        v.comps.len(),
-                        comps
-                    ));
+                    let func = self.frame().func;
+                    let name = &func.name;
+                    self.warnings.push(KernelWarning {
+                        binding: bi,
+                        message: format!(
+                            "interpolator `{name}` returns {} components for shading parameter {{param}} of {comps}; it is not stored",
+                            v.comps.len(),
+                        ),
+                        span: func.exprs.span(e),
+                        label: format!("{} components", v.comps.len()),
+                    });
                 }
             }
             return self.leave_interpolator();
@@ -315,10 +323,16 @@ impl<'a, 'b> Lower<'a, 'b> {
                 vals.push(x);
             }
             if vals.iter().any(|x| x.is_none()) {
-                self.warnings.push(format!(
-                    "`{fname}`: interpolator_return value has {} components, shading parameter {bi} has {comps}; not stored",
-                    v.comps.len()
-                ));
+                let span = self.frame().func.exprs.span(e_id);
+                self.warnings.push(KernelWarning {
+                    binding: bi,
+                    message: format!(
+                        "`{fname}`: the `interpolator_return` value has {} components, shading parameter {{param}} has {comps}; it is not stored",
+                        v.comps.len()
+                    ),
+                    span,
+                    label: format!("{} components", v.comps.len()),
+                });
                 continue;
             }
             for (c, x) in vals.into_iter().enumerate() {
@@ -355,17 +369,26 @@ impl<'a, 'b> Lower<'a, 'b> {
     }
 
     pub(super) fn inline_interpolator(&mut self, bi: usize, name: &str) -> Res<()> {
+        let span = self.frame().func.span;
         let Some(id) = self.program.find(name) else {
-            self.warnings.push(format!(
-                "shared interpolator `{name}` (shading parameter {bi}) does not exist; not written"
-            ));
+            self.warnings.push(KernelWarning {
+                binding: bi,
+                message: format!(
+                    "shared interpolator `{name}` of shading parameter {{param}} does not exist; it is not written"
+                ),
+                span,
+                label: "in this primitive".into(),
+            });
             return Ok(());
         };
         let f = self.program.func(id);
         if f.kind != FuncKind::Interpolator {
-            self.warnings.push(format!(
-                "`{name}` (shading parameter {bi}) is a primitive, not a shared interpolator"
-            ));
+            self.warnings.push(KernelWarning {
+                binding: bi,
+                message: format!("`{name}`, bound to shading parameter {{param}}, is a primitive, not a shared interpolator; it is not written"),
+                span,
+                label: "in this primitive".into(),
+            });
             return Ok(());
         }
         if self.frames.iter().any(|fr| std::ptr::eq(fr.func, f)) {
