@@ -11,6 +11,7 @@ pub mod ast;
 pub mod build;
 pub mod lexer;
 pub mod limits;
+pub mod print;
 
 lalrpop_util::lalrpop_mod!(
     #[allow(clippy::all, unused_parens, unused_imports)]
