@@ -5,7 +5,8 @@
 //! boundaries, so one parse reports several errors; an unrecoverable error (end of file in
 //! the middle of an item) still returns the items parsed before it. After this point every
 //! node has a span and names are as written: nothing is resolved yet, and the tree is within
-//! the depth limits of [`crate::limits`] ([`limits::enforce`]).
+//! the depth limits of [`crate::limits`] ([`limits::enforce`]). [`print`] writes a tree as
+//! indented text (`primflow check --emit ast`).
 
 pub mod ast;
 pub mod build;
@@ -145,7 +146,7 @@ fn token_ends_before(file: FileId, text: &str, starts: &[usize]) -> Vec<Option<u
     let mut ends = Vec::with_capacity(starts.len());
     let mut previous_end = None;
     let mut pending = starts.iter().peekable();
-    for (start, _, end) in lexer::lex(file, &text[..last.min(text.len())], &mut scratch) {
+    for (start, _, end) in lexer::lex(file, text.get(..last).unwrap_or(text), &mut scratch) {
         while pending.next_if(|&&s| s <= start).is_some() {
             ends.push(previous_end);
         }
