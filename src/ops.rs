@@ -10,6 +10,16 @@ pub enum UnaryOp {
     Not,
 }
 
+impl UnaryOp {
+    /// The operator as written in the source (the printers of the AST and the IR use it).
+    pub fn symbol(self) -> &'static str {
+        match self {
+            UnaryOp::Neg => "-",
+            UnaryOp::Not => "!",
+        }
+    }
+}
+
 /// Component-wise binary operators. Comparisons give `Bool` of the operands' shape;
 /// `And`/`Or` take and give `Bool` (both sides are always evaluated: expressions are pure).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -27,4 +37,25 @@ pub enum BinOp {
     Ne,
     And,
     Or,
+}
+
+impl BinOp {
+    /// The operator as written in the source (the printers of the AST and the IR use it).
+    pub fn symbol(self) -> &'static str {
+        match self {
+            BinOp::Add => "+",
+            BinOp::Sub => "-",
+            BinOp::Mul => "*",
+            BinOp::Div => "/",
+            BinOp::Rem => "%",
+            BinOp::Lt => "<",
+            BinOp::Le => "<=",
+            BinOp::Gt => ">",
+            BinOp::Ge => ">=",
+            BinOp::Eq => "==",
+            BinOp::Ne => "!=",
+            BinOp::And => "&&",
+            BinOp::Or => "||",
+        }
+    }
 }

@@ -103,12 +103,16 @@ pub struct FuzzWorkerArgs {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Emit {
-    /// The syntax tree of each given file.
+    /// The syntax tree of each given file: one node per line with its line:col.
     Ast,
-    /// The checked IR of the whole program.
+    /// The checked IR of each primitive and interpolator defined in the given files
+    /// (helpers are inlined into them).
     Ir,
-    /// Cranelift IR of each primitive in the given files, for one variant key.
+    /// Cranelift IR of each primitive in the given files, for the `--key` variant.
     Clif,
+    /// Machine code of each primitive in the given files, for the `--key` variant: the
+    /// tier-1 (optimised) kernel after register allocation.
+    Asm,
 }
 
 #[derive(clap::Args, Debug)]
@@ -122,7 +126,7 @@ pub struct CheckArgs {
     /// Also print a compiler stage's output.
     #[arg(long, value_enum)]
     pub emit: Option<Emit>,
-    /// Variant key for `--emit clif`: comma-separated KIND:COMPONENTS, KIND being `linear`,
+    /// Variant key for `--emit clif` and `--emit asm`: comma-separated KIND:COMPONENTS, KIND being `linear`,
     /// `perspective_linear`, any other per-sequence-point kind, `constant`, or a shared
     /// interpolator's name.
     #[arg(long, value_name = "SPEC", default_value = "linear:1,perspective_linear:1")]
@@ -389,9 +393,10 @@ fn check(args: &CheckArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     }
     if args.emit == Some(Emit::Ast) {
         for &file in &given {
-            let mut file_diags = Diagnostics::new();
-            let module = crate::syntax::parse(file, sources.text(file), &mut file_diags);
-            let _ = writeln!(out, "// {}\n{module:#?}", sources.file(file).name);
+            // Its syntax errors are reported by the check below.
+            let module = crate::syntax::parse(file, sources.text(file), &mut Diagnostics::new());
+            let tree = crate::syntax::print::module_tree(&module, &sources);
+            let _ = write!(out, "// {}\n{tree}", sources.file(file).name);
         }
     }
     let registry = Registry::compile(&sources, loaded, &mut diags);
@@ -403,11 +408,12 @@ fn check(args: &CheckArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     let program = &registry.program;
     let code = match args.emit {
         Some(Emit::Ir) => {
-            let _ = write!(out, "{program}");
+            emit_ir(program, &given, out);
             0
         }
-        Some(Emit::Clif) => emit_clif(program, &given, &args.key, out, err),
-        _ => 0,
+        Some(Emit::Clif) => emit_kernels(program, &given, &args.key, Emit::Clif, out, err),
+        Some(Emit::Asm) => emit_kernels(program, &given, &args.key, Emit::Asm, out, err),
+        Some(Emit::Ast) | None => 0,
     };
     if code == 0 {
         // On stderr with the diagnostics, so that stdout holds only what `--emit` dumps.
@@ -452,7 +458,37 @@ fn check_summary(sources: &SourceMap, files: &[FileId], diags: &Diagnostics) -> 
     )
 }
 
-fn emit_clif(program: &Arc<Program>, given: &[u32], spec: &str, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+/// `--emit ir`: the functions of the checked program defined in `given`, in program order.
+/// Helpers are not among them (the checker inlines every call), nor shaders (checked only
+/// when a frame links them); library primitives a given one calls appear by name only
+/// (`call screen_triangle#8(...)`).
+fn emit_ir(program: &Program, given: &[FileId], out: &mut dyn Write) {
+    let mut printed = 0;
+    for f in program.functions.iter().filter(|f| given.contains(&f.span.file)) {
+        if printed > 0 {
+            let _ = writeln!(out);
+        }
+        let _ = write!(out, "{}", f.display_in(program));
+        printed += 1;
+    }
+    if printed == 0 {
+        let _ = writeln!(
+            out,
+            "// no primitive or interpolator in the given files (helpers are inlined into their callers)"
+        );
+    }
+}
+
+/// `--emit clif` / `--emit asm`: each primitive of `given` lowered for the `spec` key, as
+/// Cranelift IR or as tier-1 machine code, under a `; primitive NAME key KEY` header.
+fn emit_kernels(
+    program: &Arc<Program>,
+    given: &[FileId],
+    spec: &str,
+    what: Emit,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> i32 {
     let key = match parse_key(spec, program) {
         Ok(key) => key,
         Err(message) => {
@@ -460,6 +496,7 @@ fn emit_clif(program: &Arc<Program>, given: &[u32], spec: &str, out: &mut dyn Wr
             return 1;
         }
     };
+    // `Jit::new` compiles at tier 1 (opt_level=speed), the kernels a frame ends up running.
     let jit = match Jit::new(program.clone()) {
         Ok(jit) => jit,
         Err(e) => {
@@ -473,8 +510,23 @@ fn emit_clif(program: &Arc<Program>, given: &[u32], spec: &str, out: &mut dyn Wr
         if f.kind != FuncKind::Primitive || !given.contains(&f.span.file) {
             continue;
         }
-        let _ = writeln!(out, "; primitive {} key {}", f.name, describe_key(&key));
-        match jit.clif(crate::ir::FuncId(i as u32), &key) {
+        let id = crate::ir::FuncId(i as u32);
+        let text = match what {
+            Emit::Asm => jit.disassembly(id, &key).map(|d| {
+                format!(
+                    "; primitive {} key {}: {} instructions, {} of them spills or reloads\n{}",
+                    f.name,
+                    describe_key(&key),
+                    d.inst_lines,
+                    d.spill_lines,
+                    d.text
+                )
+            }),
+            _ => jit
+                .clif(id, &key)
+                .map(|text| format!("; primitive {} key {}\n{text}", f.name, describe_key(&key))),
+        };
+        match text {
             Ok(text) => {
                 let _ = writeln!(out, "{text}");
             }

@@ -4,13 +4,16 @@
 //! with type and final variability, then the `setup:` and `pixel:` statement lists.
 //! Locals are written `name%id`; statements and loops that run per pixel are marked
 //! `varying`; constants print with their type when it is not plain float/int/bool
-//! (`0.5:fixed<32,16>`). The output is deterministic, so it can be kept as a golden file.
+//! (`0.5:fixed<32,16>`); a primitive call names its callee (`call screen_triangle#8(...)`)
+//! when the function is printed with its program ([`Function::display_in`], as a
+//! [`Program`] prints its functions), only its id otherwise (`call primitive#8(...)`). The
+//! output is deterministic, so it can be kept as a golden file.
 
 use std::fmt::{self, Write};
 
 use super::{
-    ArmKind, BinOp, Builtin, ConstValue, Elem, ExprId, ExprKind, FuncKind, Function, Geometry, LocalKind, Program,
-    Scalar, Space, StmtId, StmtKind, Type, UnaryOp, Variability,
+    ArmKind, Builtin, ConstValue, Elem, ExprId, ExprKind, FuncKind, Function, Geometry, LocalKind, Program, Scalar,
+    Space, StmtId, StmtKind, Type, Variability,
 };
 
 impl fmt::Display for Program {
@@ -19,14 +22,40 @@ impl fmt::Display for Program {
             if i > 0 {
                 writeln!(f)?;
             }
-            write!(f, "{func}")?;
+            write!(f, "{}", func.display_in(self))?;
         }
         Ok(())
     }
 }
 
+/// A function printed with the names of the primitives it calls (see [`Function::display_in`]).
+pub struct InProgram<'a> {
+    func: &'a Function,
+    program: &'a Program,
+}
+
+impl fmt::Display for InProgram<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.func.write(f, Some(self.program))
+    }
+}
+
+impl Function {
+    /// This function of `program` as text, a primitive call naming its callee
+    /// (`call screen_triangle#8(...)`; printed alone, a function knows only the callee's id).
+    pub fn display_in<'a>(&'a self, program: &'a Program) -> InProgram<'a> {
+        InProgram { func: self, program }
+    }
+}
+
 impl fmt::Display for Function {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.write(f, None)
+    }
+}
+
+impl Function {
+    fn write(&self, f: &mut fmt::Formatter<'_>, program: Option<&Program>) -> fmt::Result {
         let kind = match self.kind {
             FuncKind::Primitive => "primitive",
             FuncKind::Interpolator => "interpolator",
@@ -71,7 +100,7 @@ impl fmt::Display for Function {
                 type_str(&l.ty)
             )?;
         }
-        let p = Printer { func: self };
+        let p = Printer { func: self, program };
         writeln!(f, "  setup:")?;
         let mut s = String::new();
         p.block(&mut s, &self.setup, 2)?;
@@ -150,6 +179,8 @@ fn space_str(s: Space) -> &'static str {
 
 struct Printer<'f> {
     func: &'f Function,
+    /// The program `func` belongs to, when known: primitive calls print the callee's name.
+    program: Option<&'f Program>,
 }
 
 impl Printer<'_> {
@@ -226,13 +257,11 @@ impl Printer<'_> {
             }
             StmtKind::CallPrimitive { callee, args, site } => {
                 let a: Vec<String> = args.iter().map(|e| self.expr(*e)).collect();
-                writeln!(
-                    out,
-                    "{pad}call primitive#{}({}) @site{}",
-                    callee.0,
-                    a.join(", "),
-                    site.0
-                )
+                let name = self
+                    .program
+                    .and_then(|p| p.functions.get(callee.0 as usize))
+                    .map_or("primitive", |c| c.name.as_str());
+                writeln!(out, "{pad}call {name}#{}({}) @site{}", callee.0, a.join(", "), site.0)
             }
         }
     }
@@ -250,15 +279,9 @@ impl Printer<'_> {
             ExprKind::Const(c) => const_str(*c, scalar(&e.ty)),
             ExprKind::Local(l) => self.local_name(*l),
             ExprKind::Index { base, index, .. } => format!("{}[{}]", self.expr(*base), self.expr(*index)),
-            ExprKind::Unary { op, expr } => {
-                let o = match op {
-                    UnaryOp::Neg => "-",
-                    UnaryOp::Not => "!",
-                };
-                format!("{o}{}", self.expr(*expr))
-            }
+            ExprKind::Unary { op, expr } => format!("{}{}", op.symbol(), self.expr(*expr)),
             ExprKind::Binary { op, lhs, rhs } => {
-                format!("({} {} {})", self.expr(*lhs), bin_str(*op), self.expr(*rhs))
+                format!("({} {} {})", self.expr(*lhs), op.symbol(), self.expr(*rhs))
             }
             ExprKind::Convert(x) => {
                 let to = match e.ty.elem {
@@ -300,23 +323,5 @@ impl Printer<'_> {
             ExprKind::SeqCount => "seq_count".into(),
             ExprKind::ClipFlag => "clipping()".into(),
         }
-    }
-}
-
-fn bin_str(op: BinOp) -> &'static str {
-    match op {
-        BinOp::Add => "+",
-        BinOp::Sub => "-",
-        BinOp::Mul => "*",
-        BinOp::Div => "/",
-        BinOp::Rem => "%",
-        BinOp::Lt => "<",
-        BinOp::Le => "<=",
-        BinOp::Gt => ">",
-        BinOp::Ge => ">=",
-        BinOp::Eq => "==",
-        BinOp::Ne => "!=",
-        BinOp::And => "&&",
-        BinOp::Or => "||",
     }
 }

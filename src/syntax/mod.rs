@@ -5,12 +5,14 @@
 //! boundaries, so one parse reports several errors; an unrecoverable error (end of file in
 //! the middle of an item) still returns the items parsed before it. After this point every
 //! node has a span and names are as written: nothing is resolved yet, and the tree is within
-//! the depth limits of [`crate::limits`] ([`limits::enforce`]).
+//! the depth limits of [`crate::limits`] ([`limits::enforce`]). [`print`] writes a tree as
+//! indented text (`primflow check --emit ast`).
 
 pub mod ast;
 pub mod build;
 pub mod lexer;
 pub mod limits;
+pub mod print;
 
 lalrpop_util::lalrpop_mod!(
     #[allow(clippy::all, unused_parens, unused_imports)]
@@ -44,19 +46,18 @@ fn parse_unchecked(file: FileId, text: &str, diags: &mut Diagnostics) -> ast::Mo
     // A parse that gave up early leaves tokens unread: their lexical errors are reported all
     // the same (before the syntax errors, as when the file was lexed first).
     tokens.for_each(drop);
-    for r in recovered {
-        diags.push(parse_error(file, text, r.error));
-    }
-    for d in extra {
-        diags.push(d);
-    }
-    match result {
-        Ok(module) => module,
-        Err(e) => {
-            diags.push(parse_error(file, text, e));
-            ast::Module::default()
-        }
-    }
+    let (module, last) = match result {
+        Ok(module) => (module, None),
+        Err(e) => (ast::Module::default(), Some(e)),
+    };
+    let recovered_count = recovered.len();
+    let errors = recovered.into_iter().map(|r| r.error).chain(last);
+    let mut syntax = syntax_errors(file, text, errors.collect()).into_iter();
+    // The recovered errors, the grammar's own, then the one that ended the parse.
+    syntax.by_ref().take(recovered_count).for_each(|d| diags.push(d));
+    extra.into_iter().for_each(|d| diags.push(d));
+    syntax.for_each(|d| diags.push(d));
+    module
 }
 
 /// Parse a single expression (tests and tools).
@@ -77,32 +78,107 @@ pub fn parse_expr(file: FileId, text: &str, diags: &mut Diagnostics) -> Option<a
             (diags.error_count() == before).then_some(e)
         }
         Ok(_) => {
-            for r in recovered {
-                diags.push(parse_error(file, text, r.error));
-            }
+            let errors = recovered.into_iter().map(|r| r.error).collect();
+            syntax_errors(file, text, errors)
+                .into_iter()
+                .for_each(|d| diags.push(d));
             None
         }
         Err(e) => {
-            diags.push(parse_error(file, text, e));
+            syntax_errors(file, text, vec![e])
+                .into_iter()
+                .for_each(|d| diags.push(d));
             None
         }
     }
 }
 
-fn parse_error(file: FileId, text: &str, e: ParseError<usize, Tok, LexError>) -> Diagnostic {
+type SyntaxError = ParseError<usize, Tok, LexError>;
+
+/// The diagnostics of the parser's `errors`, in order. Where a `;` could have ended what came
+/// before an unexpected token on a later line, the error points at the end of the token
+/// before it, as a missing `;` (one lexer pass over the file finds those ends, only when
+/// some error needs one).
+fn syntax_errors(file: FileId, text: &str, errors: Vec<SyntaxError>) -> Vec<Diagnostic> {
+    let mut wanted: Vec<usize> = errors
+        .iter()
+        .filter_map(|e| match e {
+            ParseError::UnrecognizedToken {
+                token: (l, _, _),
+                expected,
+            } if expects_semicolon(expected) => Some(*l),
+            _ => None,
+        })
+        .collect();
+    wanted.sort_unstable();
+    wanted.dedup();
+    let ends = token_ends_before(file, text, &wanted);
+    errors
+        .into_iter()
+        .map(|e| {
+            let before = match &e {
+                ParseError::UnrecognizedToken { token: (l, _, _), .. } => wanted
+                    .binary_search(l)
+                    .ok()
+                    .and_then(|i| ends[i])
+                    // Only across a line break: on the same line the unexpected token is
+                    // the clearer place.
+                    .filter(|&end| text.get(end..*l).is_some_and(|gap| gap.contains('\n'))),
+                _ => None,
+            };
+            parse_error(file, text, e, before)
+        })
+        .collect()
+}
+
+fn expects_semicolon(expected: &[String]) -> bool {
+    expected.iter().any(|x| x == "\";\"")
+}
+
+/// For each offset of `starts` (sorted; each the start of a token), the end of the token
+/// before it, if any: one pass of the lexer over the text up to the last of them.
+fn token_ends_before(file: FileId, text: &str, starts: &[usize]) -> Vec<Option<usize>> {
+    let Some(&last) = starts.last() else {
+        return vec![];
+    };
+    // Its lexical errors were reported by the parse.
+    let mut scratch = Diagnostics::new();
+    let mut ends = Vec::with_capacity(starts.len());
+    let mut previous_end = None;
+    let mut pending = starts.iter().peekable();
+    for (start, _, end) in lexer::lex(file, text.get(..last).unwrap_or(text), &mut scratch) {
+        while pending.next_if(|&&s| s <= start).is_some() {
+            ends.push(previous_end);
+        }
+        previous_end = Some(end);
+    }
+    ends.resize(starts.len(), previous_end);
+    ends
+}
+
+/// The diagnostic of one syntax error; `missing_semicolon_at`: the end of the token before
+/// the unexpected one, where a `;` would have ended the statement (see [`syntax_errors`]).
+fn parse_error(file: FileId, text: &str, e: SyntaxError, missing_semicolon_at: Option<usize>) -> Diagnostic {
     match e {
         ParseError::UnrecognizedToken {
             token: (l, tok, r),
             expected,
         } => {
+            if let Some(at) = missing_semicolon_at {
+                return Diagnostic::error("E0011", format!("expected `;`, found {tok}"))
+                    .primary(Span::new(file, at, at), "expected `;` here")
+                    .secondary(Span::new(file, l, r), format!("unexpected {tok}"))
+                    .help("a statement must end with `;`: add one at the end of the line");
+            }
             let d = Diagnostic::error("E0011", format!("unexpected {tok}")).primary(
                 Span::new(file, l, r),
                 format!("expected {}", describe_expected(&expected)),
             );
             match tok {
-                Tok::RBrace | Tok::RParen if expected.iter().any(|x| x == "\";\"") => {
-                    d.help("a statement must end with `;`")
-                }
+                Tok::RBrace | Tok::RParen if expects_semicolon(&expected) => d.help("a statement must end with `;`"),
+                Tok::Comma if expected.len() == 1 && expected[0] == "\")\"" => d.help(
+                    "parentheses hold one expression; several values are a list `{1, 2, 3}` or a constructor such as `color(1, 2, 3)`",
+                ),
                 _ => d,
             }
         }

@@ -54,12 +54,81 @@ fn check_reports_syntax_errors_at_file_line_col_and_exits_1() {
 }
 
 #[test]
-fn check_emit_ast_prints_each_given_file() {
-    let prim = temp_file("ast.prim", "primitive p(varying float X, Y) { return; \n");
-    let (code, out, _) = cli(&["check", prim.to_str().unwrap(), "--emit", "ast"]);
-    assert_eq!(code, 1, "the missing brace is an error");
-    assert!(out.starts_with(&format!("// {}", prim.display())), "{out}");
-    assert!(out.contains("Module"), "{out}");
+fn check_emit_ast_prints_the_tree_of_each_given_file_only() {
+    let prim = temp_file(
+        "ast.prim",
+        "primitive p(varying float X, Y) {\n    float a = ;\n    return;\n}\n",
+    );
+    let (code, out, err) = cli(&["check", prim.to_str().unwrap(), "--emit", "ast"]);
+    assert_eq!(code, 1, "the syntax error is reported");
+    assert!(err.contains("E0011") && err.contains("ast.prim:2:15"), "{err}");
+    // No library file: one header, then the tree, the broken statement an error node.
+    assert_eq!(
+        out,
+        format!(
+            "// {}\nprimitive p @1:1\n  param varying float X @1:27\n  param varying float Y @1:30\n  body: block @1:33\n    error (did not parse) @2:5\n    return @3:5\n",
+            prim.display()
+        )
+    );
+}
+
+/// A primitive of the user's that calls a helper and a library primitive.
+const TWO_USER_PRIMITIVES: &str = r#"
+float half(float v) { return v * 0.5; }
+primitive user_rect(float rect[4]; varying float X, Y; inout varying fixed<32,32> Z)
+{
+    bound(rect[0], rect[1], rect[2], rect[3]);
+    Z = fixed<32,32>(half(0.5));
+}
+primitive user_tri(float v[3][4]; interpolation_data d[3]; varying float X, Y; inout varying fixed<32,32> Z)
+{
+    screen_triangle(v, d, X, Y, Z);
+}
+"#;
+
+#[test]
+fn check_emit_ir_prints_only_the_given_files_items() {
+    let prim = temp_file("ir.prim", TWO_USER_PRIMITIVES);
+    let (code, out, err) = cli(&["check", prim.to_str().unwrap(), "--emit", "ir"]);
+    assert_eq!(code, 0, "{err}");
+    let items: Vec<&str> = out.lines().filter(|l| !l.is_empty() && !l.starts_with(' ')).collect();
+    assert_eq!(items, ["primitive user_rect", "primitive user_tri"], "{out}");
+    // The helper is inlined (its result a temporary); the library primitive is named at its call.
+    assert!(out.contains("half_result%"), "{out}");
+    assert!(out.contains("    call screen_triangle#"), "{out}");
+
+    let helpers = temp_file("ir_helpers.prim", "float half(float v) { return v * 0.5; }\n");
+    let (code, out, _) = cli(&["check", helpers.to_str().unwrap(), "--emit", "ir"]);
+    assert_eq!(code, 0);
+    assert_eq!(
+        out,
+        "// no primitive or interpolator in the given files (helpers are inlined into their callers)\n"
+    );
+}
+
+#[test]
+fn check_emit_asm_prints_each_primitives_machine_code() {
+    let prim = temp_file("asm.prim", TWO_USER_PRIMITIVES);
+    let (code, out, err) = cli(&["check", prim.to_str().unwrap(), "--emit", "asm", "--key", "linear:2"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.lines().next().unwrap().contains("opt_level=speed"), "{out}");
+    let headers: Vec<&str> = out.lines().filter(|l| l.starts_with("; primitive ")).collect();
+    assert_eq!(headers.len(), 2, "{out}");
+    for (header, name) in headers.iter().zip(["user_rect", "user_tri"]) {
+        let rest = header
+            .strip_prefix(&format!("; primitive {name} key linear:2: "))
+            .unwrap_or_else(|| panic!("{header}"));
+        let count: usize = rest.split(' ').next().unwrap().parse().unwrap();
+        assert!(count > 20, "{header}");
+    }
+    // Machine instructions, each kernel ending in a return, and no CLIF.
+    let first_words: Vec<&str> = out.lines().filter_map(|l| l.split_whitespace().next()).collect();
+    assert!(
+        first_words.iter().filter(|w| w.starts_with("ret")).count() >= 2,
+        "{out}"
+    );
+    assert!(first_words.iter().any(|w| w.starts_with("mov")), "{out}");
+    assert!(!out.contains("function u0:"), "{out}");
 }
 
 #[test]

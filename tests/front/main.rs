@@ -1,4 +1,5 @@
-//! The front end: lexer and grammar (`parse`), component access (`components`), the
+//! The front end: lexer and grammar (`parse`), the syntax tree printer (`ast_print`, with an
+//! insta snapshot), component access (`components`), the
 //! checker's diagnostics (`check_errors`, `check_ok`, with insta snapshots under
 //! `snapshots/`), its passes over the IR (`check_passes`) and a fuzz of mutated sources
 //! (`check_fuzz`), the depth and size limits (`limits`), long-line diagnostics and the error
@@ -7,6 +8,7 @@
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
+mod ast_print;
 mod check_errors;
 mod check_fuzz;
 mod check_ok;

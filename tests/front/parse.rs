@@ -205,10 +205,18 @@ fn library_and_test_inputs_parse() {
 #[test]
 fn syntax_errors_recover_and_point_at_the_right_place() {
     let cases: &[(&str, &[&str])] = &[
-        // Missing `;` after a statement, then a bad token: both reported.
+        // Missing `;` after a statement (reported where it is missing, at the end of line
+        // 2), then a bad token: both reported.
         (
             "primitive p() {\n  float a = 1\n  a = 2;\n  b = ) ;\n}\n",
-            &["E0011@3:3", "E0011@4:7"],
+            &["E0011@2:14", "E0011@4:7"],
+        ),
+        // On the same line the unexpected token is the place.
+        ("primitive p() {\n  float a = 1 a = 2;\n}\n", &["E0011@2:15"]),
+        // A comment between the statement and the next line's token: still the end of `1`.
+        (
+            "primitive p() {\n  float a = 1 // one\n  /* two */ a = 2;\n}\n",
+            &["E0011@2:14"],
         ),
         // Lexical garbage is reported and skipped; parsing goes on.
         (
@@ -248,12 +256,53 @@ fn syntax_errors_recover_and_point_at_the_right_place() {
 
 #[test]
 fn rendered_diagnostic_has_location_and_underline() {
-    let (_, diags, sources) = parse("primitive p() {\n  float a = 1\n  a = 2;\n}\n");
+    let (_, diags, sources) = parse("primitive p() {\n  float a = 1;\n  b = ) ;\n}\n");
     let out = diags.render(&sources);
     assert!(out.contains("E0011"), "{out}");
-    assert!(out.contains("test.prim:3:3"), "{out}");
+    assert!(out.contains("test.prim:3:7"), "{out}");
     assert!(out.contains("expected"), "{out}");
     assert!(out.contains("──"), "no underline in {out}");
+}
+
+/// A statement whose `;` is missing, the next one on the following line: the error is at
+/// the end of the statement, with the next line's token as the unexpected one and a help.
+#[test]
+fn missing_semicolon_points_at_the_end_of_the_line_before() {
+    let text = "primitive p(varying float X, Y) {\n    color a = color(1, 2, 3)\n    float b = 2;\n}\n";
+    let (_, diags, sources) = parse(text);
+    assert_eq!(diags.codes_at(&sources), ["E0011@2:29"]);
+    let d = &diags.items[0];
+    assert_eq!(d.message, "expected `;`, found `float`");
+    assert_eq!(
+        d.help.as_deref(),
+        Some("a statement must end with `;`: add one at the end of the line")
+    );
+    assert_eq!(
+        diags.render(&sources).lines().take(10).collect::<Vec<_>>(),
+        [
+            "E0011",
+            "",
+            "  × expected `;`, found `float` (test.prim:2:29)",
+            "   ╭─[test.prim:2:29]",
+            " 1 │ primitive p(varying float X, Y) {",
+            " 2 │     color a = color(1, 2, 3)",
+            "   ·                             ▲",
+            "   ·                             ╰── expected `;` here",
+            " 3 │     float b = 2;",
+            "   ·     ──┬──",
+        ]
+    );
+}
+
+/// `(1, 2, 3)` is not a value: the error is at the first `,` and says how to write a list.
+#[test]
+fn a_parenthesised_list_gets_a_help() {
+    let (_, diags, sources) = parse("primitive p() {\n    float a = (1, 2, 3)\n    float b = 2;\n}\n");
+    assert_eq!(diags.codes_at(&sources), ["E0011@2:17"]);
+    assert_eq!(
+        diags.items[0].help.as_deref(),
+        Some("parentheses hold one expression; several values are a list `{1, 2, 3}` or a constructor such as `color(1, 2, 3)`")
+    );
 }
 
 mod fuzz {

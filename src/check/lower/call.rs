@@ -53,14 +53,35 @@ impl<'g, 'a> FnLower<'g, 'a> {
             ));
             return None;
         }
+        // Too few arguments are reported alone, as too many are: with some left out, which
+        // parameter each given argument was meant for is unknown, and checking them against
+        // the first parameters would add a mismatch per argument.
+        let missing: Vec<String> = sig.params[args.len()..]
+            .iter()
+            .filter(|p| p.default.is_none())
+            .map(|p| format!("`{}`", p.name))
+            .collect();
+        if !missing.is_empty() {
+            self.sink.push(
+                err(
+                    "E0215",
+                    format!("missing arguments for {} of `{}`", missing.join(", "), callee.name),
+                    span,
+                    "arguments missing",
+                )
+                .secondary(
+                    sig.item.name.span,
+                    "declared here; only trailing parameters with defaults may be left out",
+                ),
+            );
+            return None;
+        }
         let mut out = vec![];
         let mut ok = true;
-        let mut missing = vec![];
         for (i, p) in sig.params.iter().enumerate() {
             let Some(a) = args.get(i) else {
-                match &p.default {
-                    Some(vals) => out.push(consts::const_to_expr(vals, &p.ty, span)),
-                    None => missing.push(p.name.as_str()),
+                if let Some(vals) = &p.default {
+                    out.push(consts::const_to_expr(vals, &p.ty, span));
                 }
                 continue;
             };
@@ -108,22 +129,6 @@ impl<'g, 'a> FnLower<'g, 'a> {
                     None => ok = false,
                 },
             }
-        }
-        if !missing.is_empty() {
-            let list = missing.iter().map(|m| format!("`{m}`")).collect::<Vec<_>>().join(", ");
-            self.sink.push(
-                err(
-                    "E0215",
-                    format!("missing arguments for {list} of `{}`", callee.name),
-                    span,
-                    "arguments missing",
-                )
-                .secondary(
-                    sig.item.name.span,
-                    "declared here; only trailing parameters with defaults may be left out",
-                ),
-            );
-            ok = false;
         }
         if !ok {
             return None;
