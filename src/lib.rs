@@ -41,6 +41,7 @@ pub mod runtime;
 pub mod scene;
 pub mod syntax;
 pub mod testing;
+pub mod trace;
 pub mod workload;
 
 use diag::{Diagnostics, FileId, SourceMap};
