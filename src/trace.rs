@@ -47,6 +47,7 @@ pub struct Summary {
 /// One thing the evaluator reported, kept until the instance is known to be listed.
 enum Rec {
     Kernel { name: String, depth: u32 },
+    KernelEnd { depth: u32 },
     PixelStart,
     Stmt(Span),
     Branch(bool),
@@ -91,7 +92,10 @@ impl Observer for Recorder<'_> {
                     depth,
                 });
             }
-            Event::KernelEnd { depth, .. } => self.depth = depth.saturating_sub(1),
+            Event::KernelEnd { depth, .. } => {
+                self.depth = depth.saturating_sub(1);
+                self.recs.push(Rec::KernelEnd { depth });
+            }
             Event::PixelStart => {
                 self.in_pixel = true;
                 self.saw_pixel = true;
@@ -318,7 +322,11 @@ pub fn trace(
             let (cx, cy) = (px as f32 + 0.5, py as f32 + 0.5);
             !(b[0] <= cx && cx <= b[2] && b[1] <= cy && cy <= b[3])
         });
-        if !(rec.saw_pixel || (setup_ended && !bound_misses)) {
+        // A primitive that only calls others ends its setup with a `return` by design:
+        // listed only if a call reached the pixel.
+        let made_calls = rec.recs.iter().any(|r| matches!(r, Rec::Kernel { depth: 1.., .. }));
+        let listed = rec.saw_pixel || (setup_ended && !made_calls && !bound_misses);
+        if !listed {
             continue;
         }
         summary.listed.push(i);
@@ -337,6 +345,13 @@ pub fn trace(
     compare(&mut text, renderer, frame, &row, pixel, last_writer, &mut summary);
     let _ = out.write_all(text.as_bytes());
     Ok(summary)
+}
+
+/// Set where the innermost kernel run ended for the pixel.
+fn set(retired: &mut [String], how: String) {
+    if let Some(last) = retired.last_mut() {
+        *last = how;
+    }
 }
 
 /// The block of instance `i`: where it comes from, its bound, its statements for the
@@ -371,13 +386,19 @@ fn print_instance(
         None => writeln!(text, "  bound: none (the whole image)"),
     };
     let mut indent = 2usize;
-    let mut retired = String::from("finished without reaching its pixel code");
+    // Where each kernel run in progress ended for the pixel (the instance's, then calls).
+    const NOT_REACHED: &str = "finished without reaching its pixel code";
+    let mut retired = vec![String::from(NOT_REACHED)];
+    let mut top_retired = String::from(NOT_REACHED);
     let mut depth: Option<(u32, u32)> = None;
     let mut plane_values: Vec<(u32, f32)> = vec![];
     for r in &rec.recs {
         let pad = " ".repeat(indent);
         match r {
             Rec::Kernel { name, depth } => {
+                if *depth > 0 {
+                    retired.push(NOT_REACHED.into());
+                }
                 indent = 2 + 2 * *depth as usize;
                 let pad = " ".repeat(indent);
                 let _ = if *depth == 0 {
@@ -403,17 +424,26 @@ fn print_instance(
             Rec::Return { span, pixel } => {
                 let loc = places.location(*span);
                 let _ = if *pixel {
-                    retired = format!("return at {loc}: the pixel's run ends (outside or hidden)");
+                    set(
+                        &mut retired,
+                        format!("return at {loc}: the pixel's run ends (outside or hidden)"),
+                    );
                     writeln!(text, "{pad}      -> returns: the pixel's run ends here")
                 } else {
-                    retired = format!("return at {loc} in setup: no pixel of this kernel runs");
+                    set(
+                        &mut retired,
+                        format!("return at {loc} in setup: no pixel of this kernel runs"),
+                    );
                     writeln!(text, "{pad}      -> returns in setup: no pixel runs")
                 };
             }
             Rec::FuelOut { site, setup } => {
                 let loc = site.map_or("?".into(), |s| places.location(s));
                 let _ = if *setup {
-                    retired = format!("setup fuel ran out at the loop at {loc}: the run ends");
+                    set(
+                        &mut retired,
+                        format!("setup fuel ran out at the loop at {loc}: the run ends"),
+                    );
                     writeln!(text, "{pad}  setup fuel ran out at the loop at {loc}: the run ends")
                 } else {
                     writeln!(
@@ -422,9 +452,18 @@ fn print_instance(
                     )
                 };
             }
+            Rec::KernelEnd { depth } => {
+                let done = retired.pop().unwrap_or_default();
+                if *depth == 0 {
+                    top_retired = done;
+                } else {
+                    let _ = writeln!(text, "{pad}retired: {done}");
+                    indent = 2 + 2 * (*depth as usize - 1);
+                }
+            }
             Rec::PixelEnd { alive } => {
                 if *alive {
-                    retired = "finished: the pixel part ran to its end".into();
+                    set(&mut retired, "finished: the pixel part ran to its end".into());
                 }
             }
             Rec::Depth { before, after } => {
@@ -440,7 +479,7 @@ fn print_instance(
     if rec.dropped > 0 {
         let _ = writeln!(text, "  ... {} more statement lines not shown", rec.dropped);
     }
-    let _ = writeln!(text, "  retired: {retired}");
+    let _ = writeln!(text, "  retired: {top_retired}");
     let _ = match depth {
         Some((before, after)) => writeln!(text, "  wrote Z: {} -> {}", depth_text(before), depth_text(after)),
         None => writeln!(text, "  wrote Z: nothing"),

@@ -95,7 +95,7 @@ fn trace_shows_the_nearer_triangle_writing_z_and_the_farther_returning_at_its_de
         b.contains("  if (triangle_z < Z) return;\n        -> true: then\n"),
         "{b}"
     );
-    assert!(b.contains(&format!("  retired: return at ")), "{b}");
+    assert!(b.contains("  retired: return at "), "{b}");
     assert!(
         b.contains(&format!("{ret}: the pixel's run ends (outside or hidden)")),
         "{b}"
@@ -252,4 +252,57 @@ fn the_observer_reports_the_watched_lane_only_and_changes_nothing() {
     // Outside the bound's rows: the setup only.
     let (_, _, seen) = run(Some((2, 5)));
     assert_eq!(seen, ["k = 3 uniform"]);
+}
+
+/// A quad drawn as a fan of two screen triangles called by `polygon`.
+const QUAD: &str = "\
+image 24 16
+material Cs 0.125 0.25 0.5
+begin polygon
+vertex 4 4 0.5
+vertex 20 4 0.5
+vertex 20 12 0.5
+vertex 4 12 0.5
+end
+";
+
+#[test]
+fn trace_of_a_primitive_that_calls_others_says_where_each_call_ended() {
+    let scene = scene_file("quad.scene", QUAD);
+    let (code, out, err) = cli(&["trace", scene.to_str().unwrap(), "--pixel", "10,10"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("\ninstance 0: polygon (scene "), "{out}");
+    assert_eq!(
+        out.matches("\n    call of screen_triangle (depth 1), its setup:\n")
+            .count(),
+        2,
+        "{out}"
+    );
+    // The first triangle leaves the pixel out at an edge, the second draws it.
+    let first = out.find("\n    retired: return at ").expect(&out);
+    let second = out
+        .find("\n    retired: finished: the pixel part ran to its end\n")
+        .expect(&out);
+    assert!(first < second, "{out}");
+    assert!(out[first..].contains("screen_triangle.prim:"), "{out}");
+    // The polygon's own run ends in its setup once it has made its calls.
+    let own = out.find("\n  retired: return at ").expect(&out);
+    assert!(own > second, "{out}");
+    assert!(
+        out[own..].starts_with("\n  retired: return at prims/polygon.prim:"),
+        "{out}"
+    );
+    assert!(
+        out[own..].contains(" in setup: no pixel of this kernel runs\n"),
+        "{out}"
+    );
+    assert!(
+        out.contains("\n  wrote Z: 0 (raw 0x00000000) -> 0.5 (raw 0x80000000)\n"),
+        "{out}"
+    );
+    assert!(out.contains("\n  wrote Cs: 0.125 0.25 0.5\n"), "{out}");
+    assert!(
+        out.contains("\nagrees with the rendered frame: depth, Cs at (10, 10)"),
+        "{out}"
+    );
 }
