@@ -3,7 +3,7 @@
 //! statements that ran for the pixel with the values assigned, where the pixel's run ended
 //! and what it wrote, then whether that agrees with the rendered frame.
 //!
-//! How: the scene is rendered with the JIT as `primflow render` renders it, then every
+//! How: the scene is rendered with the JIT's tier-1 kernels (`Jit::new`), then every
 //! instance is run again, in draw order, by the IR evaluator ([`crate::ir::eval`], the
 //! JIT's bit-for-bit oracle in f32) over the row of the pixel's tile, with an observer
 //! watching the pixel ([`crate::ir::eval::observe`]). The evaluator's tile starts as a
@@ -15,7 +15,8 @@
 //!
 //! Invariants: an instance is listed when its pixel code ran for the pixel (the pixel lies
 //! in its pass rectangle, in this kernel or a primitive it calls), or when its setup ended
-//! early (`return`, fuel) without a bound that leaves the pixel out. Statement, branch and
+//! early (`return`, fuel) without calling a primitive and without a bound that leaves the
+//! pixel out. Statement, branch and
 //! assignment lines are capped per instance ([`MAX_LINES`]); where the pixel retired and
 //! what it wrote are always printed. Nothing here panics on a scene the renderer accepts:
 //! an instance the evaluator refuses is reported and the comparison says it is incomplete.
