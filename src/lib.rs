@@ -59,6 +59,7 @@ pub mod runtime;
 pub mod scene;
 pub mod syntax;
 pub mod testing;
+pub mod trace;
 // The benchmark workloads (`Workload`, `GlScene`) are read by `bench` only.
 #[cfg_attr(not(feature = "cli"), allow(dead_code))]
 pub mod workload;

@@ -1,5 +1,6 @@
 //! The `primflow` command line: `check` (diagnostics and compiler dumps for `.prim` files),
-//! `render` (a scene file to PNG images), `test` (scene files with expectations, see
+//! `render` (a scene file to PNG images), `trace` (why one pixel of a scene looks as it
+//! does, see [`trace`](crate::trace)), `test` (scene files with expectations, see
 //! [`testing`](crate::testing)), `bench` (JIT kernels against hand-written ones) and
 //! `accuracy` (error vs time per accuracy knob).
 //!
@@ -42,6 +43,10 @@ pub enum Command {
     /// Render a scene, then again each time it or a .prim file it may read is saved (until
     /// interrupted); errors are printed and the watch goes on.
     Watch(RenderArgs),
+    /// Show why a pixel looks as it does: every instance that reaches it, in draw order,
+    /// with the statements that ran there, the values assigned, where it retired and what
+    /// it wrote, checked against the rendered frame.
+    Trace(TraceArgs),
     /// Run primitive test cases: scene files with `# expect:` lines (default: prims/tests).
     Test(TestArgs),
     /// Benchmark JIT kernels against hand-written Rust kernels of the same primitives and
@@ -164,6 +169,18 @@ pub struct RenderArgs {
 }
 
 #[derive(clap::Args, Debug)]
+pub struct TraceArgs {
+    /// The scene file.
+    pub scene: PathBuf,
+    /// The pixel: column and row from the top-left, e.g. `12,7`.
+    #[arg(long, value_name = "X,Y", value_parser = crate::trace::parse_pixel)]
+    pub pixel: (u32, u32),
+    /// Extra directory of .prim files (repeatable).
+    #[arg(long = "prims", value_name = "DIR")]
+    pub prims: Vec<PathBuf>,
+}
+
+#[derive(clap::Args, Debug)]
 pub struct TestArgs {
     /// Case files or directories searched for `*.scene` files with `# expect:` lines
     /// (default: the library's own prims/tests and every `--prims` directory).
@@ -272,6 +289,7 @@ where
         Command::Check(args) => check(&args, out, err),
         Command::Render(args) => render(&args, out, err),
         Command::Watch(args) => watch::watch(&args, out, err),
+        Command::Trace(args) => trace(&args, out, err),
         Command::Test(args) => test(&args, out),
         Command::Bench(args) => bench(&args, out, err),
         Command::Accuracy(args) => accuracy(&args, out, err),
@@ -712,6 +730,74 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
         0
     } else {
         1
+    }
+}
+
+fn trace(args: &TraceArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+    let mut sources = SourceMap::new();
+    let scene_file = match crate::scene::read_file(&args.scene) {
+        Ok(text) => sources.add_file(&args.scene, text),
+        Err(e) => {
+            let _ = writeln!(err, "error: {e}");
+            return 1;
+        }
+    };
+    let mut diags = Diagnostics::new();
+    let base = args.scene.parent().unwrap_or(Path::new("."));
+    let Some((renderer, objects)) = crate::scene::load_objects(&mut sources, scene_file, base, &args.prims, &mut diags)
+    else {
+        print_diags(&diags, &sources, err);
+        let _ = writeln!(
+            err,
+            "error: {} error(s) in the scene or the primitives it uses; nothing traced",
+            diags.error_count()
+        );
+        return 1;
+    };
+    // Checked before rendering: the frame is clamped to the same size.
+    let (width, height) = (
+        renderer.options.width.min(crate::runtime::MAX_IMAGE_SIDE),
+        renderer.options.height.min(crate::runtime::MAX_IMAGE_SIDE),
+    );
+    let (x, y) = args.pixel;
+    if x >= width || y >= height {
+        print_diags(&diags, &sources, err);
+        let _ = writeln!(
+            err,
+            "error: pixel ({x}, {y}) is outside the {width}x{height} image (x in 0..={}, y in 0..={})",
+            width.saturating_sub(1),
+            height.saturating_sub(1)
+        );
+        return 1;
+    }
+    let mut jit = match Jit::new(renderer.program().clone()) {
+        Ok(jit) => jit,
+        Err(e) => {
+            print_diags(&diags, &sources, err);
+            let _ = writeln!(err, "error: cannot start the JIT: {e}");
+            return 1;
+        }
+    };
+    let mut result = match crate::runtime::render_pool(0) {
+        Ok(pool) => pool.install(|| renderer.render(&mut jit)),
+        Err(_) => renderer.render(&mut jit),
+    };
+    diags.extend(std::mem::take(&mut result.diags));
+    print_diags(&diags, &sources, err);
+    if diags.has_errors() {
+        let _ = writeln!(
+            err,
+            "error: {} error(s) while rendering; nothing traced",
+            diags.error_count()
+        );
+        return 1;
+    }
+    match crate::trace::trace(&sources, &renderer, &objects, &result.frame, args.pixel, out) {
+        Ok(_) => 0,
+        Err(message) => {
+            let _ = writeln!(err, "error: {message}");
+            1
+        }
     }
 }
 

@@ -628,11 +628,31 @@ fn named_args(tokens: &[Token]) -> Result<(Vec<(String, Value)>, Vec<Span>), Dia
     Ok((args, spans))
 }
 
+/// The instances one `begin` ... `end` object of a scene became: its `begin` word and
+/// their indices in [`Renderer::instances`] (none for an object that was culled, clipped
+/// away or rejected; several for a polygon, polyline or point set).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneObject {
+    pub begin: Span,
+    pub instances: std::ops::Range<usize>,
+}
+
 /// Make the scene's calls on `renderer`. API errors and warnings go to `diags` at the
 /// offending token.
 pub fn apply(scene: &Scene, renderer: &mut Renderer, diags: &mut Diagnostics) {
+    apply_objects(scene, renderer, diags);
+}
+
+/// [`apply`], returning which instances each object that made some became, in order.
+pub fn apply_objects(scene: &Scene, renderer: &mut Renderer, diags: &mut Diagnostics) -> Vec<SceneObject> {
     let mut open_begin: Option<Span> = None;
+    let mut objects = vec![];
+    let mut last_begin: Option<Span> = None;
     for c in &scene.commands {
+        let before = renderer.instances().len();
+        if matches!(c.kind, CommandKind::Begin(_)) {
+            last_begin = Some(c.tokens[0].span);
+        }
         let result = match &c.kind {
             CommandKind::Image { width, height } => renderer.set_image_size(*width, *height),
             CommandKind::Background(rgb) => {
@@ -754,6 +774,13 @@ pub fn apply(scene: &Scene, renderer: &mut Renderer, diags: &mut Diagnostics) {
         for w in renderer.take_warnings() {
             diags.push(issue_diagnostic(&w, c));
         }
+        let after = renderer.instances().len();
+        if after > before {
+            objects.push(SceneObject {
+                begin: last_begin.unwrap_or(c.tokens[0].span),
+                instances: before..after,
+            });
+        }
     }
     if let Some(begin) = open_begin.filter(|_| renderer.in_primitive()) {
         diags.push(
@@ -761,6 +788,7 @@ pub fn apply(scene: &Scene, renderer: &mut Renderer, diags: &mut Diagnostics) {
                 .primary(begin, "this primitive is never closed"),
         );
     }
+    objects
 }
 
 fn issue_diagnostic(issue: &ApiIssue, c: &Command) -> Diagnostic {
@@ -814,6 +842,17 @@ pub fn load_for_render(
     dirs: &[PathBuf],
     diags: &mut Diagnostics,
 ) -> Option<Renderer> {
+    load_objects(sources, file, base, dirs, diags).map(|(r, _)| r)
+}
+
+/// [`load_for_render`], with the instances each object became ([`apply_objects`]).
+pub fn load_objects(
+    sources: &mut SourceMap,
+    file: FileId,
+    base: &Path,
+    dirs: &[PathBuf],
+    diags: &mut Diagnostics,
+) -> Option<(Renderer, Vec<SceneObject>)> {
     let scene = parse(sources, file, diags);
     if diags.has_errors() {
         return None;
@@ -827,8 +866,8 @@ pub fn load_for_render(
     let (prims, kinds) = scene.library_names();
     let registry = crate::runtime::Registry::load_for(sources, &dirs, &prims, &kinds, diags)?;
     let mut renderer = Renderer::new(registry.program);
-    apply(&scene, &mut renderer, diags);
-    (!diags.has_errors()).then_some(renderer)
+    let objects = apply_objects(&scene, &mut renderer, diags);
+    (!diags.has_errors()).then_some((renderer, objects))
 }
 
 /// E0709 at each `prims DIR` line whose directory cannot be read, before any library is

@@ -300,6 +300,21 @@ impl Machine<'_, '_> {
                 p.z_written = std::array::from_fn(|l| p.z_written[l] || exec[l]);
             }
         }
+        if let Some(l) = self.watched_lane() {
+            let fr = self.frame()?;
+            let func = fr.func;
+            // At most 16 components: the observer gets the local's type for the rest.
+            let words: Vec<u64> = fr.locals[li].iter().take(16).map(|c| c[l]).collect();
+            let total = fr.locals[li].len();
+            self.notify(super::Event::Assign {
+                func,
+                local: crate::ir::LocalId(li as u32),
+                sc: acc.sc,
+                words: &words,
+                total,
+                varying,
+            });
+        }
         Ok(())
     }
 

@@ -86,11 +86,13 @@
 mod args;
 mod derivative;
 mod expr;
+pub mod observe;
 mod precision;
 pub mod scalar;
 mod shading;
 mod stmt;
 
+pub use observe::{Event, Observer};
 pub use precision::Precision;
 
 use std::rc::Rc;
@@ -101,6 +103,7 @@ use crate::abi::{
 };
 use crate::ir::{for_each_assign, FuncId, FuncKind, Function, ParamRole, Program};
 use args::ArgBlock;
+use observe::Watch;
 use precision::{in_precision, Float};
 
 /// Recursion levels (statements, expressions, calls together) [`Evaluator::run`] evaluates before it
@@ -309,11 +312,44 @@ impl<'p> Evaluator<'p> {
         tile: &mut Tile,
         budget: Budget,
     ) -> Result<Outcome, EvalError> {
+        self.run_watched(func, key, args, tile, budget, None)
+    }
+
+    /// [`Evaluator::run`], reporting to `observer` what it does for pixel (x, y) of the
+    /// tile (see [`observe`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn run_observed(
+        &self,
+        func: FuncId,
+        key: &VariantKey,
+        args: &[u32],
+        tile: &mut Tile,
+        budget: Budget,
+        pixel: (i32, i32),
+        observer: &mut dyn Observer,
+    ) -> Result<Outcome, EvalError> {
+        let watch = Watch {
+            observer,
+            x: pixel.0,
+            y: pixel.1,
+        };
+        self.run_watched(func, key, args, tile, budget, Some(watch))
+    }
+
+    fn run_watched<'t>(
+        &self,
+        func: FuncId,
+        key: &VariantKey,
+        args: &[u32],
+        tile: &'t mut Tile,
+        budget: Budget,
+        watch: Option<Watch<'t>>,
+    ) -> Result<Outcome, EvalError> {
         std::thread::scope(|s| {
             let worker = std::thread::Builder::new()
                 .name("ir-eval".into())
                 .stack_size(EVAL_STACK)
-                .spawn_scoped(s, || run_here(self, func, key, args, tile, budget));
+                .spawn_scoped(s, || run_here(self, func, key, args, tile, budget, watch));
             match worker {
                 Ok(handle) => handle
                     .join()
@@ -324,13 +360,14 @@ impl<'p> Evaluator<'p> {
     }
 }
 
-fn run_here(
+fn run_here<'t>(
     evaluator: &Evaluator,
     func: FuncId,
     key: &VariantKey,
     args: &[u32],
-    tile: &mut Tile,
+    tile: &'t mut Tile,
     budget: Budget,
+    watch: Option<Watch<'t>>,
 ) -> Result<Outcome, EvalError> {
     if !tile.stride.is_multiple_of(GROUP as usize) || tile.x1 < tile.x0 || tile.y1 < tile.y0 {
         return malformed("tile stride not a multiple of the group or negative extent");
@@ -374,6 +411,7 @@ fn run_here(
         view: (0..key.interp_components()).collect(),
         arm: None,
         nesting: 0,
+        watch,
     };
     let bound = m.invoke(func, Rc::new(ArgBlock::new(args.to_vec())))?;
     m.out.fuel = m.fuel as u64;
@@ -472,6 +510,8 @@ pub(crate) struct Machine<'p, 't> {
     /// The bindings of the `interpolation` arm being run.
     pub arm: Option<Vec<usize>>,
     pub nesting: usize,
+    /// The pixel being watched and its observer (`run_observed`).
+    pub watch: Option<Watch<'t>>,
 }
 
 impl<'p> Machine<'p, '_> {
@@ -488,6 +528,30 @@ impl<'p> Machine<'p, '_> {
 
     pub(crate) fn leave(&mut self) {
         self.nesting -= 1;
+    }
+
+    /// The watched pixel's lane if the code running now runs for it: setup code runs for
+    /// every pixel (lane 0 holds its uniform values), pixel code for the executing lanes of
+    /// the group being run. `None` when nothing is watched.
+    pub(crate) fn watched_lane(&self) -> Option<usize> {
+        let w = self.watch.as_ref()?;
+        match &self.pix {
+            None => Some(0),
+            Some(p) => self.lane_of(w, p).filter(|&l| self.exec[l]),
+        }
+    }
+
+    /// The watched pixel's lane in group `p`, executing or not.
+    fn lane_of(&self, w: &Watch, p: &Pix) -> Option<usize> {
+        let l = usize::try_from(w.x.checked_sub(p.gx)?).ok()?;
+        (p.y == w.y && l < GROUP as usize).then_some(l)
+    }
+
+    /// Report `event` to the observer, if there is one.
+    pub(crate) fn notify(&mut self, event: Event<'_>) {
+        if let Some(w) = &mut self.watch {
+            w.observer.event(event);
+        }
     }
 
     pub(crate) fn frame(&self) -> Res<&Frame<'p>> {
@@ -564,7 +628,10 @@ impl<'p> Machine<'p, '_> {
             layout: Rc::new(layout),
             bound: None,
         });
+        let depth = self.call_depth;
+        self.notify(Event::KernelStart { func: f, depth });
         let r = self.run_kernel(f);
+        self.notify(Event::KernelEnd { func: f, depth });
         let bound = self.kernels.pop().and_then(|k| k.bound);
         self.frames.pop();
         self.exec = saved_exec;
@@ -715,9 +782,16 @@ impl<'p> Machine<'p, '_> {
         self.exec = mask;
         let fi = self.kernel()?.frame;
         self.bind_pixel_params(fi, x_f, y_f, z_raw, None)?;
+        let watched = self.watched_lane();
+        if watched.is_some() {
+            self.notify(Event::PixelStart);
+        }
         let flow = self.stmts(&f.pixel);
         let pix = self.pix.take();
         self.exec = ALL;
+        if let (Some(l), Some(p)) = (watched, &pix) {
+            self.notify(Event::PixelEnd { alive: p.alive[l] });
+        }
         match flow? {
             Flow::Normal | Flow::GroupEnd => {}
             other => return malformed(format!("pixel part ended by {other:?}")),
@@ -737,9 +811,14 @@ impl<'p> Machine<'p, '_> {
             let Some(i) = self.tile.index(gx + l as i32, y) else {
                 return malformed("a lane outside the tile wrote Z");
             };
+            let before = self.tile.depth[i];
             self.tile.depth[i] =
                 scalar::convert_lane(self.precision, zsc, crate::ir::Scalar::Fixed(scalar::DEPTH), zl) as u32;
             self.tile.writes[i] = self.tile.writes[i].wrapping_add(1);
+            if watched == Some(l) {
+                let after = self.tile.depth[i];
+                self.notify(Event::Depth { before, after });
+            }
         }
         Ok(())
     }

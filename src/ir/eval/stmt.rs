@@ -15,7 +15,7 @@ use std::rc::Rc;
 use super::args::ArgBlock;
 use super::expr::{elem_scalar, Val};
 use super::scalar::convert_lane;
-use super::{and, any, malformed, Flow, Lanes, LoopCtx, Machine, Mask, Res, NONE};
+use super::{and, any, malformed, Event, Flow, Lanes, LoopCtx, Machine, Mask, Res, NONE};
 use crate::abi::{
     interpolator_arg_words, type_words, ArgLayout, BindingKind, ParamSlot, ERR_CALL_DEPTH, ERR_FUEL, MAX_CALL_DEPTH,
 };
@@ -37,6 +37,10 @@ impl<'p> Machine<'p, '_> {
     }
 
     fn stmt(&mut self, s: StmtId) -> Res<Flow> {
+        if self.watched_lane().is_some() {
+            let func = self.frame()?.func;
+            self.notify(Event::Stmt { func, stmt: s });
+        }
         match &self.stmt_nodes()[s] {
             StmtKind::Assign { place, value } => {
                 self.assign(place, *value)?;
@@ -59,7 +63,13 @@ impl<'p> Machine<'p, '_> {
             }
             StmtKind::Break(id) => self.break_continue(*id, true),
             StmtKind::Continue(id) => self.break_continue(*id, false),
-            StmtKind::Return => self.return_(),
+            StmtKind::Return => {
+                let func = self.frame()?.func;
+                if func.kind == FuncKind::Primitive && self.watched_lane().is_some() {
+                    self.notify(Event::Return { func, stmt: s });
+                }
+                self.return_()
+            }
             StmtKind::Interpolation { arms } => self.interpolation(arms),
             StmtKind::InterpolatorReturn(e) => self.interpolator_return(*e),
             StmtKind::Bound(es) => {
@@ -110,6 +120,10 @@ impl<'p> Machine<'p, '_> {
         else {
             return malformed("a condition without components");
         };
+        if let Some(l) = self.watched_lane() {
+            let taken = c[if cond.var.is_varying() { l } else { 0 }] != 0;
+            self.notify(Event::Branch { taken });
+        }
         if !cond.var.is_varying() || self.pix.is_none() {
             // Uniform: every lane holds the same value.
             return self.stmts(if c[0] != 0 { then } else { otherwise });
@@ -144,12 +158,19 @@ impl<'p> Machine<'p, '_> {
     /// Spend one unit of fuel at a loop head: false when there was none (pixel code: the
     /// group's fuel, `ERR_FUEL` counted the first time; setup: the run ends).
     fn spend_fuel(&mut self, site: SiteId) -> Res<bool> {
+        let watched_group = match (&self.watch, &self.pix) {
+            (Some(w), Some(p)) => self.lane_of(w, p).is_some(),
+            _ => false,
+        };
         if let Some(p) = &mut self.pix {
             if p.fuel <= 0 {
                 let first = p.fuel == 0;
                 p.fuel = -1;
                 if first {
                     self.record(ERR_FUEL, site.0, true)?;
+                    if watched_group {
+                        self.notify(Event::FuelOut { site, setup: false });
+                    }
                 }
                 return Ok(false);
             }
@@ -158,6 +179,7 @@ impl<'p> Machine<'p, '_> {
         }
         if self.fuel <= 0 {
             self.record(ERR_FUEL, site.0, false)?;
+            self.notify(Event::FuelOut { site, setup: true });
             self.fuel = -2 - i64::from(site.0);
             return Ok(false);
         }
@@ -381,6 +403,7 @@ impl<'p> Machine<'p, '_> {
         let k = self.kernel()?;
         let table = k.layout.plane_table as usize;
         let args = self.frames[k.frame].args.clone();
+        let watched = self.watched_lane();
         for &(g, v) in stores {
             let Some(plane) = args.word(table + g as usize) else {
                 return malformed("plane table past the argument block");
@@ -388,14 +411,19 @@ impl<'p> Machine<'p, '_> {
             if plane as usize >= self.tile.num_planes {
                 continue;
             }
-            for (l, &on) in self.exec.iter().enumerate() {
+            let exec = self.exec;
+            for (l, &on) in exec.iter().enumerate() {
                 if !on {
                     continue;
                 }
                 let Some(i) = self.tile.index(gx + l as i32, y) else {
                     return malformed("an executing lane outside the tile");
                 };
-                self.tile.planes[plane as usize * self.tile.plane_stride + i] = self.precision.to_f32(v[l]);
+                let value = self.precision.to_f32(v[l]);
+                self.tile.planes[plane as usize * self.tile.plane_stride + i] = value;
+                if watched == Some(l) {
+                    self.notify(Event::Plane { plane, value });
+                }
             }
         }
         Ok(())
