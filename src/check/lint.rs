@@ -51,7 +51,7 @@ fn never_writes_z(f: &Function, sink: &mut Sink) {
 }
 
 fn no_bound(f: &Function, sink: &mut Sink) {
-    if f.pixel.is_empty() || f.stmts.iter().any(|(_, s)| matches!(s, StmtKind::Bound(_))) {
+    if !f.runs_unbounded() {
         return;
     }
     sink.push(

@@ -349,6 +349,11 @@ pub struct Function {
 }
 
 impl Function {
+    /// Whether it has per-pixel code and no `bound` on any path: that code then runs over
+    /// the whole viewport for every instance (W0004 at check time, W0803 when drawn).
+    pub fn runs_unbounded(&self) -> bool {
+        !self.pixel.is_empty() && !self.stmts.iter().any(|(_, s)| matches!(s, StmtKind::Bound(_)))
+    }
     pub fn local(&self, id: LocalId) -> &Local {
         &self.locals[id.0 as usize]
     }

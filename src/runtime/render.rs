@@ -593,10 +593,7 @@ fn report_unbounded(
 ) {
     let unbounded: Vec<bool> = variants
         .iter()
-        .map(|(f, _)| {
-            let f = program.func(*f);
-            !f.pixel.is_empty() && !f.stmts.iter().any(|(_, s)| matches!(s, crate::ir::StmtKind::Bound(_)))
-        })
+        .map(|(f, _)| program.func(*f).runs_unbounded())
         .collect();
     if !unbounded.contains(&true) {
         return;

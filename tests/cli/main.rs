@@ -14,7 +14,7 @@ mod cli_run;
 mod expectations;
 mod fuzz_campaign;
 mod output_files;
-mod trace;
-mod watch;
 #[path = "../support/mod.rs"]
 mod support;
+mod trace;
+mod watch;
