@@ -401,6 +401,32 @@ fn print_diags(diags: &Diagnostics, sources: &SourceMap, err: &mut dyn Write) {
     }
 }
 
+/// A new source map holding the scene file; `None` after printing why it cannot be read.
+fn read_scene(scene: &Path, err: &mut dyn Write) -> Option<(SourceMap, FileId)> {
+    let mut sources = SourceMap::new();
+    match crate::scene::read_file(scene) {
+        Ok(text) => {
+            let file = sources.add_file(scene, text);
+            Some((sources, file))
+        }
+        Err(e) => {
+            let _ = writeln!(err, "error: {e}");
+            None
+        }
+    }
+}
+
+/// Print a scene's (or its primitives') errors and that nothing was `done`; exit code 1.
+fn scene_errors(diags: &Diagnostics, sources: &SourceMap, done: &str, err: &mut dyn Write) -> i32 {
+    print_diags(diags, sources, err);
+    let _ = writeln!(
+        err,
+        "error: {} error(s) in the scene or the primitives it uses; nothing {done}",
+        diags.error_count()
+    );
+    1
+}
+
 fn check(args: &CheckArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     let mut sources = SourceMap::new();
     let mut diags = Diagnostics::new();
@@ -621,25 +647,14 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     let starting = std::thread::Builder::new()
         .spawn(move || crate::runtime::render_pool(wanted))
         .ok();
-    let mut sources = SourceMap::new();
-    let scene_file = match crate::scene::read_file(&args.scene) {
-        Ok(text) => sources.add_file(&args.scene, text),
-        Err(e) => {
-            let _ = writeln!(err, "error: {e}");
-            return 1;
-        }
+    let Some((mut sources, scene_file)) = read_scene(&args.scene, err) else {
+        return 1;
     };
     let mut diags = Diagnostics::new();
     let base = args.scene.parent().unwrap_or(Path::new("."));
     let Some(mut renderer) = crate::scene::load_for_render(&mut sources, scene_file, base, &args.prims, &mut diags)
     else {
-        print_diags(&diags, &sources, err);
-        let _ = writeln!(
-            err,
-            "error: {} error(s) in the scene or the primitives it uses; nothing rendered",
-            diags.error_count()
-        );
-        return 1;
+        return scene_errors(&diags, &sources, "rendered", err);
     };
     renderer.options.count_writes = args.count_writes;
     // A parameter written as an image keeps its planes whether or not a shader reads it.
@@ -734,25 +749,14 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
 }
 
 fn trace(args: &TraceArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
-    let mut sources = SourceMap::new();
-    let scene_file = match crate::scene::read_file(&args.scene) {
-        Ok(text) => sources.add_file(&args.scene, text),
-        Err(e) => {
-            let _ = writeln!(err, "error: {e}");
-            return 1;
-        }
+    let Some((mut sources, scene_file)) = read_scene(&args.scene, err) else {
+        return 1;
     };
     let mut diags = Diagnostics::new();
     let base = args.scene.parent().unwrap_or(Path::new("."));
     let Some((renderer, objects)) = crate::scene::load_objects(&mut sources, scene_file, base, &args.prims, &mut diags)
     else {
-        print_diags(&diags, &sources, err);
-        let _ = writeln!(
-            err,
-            "error: {} error(s) in the scene or the primitives it uses; nothing traced",
-            diags.error_count()
-        );
-        return 1;
+        return scene_errors(&diags, &sources, "traced", err);
     };
     // Checked before rendering: the frame is clamped to the same size.
     let (width, height) = (
