@@ -143,6 +143,13 @@ pub struct TileCtx {
     /// Written by a kernel whose pixel part has loops, before its pixel loops: the fuel each
     /// of its pixel groups starts with (`max(group_fuel_floor, pixel_fuel / groups)`).
     pub group_fuel: u64,
+    /// Where in its pixel the pixel code evaluates: the sample's position relative to the
+    /// pixel's top-left corner, in [0, 1) each way (0.5, 0.5 is the centre, where a
+    /// single-sample frame evaluates). Pixel (x, y)'s `X` is `x + sample_x` and its `Y`
+    /// `y + sample_y`; a multisampled frame renders each sample with its own
+    /// (`runtime::samples`). Read by kernels, never written.
+    pub sample_x: f32,
+    pub sample_y: f32,
 }
 
 impl TileCtx {
@@ -180,6 +187,8 @@ impl TileCtx {
             pixel_fuel: DEFAULT_PIXEL_FUEL,
             group_fuel_floor: DEFAULT_GROUP_FUEL_FLOOR,
             group_fuel: 0,
+            sample_x: 0.5,
+            sample_y: 0.5,
         }
     }
 }

@@ -166,6 +166,15 @@ pub struct RenderArgs {
     /// ill-behaved cases it met), the kernel variants compiled and the shading effects.
     #[arg(long)]
     pub explain: bool,
+    /// Samples per pixel (1, 2, 4, 8 or 16; the scene's `samples` line otherwise, else 1):
+    /// each sample is rendered and shaded at its standard position, and the image resolves
+    /// them. `--depth` and `--param` show the pixel's first sample.
+    #[arg(long, value_name = "N")]
+    pub samples: Option<u32>,
+    /// How the samples resolve to a pixel: box (the mean of the pixel's samples) or
+    /// gaussian (pbrt's, radius 1.5 pixels).
+    #[arg(long, value_name = "NAME", value_parser = ["box", "gaussian"])]
+    pub filter: Option<String>,
 }
 
 #[derive(clap::Args, Debug)]
@@ -657,6 +666,15 @@ fn render(args: &RenderArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
         return scene_errors(&diags, &sources, "rendered", err);
     };
     renderer.options.count_writes = args.count_writes;
+    if let Some(filter) = args.filter.as_deref().and_then(crate::runtime::samples::Filter::parse) {
+        renderer.set_filter(filter);
+    }
+    if let Some(n) = args.samples {
+        if let Err(e) = renderer.set_samples(n) {
+            let _ = writeln!(err, "error: --samples: {}", e.message);
+            return 1;
+        }
+    }
     // A parameter written as an image keeps its planes whether or not a shader reads it.
     renderer.options.keep_params = args.param.chunks(2).map(|pair| pair[0].clone()).collect();
     // Tiered: the frame starts on tier-0 kernels (compiled in a millisecond or two) and

@@ -218,6 +218,8 @@ pub mod ctx_off {
     pub const GROUP_FUEL: i32 = offset_of!(TileCtx, group_fuel) as i32;
     pub const SETUP_COUNTS: i32 = offset_of!(TileCtx, setup_counts) as i32;
     pub const PIXEL_COUNTS: i32 = offset_of!(TileCtx, pixel_counts) as i32;
+    pub const SAMPLE_X: i32 = offset_of!(TileCtx, sample_x) as i32;
+    pub const SAMPLE_Y: i32 = offset_of!(TileCtx, sample_y) as i32;
 }
 
 /// `f32x4` <-> `i32x4` reinterpretation.

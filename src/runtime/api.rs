@@ -170,6 +170,12 @@ pub struct RenderOptions {
     /// --param`, test expectations). A frame shaded by language shaders allocates planes
     /// only for the parameters its shaders read and these (`super::live`).
     pub keep_params: Vec<String>,
+    /// Samples per pixel, one of `samples::ALLOWED_SAMPLES` (a render treats any other count
+    /// as 1; `set_samples` rejects them): each sample renders and shades its own buffers at
+    /// its position in the standard pattern, and the pixels' colours resolve from them with
+    /// `filter` (`super::samples`).
+    pub samples: u32,
+    pub filter: super::samples::Filter,
 }
 
 /// Default `RenderOptions::expand_budget_words`: 2^25 words (128 MiB of recorded calls).
@@ -190,6 +196,8 @@ impl Default for RenderOptions {
             group_fuel_floor: crate::abi::DEFAULT_GROUP_FUEL_FLOOR,
             fixed_shading_in_language: false,
             keep_params: vec![],
+            samples: 1,
+            filter: super::samples::Filter::Box,
         }
     }
 }
@@ -407,6 +415,24 @@ impl Renderer {
         }
         self.options.tile_size = side;
         Ok(())
+    }
+
+    /// Samples per pixel (`runtime::samples`): 1, 2, 4, 8 or 16.
+    pub fn set_samples(&mut self, n: u32) -> Result<(), ApiIssue> {
+        if super::samples::sample_positions(n).is_none() {
+            return Err(ApiIssue::error(
+                "E0708",
+                Target::Values,
+                super::samples::samples_error(n),
+            ));
+        }
+        self.options.samples = n;
+        Ok(())
+    }
+
+    /// How a multisampled frame's samples resolve to its pixels.
+    pub fn set_filter(&mut self, filter: super::samples::Filter) {
+        self.options.filter = filter;
     }
 
     pub fn set_background(&mut self, rgb: [f32; 3]) {

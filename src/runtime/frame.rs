@@ -24,6 +24,7 @@ use rayon::prelude::*;
 use crate::abi::GROUP;
 
 use super::api::{RenderOptions, MAX_TILE_SIDE};
+use super::samples::Filter;
 use super::shading::{PixelInputs, RowInputs, Shader, ShadingKernel};
 
 /// Rows per parallel task of the shading pass: enough work per task (~4k pixels at 512
@@ -108,6 +109,16 @@ pub struct Frame {
     /// no effect on and covered pixels show `Cs`).
     #[doc(hidden)]
     pub colors: Option<Vec<[f32; 3]>>,
+    /// Where in each pixel this frame's buffers were evaluated, from the pixel's top-left
+    /// corner ([0.5, 0.5], the centre, without multisampling).
+    sample: [f32; 2],
+    /// A multisampled frame's other samples (`1..N`; this frame is sample 0), each a frame
+    /// of this size, planes and options rendered at its own sample position
+    /// ([`super::samples`]); empty without multisampling.
+    samples: Vec<Frame>,
+    /// A multisampled frame's pixel colours, resolved from every sample's ([`Frame::resolve`]):
+    /// `width * height`, row-major, clamped to [0, 1], background included.
+    resolved: Option<Vec<[f32; 3]>>,
 }
 
 /// One tile of the grid: pixels `x0..x1` by `y0..y1`.
@@ -148,6 +159,9 @@ pub(crate) struct FrameTarget<'f> {
     /// Elements from one plane's start to the next ([`plane_pitch`]).
     pub(crate) plane_pitch: usize,
     pub(crate) num_planes: usize,
+    /// Where in each pixel the kernels evaluate for these buffers (`TileCtx::sample_x`,
+    /// `sample_y`): the frame's sample position ([`Frame::sample`]).
+    pub(crate) sample: [f32; 2],
     _frame: std::marker::PhantomData<&'f mut Frame>,
 }
 
@@ -195,6 +209,9 @@ impl Frame {
             planes: vec![],
             write_counts: None,
             colors: None,
+            sample: [0.5; 2],
+            samples: vec![],
+            resolved: None,
         }
     }
 
@@ -203,6 +220,8 @@ impl Frame {
     /// tile tasks zero and write every tile's part, padding included.
     #[doc(hidden)]
     pub fn reset(&mut self, opts: &RenderOptions, num_planes: u32, params: impl Iterator<Item = ParamPlanes>) {
+        self.sample = [0.5; 2];
+        self.resolved = None;
         self.width = opts.width;
         self.height = opts.height;
         self.stride = row_stride(opts.width);
@@ -242,6 +261,7 @@ impl Frame {
             stride: self.stride as usize,
             plane_pitch: plane_pitch(self.plane_len()),
             num_planes: self.num_planes as usize,
+            sample: self.sample,
             _frame: std::marker::PhantomData,
         }
     }
@@ -397,13 +417,106 @@ impl Frame {
             .sum()
     }
 
-    /// Whether `self` and `other` have the same size and bit for bit the same depth and
-    /// shading-parameter planes at every pixel (write counts and colours not compared).
+    /// Whether `self` and `other` have the same size and samples and bit for bit the same
+    /// depth and shading-parameter planes at every pixel of every sample (write counts and
+    /// colours not compared).
     pub fn same_buffers(&self, other: &Frame) -> bool {
         let bits = |v: Vec<f32>| v.into_iter().map(f32::to_bits).collect::<Vec<_>>();
-        (self.width, self.height, self.num_planes) == (other.width, other.height, other.num_planes)
-            && self.depth_values() == other.depth_values()
-            && (0..self.num_planes).all(|p| self.plane_values(p).map(bits) == other.plane_values(p).map(bits))
+        let same = |a: &Frame, b: &Frame| {
+            (a.width, a.height, a.num_planes, a.sample) == (b.width, b.height, b.num_planes, b.sample)
+                && a.depth_values() == b.depth_values()
+                && (0..a.num_planes).all(|p| a.plane_values(p).map(bits) == b.plane_values(p).map(bits))
+        };
+        self.samples.len() == other.samples.len()
+            && same(self, other)
+            && self.samples.iter().zip(&other.samples).all(|(a, b)| same(a, b))
+    }
+
+    /// Samples per pixel (1 without multisampling).
+    pub fn sample_count(&self) -> usize {
+        1 + self.samples.len()
+    }
+
+    /// Sample `s`'s buffers: the frame itself for sample 0 (what `depth_at`, `param_at` and
+    /// the other accessors of a multisampled frame read), `None` past the last sample.
+    pub fn sample(&self, s: usize) -> Option<&Frame> {
+        match s {
+            0 => Some(self),
+            s => self.samples.get(s - 1),
+        }
+    }
+
+    /// Where in its pixels this frame's own buffers were evaluated (from the top-left corner).
+    pub fn sample_position(&self) -> [f32; 2] {
+        self.sample
+    }
+
+    /// Every pixel's coverage: the fraction of its samples whose depth was written,
+    /// row-major, `width * height` values (0 or 1 without multisampling).
+    pub fn coverage_values(&self) -> Vec<f32> {
+        let n = self.sample_count() as f32;
+        let mut covered = vec![0u32; self.width as usize * self.height as usize];
+        for s in std::iter::once(self).chain(&self.samples) {
+            for (c, d) in covered.iter_mut().zip(s.depth_values()) {
+                *c += u32::from(d != 0);
+            }
+        }
+        covered.into_iter().map(|c| c as f32 / n).collect()
+    }
+
+    /// The frames of samples `1..n`, shaped like this one will be for a render of `n`
+    /// samples at `positions` (sample 0's position set on this frame): taken out of the
+    /// frame for the render (`put_samples` hands them back), their buffers reused.
+    pub(crate) fn take_samples(&mut self, positions: &[[f32; 2]]) -> Vec<Frame> {
+        let mut rest = std::mem::take(&mut self.samples);
+        rest.resize_with(positions.len().saturating_sub(1), Frame::empty);
+        rest
+    }
+
+    /// Shape this frame as `reset` does, then set where its buffers are evaluated.
+    pub(crate) fn reset_sample(
+        &mut self,
+        opts: &RenderOptions,
+        num_planes: u32,
+        params: impl Iterator<Item = ParamPlanes>,
+        sample: [f32; 2],
+    ) {
+        self.reset(opts, num_planes, params);
+        self.samples.clear();
+        self.sample = sample;
+    }
+
+    /// Hand back the sample frames `take_samples` took, and resolve the pixels' colours
+    /// from all the samples with `filter` ([`super::samples::resolve`]); `rest` empty: a
+    /// single-sample frame, nothing resolved.
+    pub(crate) fn put_samples(&mut self, rest: Vec<Frame>, filter: Filter) {
+        self.samples = rest;
+        if self.samples.is_empty() {
+            self.resolved = None;
+            return;
+        }
+        let positions: Vec<[f32; 2]> = std::iter::once(&*self).chain(&self.samples).map(|f| f.sample).collect();
+        let colors: Vec<Vec<[f32; 3]>> = std::iter::once(&*self)
+            .chain(&self.samples)
+            .collect::<Vec<_>>()
+            .par_iter()
+            .map(|f| f.display_colors())
+            .collect();
+        self.resolved = Some(super::samples::resolve(
+            &colors,
+            &positions,
+            filter,
+            self.width,
+            self.height,
+        ));
+    }
+
+    /// This frame's own colours (sample 0's in a multisampled frame), clamped, row-major.
+    fn display_colors(&self) -> Vec<[f32; 3]> {
+        (0..self.height)
+            .flat_map(|y| (0..self.width).map(move |x| (x, y)))
+            .map(|(x, y)| self.sample_color_at(x, y))
+            .collect()
     }
 
     pub fn param(&self, name: &str) -> Option<&ParamPlanes> {
@@ -438,6 +551,17 @@ impl Frame {
     /// `Cs` is gray; with no usable `Cs` the pixel is white, OpenGL's default current colour);
     /// elsewhere the background.
     pub fn color_at(&self, x: u32, y: u32) -> [f32; 3] {
+        if let Some(resolved) = &self.resolved {
+            return (x < self.width && y < self.height)
+                .then(|| resolved[y as usize * self.width as usize + x as usize])
+                .unwrap_or(self.background.map(clamp01));
+        }
+        self.sample_color_at(x, y)
+    }
+
+    /// This frame's own colour at (x, y) (sample 0's in a multisampled frame), as
+    /// [`Frame::color_at`] describes it.
+    fn sample_color_at(&self, x: u32, y: u32) -> [f32; 3] {
         if !self.written(x, y) {
             return self.background.map(clamp01);
         }
@@ -581,6 +705,10 @@ impl Frame {
     /// to bytes in one vectorisable pass, then picked per pixel by its depth. Per pixel
     /// through `color_at` it was ~8 ns a pixel on drawn pixels (16 ms for 1920 x 1080).
     pub fn to_rgb8(&self) -> RgbImage {
+        if let Some(resolved) = &self.resolved {
+            let width = self.width as usize;
+            return self.rgb8_image(|y, out| to_u8_row(resolved[y * width..][..width].as_flattened(), out));
+        }
         let width = self.width as usize;
         let background = self.background.map(to_u8);
         // Without shaded colours a pixel is Cs: 3 planes, or one as gray; a plane the frame

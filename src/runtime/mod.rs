@@ -40,6 +40,7 @@ pub mod live;
 pub mod pool;
 pub mod registry;
 pub mod render;
+pub mod samples;
 pub mod shading;
 pub mod texture;
 #[doc(hidden)]

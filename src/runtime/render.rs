@@ -63,6 +63,7 @@ use super::expand::{context, expand_instance, Budget, Draw, Expanded, TileRect};
 use super::frame::{plane_pitch, row_stride, tile_side, Frame, FrameTarget, ParamPlanes, Tile};
 use super::kernels::KernelSource;
 use super::live::{self, LivePlanes};
+use super::samples::{sample_offset_range, sample_positions};
 use super::shading::language::LanguageShading;
 use super::shading::{Effects, Shader, ShadingSpaces};
 use super::tiergate::{self, Compiler, GateStats};
@@ -338,64 +339,80 @@ impl Renderer {
         stats.setup_micros = micros_between(started, tiles_started);
 
         // 3. Tiles in parallel, each rendering into its own part of the frame, each counting
-        // its pixel code's run-time errors.
-        frame.reset(
-            opts,
-            num_planes,
-            live.params(self.shading_params())
-                .into_iter()
-                .chain(language.then(|| ParamPlanes {
-                    name: "Ci".into(),
-                    first_plane: live.num_planes,
-                    components: 3,
-                })),
-        );
+        // its pixel code's run-time errors; then the frame's colours. Once per sample of a
+        // multisampled frame, each sample into its own buffers at its own position.
+        let positions = sample_positions(opts.samples).unwrap_or_else(|| vec![[0.5; 2]]);
+        let params: Vec<ParamPlanes> = live
+            .params(self.shading_params())
+            .into_iter()
+            .chain(language.then(|| ParamPlanes {
+                name: "Ci".into(),
+                first_plane: live.num_planes,
+                components: 3,
+            }))
+            .collect();
+        let mut other_samples = frame.take_samples(&positions);
         let shading_runs = shading.as_ref().map(|s| &s.pass);
-        let target = frame.target();
         let slices = bins.slices();
-        let (tile_errors, gated) = tiergate::run_items(compiler, tiles.len(), 1, |t| {
-            let (tile, bin) = (&tiles[t], slices[t]);
-            // SAFETY: each tile index is run once (`tiles` holds each tile once), and
-            // `target` is the frame reset for this grid.
-            let errors = unsafe { render_tile(&program, tile, bin, opts, target) };
-            // A tile without draws has nothing to shade.
-            let shading_errors = match shading_runs.filter(|_| !bin.is_empty()) {
-                // SAFETY: as above: this task owns `tile`.
-                Some(runs) => unsafe { runs.shade_tile(tile, opts, target) },
-                None => vec![],
-            };
-            (errors, shading_errors)
-        });
-        stats.add_gated(gated);
         let mut shading_errors = vec![];
-        for (e, s) in tile_errors {
-            errors.extend(e);
-            shading_errors.extend(s);
+        let mut non_finite = 0;
+        let mut shade_micros = 0;
+        for (s, &position) in positions.iter().enumerate() {
+            let sample = match s {
+                0 => &mut *frame,
+                s => &mut other_samples[s - 1],
+            };
+            sample.reset_sample(opts, num_planes, params.iter().cloned(), position);
+            let target = sample.target();
+            let (tile_errors, gated) = tiergate::run_items(compiler, tiles.len(), 1, |t| {
+                let (tile, bin) = (&tiles[t], slices[t]);
+                // SAFETY: each tile index is run once (`tiles` holds each tile once), and
+                // `target` is the frame reset for this grid.
+                let errors = unsafe { render_tile(&program, tile, bin, opts, target) };
+                // A tile without draws has nothing to shade.
+                let shading_errors = match shading_runs.filter(|_| !bin.is_empty()) {
+                    // SAFETY: as above: this task owns `tile`.
+                    Some(runs) => unsafe { runs.shade_tile(tile, opts, target) },
+                    None => vec![],
+                };
+                (errors, shading_errors)
+            });
+            stats.add_gated(gated);
+            for (e, s) in tile_errors {
+                errors.extend(e);
+                shading_errors.extend(s);
+            }
+            let shade_started = Instant::now();
+            match &shading {
+                Some(compiled) => non_finite += sample.colors_from_planes(compiled.pass.out_plane),
+                // Language shading that did not compile (its errors are reported) leaves no
+                // colours, not the previous frame's.
+                None if language => sample.colors = None,
+                None => self.shade(sample),
+            }
+            shade_micros += shade_started.elapsed().as_micros() as u64;
         }
         // The hold ends with the frame but keeps its deadline (`TierUpHold`'s drop): a
         // worker let go right here would compete with the caller's thread waking up.
         drop(held_compiler);
-
-        let shade_started = Instant::now();
-        stats.tiles_micros = micros_between(tiles_started, shade_started);
-
-        match &shading {
-            Some(compiled) => {
-                compiled.pass.report(&shading_errors, &mut diags);
-                let non_finite = frame.colors_from_planes(compiled.pass.out_plane);
-                if non_finite > 0 {
-                    diags.push(Diagnostic::warning(
-                        "W1004",
-                        format!("{non_finite} pixel(s) shaded to a NaN or infinite colour: shown magenta (1, 0, 1)"),
-                    ));
-                }
+        let resolve_started = Instant::now();
+        frame.put_samples(other_samples, opts.filter);
+        stats.shade_micros = shade_micros + resolve_started.elapsed().as_micros() as u64;
+        stats.tiles_micros = micros_between(tiles_started, Instant::now()).saturating_sub(stats.shade_micros);
+        if let Some(compiled) = &shading {
+            compiled.pass.report(&shading_errors, &mut diags);
+            if non_finite > 0 {
+                let what = if positions.len() > 1 {
+                    "pixel sample(s)"
+                } else {
+                    "pixel(s)"
+                };
+                diags.push(Diagnostic::warning(
+                    "W1004",
+                    format!("{non_finite} {what} shaded to a NaN or infinite colour: shown magenta (1, 0, 1)"),
+                ));
             }
-            // Language shading that did not compile (its errors are reported) leaves no
-            // colours, not the previous frame's.
-            None if language => frame.colors = None,
-            None => self.shade(frame),
         }
-        stats.shade_micros = shade_started.elapsed().as_micros() as u64;
 
         // 4. Run-time errors, one warning per site with its count, in site order.
         super::errors::report(&program, &errors, &mut diags);
@@ -509,9 +526,10 @@ fn frame_too_large(opts: &RenderOptions, num_planes: u32) -> Option<Diagnostic> 
         Diagnostic::error(
             "E0803",
             format!(
-                "a {}x{} frame with {num_planes} shading-parameter planes needs {:.1} GiB, more than the {} GiB a frame may take; nothing is rendered",
+                "a {}x{} frame with {num_planes} shading-parameter planes and {} sample(s) per pixel needs {:.1} GiB, more than the {} GiB a frame may take; nothing is rendered",
                 opts.width,
                 opts.height,
+                samples_of(opts),
                 bytes as f64 / (1u64 << 30) as f64,
                 MAX_FRAME_BYTES >> 30
             ),
@@ -564,12 +582,20 @@ impl RenderStats {
     }
 }
 
-/// Bytes of a frame for `opts` with `num_planes` planes (see [`MAX_FRAME_BYTES`]): depth,
-/// write counts when counted, colours, and the planes [`plane_pitch`] apart.
+/// Bytes of a frame for `opts` with `num_planes` planes (see [`MAX_FRAME_BYTES`]): per
+/// sample depth, write counts when counted, colours, and the planes [`plane_pitch`] apart;
+/// and a multisampled frame's resolved colours.
 fn frame_bytes(opts: &RenderOptions, num_planes: u32) -> u64 {
     let len = u64::from(row_stride(opts.width)) * u64::from(opts.height);
     let per_pixel = 4 + 12 + if opts.count_writes { 4 } else { 0 };
-    len * per_pixel + plane_pitch(len as usize) as u64 * u64::from(num_planes) * 4
+    let sample = len * per_pixel + plane_pitch(len as usize) as u64 * u64::from(num_planes) * 4;
+    let samples = samples_of(opts);
+    sample * samples + if samples > 1 { len * 12 } else { 0 }
+}
+
+/// The samples per pixel a render with `opts` takes (a count not allowed renders as 1).
+fn samples_of(opts: &RenderOptions) -> u64 {
+    sample_positions(opts.samples).map_or(1, |p| p.len() as u64)
 }
 
 /// Most instances one job of the parallel expansion and bound pass takes: small enough that
@@ -721,10 +747,10 @@ pub fn tile_grid(opts: &RenderOptions) -> Vec<Tile> {
     tiles
 }
 
-/// The tiles (inclusive tile-index rectangle) holding a pixel whose centre lies in a screen
-/// bound, or `None`: exactly the tiles in which a kernel's render call runs a pixel
-/// (`pass_range` in the JIT takes the same pixels). In f64 `x - 0.5` and its floor and ceil
-/// are exact for every clamped f32 bound, so no margin is needed; a one-pixel margin each way
+/// The tiles (inclusive tile-index rectangle) holding a pixel one of whose samples lies in a
+/// screen bound (its centre without multisampling), or `None`: exactly the tiles in which a
+/// kernel's render call runs a pixel for some sample (`pass_range` in the JIT takes the same
+/// pixels per sample). In f64 `x - offset` (a multiple of 1/16) and its floor and ceil are exact for every clamped f32 bound, so no margin is needed; a one-pixel margin each way
 /// would send a 20-pixel triangle to 1.29 tiles on average where 1.2 hold a
 /// pixel of it, each extra call paying the whole setup for no pixel.
 #[doc(hidden)]
@@ -738,10 +764,13 @@ pub fn tiles_overlapped(bound: [f32; 4], opts: &RenderOptions) -> Option<TileRec
     let ymin = f64::from(bound[1]).clamp(-2.0, h + 2.0);
     let xmax = f64::from(bound[2]).clamp(-2.0, w + 2.0);
     let ymax = f64::from(bound[3]).clamp(-2.0, h + 2.0);
-    let px0 = ceil_clamped(xmin - 0.5).max(0);
-    let py0 = ceil_clamped(ymin - 0.5).max(0);
-    let px1 = floor_clamped(xmax - 0.5).min(i64::from(opts.width) - 1);
-    let py1 = floor_clamped(ymax - 0.5).min(i64::from(opts.height) - 1);
+    // Pixel x holds a sample in [xmin, xmax] when xmin <= x + offset <= xmax for one of the
+    // samples' offsets (exactly the centre's 0.5 without multisampling).
+    let [lo_x, lo_y, hi_x, hi_y] = sample_offset_range(opts.samples);
+    let px0 = ceil_clamped(xmin - hi_x).max(0);
+    let py0 = ceil_clamped(ymin - hi_y).max(0);
+    let px1 = floor_clamped(xmax - lo_x).min(i64::from(opts.width) - 1);
+    let py1 = floor_clamped(ymax - lo_y).min(i64::from(opts.height) - 1);
     if px0 > px1 || py0 > py1 {
         return None;
     }
@@ -920,6 +949,8 @@ pub(crate) fn tile_context(tile: &Tile, opts: &RenderOptions, target: &FrameTarg
         plane_stride: target.plane_pitch as u32,
         num_planes: target.num_planes as u32,
         write_count: target.counts.wrapping_add(origin),
+        sample_x: target.sample[0],
+        sample_y: target.sample[1],
         ..context(MODE_RENDER, opts)
     }
 }

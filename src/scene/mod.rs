@@ -53,6 +53,8 @@ pub enum CommandKind {
     },
     Background([f32; 3]),
     Tile(u32),
+    /// `samples N [FILTER]`: samples per pixel and how they resolve.
+    Samples(u32, Option<crate::runtime::samples::Filter>),
     Prims(String),
     Transform([f32; 16]),
     Ortho([f32; 6]),
@@ -186,6 +188,7 @@ const COMMANDS: &[&str] = &[
     "image",
     "background",
     "tile",
+    "samples",
     "prims",
     "transform",
     "ortho",
@@ -360,6 +363,25 @@ fn parse_command(tokens: &[Token]) -> Result<(CommandKind, Vec<Span>), Diagnosti
                 return Err(arity_error(tokens, "1 number (the tile side)"));
             }
             CommandKind::Tile(count(&tokens[1], "tile size")?)
+        }
+        "samples" => {
+            if n_args != 1 && n_args != 2 {
+                return Err(arity_error(
+                    tokens,
+                    "1 number (samples per pixel) and optionally a filter (box or gaussian)",
+                ));
+            }
+            let filter = match tokens.get(2) {
+                None => None,
+                Some(t) => Some(crate::runtime::samples::Filter::parse(&t.text).ok_or_else(|| {
+                    Diagnostic::error(
+                        "E0604",
+                        format!("unknown sample filter `{}`: use box or gaussian", t.text),
+                    )
+                    .primary(t.span, "not a filter")
+                })?),
+            };
+            CommandKind::Samples(count(&tokens[1], "sample count")?, filter)
         }
         "prims" => {
             if n_args != 1 {
@@ -660,6 +682,12 @@ pub fn apply_objects(scene: &Scene, renderer: &mut Renderer, diags: &mut Diagnos
                 Ok(())
             }
             CommandKind::Tile(side) => renderer.set_tile_size(*side),
+            CommandKind::Samples(n, filter) => {
+                if let Some(filter) = filter {
+                    renderer.set_filter(*filter);
+                }
+                renderer.set_samples(*n)
+            }
             CommandKind::Prims(_) => Ok(()),
             CommandKind::Transform(rows) => {
                 renderer.set_transform(crate::runtime::transform::from_rows(rows));

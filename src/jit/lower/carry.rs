@@ -226,9 +226,7 @@ impl<'a, 'b> Lower<'a, 'b> {
             4,
         ));
         let x0_f = self.lane_centres(g0);
-        let yf = self.b.ins().fcvt_from_sint(types::F32, y0);
-        let half = self.f32const_here(0.5);
-        let yf = self.b.ins().fadd(yf, half);
+        let yf = self.sample_coord(y0, super::loops::Axis::Y);
         let y0_f = self.b.ins().splat(super::F32X4, yf);
         self.bind_xy(f, x0_f, y0_f);
         // The hoisted uniform operations are already in the frame; the row terms are not.

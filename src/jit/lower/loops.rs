@@ -44,6 +44,13 @@ use crate::jit::value::{args_flags, ctx_off, mask_const, mem_flags, zero, F32X4,
 use crate::mid::block::Prefix;
 use crate::mid::unswitch::Loops;
 
+/// A screen axis, for [`Lower::sample_offset`].
+#[derive(Clone, Copy)]
+pub(super) enum Axis {
+    X,
+    Y,
+}
+
 impl<'a, 'b> Lower<'a, 'b> {
     /// The pixel loops (render mode) or the viewport bound (bound mode).
     /// `pending_return`: a condition on which the kernel ends, left by [`Self::setup_stmts`].
@@ -112,8 +119,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         if self.group_fuel_used {
             self.store_group_fuel(bx);
         }
-        let (lo_x, hi_x) = self.pass_range(bx[0], bx[2], x0, x1);
-        let (lo_y, hi_y) = self.pass_range(bx[1], bx[3], y0, y1);
+        let (sx, sy) = (self.sample_offset(Axis::X), self.sample_offset(Axis::Y));
+        let (lo_x, hi_x) = self.pass_range(bx[0], bx[2], x0, x1, sx);
+        let (lo_y, hi_y) = self.pass_range(bx[1], bx[3], y0, y1, sy);
         // Any NaN component: the pass rectangle is empty.
         let n1 = self.b.ins().fcmp(FloatCC::Unordered, bx[0], bx[1]);
         let n2 = self.b.ins().fcmp(FloatCC::Unordered, bx[2], bx[3]);
@@ -379,14 +387,15 @@ impl<'a, 'b> Lower<'a, 'b> {
         }
     }
 
-    /// `lo_x < X < hi_x` per lane, the bounds' splats read from the uniform frame at `base`.
+    /// `lo_x <= X < hi_x` per lane (X = x + a sample offset in [0, 1), so exactly the pixels x
+    /// in `lo_x..hi_x`), the bounds' splats read from the uniform frame at `base`.
     fn edge_lane_mask(&mut self, base: ir::Value, x_f: ir::Value) -> ir::Value {
         let [lo, hi] = [0, 16].map(|k| {
             self.b
                 .ins()
                 .load(F32X4, args_flags(), base, (self.x_range_at + k) as i32)
         });
-        let ge = self.b.ins().fcmp(FloatCC::GreaterThan, x_f, lo);
+        let ge = self.b.ins().fcmp(FloatCC::GreaterThanOrEqual, x_f, lo);
         let lt = self.b.ins().fcmp(FloatCC::LessThan, x_f, hi);
         self.b.ins().band(ge, lt)
     }
@@ -542,7 +551,7 @@ impl<'a, 'b> Lower<'a, 'b> {
 
     /// Store the fuel each pixel group of this draw starts with in `ctx.group_fuel`:
     /// `max(ctx.group_fuel_floor, ctx.pixel_fuel / groups)`, where `groups` is the number of
-    /// pixel groups of the bound rectangle `bx` in the viewport (its pixels whose centres
+    /// pixel groups of the bound rectangle `bx` in the viewport (its pixels whose samples
     /// lie in the bound, as [`Self::pass_range`] takes them, clamped to `ctx.width` x
     /// `ctx.height`: rows times the group columns those pixels touch, at least 1). It
     /// depends on neither the tile nor the order tiles run in.
@@ -550,8 +559,9 @@ impl<'a, 'b> Lower<'a, 'b> {
         let zero = self.iconst_here(types::I32, 0);
         let w = self.load_ctx(types::I32, ctx_off::WIDTH);
         let h = self.load_ctx(types::I32, ctx_off::HEIGHT);
-        let (lo_x, hi_x) = self.pass_range(bx[0], bx[2], zero, w);
-        let (lo_y, hi_y) = self.pass_range(bx[1], bx[3], zero, h);
+        let (sx, sy) = (self.sample_offset(Axis::X), self.sample_offset(Axis::Y));
+        let (lo_x, hi_x) = self.pass_range(bx[0], bx[2], zero, w, sx);
+        let (lo_y, hi_y) = self.pass_range(bx[1], bx[3], zero, h, sy);
         // Groups start at multiples of 4 (tiles start at them too).
         let end = self.b.ins().iadd_imm_s(hi_x, 3);
         let end = self.b.ins().ushr_imm_u(end, 2);
@@ -570,7 +580,8 @@ impl<'a, 'b> Lower<'a, 'b> {
         self.store_ctx(fuel, ctx_off::GROUP_FUEL);
     }
 
-    /// Pixels [lo, hi) of the tile range [t0, t1) whose centres lie in [bmin, bmax].
+    /// Pixels [lo, hi) of the tile range [t0, t1) whose sample positions (`x + offset`,
+    /// `offset` the context's [`Self::sample_offset`] along this axis) lie in [bmin, bmax].
     /// Clamped in float first so huge or infinite bounds cannot overflow the conversion.
     pub(super) fn pass_range(
         &mut self,
@@ -578,16 +589,16 @@ impl<'a, 'b> Lower<'a, 'b> {
         bmax: ir::Value,
         t0: ir::Value,
         t1: ir::Value,
+        offset: ir::Value,
     ) -> (ir::Value, ir::Value) {
         let t0f = self.b.ins().fcvt_from_sint(types::F32, t0);
         let t1f = self.b.ins().fcvt_from_sint(types::F32, t1);
-        let half = self.f32const_here(0.5);
         let one = self.f32const_here(1.0);
-        let lo = self.b.ins().fsub(bmin, half);
+        let lo = self.b.ins().fsub(bmin, offset);
         let lo = self.b.ins().ceil(lo);
         let lo = self.b.ins().fmax(lo, t0f);
         let lo = self.b.ins().fmin(lo, t1f);
-        let hi = self.b.ins().fsub(bmax, half);
+        let hi = self.b.ins().fsub(bmax, offset);
         let hi = self.b.ins().floor(hi);
         let hi = self.b.ins().fadd(hi, one);
         let hi = self.b.ins().fmax(hi, t0f);
@@ -599,16 +610,37 @@ impl<'a, 'b> Lower<'a, 'b> {
         (lo_i, hi_i)
     }
 
-    /// X of the lanes of the group starting at `g`: the pixel centres (int -> float, + 0.5,
-    /// as the pixel's X is defined).
+    /// X of the lanes of the group starting at `g`: the pixels' sample positions (int ->
+    /// float, + the sample's offset, as the pixel's X is defined).
     pub(super) fn lane_centres(&mut self, g: ir::Value) -> ir::Value {
         let g0 = self.b.ins().splat(I32X4, g);
         let iota = self.iota();
         let px0 = self.b.ins().iadd(g0, iota);
         let pxf = self.b.ins().fcvt_from_sint(F32X4, px0);
-        let half = self.f32const_here(0.5);
-        let halfv = self.b.ins().splat(F32X4, half);
-        self.b.ins().fadd(pxf, halfv)
+        let offset = self.sample_offset(Axis::X);
+        let offsetv = self.b.ins().splat(F32X4, offset);
+        self.b.ins().fadd(pxf, offsetv)
+    }
+
+    /// Where in its pixel the pixel code evaluates along `axis` (`TileCtx::sample_x` or
+    /// `sample_y`: 0.5 at the centre), loaded from the context. Pixel `i`'s coordinate is
+    /// `i + offset` (int -> float, then one add) wherever a kernel computes one, so that
+    /// every computation of it is bit-identical. The offsets are multiples of 1/16, so `i +
+    /// offset` and the loops' carried `+ 1` and `+ 4` steps are exact below 2^19.
+    pub(super) fn sample_offset(&mut self, axis: Axis) -> ir::Value {
+        let at = match axis {
+            Axis::X => ctx_off::SAMPLE_X,
+            Axis::Y => ctx_off::SAMPLE_Y,
+        };
+        // Read-only: the runtime sets it before the call; loads of it merge.
+        self.b.ins().load(types::F32, args_flags(), self.ctx, at)
+    }
+
+    /// Pixel row or column `i`'s coordinate at the sample: `i + sample_offset(axis)`.
+    pub(super) fn sample_coord(&mut self, i: ir::Value, axis: Axis) -> ir::Value {
+        let f = self.b.ins().fcvt_from_sint(types::F32, i);
+        let offset = self.sample_offset(axis);
+        self.b.ins().fadd(f, offset)
     }
 
     pub(super) fn iota(&mut self) -> ir::Value {

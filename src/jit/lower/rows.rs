@@ -10,9 +10,9 @@
 //!
 //! Invariants:
 //! - Carried values are exact, so bit-identical to computing them afresh: the row's element
-//!   index of x = 0 (`(y - y0) * stride - x0`) is an integer; its centre Y and the groups'
-//!   lane-centre X are multiples of 0.5 below 2^22 in magnitude (images are at most 16384
-//!   pixels on a side).
+//!   index of x = 0 (`(y - y0) * stride - x0`) is an integer; its sample Y and the groups'
+//!   lanes' sample X are multiples of 1/16 (the sample offsets are) below 2^15 in magnitude
+//!   (images are at most 16384 pixels on a side), so exact in f32.
 //! - The blocks are created in `new`, in one fixed order (rows' header, body, step; groups'
 //!   header, step), so the CLIF of a kernel does not depend on what the loop bodies emit.
 //! - `row_step` reads the row's values as `row_body` read them (that block dominates it), not
@@ -76,9 +76,7 @@ impl RowLoop {
         let x0_64 = l.b.ins().sextend(types::I64, rect.x0);
         let base = l.b.ins().isub(base, x0_64);
         l.b.def_var(row_base, base);
-        let yf0 = l.b.ins().fcvt_from_sint(types::F32, ys[0]);
-        let half = l.f32const_here(0.5);
-        let yf0 = l.b.ins().fadd(yf0, half);
+        let yf0 = l.sample_coord(ys[0], super::loops::Axis::Y);
         l.b.def_var(yf, yf0);
         RowLoop {
             hi_y: ys[1],

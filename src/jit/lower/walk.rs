@@ -30,6 +30,7 @@ use cranelift_codegen::ir::{self, condcodes::IntCC, types, Block, InstBuilder};
 use cranelift_frontend::Variable;
 
 use super::block::{AbsCache, BlockFacts};
+use super::loops::Axis;
 use super::{Lower, PassRect, Res, BLOCK_H, BLOCK_W, SMALL_RECT};
 use crate::ir::Function;
 use crate::mid::block::Prefix;
@@ -86,14 +87,6 @@ pub(super) struct BlockWalk {
     full_resume: Block,
     refine: Block,
     to_full_fine: Block,
-}
-
-/// The centre of pixel row or column `i`, computed as the pixel code computes X and Y
-/// (int -> float, + 0.5), so interval endpoints are bit-identical to the pixels' values.
-fn centre(l: &mut Lower, i: ir::Value) -> ir::Value {
-    let f = l.b.ins().fcvt_from_sint(types::F32, i);
-    let half = l.b.ins().f32const(0.5);
-    l.b.ins().fadd(f, half)
 }
 
 impl BlockWalk {
@@ -189,7 +182,9 @@ impl BlockWalk {
         // terms that need no X.
         l.b.switch_to_block(self.row_stage);
         let y_last = l.b.ins().iadd_imm_s(y_end, -1);
-        let ys = [centre(l, y), centre(l, y_last)];
+        // Computed as the pixel code computes Y (`sample_coord`), so interval endpoints are
+        // bit-identical to the pixels' values.
+        let ys = [l.sample_coord(y, Axis::Y), l.sample_coord(y_last, Axis::Y)];
         let row_cache = l.block_cache_row(f, prefix, ys)?;
         l.b.ins().jump(self.blk_hdr, &[]);
         let facts = self.block_step(l, f, prefix, &row_cache, ys)?;
@@ -264,7 +259,7 @@ impl BlockWalk {
         let x_end = l.b.ins().smin(x_end, self.hi_x);
         let x_first = l.b.ins().smax(x, self.lo_x);
         let x_last = l.b.ins().iadd_imm_s(x_end, -1);
-        let xs = [centre(l, x_first), centre(l, x_last)];
+        let xs = [l.sample_coord(x_first, Axis::X), l.sample_coord(x_last, Axis::X)];
         let facts = l.block_facts(f, prefix, row_cache, xs, ys)?;
         l.b.ins().brif(facts.dead, self.to_dead, &[], self.blk_choose, &[]);
         l.b.switch_to_block(self.blk_choose);

@@ -5,8 +5,8 @@
 //! Kernels address groups as 4 consecutive elements of a row, so the tile's buffers are
 //! gathered into a *quad tile* where they are: pixel (x, y) of the tile is element
 //! `(y / 2) * stride + 4 * (x / 2) + 2 * (y % 2) + (x % 2)`, `stride = 4 * ceil(w / 2)`, over
-//! `ceil(h / 2)` rows. Past the frame's planes come two more, each pixel's centre x and y in
-//! screen pixels (what `__shade` reads instead of its own `X` and `Y`, `crate::link`). After
+//! `ceil(h / 2)` rows. Past the frame's planes come two more, each pixel's sample position x and y
+//! in screen pixels (its centre in a single-sample frame) (what `__shade` reads instead of its own `X` and `Y`, `crate::link`). After
 //! the kernels, the output planes are scattered back.
 //!
 //! Invariants: the quads start at the tile's corner, and tiles start at multiples of the
@@ -25,7 +25,7 @@ pub(crate) struct QuadTile {
     stride: usize,
     rows: usize,
     depth: Vec<u32>,
-    /// The frame's planes, then centre x and y.
+    /// The frame's planes, then the sample's x and y.
     planes: Vec<f32>,
     counts: Vec<u32>,
     frame_planes: usize,
@@ -65,8 +65,8 @@ impl QuadTile {
                         q.planes[p * n + at] = *target.planes.add(p * target.plane_pitch + row + x);
                     }
                 }
-                q.planes[frame_planes * n + at] = (tile.x0 as usize + x) as f32 + 0.5;
-                q.planes[(frame_planes + 1) * n + at] = (tile.y0 as usize + y) as f32 + 0.5;
+                q.planes[frame_planes * n + at] = (tile.x0 as usize + x) as f32 + target.sample[0];
+                q.planes[(frame_planes + 1) * n + at] = (tile.y0 as usize + y) as f32 + target.sample[1];
             }
         }
         q

@@ -61,6 +61,13 @@ mod w_crossings;
 /// rasterization rules (3.4.2 fixed-point vertex snapping, 3.4.3 top-left rule): two
 /// triangles sharing an edge cover each pixel centre on it exactly once.
 pub(super) fn exact_coverage(v: [[f32; 2]; 3], width: u32, height: u32) -> Vec<u32> {
+    exact_coverage_at(v, width, height, 1)
+}
+
+/// [`exact_coverage`] at each of the standard pattern's `samples` positions in every pixel
+/// (the pixel centre for 1; D3D11 3.5.2 / Vulkan's standard sample locations, on the same
+/// 1/16 grid): the samples' coverages, sample after sample, `width * height` each.
+pub(super) fn exact_coverage_at(v: [[f32; 2]; 3], width: u32, height: u32, samples: u32) -> Vec<u32> {
     let p: Vec<(i64, i64)> = v
         .iter()
         .map(|q| {
@@ -69,39 +76,53 @@ pub(super) fn exact_coverage(v: [[f32; 2]; 3], width: u32, height: u32) -> Vec<u
         })
         .collect();
     let det = (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[2].0 - p[0].0) * (p[1].1 - p[0].1);
-    let mut out = vec![0; (width * height) as usize];
+    let positions = primflow::runtime::samples::sample_positions(samples).expect("an allowed sample count");
+    let mut out = vec![0; (width * height) as usize * positions.len()];
     if det == 0 {
         return out;
     }
     let orient = det.signum();
-    for py in 0..i64::from(height) {
-        for px in 0..i64::from(width) {
-            let (x, y) = (16 * px + 8, 16 * py + 8);
-            let inside = (0..3).all(|i| {
-                let j = (i + 1) % 3;
-                let a = -orient * (p[j].1 - p[i].1);
-                let b = orient * (p[j].0 - p[i].0);
-                let top_left = a > 0 || (a == 0 && b < 0);
-                let e = i128::from(a) * i128::from(x - p[i].0) + i128::from(b) * i128::from(y - p[i].1);
-                e > 0 || (e == 0 && top_left)
-            });
-            out[(py * i64::from(width) + px) as usize] = u32::from(inside);
+    for (s, at) in positions.iter().enumerate() {
+        let (ox, oy) = ((at[0] * 16.0) as i64, (at[1] * 16.0) as i64);
+        for py in 0..i64::from(height) {
+            for px in 0..i64::from(width) {
+                let (x, y) = (16 * px + ox, 16 * py + oy);
+                let inside = (0..3).all(|i| {
+                    let j = (i + 1) % 3;
+                    let a = -orient * (p[j].1 - p[i].1);
+                    let b = orient * (p[j].0 - p[i].0);
+                    let top_left = a > 0 || (a == 0 && b < 0);
+                    let e = i128::from(a) * i128::from(x - p[i].0) + i128::from(b) * i128::from(y - p[i].1);
+                    e > 0 || (e == 0 && top_left)
+                });
+                out[s * (width * height) as usize + (py * i64::from(width) + px) as usize] = u32::from(inside);
+            }
         }
     }
     out
 }
 
-/// Render `triangles` (flat, depth 0.5) with write counting and return the counts.
-pub(super) fn write_counts(program: &Arc<Program>, triangles: &[[[f32; 2]; 3]], width: u32, height: u32) -> Vec<u32> {
+/// Render `triangles` (flat, depth 0.5) at `samples` samples per pixel with write counting,
+/// with a JIT kept across renders, and return every sample's counts, sample after sample (as
+/// [`exact_coverage_at`] orders them).
+pub(super) fn write_counts_at(
+    program: &Arc<Program>,
+    jit: &mut primflow::jit::Jit,
+    triangles: &[[[f32; 2]; 3]],
+    width: u32,
+    height: u32,
+    samples: u32,
+) -> Vec<u32> {
     let mut r = renderer(program, width, height, true);
+    r.set_samples(samples).unwrap();
     for t in triangles {
         let v = |i: usize| [t[i][0], t[i][1], 0.5, 1.0];
         screen_triangle(&mut r, [v(0), v(1), v(2)], &[]);
     }
-    let frame = render(&r, 2);
-    (0..height)
-        .flat_map(|y| (0..width).map(move |x| (x, y)))
-        .map(|(x, y)| frame.write_count_at(x, y).unwrap())
+    let frame = render_with(&r, jit, 2);
+    assert_eq!(frame.sample_count(), samples as usize);
+    (0..frame.sample_count())
+        .flat_map(|s| frame.sample(s).unwrap().write_count_values().unwrap())
         .collect()
 }
 

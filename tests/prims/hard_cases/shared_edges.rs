@@ -2,8 +2,10 @@
 //! away (over the 1,024 px exact path, through the two-limb path), against the exact i64
 //! rasterizer, and shared edges clipped by the runtime's homogeneous clipper.
 
-use super::{exact_coverage, twice_and_holes, write_counts};
+use super::{exact_coverage_at, twice_and_holes, write_counts_at};
 use crate::support::*;
+use primflow::jit::Jit;
+use primflow::runtime::samples::ALLOWED_SAMPLES;
 
 use glam::DVec4;
 use primflow::pipeline::clip::{clip_polygon_to_view, ClipOptions, ClipPolygon, PyramidMode};
@@ -30,7 +32,8 @@ fn fan(centre: [f64; 2], radius: f64, n: usize, seed: u64) -> Vec<[[f32; 2]; 3]>
 }
 
 /// Fans whose outer vertices are far outside the viewport, the viewport at the fan's
-/// centre: every pixel is inside exactly one triangle. Source: the D3D11 functional spec's
+/// centre: every pixel (every sample of every pixel, at each allowed sample count) is inside
+/// exactly one triangle. Source: the D3D11 functional spec's
 /// top-left rule and dEQP's `rasterization.fill_rules` cases (shared edges never produce
 /// holes or double hits); tolerance 0 (every pixel written exactly once), and the coverage of
 /// each triangle is checked against the exact i64 rasterizer. Before the fix (float edges
@@ -39,30 +42,37 @@ fn fan(centre: [f64; 2], radius: f64, n: usize, seed: u64) -> Vec<[[f32; 2]; 3]>
 fn fans_far_outside_the_viewport_cover_every_pixel_once() {
     let (w, h) = (64, 64);
     let program = library();
-    for radius in [1e3, 3e3, 1e5, 1e6, 1e7] {
-        for (seed, n) in [(1u64, 7usize), (2, 12), (3, 5), (4, 16)] {
-            let tris = fan([32.3, 31.6], radius, n, seed);
-            let counts = write_counts(&program, &tris, w, h);
-            let (twice, holes) = twice_and_holes(&counts);
-            assert_eq!(
-                (twice, holes),
-                (0, 0),
-                "fan of {n} at radius {radius:e} (seed {seed}): pixels written twice, not written"
-            );
-            // Each triangle's share against the exact rasterizer.
-            let mut expected = vec![0u32; (w * h) as usize];
-            for t in &tris {
-                for (e, c) in expected.iter_mut().zip(exact_coverage(*t, w, h)) {
-                    *e += c;
+    let mut jit = Jit::new(program.clone()).unwrap();
+    for samples in ALLOWED_SAMPLES {
+        let cover = |t: &[[f32; 2]; 3]| exact_coverage_at(*t, w, h, samples);
+        for radius in [1e3, 3e3, 1e5, 1e6, 1e7] {
+            for (seed, n) in [(1u64, 7usize), (2, 12), (3, 5), (4, 16)] {
+                let tris = fan([32.3, 31.6], radius, n, seed);
+                let counts = write_counts_at(&program, &mut jit, &tris, w, h, samples);
+                let (twice, holes) = twice_and_holes(&counts);
+                assert_eq!(
+                    (twice, holes),
+                    (0, 0),
+                    "fan of {n} at radius {radius:e} (seed {seed}), {samples} sample(s): pixel samples written twice, not written"
+                );
+                // Each triangle's share against the exact rasterizer.
+                let mut expected = vec![0u32; (w * h * samples) as usize];
+                for t in &tris {
+                    for (e, c) in expected.iter_mut().zip(cover(t)) {
+                        *e += c;
+                    }
                 }
+                assert!(expected.iter().all(|&c| c == 1), "the reference fan is not a partition");
+                let per_triangle: Vec<u32> = tris
+                    .iter()
+                    .map(|t| write_counts_at(&program, &mut jit, &[*t], w, h, samples).iter().sum())
+                    .collect();
+                let want: Vec<u32> = tris.iter().map(|t| cover(t).iter().sum()).collect();
+                assert_eq!(
+                    per_triangle, want,
+                    "fan at {radius:e}, {samples} sample(s): samples per triangle"
+                );
             }
-            assert!(expected.iter().all(|&c| c == 1), "the reference fan is not a partition");
-            let per_triangle: Vec<u32> = tris
-                .iter()
-                .map(|t| write_counts(&program, &[*t], w, h).iter().sum())
-                .collect();
-            let want: Vec<u32> = tris.iter().map(|t| exact_coverage(*t, w, h).iter().sum()).collect();
-            assert_eq!(per_triangle, want, "fan at {radius:e}: pixels per triangle");
         }
     }
 }
@@ -76,6 +86,7 @@ fn random_pairs_far_away_share_their_edge_exactly() {
     let (w, h) = (48, 48);
     let program = library();
     let mut rng = Lcg(39);
+    let mut jit = Jit::new(program.clone()).unwrap();
     let mut failed = vec![];
     for case in 0..175 {
         let far = if case % 2 == 0 { 1e5 } else { 3e6 };
@@ -106,18 +117,27 @@ fn random_pairs_far_away_share_their_edge_exactly() {
             continue;
         }
         let tris = [[p, q, a], [q, p, b]];
-        let counts = write_counts(&program, &tris, w, h);
-        let expected: Vec<u32> = exact_coverage(tris[0], w, h)
-            .iter()
-            .zip(exact_coverage(tris[1], w, h))
-            .map(|(x, y)| x + y)
-            .collect();
-        assert!(expected.iter().all(|&c| c <= 1), "reference pair overlaps");
-        if counts != expected {
-            failed.push((case, counts.iter().zip(&expected).filter(|(a, b)| a != b).count()));
+        for samples in ALLOWED_SAMPLES {
+            let counts = write_counts_at(&program, &mut jit, &tris, w, h, samples);
+            let expected: Vec<u32> = exact_coverage_at(tris[0], w, h, samples)
+                .iter()
+                .zip(exact_coverage_at(tris[1], w, h, samples))
+                .map(|(x, y)| x + y)
+                .collect();
+            assert!(expected.iter().all(|&c| c <= 1), "reference pair overlaps");
+            if counts != expected {
+                failed.push((
+                    case,
+                    samples,
+                    counts.iter().zip(&expected).filter(|(a, b)| a != b).count(),
+                ));
+            }
         }
     }
-    assert!(failed.is_empty(), "pairs (case, differing pixels): {failed:?}");
+    assert!(
+        failed.is_empty(),
+        "pairs (case, samples, differing pixel samples): {failed:?}"
+    );
 }
 
 /// Random triangle pairs sharing an edge, with vertices beyond the view and behind the eye,

@@ -1,9 +1,10 @@
 //! Slivers: triangles thinner than a pixel, 10 px to 1e5 px long (inside the 1,024 px exact
 //! path, just either side of it, and through the two-limb path), at every angle including
 //! the axis-aligned ones whose edges run through pixel centres; alone, and in pairs and
-//! stacks that share their long edges.
+//! stacks that share their long edges; at 1, 4, 8 and 16 samples per pixel, every sample
+//! against the exact rasterizer at its standard position.
 
-use super::exact_coverage;
+use super::{exact_coverage_at, write_counts_at};
 use crate::support::*;
 
 use std::sync::Arc;
@@ -31,28 +32,28 @@ fn sliver(centre: [f64; 2], angle: f64, length: f64, width: f64, t: f64) -> [[f3
     ]
 }
 
-/// Write counts of `triangles` (screen triangles at depth 0.5) rendered with one JIT kept
-/// across renders (each render of a fresh JIT would compile the kernel again).
-fn counts(program: &Arc<Program>, jit: &mut Jit, triangles: &[[[f32; 2]; 3]]) -> Vec<u32> {
-    let mut r = renderer(program, W, H, true);
-    for t in triangles {
-        let v = |i: usize| [t[i][0], t[i][1], 0.5, 1.0];
-        screen_triangle(&mut r, [v(0), v(1), v(2)], &[]);
-    }
-    let frame = render_with(&r, jit, 2);
-    frame.write_count_values().unwrap()
+/// Write counts of `triangles` (screen triangles at depth 0.5) at `samples` samples per
+/// pixel, every sample's, rendered with one JIT kept across renders (each render of a fresh
+/// JIT would compile the kernel again).
+fn counts(program: &Arc<Program>, jit: &mut Jit, triangles: &[[[f32; 2]; 3]], samples: u32) -> Vec<u32> {
+    write_counts_at(program, jit, triangles, W, H, samples)
 }
 
-/// The exact reference of several triangles: the sum of their coverages.
-fn reference(triangles: &[[[f32; 2]; 3]]) -> Vec<u32> {
-    let mut sum = vec![0; (W * H) as usize];
+/// The exact reference of several triangles at `samples` samples per pixel: the sum of
+/// their coverages, sample by sample.
+fn reference(triangles: &[[[f32; 2]; 3]], samples: u32) -> Vec<u32> {
+    let mut sum = vec![0; (W * H * samples) as usize];
     for t in triangles {
-        for (s, c) in sum.iter_mut().zip(exact_coverage(*t, W, H)) {
+        for (s, c) in sum.iter_mut().zip(exact_coverage_at(*t, W, H, samples)) {
             *s += c;
         }
     }
     sum
 }
+
+/// The sample counts the slivers are checked at: a single sample (the pixel centre) and the
+/// multisampled patterns whose samples sit off the centre lines.
+const SAMPLE_COUNTS: [u32; 4] = [1, 4, 8, 16];
 
 /// The lengths: inside the 1,024 px exact path, either side of its limit, and the two-limb
 /// path up to 1e5 px.
@@ -90,21 +91,25 @@ fn slivers_cover_exactly_the_pixels_of_the_exact_rasterizer() {
                     [rng.range(12.0, 36.0), rng.range(12.0, 36.0)]
                 };
                 let t = sliver(centre, angle, length, width, rng.range(0.0, 1.0));
-                let got = counts(&program, &mut jit, &[t]);
-                let want = reference(&[t]);
-                let n: u32 = got.iter().sum();
-                drawn += n;
-                nonempty += usize::from(n > 0);
-                if got != want {
-                    let differ = got.iter().zip(&want).filter(|(a, b)| a != b).count();
-                    failed.push((length, width, angle, differ));
+                for samples in SAMPLE_COUNTS {
+                    let got = counts(&program, &mut jit, &[t], samples);
+                    let want = reference(&[t], samples);
+                    if samples == 1 {
+                        let n: u32 = got.iter().sum();
+                        drawn += n;
+                        nonempty += usize::from(n > 0);
+                    }
+                    if got != want {
+                        let differ = got.iter().zip(&want).filter(|(a, b)| a != b).count();
+                        failed.push((samples, length, width, angle, differ));
+                    }
                 }
             }
         }
     }
     assert!(
         failed.is_empty(),
-        "(length, width, angle, differing pixels): {failed:?}"
+        "(samples, length, width, angle, differing pixel samples): {failed:?}"
     );
     // Not vacuous: most slivers reach some pixel centre.
     // Measured: 88 of the 224 slivers reach a pixel centre, 1,446 pixels in all.
@@ -148,14 +153,18 @@ fn sliver_pairs_and_stacks_sharing_edges_cover_each_pixel_once() {
                 }
                 // One band alone (a pair sharing its diagonal), then the whole stack.
                 for set in [&tris[..2], &tris[..]] {
-                    let got = counts(&program, &mut jit, set);
-                    let want = reference(set);
-                    assert!(want.iter().all(|&c| c <= 1), "the reference overlaps");
-                    drawn += got.iter().sum::<u32>();
-                    if got != want {
-                        let twice = got.iter().filter(|&&c| c > 1).count();
-                        let differ = got.iter().zip(&want).filter(|(a, b)| a != b).count();
-                        failed.push((length, width, set.len(), twice, differ));
+                    for samples in SAMPLE_COUNTS {
+                        let got = counts(&program, &mut jit, set, samples);
+                        let want = reference(set, samples);
+                        assert!(want.iter().all(|&c| c <= 1), "the reference overlaps");
+                        if samples == 1 {
+                            drawn += got.iter().sum::<u32>();
+                        }
+                        if got != want {
+                            let twice = got.iter().filter(|&&c| c > 1).count();
+                            let differ = got.iter().zip(&want).filter(|(a, b)| a != b).count();
+                            failed.push((samples, length, width, set.len(), twice, differ));
+                        }
                     }
                 }
             }
@@ -163,7 +172,7 @@ fn sliver_pairs_and_stacks_sharing_edges_cover_each_pixel_once() {
     }
     assert!(
         failed.is_empty(),
-        "(length, width, triangles, pixels written twice, differing pixels): {failed:?}"
+        "(samples, length, width, triangles, pixel samples written twice, differing pixel samples): {failed:?}"
     );
     assert!(drawn > 10_000, "only {drawn} pixels drawn");
 }
