@@ -15,8 +15,9 @@
 //! binning) and its rasterizer thread share one core, as the JIT's one-thread figure has one;
 //! and one with a rasterizer thread per CPU, unpinned, beside the JIT on all threads.
 //! Protocol, one line each way, fields separated by tabs: the child first says `ready
-//! <GL_RENDERER> <cpu>` (`-` when unpinned); `setup <quick 0|1> <workload>` builds that
-//! workload's scene and renders a first frame (shaders compile then); `frame` renders and
+//! <GL_RENDERER> <cpu>` (`-` when unpinned); `setup <quick 0|1> <workload> <samples>` builds
+//! that workload's scene at that many samples per pixel and renders a first frame (shaders
+//! compile then); `frame` renders and
 //! times one more; each answers `ok <ms> <samples passed>` or `error <message>`; end of input
 //! ends the child.
 //!
@@ -103,7 +104,13 @@ impl Llvmpipe {
     /// Build workload `name`'s scene (`quick`: the quick bench's sizes) and render its first
     /// frame (llvmpipe compiles its shaders then).
     pub fn setup(&mut self, quick: bool, name: &str) -> Result<GlFrame, String> {
-        self.ask(&format!("setup\t{}\t{name}", u8::from(quick)))
+        self.setup_samples(quick, name, 1)
+    }
+
+    /// [`Llvmpipe::setup`] rendering `samples` samples per pixel (multisampled
+    /// renderbuffers, resolved into single-sample ones by a blit in every frame).
+    pub fn setup_samples(&mut self, quick: bool, name: &str, samples: u32) -> Result<GlFrame, String> {
+        self.ask(&format!("setup\t{}\t{name}\t{samples}", u8::from(quick)))
     }
 
     /// Render and time one frame of the scene set up last.
@@ -181,7 +188,10 @@ pub fn worker(input: &mut dyn BufRead, output: &mut dyn Write) -> i32 {
         }
         let fields: Vec<&str> = line.trim_end().split('\t').collect();
         let answer = match fields.as_slice() {
-            ["setup", quick, name] => gl.setup(*quick == "1", name),
+            ["setup", quick, name, samples] => match samples.parse() {
+                Ok(n) => gl.setup(*quick == "1", name, n),
+                Err(_) => Err(format!("bad sample count `{samples}`")),
+            },
             ["frame"] => gl.frame(),
             _ => Err(format!("unknown command `{}`", line.trim_end())),
         };
@@ -211,8 +221,12 @@ struct Drawing {
     vao: glow::VertexArray,
     buffer: glow::Buffer,
     framebuffer: glow::Framebuffer,
-    /// Colour, depth.
+    /// Colour, depth (multisampled with more than one sample), and the resolve target's
+    /// colour.
     renderbuffers: Vec<glow::Renderbuffer>,
+    /// With more than one sample: the single-sample framebuffer each frame resolves into,
+    /// and the side.
+    resolve: Option<(glow::Framebuffer, i32)>,
     vertices: i32,
 }
 
@@ -290,11 +304,11 @@ impl Gl {
         })
     }
 
-    fn setup(&mut self, quick: bool, name: &str) -> Result<GlFrame, String> {
+    fn setup(&mut self, quick: bool, name: &str, samples: i32) -> Result<GlFrame, String> {
         let scene = super::gl_scene(quick, name).ok_or_else(|| format!("no llvmpipe scene for `{name}`"))?;
         self.drop_scene();
         // SAFETY: GL calls on the current context with objects it made.
-        let drawing = unsafe { self.upload(&scene)? };
+        let drawing = unsafe { self.upload(&scene, samples)? };
         self.scene = Some(drawing);
         self.frame()
     }
@@ -311,6 +325,11 @@ impl Gl {
             gl.begin_query(glow::SAMPLES_PASSED, self.query);
             gl.draw_arrays(glow::TRIANGLES, 0, d.vertices);
             gl.end_query(glow::SAMPLES_PASSED);
+            if let Some((resolve, size)) = d.resolve {
+                gl.bind_framebuffer(glow::DRAW_FRAMEBUFFER, Some(resolve));
+                gl.blit_framebuffer(0, 0, size, size, 0, 0, size, size, glow::COLOR_BUFFER_BIT, glow::NEAREST);
+                gl.bind_framebuffer(glow::FRAMEBUFFER, Some(d.framebuffer));
+            }
             gl.finish();
             let ms = started.elapsed().as_secs_f64() * 1e3;
             let samples = gl.get_query_parameter_u64(self.query, glow::QUERY_RESULT);
@@ -329,6 +348,9 @@ impl Gl {
                 self.gl.delete_vertex_array(d.vao);
                 self.gl.delete_buffer(d.buffer);
                 self.gl.delete_framebuffer(d.framebuffer);
+                if let Some((resolve, _)) = d.resolve {
+                    self.gl.delete_framebuffer(resolve);
+                }
                 for r in d.renderbuffers {
                     self.gl.delete_renderbuffer(r);
                 }
@@ -340,27 +362,49 @@ impl Gl {
     ///
     /// # Safety
     /// The context is current on this thread.
-    unsafe fn upload(&self, scene: &GlScene) -> Result<Drawing, String> {
+    unsafe fn upload(&self, scene: &GlScene, samples: i32) -> Result<Drawing, String> {
         let gl = &self.gl;
         let size = match scene {
             GlScene::Triangles { size, .. } | GlScene::Spheres { size, .. } => *size as i32,
         };
+        let mut renderbuffers = vec![];
+        // The single-sample colour target a multisampled frame resolves into.
+        let resolve = if samples > 1 {
+            let resolve = gl.create_framebuffer()?;
+            gl.bind_framebuffer(glow::FRAMEBUFFER, Some(resolve));
+            let buffer = gl.create_renderbuffer()?;
+            gl.bind_renderbuffer(glow::RENDERBUFFER, Some(buffer));
+            gl.renderbuffer_storage(glow::RENDERBUFFER, glow::RGBA8, size, size);
+            gl.framebuffer_renderbuffer(glow::FRAMEBUFFER, glow::COLOR_ATTACHMENT0, glow::RENDERBUFFER, Some(buffer));
+            renderbuffers.push(buffer);
+            Some((resolve, size))
+        } else {
+            None
+        };
         let framebuffer = gl.create_framebuffer()?;
         gl.bind_framebuffer(glow::FRAMEBUFFER, Some(framebuffer));
-        let mut renderbuffers = vec![];
         for (format, attachment) in [
             (glow::RGBA8, glow::COLOR_ATTACHMENT0),
             (glow::DEPTH_COMPONENT32F, glow::DEPTH_ATTACHMENT),
         ] {
             let buffer = gl.create_renderbuffer()?;
             gl.bind_renderbuffer(glow::RENDERBUFFER, Some(buffer));
-            gl.renderbuffer_storage(glow::RENDERBUFFER, format, size, size);
+            if samples > 1 {
+                gl.renderbuffer_storage_multisample(glow::RENDERBUFFER, samples, format, size, size);
+            } else {
+                gl.renderbuffer_storage(glow::RENDERBUFFER, format, size, size);
+            }
             gl.framebuffer_renderbuffer(glow::FRAMEBUFFER, attachment, glow::RENDERBUFFER, Some(buffer));
             renderbuffers.push(buffer);
         }
         let status = gl.check_framebuffer_status(glow::FRAMEBUFFER);
         if status != glow::FRAMEBUFFER_COMPLETE {
             return Err(format!("framebuffer incomplete ({status:#x})"));
+        }
+        if samples > 1 {
+            gl.enable(glow::MULTISAMPLE);
+        } else {
+            gl.disable(glow::MULTISAMPLE);
         }
         gl.viewport(0, 0, size, size);
         gl.enable(glow::DEPTH_TEST);
@@ -413,6 +457,7 @@ impl Gl {
             buffer,
             framebuffer,
             renderbuffers,
+            resolve,
             vertices: (data.len() / floats_per_vertex) as i32,
         })
     }

@@ -25,12 +25,14 @@ use crate::jit::Jit;
 use crate::runtime::{render_pool, Frame, KernelSource, Registry, Renderer};
 
 mod llvmpipe;
+mod samples;
 mod scene;
 use crate::workload::{
     bind, effects_scene, layers_for, same_frame, scene, submit, tri_with_params, workloads, EffectSet, GlScene, Lcg,
     Workload, ALL_FLAVORS, EFFECT_SETS, SIZE,
 };
 pub use llvmpipe::worker as llvmpipe_worker;
+pub use samples::{format_samples, SamplesRow, SamplesSeries};
 use llvmpipe::Llvmpipe;
 pub use scene::{
     example_scenes_to_first_pixel, format_scene_report, run_scene, scene_to_first_pixel, SceneBenchOptions,
@@ -242,6 +244,8 @@ pub struct BenchReport {
     pub scenes_to_first_pixel: Vec<SceneToFirstPixel>,
     /// What a frame costs per shading effect (`None` when filtered out).
     pub effects: Option<EffectsSeries>,
+    /// What N samples per pixel cost against one (`None` when filtered out).
+    pub samples: Option<SamplesSeries>,
     /// The JIT's one-thread figures against Mesa llvmpipe's, for the workloads it has.
     pub llvmpipe: Vec<LlvmpipeComparison>,
     /// Which llvmpipe was measured here (renderer, CPU), or why none was.
@@ -740,7 +744,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
     if let Some(exe) = opts
         .llvmpipe
         .as_ref()
-        .filter(|_| selected.iter().any(|w| w.gl.is_some()))
+        .filter(|_| selected.iter().any(|w| w.gl.is_some()) || samples::samples_selected(opts.filter.as_deref()))
     {
         match Llvmpipe::start(exe, 1) {
             Ok(lp) => {
@@ -786,7 +790,22 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
             &bar,
         )?);
     }
-    drop((llvmpipe, llvmpipe_all));
+    drop(llvmpipe_all);
+    let samples = if samples::samples_selected(opts.filter.as_deref()) {
+        bar.set_message("multisampling series");
+        Some(samples::samples_series(
+            &program,
+            opts.quick,
+            runs,
+            &one,
+            &all,
+            llvmpipe.as_mut(),
+            &bar,
+        )?)
+    } else {
+        None
+    };
+    drop(llvmpipe);
     let effects = if effects_selected(opts.filter.as_deref()) {
         bar.set_message("effects series");
         Some(effects_series(
@@ -810,6 +829,7 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport, String> {
         time_to_first_pixel_ms: ttfp,
         scenes_to_first_pixel,
         effects,
+        samples,
         llvmpipe,
         llvmpipe_status,
     })
@@ -871,6 +891,10 @@ pub fn format_table(report: &BenchReport) -> String {
     s.push('\n');
     if let Some(effects) = &report.effects {
         s.push_str(&format_effects(effects));
+        s.push('\n');
+    }
+    if let Some(samples) = &report.samples {
+        s.push_str(&format_samples(samples));
         s.push('\n');
     }
     s.push_str(&format_compile(&report.compile));

@@ -511,12 +511,38 @@ impl Frame {
         ));
     }
 
-    /// This frame's own colours (sample 0's in a multisampled frame), clamped, row-major.
+    /// This frame's own colours (sample 0's in a multisampled frame), clamped, row-major:
+    /// [`Frame::color_at`]'s rule, row by row from the buffers' rows (per pixel through
+    /// `color_at` a 512 x 512 sample took 8 ms).
     fn display_colors(&self) -> Vec<[f32; 3]> {
-        (0..self.height)
-            .flat_map(|y| (0..self.width).map(move |x| (x, y)))
-            .map(|(x, y)| self.sample_color_at(x, y))
-            .collect()
+        let width = self.width as usize;
+        let background = self.background.map(clamp01);
+        let cs = self.param("Cs").filter(|cs| cs.components == 1 || cs.components >= 3);
+        let (zeros, ones) = (vec![0.0f32; width], vec![1.0f32; width]);
+        let mut out = vec![background; width * self.height as usize];
+        for (y, row) in out.chunks_exact_mut(width.max(1)).enumerate() {
+            let Some(depth) = self.row_of(&self.depth, y) else { continue };
+            if let Some(colors) = self.colors.as_ref().and_then(|c| self.row_of(c, y)) {
+                for ((px, &d), c) in row.iter_mut().zip(depth).zip(colors) {
+                    if d != 0 {
+                        *px = c.map(clamp01);
+                    }
+                }
+                continue;
+            }
+            let plane_row = |k: u32| -> &[f32] {
+                let Some(cs) = cs else { return &ones };
+                let plane = cs.first_plane + if cs.components == 1 { 0 } else { k };
+                self.plane_row(plane, y, &zeros)
+            };
+            let (r, g, b) = (plane_row(0), plane_row(1), plane_row(2));
+            for (x, (px, &d)) in row.iter_mut().zip(depth).enumerate() {
+                if d != 0 {
+                    *px = [clamp01(r[x]), clamp01(g[x]), clamp01(b[x])];
+                }
+            }
+        }
+        out
     }
 
     pub fn param(&self, name: &str) -> Option<&ParamPlanes> {
