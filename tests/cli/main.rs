@@ -5,6 +5,7 @@
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
 mod accuracy_cli;
+mod accuracy_coverage;
 mod accuracy_knobs;
 mod bench_effects;
 mod bench_llvmpipe;
