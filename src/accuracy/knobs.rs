@@ -10,6 +10,7 @@
 //! | lighting | a lit icosphere in a wide perspective | per-vertex Phong in LC, WC, DC | colour error |
 //! | depth | a decal 2 mm above a floor, 1 to 300 m away | depth as fixed<32,32>, f32, fixed<24,24>, fixed<16,16>, f16-like | z-fighting pixels |
 //! | shading | a floor and a sphere under every library light and the fog | each library surface | colour error of the f32 kernels against the f64 evaluator (`super::shading`) |
+//! | antialiasing | a sphere on the axis (a disc) and triangles and slivers around it | 1 ... 16 samples, box and Gaussian resolve | resolved coverage against the exact area per pixel (`super::antialiasing`) |
 //!
 //! Every figure compares a setting's buffers with the [`reference`](super::reference)
 //! frame of the same scene; the reference is rendered once per knob, untimed.
@@ -147,6 +148,7 @@ pub fn all<'a>(scenes: &'a Scenes, quick: bool, ctx: &Ctx) -> Vec<Knob<'a>> {
         lighting_knob(quick),
         depth_knob(quick),
         super::shading::shading_knob(ctx, quick),
+        super::antialiasing::antialiasing_knob(quick),
     ]
 }
 
@@ -307,7 +309,7 @@ pub fn silhouette_distance(camera: &Camera, s: &Sphere, x: f64, y: f64) -> f64 {
 /// `device_from_world` (rounded to f32, the API's precision), with no model or view stack:
 /// world, object and lighting coordinates are then one space, so a primitive's points and
 /// its `implicit` normals come back in world coordinates, where the reference works.
-fn world_renderer(ctx: &Ctx, camera: &Camera) -> Result<Renderer, String> {
+pub(super) fn world_renderer(ctx: &Ctx, camera: &Camera) -> Result<Renderer, String> {
     let mut r = Renderer::new(ctx.program.clone());
     r.set_image_size(camera.width, camera.height)
         .map_err(|e| e.to_string())?;
@@ -317,7 +319,7 @@ fn world_renderer(ctx: &Ctx, camera: &Camera) -> Result<Renderer, String> {
 
 /// Close the instances of a renderer filled by hand: any API warning is a failure (an
 /// accuracy figure of a half-submitted scene would mean nothing).
-fn no_warnings(r: &mut Renderer) -> Result<(), String> {
+pub(super) fn no_warnings(r: &mut Renderer) -> Result<(), String> {
     match r.take_warnings().first() {
         Some(w) => Err(w.to_string()),
         None => Ok(()),

@@ -15,6 +15,7 @@
 //! vertices, then the render (bound pass, binning, kernels). Compilation is excluded: the
 //! first, untimed render compiles every kernel.
 
+pub mod antialiasing;
 pub mod coverage;
 pub mod knobs;
 pub mod plot;

@@ -327,7 +327,18 @@ impl Gl {
             gl.end_query(glow::SAMPLES_PASSED);
             if let Some((resolve, size)) = d.resolve {
                 gl.bind_framebuffer(glow::DRAW_FRAMEBUFFER, Some(resolve));
-                gl.blit_framebuffer(0, 0, size, size, 0, 0, size, size, glow::COLOR_BUFFER_BIT, glow::NEAREST);
+                gl.blit_framebuffer(
+                    0,
+                    0,
+                    size,
+                    size,
+                    0,
+                    0,
+                    size,
+                    size,
+                    glow::COLOR_BUFFER_BIT,
+                    glow::NEAREST,
+                );
                 gl.bind_framebuffer(glow::FRAMEBUFFER, Some(d.framebuffer));
             }
             gl.finish();
@@ -375,7 +386,12 @@ impl Gl {
             let buffer = gl.create_renderbuffer()?;
             gl.bind_renderbuffer(glow::RENDERBUFFER, Some(buffer));
             gl.renderbuffer_storage(glow::RENDERBUFFER, glow::RGBA8, size, size);
-            gl.framebuffer_renderbuffer(glow::FRAMEBUFFER, glow::COLOR_ATTACHMENT0, glow::RENDERBUFFER, Some(buffer));
+            gl.framebuffer_renderbuffer(
+                glow::FRAMEBUFFER,
+                glow::COLOR_ATTACHMENT0,
+                glow::RENDERBUFFER,
+                Some(buffer),
+            );
             renderbuffers.push(buffer);
             Some((resolve, size))
         } else {

@@ -32,8 +32,8 @@ use crate::workload::{
     Workload, ALL_FLAVORS, EFFECT_SETS, SIZE,
 };
 pub use llvmpipe::worker as llvmpipe_worker;
-pub use samples::{format_samples, SamplesRow, SamplesSeries};
 use llvmpipe::Llvmpipe;
+pub use samples::{format_samples, SamplesRow, SamplesSeries};
 pub use scene::{
     example_scenes_to_first_pixel, format_scene_report, run_scene, scene_to_first_pixel, SceneBenchOptions,
     SceneBenchReport, SceneToFirstPixel, SCENE_TTFP_RUNS,

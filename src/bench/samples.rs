@@ -92,10 +92,17 @@ pub(super) fn samples_series(
             }
             let image = single.frame.to_rgb8();
             if !single.frame.same_buffers(&multi.frame) || image != multi.frame.to_rgb8() {
-                return Err(format!("{} at {n} samples: the frame depends on the thread count", w.name));
+                return Err(format!(
+                    "{} at {n} samples: the frame depends on the thread count",
+                    w.name
+                ));
             }
             if single.frame.sample_count() != n as usize {
-                return Err(format!("{} at {n} samples: the frame has {}", w.name, single.frame.sample_count()));
+                return Err(format!(
+                    "{} at {n} samples: the frame has {}",
+                    w.name,
+                    single.frame.sample_count()
+                ));
             }
             bar.inc(2);
         }
@@ -125,14 +132,21 @@ pub(super) fn samples_series(
         let frames_of = |t: &[[f64; 3]]| t.iter().map(|x| x[0]).collect::<Vec<_>>();
         let med = |t: &[[f64; 3]], k: usize| median(t.iter().map(|x| x[k]).collect());
         for (i, (&n, t)) in counts.iter().zip(&times).enumerate() {
-            let gl = LLVMPIPE_SAMPLES.iter().position(|&m| m == n).filter(|&k| !gl_times[k].is_empty());
+            let gl = LLVMPIPE_SAMPLES
+                .iter()
+                .position(|&m| m == n)
+                .filter(|&k| !gl_times[k].is_empty());
             rows.push(SamplesRow {
                 workload: w.name.clone(),
                 samples: n,
                 frame_ms: med(t, 0),
                 tiles_ms: med(t, 1),
                 shade_ms: med(t, 2),
-                ratio_to_one: if i == 0 { 1.0 } else { paired(&frames_of(t), &frames_of(&times[0])) },
+                ratio_to_one: if i == 0 {
+                    1.0
+                } else {
+                    paired(&frames_of(t), &frames_of(&times[0]))
+                },
                 llvmpipe_ms: gl.map(|k| median(gl_times[k].clone())),
                 llvmpipe_ratio_to_one: gl.map(|k| median(gl_times[k].clone()) / median(gl_times[0].clone())),
             });

@@ -521,7 +521,9 @@ impl Frame {
         let (zeros, ones) = (vec![0.0f32; width], vec![1.0f32; width]);
         let mut out = vec![background; width * self.height as usize];
         for (y, row) in out.chunks_exact_mut(width.max(1)).enumerate() {
-            let Some(depth) = self.row_of(&self.depth, y) else { continue };
+            let Some(depth) = self.row_of(&self.depth, y) else {
+                continue;
+            };
             if let Some(colors) = self.colors.as_ref().and_then(|c| self.row_of(c, y)) {
                 for ((px, &d), c) in row.iter_mut().zip(depth).zip(colors) {
                     if d != 0 {

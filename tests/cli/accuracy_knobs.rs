@@ -352,3 +352,48 @@ fn library_shaders_in_f32_stay_within_their_bound_of_the_f64_evaluator() {
         assert_eq!(r.max, 0.0, "{}", r.setting);
     }
 }
+
+/// The antialiasing knob: a disc (the sphere on the axis) and triangles down to 0.2 px
+/// slivers, resolved grey levels against the exact area per pixel (`accuracy::coverage`).
+/// Every added sample lowers the mean error on the edge pixels (measured: 0.207, 0.126,
+/// 0.072, 0.052, 0.036 for 1, 2, 4, 8, 16 samples), and 16 box-filtered samples stay within
+/// 0.05 on average and 0.25 at worst (measured 0.163; the bound is 1/16 of a pixel area per
+/// sample an edge puts on the wrong side, and a sliver's worst pixel loses 2 or 3), where one
+/// sample is off by at least half a pixel somewhere. Source: the D3D/Vulkan standard sample
+/// patterns' stratification; tolerances are the measured figures with margin.
+#[test]
+fn more_samples_bring_the_resolved_coverage_closer_to_the_exact_area() {
+    let k = knob("antialiasing");
+    let edge = |setting: &str| row(&k, setting, "coverage error, edge pixels");
+    let means: Vec<f64> = [
+        "1 sample",
+        "2 samples, box",
+        "4 samples, box",
+        "8 samples, box",
+        "16 samples, box",
+    ]
+    .iter()
+    .map(|s| edge(s).mean)
+    .collect();
+    assert!(
+        means.windows(2).all(|w| w[1] < w[0]),
+        "edge errors by sample count: {means:?}"
+    );
+    assert!(edge("1 sample").max >= 0.5, "{}", edge("1 sample").max);
+    let best = edge("16 samples, box");
+    assert!(
+        best.mean < 0.05 && best.max < 0.25,
+        "16 samples: mean {} max {}",
+        best.mean,
+        best.max
+    );
+    assert!(best.pixels > 500, "only {} edge pixels", best.pixels);
+    // The Gaussian blurs: against the box area it is worse than the box at 16 samples, and
+    // still far better than one sample.
+    let gauss = edge("16 samples, gaussian");
+    assert!(
+        gauss.mean > best.mean && gauss.mean < means[0] / 2.0,
+        "gaussian {}",
+        gauss.mean
+    );
+}

@@ -5,6 +5,7 @@
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
 
+mod antialiasing;
 mod api;
 mod api_example;
 mod binning;
