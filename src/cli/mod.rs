@@ -1,5 +1,6 @@
 //! The `primflow` command line: `check` (diagnostics and compiler dumps for `.prim` files),
-//! `render` (a scene file to PNG images), `trace` (why one pixel of a scene looks as it
+//! `render` (a scene file to PNG images), `watch` and `serve` (render again on every save,
+//! in the terminal or in a browser), `trace` (why one pixel of a scene looks as it
 //! does, see [`trace`](crate::trace)), `test` (scene files with expectations, see
 //! [`testing`](crate::testing)), `bench` (JIT kernels against hand-written ones) and
 //! `accuracy` (error vs time per accuracy knob).
@@ -21,6 +22,8 @@ use crate::ir::{FuncKind, Program};
 use crate::jit::Jit;
 use crate::runtime::{describe_key, Registry, Renderer};
 
+mod serve;
+mod sources;
 mod watch;
 
 #[derive(Parser, Debug)]
@@ -43,6 +46,10 @@ pub enum Command {
     /// Render a scene, then again each time it or a .prim file it may read is saved (until
     /// interrupted); errors are printed and the watch goes on.
     Watch(RenderArgs),
+    /// A live preview in the browser: the render, depth and shading parameters, rendered
+    /// again on every save; diagnostics, times, the scene's sources to edit and a pixel's
+    /// trace on a click. Listens on 127.0.0.1 unless `--bind` says otherwise.
+    Serve(serve::ServeArgs),
     /// Show why a pixel looks as it does: every instance that reaches it, in draw order,
     /// with the statements that ran there, the values assigned, where it retired and what
     /// it wrote, checked against the rendered frame.
@@ -298,6 +305,7 @@ where
         Command::Check(args) => check(&args, out, err),
         Command::Render(args) => render(&args, out, err),
         Command::Watch(args) => watch::watch(&args, out, err),
+        Command::Serve(args) => serve::serve(&args, out, err),
         Command::Trace(args) => trace(&args, out, err),
         Command::Test(args) => test(&args, out),
         Command::Bench(args) => bench(&args, out, err),

@@ -1,5 +1,5 @@
 //! The command line: `render`, `check`, `test`, `bench` (effects, llvmpipe, `--scene`),
-//! `accuracy` and `trace`, run in-process or as the built binary; the `# expect:` lines `test` reads
+//! `accuracy`, `trace`, `watch` and `serve`, run in-process or as the built binary; the `# expect:` lines `test` reads
 //! (`expectations`) and the bench report's arithmetic (`bench_report`).
 //!
 //! One test binary per layer keeps the suite to a handful of links; one module per concern.
@@ -15,6 +15,7 @@ mod cli_run;
 mod expectations;
 mod fuzz_campaign;
 mod output_files;
+mod serve;
 #[path = "../support/mod.rs"]
 mod support;
 mod trace;
