@@ -231,6 +231,12 @@ pub fn trace(
     let opts = &renderer.options;
     let (width, height) = (frame.width, frame.height);
     let (px, py) = pixel;
+    if frame.sample_count() > 1 {
+        return Err(format!(
+            "the frame has {} samples per pixel; a trace runs at the pixel centre and checks a one-sample frame: render with samples 1",
+            frame.sample_count()
+        ));
+    }
     if px >= width || py >= height {
         return Err(format!(
             "pixel ({px}, {py}) is outside the {width}x{height} image (x in 0..={}, y in 0..={})",

@@ -780,10 +780,20 @@ fn trace(args: &TraceArgs, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     };
     let mut diags = Diagnostics::new();
     let base = args.scene.parent().unwrap_or(Path::new("."));
-    let Some((renderer, objects)) = crate::scene::load_objects(&mut sources, scene_file, base, &args.prims, &mut diags)
+    let Some((mut renderer, objects)) =
+        crate::scene::load_objects(&mut sources, scene_file, base, &args.prims, &mut diags)
     else {
         return scene_errors(&diags, &sources, "traced", err);
     };
+    // The trace evaluates at the pixel centre: the frame it checks against is one sample.
+    if renderer.options.samples != 1 {
+        let _ = writeln!(
+            out,
+            "note: the scene's `samples {}` is ignored: the trace runs at the pixel centre, one sample per pixel",
+            renderer.options.samples
+        );
+        renderer.options.samples = 1;
+    }
     // Checked before rendering: the frame is clamped to the same size.
     let (width, height) = (
         renderer.options.width.min(crate::runtime::MAX_IMAGE_SIDE),

@@ -306,3 +306,43 @@ fn trace_of_a_primitive_that_calls_others_says_where_each_call_ended() {
         "{out}"
     );
 }
+
+/// A scene with `samples 4`: the trace says it runs one sample at the pixel centre and
+/// agrees with that frame; `render --samples` refuses a count outside the allowed set and
+/// renders an antialiased image otherwise: pixel (10, 8), whose centre is just below the red
+/// triangle's slanted edge (y = 4 + (x - 4) 2/3), is the blue behind it at 1 sample, and at 4
+/// samples has two samples above the edge (at (10.375, 8.125) and (10.875, 8.375)) and two
+/// below, so half red, half blue.
+#[test]
+fn trace_runs_one_sample_and_render_takes_samples() {
+    let text = format!("samples 4\n{TWO}");
+    let scene = scene_file("aa.scene", &text);
+    let s = scene.to_str().unwrap();
+    let (code, out, err) = cli(&["trace", s, "--pixel", "20,6"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.starts_with(
+            "note: the scene's `samples 4` is ignored: the trace runs at the pixel centre, one sample per pixel\n"
+        ),
+        "{out}"
+    );
+    assert!(
+        out.contains("agrees with the rendered frame: depth, Cs at (20, 6) equal bit for bit"),
+        "{out}"
+    );
+    let (code, _, err) = cli(&["render", s, "-o", "/dev/null/x.png", "--samples", "3"]);
+    assert_eq!(code, 1);
+    assert!(
+        err.contains("3 samples per pixel is not supported: use 1, 2, 4, 8 or 16"),
+        "{err}"
+    );
+    let dir = scene.parent().unwrap();
+    let png = |n: &str| dir.join(format!("aa{n}.png"));
+    for n in ["1", "4"] {
+        let (code, _, err) = cli(&["render", s, "-o", png(n).to_str().unwrap(), "--samples", n]);
+        assert_eq!(code, 0, "{err}");
+    }
+    let pixel = |n: &str| image::open(png(n)).unwrap().to_rgb8().get_pixel(10, 8).0;
+    assert_eq!(pixel("1"), [0, 0, 255]);
+    assert_eq!(pixel("4"), [128, 0, 128]);
+}
