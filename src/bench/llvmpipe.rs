@@ -15,9 +15,9 @@
 //! binning) and its rasterizer thread share one core, as the JIT's one-thread figure has one;
 //! and one with a rasterizer thread per CPU, unpinned, beside the JIT on all threads.
 //! Protocol, one line each way, fields separated by tabs: the child first says `ready
-//! <GL_RENDERER> <cpu>` (`-` when unpinned); `setup <quick 0|1> <workload> <samples>` builds
-//! that workload's scene at that many samples per pixel and renders a first frame (shaders
-//! compile then); `frame` renders and
+//! <GL_RENDERER> <cpu>` (`-` when unpinned); `setup <quick 0|1> <workload> [<samples>]` builds
+//! that workload's scene at that many samples per pixel (default 1) and renders a first frame
+//! (shaders compile then); `frame` renders and
 //! times one more; each answers `ok <ms> <samples passed>` or `error <message>`; end of input
 //! ends the child.
 //!
@@ -188,6 +188,7 @@ pub fn worker(input: &mut dyn BufRead, output: &mut dyn Write) -> i32 {
         }
         let fields: Vec<&str> = line.trim_end().split('\t').collect();
         let answer = match fields.as_slice() {
+            ["setup", quick, name] => gl.setup(*quick == "1", name, 1),
             ["setup", quick, name, samples] => match samples.parse() {
                 Ok(n) => gl.setup(*quick == "1", name, n),
                 Err(_) => Err(format!("bad sample count `{samples}`")),

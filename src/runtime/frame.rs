@@ -580,9 +580,10 @@ impl Frame {
     /// elsewhere the background.
     pub fn color_at(&self, x: u32, y: u32) -> [f32; 3] {
         if let Some(resolved) = &self.resolved {
-            return (x < self.width && y < self.height)
-                .then(|| resolved[y as usize * self.width as usize + x as usize])
-                .unwrap_or(self.background.map(clamp01));
+            if x < self.width && y < self.height {
+                return resolved[y as usize * self.width as usize + x as usize];
+            }
+            return self.background.map(clamp01);
         }
         self.sample_color_at(x, y)
     }

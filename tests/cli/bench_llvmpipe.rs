@@ -97,6 +97,12 @@ fn the_worker_draws_the_workloads_own_pixels() {
         assert_eq!(samples(&first), 20 * 512 * 512, "{name}");
         assert_eq!(samples(&w.ask("frame")), 20 * 512 * 512, "{name}");
     }
+    // Multisampled (the bench's multisampling series): the query counts samples, 4 a pixel.
+    let msaa = w.ask("setup\t1\tfill perspective_linear K=4\t4");
+    assert_eq!(samples(&msaa), 4 * 20 * 512 * 512, "{msaa}");
+    assert!(w
+        .ask("setup\t1\tfill none K=0\tmany")
+        .starts_with("error\tbad sample count"));
     // 20 000 triangles of 20 px: about 400 000 pixels.
     let small = samples(&w.ask("setup\t1\tsmall perspective_linear K=4"));
     assert!((390_000..410_000).contains(&small), "{small}");

@@ -330,7 +330,8 @@ fn trace_runs_one_sample_and_render_takes_samples() {
         out.contains("agrees with the rendered frame: depth, Cs at (20, 6) equal bit for bit"),
         "{out}"
     );
-    let (code, _, err) = cli(&["render", s, "-o", "/dev/null/x.png", "--samples", "3"]);
+    let refused = scene.with_file_name("refused.png");
+    let (code, _, err) = cli(&["render", s, "-o", refused.to_str().unwrap(), "--samples", "3"]);
     assert_eq!(code, 1);
     assert!(
         err.contains("3 samples per pixel is not supported: use 1, 2, 4, 8 or 16"),

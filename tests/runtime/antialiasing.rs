@@ -48,7 +48,7 @@ fn a_pixel_half_covered_by_samples_resolves_to_half() {
             assert_eq!(image.get_pixel(10, y).0, [if samples == 1 { 0 } else { 128 }; 3]);
         }
         let coverage = frame.coverage_values();
-        assert_eq!(coverage[10], want_10 as f32);
+        assert_eq!(coverage[10], want_10);
         assert_eq!(coverage.iter().filter(|&&c| c == 1.0).count(), 10 * 8);
     }
 }
