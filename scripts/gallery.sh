@@ -10,3 +10,8 @@ for scene in triangles geometry shaders spheres nurb_surface interpolators lines
     target/debug/primflow render "examples/$scene.scene" -o "$out/$scene.png" > /dev/null
     echo "$out/$scene.png"
 done
+# The same scenes antialiased: 16 samples per pixel, box resolve (docs/antialiasing.md).
+for scene in shaders lines; do
+    target/debug/primflow render "examples/$scene.scene" -o "$out/$scene-16x.png" --samples 16 > /dev/null
+    echo "$out/$scene-16x.png"
+done
