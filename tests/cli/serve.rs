@@ -4,11 +4,11 @@
 //! Chromium: its script shows the rendered image, a new image after an edit, and the
 //! diagnostic of an edit that breaks a source.
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::mpsc::{channel, Receiver};
+use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
@@ -48,28 +48,12 @@ fn start(name: &str) -> Serve {
     std::fs::create_dir_all(dir.join("my")).unwrap();
     std::fs::write(dir.join("my/halfplane.prim"), halfplane(4)).unwrap();
     std::fs::write(dir.join("a.scene"), SCENE).unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_primflow"))
-        .args(["serve", "a.scene", "--port", "0", "--threads", "2"])
-        .current_dir(&dir)
-        .env_remove("PRIMFLOW_PRIMS")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let (tx, lines) = channel();
-    let stdout = child.stdout.take().unwrap();
-    let stderr = child.stderr.take().unwrap();
-    let tx2 = tx.clone();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-            let _ = tx.send(line);
-        }
-    });
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            let _ = tx2.send(format!("err: {line}"));
-        }
-    });
+    let (child, lines) = crate::support::spawn_with_lines(
+        Command::new(env!("CARGO_BIN_EXE_primflow"))
+            .args(["serve", "a.scene", "--port", "0", "--threads", "2"])
+            .current_dir(&dir)
+            .env_remove("PRIMFLOW_PRIMS"),
+    );
     let first = lines
         .recv_timeout(Duration::from_secs(30))
         .expect("serve printed nothing");

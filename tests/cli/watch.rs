@@ -2,10 +2,9 @@
 //! is saved (the new pixels land in the image), prints a compile error and goes on, and
 //! reports a deleted scene instead of exiting.
 
-use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc::{channel, Receiver};
+use std::process::{Child, Command};
+use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
 /// The watch process, killed when the test ends (passing or not).
@@ -44,29 +43,13 @@ impl Watch {
 }
 
 fn start(dir: &Path, args: &[&str]) -> Watch {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_primflow"))
-        .arg("watch")
-        .args(args)
-        .current_dir(dir)
-        .env_remove("PRIMFLOW_PRIMS")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let (tx, lines) = channel();
-    let stdout = child.stdout.take().unwrap();
-    let stderr = child.stderr.take().unwrap();
-    let tx2 = tx.clone();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-            let _ = tx.send(line);
-        }
-    });
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            let _ = tx2.send(format!("err: {line}"));
-        }
-    });
+    let (child, lines) = crate::support::spawn_with_lines(
+        Command::new(env!("CARGO_BIN_EXE_primflow"))
+            .arg("watch")
+            .args(args)
+            .current_dir(dir)
+            .env_remove("PRIMFLOW_PRIMS"),
+    );
     Watch { child, lines }
 }
 

@@ -15,6 +15,32 @@ use primflow::ir::Program;
 use primflow::jit::{Jit, JitOptions, Tier};
 use primflow::runtime::{Frame, Registry, RenderOptions, Renderer, Value};
 
+/// Start `command` with its stdout and stderr piped, and forward their lines to one channel
+/// as they come (stderr's prefixed `err: `): a long-running command (`watch`, `serve`) read
+/// line by line without blocking on either pipe.
+pub fn spawn_with_lines(
+    command: &mut std::process::Command,
+) -> (std::process::Child, std::sync::mpsc::Receiver<String>) {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    let mut child = command.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    let (tx, lines) = std::sync::mpsc::channel();
+    let stdout = child.stdout.take().unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let tx2 = tx.clone();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            let _ = tx.send(line);
+        }
+    });
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            let _ = tx2.send(format!("err: {line}"));
+        }
+    });
+    (child, lines)
+}
+
 /// Run the command line in-process: (exit code, stdout, stderr).
 pub fn cli(args: &[&str]) -> (i32, String, String) {
     let mut out = vec![];
