@@ -516,31 +516,20 @@ impl Frame {
     /// `color_at` a 512 x 512 sample took 8 ms).
     fn display_colors(&self) -> Vec<[f32; 3]> {
         let width = self.width as usize;
-        let background = self.background.map(clamp01);
-        let cs = self.param("Cs").filter(|cs| cs.components == 1 || cs.components >= 3);
         let (zeros, ones) = (vec![0.0f32; width], vec![1.0f32; width]);
-        let mut out = vec![background; width * self.height as usize];
+        let mut out = vec![self.background.map(clamp01); width * self.height as usize];
         for (y, row) in out.chunks_exact_mut(width.max(1)).enumerate() {
             let Some(depth) = self.row_of(&self.depth, y) else {
                 continue;
             };
-            if let Some(colors) = self.colors.as_ref().and_then(|c| self.row_of(c, y)) {
-                for ((px, &d), c) in row.iter_mut().zip(depth).zip(colors) {
-                    if d != 0 {
-                        *px = c.map(clamp01);
-                    }
-                }
-                continue;
-            }
-            let plane_row = |k: u32| -> &[f32] {
-                let Some(cs) = cs else { return &ones };
-                let plane = cs.first_plane + if cs.components == 1 { 0 } else { k };
-                self.plane_row(plane, y, &zeros)
-            };
-            let (r, g, b) = (plane_row(0), plane_row(1), plane_row(2));
+            let colors = self.row_colors(y, &zeros, &ones);
             for (x, (px, &d)) in row.iter_mut().zip(depth).enumerate() {
                 if d != 0 {
-                    *px = [clamp01(r[x]), clamp01(g[x]), clamp01(b[x])];
+                    let c = match colors {
+                        RowColors::Shaded(c) => c[x],
+                        RowColors::Planes([r, g, b]) => [r[x], g[x], b[x]],
+                    };
+                    *px = c.map(clamp01);
                 }
             }
         }
@@ -740,9 +729,6 @@ impl Frame {
         }
         let width = self.width as usize;
         let background = self.background.map(to_u8);
-        // Without shaded colours a pixel is Cs: 3 planes, or one as gray; a plane the frame
-        // lacks reads 0 (as in `plane_at`); no Cs (or one of 2 components) is white.
-        let cs = self.param("Cs").filter(|cs| cs.components == 1 || cs.components >= 3);
         let (zeros, ones) = (vec![0.0f32; width], vec![1.0f32; width]);
         // A row's colours as bytes: interleaved when shaded, else the r, g and b rows.
         let mut bytes = vec![0u8; width * 3];
@@ -761,19 +747,33 @@ impl Frame {
                     px[2] = if written { c[2] } else { background[2] };
                 }
             };
-            if let Some(colors) = self.colors.as_ref().and_then(|c| self.row_of(c, y)) {
-                to_u8_row(colors.as_flattened(), &mut bytes);
-                put(&mut bytes.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
-                return;
+            match self.row_colors(y, &zeros, &ones) {
+                RowColors::Shaded(colors) => {
+                    to_u8_row(colors.as_flattened(), &mut bytes);
+                    put(&mut bytes.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+                }
+                RowColors::Planes(rgb) => {
+                    let [r, g, b] = rows_to_u8(rgb, &mut bytes);
+                    put(&mut r.iter().zip(g).zip(b).map(|((&r, &g), &b)| [r, g, b]));
+                }
             }
-            let plane_row = |k: u32| -> &[f32] {
-                let Some(cs) = cs else { return &ones };
-                let plane = cs.first_plane + if cs.components == 1 { 0 } else { k };
-                self.plane_row(plane, y, &zeros)
-            };
-            let [r, g, b] = rows_to_u8([plane_row(0), plane_row(1), plane_row(2)], &mut bytes);
-            put(&mut r.iter().zip(g).zip(b).map(|((&r, &g), &b)| [r, g, b]));
         })
+    }
+
+    /// Where row `y`'s colours come from for a pixel whose depth was written
+    /// ([`Frame::color_at`]'s rule, unclamped): the shading pass's colours when it ran, else
+    /// `Cs`'s r, g and b plane rows (one plane three times for a 1-component `Cs`; `zeros`
+    /// for a plane the frame lacks, as `plane_at` reads it; `ones`, white, without a `Cs`
+    /// of 1 or 3+ components). `zeros` and `ones` are a row long.
+    fn row_colors<'b>(&'b self, y: usize, zeros: &'b [f32], ones: &'b [f32]) -> RowColors<'b> {
+        if let Some(colors) = self.colors.as_ref().and_then(|c| self.row_of(c, y)) {
+            return RowColors::Shaded(colors);
+        }
+        let cs = self.param("Cs").filter(|cs| cs.components == 1 || cs.components >= 3);
+        RowColors::Planes([0, 1, 2].map(|k| match cs {
+            None => ones,
+            Some(cs) => self.plane_row(cs.first_plane + if cs.components == 1 { 0 } else { k }, y, zeros),
+        }))
     }
 
     /// Depth as 16-bit gray, nearer brighter (the top 16 bits of the raw depth).
@@ -843,6 +843,15 @@ impl Frame {
 /// replaced by `vec![zero; len]` rather than grown: for zero that is the allocator's untouched
 /// zero pages (no serial clearing pass; the parallel tile tasks touch them first), where
 /// `resize` would write every element here, serially.
+/// A row's colours, as [`Frame::row_colors`] finds them.
+#[derive(Clone, Copy)]
+enum RowColors<'b> {
+    /// The shading pass's, interleaved.
+    Shaded(&'b [[f32; 3]]),
+    /// `Cs`'s r, g and b rows.
+    Planes([&'b [f32]; 3]),
+}
+
 fn fit<T: Clone>(mut buf: Vec<T>, len: usize, zero: T) -> Vec<T> {
     if buf.capacity() < len {
         return vec![zero; len];
